@@ -1,0 +1,3 @@
+from cobot_analysis.cli import main
+
+main()

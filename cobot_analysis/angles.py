@@ -1,0 +1,37 @@
+"""Angles: wrapping, unwrapping and circular means (radians throughout)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def wrap(angle):
+    """Wrap to (-pi, pi]: ``pi - ((pi - a) mod 2 pi)``."""
+    return np.pi - np.mod(np.pi - np.asarray(angle, dtype=float), 2 * np.pi)
+
+
+def angle_diff(a, b):
+    """Smallest signed difference ``a - b`` wrapped to (-pi, pi]."""
+    return wrap(np.asarray(a, dtype=float) - np.asarray(b, dtype=float))
+
+
+def circular_mean(angles, axis=0, weights=None):
+    """Circular mean ``atan2(sum w sin a, sum w cos a)`` along ``axis``, ignoring NaN.
+
+    Returns NaN where every value is NaN.
+    """
+    a = np.asarray(angles, dtype=float)
+    w = np.ones_like(a) if weights is None else np.broadcast_to(np.asarray(weights, dtype=float), a.shape)
+    valid = ~np.isnan(a)
+    s = np.where(valid, w * np.sin(np.where(valid, a, 0.0)), 0.0).sum(axis=axis)
+    c = np.where(valid, w * np.cos(np.where(valid, a, 0.0)), 0.0).sum(axis=axis)
+    out = np.arctan2(s, c)
+    return np.where(valid.any(axis=axis), out, np.nan)
+
+
+def circular_std(angles, axis=0):
+    """Circular standard deviation ``sqrt(-2 ln R)``, R the mean resultant length (NaN ignored)."""
+    a = np.asarray(angles, dtype=float)
+    with np.errstate(invalid="ignore"):
+        r = np.hypot(np.nanmean(np.sin(a), axis=axis), np.nanmean(np.cos(a), axis=axis))
+        return np.sqrt(-2.0 * np.log(np.clip(r, 1e-300, 1.0)))

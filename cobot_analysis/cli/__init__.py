@@ -1,0 +1,57 @@
+"""Command-line entry point: ``cobot-analysis`` (see ``cobot_analysis.cli.app``).
+
+``run(argv)`` returns the exit code (0 ok, 1 internal error, 2 bad usage or bad input) and is
+what tests call; ``main()`` exits with it.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+import sys
+import traceback
+
+import typer
+from typer.exceptions import TyperException
+
+from cobot_analysis.cli.app import app
+from cobot_analysis.console import console, verbosity
+from cobot_analysis.errors import InputError, SolverError
+
+# Every module of this package registers its commands on import.
+for _mod in pkgutil.iter_modules(__path__):
+    if _mod.name != "app":
+        importlib.import_module(f"{__name__}.{_mod.name}")
+
+
+def _error(message: str) -> None:
+    console.print(f"[bold red]error:[/bold red] {message}", soft_wrap=True, markup=True, highlight=False)
+
+
+def run(argv: list[str] | None = None) -> int:
+    try:
+        rv = app(args=argv, prog_name="cobot-analysis", standalone_mode=False)
+        return rv if isinstance(rv, int) else 0
+    except (InputError, SolverError) as exc:
+        _error(str(exc).replace("[", r"\["))
+        return 2
+    except typer.Exit as exc:
+        return exc.exit_code
+    except TyperException as exc:  # usage errors (typer's click): it prints them itself
+        exc.show()
+        return 2
+    except typer.Abort:
+        _error("aborted")
+        return 130
+    except KeyboardInterrupt:
+        _error("interrupted")
+        return 130
+    except Exception as exc:  # noqa: BLE001 - the last line of defence of the CLI
+        if verbosity() >= 2:
+            traceback.print_exc()
+        _error(f"internal error: {type(exc).__name__}: {exc} (re-run with -v for the traceback and report it)".replace("[", r"\["))
+        return 1
+
+
+def main() -> None:
+    sys.exit(run())

@@ -1,0 +1,23 @@
+"""``cobot-analysis schemas``: print the documented Parquet schemas (docs/schemas.md)."""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+
+import typer
+
+import cobot_analysis
+from cobot_analysis.cli.app import PANEL_REPORT, app
+
+
+@app.command("schemas", rich_help_panel=PANEL_REPORT)
+def schemas_command() -> None:
+    """Print the columns, units and descriptions of every Parquet table, as Markdown."""
+    # Import every module so that all TableSchema declarations are registered.
+    for mod in pkgutil.walk_packages(cobot_analysis.__path__, "cobot_analysis."):
+        if not mod.name.startswith("cobot_analysis.cli"):
+            importlib.import_module(mod.name)
+    from cobot_analysis.schema import schemas_markdown
+
+    typer.echo(schemas_markdown())

@@ -1,0 +1,142 @@
+"""The protocol file: which raw file is which trial, of whom, in which condition.
+
+A protocol is a YAML file::
+
+    study: synthetic-walking
+    rate: 200                  # Hz, optional (the raw file's own rate wins when it has one)
+    entities:                  # label prefix in the raw files ("S1:LASI") -> entity
+      S1: subject1
+      S2: subject2
+      Table: table
+    marker_map:                # optional: lab label -> canonical label (ISB names, TAB1..TAB3)
+      L_ASIS: LASI
+    subjects: subjects.csv     # or an inline list of mappings: id, sex, weight (kg), height (m)
+    pairs: pairs.csv           # pair study: id, subject1, subject2
+    trials: trials.csv         # or an inline list; columns below
+
+Trials columns: ``trial`` (unique id), ``file`` (relative to the protocol file), and the trial
+metadata of ``schema.TRIAL_COLUMNS`` that apply (subject or pair, condition, direction, scenario,
+configuration, end_orientation, repetition). CSV paths are relative to the protocol file.
+
+Canonical markers: pelvis LASI RASI LPSI RPSI; feet LHEE LTOE LMT5 / RHEE RTOE RMT5; head LFHD
+RFHD LBHD RBHD; table TAB1 TAB2 TAB3 with TAB1->TAB2 along a long side and TAB1->TAB3 along a
+short side (TAB2 and TAB3 are opposite corners).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from cobot_analysis.errors import InputError
+
+PELVIS_MARKERS = ("LASI", "RASI", "LPSI", "RPSI")
+FOOT_MARKERS = ("LHEE", "LTOE", "LMT5", "RHEE", "RTOE", "RMT5")
+HEAD_MARKERS = ("LFHD", "RFHD", "LBHD", "RBHD")
+SUBJECT_MARKERS = PELVIS_MARKERS + FOOT_MARKERS + HEAD_MARKERS
+TABLE_MARKERS = ("TAB1", "TAB2", "TAB3")
+ENTITIES = ("walker", "subject1", "subject2", "table")
+DEFAULT_ENTITIES = {"S1": "subject1", "S2": "subject2", "Table": "table", "TABLE": "table"}
+
+
+@dataclass
+class Protocol:
+    path: Path
+    study: str
+    trials: pd.DataFrame
+    subjects: pd.DataFrame = field(default_factory=pd.DataFrame)
+    pairs: pd.DataFrame = field(default_factory=pd.DataFrame)
+    rate: float | None = None
+    entities: dict[str, str] = field(default_factory=lambda: dict(DEFAULT_ENTITIES))
+    marker_map: dict[str, str] = field(default_factory=dict)
+
+    def trial_file(self, row: pd.Series) -> Path:
+        return (self.path.parent / str(row["file"])).resolve()
+
+    def resolve_label(self, label: str, default_entity: str = "walker") -> tuple[str, str]:
+        """Raw label -> (entity, canonical marker). ``"S1:LASI"`` -> ``("subject1", "LASI")``."""
+        prefix, _, name = label.rpartition(":")
+        name = self.marker_map.get(label, self.marker_map.get(name, name)).strip()
+        entity = self.entities.get(prefix, prefix.lower()) if prefix else default_entity
+        if name in TABLE_MARKERS and not prefix:
+            entity = "table"
+        return entity, name
+
+
+def _table(value: Any, base: Path, what: str, protocol_path: Path) -> pd.DataFrame:
+    if value is None:
+        return pd.DataFrame()
+    if isinstance(value, list):
+        return pd.DataFrame(value)
+    csv = base / str(value)
+    if not csv.is_file():
+        raise InputError(f"{what} file {value} not found", path=protocol_path, remedy="fix the path (relative to the protocol file)")
+    return pd.read_csv(csv)
+
+
+def load_protocol(path: str | os.PathLike) -> Protocol:
+    """Read and check a protocol file: every trial file it names must exist."""
+    import yaml
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("protocol file not found", path=path, remedy="pass the protocol YAML written with the data (e.g. protocol.yaml)")
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise InputError(f"not a valid YAML protocol ({type(exc).__name__})", path=path, remedy="check its syntax") from exc
+    if not isinstance(doc, dict) or "trials" not in doc:
+        raise InputError("protocol has no 'trials' section", path=path, remedy="list the trials (inline or as a CSV path)")
+    base = path.parent
+    trials = _table(doc["trials"], base, "trials", path)
+    for col in ("trial", "file"):
+        if col not in trials.columns:
+            raise InputError(f"trials table has no '{col}' column", path=path, remedy="add it (see docs/protocol.md)")
+    if trials.empty:
+        raise InputError("protocol lists no trials", path=path, remedy="add at least one trial")
+    dup = trials["trial"][trials["trial"].duplicated()].unique()
+    if len(dup):
+        raise InputError(f"duplicated trial ids {list(dup[:5])}", path=path, remedy="make trial ids unique")
+    proto = Protocol(
+        path=path.resolve(),
+        study=str(doc.get("study", path.parent.name)),
+        trials=trials,
+        subjects=_table(doc.get("subjects"), base, "subjects", path),
+        pairs=_table(doc.get("pairs"), base, "pairs", path),
+        rate=float(doc["rate"]) if doc.get("rate") else None,
+        entities={**DEFAULT_ENTITIES, **(doc.get("entities") or {})},
+        marker_map=dict(doc.get("marker_map") or {}),
+    )
+    for _, row in trials.iterrows():
+        f = proto.trial_file(row)
+        if not f.is_file():
+            raise InputError(f"trial {row['trial']} names file {row['file']}, which does not exist", path=path,
+                             remedy="fix the 'file' column or restore the file")
+    return proto
+
+
+def save_protocol(path: str | os.PathLike, study: str, trials: pd.DataFrame, *, subjects: pd.DataFrame | None = None,
+                  pairs: pd.DataFrame | None = None, rate: float | None = None, marker_map: dict[str, str] | None = None,
+                  entities: dict[str, str] | None = None) -> Path:
+    """Write ``protocol.yaml`` with its trials (and subjects, pairs) as CSV files beside it."""
+    import yaml
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    doc: dict[str, Any] = {"study": study}
+    if rate:
+        doc["rate"] = rate
+    if entities:
+        doc["entities"] = entities
+    if marker_map:
+        doc["marker_map"] = marker_map
+    for name, df in (("subjects", subjects), ("pairs", pairs), ("trials", trials)):
+        if df is not None and not df.empty:
+            df.to_csv(path.parent / f"{name}.csv", index=False)
+            doc[name] = f"{name}.csv"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return path

@@ -1,0 +1,201 @@
+"""Parquet tables of the pipeline: documented columns, units, and file metadata.
+
+Every table a stage writes is declared as a ``TableSchema``; ``write_table`` checks the columns,
+stores the schema (name, version, per-column unit and description) and any stage metadata (e.g.
+sampling rate, source units) in the Parquet key-value metadata under ``cobot_analysis``, and
+writes atomically (temporary file, then rename). ``read_table`` checks a file is the table it
+claims to be and returns the DataFrame with its metadata in ``df.attrs["cobot_analysis"]``.
+
+Angles are in radians, lengths in metres, times in seconds, unless a column says otherwise.
+``docs/schemas.md`` is generated from the declarations (``cobot-analysis schemas``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from cobot_analysis.errors import InputError
+
+METADATA_KEY = b"cobot_analysis"
+SCHEMAS: dict[str, "TableSchema"] = {}
+
+
+@dataclass(frozen=True)
+class Column:
+    dtype: str  # pandas dtype family: "string", "int", "float", "bool"
+    unit: str  # "m", "rad", "s", "%", "-" (dimensionless), "" for labels
+    description: str
+    required: bool = True
+
+
+@dataclass(frozen=True)
+class TableSchema:
+    name: str
+    version: int
+    description: str
+    columns: dict[str, Column] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        SCHEMAS[self.name] = self
+
+    @property
+    def required(self) -> list[str]:
+        return [c for c, spec in self.columns.items() if spec.required]
+
+    def metadata(self) -> dict[str, Any]:
+        return {
+            "table": self.name,
+            "schema_version": self.version,
+            "description": self.description,
+            "columns": {c: {"unit": s.unit, "description": s.description} for c, s in self.columns.items()},
+        }
+
+
+# ---------------------------------------------------------------------------------------------
+# Shared vocabulary of trial metadata (METHODS.md sec. 1). Columns that do not apply are null.
+TRIAL_COLUMNS: dict[str, Column] = {
+    "study": Column("string", "", "study name, e.g. walking-2020, pair-carriage-2022, synthetic-walking"),
+    "trial": Column("string", "", "trial identifier, unique within the study"),
+    "kind": Column("string", "", "'trial' (one recording) or 'mean' (a published or computed mean)"),
+    "n_trials": Column("int", "-", "number of recordings behind the row (1 for a trial)"),
+    "subject": Column("string", "", "walking study: subject id", required=False),
+    "pair": Column("string", "", "pair study: pair id", required=False),
+    "condition": Column("string", "", "walking: start condition code (e.g. E4015); pairs: goal (e.g. d1_p4)"),
+    "direction": Column("string", "", "pair study: 'forward' (start->goal) or 'return'", required=False),
+    "scenario": Column("int", "-", "pair study: 1 = S1 leader, 2 = S2 leader, 3 = both know the goal", required=False),
+    "configuration": Column("string", "", "pair study: end configuration family ('gris': 0/pi, 'jaune': +-pi/2)", required=False),
+    "end_orientation": Column("float", "rad", "pair study: table orientation at the end of the path", required=False),
+    "repetition": Column("int", "-", "repetition number of the trial within its condition", required=False),
+}
+
+MARKERS = TableSchema(
+    name="markers",
+    version=1,
+    description="Raw marker trajectories, tidy long format: one row per trial, frame and marker.",
+    columns={
+        "trial": Column("string", "", "trial identifier (protocol file)"),
+        "frame": Column("int", "-", "frame index from 0"),
+        "time": Column("float", "s", "frame / rate"),
+        "entity": Column("string", "", "who carries the marker: walker, subject1, subject2, table"),
+        "marker": Column("string", "", "canonical marker label (ISB: LASI RASI LPSI RPSI ...; table: TAB1..TAB3)"),
+        "x": Column("float", "m", "position, laboratory frame"),
+        "y": Column("float", "m", "position, laboratory frame"),
+        "z": Column("float", "m", "position, laboratory frame (vertical)"),
+        "occluded": Column("bool", "", "true where the system lost the marker (x, y, z are NaN there)"),
+    },
+)
+
+TRIALS = TableSchema(
+    name="trials",
+    version=1,
+    description="One row per imported recording: its protocol metadata and how it was read.",
+    columns={
+        **TRIAL_COLUMNS,
+        "file": Column("string", "", "raw file, as named in the protocol (resolved path)"),
+        "sha256": Column("string", "", "content hash of the raw file"),
+        "source_format": Column("string", "", "c3d, vicon-csv or qualisys-tsv"),
+        "source_units": Column("string", "", "length unit of the raw file (mm or m)"),
+        "rate": Column("float", "Hz", "marker sampling rate"),
+        "n_frames": Column("int", "-", "number of frames in the recording"),
+    },
+)
+
+TRAJECTORIES = TableSchema(
+    name="trajectories",
+    version=1,
+    description=(
+        "Time-normalised trajectories, long format: one row per trajectory (trial x entity) and "
+        "sample. Orientation is NaN where it could not be computed (quality says why)."
+    ),
+    columns={
+        **TRIAL_COLUMNS,
+        "entity": Column("string", "", "walker (walking study), subject1, subject2 or table"),
+        "sample": Column("int", "-", "sample index 0..N-1 of the time-normalised trajectory"),
+        "phase": Column("float", "%", "100 * sample / (N - 1): 0 = onset, 100 = offset (both included)"),
+        "time": Column("float", "s", "phase * travel_time / 100; NaN when the duration is unknown"),
+        "record_time": Column("float", "s", "time in the raw recording (onset_time + time); NaN if unknown", required=False),
+        "x": Column("float", "m", "pelvis CoM (subjects) or table centre, horizontal"),
+        "y": Column("float", "m", "pelvis CoM (subjects) or table centre, horizontal"),
+        "theta": Column("float", "rad", "global orientation (pelvis normal or table long axis), unwrapped"),
+        "gamma": Column("float", "rad", "local orientation: theta minus the path tangent, wrapped to (-pi, pi]", required=False),
+        "vx": Column("float", "m/s", "CoM velocity", required=False),
+        "vy": Column("float", "m/s", "CoM velocity", required=False),
+        "travel_time": Column("float", "s", "duration of the trajectory (onset to offset); NaN if unknown"),
+        "travelled_distance": Column("float", "m", "straight-line distance start -> end position (METHODS.md sec. 3)"),
+        "quality": Column("string", "", "'ok' or ';'-separated flags, e.g. orientation_missing;long_gap"),
+    },
+)
+
+
+# ---------------------------------------------------------------------------------------------
+def write_table(df: pd.DataFrame, path: str | os.PathLike, schema: TableSchema, **metadata: Any) -> Path:
+    """Write ``df`` as the Parquet table ``schema`` at ``path`` (atomic: temp file then rename)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    missing = [c for c in schema.required if c not in df.columns]
+    if missing:
+        raise ValueError(f"table {schema.name} lacks required columns {missing}")
+    table = pa.Table.from_pandas(df, preserve_index=False)
+    meta = dict(table.schema.metadata or {})
+    meta[METADATA_KEY] = json.dumps({**schema.metadata(), **metadata}, default=str).encode()
+    table = table.replace_schema_metadata(meta)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp")
+    try:
+        pq.write_table(table, tmp, compression="zstd")
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path
+
+
+def table_metadata(path: str | os.PathLike) -> dict[str, Any]:
+    """The ``cobot_analysis`` metadata of a Parquet file (schema, units, stage metadata)."""
+    import pyarrow.parquet as pq
+
+    meta = pq.read_schema(path).metadata or {}
+    raw = meta.get(METADATA_KEY)
+    return json.loads(raw) if raw else {}
+
+
+def read_table(path: str | os.PathLike, schema: TableSchema, columns: list[str] | None = None) -> pd.DataFrame:
+    """Read a table written by ``write_table``; bad or foreign files raise ``InputError``."""
+    import pyarrow.parquet as pq
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("file not found", path=path, remedy=f"run the stage that writes {schema.name} first or check --out")
+    try:
+        meta = table_metadata(path)
+        df = pq.read_table(path, columns=columns).to_pandas()
+    except Exception as exc:  # pyarrow raises several types for corrupt files
+        raise InputError(f"not a readable Parquet file ({type(exc).__name__})", path=path, remedy="re-run the stage that wrote it") from exc
+    if meta.get("table") != schema.name:
+        raise InputError(f"is not a {schema.name} table (found {meta.get('table')!r})", path=path, remedy="pass the right file")
+    need = schema.required if columns is None else [c for c in columns if c in schema.required]
+    missing = [c for c in need if c not in df.columns]
+    if missing:
+        raise InputError(f"{schema.name} table lacks columns {missing}", path=path, remedy="re-run the stage that wrote it")
+    df.attrs["cobot_analysis"] = meta
+    return df
+
+
+def schemas_markdown() -> str:
+    """Markdown documentation of every declared table (docs/schemas.md)."""
+    lines = ["# Parquet tables", "", "Generated by `cobot-analysis schemas`; units are stored in each file's metadata.", ""]
+    for schema in sorted(SCHEMAS.values(), key=lambda s: s.name):
+        lines += [f"## `{schema.name}` (version {schema.version})", "", schema.description, "",
+                  "| column | type | unit | description |", "|---|---|---|---|"]
+        for name, col in schema.columns.items():
+            opt = "" if col.required else " (optional)"
+            lines.append(f"| `{name}` | {col.dtype}{opt} | {col.unit} | {col.description} |")
+        lines.append("")
+    return "\n".join(lines)

@@ -1,0 +1,41 @@
+"""Shared fixtures: the published datasets (skipped cleanly when absent) and CLI invocation."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def datasets_dir() -> Path | None:
+    """``$COBOT_DATASETS`` or ``../shared/datasets`` beside the project, if present."""
+    env = os.environ.get("COBOT_DATASETS")
+    for cand in ([Path(env)] if env else []) + [ROOT.parent / "shared" / "datasets"]:
+        if cand.is_dir():
+            return cand
+    return None
+
+
+@pytest.fixture(scope="session")
+def datasets() -> Path:
+    path = datasets_dir()
+    if path is None:
+        pytest.skip("published datasets not found: set $COBOT_DATASETS or place them in ../shared/datasets")
+    return path
+
+
+@pytest.fixture
+def cli(capsys):
+    """Run the CLI in-process: ``code, out, err = cli("import", ...)``."""
+    from cobot_analysis.cli import run
+
+    def invoke(*args: str):
+        capsys.readouterr()
+        code = run([str(a) for a in args])
+        captured = capsys.readouterr()
+        return code, captured.out, captured.err
+
+    return invoke
