@@ -1,0 +1,77 @@
+"""``demo`` (the whole pipeline on the embedded synthetic default) and ``results``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from cobot_analysis.cli.app import PANEL_REPORT, DEFAULT_OUT_PATH, OutOpt, app
+
+
+@app.command("results", rich_help_panel=PANEL_REPORT)
+def results_command(
+    workspaces: Annotated[list[Path], typer.Argument(help="Workspaces whose stages wrote results.md fragments.")],
+    to: Annotated[Path, typer.Option("--to", help="Markdown file to write.")] = Path("docs/results.md"),
+    title: Annotated[str, typer.Option(help="Title of the document.")] = "Results",
+) -> None:
+    """Assemble docs/results.md from the results.md fragments of the given workspaces (generated, never typed)."""
+    import os
+
+    from cobot_analysis.console import info
+    from cobot_analysis.pipeline import assemble_results
+
+    text = assemble_results(workspaces, title=title)
+    to.parent.mkdir(parents=True, exist_ok=True)
+    tmp = to.with_name(f".{to.name}.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, to)
+    info(f"results written to [bold]{to}[/bold]")
+
+
+def demo_steps(out: Path, small: bool, jobs: int | None) -> dict[str, list[list[str]]]:
+    """The stage commands of the demo, per study workspace (what a user would type)."""
+    walking, pairs, loc = out / "walking", out / "pairs", out / "localisation"
+    j = ["--jobs", str(jobs)] if jobs else []
+    size_w = ["--subjects", "2", "--trials", "1", "--conditions", "8"] if small else []
+    size_p = ["--pairs", "2", "--goals", "3"] if small else []
+    return {
+        "walking": [
+            ["synth", "walking", "--out", str(walking), *size_w],
+            ["import", str(walking / "synth-walking" / "protocol.yaml"), "--out", str(walking), *j],
+            ["preprocess", "--out", str(walking), *j],
+        ],
+        "pairs": [
+            ["synth", "pairs", "--out", str(pairs), *size_p],
+            ["import", str(pairs / "synth-pairs" / "protocol.yaml"), "--out", str(pairs), *j],
+            ["preprocess", "--out", str(pairs), *j],
+        ],
+        "localisation": [
+            ["synth", "localisation", "--out", str(loc)],
+        ],
+    }
+
+
+@app.command("demo", rich_help_panel=PANEL_REPORT)
+def demo_command(
+    out: OutOpt = DEFAULT_OUT_PATH,
+    small: Annotated[bool, typer.Option("--small", help="A few trials per study (a quick look) instead of the full design.")] = False,
+    jobs: Annotated[int | None, typer.Option("--jobs", "-j", min=1, help="Local worker processes (default: all cores).")] = None,
+) -> None:
+    """Run the whole pipeline on the embedded synthetic studies and write a report.
+
+    Generates the synthetic walking study (raw C3D), pair-carriage study and a robot run (rosbags),
+    runs every stage on each, then writes OUT/report.md. Each study has its own workspace under
+    OUT; stages already up to date are skipped.
+    """
+    from cobot_analysis.console import info
+    from cobot_analysis.pipeline import assemble_results, run_steps
+
+    studies = demo_steps(out, small, jobs)
+    for steps in studies.values():
+        run_steps(steps)
+    report = out / "report.md"
+    report.write_text(assemble_results([out / s for s in studies], title="cobot-analysis demo report (synthetic studies)"))
+    info(f"\n[bold green]done[/bold green]: report [bold]{report}[/bold]; Parquet outputs under "
+         + ", ".join(f"[bold]{out / s}[/bold]" for s in studies))
