@@ -1,0 +1,389 @@
+"""Pose streams from ROS bags: ROS1 ``.bag``, ROS2 bag directories (sqlite3 or MCAP storage),
+standalone ``.mcap`` / ``.db3`` files.
+
+Containers are read with rosbags (``AnyReader``); MCAP files whose channels carry ROS1-encoded
+messages (as written by ``mcap-ros1-support``), which rosbags reads as CDR, go through the mcap
+library and are decoded with the rosbags ROS1 deserialiser. Messages give poses as:
+
+- ``geometry_msgs/PoseStamped`` and ``nav_msgs/Odometry``: ``pose.position`` / ``pose.orientation``;
+- ``geometry_msgs/TransformStamped``: ``transform.translation`` / ``transform.rotation``;
+- ``tf2_msgs/TFMessage`` on ``/tf`` and ``/tf_static``: the pose of ``child`` in ``parent``
+  (spec ``tf:PARENT->CHILD``), chained over intermediate frames when it is not a single edge:
+  ``T_parent_child(t) = T_1(t) T_2(t) ... T_k(t)`` along the path of the frame tree, static edges
+  constant, dynamic edges interpolated (linear / slerp) at the stamps of the sparsest dynamic edge.
+
+Stamps are header stamps (``sec + nanosec 1e-9``) unless ``time="record"`` (the bag's receive
+time). Streams are sorted by time (with a warning when they were not) and exact duplicates of a
+stamp are dropped.
+"""
+
+from __future__ import annotations
+
+import os
+from collections import defaultdict, deque
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from cobot_analysis.console import warn
+from cobot_analysis.errors import InputError
+from cobot_analysis.localisation.poses import PoseStream, compose, invert, normalise, slerp
+
+POSE_TYPES = ("geometry_msgs/msg/PoseStamped", "nav_msgs/msg/Odometry", "geometry_msgs/msg/TransformStamped")
+TF_TYPE = "tf2_msgs/msg/TFMessage"
+TF_TOPICS = ("/tf", "/tf_static")
+SUPPORTED = POSE_TYPES + (TF_TYPE,)
+TF_MSGDEF = "geometry_msgs/TransformStamped[] transforms\n"
+
+
+@dataclass(frozen=True)
+class PoseSpec:
+    """Where a pose stream is in a bag: a topic, or a tf frame pair ``tf:PARENT->CHILD``."""
+
+    topic: str | None = None
+    parent: str | None = None
+    child: str | None = None
+
+    @classmethod
+    def parse(cls, text: str) -> "PoseSpec":
+        text = text.strip()
+        if text.startswith("tf:"):
+            parent, sep, child = text[3:].partition("->")
+            if not sep or not parent.strip() or not child.strip():
+                raise InputError(f"bad tf pose spec {text!r}", remedy="write it tf:PARENT->CHILD, e.g. tf:map->base_link")
+            return cls(parent=_frame(parent), child=_frame(child))
+        if not text:
+            raise InputError("empty pose topic", remedy="pass a topic such as /icp/pose or tf:map->base_link")
+        return cls(topic=text)
+
+    @property
+    def is_tf(self) -> bool:
+        return self.topic is None
+
+    def __str__(self) -> str:
+        return f"tf:{self.parent}->{self.child}" if self.is_tf else str(self.topic)
+
+
+def _frame(name: str) -> str:
+    return name.strip().lstrip("/")
+
+
+# ---- containers -------------------------------------------------------------------------------
+@dataclass
+class Topic:
+    name: str
+    msgtype: str
+    count: int
+
+
+class _Source:
+    """A bag opened for reading: its topics and an iterator of ``(topic, msgtype, record_ns, msg)``."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self.topics: dict[str, Topic] = {}
+
+    def messages(self, topics: list[str]) -> Iterator[tuple[str, str, int, object]]:  # pragma: no cover
+        raise NotImplementedError
+
+
+class _RosbagsSource(_Source):
+    def __init__(self, path: Path, reader):
+        super().__init__(path)
+        self.reader = reader
+        for c in reader.connections:
+            t = self.topics.setdefault(c.topic, Topic(c.topic, c.msgtype, 0))
+            t.count += c.msgcount
+
+    def messages(self, topics):
+        conns = [c for c in self.reader.connections if c.topic in topics]
+        for c, ts, raw in self.reader.messages(connections=conns):
+            yield c.topic, c.msgtype, ts, self.reader.deserialize(raw, c.msgtype)
+
+
+class _McapRos1Source(_Source):
+    """MCAP with ROS1-encoded channels: containers by the mcap library, decoding by rosbags."""
+
+    def __init__(self, path: Path, fh, reader, summary):
+        from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+        super().__init__(path)
+        self.reader = reader
+        self.store = get_typestore(Stores.ROS1_NOETIC)
+        self.channels = {}
+        counts = summary.statistics.channel_message_counts if summary.statistics else {}
+        for cid, ch in summary.channels.items():
+            schema = summary.schemas[ch.schema_id]
+            msgtype = _ros2_name(schema.name)
+            if msgtype not in self.store.types:
+                self.store.register(get_types_from_msg(schema.data.decode(), msgtype))
+            self.channels[cid] = (ch.topic, msgtype)
+            t = self.topics.setdefault(ch.topic, Topic(ch.topic, msgtype, 0))
+            t.count += counts.get(cid, 0)
+
+    def messages(self, topics):
+        for _schema, channel, message in self.reader.iter_messages(topics=list(topics), log_time_order=True):
+            topic, msgtype = self.channels[channel.id]
+            yield topic, msgtype, message.log_time, self.store.deserialize_ros1(message.data, msgtype)
+
+
+def _ros2_name(name: str) -> str:
+    """``geometry_msgs/PoseStamped`` -> ``geometry_msgs/msg/PoseStamped``."""
+    parts = name.split("/")
+    return name if len(parts) == 3 or len(parts) < 2 else f"{parts[0]}/msg/{parts[1]}"
+
+
+def _mcap_ros1_summary(path: Path, fh):
+    """The mcap summary if every channel of the file is ROS1-encoded, else None."""
+    from mcap.reader import make_reader
+
+    reader = make_reader(fh)
+    summary = reader.get_summary()
+    if summary is None or not summary.channels:
+        return None, None
+    if all(ch.message_encoding == "ros1" for ch in summary.channels.values()):
+        return reader, summary
+    return None, None
+
+
+_NOT_A_BAG = "give a ROS1 .bag file, a ROS2 bag directory (with metadata.yaml), or an .mcap/.db3 file"
+
+
+@contextmanager
+def open_bag(path: str | os.PathLike) -> Iterator[_Source]:
+    """Open a bag of any supported kind; unreadable input raises ``InputError`` naming the file."""
+    path = Path(path)
+    if not path.exists():
+        raise InputError("no such file or directory", path=path, remedy=_NOT_A_BAG)
+    if path.is_file() and path.suffix not in (".bag", ".mcap", ".db3"):
+        raise InputError(f"not a ROS bag (unknown extension {path.suffix!r})", path=path, remedy=_NOT_A_BAG)
+    if path.is_dir() and not (path / "metadata.yaml").is_file():
+        raise InputError("not a ROS2 bag directory (no metadata.yaml)", path=path, remedy=_NOT_A_BAG)
+    from rosbags.highlevel import AnyReader
+
+    try:
+        if path.suffix == ".mcap":
+            with open(path, "rb") as fh:
+                try:
+                    reader, summary = _mcap_ros1_summary(path, fh)
+                except Exception:  # noqa: BLE001 - let rosbags try (it also scans unindexed files)
+                    reader, summary = None, None
+                if reader is not None:
+                    yield _McapRos1Source(path, fh, reader, summary)
+                    return
+        with AnyReader([path]) as reader:
+            yield _RosbagsSource(path, reader)
+    except InputError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - rosbags/mcap raise many types on corrupt input
+        raise InputError(f"not a readable ROS bag ({type(exc).__name__}: {exc})".replace("\n", " "), path=path,
+                         remedy="the file may be truncated or corrupt: re-export or reindex it (rosbag reindex) "
+                                "and check it with `cobot-analysis bag-info`") from exc
+
+
+# ---- bag-info ---------------------------------------------------------------------------------
+def bag_info(path: str | os.PathLike) -> tuple[list[dict], list[dict]]:
+    """Per topic: type, count, first/last record time, rate; and the tf edges with their counts."""
+    rows, edges = [], defaultdict(lambda: {"count": 0, "static": False})
+    with open_bag(path) as src:
+        topics = sorted(src.topics)
+        first, last = {}, {}
+        for topic, msgtype, ts, msg in _checked(src, topics):
+            first.setdefault(topic, ts)
+            last[topic] = ts
+            if msgtype == TF_TYPE:
+                for tr in msg.transforms:
+                    e = edges[(_frame(tr.header.frame_id), _frame(tr.child_frame_id))]
+                    e["count"] += 1
+                    e["static"] |= topic == "/tf_static"
+        for name in topics:
+            t = src.topics[name]
+            t0, t1 = first.get(name), last.get(name)
+            n = t.count or 0
+            span = (t1 - t0) / 1e9 if t0 is not None else 0.0
+            rows.append({"topic": name, "type": t.msgtype.replace("/msg/", "/"), "count": n,
+                         "start": t0 / 1e9 if t0 is not None else float("nan"),
+                         "end": t1 / 1e9 if t1 is not None else float("nan"),
+                         "rate": (n - 1) / span if n > 1 and span > 0 else float("nan"),
+                         "pose": t.msgtype in SUPPORTED})
+    return rows, [{"parent": p, "child": c, **v} for (p, c), v in sorted(edges.items())]
+
+
+def _checked(src: _Source, topics) -> Iterator[tuple[str, str, int, object]]:
+    try:
+        yield from src.messages(topics)
+    except InputError:
+        raise
+    except Exception as exc:  # noqa: BLE001
+        raise InputError(f"cannot read the messages ({type(exc).__name__}: {exc})".replace("\n", " "), path=src.path,
+                         remedy="the bag may be truncated or corrupt: re-export or reindex it") from exc
+
+
+# ---- pose streams -----------------------------------------------------------------------------
+def _stamp(msg) -> float:
+    s = msg.header.stamp
+    return s.sec + s.nanosec * 1e-9
+
+
+def _pose_of(msg, msgtype: str):
+    if msgtype == "geometry_msgs/msg/TransformStamped":
+        p, q = msg.transform.translation, msg.transform.rotation
+    elif msgtype == "nav_msgs/msg/Odometry":
+        p, q = msg.pose.pose.position, msg.pose.pose.orientation
+    else:
+        p, q = msg.pose.position, msg.pose.orientation
+    return (p.x, p.y, p.z), (q.x, q.y, q.z, q.w)
+
+
+def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str = "header") -> dict[str, PoseStream]:
+    """Read several pose streams in one pass over the bag: ``{name: PoseStream}``."""
+    if time not in ("header", "record"):
+        raise ValueError("time must be 'header' or 'record'")
+    path = Path(path)
+    with open_bag(path) as src:
+        need = set()
+        for spec in specs.values():
+            if spec.is_tf:
+                present = [t for t in TF_TOPICS if t in src.topics]
+                if not present:
+                    raise InputError(f"no /tf or /tf_static topic for {spec}", path=path,
+                                     remedy=f"topics in the bag: {_topic_list(src)}")
+                need.update(present)
+            else:
+                if spec.topic not in src.topics:
+                    raise InputError(f"no topic {spec.topic}", path=path, remedy=f"topics in the bag: {_topic_list(src)}")
+                mt = src.topics[spec.topic].msgtype
+                if mt not in POSE_TYPES and mt != TF_TYPE:
+                    raise InputError(f"topic {spec.topic} has message type {mt.replace('/msg/', '/')}, which holds no pose",
+                                     path=path, remedy="use a PoseStamped, TransformStamped, Odometry topic or tf:PARENT->CHILD")
+                if mt == TF_TYPE:
+                    raise InputError(f"topic {spec.topic} is a tf topic", path=path, remedy="ask for a frame pair: tf:PARENT->CHILD")
+                need.add(spec.topic)
+        data: dict[str, list] = defaultdict(list)
+        tf: dict[tuple[str, str], list] = defaultdict(list)
+        static: dict[tuple[str, str], tuple] = {}
+        frame_ids: dict[str, str] = {}
+        for topic, msgtype, ts, msg in _checked(src, sorted(need)):
+            if msgtype == TF_TYPE:
+                for tr in msg.transforms:
+                    key = (_frame(tr.header.frame_id), _frame(tr.child_frame_id))
+                    pose = _pose_of(tr, "geometry_msgs/msg/TransformStamped")
+                    if topic == "/tf_static":
+                        static[key] = pose
+                    else:
+                        tf[key].append((_stamp(tr) if time == "header" else ts * 1e-9, *pose[0], *pose[1]))
+            else:
+                p, q = _pose_of(msg, msgtype)
+                frame_ids.setdefault(topic, _frame(msg.header.frame_id))
+                data[topic].append((_stamp(msg) if time == "header" else ts * 1e-9, *p, *q))
+    out = {}
+    for name, spec in specs.items():
+        if spec.is_tf:
+            out[name] = _chain(path, spec, tf, static)
+        else:
+            rows = np.asarray(data[spec.topic], dtype=float).reshape(-1, 8)
+            if len(rows) == 0:
+                raise InputError(f"topic {spec.topic} has no messages", path=path, remedy=f"topics in the bag: {_topic_list_from(data)}")
+            out[name] = _stream(path, str(spec), rows, frame_ids.get(spec.topic, ""))
+    return out
+
+
+def _topic_list(src: _Source) -> str:
+    return ", ".join(f"{t.name} ({t.msgtype.replace('/msg/', '/')}, {t.count})" for t in sorted(src.topics.values(), key=lambda t: t.name))
+
+
+def _topic_list_from(data) -> str:
+    return ", ".join(sorted(data)) or "none"
+
+
+def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "") -> PoseStream:
+    """Sorted, de-duplicated stream from rows ``(t, x, y, z, qx, qy, qz, qw)``."""
+    if not np.all(np.isfinite(rows)):
+        bad = int((~np.isfinite(rows)).any(axis=1).sum())
+        warn(f"{path}: {name}: {bad} message(s) with NaN/inf dropped")
+        rows = rows[np.isfinite(rows).all(axis=1)]
+    t = rows[:, 0]
+    if np.any(np.diff(t) < 0):
+        warn(f"{path}: {name}: stamps are not monotonic; sorted by stamp")
+        rows = rows[np.argsort(t, kind="stable")]
+        t = rows[:, 0]
+    dup = np.concatenate([[False], np.diff(t) == 0])
+    if dup.any():
+        warn(f"{path}: {name}: {int(dup.sum())} message(s) with a repeated stamp dropped")
+        rows = rows[~dup]
+    return PoseStream(rows[:, 0].copy(), rows[:, 1:4].copy(), normalise(rows[:, 4:8]), name=name, frame_id=frame_id)
+
+
+def _chain(path: Path, spec: PoseSpec, tf: dict, static: dict) -> PoseStream:
+    """Pose of ``spec.child`` in ``spec.parent`` through the frame tree (see module docstring)."""
+    edges = set(tf) | set(static)
+    graph = defaultdict(set)
+    for p, c in edges:
+        graph[p].add(c)
+        graph[c].add(p)
+    frames = sorted(graph)
+    if spec.parent not in graph or spec.child not in graph:
+        missing = [f for f in (spec.parent, spec.child) if f not in graph]
+        raise InputError(f"tf frame(s) {', '.join(missing)} not in the bag", path=path,
+                         remedy=f"frames in /tf and /tf_static: {', '.join(frames) or 'none'}")
+    # Breadth-first search for the path parent -> ... -> child.
+    prev = {spec.parent: None}
+    queue = deque([spec.parent])
+    while queue:
+        f = queue.popleft()
+        for g in sorted(graph[f]):
+            if g not in prev:
+                prev[g] = f
+                queue.append(g)
+    if spec.child not in prev:
+        raise InputError(f"tf frames {spec.parent} and {spec.child} are not connected", path=path,
+                         remedy=f"frames in /tf and /tf_static: {', '.join(frames)}; edges: "
+                                + ", ".join(f"{p}->{c}" for p, c in sorted(edges)))
+    hops = []
+    f = spec.child
+    while prev[f] is not None:
+        hops.append((prev[f], f))
+        f = prev[f]
+    hops.reverse()
+    dynamic = {}
+    for a, b in hops:
+        key = (a, b) if (a, b) in edges else (b, a)
+        if key in tf:
+            rows = np.asarray(tf[key], dtype=float)
+            dynamic[key] = _stream(path, f"tf:{key[0]}->{key[1]}", rows)
+    if not dynamic:
+        raise InputError(f"tf:{spec.parent}->{spec.child} is static (only /tf_static edges)", path=path,
+                         remedy="pick a frame pair that moves, e.g. map->base_link")
+    base = min(dynamic.values(), key=len)
+    t = base.t
+    valid = np.ones(len(t), bool)
+    for s in dynamic.values():
+        valid &= (t >= s.t[0]) & (t <= s.t[-1])
+    t = t[valid]
+    p = np.zeros((len(t), 3))
+    q = np.tile([0.0, 0.0, 0.0, 1.0], (len(t), 1))
+    for a, b in hops:
+        forward = (a, b) in edges
+        key = (a, b) if forward else (b, a)
+        if key in dynamic:
+            ep, eq = _interpolate(dynamic[key], t)
+        else:
+            sp, sq = static[key]
+            ep, eq = np.tile(sp, (len(t), 1)), np.tile(normalise(np.asarray(sq, dtype=float)), (len(t), 1))
+        if not forward:
+            ep, eq = invert(ep, eq)
+        p, q = compose(p, q, ep, eq)
+    return PoseStream(t, p, normalise(q), name=str(spec), frame_id=spec.parent)
+
+
+def _interpolate(s: PoseStream, t: np.ndarray):
+    """Linear position and slerp orientation of ``s`` at ``t`` (inside its time range)."""
+    if len(s) == 1:
+        return np.tile(s.xyz[0], (len(t), 1)), np.tile(s.quat[0], (len(t), 1))
+    i = np.clip(np.searchsorted(s.t, t, side="right"), 1, len(s) - 1)
+    f = np.clip((t - s.t[i - 1]) / (s.t[i] - s.t[i - 1]), 0.0, 1.0)
+    xyz = s.xyz[i - 1] + f[:, None] * (s.xyz[i] - s.xyz[i - 1])
+    return xyz, slerp(s.quat[i - 1], s.quat[i], f)
