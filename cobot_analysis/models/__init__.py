@@ -1,0 +1,163 @@
+"""Walking-path models (METHODS.md sec. 5): one API for all of them.
+
+    from cobot_analysis.models import generate
+    df = generate("improved", start=(-1.5, -3.4, 0.0), goal=(0.0, 0.0, math.pi / 2), weights="walking-2021")
+
+``generate`` returns the columns of measured trajectories (x, y, theta, gamma, vx, vy, time, phase,
+...) plus the model's velocities and controls, so generated and measured paths go through the
+same metrics, figures and reports. Models: ``unicycle``, ``clothoid``, ``mombaur``, ``improved``
+and ``table`` (the improved model with the table preset); ``coupled`` lives in ``coupled.py``.
+
+OC models are solved on a grid of ``n_intervals`` (default 100) and resampled to ``n_samples``
+with cubic Hermite interpolation of the positions (the node velocities are the derivatives) and of
+theta (omega): the difference to a 500-interval solve is measured in tests/test_models.py.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+import pandas as pd
+
+from cobot_analysis.errors import InputError
+from cobot_analysis.models.presets import DEFAULT_PRESET, PRESETS, load_weights, weights_vector
+
+MODELS = ("unicycle", "clothoid", "mombaur", "improved", "table")
+OC_MODELS = ("unicycle", "mombaur", "improved", "table")
+
+__all__ = ["MODELS", "PRESETS", "generate", "solve_model", "resample", "check_endpoints"]
+
+
+def check_endpoints(start, goal, *, path=None, min_distance: float = 0.01) -> None:
+    """Refuse NaN poses and a start equal to the goal (nothing to plan)."""
+    start, goal = np.asarray(start, float), np.asarray(goal, float)
+    if start.shape[-1] < 3 or goal.shape[-1] < 3:
+        raise InputError("start and goal must be poses (x, y, theta)", path=path, remedy="give three numbers each")
+    if not (np.all(np.isfinite(start[:3])) and np.all(np.isfinite(goal[:3]))):
+        raise InputError("start or goal pose has NaN", path=path, remedy="check the trajectory's first and last samples")
+    if math.hypot(goal[0] - start[0], goal[1] - start[1]) < min_distance:
+        raise InputError(f"start equals goal (closer than {min_distance * 100:.0f} cm)", path=path,
+                         remedy="give a goal at least 1 cm away from the start")
+
+
+#: duration method of each OC model when none is given (see duration.py).
+DEFAULT_DURATION = {"unicycle": "free", "mombaur": "grid", "improved": "free", "table": "free"}
+
+
+def solve_model(model: str, start, goal, weights, *, n_intervals: int = 100, duration: str | None = None,
+                v_nominal: float = 1.0, solver: str = "fatrop", guess="rest", T=None):
+    """Solve the OC model for one start/goal; returns an ``ocp.OCPSolution`` (check ``success``).
+
+    ``weights``: the 11-vector (a0..a6, b0..b3); ``guess``: "rest", "line", a previous primal vector
+    (warm start) or a sequence of those (the best converged solution is kept).
+    """
+    from cobot_analysis.models.duration import grid_duration, initial_duration, search_duration
+    from cobot_analysis.models.ocp import OCPShape, get_ocp
+
+    if model not in OC_MODELS:
+        raise ValueError(f"{model!r} is not an OC model ({', '.join(OC_MODELS)})")
+    dyn = "unicycle" if model == "unicycle" else "walker"
+    duration = duration or DEFAULT_DURATION[model]
+    T0 = initial_duration(start, goal, v_nominal) if T is None else T
+    guesses = [guess] if isinstance(guess, str | np.ndarray) else list(guess)
+    best = None
+    for g in guesses:
+        if duration == "free":
+            sol = get_ocp(OCPShape(n_intervals, dyn, free_time=True, solver=solver)).solve(start, goal, weights, T0, guess=g)
+        else:
+            ocp = get_ocp(OCPShape(n_intervals, dyn, free_time=False, solver=solver))
+            if duration == "search":
+                sol = search_duration(ocp, start, goal, weights, T0, guess=g)
+            elif duration == "grid":
+                sol = grid_duration(ocp, start, goal, weights, T0, guess=g)
+            elif duration == "fixed":
+                sol = ocp.solve(start, goal, weights, T0, guess=g)
+            else:
+                raise ValueError(f"unknown duration method {duration!r}")
+        if best is None or (sol.success and (not best.success or sol.cost < best.cost)):
+            best = sol
+    return best
+
+
+def resample(sol, n_samples: int = 500, kind: str = "walker") -> dict[str, np.ndarray]:
+    """Resample an OC solution to ``n_samples`` equally spaced in time (cubic Hermite on x, y, theta)."""
+    from scipy.interpolate import CubicHermiteSpline
+
+    from cobot_analysis.models.dynamics import world_velocity
+
+    X, U = sol.X, sol.U
+    t = sol.t
+    tt = np.linspace(0.0, sol.T, n_samples)
+    vx, vy = world_velocity(X[:, 2], X[:, 3], X[:, 4], kind)
+    out = {"time": tt,
+           "x": CubicHermiteSpline(t, X[:, 0], vx)(tt),
+           "y": CubicHermiteSpline(t, X[:, 1], vy)(tt),
+           "theta": CubicHermiteSpline(t, X[:, 2], X[:, 5])(tt)}
+    for i, name in enumerate(("v_forw", "v_orth", "omega")):
+        out[name] = np.interp(tt, t, X[:, 3 + i])
+    if kind == "unicycle":
+        out["v_orth"] = np.zeros(n_samples)
+    out["vx"], out["vy"] = world_velocity(out["theta"], out["v_forw"], out["v_orth"], kind)
+    idx = np.minimum(np.searchsorted(t, tt, side="right") - 1, U.shape[0] - 1)  # zero-order hold
+    for i, name in enumerate(("u1", "u2", "u3")):
+        out[name] = U[idx, i]
+    return out
+
+
+def _frame(arrays: dict[str, np.ndarray], *, model: str, weights_label: str, entity: str, trial: str,
+           condition: str, study: str, cost: float) -> pd.DataFrame:
+    from cobot_analysis.metrics import gamma_from_path
+
+    n = len(arrays["x"])
+    T = float(arrays["time"][-1])
+    df = pd.DataFrame({
+        "study": study, "trial": trial, "kind": "model", "n_trials": 1, "condition": condition,
+        "entity": entity, "sample": np.arange(n), "phase": 100.0 * np.arange(n) / (n - 1), **arrays,
+    })
+    df["gamma"] = gamma_from_path(df["x"].to_numpy(), df["y"].to_numpy(), df["theta"].to_numpy())
+    df["travel_time"] = T
+    df["travelled_distance"] = math.hypot(df["x"].iloc[-1] - df["x"].iloc[0], df["y"].iloc[-1] - df["y"].iloc[0])
+    df["quality"] = "ok"
+    df["model"] = model
+    df["weights"] = weights_label
+    df["cost"] = cost
+    df["converged"] = True
+    return df
+
+
+def generate(model: str, start: Sequence[float], goal: Sequence[float], weights=None, n_samples: int = 500, *,
+             n_intervals: int = 100, duration: str | None = None, v_nominal: float = 1.0, solver: str = "fatrop",
+             guesses=("rest", "line"), trial: str | None = None, condition: str = "", study: str = "model",
+             entity: str | None = None) -> pd.DataFrame:
+    """A trajectory of ``model`` from ``start`` to ``goal`` (poses (x, y, theta), goal heading on the
+    branch wanted) with the columns of measured trajectories; see the module docstring.
+
+    ``weights``: preset name, fitted-weights file, mapping, or None (the model's default preset).
+    Raises ``SolverError`` when the OC problem does not converge (never a silent result).
+    """
+    if model not in MODELS:
+        raise InputError(f"unknown model {model!r}", remedy=f"use one of {', '.join(MODELS)}")
+    check_endpoints(start, goal)
+    entity = entity or ("table" if model == "table" else "walker")
+    trial = trial or f"{model}"
+    if model == "clothoid":
+        from cobot_analysis.models.clothoid import clothoid_path
+
+        s, x, y, theta = clothoid_path(start, goal, n_samples)
+        T = s[-1] / v_nominal
+        zeros = np.zeros(n_samples)
+        arrays = {"time": s / v_nominal, "x": x, "y": y, "theta": theta, "v_forw": np.full(n_samples, v_nominal),
+                  "v_orth": zeros, "omega": np.gradient(theta, s / v_nominal) if T > 0 else zeros,
+                  "vx": v_nominal * np.cos(theta), "vy": v_nominal * np.sin(theta), "u1": zeros, "u2": zeros, "u3": zeros}
+        return _frame(arrays, model=model, weights_label="", entity=entity, trial=trial, condition=condition,
+                      study=study, cost=float("nan"))
+    label = weights if isinstance(weights, str) else (DEFAULT_PRESET[model] if weights is None else "custom")
+    w = weights_vector(load_weights(weights if weights is not None else DEFAULT_PRESET[model], "improved"))
+    sol = solve_model(model, start, goal, w, n_intervals=n_intervals, duration=duration, v_nominal=v_nominal,
+                      solver=solver, guess=guesses)
+    sol.check(f"{model} model from {tuple(np.round(start, 3))} to {tuple(np.round(goal, 3))}")
+    arrays = resample(sol, n_samples, "unicycle" if model == "unicycle" else "walker")
+    return _frame(arrays, model=model, weights_label=str(label), entity=entity, trial=trial, condition=condition,
+                  study=study, cost=sol.cost)

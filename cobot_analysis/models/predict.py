@@ -1,0 +1,225 @@
+"""Trajectory prediction (METHODS.md sec. 7): the ``Predictor`` interface and the receding-horizon
+optimal-control predictor.
+
+A predictor sees the measured poses ``C_k = (cx, cy, ctheta)``, one every ``T_OC`` seconds, and at
+each sample ``k >= N0 - 1`` (0-based) predicts the poses ``k .. k + H``, ``H = N_OC - N0``, from the
+last ``N0`` poses (the window's measured past ``n+1 .. k``, ``n = k - N0``). Two ways to use it:
+
+    p = make_predictor("oc", n0=50, n_oc=100, dt=0.01)
+    for pose in stream:                      # online, e.g. on the robot
+        path = p.update(pose)                # (H + 1, 3) array, or None (not enough past / skipped)
+    predictions = p.predict_offline(poses)   # whole trajectory: (N - N0 + 1, H + 1, 3), NaN = skipped
+
+``predict_offline`` is ``update`` in a loop, so both modes give identical predictions.
+A window is skipped (NaN prediction, counted in ``skipped``) when its past holds a NaN position, or
+counted in ``failed`` when the OC solver does not converge. A NaN orientation is not a skip: the
+walker's theta is then unknown and the OC predictor tracks the positions only (see ``OCPredictor``).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+
+from cobot_analysis.errors import InputError
+
+PREDICTORS = ("oc", "cv", "ctrv")
+
+
+class Predictor:
+    """Receding-horizon predictor: ``update(pose) -> predicted path`` over ``N_OC - N0`` samples ahead."""
+
+    name = "predictor"
+    min_past = 1  # samples the model needs in its past window
+
+    def __init__(self, n0: int, n_oc: int, dt: float = 1.0):
+        check_setting(n0, n_oc, self.min_past)
+        if not (np.isfinite(dt) and dt > 0):
+            raise InputError(f"sampling period T_OC must be positive (got {dt})", remedy="pass a positive --t-oc")
+        self.n0, self.n_oc, self.dt = int(n0), int(n_oc), float(dt)
+        self.horizon = self.n_oc - self.n0
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the past (a new trajectory)."""
+        self._past: deque[np.ndarray] = deque(maxlen=self.n0)
+        self.skipped = 0  # windows with a NaN position in their past
+        self.failed = 0  # windows where the model gave no prediction (solver failure)
+
+    def update(self, pose) -> np.ndarray | None:
+        """Add the measured pose ``C_k`` = (x, y, theta) and return the prediction for samples
+        ``k .. k + H`` as an (H + 1, 3) array, or None while fewer than N0 poses were seen or when
+        the window is skipped."""
+        self._past.append(np.asarray(pose, dtype=float).reshape(3))
+        if len(self._past) < self.n0:
+            return None
+        past = np.array(self._past)
+        if not np.isfinite(past[:, :2]).all():
+            self.skipped += 1
+            self.on_skip()
+            return None
+        path = self.predict(past)
+        if path is None:
+            self.failed += 1
+        return path
+
+    def predict_offline(self, poses: np.ndarray) -> np.ndarray:
+        """Predictions for every window of a whole trajectory: (N - N0 + 1, H + 1, 3), NaN if skipped."""
+        poses = np.asarray(poses, dtype=float)
+        if poses.ndim != 2 or poses.shape[1] != 3:
+            raise ValueError("poses must be an (N, 3) array of x, y, theta")
+        if poses.shape[0] < self.n0:
+            raise InputError(f"trajectory has {poses.shape[0]} samples, fewer than N0 = {self.n0}",
+                             remedy="lower N0 or leave this trajectory out")
+        self.reset()
+        out = np.full((poses.shape[0] - self.n0 + 1, self.horizon + 1, 3), np.nan)
+        for i, pose in enumerate(poses):
+            path = self.update(pose)
+            if path is not None:
+                out[i - self.n0 + 1] = path
+        return out
+
+    # -- what a model implements ----------------------------------------------------------------
+    def predict(self, past: np.ndarray) -> np.ndarray | None:
+        """Prediction (H + 1, 3) for the samples k .. k + H from the past (N0, 3) (x, y finite)."""
+        raise NotImplementedError
+
+    def on_skip(self) -> None:
+        """Called when a window is skipped (e.g. to drop a warm start)."""
+
+
+def check_setting(n0: int, n_oc: int, min_past: int = 3) -> None:
+    """Bad (N0, N_OC) settings are input errors: N_OC > N0 >= ``min_past``."""
+    if n_oc <= n0:
+        raise InputError(f"N_OC = {n_oc} must be larger than N0 = {n0} (the OC window extends the measured past)",
+                         remedy="pass settings as N0:N_OC with N_OC > N0, e.g. 50:100")
+    if n0 < min_past:
+        raise InputError(f"N0 = {n0} is too short: the predictors need at least {min_past} past samples",
+                         remedy=f"use N0 >= {min_past}")
+
+
+def make_predictor(name: str, n0: int, n_oc: int, dt: float = 1.0, **options) -> Predictor:
+    """A predictor by name: ``oc`` (options: weights, g0, g1, ...), ``cv`` or ``ctrv``."""
+    from cobot_analysis.models.baselines import ConstantTurnRateVelocity, ConstantVelocity
+
+    if name == "cv":
+        return ConstantVelocity(n0, n_oc, dt)
+    if name == "ctrv":
+        return ConstantTurnRateVelocity(n0, n_oc, dt)
+    if name == "oc":
+        return OCPredictor(n0, n_oc, dt, **options)
+    raise InputError(f"unknown predictor {name!r}", remedy=f"use one of {', '.join(PREDICTORS)}")
+
+
+class OCPredictor(Predictor):
+    """Receding-horizon OC predictor of METHODS.md sec. 7 on the OC solver of ``models.ocp``.
+
+    Window at sample k: the NLP of ``N_OC - 1`` intervals of ``T_OC`` (nodes = samples n+1 .. n+N_OC)
+    with the running cost ``a0 + a1 u1^2 + a2 u2^2 + a3 u3^2``, the tracking cost
+    ``g0 ((cx_i - x_i)^2 + (cy_i - y_i)^2) + g1 (ctheta_i - theta_i)^2`` on the first N0 nodes (the
+    measured past) and nothing else: no goal, no terminal cost (a4 = a5 = a6 = b = 0), a free end.
+    The cost weights a0..a3 come from a preset or a fitted-weights file (``presets.load_weights``;
+    the walking-2021 preset is METHODS.md's a = (7.9, 4.0, 20.1, 1e-6) unrounded).
+
+    Initial state (node 0 = the measured pose C_{n+1}; "at rest" is not assumed): the velocities are
+    the derivative at node 0 of a least-squares quadratic through the first ``fit`` measured poses
+    (x, y, unwrapped theta) of the window, rotated into the walker frame:
+    ``v_forw = cos(th) x' + sin(th) y'``, ``v_orth = -sin(th) x' + cos(th) y'``, ``omega = theta'``.
+
+    Missing orientation (theta NaN anywhere in the window): position-only tracking, g1 = 0, and the
+    start heading is the direction of travel (gamma = 0 assumed), omega its derivative; the
+    predicted theta is then the model's, not a measurement's.
+
+    Warm start: the previous window's solution shifted by one node (the last node extrapolated
+    with its own velocity); cold start (first window, after a skipped or failed window): the
+    measured past on the first N0 nodes, then the last measured displacement extrapolated.
+    A window whose solve fails (fatrop, then IPOPT) gives no prediction and is counted in ``failed``.
+    """
+
+    name = "oc"
+    min_past = 3
+
+    def __init__(self, n0: int, n_oc: int, dt: float = 1.0, *, weights: str | dict | None = "walking-2021",
+                 g0: float = 10.0, g1: float = 10.0, fit: int = 5, tol: float = 1e-6, solver: str = "fatrop"):
+        from cobot_analysis.models.ocp import OCPShape, get_ocp
+        from cobot_analysis.models.presets import load_weights
+
+        w = load_weights(weights, "improved")
+        # running control cost only: no bearing, goal or heading terms, no terminal cost (free end)
+        self.weights = np.array([w["a0"], w["a1"], w["a2"], w["a3"]] + [0.0] * 7)
+        self.track_weights = (float(g0), float(g1))
+        self.fit = int(fit)
+        self.ocp = get_ocp(OCPShape(n_intervals=n_oc - 1, tol=tol, solver=solver))
+        super().__init__(n0, n_oc, dt)
+
+    def reset(self) -> None:
+        super().reset()
+        self._warm: np.ndarray | None = None
+        self.last_solution = None
+
+    def on_skip(self) -> None:
+        self._warm = None
+
+    # -- initial state ------------------------------------------------------------------------------
+    def initial_state(self, past: np.ndarray) -> tuple[np.ndarray, bool]:
+        """Start state X0 = (x, y, theta, v_forw, v_orth, omega) at node 0, and whether theta was measured."""
+        m = min(self.fit, len(past))
+        t = np.arange(m) * self.dt
+        has_theta = bool(np.isfinite(past[:, 2]).all())
+        vx, vy = (np.polyfit(t, past[:m, j], 2)[1] for j in (0, 1))  # d/dt of c2 t^2 + c1 t + c0 at 0
+        if has_theta:
+            theta, omega = past[0, 2], np.polyfit(t, past[:m, 2], 2)[1]
+        else:
+            heading = np.unwrap(np.arctan2(np.gradient(past[:m, 1]), np.gradient(past[:m, 0])))
+            theta, omega = heading[0], np.polyfit(t, heading, 2)[1]
+        c, s = np.cos(theta), np.sin(theta)
+        return np.array([past[0, 0], past[0, 1], theta, c * vx + s * vy, -s * vx + c * vy, omega]), has_theta
+
+    def _cold_guess(self, past: np.ndarray, x0: np.ndarray) -> np.ndarray:
+        ocp, n = self.ocp, self.n_oc
+        poses = np.empty((n, 3))
+        poses[: self.n0] = past
+        if not np.isfinite(past[:, 2]).all():
+            poses[: self.n0, 2] = x0[2]
+        poses[self.n0:] = poses[self.n0 - 1] + np.arange(1, n - self.n0 + 1)[:, None] * (poses[self.n0 - 1] - poses[self.n0 - 2])
+        w = np.zeros(ocp.n_vars)
+        stride = ocp.nx + ocp.nu
+        for k in range(n):
+            w[k * stride: k * stride + 3] = poses[k]
+            w[k * stride + 3: k * stride + 6] = x0[3:6]
+        return w
+
+    def _shifted(self, previous: np.ndarray) -> np.ndarray:
+        """Previous primal shifted by one node: new node j = old node j + 1; the last node moves on."""
+        ocp = self.ocp
+        stride = ocp.nx + ocp.nu
+        size = len(previous)  # layout x0 u0 x1 u1 ... x_{N-1} u_{N-1} x_N
+        w = previous.copy()  # keeps u_{N-1} in place: new u_{N-1} = old u_{N-1}
+        w[: size - stride] = previous[stride:]  # new x_j, u_j = old x_{j+1}, u_{j+1}; new x_{N-1} = old x_N
+        last = previous[-ocp.nx:].copy()
+        th, vf, vo = last[2], last[3], last[4]
+        last[0] += self.dt * (np.cos(th) * vf - np.sin(th) * vo)
+        last[1] += self.dt * (np.sin(th) * vf + np.cos(th) * vo)
+        last[2] += self.dt * last[5]
+        w[-ocp.nx:] = last
+        return w
+
+    # -- one window ---------------------------------------------------------------------------------
+    def predict(self, past: np.ndarray) -> np.ndarray | None:
+        x0, has_theta = self.initial_state(past)
+        track = past.copy()
+        if not has_theta:
+            track[:, 2] = 0.0
+        guess = self._cold_guess(past, x0) if self._warm is None else self._shifted(self._warm)
+        guess[:6] = x0
+        far = (x0[0] + 1e3, x0[1] + 1e3, 0.0)  # the goal enters no cost (zero weights); kept away from psi's singularity
+        sol = self.ocp.solve(x0[:3], far, self.weights, (self.n_oc - 1) * self.dt, guess=guess, start_velocity=x0[3:],
+                             track=track, track_weights=(self.track_weights[0], self.track_weights[1] if has_theta else 0.0),
+                             n_track=self.n0)
+        self.last_solution = sol
+        if not sol.success:
+            self._warm = None
+            return None
+        self._warm = sol.primal
+        return sol.X[self.n0 - 1:, :3].copy()

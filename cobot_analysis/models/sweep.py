@@ -1,0 +1,415 @@
+"""The prediction sweep: trajectories x (N0, N_OC) settings x predictors (METHODS.md sec. 7).
+
+Each trajectory is one task (all settings and predictors), run on a local process pool or a Dask
+cluster through ``parallel.map_tasks``. Finished trajectories are saved at once in a work directory
+(``WS/.predict-work/<sweep key>/``), so an interrupted sweep resumes where it stopped; the stage
+merges them into its tables at the end.
+
+Sampling period. N0 and N_OC count samples; one OC node per sample, ``T_OC`` = the sample period.
+The trajectories are time-normalised (N samples over the movement), so ``T_OC = D / (N - 1)`` with
+the duration ``D`` = the trial's travel time when known, else an assumed duration
+``D = path length / nominal speed`` (default 1.0 m/s; the published walking-2020 data hold no
+durations). With ``t_oc`` given, the trajectory is first resampled (linear interpolation of x, y
+and unwrapped theta) every ``t_oc`` seconds over its duration and N0, N_OC count those samples.
+
+Windows compared between predictors. A window enters a trajectory's metrics only if every
+predictor of the sweep predicted it (so the OC predictor and the baselines are compared on the same
+windows); windows skipped for NaN positions and failed OC solves are counted per predictor.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from cobot_analysis.errors import InputError
+from cobot_analysis.models.predict import PREDICTORS, check_setting, make_predictor
+from cobot_analysis.models.predict_metrics import summarise, window_errors
+from cobot_analysis.schema import Column, TableSchema
+
+DEFAULT_SETTINGS = ((25, 100), (50, 100), (75, 100), (50, 200))
+NOMINAL_SPEED = 1.0  # m/s: assumed mean walking speed when a trajectory's duration is unknown
+TABLE_ENTITIES = ("table",)
+
+_ID = {
+    "study": Column("string", "", "study name"),
+    "trial": Column("string", "", "trial identifier"),
+    "entity": Column("string", "", "walker, subject1, subject2 or table"),
+}
+PREDICTIONS = TableSchema(
+    name="predictions",
+    version=1,
+    description="Prediction metrics (METHODS.md sec. 7) per trajectory x (N0, N_OC) setting x predictor, over the "
+                "windows every predictor predicted.",
+    columns={
+        **_ID,
+        "kind": Column("string", "", "'trial' or 'mean'"),
+        "condition": Column("string", "", "start condition (walking) or goal (pairs)"),
+        "subject": Column("string", "", "subject id (walking study)", required=False),
+        "start_orientation": Column("string", "", "walking: start orientation letter N/E/S/O; else empty"),
+        "global_distance": Column("float", "m", "straight-line distance start -> end of the trajectory"),
+        "n0": Column("int", "-", "N0: measured past samples tracked by a window"),
+        "n_oc": Column("int", "-", "N_OC: samples of the OC window (past + future)"),
+        "predictor": Column("string", "", "oc (receding-horizon OC), cv (constant velocity), ctrv (constant turn rate and velocity)"),
+        "weights": Column("string", "", "OC cost weights (preset or file); empty for baselines"),
+        "t_oc": Column("float", "s", "sampling period T_OC of the prediction"),
+        "duration": Column("float", "s", "trajectory duration used for T_OC"),
+        "duration_source": Column("string", "", "'travel_time' (measured) or 'nominal_speed' (path length / nominal speed)"),
+        "orientation": Column("bool", "", "the trajectory has an orientation (else position-only tracking, delta_theta NaN)"),
+        "n_samples": Column("int", "-", "samples of the (resampled) trajectory"),
+        "n_windows": Column("int", "-", "N_hum = N - N0 + 1 windows"),
+        "n_used": Column("int", "-", "windows every predictor predicted (behind the metrics)"),
+        "n_skipped": Column("int", "-", "windows skipped: NaN position in the measured past"),
+        "n_failed": Column("int", "-", "windows without a prediction from this predictor (solver failure)"),
+        "n_full": Column("int", "-", "used windows with the whole horizon inside the recording (behind ADE/FDE)"),
+        "delta_xy": Column("float", "m", "mean over windows of the mean position error over k .. k+N_k-1"),
+        "delta_theta": Column("float", "rad", "same with the wrapped orientation error"),
+        "d_pred": Column("float", "m", "mean over windows of ||x*_k - x*_{k+N_OC-N0}||"),
+        "ade": Column("float", "m", "average displacement error over the future samples of full-horizon windows"),
+        "fde": Column("float", "m", "final displacement error (sample k + N_OC - N0) of full-horizon windows"),
+    },
+)
+PREDICTION_WINDOWS = TableSchema(
+    name="prediction_windows",
+    version=1,
+    description="Per-window prediction errors: one row per trajectory x setting x predictor x window k.",
+    columns={
+        **_ID,
+        "n0": Column("int", "-", "N0"),
+        "n_oc": Column("int", "-", "N_OC"),
+        "predictor": Column("string", "", "oc, cv or ctrv"),
+        "k": Column("int", "-", "sample at which the prediction is made (0-based)"),
+        "phase": Column("float", "%", "100 k / (N - 1)"),
+        "used": Column("bool", "", "every predictor predicted this window"),
+        "error_xy": Column("float", "m", "(1/N_k) sum_i ||c_i - x*_i|| over k .. k+N_k-1"),
+        "error_theta": Column("float", "rad", "(1/N_k) sum_i |wrap(ctheta_i - theta*_i)|"),
+        "reach": Column("float", "m", "||x*_k - x*_{k+N_OC-N0}||"),
+        "ade": Column("float", "m", "mean future error over a full horizon (NaN if cut by the end)"),
+        "fde": Column("float", "m", "error at k + N_OC - N0 (NaN if cut by the end)"),
+    },
+)
+
+
+@dataclass(frozen=True)
+class SweepConfig:
+    """What is swept and how (the stage parameters)."""
+
+    settings: tuple[tuple[int, int], ...] = DEFAULT_SETTINGS
+    predictors: tuple[str, ...] = PREDICTORS
+    weights: str | None = None  # OC weights: preset or weights file; None = walking-2021, table-2022 for tables
+    g0: float = 10.0
+    g1: float = 10.0
+    t_oc: float | None = None
+    nominal_speed: float = NOMINAL_SPEED
+
+    def __post_init__(self) -> None:
+        for n0, n_oc in self.settings:
+            check_setting(n0, n_oc)
+        unknown = [p for p in self.predictors if p not in PREDICTORS]
+        if unknown or not self.predictors:
+            raise InputError(f"unknown predictor(s) {unknown}", remedy=f"use some of {', '.join(PREDICTORS)}")
+        if self.t_oc is not None and not self.t_oc > 0:
+            raise InputError(f"T_OC must be positive (got {self.t_oc})", remedy="pass a positive --t-oc")
+        if not self.nominal_speed > 0:
+            raise InputError(f"nominal speed must be positive (got {self.nominal_speed})", remedy="pass a positive --nominal-speed")
+
+    def weights_for(self, entity: str) -> str:
+        return self.weights or ("table-2022" if entity in TABLE_ENTITIES else "walking-2021")
+
+    def key(self) -> str:
+        return hashlib.sha256(json.dumps(asdict(self), sort_keys=True).encode()).hexdigest()[:16]
+
+
+@dataclass
+class Trajectory:
+    """One recorded trajectory ready for prediction: poses every ``dt`` seconds."""
+
+    study: str
+    trial: str
+    entity: str
+    poses: np.ndarray  # (N, 3): x, y, theta (theta NaN where unknown)
+    dt: float
+    duration: float
+    duration_source: str
+    meta: dict = field(default_factory=dict)  # kind, condition, subject, start_orientation, global_distance
+
+    @property
+    def label(self) -> str:
+        return f"{self.study}/{self.trial}/{self.entity}"
+
+    def digest(self) -> str:
+        h = hashlib.sha256(json.dumps([self.label, self.dt, self.meta], sort_keys=True, default=str).encode())
+        h.update(np.ascontiguousarray(self.poses).tobytes())
+        return h.hexdigest()[:20]
+
+
+# ---- input ------------------------------------------------------------------------------------
+def path_length(xy: np.ndarray) -> float:
+    """Length of the polyline through the finite positions (m)."""
+    xy = xy[np.isfinite(xy).all(axis=1)]
+    return float(np.hypot(*np.diff(xy, axis=0).T).sum()) if len(xy) > 1 else 0.0
+
+
+def resample(poses: np.ndarray, duration: float, t_oc: float) -> np.ndarray:
+    """Poses every ``t_oc`` s over ``duration`` (linear interpolation; NaN stays NaN nearby)."""
+    src = np.linspace(0.0, duration, len(poses))
+    dst = np.arange(0.0, duration + 1e-9 * duration, t_oc)
+    out = np.empty((len(dst), 3))
+    for j in range(3):
+        v = poses[:, j]
+        out[:, j] = np.interp(dst, src, v)  # a NaN neighbour makes the interpolated sample NaN
+    return out
+
+
+def trajectories_from_table(df: pd.DataFrame, config: SweepConfig, path: str | os.PathLike | None = None) -> list[Trajectory]:
+    """Split a trajectories table (schema ``trajectories``) into ``Trajectory`` objects.
+
+    Raises ``InputError`` for an empty selection, a wrong unit of time (negative travel time) or a
+    trajectory shorter than the largest N0.
+    """
+    from cobot_analysis.design import walking_condition
+
+    if df.empty:
+        raise InputError("no trajectory to predict (empty selection)", path=path, remedy="check --study / --entity / --kind")
+    n0_max = max(n0 for n0, _ in config.settings)
+    out = []
+    for (study, trial, entity), g in df.groupby(["study", "trial", "entity"], sort=True, observed=True):
+        g = g.sort_values("sample")
+        poses = g[["x", "y", "theta"]].to_numpy(dtype=float)
+        label = f"{study}/{trial}/{entity}"
+        travel = g["travel_time"].to_numpy(dtype=float)
+        travel = travel[np.isfinite(travel)]
+        if travel.size and travel[0] > 0:
+            duration, source = float(travel[0]), "travel_time"
+        elif travel.size:
+            raise InputError(f"trajectory {label} has a non-positive travel time ({travel[0]} s)", path=path,
+                             remedy="re-run the stage that wrote the trajectories")
+        else:
+            duration, source = path_length(poses[:, :2]) / config.nominal_speed, "nominal_speed"
+        if config.t_oc is not None and duration > 0:
+            poses = resample(poses, duration, config.t_oc)
+        if len(poses) < n0_max:
+            raise InputError(f"trajectory {label} has {len(poses)} samples, fewer than N0 = {n0_max}", path=path,
+                             remedy="lower N0 in --settings (or a smaller --t-oc), or leave the trajectory out")
+        dt = config.t_oc if config.t_oc is not None else duration / (len(poses) - 1)
+        if not dt > 0:
+            raise InputError(f"trajectory {label} does not move (zero duration)", path=path,
+                             remedy="leave it out or give its travel time")
+        first = g.iloc[0]
+        condition = str(first.get("condition") or "")
+        try:
+            orientation = walking_condition(condition).orientation
+        except ValueError:
+            orientation = ""
+        dist = first.get("travelled_distance")
+        if dist is None or not np.isfinite(dist):
+            finite = poses[np.isfinite(poses[:, :2]).all(axis=1), :2]
+            dist = float(np.hypot(*(finite[-1] - finite[0]))) if len(finite) else float("nan")
+        subject = first.get("subject")
+        meta = {"kind": str(first.get("kind") or ""), "condition": condition,
+                "subject": None if subject is None or pd.isna(subject) else str(subject),
+                "start_orientation": orientation, "global_distance": float(dist)}
+        out.append(Trajectory(str(study), str(trial), str(entity), poses, float(dt), float(duration), source, meta))
+    return out
+
+
+# ---- one trajectory ---------------------------------------------------------------------------
+def predict_trajectory(traj: Trajectory, config: SweepConfig) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Every setting and predictor on one trajectory: (metrics rows, per-window rows)."""
+    rows, windows = [], []
+    n = len(traj.poses)
+    has_theta = bool(np.isfinite(traj.poses[:, 2]).any())
+    for n0, n_oc in config.settings:
+        results = {}
+        for name in config.predictors:
+            options = {"weights": config.weights_for(traj.entity), "g0": config.g0, "g1": config.g1} if name == "oc" else {}
+            predictor = make_predictor(name, n0, n_oc, traj.dt, **options)
+            predictions = predictor.predict_offline(traj.poses)
+            results[name] = (window_errors(traj.poses, predictions, n0), predictor.skipped, predictor.failed, options)
+        common = np.logical_and.reduce([err.valid for err, *_ in results.values()])
+        k = np.arange(n0 - 1, n)
+        for name, (err, skipped, failed, options) in results.items():
+            m = summarise(err, common)
+            rows.append({"study": traj.study, "trial": traj.trial, "entity": traj.entity, **traj.meta,
+                         "n0": n0, "n_oc": n_oc, "predictor": name, "weights": options.get("weights", ""),
+                         "t_oc": traj.dt, "duration": traj.duration, "duration_source": traj.duration_source,
+                         "orientation": has_theta, "n_samples": n, "n_windows": m.n_windows, "n_used": m.n_used,
+                         "n_skipped": skipped, "n_failed": failed, "n_full": m.n_full, "delta_xy": m.delta_xy,
+                         "delta_theta": m.delta_theta if has_theta else float("nan"), "d_pred": m.d_pred,
+                         "ade": m.ade, "fde": m.fde})
+            windows.append(pd.DataFrame({
+                "study": traj.study, "trial": traj.trial, "entity": traj.entity, "n0": n0, "n_oc": n_oc,
+                "predictor": name, "k": k, "phase": 100.0 * k / (n - 1), "used": common,
+                "error_xy": err.error_xy, "error_theta": err.error_theta, "reach": err.reach,
+                "ade": err.ade, "fde": err.fde}))
+    return pd.DataFrame(rows), pd.concat(windows, ignore_index=True)
+
+
+def sweep_task(item: tuple[Trajectory, SweepConfig]) -> tuple[str, pd.DataFrame, pd.DataFrame]:
+    """Task of the parallel sweep (top level so that process pools and Dask can pickle it)."""
+    traj, config = item
+    metrics, windows = predict_trajectory(traj, config)
+    return traj.digest(), metrics, windows
+
+
+# ---- the resumable sweep ----------------------------------------------------------------------
+class WorkDir:
+    """Finished trajectories of one sweep (``<root>/<sweep key>/<trajectory digest>.*.parquet``)."""
+
+    def __init__(self, root: Path, config: SweepConfig):
+        self.root = Path(root)
+        self.dir = self.root / config.key()
+
+    def _paths(self, digest: str) -> tuple[Path, Path]:
+        return self.dir / f"{digest}.metrics.parquet", self.dir / f"{digest}.windows.parquet"
+
+    def done(self, digest: str) -> bool:
+        return self._paths(digest)[0].is_file()
+
+    def save(self, digest: str, metrics: pd.DataFrame, windows: pd.DataFrame) -> None:
+        """Windows first, metrics last: the metrics file marks the trajectory as finished."""
+        self.dir.mkdir(parents=True, exist_ok=True)
+        for df, path in zip((windows, metrics), reversed(self._paths(digest))):
+            tmp = path.with_name(f".{path.name}.tmp")
+            df.to_parquet(tmp, index=False)
+            os.replace(tmp, path)
+
+    def load(self, digest: str) -> tuple[pd.DataFrame, pd.DataFrame]:
+        m, w = self._paths(digest)
+        return pd.read_parquet(m), pd.read_parquet(w)
+
+    def clear(self) -> None:
+        shutil.rmtree(self.root, ignore_errors=True)
+
+
+def run_sweep(trajectories: list[Trajectory], config: SweepConfig, work: WorkDir, *, jobs: int | None = None,
+              scheduler: str | None = None) -> tuple[pd.DataFrame, pd.DataFrame, int]:
+    """Predict every trajectory not yet in ``work``; return (metrics, windows, number resumed)."""
+    from cobot_analysis.parallel import map_tasks
+
+    todo = [t for t in trajectories if not work.done(t.digest())]
+
+    def keep(result) -> str:  # runs in this process as each trajectory finishes: saved at once
+        digest, metrics, windows = result
+        work.save(digest, metrics, windows)
+        return f"{metrics['trial'].iloc[0]}" if len(metrics) else ""
+
+    if todo:
+        map_tasks(sweep_task, [(t, config) for t in todo], jobs=jobs, scheduler=scheduler,
+                  description="predict", status=keep)
+    parts = [work.load(t.digest()) for t in trajectories]
+    metrics = pd.concat([p[0] for p in parts], ignore_index=True)
+    windows = pd.concat([p[1] for p in parts], ignore_index=True)
+    for col in ("study", "trial", "entity", "predictor"):
+        windows[col] = windows[col].astype("category")
+    return metrics, windows, len(trajectories) - len(todo)
+
+
+# ---- summaries --------------------------------------------------------------------------------
+METRICS = ("delta_xy", "delta_theta", "d_pred", "ade", "fde")
+
+PREDICTION_SUMMARY = TableSchema(
+    name="prediction_summary",
+    version=1,
+    description="Per setting and predictor: mean and sd over trajectories of each metric, and its Pearson "
+                "correlation with the global distance.",
+    columns={
+        "n0": Column("int", "-", "N0"),
+        "n_oc": Column("int", "-", "N_OC"),
+        "predictor": Column("string", "", "oc, cv or ctrv"),
+        "metric": Column("string", "", "delta_xy, delta_theta, d_pred, ade or fde"),
+        "unit": Column("string", "", "m or rad"),
+        "n": Column("int", "-", "trajectories with a value"),
+        "mean": Column("float", "", "mean over trajectories (unit in column unit)"),
+        "sd": Column("float", "", "sample standard deviation over trajectories"),
+        "pearson_r": Column("float", "-", "Pearson r of the metric with the global distance"),
+        "pearson_p": Column("float", "-", "two-sided p of the Pearson correlation"),
+    },
+)
+PREDICTION_COMPARISON = TableSchema(
+    name="prediction_comparison",
+    version=1,
+    description="OC predictor vs a baseline on the same windows: paired Wilcoxon signed-rank test over trajectories "
+                "of delta_xy, overall and per start orientation.",
+    columns={
+        "n0": Column("int", "-", "N0"),
+        "n_oc": Column("int", "-", "N_OC"),
+        "baseline": Column("string", "", "cv or ctrv"),
+        "group": Column("string", "", "'all' or the start orientation (N, E, S, O) or entity"),
+        "n": Column("int", "-", "paired trajectories"),
+        "oc_median": Column("float", "m", "median delta_xy of the OC predictor"),
+        "baseline_median": Column("float", "m", "median delta_xy of the baseline"),
+        "median_difference": Column("float", "m", "median of (OC - baseline) delta_xy; < 0: OC better"),
+        "oc_wins": Column("float", "-", "share of trajectories where the OC delta_xy is smaller"),
+        "oc_wins_windows": Column("float", "-", "share of used windows where the OC window error is smaller"),
+        "wilcoxon_w": Column("float", "-", "Wilcoxon signed-rank statistic"),
+        "wilcoxon_p": Column("float", "-", "two-sided p"),
+        "effect_r": Column("float", "-", "matched-pairs rank-biserial correlation (> 0: OC better)"),
+    },
+)
+
+
+def units(metric: str) -> str:
+    return "rad" if metric == "delta_theta" else "m"
+
+
+def summary_table(metrics: pd.DataFrame) -> pd.DataFrame:
+    """Mean +- sd over trajectories per setting, predictor and metric; Pearson r with the global distance."""
+    from scipy import stats
+
+    rows = []
+    for (n0, n_oc, pred), g in metrics.groupby(["n0", "n_oc", "predictor"], sort=True):
+        for metric in METRICS:
+            ok = g[np.isfinite(g[metric]) & np.isfinite(g["global_distance"])]
+            r = p = float("nan")
+            if len(ok) > 2 and ok[metric].std() > 0 and ok["global_distance"].std() > 0:
+                r, p = stats.pearsonr(ok[metric], ok["global_distance"])
+            v = g[metric].dropna()
+            rows.append({"n0": n0, "n_oc": n_oc, "predictor": pred, "metric": metric, "unit": units(metric),
+                         "n": len(v), "mean": v.mean() if len(v) else np.nan, "sd": v.std() if len(v) > 1 else np.nan,
+                         "pearson_r": float(r), "pearson_p": float(p)})
+    return pd.DataFrame(rows)
+
+
+def compare_table(metrics: pd.DataFrame, windows: pd.DataFrame) -> pd.DataFrame:
+    """OC vs each baseline on delta_xy (same windows): Wilcoxon signed-rank over trajectories."""
+    from scipy import stats
+
+    if "oc" not in set(metrics["predictor"]):
+        return pd.DataFrame(columns=list(PREDICTION_COMPARISON.columns))
+    keys = ["study", "trial", "entity", "n0", "n_oc"]
+    wide = metrics.pivot_table(index=keys, columns="predictor", values="delta_xy").reset_index()
+    info = metrics.drop_duplicates(keys).set_index(keys)[["start_orientation"]]
+    wide = wide.join(info, on=keys)
+    used = windows[windows["used"]]
+    wkeys = keys + ["k"]
+    wwide = used.pivot_table(index=wkeys, columns="predictor", values="error_xy", observed=True).reset_index()
+    rows = []
+    for baseline in [p for p in ("cv", "ctrv") if p in wide.columns]:
+        for (n0, n_oc), g in wide.groupby(["n0", "n_oc"], sort=True):
+            groups = [("all", g)] + [(o, gg) for o, gg in g.groupby("start_orientation", sort=True) if o]
+            wg = wwide[(wwide["n0"] == n0) & (wwide["n_oc"] == n_oc)]
+            for name, gg in groups:
+                pair = gg[["oc", baseline]].dropna()
+                diff = (pair["oc"] - pair[baseline]).to_numpy()
+                w = p = r = float("nan")
+                if len(diff) and np.any(diff != 0):
+                    res = stats.wilcoxon(pair["oc"], pair[baseline])
+                    w, p = float(res.statistic), float(res.pvalue)
+                    ranks = stats.rankdata(np.abs(diff[diff != 0]))
+                    r = float((ranks[diff[diff != 0] < 0].sum() - ranks[diff[diff != 0] > 0].sum()) / ranks.sum())
+                ww = wg if name == "all" else wg.merge(gg[["study", "trial", "entity"]], on=["study", "trial", "entity"])
+                wins_w = float((ww["oc"] < ww[baseline]).mean()) if len(ww) else float("nan")
+                rows.append({"n0": n0, "n_oc": n_oc, "baseline": baseline, "group": name, "n": len(pair),
+                             "oc_median": pair["oc"].median(), "baseline_median": pair[baseline].median(),
+                             "median_difference": float(np.median(diff)) if len(diff) else float("nan"),
+                             "oc_wins": float((diff < 0).mean()) if len(diff) else float("nan"),
+                             "oc_wins_windows": wins_w, "wilcoxon_w": w, "wilcoxon_p": p, "effect_r": r})
+    return pd.DataFrame(rows)

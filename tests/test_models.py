@@ -1,0 +1,153 @@
+"""Walking-path models and the OC solver (METHODS.md sec. 5): analytic cases, invariances, solver agreement."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from cobot_analysis.angles import angle_diff
+from cobot_analysis.errors import InputError, SolverError
+from cobot_analysis.metrics import d_xy
+from cobot_analysis.models import generate, resample, solve_model
+from cobot_analysis.models.duration import initial_duration, search_duration
+from cobot_analysis.models.ocp import OCPShape, WalkerOCP, get_ocp
+from cobot_analysis.models.presets import PRESETS, load_weights, weights_vector
+from cobot_analysis.schema import TRAJECTORIES
+
+GOAL = (0.0, 0.0, math.pi / 2)
+PUBLISHED = weights_vector(PRESETS["walking-2021"])
+#: strong terminal weights: the path must end at the goal, at rest.
+STIFF = weights_vector({**PRESETS["walking-2021"], "b0": 1000.0, "b1": 1000.0, "b2": 100.0, "b3": 100.0})
+
+
+def test_straight_start_goal_pair_gives_a_straight_path():
+    df = generate("improved", (-3.0, 0.0, 0.0), (0.0, 0.0, 0.0), weights=dict(zip(
+        ("a0", "a1", "a2", "a3", "a4", "b0", "b1", "b2", "b3"), STIFF[[0, 1, 2, 3, 4, 7, 8, 9, 10]])))
+    assert np.abs(df["y"]).max() < 1e-6 and np.abs(df["theta"]).max() < 1e-6
+    assert np.all(np.diff(df["x"]) >= -1e-9)  # monotone progress
+    assert df["x"].iloc[-1] == pytest.approx(0.0, abs=0.01)
+
+
+@pytest.mark.parametrize("start", [(-1.5, -3.4, 0.0), (-4.0, 0.6, math.pi / 2), (-0.6, -1.5, -math.pi / 2)])
+def test_mirror_symmetric_starts_give_mirrored_paths(start):
+    """Mirror x -> -x (goal heading pi/2 is its own mirror): theta -> pi - theta."""
+    a = generate("improved", start, GOAL)
+    b = generate("improved", (-start[0], start[1], math.pi - start[2]), GOAL)
+    assert d_xy(a["x"], a["y"], -b["x"], b["y"]) < 2e-3
+    assert np.abs(angle_diff(a["theta"], math.pi - b["theta"])).max() < 2e-2
+    assert a["travel_time"].iloc[0] == pytest.approx(b["travel_time"].iloc[0], rel=1e-3)
+
+
+@pytest.mark.parametrize("model", ["unicycle", "mombaur", "improved"])
+def test_paths_start_at_rest_on_the_start_pose_and_end_near_the_goal(model):
+    start = (-1.5, -3.4, 0.0)
+    df = generate(model, start, GOAL)
+    first = df.iloc[0]
+    assert (first.x, first.y, first.theta) == pytest.approx(start, abs=1e-9)
+    assert (first.v_forw, first.v_orth, first.omega) == pytest.approx((0, 0, 0), abs=1e-9)
+    # stated tolerance with the published weights: 0.25 m and 0.05 rad (soft terminal cost)
+    last = df.iloc[-1]
+    assert math.hypot(last.x, last.y) < 0.25 and abs(last.theta - math.pi / 2) < 0.05
+    assert set(TRAJECTORIES.required) <= set(df.columns) and len(df) == 500
+
+
+def test_stiff_terminal_weights_end_at_the_goal_at_rest():
+    sol = solve_model("improved", (-1.5, -3.4, 0.0), GOAL, STIFF).check()
+    assert np.hypot(*sol.X[-1, :2]) < 0.01 and abs(sol.X[-1, 2] - math.pi / 2) < 0.01
+    assert np.abs(sol.X[-1, 3:]).max() < 0.1  # m/s, rad/s (b2 = 100 against a0 = 7.87 per second)
+
+
+def test_free_duration_equals_the_one_dimensional_search():
+    start = (-1.5, -3.4, 0.0)
+    free = solve_model("improved", start, GOAL, PUBLISHED, duration="free")
+    ocp = get_ocp(OCPShape(100))
+    found = search_duration(ocp, start, GOAL, PUBLISHED, initial_duration(start, GOAL), xatol=1e-4)
+    assert free.success and found.success
+    assert free.T == pytest.approx(found.T, rel=5e-3)
+    assert free.cost == pytest.approx(found.cost, rel=1e-6)
+
+
+def test_fatrop_and_ipopt_reach_the_same_optimum():
+    start = (-4.0, 0.6, math.pi)
+    a = solve_model("improved", start, GOAL, PUBLISHED, solver="fatrop", guess="rest")
+    b = solve_model("improved", start, GOAL, PUBLISHED, solver="ipopt", guess="rest")
+    assert a.solver == "fatrop" and b.solver == "ipopt"
+    assert a.cost == pytest.approx(b.cost, rel=1e-6)
+    assert np.abs(a.X[:, :2] - b.X[:, :2]).max() < 1e-3
+
+
+def test_warm_start_reaches_the_cold_optimum_in_fewer_iterations():
+    start = (-1.5, -3.4, math.pi / 2)
+    ocp = get_ocp(OCPShape(100, free_time=True))
+    base = ocp.solve(start, GOAL, PUBLISHED, 4.0)
+    w = PUBLISHED * np.r_[1.0, 1.1, 0.9, 1.0, 1.1, 1, 1, 0.95, 1.05, 1.0, 1.0]
+    cold = ocp.solve(start, GOAL, w, 4.0)
+    warm = ocp.solve(start, GOAL, w, 4.0, guess=base.primal)
+    assert warm.success and cold.success and warm.iterations < cold.iterations
+    assert warm.cost == pytest.approx(cold.cost, rel=1e-6)
+    assert np.abs(warm.X - cold.X).max() < 1e-3
+
+
+def test_coarse_grid_matches_a_500_interval_solve():
+    """Solving on 100 intervals and resampling to 500 samples is within 5 mm of the 500-interval path."""
+    start = (-4.0, -3.4, 0.0)
+    fine = solve_model("improved", start, GOAL, PUBLISHED, n_intervals=500)
+    coarse = solve_model("improved", start, GOAL, PUBLISHED, n_intervals=100)
+    a, b = resample(fine, 500), resample(coarse, 500)
+    assert d_xy(a["x"], a["y"], b["x"], b["y"]) < 5e-3
+    assert coarse.T == pytest.approx(fine.T, rel=1e-2)
+
+
+def test_prediction_window_tracks_measured_poses_and_takes_initial_velocity():
+    """The builder serves receding-horizon prediction: tracking on the first N0 nodes, free end."""
+    ocp = get_ocp(OCPShape(100))
+    w = np.array([7.9, 4.0, 20.1, 1e-6, 0, 0, 0, 0, 0, 0, 0])  # a0..a3, no psi, no terminal cost
+    t = np.linspace(0, 2.0, 101)
+    measured = np.c_[-3 + 1.0 * t, np.zeros_like(t), np.zeros_like(t)]  # walking along x at 1 m/s
+    sol = ocp.solve(measured[0], (9.0, 9.0, 0.0), w, 2.0, start_velocity=(1.0, 0.0, 0.0), track=measured[:50],
+                    guess="rest").check()
+    assert np.abs(sol.X[:50, 0] - measured[:50, 0]).max() < 0.02
+    assert np.abs(sol.X[:, 1]).max() < 1e-6  # the goal plays no role: a4 = b = 0
+    assert sol.X[-1, 0] > measured[-1, 0] - 0.1  # keeps walking at about 1 m/s after the measured part
+
+
+def test_non_converged_solve_is_flagged_and_raises():
+    ocp = WalkerOCP(OCPShape(20, max_iter=2))
+    sol = ocp.solve((-3.0, -2.0, 0.0), GOAL, PUBLISHED, 4.0, fallback=False)
+    assert not sol.success
+    with pytest.raises(SolverError, match="did not converge"):
+        sol.check()
+
+
+def test_clothoid_joins_start_and_goal_with_tangent_heading():
+    df = generate("clothoid", (-1.5, -3.4, 0.0), GOAL)
+    assert (df.x.iloc[0], df.y.iloc[0], df.theta.iloc[0]) == pytest.approx((-1.5, -3.4, 0.0), abs=1e-9)
+    assert (df.x.iloc[-1], df.y.iloc[-1], df.theta.iloc[-1]) == pytest.approx(GOAL, abs=1e-6)
+    assert np.abs(df.gamma.iloc[:-1]).max() < 0.02  # faces along the path
+    step = np.hypot(np.diff(df.x), np.diff(df.y))
+    assert step.std() / step.mean() < 1e-3  # equally spaced in arc length
+
+
+def test_presets_and_weights_files(tmp_path):
+    assert load_weights("walking-2021")["a2"] == 20.15
+    with pytest.raises(InputError, match="unknown preset"):
+        load_weights("walking-2099")
+    bad = tmp_path / "w.json"
+    bad.write_text(json.dumps([1.0, 2.0, 3.0]))
+    with pytest.raises(InputError, match="has 3 values, model 'improved' needs 11"):
+        load_weights(bad)
+    good = tmp_path / "g.json"
+    good.write_text(json.dumps({"weights": PRESETS["table-2022"]}))
+    assert load_weights(good) == PRESETS["table-2022"]
+    with pytest.raises(InputError, match="another model"):
+        load_weights("pair-2022", "improved")
+
+
+def test_start_equal_to_goal_is_refused():
+    with pytest.raises(InputError, match="start equals goal"):
+        generate("improved", (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+    with pytest.raises(InputError, match="NaN"):
+        generate("improved", (np.nan, 0.0, 0.0), GOAL)
