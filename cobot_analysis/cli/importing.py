@@ -1,0 +1,42 @@
+"""``cobot-analysis import``: raw marker files of a protocol -> markers.parquet + trials.parquet."""
+
+from __future__ import annotations
+
+from enum import Enum
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from cobot_analysis.cli.app import DEFAULT_OUT_PATH, PANEL_DATA, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, app
+
+
+class Units(str, Enum):
+    auto = "auto"
+    mm = "mm"
+    m = "m"
+
+
+@app.command("import", rich_help_panel=PANEL_DATA)
+def import_command(
+    protocol: Annotated[Path, typer.Argument(help="Protocol YAML naming each trial's file, subject/pair and condition.")],
+    out: OutOpt = DEFAULT_OUT_PATH,
+    marker_map: Annotated[Optional[Path], typer.Option("--marker-map", help="YAML file of 'LAB: CANON' label mappings.")] = None,
+    map_: Annotated[Optional[list[str]], typer.Option("--map", help="Map a lab label to a canonical one: LAB=CANON (repeatable).")] = None,
+    units: Annotated[Units, typer.Option("--units", help="Length unit of the raw files; auto = as the file states (C3D POINT:UNITS, CSV header), checked for plausibility.")] = Units.auto,
+    keep_all_markers: Annotated[bool, typer.Option("--keep-all-markers", help="Keep markers the pipeline does not use.")] = False,
+    jobs: JobsOpt = None,
+    scheduler: SchedulerOpt = None,
+    force: ForceOpt = False,
+) -> None:
+    """Import raw markers (C3D, Vicon Nexus CSV, Qualisys TSV) into OUT/import/markers.parquet
+    (trial, frame, time, entity, marker, x, y, z in m, occluded) and OUT/import/trials.parquet.
+
+    The format is detected from each file's content. Labels such as "S1:LASI" resolve to
+    (subject1, LASI) through the protocol's entities and marker map. Every person needs its 4
+    pelvis markers (LASI RASI LPSI RPSI), a table its TAB1-TAB3.
+    """
+    from cobot_analysis.io.markers import parse_map_options, run_import
+
+    run_import(protocol, out, units=units.value, marker_map=parse_map_options(map_ or []), marker_map_file=marker_map,
+               keep_all=keep_all_markers, jobs=jobs, scheduler=scheduler, force=force)

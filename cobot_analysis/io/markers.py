@@ -1,0 +1,316 @@
+"""The import stage: protocol -> ``markers.parquet`` (tidy long markers) + ``trials.parquet``.
+
+Each trial file named by the protocol is read by content (C3D header, Vicon CSV "Trajectories"
+section or Qualisys TSV header, whatever its name), converted to metres, and its labels are
+resolved to (entity, canonical marker) with ``Protocol.resolve_label`` after the marker map
+(protocol ``marker_map``, then ``--marker-map FILE``, then ``--map LAB=CANON``). In a
+single-person study a label prefix the protocol does not declare as an entity (Vicon writes the
+subject's name: ``Alice:LASI``) is ignored. Only the markers
+the pipeline uses are kept (``SUBJECT_MARKERS`` per person, ``TABLE_MARKERS`` for the table)
+unless ``keep_all`` is set.
+
+Checks (each an ``InputError`` naming the file and the remedy): unreadable or truncated file,
+empty trial, two labels mapped to one marker, missing pelvis markers of a person (LASI RASI LPSI
+RPSI of walker / subject1 / subject2) or table corners (TAB1..TAB3), a required marker never
+visible, and an implausible length scale. Scale check: the median inter-ASIS distance
+|LASI - RASI| of adults is 0.15-0.40 m (for a table-only recording, |TAB1 - TAB2| is 0.5-2.5 m);
+a value 1000 times too large or too small means mm and m were confused.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from cobot_analysis.console import info, warn
+from cobot_analysis.errors import InputError
+from cobot_analysis.io.c3d import RawMarkers, is_c3d, read_c3d
+from cobot_analysis.io.protocol import ENTITIES, PELVIS_MARKERS, SUBJECT_MARKERS, TABLE_MARKERS, Protocol, load_protocol
+from cobot_analysis.io.text_exports import read_qualisys_tsv, read_vicon_csv, sniff_text_format
+from cobot_analysis.schema import MARKERS, TRIAL_COLUMNS, TRIALS, write_table
+
+READERS = {"c3d": read_c3d, "vicon-csv": read_vicon_csv, "qualisys-tsv": read_qualisys_tsv}
+UNITS = ("auto", "mm", "m")
+ASIS_RANGE = (0.15, 0.40)  # m, median |LASI - RASI| of adults
+TABLE_SIDE_RANGE = (0.5, 2.5)  # m, |TAB1 - TAB2| (a long side of the table)
+MAP_REMEDY = "map the lab's labels with --map LAB=CANON (repeatable), --marker-map FILE.yaml or marker_map in the protocol"
+
+
+def detect_format(path: str | os.PathLike) -> str:
+    """'c3d', 'vicon-csv' or 'qualisys-tsv' from the file's content (not its name)."""
+    path = Path(path)
+    with open(path, "rb") as fh:
+        head = fh.read(4096)
+    if not head:
+        raise InputError("empty file", path=path, remedy="re-export the trial from the capture software")
+    if is_c3d(head):
+        return "c3d"
+    if path.suffix.lower() == ".c3d":
+        raise InputError("not a C3D file although named .c3d (no C3D header)", path=path,
+                         remedy="re-export the trial as C3D, or give the file the name of its real format")
+    fmt = sniff_text_format(head.decode("utf-8", errors="replace"))
+    if fmt is None:
+        raise InputError("unrecognised marker file: not C3D, a Vicon Nexus CSV export or a Qualisys TSV export", path=path,
+                         remedy="export the trial as C3D, Vicon CSV (Trajectories) or QTM TSV")
+    return fmt
+
+
+def read_markers(path: str | os.PathLike, units: str = "auto") -> tuple[str, RawMarkers]:
+    """Read any supported marker file: ``(source_format, RawMarkers)``; ``units`` 'auto' trusts the file."""
+    fmt = detect_format(path)
+    return fmt, READERS[fmt](path, units=None if units == "auto" else units)
+
+
+@dataclass(frozen=True)
+class TrialTask:
+    """What a worker needs to import one trial (picklable)."""
+
+    trial: str
+    path: Path
+    pair_study: bool
+    units: str
+    entities: dict[str, str]
+    marker_map: dict[str, str]
+    keep_all: bool
+    protocol_rate: float | None = None
+
+
+@dataclass
+class ImportedTrial:
+    trial: str
+    entities: list[str]
+    markers: list[str]
+    xyz: np.ndarray  # [frames, markers, 3] in m
+    rate: float
+    source_units: str
+    source_format: str
+    sha256: str
+    notes: list[str] = field(default_factory=list)
+
+
+def _is_person(entity: str) -> bool:
+    return entity in ENTITIES and entity != "table"
+
+
+def _strip_subject_name(label: str, task: TrialTask) -> str:
+    """Single-person recordings: drop a label prefix the protocol does not declare (Vicon writes
+    the subject's name, ``Alice:LASI``), so the marker belongs to the walker."""
+    prefix, _, name = label.rpartition(":")
+    undeclared = prefix and prefix not in task.entities and prefix.lower() not in ENTITIES
+    return name if undeclared and not task.pair_study else label
+
+
+def _scale_check(path: Path, units: str, pairs: list[tuple[np.ndarray, np.ndarray]], bounds: tuple[float, float], what: str) -> None:
+    """Refuse a length scale 1000x off (mm read as m, or m read as mm)."""
+    dist = np.nanmedian(np.concatenate([np.linalg.norm(a - b, axis=1) for a, b in pairs]))
+    lo, hi = bounds
+    if np.isnan(dist) or lo <= dist <= hi:
+        return
+    if lo <= dist / 1000 <= hi:
+        raise InputError(f"marker distances look like millimetres labelled as metres (median {what} {dist:.4g} m; "
+                         f"expected {lo}-{hi} m)", path=path, remedy="pass --units mm")
+    if lo <= dist * 1000 <= hi:
+        raise InputError(f"marker distances look like metres labelled as mm (median {what} {dist:.4g} m; "
+                         f"expected {lo}-{hi} m)", path=path, remedy="pass --units m")
+    raise InputError(f"implausible length scale (median {what} {dist:.4g} m, expected {lo}-{hi} m; file units {units})",
+                     path=path, remedy=f"check the units (--units mm|m) and the marker labels; {MAP_REMEDY}")
+
+
+def import_trial(task: TrialTask) -> ImportedTrial:
+    """Read one trial file, resolve its labels and check it (see module docstring)."""
+    from cobot_analysis.workspace import file_sha256
+
+    path = task.path
+    fmt, raw = read_markers(path, task.units)
+    if raw.xyz.shape[0] == 0:
+        raise InputError("empty trial (no frames)", path=path, remedy="remove the trial from the protocol or re-export it")
+    rate = raw.rate if raw.rate and np.isfinite(raw.rate) and raw.rate > 0 else task.protocol_rate
+    if not rate:
+        raise InputError("no sampling rate in the file", path=path, remedy="give 'rate' (Hz) in the protocol")
+    notes = []
+    if task.protocol_rate and abs(rate - task.protocol_rate) > 1e-6:
+        notes.append(f"{path.name}: file rate {rate:g} Hz differs from the protocol rate {task.protocol_rate:g} Hz; using the file's")
+    resolver = Protocol(path=path, study="", trials=pd.DataFrame(), entities=task.entities, marker_map=task.marker_map)
+    resolved = [resolver.resolve_label(_strip_subject_name(lab, task)) for lab in raw.labels]
+    keep, seen = [], {}
+    for j, (entity, marker) in enumerate(resolved):
+        known = (entity == "table" and marker in TABLE_MARKERS) or (_is_person(entity) and marker in SUBJECT_MARKERS)
+        if not (known or task.keep_all):
+            continue
+        if (entity, marker) in seen:
+            raise InputError(f"labels {raw.labels[seen[entity, marker]]!r} and {raw.labels[j]!r} both map to {entity} {marker}",
+                             path=path, remedy=f"fix the marker map; {MAP_REMEDY}")
+        seen[entity, marker] = j
+        keep.append(j)
+
+    expected = {e for e, _ in resolved if e in ENTITIES}
+    if task.pair_study:
+        expected |= {"subject1", "subject2", "table"}
+    if not expected & {"walker", "subject1", "subject2"} and "table" not in expected:
+        expected.add("walker")
+    missing = [f"{e}:{m}" for e in sorted(expected) for m in (TABLE_MARKERS if e == "table" else PELVIS_MARKERS) if (e, m) not in seen]
+    if missing:
+        found = ", ".join(raw.labels[:20]) + (" ..." if len(raw.labels) > 20 else "")
+        raise InputError(f"required markers missing: {', '.join(missing)} (labels found: {found})", path=path, remedy=MAP_REMEDY)
+
+    xyz = raw.xyz[:, keep, :]
+    ents = [resolved[j][0] for j in keep]
+    marks = [resolved[j][1] for j in keep]
+    never = np.isnan(xyz[:, :, 0]).all(axis=0)
+    for k in np.flatnonzero(never):
+        required = marks[k] in (TABLE_MARKERS if ents[k] == "table" else PELVIS_MARKERS)
+        if required:
+            raise InputError(f"marker {marks[k]} of {ents[k]} is never visible (all {len(xyz)} samples missing)", path=path,
+                             remedy="check the labelling of the trial in the capture software, or leave the trial out of the protocol")
+        notes.append(f"{path.name}: marker {marks[k]} of {ents[k]} is never visible")
+
+    col = {(e, m): k for k, (e, m) in enumerate(zip(ents, marks))}
+    persons = sorted(e for e in expected if _is_person(e))
+    if persons:
+        pairs = [(xyz[:, col[e, "LASI"]], xyz[:, col[e, "RASI"]]) for e in persons]
+        _scale_check(path, raw.units, pairs, ASIS_RANGE, "inter-ASIS distance |LASI - RASI|")
+    else:
+        _scale_check(path, raw.units, [(xyz[:, col["table", "TAB1"]], xyz[:, col["table", "TAB2"]])], TABLE_SIDE_RANGE,
+                     "table side |TAB1 - TAB2|")
+    return ImportedTrial(task.trial, ents, marks, xyz, float(rate), raw.units, fmt, file_sha256(path), notes)
+
+
+def long_table(trials: list[ImportedTrial]) -> pd.DataFrame:
+    """Tidy long markers table (schema.MARKERS), rows ordered by trial, entity/marker, frame.
+
+    Built with vectorised numpy per trial and one concatenation; labels are categorical.
+    """
+    trial_cats = [t.trial for t in trials]
+    entity_cats = sorted({e for t in trials for e in t.entities})
+    marker_cats = sorted({m for t in trials for m in t.markers})
+    e_index = {e: i for i, e in enumerate(entity_cats)}
+    m_index = {m: i for i, m in enumerate(marker_cats)}
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("trial", "frame", "time", "entity", "marker", "xyz")}
+    for i, t in enumerate(trials):
+        n_frames, n_markers, _ = t.xyz.shape
+        frames = np.arange(n_frames, dtype=np.int64)
+        parts["trial"].append(np.full(n_frames * n_markers, i, dtype=np.int32))
+        parts["frame"].append(np.tile(frames, n_markers))
+        parts["time"].append(np.tile(frames / t.rate, n_markers))
+        parts["entity"].append(np.repeat(np.array([e_index[e] for e in t.entities], dtype=np.int32), n_frames))
+        parts["marker"].append(np.repeat(np.array([m_index[m] for m in t.markers], dtype=np.int32), n_frames))
+        parts["xyz"].append(t.xyz.transpose(1, 0, 2).reshape(-1, 3))
+    cat = {k: np.concatenate(v) for k, v in parts.items()}
+    xyz = cat.pop("xyz")
+    return pd.DataFrame({
+        "trial": pd.Categorical.from_codes(cat["trial"], trial_cats),
+        "frame": cat["frame"],
+        "time": cat["time"],
+        "entity": pd.Categorical.from_codes(cat["entity"], entity_cats),
+        "marker": pd.Categorical.from_codes(cat["marker"], marker_cats),
+        "x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2],
+        "occluded": np.isnan(xyz[:, 0]),
+    })
+
+
+def trials_table(protocol: Protocol, trials: list[ImportedTrial]) -> pd.DataFrame:
+    """One row per imported recording (schema.TRIALS): protocol metadata + how it was read."""
+    df = protocol.trials.copy()
+    df["trial"] = df["trial"].astype(str)
+    df.insert(0, "study", protocol.study)
+    df["kind"] = "trial"
+    df["n_trials"] = 1
+    for name, col in TRIAL_COLUMNS.items():
+        if name not in df.columns:
+            df[name] = None
+        df[name] = df[name].astype({"string": "string", "int": "Int64", "float": "float64"}[col.dtype])
+    by_id = {t.trial: t for t in trials}
+    df["file"] = [str(protocol.trial_file(row)) for _, row in df.iterrows()]
+    df["sha256"] = [by_id[t].sha256 for t in df["trial"]]
+    df["source_format"] = [by_id[t].source_format for t in df["trial"]]
+    df["source_units"] = [by_id[t].source_units for t in df["trial"]]
+    df["rate"] = [by_id[t].rate for t in df["trial"]]
+    df["n_frames"] = [by_id[t].xyz.shape[0] for t in df["trial"]]
+    return df[list(TRIALS.columns) + [c for c in df.columns if c not in TRIALS.columns]]
+
+
+def load_marker_map(path: str | os.PathLike) -> dict[str, str]:
+    """A marker map YAML file: ``LAB: CANON`` lines, or the same under a ``marker_map:`` key."""
+    import yaml
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("marker map file not found", path=path, remedy="pass an existing YAML file to --marker-map")
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise InputError(f"not a valid YAML marker map ({type(exc).__name__})", path=path, remedy="write one 'LAB: CANON' line per label") from exc
+    doc = doc.get("marker_map", doc) if isinstance(doc, dict) else doc
+    if not isinstance(doc, dict) or not all(isinstance(v, str) for v in doc.values()):
+        raise InputError("a marker map must map lab labels to canonical labels", path=path, remedy="write one 'LAB: CANON' line per label")
+    return {str(k): v for k, v in doc.items()}
+
+
+def parse_map_options(items: list[str]) -> dict[str, str]:
+    """``["L_ASIS=LASI", ...]`` -> ``{"L_ASIS": "LASI"}``."""
+    out = {}
+    for item in items:
+        lab, sep, canon = item.partition("=")
+        if not sep or not lab.strip() or not canon.strip():
+            raise InputError(f"--map {item!r} is not LAB=CANON", remedy="write e.g. --map L_ASIS=LASI")
+        out[lab.strip()] = canon.strip()
+    return out
+
+
+def run_import(protocol_path: str | os.PathLike, out: str | os.PathLike, *, units: str = "auto",
+               marker_map: dict[str, str] | None = None, marker_map_file: str | os.PathLike | None = None,
+               keep_all: bool = False, jobs: int | None = None, scheduler: str | None = None, force: bool = False) -> Path:
+    """Import every trial of a protocol into ``out/import`` (Stage "import"); returns the stage directory."""
+    from cobot_analysis.parallel import map_tasks
+    from cobot_analysis.workspace import Stage
+
+    if units not in UNITS:
+        raise InputError(f"unknown --units {units!r}", remedy=f"use one of {', '.join(UNITS)}")
+    protocol = load_protocol(protocol_path)
+    mapping = dict(protocol.marker_map)
+    inputs: list[Any] = [protocol.path]
+    if marker_map_file is not None:
+        mapping.update(load_marker_map(marker_map_file))
+        inputs.append(marker_map_file)
+    mapping.update(marker_map or {})
+    for key in ("trials", "subjects", "pairs"):
+        ref = _protocol_csv(protocol.path, key)
+        if ref is not None:
+            inputs.append(ref)
+    files = [protocol.trial_file(row) for _, row in protocol.trials.iterrows()]
+    pair_study = "pair" in protocol.trials.columns and protocol.trials["pair"].notna().any()
+    tasks = [TrialTask(str(row["trial"]), f, bool(pair_study), units, dict(protocol.entities), mapping, keep_all, protocol.rate)
+             for (_, row), f in zip(protocol.trials.iterrows(), files)]
+    params = {"units": units, "marker_map": mapping, "keep_all_markers": keep_all, "entities": protocol.entities}
+    with Stage(out, "import", inputs=inputs + files, params=params, force=force) as stage:
+        if stage.skipped:
+            return stage.final_dir
+        imported = map_tasks(import_trial, tasks, jobs=jobs, scheduler=scheduler, description="import")
+        for t in imported:
+            for note in t.notes:
+                warn(note)
+        markers = long_table(imported)
+        rates = {t.trial: t.rate for t in imported}
+        unique_rates = sorted(set(rates.values()))
+        write_table(markers, stage.path("markers.parquet"), MARKERS, study=protocol.study,
+                    rate=unique_rates[0] if len(unique_rates) == 1 else None, rates=rates,
+                    source_units={t.trial: t.source_units for t in imported},
+                    source_format={t.trial: t.source_format for t in imported})
+        write_table(trials_table(protocol, imported), stage.path("trials.parquet"), TRIALS, study=protocol.study)
+        n_occ = int(markers["occluded"].sum())
+        info(f"[green]import[/green]: {len(imported)} trials, {len(markers)} marker samples "
+             f"({n_occ / max(len(markers), 1):.1%} occluded) -> {stage.final_dir}")
+    return stage.final_dir
+
+
+def _protocol_csv(protocol_path: Path, key: str) -> Path | None:
+    """The CSV file a protocol section points to, if it is one (for the stage's input hashes)."""
+    import yaml
+
+    ref = (yaml.safe_load(protocol_path.read_text()) or {}).get(key)
+    return protocol_path.parent / ref if isinstance(ref, str) else None

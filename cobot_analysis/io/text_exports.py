@@ -1,0 +1,182 @@
+"""Text exports of marker trajectories: Vicon Nexus CSV ("Trajectories") and Qualisys TSV.
+
+Vicon Nexus CSV export (the "Trajectories" section; other sections such as "Devices" are
+skipped)::
+
+    Trajectories
+    200                                   <- rate (Hz)
+    ,,Subj:LASI,,,Subj:RASI,,,            <- one label per marker, over its X, Y, Z columns
+    Frame,Sub Frame,X,Y,Z,X,Y,Z
+    ,,mm,mm,mm,mm,mm,mm                   <- units
+    1,0,12.3,45.6,950.1,...               <- empty cells where the marker is occluded
+
+Qualisys QTM TSV export (3D data)::
+
+    NO_OF_FRAMES  1500
+    FREQUENCY     200
+    MARKER_NAMES  LASI  RASI ...
+    Frame  Time  LASI X  LASI Y  LASI Z ...  <- header row (absent in old exports)
+    1      0.000 ...                         <- occluded: empty, NaN/null, or 0 0 0 (QTM's filler)
+
+QTM exports are in millimetres (the file does not state it). Frames must be strictly increasing
+(so must Time in QTM files); missing frame numbers are kept as occluded frames. Both readers
+return ``RawMarkers`` (labels, xyz [frames, markers, 3] in metres, rate, source units).
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from pathlib import Path
+
+import numpy as np
+
+from cobot_analysis.errors import InputError
+from cobot_analysis.io.c3d import REMEDY_UNITS, RawMarkers, to_metres_factor
+
+_REEXPORT = "re-export the trial from the capture software"
+
+
+def sniff_text_format(head: str) -> str | None:
+    """'vicon-csv' or 'qualisys-tsv' from the first lines of a text file, else None."""
+    lines = [ln.strip().strip(",").strip() for ln in head.splitlines() if ln.strip().strip(",")]
+    if not lines:
+        return None
+    if lines[0].startswith(("NO_OF_FRAMES", "FILE_VERSION")):
+        return "qualisys-tsv"
+    if "Trajectories" in lines or lines[0] in ("Devices", "Model Outputs", "Joints", "Segments"):
+        return "vicon-csv"
+    return None
+
+
+def _numeric(rows: list[list[str]], path: Path, first_line: int) -> np.ndarray:
+    """Rows of text cells -> float array; empty cells, 'NaN' and 'null' become NaN."""
+    import pandas as pd
+
+    width = max((len(r) for r in rows), default=0)
+    text = "\n".join(",".join(c.strip() for c in r) + "," * (width - len(r)) for r in rows)
+    if not text:
+        return np.empty((0, 0))
+    df = pd.read_csv(io.StringIO(text), header=None, na_values=["null", "NaN", "nan"], skip_blank_lines=False)
+    for j, col in df.items():
+        if col.dtype == object:
+            bad = col[pd.to_numeric(col, errors="coerce").isna() & col.notna()].iloc[0]
+            raise InputError(f"non-numeric value {bad!r} in the data rows (from line {first_line})", path=path, remedy=_REEXPORT)
+    return df.to_numpy(dtype=float)
+
+
+def _frames_to_grid(frame_numbers: np.ndarray, values: np.ndarray, path: Path, what: str) -> np.ndarray:
+    """Place rows at ``frame - first frame``; refuse non-increasing frame numbers (or times)."""
+    if len(frame_numbers) == 0:
+        raise InputError("empty trial (no data rows)", path=path, remedy="remove the trial from the protocol or re-export it")
+    if np.isnan(frame_numbers).any():
+        raise InputError(f"missing {what} values", path=path, remedy=_REEXPORT)
+    step = np.diff(frame_numbers)
+    if (step <= 0).any():
+        i = int(np.argmax(step <= 0)) + 1
+        kind = "duplicated" if step[i - 1] == 0 else "non-monotonic"
+        raise InputError(f"{kind} {what} at data row {i + 1} ({frame_numbers[i - 1]:g} then {frame_numbers[i]:g})",
+                         path=path, remedy="remove the repeated or out-of-order rows (or re-export the trial)")
+    index = np.rint(frame_numbers - frame_numbers[0]).astype(int)
+    grid = np.full((index[-1] + 1,) + values.shape[1:], np.nan)
+    grid[index] = values
+    return grid
+
+
+def read_vicon_csv(path: str | os.PathLike, units: str | None = None) -> RawMarkers:
+    """Read the "Trajectories" section of a Vicon Nexus CSV export (see module docstring)."""
+    import csv
+
+    path = Path(path)
+    with open(path, newline="", encoding="utf-8-sig", errors="replace") as fh:
+        rows = list(csv.reader(fh))
+    starts = [i for i, r in enumerate(rows) if r and r[0].strip() == "Trajectories"]
+    if not starts:
+        raise InputError("no 'Trajectories' section in this Vicon CSV export", path=path,
+                         remedy="export the trajectories from Nexus (File > Export > CSV, Trajectories)")
+    s = starts[0]
+    if len(rows) < s + 5:
+        raise InputError("truncated Vicon CSV export (header of the Trajectories section incomplete)", path=path, remedy=_REEXPORT)
+    try:
+        rate = float(rows[s + 1][0])
+    except (ValueError, IndexError) as exc:
+        raise InputError("no sampling rate on the line after 'Trajectories'", path=path, remedy=_REEXPORT) from exc
+    names, axes, unit_row = rows[s + 2], rows[s + 3], rows[s + 4]
+    if len(axes) < 2 or axes[0].strip() != "Frame":
+        raise InputError("the Trajectories section has no 'Frame, Sub Frame, X, Y, Z' header", path=path, remedy=_REEXPORT)
+    cols = [j for j, a in enumerate(axes) if a.strip() == "X"]
+    labels = [names[j].strip() if j < len(names) else "" for j in cols]
+    if not cols or any(not lab for lab in labels):
+        raise InputError("marker labels missing above the X, Y, Z columns", path=path, remedy=_REEXPORT)
+    stated = {unit_row[j].strip() for j in cols if j < len(unit_row) and unit_row[j].strip()}
+    if len(stated) > 1:
+        raise InputError(f"mixed length units {sorted(stated)}", path=path, remedy=REMEDY_UNITS)
+    source_units = (units or (stated.pop() if stated else "mm")).lower()
+    body = []
+    for r in rows[s + 5:]:
+        if not any(c.strip() for c in r):
+            break  # a blank line ends the section
+        body.append(r)
+    data = _numeric(body, path, s + 6)
+    if data.size == 0:
+        raise InputError("empty trial (no data rows)", path=path, remedy="remove the trial from the protocol or re-export it")
+    xyz_cols = np.array([[j, j + 1, j + 2] for j in cols])
+    if xyz_cols.max() >= data.shape[1]:
+        raise InputError("data rows shorter than the header", path=path, remedy=_REEXPORT)
+    if axes[1].strip() == "Sub Frame" and np.nan_to_num(data[:, 1]).any():
+        raise InputError("sub-frame rows in the Trajectories section", path=path, remedy="export trajectories at the camera rate")
+    xyz = _frames_to_grid(data[:, 0], data[:, xyz_cols], path, "frame numbers") * to_metres_factor(source_units, path)
+    return RawMarkers(labels, _occlude(xyz), rate, source_units)
+
+
+def read_qualisys_tsv(path: str | os.PathLike, units: str | None = None) -> RawMarkers:
+    """Read a Qualisys QTM TSV 3D export (see module docstring); lengths in mm unless ``units``."""
+    path = Path(path)
+    with open(path, encoding="utf-8-sig", errors="replace") as fh:
+        lines = fh.read().splitlines()
+    header: dict[str, list[str]] = {}
+    i = 0
+    while i < len(lines):
+        cells = lines[i].split("\t")
+        key = cells[0].strip()
+        if not key or not key.replace("_", "").isupper() or key == "Frame":
+            break
+        header[key] = [c.strip() for c in cells[1:]]
+        i += 1
+    labels = [c for c in header.get("MARKER_NAMES", []) if c]
+    if not labels:
+        raise InputError("no MARKER_NAMES line in this Qualisys TSV export", path=path, remedy="export 3D data with marker names from QTM")
+    try:
+        rate = float(header["FREQUENCY"][0])
+    except (KeyError, IndexError, ValueError) as exc:
+        raise InputError("no FREQUENCY line in this Qualisys TSV export", path=path, remedy=_REEXPORT) from exc
+    has_time = False
+    if i < len(lines) and lines[i].split("\t")[0].strip() == "Frame":
+        has_time = "Time" in [c.strip() for c in lines[i].split("\t")]
+        i += 1
+    rows = [ln.split("\t") for ln in lines[i:] if ln.strip()]
+    data = _numeric(rows, path, i + 1)
+    lead = 2 if has_time else 0
+    n = len(labels)
+    if data.size and data.shape[1] == 3 * n + 2 and not has_time:
+        lead, has_time = 2, True  # header row absent but Frame and Time columns present
+    if data.size == 0:
+        raise InputError("empty trial (no data rows)", path=path, remedy="remove the trial from the protocol or re-export it")
+    if data.shape[1] < lead + 3 * n:
+        raise InputError(f"data rows have {data.shape[1]} columns, {lead + 3 * n} expected for {n} markers", path=path, remedy=_REEXPORT)
+    xyz = data[:, lead:lead + 3 * n].reshape(len(data), n, 3)
+    xyz[np.all(xyz == 0.0, axis=2)] = np.nan  # QTM writes 0 0 0 for an unlabelled/occluded marker
+    if has_time:
+        _frames_to_grid(data[:, 1], data[:, :1], path, "Time values")
+        frame = data[:, 0]
+    else:
+        frame = np.arange(len(data), dtype=float)
+    source_units = (units or "mm").lower()
+    xyz = _frames_to_grid(frame, xyz, path, "frame numbers") * to_metres_factor(source_units, path)
+    return RawMarkers(labels, _occlude(xyz), rate, source_units)
+
+
+def _occlude(xyz: np.ndarray) -> np.ndarray:
+    """A sample with any NaN coordinate is occluded as a whole."""
+    xyz[np.isnan(xyz).any(axis=2)] = np.nan
+    return xyz
