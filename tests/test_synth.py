@@ -1,0 +1,233 @@
+"""Synthetic studies: design counts, determinism, marker geometry against the truth, gaps, rest."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cobot_analysis.angles import angle_diff
+from cobot_analysis.io.protocol import PELVIS_MARKERS, SUBJECT_MARKERS, load_protocol
+from cobot_analysis.schema import read_table
+from cobot_analysis.synth import body as bd
+from cobot_analysis.synth import paths, walking
+from cobot_analysis.synth.truth import TRUTH, TRUTH_TRIALS
+
+SMALL = ["N1500", "S4015", "O-0640"]  # 3 conditions: near / far, facing / away from the goal
+
+
+def read_c3d(path):
+    """(labels, xyz (frames, markers, 3) in m with NaN where occluded, rate, units, residuals)."""
+    import ezc3d
+
+    c = ezc3d.c3d(str(path))
+    pts = c["data"]["points"]
+    labels = list(c["parameters"]["POINT"]["LABELS"]["value"])
+    units = c["parameters"]["POINT"]["UNITS"]["value"][0]
+    rate = c["parameters"]["POINT"]["RATE"]["value"][0]
+    return labels, np.transpose(pts[:3], (2, 1, 0)) / 1000.0, rate, units, c["data"]["meta_points"]["residuals"][0].T
+
+
+@pytest.fixture(scope="module")
+def small_walking(tmp_path_factory):
+    d = tmp_path_factory.mktemp("walk")
+    protocol = walking.generate(d, seed=7, n_subjects=2, n_trials=1, conditions=SMALL)
+    return protocol
+
+
+# ---- walking: design and files ---------------------------------------------------------------
+def test_walking_design_counts_and_protocol(small_walking):
+    proto = load_protocol(small_walking)
+    assert proto.study == "synthetic-walking" and proto.rate == 200.0
+    assert len(proto.trials) == 2 * 3 * 1
+    assert sorted(proto.trials.columns) == ["condition", "file", "repetition", "subject", "trial"]
+    assert set(proto.trials["condition"]) == set(SMALL) and set(proto.trials["subject"]) == {"S01", "S02"}
+    assert proto.trials.loc[proto.trials.trial == "S01_S4015_1", "file"].item() == "raw/S01_S4015_1.c3d"
+    assert list(proto.subjects.columns) == ["id", "sex", "weight", "height"]
+    assert proto.subjects["height"].between(1.5, 2.0).all() and proto.subjects["weight"].between(40, 110).all()
+    truth = read_table(small_walking.parent / "truth.parquet", TRUTH)
+    tt = read_table(small_walking.parent / "truth_trials.parquet", TRUTH_TRIALS)
+    assert set(truth["trial"]) == set(proto.trials["trial"]) == set(tt["trial"])
+    assert (truth["entity"] == "walker").all()
+    assert truth.attrs["cobot_analysis"]["columns"]["x"]["unit"] == "m"
+
+
+def test_c3d_header_units_rate_labels(small_walking):
+    labels, xyz, rate, units, residuals = read_c3d(small_walking.parent / "raw" / "S02_O-0640_1.c3d")
+    assert labels == list(SUBJECT_MARKERS) and rate == 200.0 and units == "mm"
+    assert xyz.shape[1:] == (14, 3)
+    gone = np.isnan(xyz).any(axis=-1)
+    assert np.array_equal(gone, residuals < 0)  # Vicon convention: occluded = NaN + residual -1
+    # pelvis at about 0.95 m, head near the subject's height: the file is really in mm
+    pelvis_z = np.nanmean(xyz[:, :4, 2])
+    assert 0.8 < pelvis_z < 1.1 and 1.4 < np.nanmean(xyz[:, -4:, 2]) < 2.0
+
+
+def test_pelvis_markers_give_true_com_and_theta(small_walking):
+    truth = read_table(small_walking.parent / "truth.parquet", TRUTH)
+    for trial, g in truth.groupby("trial", observed=True):
+        _, xyz, *_ = read_c3d(small_walking.parent / "raw" / f"{trial}.c3d")
+        pel = xyz[:, [SUBJECT_MARKERS.index(m) for m in PELVIS_MARKERS]]
+        com = pel.mean(axis=1)[:, :2]
+        ok = ~np.isnan(com).any(axis=1)
+        err = np.hypot(*(com[ok] - g[["x", "y"]].to_numpy()[ok]).T)
+        assert err.mean() < 0.0006 and err.max() < 0.003  # noise 0.7 mm / 2 per barycentre
+        lasi, rasi = pel[:, 0], pel[:, 1]
+        lx, ly = (lasi - rasi)[:, 0], (lasi - rasi)[:, 1]
+        theta = np.arctan2(-lx, ly)
+        ok = ~np.isnan(theta)
+        assert np.abs(angle_diff(theta[ok], g["theta"].to_numpy()[ok])).max() < 0.03
+        assert ok.mean() > 0.5
+
+
+def test_gaps_match_truth_flags(small_walking):
+    truth = read_table(small_walking.parent / "truth.parquet", TRUTH)
+    n_lost = 0
+    for trial, g in truth.groupby("trial", observed=True):
+        _, xyz, *_ = read_c3d(small_walking.parent / "raw" / f"{trial}.c3d")
+        pel_gone = np.isnan(xyz[:, :4]).any(axis=-1)
+        assert np.array_equal(pel_gone.sum(axis=1), g["pelvis_occluded"].to_numpy())
+        lost = g["orientation_lost"].to_numpy()
+        assert pel_gone[lost].any(axis=1).all()  # a pelvis marker is missing wherever orientation is lost
+        if lost.any():
+            n_lost += 1
+            run = lost.sum() / 200.0
+            assert bd.LONG_GAP_RANGE[0] - 0.01 <= run <= bd.LONG_GAP_RANGE[1] + 0.01
+            assert (g["segment"].to_numpy()[lost] == "walk").all()  # long gaps happen while walking
+    assert n_lost >= 1  # seed 7 plants at least one long gap among the 6 trials
+
+
+def test_walks_start_and_end_at_rest_at_the_goal(small_walking):
+    truth = read_table(small_walking.parent / "truth.parquet", TRUTH)
+    tt = read_table(small_walking.parent / "truth_trials.parquet", TRUTH_TRIALS).set_index("trial")
+    for trial, g in truth.groupby("trial", observed=True):
+        seg = g["segment"].to_numpy()
+        walk = np.flatnonzero(seg == "walk")
+        before, after = g.iloc[: walk[0]], g.iloc[walk[-1] + 1:]
+        assert len(before) >= 100 and len(after) >= 160  # >= 0.5 s standing before, >= 0.8 s after
+        for rest in (before, after):  # standing still: no drift, no sway
+            assert np.ptp(rest["x"]) < 1e-9 and np.ptp(rest["y"]) < 1e-9 and np.ptp(rest["theta"]) < 1e-9
+        v = np.hypot(*np.gradient(g[["x", "y"]].to_numpy(), 1 / 200.0, axis=0).T)
+        assert v[walk[:3]].max() < 0.02 and v[walk[-3:]].max() < 0.02
+        end = g.iloc[-1]
+        assert math.hypot(end.x, end.y) < 0.15  # the goal is at the origin
+        assert abs(angle_diff(end.theta, math.pi / 2)) < 0.25
+        row = tt.loc[trial]
+        assert row.onset == pytest.approx(walk[0] / 200.0) and row.offset == pytest.approx(walk[-1] / 200.0)
+        assert 0.6 < row.peak_speed < 1.4
+        cond = walking.walking_condition(row.condition)
+        assert math.hypot(row.x0 - cond.start[0], row.y0 - cond.start[1]) < 0.5
+        assert abs(angle_diff(row.theta0, cond.theta0)) < 0.4
+
+
+def test_same_seed_same_bytes_and_subset_equals_full_study(small_walking, tmp_path):
+    walking.generate(tmp_path, seed=7, n_subjects=2, n_trials=1, conditions=["S4015"])
+    for name in ("S01_S4015_1", "S02_S4015_1"):
+        assert (tmp_path / "raw" / f"{name}.c3d").read_bytes() == (small_walking.parent / "raw" / f"{name}.c3d").read_bytes()
+    full = read_table(small_walking.parent / "truth.parquet", TRUTH)
+    sub = read_table(tmp_path / "truth.parquet", TRUTH)
+    a = full[full["trial"] == "S02_S4015_1"].reset_index(drop=True)
+    b = sub[sub["trial"] == "S02_S4015_1"].reset_index(drop=True)
+    pd.testing.assert_frame_equal(a[["x", "y", "theta", "frame"]], b[["x", "y", "theta", "frame"]])
+    other = tmp_path / "other"
+    walking.generate(other, seed=8, n_subjects=1, n_trials=1, conditions=["S4015"])
+    assert (other / "raw" / "S01_S4015_1.c3d").read_bytes() != (tmp_path / "raw" / "S01_S4015_1.c3d").read_bytes()
+
+
+# ---- building blocks ---------------------------------------------------------------------------
+@settings(max_examples=40, deadline=None)
+@given(length=st.floats(0.3, 8.0), v_peak=st.floats(0.5, 1.5), t_ramp=st.floats(0.5, 2.0))
+def test_speed_profile_reaches_the_end_at_rest_with_the_peak_speed(length, v_peak, t_ramp):
+    T = paths.motion_duration(length, v_peak, t_ramp)
+    pts = np.column_stack([np.linspace(0, length, 50), np.zeros(50)])
+    p = paths.along(pts, T, t_ramp, 200.0)
+    assert p.xy[0, 0] == 0.0 and p.xy[-1, 0] == pytest.approx(length)
+    assert np.all(np.diff(p.xy[:, 0]) >= -1e-12)  # never walks backward
+    assert p.speed[0] == 0 and p.speed[-1] == 0
+    assert p.speed.max() <= v_peak * 1.03  # the profile never exceeds the planned peak
+    if length / v_peak >= t_ramp + 0.1:  # long enough to reach it
+        assert p.speed.max() == pytest.approx(v_peak, rel=0.03)
+
+
+@settings(max_examples=40, deadline=None)
+@given(x=st.floats(-5, 5), y=st.floats(-5, 5), phi0=st.floats(-3.1, 3.1), phi1=st.floats(-3.1, 3.1),
+       bulge=st.floats(-0.3, 0.3))
+def test_hermite_meets_both_poses(x, y, phi0, phi1, bulge):
+    if math.hypot(x, y) < 0.2:
+        return
+    pts = paths.hermite((0.0, 0.0), (x, y), phi0, phi1, bulge=bulge)
+    assert np.allclose(pts[0], 0.0) and np.allclose(pts[-1], (x, y))
+    d0, d1 = pts[1] - pts[0], pts[-1] - pts[-2]
+    assert abs(angle_diff(math.atan2(d0[1], d0[0]), phi0)) < 0.02  # the bulge keeps the end tangents
+    assert abs(angle_diff(math.atan2(d1[1], d1[0]), phi1)) < 0.02
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 10_000), n_frames=st.integers(200, 3000), long=st.booleans())
+def test_gap_plan_short_gaps_stay_short_and_long_gap_stays_in_window(seed, n_frames, long):
+    rng = np.random.default_rng(seed)
+    window = (n_frames // 4, n_frames - n_frames // 4)
+    missing, gaps = bd.plan_gaps(rng, n_frames, 14, long_markers=(0, 1, 2, 3) if long else (), long_window=window,
+                                 short_rate=2.0, p_end=0.5)
+    assert len(gaps) == int(long)
+    for m in range(14):
+        col = np.concatenate([[False], missing[:, m], [False]]).astype(int)
+        starts, stops = np.flatnonzero(np.diff(col) == 1), np.flatnonzero(np.diff(col) == -1)
+        for a, b in zip(starts, stops):
+            if gaps and gaps[0].marker == m and (a, b) == (gaps[0].start, gaps[0].stop):
+                assert window[0] < a and b <= window[1]
+                assert b - a <= bd.LONG_GAP_RANGE[1] * 200
+            else:
+                assert b - a <= bd.SHORT_GAP_MAX
+
+
+def test_rigid_pelvis_barycentre_is_the_com_and_normal_is_theta():
+    rng = np.random.default_rng(1)
+    body = bd.Body.draw(rng, 1.80)
+    n = 50
+    com = rng.normal(size=(n, 2))
+    theta = rng.uniform(-np.pi, np.pi, n)
+    xyz = bd.subject_markers(np.arange(n) / 200, com, np.zeros(n), theta, np.zeros(n), body, bd.Gait())
+    assert np.allclose(xyz[:, :4, :2].mean(axis=1), com)
+    l = xyz[:, 0] - xyz[:, 1]
+    assert np.allclose(angle_diff(np.arctan2(-l[:, 0], l[:, 1]), theta), 0.0)
+    assert np.allclose(np.hypot(l[:, 0], l[:, 1]), body.asis_width)
+    tab = bd.table_markers(com, theta, np.full(n, 0.77))
+    centre = (tab[:, 1] + tab[:, 2]) / 2
+    axis = tab[:, 1] - tab[:, 0]
+    assert np.allclose(centre[:, :2], com) and np.allclose(tab[..., 2], 0.77)
+    assert np.allclose(angle_diff(np.arctan2(axis[:, 1], axis[:, 0]), theta), 0.0)
+    assert np.allclose(np.hypot(axis[:, 0], axis[:, 1]), 1.22)
+
+
+# ---- CLI -------------------------------------------------------------------------------------
+def test_cli_synth_walking_small_study_and_skip(cli, tmp_path):
+    out = tmp_path / "ws"
+    args = ("synth", "walking", "--out", out, "--subjects", "2", "--conditions", "E4015,N1500", "--trials", "1",
+            "--jobs", "1", "--seed", "3")
+    code, _, err = cli(*args)
+    assert code == 0, err
+    stage = out / "synth-walking"
+    proto = load_protocol(stage / "protocol.yaml")
+    assert len(proto.trials) == 4 and len(list((stage / "raw").glob("*.c3d"))) == 4
+    assert (stage / "manifest.json").is_file() and (stage / "results.md").read_text().startswith("## Synthetic walking")
+    code, _, err = cli(*args)
+    assert code == 0 and "up to date" in err
+
+
+@pytest.mark.parametrize("args, message", [
+    (("--subjects", "0"), "--subjects"),
+    (("--trials", "0"), "--trials"),
+    (("--conditions", "X1500"), "unknown value"),
+    (("--conditions", "41"), "between 1 and 40"),
+])
+def test_cli_synth_walking_bad_usage_exits_2_without_output(cli, tmp_path, args, message):
+    out = tmp_path / "ws"
+    code, _, err = cli("synth", "walking", "--out", out, *args)
+    assert code == 2 and message in err
+    assert not (out / "synth-walking").exists()
+    assert not out.exists() or not any(out.iterdir())
