@@ -252,11 +252,22 @@ def predict_trajectory(traj: Trajectory, config: SweepConfig) -> tuple[pd.DataFr
     return pd.DataFrame(rows), pd.concat(windows, ignore_index=True)
 
 
-def sweep_task(item: tuple[Trajectory, SweepConfig]) -> tuple[str, pd.DataFrame, pd.DataFrame]:
-    """Task of the parallel sweep (top level so that process pools and Dask can pickle it)."""
-    traj, config = item
+def sweep_task(item: tuple[Trajectory, SweepConfig, "WorkDir | None"]) -> tuple[str, pd.DataFrame, pd.DataFrame]:
+    """Task of the parallel sweep (top level so that process pools and Dask can pickle it).
+
+    The task saves its result in the work directory itself when it can reach it (local pool, a
+    Dask cluster on this machine or a shared file system), so that every finished trajectory
+    survives an interruption; the caller saves it otherwise.
+    """
+    traj, config, work = item
     metrics, windows = predict_trajectory(traj, config)
-    return traj.digest(), metrics, windows
+    digest = traj.digest()
+    if work is not None:
+        try:
+            work.save(digest, metrics, windows)
+        except OSError:
+            pass
+    return digest, metrics, windows
 
 
 # ---- the resumable sweep ----------------------------------------------------------------------
@@ -296,13 +307,14 @@ def run_sweep(trajectories: list[Trajectory], config: SweepConfig, work: WorkDir
 
     todo = [t for t in trajectories if not work.done(t.digest())]
 
-    def keep(result) -> str:  # runs in this process as each trajectory finishes: saved at once
+    def keep(result) -> str:  # runs here as each trajectory arrives: save it unless its task did
         digest, metrics, windows = result
-        work.save(digest, metrics, windows)
+        if not work.done(digest):
+            work.save(digest, metrics, windows)
         return f"{metrics['trial'].iloc[0]}" if len(metrics) else ""
 
     if todo:
-        map_tasks(sweep_task, [(t, config) for t in todo], jobs=jobs, scheduler=scheduler,
+        map_tasks(sweep_task, [(t, config, work) for t in todo], jobs=jobs, scheduler=scheduler,
                   description="predict", status=keep)
     parts = [work.load(t.digest()) for t in trajectories]
     metrics = pd.concat([p[0] for p in parts], ignore_index=True)

@@ -1,0 +1,260 @@
+"""``cobot-analysis predict``: receding-horizon trajectory prediction assessed on every trajectory
+(METHODS.md sec. 7): the sweep, its tables, figures and results fragment."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from cobot_analysis.cli.app import PANEL_MODELS, DEFAULT_OUT_PATH, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, app
+
+STAGE = "predict"
+WORK = ".predict-work"
+
+
+def parse_settings(text: str) -> tuple[tuple[int, int], ...]:
+    """``"25:100,50:100"`` -> ((25, 100), (50, 100))."""
+    from cobot_analysis.errors import InputError
+
+    out = []
+    for part in filter(None, (p.strip() for p in text.split(","))):
+        try:
+            n0, n_oc = (int(v) for v in part.split(":"))
+        except ValueError:
+            raise InputError(f"bad setting {part!r}", remedy="write settings as N0:N_OC pairs, e.g. 25:100,50:100") from None
+        out.append((n0, n_oc))
+    if not out:
+        raise InputError("no (N0, N_OC) setting given", remedy="pass e.g. --settings 50:100")
+    return tuple(out)
+
+
+@app.command("predict", rich_help_panel=PANEL_MODELS)
+def predict_command(
+    out: OutOpt = DEFAULT_OUT_PATH,
+    trajectories: Annotated[Optional[Path], typer.Option("--trajectories", help="trajectories.parquet (default: from preprocess or import-published in OUT).")] = None,
+    settings: Annotated[str, typer.Option("--settings", help="(N0, N_OC) pairs in samples, as N0:N_OC,...")] = "25:100,50:100,75:100,50:200",
+    predictors: Annotated[str, typer.Option("--predictors", help="Comma-separated: oc (receding-horizon OC), cv (constant velocity), ctrv (constant turn rate and velocity).")] = "oc,cv,ctrv",
+    weights: Annotated[Optional[str], typer.Option("--weights", help="OC cost weights a0..a3: a preset (walking-2021, table-2022, ...) or a fitted weights.json. Default: walking-2021, table-2022 for tables.")] = None,
+    g0: Annotated[float, typer.Option("--g0", min=0.0, help="Weight of the position tracking of the measured past.")] = 10.0,
+    g1: Annotated[float, typer.Option("--g1", min=0.0, help="Weight of the orientation tracking (0 where theta is missing).")] = 10.0,
+    t_oc: Annotated[Optional[float], typer.Option("--t-oc", help="Sampling period T_OC (s): resample each trajectory to it. Default: the trajectory's own sample period.")] = None,
+    nominal_speed: Annotated[float, typer.Option("--nominal-speed", help="Speed (m/s) giving the assumed duration (path length / speed) of trajectories without a travel time.")] = 1.0,
+    study: Annotated[Optional[list[str]], typer.Option("--study", help="Only these studies (repeatable).")] = None,
+    entity: Annotated[Optional[list[str]], typer.Option("--entity", help="Only these entities: walker, subject1, subject2, table (repeatable).")] = None,
+    kind: Annotated[str, typer.Option("--kind", help="'trial', 'mean' or 'all' trajectories.")] = "all",
+    limit: Annotated[Optional[int], typer.Option("--limit", min=1, help="Only the first N trajectories (a quick look).")] = None,
+    jobs: JobsOpt = None,
+    scheduler: SchedulerOpt = None,
+    force: ForceOpt = False,
+) -> None:
+    """Predict every trajectory at every sample from its recent past and assess the predictions.
+
+    For each trajectory x (N0, N_OC) setting x predictor: delta_xy, delta_theta, d_pred (METHODS.md
+    sec. 7), ADE/FDE; a summary per setting (mean +- sd, Pearson r with the global distance), the
+    OC predictor vs the baselines on the same windows (Wilcoxon), figures and results.md.
+    Resumable: an interrupted run continues where it stopped (finished trajectories are kept in
+    OUT/.predict-work until the stage completes).
+    """
+    import numpy as np
+
+    from cobot_analysis.console import info, warn
+    from cobot_analysis.errors import InputError
+    from cobot_analysis.models.presets import load_weights
+    from cobot_analysis.models.sweep import (PREDICTION_COMPARISON, PREDICTION_SUMMARY, PREDICTION_WINDOWS, PREDICTIONS,
+                                             SweepConfig, WorkDir, compare_table, run_sweep, summary_table,
+                                             trajectories_from_table)
+    from cobot_analysis.schema import TRAJECTORIES, read_table, write_table
+    from cobot_analysis.workspace import Stage, find_input
+
+    config = SweepConfig(settings=parse_settings(settings), predictors=tuple(p.strip() for p in predictors.split(",") if p.strip()),
+                         weights=weights, g0=g0, g1=g1, t_oc=t_oc, nominal_speed=nominal_speed)
+    if kind not in ("trial", "mean", "all"):
+        raise InputError(f"unknown --kind {kind!r}", remedy="use trial, mean or all")
+    inputs = []
+    if "oc" in config.predictors:
+        for name in {config.weights_for(e) for e in ("walker", "table")}:
+            load_weights(name, "improved")  # unknown preset / bad file: one-line error before any work
+        if weights and Path(weights).is_file():
+            inputs.append(Path(weights))
+    path = trajectories if trajectories is not None else find_input(out, "trajectories.parquet", ["preprocess", "import-published"], "--trajectories")
+    df = read_table(path, TRAJECTORIES)
+    if study:
+        df = df[df["study"].isin(study)]
+    if entity:
+        df = df[df["entity"].isin(entity)]
+    if kind != "all":
+        df = df[df["kind"] == kind]
+    trajs = trajectories_from_table(df, config, path)
+    if limit:
+        trajs = trajs[:limit]
+    params = {"config": config.__dict__, "study": study, "entity": entity, "kind": kind, "limit": limit}
+    work = WorkDir(Path(out) / WORK, config)
+    with Stage(out, STAGE, inputs=[path, *inputs], params=params, force=force) as stage:
+        if stage.skipped:
+            return
+        if force:
+            work.clear()
+        info(f"predict: {len(trajs)} trajectories x {len(config.settings)} settings x {len(config.predictors)} predictors")
+        metrics, windows, resumed = run_sweep(trajs, config, work, jobs=jobs, scheduler=scheduler)
+        if resumed:
+            info(f"predict: {resumed} trajectories resumed from {work.dir}")
+        skipped = metrics.drop_duplicates(["study", "trial", "entity", "n0", "n_oc"])["n_skipped"].sum()
+        if skipped:
+            n_traj = metrics.loc[metrics["n_skipped"] > 0, ["study", "trial", "entity"]].drop_duplicates().shape[0]
+            warn(f"predict: {skipped} windows of {n_traj} trajectories skipped (NaN positions in the measured past)")
+        failed = metrics.loc[metrics["predictor"] == "oc", "n_failed"].sum() if "oc" in config.predictors else 0
+        if failed:
+            warn(f"predict: {failed} OC windows failed to converge (left out of every predictor's metrics)")
+        if not np.isfinite(metrics["delta_xy"]).any():
+            raise InputError("no window could be predicted (every window has NaN positions)", path=path,
+                             remedy="check the trajectories (preprocess gaps) or lower N0")
+        summary = summary_table(metrics)
+        comparison = compare_table(metrics, windows)
+        meta = {"weights": weights or "walking-2021 (walkers) / table-2022 (tables)", "g0": g0, "g1": g1}
+        write_table(metrics, stage.path("predictions.parquet"), PREDICTIONS, **meta)
+        write_table(windows, stage.path("prediction_windows.parquet"), PREDICTION_WINDOWS, **meta)
+        write_table(summary, stage.path("prediction_summary.parquet"), PREDICTION_SUMMARY, **meta)
+        write_table(comparison, stage.path("prediction_comparison.parquet"), PREDICTION_COMPARISON, **meta)
+        example = example_trajectory(metrics, trajs, config)
+        figures(stage, metrics, example, config)
+        stage.path("results.md").write_text(results_fragment(metrics, summary, comparison, config, example))
+    work.clear()
+    info(f"[green]predict[/green]: {stage.final_dir}")
+
+
+# ---- figures and report -----------------------------------------------------------------------
+def figure_setting(config) -> tuple[int, int]:
+    return (50, 100) if (50, 100) in config.settings else config.settings[0]
+
+
+def example_trajectory(metrics, trajs, config):
+    """The trajectory with the median delta_xy of the first predictor at the figure setting."""
+    import numpy as np
+
+    n0, n_oc = figure_setting(config)
+    m = metrics[(metrics["n0"] == n0) & (metrics["n_oc"] == n_oc) & (metrics["predictor"] == config.predictors[0])]
+    m = m[np.isfinite(m["delta_xy"])].sort_values("delta_xy")
+    row = m.iloc[len(m) // 2]
+    return next(t for t in trajs if (t.study, t.trial, t.entity) == (row["study"], row["trial"], row["entity"]))
+
+
+def figures(stage, metrics, traj, config) -> None:
+    """All predictions of one trajectory, error vs global distance, and 'prediction at k' panels."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from cobot_analysis.models.predict import make_predictor
+
+    n0, n_oc = figure_setting(config)
+    preds = {}
+    for name in config.predictors:
+        options = {"weights": config.weights_for(traj.entity), "g0": config.g0, "g1": config.g1} if name == "oc" else {}
+        preds[name] = make_predictor(name, n0, n_oc, traj.dt, **options).predict_offline(traj.poses)
+    xy = traj.poses[:, :2]
+    colours = {"oc": "tab:blue", "cv": "tab:orange", "ctrv": "tab:green"}
+
+    fig, axes = plt.subplots(1, len(preds), figsize=(4.2 * len(preds), 4.2), squeeze=False)
+    for ax, (name, P) in zip(axes[0], preds.items()):
+        for w in P:
+            ax.plot(w[:, 0], w[:, 1], color=colours[name], lw=0.4, alpha=0.25)
+        ax.plot(*xy.T, color="k", lw=1.5, label="recorded")
+        ax.set_title(f"{name}: all {np.isfinite(P[:, 0, 0]).sum()} predictions")
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (m)")
+    axes[0, 0].set_ylabel("y (m)")
+    axes[0, 0].legend(loc="best", fontsize=7)
+    fig.suptitle(f"{traj.label}, N0 = {n0}, N_OC = {n_oc}, T_OC = {traj.dt * 1000:.1f} ms")
+    stage.savefig(fig, "prediction_overlay")
+
+    ks = np.linspace(n0 - 1, len(xy) - 1 - (n_oc - n0) // 2, 6).astype(int)
+    fig, axes = plt.subplots(2, 3, figsize=(12, 8), squeeze=False)
+    for ax, k in zip(axes.ravel(), ks):
+        ax.plot(*xy.T, color="0.8", lw=1)
+        ax.plot(*xy[k - n0 + 1: k + 1].T, color="k", lw=2.5, label="measured past (N0)")
+        ax.plot(*xy[k: k + n_oc - n0 + 1].T, color="k", ls="--", lw=1, label="to come")
+        for name, P in reversed(preds.items()):  # the first predictor (oc) drawn on top
+            ax.plot(*P[k - n0 + 1][:, :2].T, color=colours[name], lw=1.5, label=name)
+        ax.set_title(f"k = {k} ({100 * k / (len(xy) - 1):.0f} %)")
+        ax.set_aspect("equal")
+    axes[0, 0].legend(fontsize=7)
+    fig.suptitle(f"Prediction at k: {traj.label}, N0 = {n0}, N_OC = {n_oc}")
+    stage.savefig(fig, "prediction_at_k")
+
+    m = metrics[(metrics["n0"] == n0) & (metrics["n_oc"] == n_oc)]
+    fig, axes = plt.subplots(1, len(preds), figsize=(4.2 * len(preds), 3.8), squeeze=False, sharey=True)
+    for ax, name in zip(axes[0], preds):
+        mp = m[m["predictor"] == name]
+        for orient, g in mp.groupby(mp["start_orientation"].replace("", "all"), sort=True):
+            c = g.groupby("condition").agg(d=("global_distance", "mean"), mean=("delta_xy", "mean"),
+                                           lo=("delta_xy", "min"), hi=("delta_xy", "max")).sort_values("d")
+            line, = ax.plot(c["d"], c["mean"], marker="o", ms=3, label=orient)
+            ax.fill_between(c["d"], c["lo"], c["hi"], color=line.get_color(), alpha=0.15)
+        ax.set_title(name)
+        ax.set_xlabel("global distance (m)")
+    axes[0, 0].set_ylabel("delta_xy (m): mean, min-max band")
+    axes[0, 0].legend(title="start orientation", fontsize=7)
+    fig.suptitle(f"Prediction error vs global distance, N0 = {n0}, N_OC = {n_oc}")
+    stage.savefig(fig, "prediction_error_vs_distance")
+
+
+def _fmt(v, digits=3) -> str:
+    import math
+
+    return "n/a" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.{digits}f}"
+
+
+def _p(v) -> str:
+    import math
+
+    return "n/a" if math.isnan(v) else ("< 0.001" if v < 1e-3 else f"{v:.3f}")
+
+
+def results_fragment(metrics, summary, comparison, config, example) -> str:
+    """Markdown fragment of the stage (assembled into docs/results.md)."""
+    import numpy as np
+
+    traj = metrics.drop_duplicates(["study", "trial", "entity"])
+    studies = ", ".join(f"{s} ({n})" for s, n in traj.groupby("study").size().items())
+    no_theta = int((~traj["orientation"]).sum())
+    assumed = traj[traj["duration_source"] == "nominal_speed"]
+    lines = [
+        "## Trajectory prediction (METHODS.md sec. 7)", "",
+        f"{len(traj)} trajectories: {studies}; entities " + ", ".join(f"{e} ({n})" for e, n in traj.groupby("entity").size().items()) + ".",
+        f"Predictors: {', '.join(config.predictors)}; settings (N0, N_OC): {', '.join(f'({a}, {b})' for a, b in config.settings)}; "
+        f"OC weights {config.weights or 'walking-2021 (walkers) / table-2022 (tables)'}, g0 = {config.g0}, g1 = {config.g1}.",
+        f"T_OC: {'resampled every %g s' % config.t_oc if config.t_oc else 'the sample period of each trajectory'}, "
+        f"median {1000 * traj['t_oc'].median():.1f} ms (range {1000 * traj['t_oc'].min():.1f}-{1000 * traj['t_oc'].max():.1f} ms). "
+        + (f"{len(assumed)} trajectories have no recorded duration: assumed duration = path length / {config.nominal_speed:g} m/s "
+           f"(median {assumed['duration'].median():.2f} s). " if len(assumed) else "Durations: recorded travel times. ")
+        + (f"{no_theta} trajectories have no orientation: position-only tracking (g1 = 0), delta_theta not computed." if no_theta else ""),
+    ]
+    first = metrics.drop_duplicates(["study", "trial", "entity", "n0", "n_oc"])
+    skipped = int(first["n_skipped"].sum())
+    failed = int(metrics.loc[metrics["predictor"] == "oc", "n_failed"].sum()) if "oc" in config.predictors else 0
+    lines.append(f"Windows: {int(first['n_windows'].sum())} per predictor, {skipped} skipped (NaN positions), "
+                 f"{failed} failed OC solves; metrics use the windows every predictor predicted.")
+    lines += ["", "### Errors per setting (mean +- sd over trajectories; r = Pearson correlation with the global distance)", "",
+              "| N0 | N_OC | predictor | delta_xy (m) | delta_theta (rad) | d_pred (m) | ADE (m) | FDE (m) | r(delta_xy, D) |",
+              "|---|---|---|---|---|---|---|---|---|"]
+    for (n0, n_oc, pred), g in summary.groupby(["n0", "n_oc", "predictor"], sort=True):
+        cell = {r["metric"]: r for _, r in g.iterrows()}
+        vals = [f"{_fmt(cell[k]['mean'])} +- {_fmt(cell[k]['sd'])}" for k in ("delta_xy", "delta_theta", "d_pred", "ade", "fde")]
+        r = cell["delta_xy"]
+        lines.append(f"| {n0} | {n_oc} | {pred} | " + " | ".join(vals) + f" | {_fmt(r['pearson_r'], 2)} (p {_p(r['pearson_p'])}) |")
+    if len(comparison):
+        lines += ["", "### OC predictor vs baselines on the same windows (delta_xy; Wilcoxon signed-rank over trajectories)", "",
+                  "| N0 | N_OC | baseline | group | n | OC median (m) | baseline median (m) | median OC - baseline (m) | OC better (trajectories) | OC better (windows) | W | p | r |",
+                  "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+        for _, c in comparison.iterrows():
+            lines.append(f"| {c['n0']} | {c['n_oc']} | {c['baseline']} | {c['group']} | {c['n']} | {_fmt(c['oc_median'])} | "
+                         f"{_fmt(c['baseline_median'])} | {_fmt(c['median_difference'])} | {100 * c['oc_wins']:.0f} % | "
+                         f"{100 * c['oc_wins_windows']:.0f} % | {_fmt(c['wilcoxon_w'], 0)} | {_p(c['wilcoxon_p'])} | {_fmt(c['effect_r'], 2)} |")
+        lines += ["", "r: matched-pairs rank-biserial correlation, > 0 when the OC predictor has the smaller error."]
+    lines += ["", f"Figures: `prediction_overlay.png` (all predictions of {example.label}), `prediction_at_k.png`, "
+              "`prediction_error_vs_distance.png` (per start orientation, min-max bands over trajectories of a condition)."]
+    return "\n".join(lines) + "\n"
