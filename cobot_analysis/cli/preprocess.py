@@ -1,0 +1,57 @@
+"""``cobot-analysis preprocess``: raw markers -> time-normalised trajectories (METHODS.md sec. 2)."""
+
+from __future__ import annotations
+
+from enum import Enum
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from cobot_analysis.cli.app import PANEL_PROCESS, DEFAULT_OUT_PATH, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, app
+
+
+class OrderConvention(str, Enum):
+    design = "design"
+    effective = "effective"
+
+
+@app.command("preprocess", rich_help_panel=PANEL_PROCESS)
+def preprocess_command(
+    out: OutOpt = DEFAULT_OUT_PATH,
+    markers: Annotated[Optional[Path], typer.Option("--markers", help="markers.parquet (default: OUT/import/markers.parquet).")] = None,
+    trials: Annotated[Optional[Path], typer.Option("--trials", help="trials.parquet (default: beside the markers file).")] = None,
+    max_gap: Annotated[float, typer.Option("--max-gap", min=0.0, help="Longest gap filled by cubic spline (s); longer gaps stay missing.")] = 0.1,
+    cutoff: Annotated[float, typer.Option("--cutoff", min=0.0, help="Low-pass cut-off (Hz).")] = 10.0,
+    order: Annotated[int, typer.Option("--order", min=1, help="Butterworth order (see --order-convention).")] = 4,
+    order_convention: Annotated[OrderConvention, typer.Option(
+        "--order-convention",
+        help="design: ORDER-th order design run forward-backward (effective 2*ORDER, -6 dB at the cut-off); "
+             "effective: ORDER/2 design run forward-backward, cut-off corrected (Winter) so the result is "
+             "ORDER-th order with -3 dB at the cut-off.")] = OrderConvention.design,
+    samples: Annotated[int, typer.Option("--samples", "-n", min=2, help="Samples per time-normalised trajectory (endpoints included).")] = 500,
+    lift_threshold: Annotated[float, typer.Option("--lift-threshold", min=0.0, help="Pair study: table height above the floor level that marks a carriage (m).")] = 0.005,
+    floor_window: Annotated[float, typer.Option("--floor-window", min=0.0, help="Pair study: floor level = median table height over this first part of the recording (s).")] = 0.5,
+    speed_threshold: Annotated[float, typer.Option("--speed-threshold", min=0.0, help="Walking: CoM speed that marks walking (m/s).")] = 0.1,
+    min_duration: Annotated[float, typer.Option("--min-duration", min=0.0, help="Shortest carriage / walk kept (s); shorter runs are ignored.")] = 0.5,
+    gamma_min_speed: Annotated[float, typer.Option("--gamma-min-speed", min=0.0, help="Below this speed (m/s) gamma holds its last well-defined value.")] = 0.1,
+    keep_approach: Annotated[bool, typer.Option("--keep-approach", help="Pair study: also keep each subject's walk to the table as a trial '<recording>_approach'.")] = False,
+    jobs: JobsOpt = None,
+    scheduler: SchedulerOpt = None,
+    force: ForceOpt = False,
+) -> None:
+    """Fill short gaps, low-pass filter, compute pelvis/table kinematics, segment and time-normalise.
+
+    Reads OUT/import/markers.parquet and trials.parquet; writes OUT/preprocess/trajectories.parquet
+    (one row per trajectory and sample), gaps.parquet (every gap of the pelvis and table markers)
+    and results.md (gap and quality summary).
+    """
+    from cobot_analysis.preprocess.stage import Params, run
+    from cobot_analysis.workspace import find_input
+
+    markers_path = markers if markers is not None else find_input(out, "markers.parquet", ["import"], "--markers")
+    trials_path = trials if trials is not None else markers_path.with_name("trials.parquet")
+    params = Params(max_gap=max_gap, cutoff=cutoff, order=order, order_convention=order_convention.value, n_samples=samples,
+                    lift_threshold=lift_threshold, floor_window=floor_window, speed_threshold=speed_threshold,
+                    min_duration=min_duration, gamma_min_speed=gamma_min_speed, keep_approach=keep_approach)
+    run(out, markers_path, trials_path, params, force=force, jobs=jobs, scheduler=scheduler)

@@ -1,0 +1,96 @@
+"""Zero-phase low-pass Butterworth filter (METHODS.md sec. 2.3), applied per continuous segment.
+
+Order conventions (``convention``), for a requested ``order`` n and cut-off fc:
+
+- ``"design"`` (default): an n-th order Butterworth designed at fc and run forward and backward
+  (``scipy.signal.sosfiltfilt``). The magnitude is squared: ``|H|^2 = 1 / (1 + (w/wc)^(2n))^2``,
+  i.e. an effective order 2n with -6 dB (gain 1/2) at fc. "4th-order zero-phase Butterworth,
+  10 Hz" read this way (MATLAB ``butter(4, ...)`` + ``filtfilt``) is what the CoBot studies
+  describe, so it is the default.
+- ``"effective"``: the forward-backward result has order n and -3 dB at fc (Winter): an
+  (n/2)-th order design run forward and backward, its cut-off raised by the correction
+  ``C = (2^(1/2) - 1)^(1/(2 (n/2)))`` (for n = 4 this is Winter's ``(2^(1/n_passes) - 1)^(1/4)``
+  with n_passes = 2, C = 0.802), applied on the pre-warped frequency:
+  ``tan(pi f_design / fs) = tan(pi fc / fs) / C``, so that the digital gain at fc is exactly
+  ``1/sqrt(2)``. n must be even.
+
+NaN samples (long gaps left open) split a signal into continuous segments, each filtered on
+its own; segments shorter than the filter's default padding are filtered with a shorter pad and
+segments of fewer than 2 samples are left as they are.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+CUTOFF = 10.0  # Hz
+ORDER = 4
+CONVENTIONS = ("design", "effective")
+DEFAULT_CONVENTION = "design"
+
+
+def design_cutoff(cutoff: float, rate: float, order: int, convention: str = DEFAULT_CONVENTION) -> tuple[int, float]:
+    """``(design order, design cut-off Hz)`` of the filter run forward-backward under ``convention``."""
+    if convention not in CONVENTIONS:
+        raise ValueError(f"order convention must be one of {CONVENTIONS}, not {convention!r}")
+    if not 0 < cutoff < rate / 2:
+        raise ValueError(f"cut-off {cutoff} Hz must lie in (0, {rate / 2}) Hz (Nyquist)")
+    if convention == "design":
+        return order, cutoff
+    if order % 2:
+        raise ValueError(f"the 'effective' convention needs an even order (forward-backward doubles it), not {order}")
+    half = order // 2
+    c = (math.sqrt(2.0) - 1.0) ** (1.0 / (2 * half))
+    warped = math.tan(math.pi * cutoff / rate) / c
+    f = rate / math.pi * math.atan(warped)
+    if f >= rate / 2:
+        raise ValueError(f"corrected cut-off of {cutoff} Hz exceeds the Nyquist frequency at {rate} Hz")
+    return half, f
+
+
+def butter_sos(cutoff: float, rate: float, order: int = ORDER, convention: str = DEFAULT_CONVENTION) -> np.ndarray:
+    """Second-order sections of the Butterworth low-pass to run forward-backward."""
+    from scipy.signal import butter
+
+    n, f = design_cutoff(cutoff, rate, order, convention)
+    return butter(n, f, btype="low", fs=rate, output="sos")
+
+
+def _padlen(sos: np.ndarray) -> int:
+    """``scipy.signal.sosfiltfilt``'s default pad length."""
+    return 3 * (2 * len(sos) + 1 - min((sos[:, 2] == 0).sum(), (sos[:, 5] == 0).sum()))
+
+
+def segments(missing: np.ndarray) -> list[tuple[int, int]]:
+    """``[(start, stop), ...]`` of the runs of valid (not missing) samples."""
+    m = np.concatenate([[True], np.asarray(missing, dtype=bool), [True]])
+    edges = np.flatnonzero(np.diff(m.astype(np.int8)))
+    return list(zip(edges[0::2], edges[1::2]))
+
+
+def lowpass(x: np.ndarray, sos: np.ndarray) -> np.ndarray:
+    """Zero-phase filter the columns of ``x (T, ...)`` along time, each continuous segment apart.
+
+    Columns that share their NaN pattern (the usual case: x, y, z of a marker; all markers
+    without gaps) are filtered together in one call.
+    """
+    from scipy.signal import sosfiltfilt
+
+    x = np.asarray(x, dtype=float)
+    flat = x.reshape(len(x), -1)
+    out = np.full_like(flat, np.nan)
+    pad = _padlen(sos)
+    missing = np.isnan(flat)
+    patterns: dict[bytes, list[int]] = {}
+    for j in range(flat.shape[1]):  # columns (markers x coordinates), never samples
+        patterns.setdefault(np.packbits(missing[:, j]).tobytes(), []).append(j)
+    for cols in patterns.values():
+        for a, b in segments(missing[:, cols[0]]):
+            seg = flat[a:b, cols]
+            if b - a < 2:
+                out[a:b, cols] = seg
+            else:
+                out[a:b, cols] = sosfiltfilt(sos, seg, axis=0, padlen=min(pad, b - a - 1))
+    return out.reshape(x.shape)

@@ -1,0 +1,59 @@
+"""Segmentation of recordings into trajectories (METHODS.md sec. 1.2 and 3).
+
+Pair-study recordings (walk-to-table, forward carriage, set-down, return carriage) are cut by the
+table height ``h`` (mean z of the visible table corners, ``kinematics.table_height``):
+
+- floor level ``h0`` = median of ``h`` over the first ``floor_window`` seconds (default 0.5 s) of
+  the recording, when the table rests on the floor before the subjects reach it;
+- the table is carried while ``h > h0 + threshold`` (default 5 mm); each maximal run of such
+  samples lasting at least ``min_duration`` (default 0.5 s, to ignore bumps) is a carriage;
+- onset = first sample of the run, offset = its last sample (so ``travel_time = offset - onset``).
+
+Walking trials are cut by the pelvis CoM speed: the subject walks while ``|v| >= threshold``
+(default 0.1 m/s); runs shorter than ``min_duration`` (default 0.5 s) are ignored (sway while
+standing), and the trajectory goes from the first sample of the first run to the last sample of
+the last run (a brief slow-down in between stays inside the trajectory).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+LIFT_THRESHOLD = 0.005  # m above the floor level
+FLOOR_WINDOW = 0.5  # s at the start of the recording
+SPEED_THRESHOLD = 0.1  # m/s
+MIN_DURATION = 0.5  # s
+
+
+def runs(active: np.ndarray, min_samples: int = 1) -> list[tuple[int, int]]:
+    """``[(first, last), ...]`` (inclusive) of the runs of True lasting at least ``min_samples``."""
+    m = np.concatenate([[False], np.asarray(active, dtype=bool), [False]])
+    edges = np.flatnonzero(np.diff(m.astype(np.int8)))
+    return [(int(a), int(b) - 1) for a, b in zip(edges[0::2], edges[1::2]) if b - a >= min_samples]
+
+
+def floor_level(height: np.ndarray, rate: float, window: float = FLOOR_WINDOW) -> float:
+    """Resting table height: median of the valid heights in the first ``window`` seconds."""
+    head = np.asarray(height, dtype=float)[: max(1, int(round(window * rate)))]
+    head = head[~np.isnan(head)]
+    return float(np.median(head)) if head.size else float("nan")
+
+
+def carriages(height: np.ndarray, rate: float, threshold: float = LIFT_THRESHOLD, window: float = FLOOR_WINDOW,
+              min_duration: float = MIN_DURATION) -> tuple[list[tuple[int, int]], float]:
+    """Carriage (onset, offset) sample pairs of a pair recording and the floor level used."""
+    h0 = floor_level(height, rate, window)
+    with np.errstate(invalid="ignore"):
+        lifted = np.asarray(height, dtype=float) > h0 + threshold
+    return runs(lifted, max(1, int(round(min_duration * rate)))), h0
+
+
+def walking_bounds(speed: np.ndarray, rate: float, threshold: float = SPEED_THRESHOLD,
+                   min_duration: float = MIN_DURATION) -> tuple[int, int] | None:
+    """(onset, offset) samples of a walking trial from its CoM speed; None if it never walks."""
+    with np.errstate(invalid="ignore"):
+        moving = np.asarray(speed, dtype=float) >= threshold
+    found = runs(moving, max(1, int(round(min_duration * rate))))
+    if not found:
+        return None
+    return found[0][0], found[-1][1]

@@ -1,0 +1,394 @@
+"""The preprocess stage: raw markers -> time-normalised trajectories (METHODS.md sec. 2).
+
+Order of operations, per recording:
+
+1. gap report of the markers used (pelvis LASI RASI LPSI RPSI of each subject, TAB1-3 of the
+   table) -> ``gaps.parquet``;
+2. short gaps (<= ``max_gap``, interior) filled by cubic spline and flagged (``gaps.py``);
+3. zero-phase Butterworth low-pass of each continuous segment (``filtering.py``);
+4. kinematics (``cobot_analysis.kinematics``): pelvis CoM (rigid-body reconstruction when one
+   pelvis marker is missing), theta, velocity; table centre, orientation, height;
+5. segmentation (``segmentation.py``): pair recordings by table height into forward and return
+   carriages (each of the 3 entities cut at the table's onset/offset; the walk-to-table only with
+   ``keep_approach``), walking trials by CoM speed;
+6. per trajectory: gamma (``kinematics.gamma``, ends held below ``gamma_min_speed``), quality
+   flags, time normalisation to N samples (``normalisation.py``) -> ``trajectories.parquet``.
+
+Quality flags (``quality`` column, ';'-separated, 'ok' when none):
+``short_gaps_filled`` (spline-filled frames inside the trajectory), ``long_gap`` (an unfilled gap
+of one of the entity's markers inside the trajectory), ``com_rigid_fill`` (pelvis centre
+reconstructed from 3 markers somewhere), ``orientation_missing`` (a marker that theta needs --
+LASI/RASI, or TAB1/TAB2 -- is missing somewhere in the trajectory: theta and gamma are NaN for the
+whole trajectory, position is kept, METHODS.md sec. 2.2), ``position_missing`` (some samples of
+x, y are NaN: two or more pelvis markers missing at once), ``gamma_undefined`` (the speed never
+reaches ``gamma_min_speed``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from cobot_analysis import kinematics as kin
+from cobot_analysis.angles import wrap
+from cobot_analysis.errors import InputError
+from cobot_analysis.io.protocol import PELVIS_MARKERS, TABLE_MARKERS
+from cobot_analysis.preprocess import filtering, gaps, normalisation, segmentation
+from cobot_analysis.schema import MARKERS, TRAJECTORIES, TRIAL_COLUMNS, TRIALS, read_table, table_metadata, write_table
+
+SUBJECT_ENTITIES = ("walker", "subject1", "subject2")
+USED_MARKERS = PELVIS_MARKERS + TABLE_MARKERS
+#: trial metadata columns copied from trials.parquet to every trajectory.
+META_COLUMNS = tuple(c for c in TRIAL_COLUMNS if c not in ("kind", "n_trials", "direction"))
+NUMERIC = ("sample", "phase", "time", "record_time", "x", "y", "theta", "gamma", "vx", "vy",
+           "travel_time", "travelled_distance")
+
+
+@dataclass(frozen=True)
+class Params:
+    """Parameters of the preprocess stage (recorded in the manifest)."""
+
+    max_gap: float = gaps.MAX_GAP  # s
+    cutoff: float = filtering.CUTOFF  # Hz
+    order: int = filtering.ORDER
+    order_convention: str = filtering.DEFAULT_CONVENTION
+    n_samples: int = normalisation.N_SAMPLES
+    lift_threshold: float = segmentation.LIFT_THRESHOLD  # m
+    floor_window: float = segmentation.FLOOR_WINDOW  # s
+    speed_threshold: float = segmentation.SPEED_THRESHOLD  # m/s
+    min_duration: float = segmentation.MIN_DURATION  # s
+    gamma_min_speed: float = kin.GAMMA_MIN_SPEED  # m/s
+    keep_approach: bool = False
+
+
+@dataclass
+class Recording:
+    """One recording's markers as dense arrays ``(T, 3)`` (NaN = missing) and its trials row."""
+
+    trial: str
+    rate: float
+    meta: dict[str, Any]
+    markers: dict[tuple[str, str], np.ndarray] = field(default_factory=dict)
+    source: str = ""  # markers file, for error messages
+
+
+# ---- reading --------------------------------------------------------------------------------------
+def load_recordings(markers_path: Path, trials_path: Path) -> list[Recording]:
+    """Read the markers the stage uses and the trials table; one ``Recording`` per trial.
+
+    Only the pelvis and table-corner rows are read (Parquet predicate push-down), so memory stays
+    at about 4 markers x frames x trials. Raises ``InputError`` for foreign or broken files,
+    trials without marker rows, and marker rows of unknown trials.
+    """
+    import pyarrow.parquet as pq
+
+    trials = read_table(trials_path, TRIALS)
+    meta = table_metadata(markers_path) if markers_path.is_file() else {}
+    if not markers_path.is_file():
+        raise InputError("file not found", path=markers_path, remedy="run `cobot-analysis import` first or pass --markers")
+    if meta.get("table") != MARKERS.name:
+        raise InputError(f"is not a markers table (found {meta.get('table')!r})", path=markers_path,
+                         remedy="pass the markers.parquet written by `cobot-analysis import`")
+    cols = ["trial", "frame", "entity", "marker", "x", "y", "z", "occluded"]
+    try:
+        table = pq.read_table(markers_path, columns=cols, filters=[("marker", "in", list(USED_MARKERS))])
+    except Exception as exc:  # pyarrow raises several types for corrupt files or missing columns
+        raise InputError(f"cannot read the marker columns {cols} ({type(exc).__name__})", path=markers_path,
+                         remedy="re-run `cobot-analysis import`") from exc
+    df = table.to_pandas(strings_to_categorical=True)
+    del table
+    for c in ("trial", "entity", "marker"):
+        if not isinstance(df[c].dtype, pd.CategoricalDtype):
+            df[c] = df[c].astype("category")
+    known = set(trials["trial"].astype(str))
+    stray = sorted(set(df["trial"].cat.categories[np.unique(df["trial"].cat.codes)]) - known)
+    if stray:
+        raise InputError(f"marker rows of trials {stray[:3]} that {trials_path.name} does not list", path=markers_path,
+                         remedy="pass the trials.parquet written with these markers (same import)")
+    tcode = df["trial"].cat.codes.to_numpy()
+    if np.any(np.diff(tcode) < 0):
+        order = np.argsort(tcode, kind="stable")
+        df = df.iloc[order]
+        tcode = tcode[order]
+    names = df["trial"].cat.categories
+    bounds = np.searchsorted(tcode, np.arange(len(names) + 1))
+    slot_ent = df["entity"].cat.codes.to_numpy()
+    slot_mk = df["marker"].cat.codes.to_numpy()
+    ents, mks = df["entity"].cat.categories, df["marker"].cat.categories
+    slot = slot_ent.astype(np.int64) * len(mks) + slot_mk
+    frame = df["frame"].to_numpy(np.int64)
+    xyz = df[["x", "y", "z"]].to_numpy(np.float64, copy=True)
+    xyz[df["occluded"].fillna(False).to_numpy(bool)] = np.nan
+    del df
+    where = {name: i for i, name in enumerate(names)}
+    recordings = []
+    for _, row in trials.iterrows():
+        trial = str(row["trial"])
+        rate = float(row["rate"]) if pd.notna(row.get("rate")) else float("nan")
+        if not rate > 0:
+            raise InputError(f"trial {trial} has no valid sampling rate ({row.get('rate')})", path=trials_path,
+                             remedy="re-run `cobot-analysis import` (the rate comes from the raw file or the protocol)")
+        rec = Recording(trial, rate, {c: row.get(c) for c in TRIAL_COLUMNS}, source=str(markers_path))
+        i = where.get(trial)
+        a, b = (bounds[i], bounds[i + 1]) if i is not None else (0, 0)
+        if a == b:
+            raise InputError(f"trial {trial} has no pelvis or table marker samples (empty trial)", path=markers_path,
+                             remedy="check the raw file and its labels, or remove the trial from the protocol")
+        f = frame[a:b]
+        if f.min() < 0:
+            raise InputError(f"trial {trial} has negative frame numbers", path=markers_path, remedy="re-run `cobot-analysis import`")
+        n = int(f.max()) + 1
+        s = slot[a:b]
+        present, inverse = np.unique(s, return_inverse=True)
+        dense = np.full((len(present), n, 3), np.nan)
+        dense[inverse, f] = xyz[a:b]
+        for k, code in enumerate(present):
+            rec.markers[(str(ents[code // len(mks)]), str(mks[code % len(mks)]))] = dense[k]
+        recordings.append(rec)
+    return recordings
+
+
+# ---- one recording --------------------------------------------------------------------------------
+def _check(rec: Recording) -> tuple[list[str], bool]:
+    """Entities of the recording (subjects, then table) after the bad-input checks."""
+    entities = sorted({e for e, _ in rec.markers}, key=lambda e: (e == "table", e))
+    subjects = [e for e in entities if e in SUBJECT_ENTITIES]
+    has_table = "table" in entities
+    if not subjects:
+        raise InputError(f"trial {rec.trial} has no pelvis markers (found entities {entities})", path=rec.source,
+                         remedy="map the pelvis labels to LASI RASI LPSI RPSI with the protocol's marker_map and re-import")
+    for e in entities:
+        need = TABLE_MARKERS if e == "table" else PELVIS_MARKERS
+        missing = [m for m in need if (e, m) not in rec.markers]
+        if missing:
+            raise InputError(f"trial {rec.trial}: {e} lacks markers {missing}", path=rec.source,
+                             remedy="map them with the protocol's marker_map (--map LAB=CANON) and re-import")
+        for m in need:
+            if np.isnan(rec.markers[(e, m)]).all():
+                raise InputError(f"trial {rec.trial}: marker {m} of {e} is NaN in every frame", path=rec.source,
+                                 remedy="fix its label in the raw file or remove the trial from the protocol")
+    z = np.concatenate([rec.markers[(e, m)][:, 2] for e in entities
+                        for m in (TABLE_MARKERS if e == "table" else PELVIS_MARKERS)])
+    zmed = float(np.nanmedian(z))
+    if not 0.2 < zmed < 3.0:
+        hint = "millimetres" if zmed > 200 else "a wrong unit or a vertical axis other than z"
+        raise InputError(f"trial {rec.trial}: median marker height {zmed:.4g} m looks like {hint}", path=rec.source,
+                         remedy="re-import with the right --units (markers.parquet must be in metres, z up)")
+    return entities, has_table
+
+
+def _flags(*pairs: tuple[str, bool]) -> str:
+    on = [name for name, cond in pairs if cond]
+    return ";".join(on) if on else "ok"
+
+
+def process_recording(rec: Recording, p: Params) -> dict[str, Any]:
+    """Gaps, filter, kinematics, segmentation and normalisation of one recording.
+
+    Returns ``{"gaps": DataFrame rows of GAPS, "trajectories": list of (metadata dict,
+    numeric array (N, len(NUMERIC)))}``.
+    """
+    entities, has_table = _check(rec)
+    rate = rec.rate
+    # 1-2. gaps: report and fill the short ones
+    gap_rows: list[tuple] = []
+    filled: dict[tuple[str, str], np.ndarray] = {}
+    fill_mask: dict[tuple[str, str], np.ndarray] = {}
+    for e in entities:
+        for m in (TABLE_MARKERS if e == "table" else PELVIS_MARKERS):
+            xyz, mask, starts, lengths, done = gaps.fill_gaps(rec.markers[(e, m)], rate, p.max_gap)
+            filled[(e, m)], fill_mask[(e, m)] = xyz, mask
+            gap_rows += [(rec.trial, e, m, int(s), int(k), k / rate, bool(d)) for s, k, d in zip(starts, lengths, done)]
+    # 3. filter all markers of the recording in one go (segments split at the remaining NaN)
+    keys = list(filled)
+    sos = filtering.butter_sos(p.cutoff, rate, p.order, p.order_convention)
+    smooth = filtering.lowpass(np.stack([filled[k] for k in keys], axis=1), sos)
+    mk = {k: smooth[:, i] for i, k in enumerate(keys)}
+    n_frames = smooth.shape[0]
+    # 4. kinematics per entity, on the whole recording
+    kinem: dict[str, dict[str, np.ndarray]] = {}
+    for e in entities:
+        if e == "table":
+            xy, theta = kin.table_pose(mk[(e, "TAB1")], mk[(e, "TAB2")], mk[(e, "TAB3")])
+            rigid = np.zeros(n_frames, dtype=bool)
+            theta_needs = ("TAB1", "TAB2")
+        else:
+            xy, rigid = kin.pelvis_com(*(mk[(e, m)] for m in PELVIS_MARKERS))
+            theta = kin.pelvis_theta(mk[(e, "LASI")], mk[(e, "RASI")])
+            theta_needs = ("LASI", "RASI")
+        markers = TABLE_MARKERS if e == "table" else PELVIS_MARKERS
+        kinem[e] = {
+            "xy": xy, "theta": theta, "v": kin.velocity(xy, rate), "rigid": rigid,
+            "filled": np.any([fill_mask[(e, m)] for m in markers], axis=0),
+            "gap": np.any([np.isnan(filled[(e, m)]).any(axis=1) for m in markers], axis=0),
+            "theta_gap": np.any([np.isnan(filled[(e, m)]).any(axis=1) for m in theta_needs], axis=0),
+        }
+    # 5. segmentation -> (label, onset, offset, entities)
+    segs = _segments(rec, p, entities, has_table, mk, kinem)
+    # 6. trajectories
+    out = []
+    for label, on, off, ents in segs:
+        base = {c: rec.meta.get(c) for c in META_COLUMNS}
+        base.update(kind="trial", n_trials=1, direction=label)
+        base["trial"] = f"{rec.trial}_{label}" if label else rec.trial
+        if label == "return":
+            base["scenario"] = 3  # the return is scenario 3 by design (METHODS.md sec. 1.2)
+            th = kinem["table"]["theta"][off] if "table" in kinem else np.nan
+            base["end_orientation"] = float(wrap(th))  # measured: the table's orientation at the offset
+        for e in ents:
+            out.append(_trajectory(base, e, kinem[e], on, off, rate, p))
+    return {"gaps": gap_rows, "trajectories": out, "trial": rec.trial, "n_frames": n_frames}
+
+
+def _segments(rec, p, entities, has_table, mk, kinem):
+    subjects = [e for e in entities if e != "table"]
+    rate = rec.rate
+    if not has_table:
+        speed = np.hypot(*kinem[subjects[0]]["v"].T)
+        bounds = segmentation.walking_bounds(speed, rate, p.speed_threshold, p.min_duration)
+        if bounds is None:
+            raise InputError(f"trial {rec.trial}: the CoM speed never stays above {p.speed_threshold} m/s for "
+                             f"{p.min_duration} s (no walk found)", path=rec.source,
+                             remedy="check the trial, or lower --speed-threshold / --min-duration")
+        return [(None, bounds[0], bounds[1], subjects)]
+    height = kin.table_height(*(mk[("table", m)] for m in TABLE_MARKERS))
+    found, h0 = segmentation.carriages(height, rate, p.lift_threshold, p.floor_window, p.min_duration)
+    direction = rec.meta.get("direction")
+    labels = [str(direction)] if isinstance(direction, str) and direction else ["forward", "return"]
+    if len(found) != len(labels):
+        raise InputError(f"trial {rec.trial}: found {len(found)} table carriages (height above the floor level "
+                         f"{h0:.3f} m + {p.lift_threshold * 1000:g} mm for {p.min_duration} s), expected {len(labels)} "
+                         f"({', '.join(labels)})", path=rec.source,
+                         remedy="check the table markers, or adjust --lift-threshold / --floor-window / --min-duration")
+    segs = [(lab, a, b, entities) for lab, (a, b) in zip(labels, found)]
+    if p.keep_approach:
+        on = found[0][0]
+        for e in subjects:
+            speed = np.hypot(*kinem[e]["v"][: on + 1].T)
+            bounds = segmentation.walking_bounds(speed, rate, p.speed_threshold, p.min_duration)
+            if bounds is not None:
+                segs.insert(0, ("approach", bounds[0], bounds[1], [e]))
+    return segs
+
+
+def _trajectory(base: dict[str, Any], entity: str, k: dict[str, np.ndarray], on: int, off: int, rate: float,
+                p: Params) -> tuple[dict[str, Any], np.ndarray]:
+    sl = slice(on, off + 1)
+    xy, v, theta = k["xy"][sl], k["v"][sl], k["theta"][sl]
+    orientation_missing = bool(k["theta_gap"][sl].any() or np.isnan(theta).any())
+    if orientation_missing:
+        theta = np.full_like(theta, np.nan)
+        g = theta
+    else:
+        g = kin.unwrap_nan(kin.gamma(theta, v, p.gamma_min_speed))
+    n = p.n_samples
+    res = normalisation.normalise(np.column_stack([xy, theta, g, v]), 0, off - on, n)
+    travel_time = (off - on) / rate
+    ph = normalisation.phase(n)
+    t = ph * travel_time / 100.0
+    x, y = res[:, 0], res[:, 1]
+    numeric = np.column_stack([
+        np.arange(n), ph, t, on / rate + t, x, y, res[:, 2], wrap(res[:, 3]), res[:, 4], res[:, 5],
+        np.full(n, travel_time), np.full(n, np.hypot(x[-1] - x[0], y[-1] - y[0])),
+    ])
+    quality = _flags(
+        ("short_gaps_filled", bool(k["filled"][sl].any())),
+        ("long_gap", bool(k["gap"][sl].any())),
+        ("com_rigid_fill", bool(k["rigid"][sl].any())),
+        ("orientation_missing", orientation_missing),
+        ("position_missing", bool(np.isnan(xy).any())),
+        ("gamma_undefined", not orientation_missing and bool(np.isnan(g).all())),
+    )
+    return {**base, "entity": entity, "quality": quality}, numeric
+
+
+def _process_chunk(item: tuple[list[Recording], Params]) -> list[dict[str, Any]]:
+    recs, p = item
+    return [process_recording(r, p) for r in recs]
+
+
+# ---- assembling -----------------------------------------------------------------------------------
+def assemble(results: list[dict[str, Any]], n_samples: int) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Concatenate per-recording results into the trajectories and gaps tables."""
+    trajs = [t for r in results for t in r["trajectories"]]
+    numeric = np.concatenate([a for _, a in trajs]) if trajs else np.empty((0, len(NUMERIC)))
+    cols: dict[str, Any] = {}
+    for c in (*TRIAL_COLUMNS, "entity"):
+        cols[c] = np.repeat(np.array([m.get(c) for m, _ in trajs], dtype=object), n_samples)
+    for j, c in enumerate(NUMERIC):
+        cols[c] = numeric[:, j]
+    cols["quality"] = np.repeat(np.array([m["quality"] for m, _ in trajs], dtype=object), n_samples)
+    df = pd.DataFrame(cols)
+    df["sample"] = df["sample"].astype(np.int64)
+    for c in ("scenario", "repetition", "n_trials"):
+        df[c] = pd.to_numeric(df[c], errors="coerce").astype("Int64")
+    df["end_orientation"] = pd.to_numeric(df["end_orientation"], errors="coerce").astype(float)
+    for c in (*TRIAL_COLUMNS, "entity", "quality"):
+        if TRIAL_COLUMNS.get(c) is None or TRIAL_COLUMNS[c].dtype == "string":
+            df[c] = df[c].map(lambda v: None if v is None or (isinstance(v, float) and np.isnan(v)) else str(v))
+    gap_df = pd.DataFrame([g for r in results for g in r["gaps"]],
+                          columns=["trial", "entity", "marker", "start_frame", "n_frames", "duration", "filled"])
+    gap_df = gap_df.astype({"start_frame": np.int64, "n_frames": np.int64, "duration": float, "filled": bool})
+    return df, gap_df
+
+
+def summary_markdown(traj: pd.DataFrame, gap_df: pd.DataFrame, p: Params, n_recordings: int) -> str:
+    """The stage's results.md fragment: what was processed, gaps and quality flags."""
+    per = traj.drop_duplicates(["trial", "entity"])
+    flags = per["quality"].str.split(";").explode().value_counts()
+    lines = [
+        "## Preprocessing (raw markers -> trajectories)", "",
+        f"{n_recordings} recordings -> {per['trial'].nunique()} trials, {len(per)} trajectories of "
+        f"{p.n_samples} samples. Filter: Butterworth low-pass order {p.order} ({p.order_convention} convention), "
+        f"{p.cutoff:g} Hz, zero-phase; gaps up to {p.max_gap:g} s filled by cubic spline.", "",
+        f"Gaps in the pelvis/table markers: {len(gap_df)} ({int(gap_df['filled'].sum())} filled, "
+        f"{int((~gap_df['filled']).sum())} left open; {gap_df['n_frames'].sum() if len(gap_df) else 0} frames).", "",
+        "| quality flag | trajectories |", "|---|---|",
+        *[f"| {k} | {v} |" for k, v in flags.items()], "",
+        "| entity | direction | trajectories | travel time (s), median [IQR] | travelled distance (m), median |",
+        "|---|---|---|---|---|",
+    ]
+    for (ent, dirn), g in per.fillna({"direction": "-"}).groupby(["entity", "direction"]):
+        q = g["travel_time"].quantile([0.25, 0.5, 0.75]).to_numpy()
+        lines.append(f"| {ent} | {dirn} | {len(g)} | {q[1]:.2f} [{q[0]:.2f}, {q[2]:.2f}] | "
+                     f"{g['travelled_distance'].median():.2f} |")
+    return "\n".join(lines) + "\n"
+
+
+def run(out: Path, markers_path: Path, trials_path: Path, p: Params, *, force: bool = False, jobs: int | None = None,
+        scheduler: str | None = None) -> Path:
+    """Run the stage into ``out/preprocess`` (skipped when up to date); returns its directory."""
+    from cobot_analysis.console import info
+    from cobot_analysis.parallel import chunked, default_jobs, map_tasks
+    from cobot_analysis.workspace import Stage
+
+    with Stage(out, "preprocess", inputs=[markers_path, trials_path], params=asdict(p), force=force) as stage:
+        if stage.skipped:
+            return stage.final_dir
+        recordings = load_recordings(markers_path, trials_path)
+        for r in recordings:  # bad input is reported before any long work
+            _check(r)
+            try:
+                filtering.design_cutoff(p.cutoff, r.rate, p.order, p.order_convention)
+            except ValueError as exc:
+                raise InputError(f"trial {r.trial}: {exc}", path=trials_path,
+                                 remedy="change --cutoff / --order / --order-convention") from exc
+        n_jobs = 1 if scheduler is None and (jobs or default_jobs()) <= 1 else (jobs or default_jobs())
+        size = max(1, min(25, len(recordings) // (4 * n_jobs) or 1))
+        chunks = [(list(c), p) for c in chunked(recordings, size)]
+        del recordings
+        results = [r for chunk in map_tasks(_process_chunk, chunks, jobs=n_jobs, scheduler=scheduler,
+                                            description="preprocess") for r in chunk]
+        traj, gap_df = assemble(results, p.n_samples)
+        params = asdict(p)
+        write_table(traj, stage.path("trajectories.parquet"), TRAJECTORIES, stage="preprocess", **params)
+        write_table(gap_df, stage.path("gaps.parquet"), gaps.GAPS, stage="preprocess", max_gap=p.max_gap)
+        stage.path("results.md").write_text(summary_markdown(traj, gap_df, p, len(results)))
+        info(f"[green]preprocess[/green]: {traj[['trial', 'entity']].drop_duplicates().shape[0]} trajectories "
+             f"from {len(results)} recordings -> {stage.final_dir}")
+    return stage.final_dir
+

@@ -1,0 +1,375 @@
+"""Preprocess: gaps, filter conventions, segmentation, normalisation, the stage and its bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cobot_analysis.preprocess import filtering, gaps, normalisation, segmentation
+from cobot_analysis.schema import MARKERS, TRAJECTORIES, TRIALS, read_table, write_table
+
+RATE = 200.0
+PELVIS = {"LASI": (0.08, 0.12, 0.0), "RASI": (0.08, -0.12, 0.0), "LPSI": (-0.08, 0.045, 0.02),
+          "RPSI": (-0.08, -0.045, 0.02)}
+TABLE = {"TAB1": (-0.61, -0.40), "TAB2": (0.61, -0.40), "TAB3": (-0.61, 0.40)}
+
+
+# ---- filtering ------------------------------------------------------------------------------------
+def _gain_and_lag(freq: float, sos: np.ndarray, seconds: float = 20.0):
+    t = np.arange(0, seconds, 1 / RATE)
+    x = np.sin(2 * np.pi * freq * t)
+    y = filtering.lowpass(x[:, None], sos)[:, 0]
+    mid = slice(len(t) // 4, 3 * len(t) // 4)
+    # least-squares fit y = a sin + b cos over the middle: gain sqrt(a^2+b^2), phase atan2(b, a)
+    basis = np.column_stack([np.sin(2 * np.pi * freq * t[mid]), np.cos(2 * np.pi * freq * t[mid])])
+    (a, b), *_ = np.linalg.lstsq(basis, y[mid], rcond=None)
+    return np.hypot(a, b), np.arctan2(b, a)
+
+
+@pytest.mark.parametrize("convention, gain_at_cutoff", [("design", 0.5), ("effective", 2 ** -0.5)])
+def test_filter_gain_at_cutoff_follows_the_convention_and_is_zero_phase(convention, gain_at_cutoff):
+    sos = filtering.butter_sos(10.0, RATE, 4, convention)
+    gain, phase = _gain_and_lag(10.0, sos)
+    assert gain == pytest.approx(gain_at_cutoff, abs=2e-3)
+    assert abs(phase) < 1e-3
+    low, low_phase = _gain_and_lag(2.0, sos)
+    assert low == pytest.approx(1.0, abs=2e-3) and abs(low_phase) < 1e-3
+    # forward-backward gain = |H|^2 = 1 / (1 + (tan(pi f/fs) / tan(pi f_d/fs))^(2 n_d)) (bilinear Butterworth)
+    n_d, f_d = filtering.design_cutoff(10.0, RATE, 4, convention)
+    for f in (5.0, 15.0, 30.0):
+        r = np.tan(np.pi * f / RATE) / np.tan(np.pi * f_d / RATE)
+        assert _gain_and_lag(f, sos)[0] == pytest.approx(1 / (1 + r ** (2 * n_d)), abs=2e-3)
+    assert _gain_and_lag(30.0, sos)[0] < 0.03
+
+
+def test_filter_effective_order_is_four_and_design_order_is_eight():
+    """Roll-off far above the cut-off: gain ~ w^(-n_eff), w = tan(pi f / fs) the pre-warped frequency."""
+    for convention, n_eff in (("design", 8), ("effective", 4)):
+        sos = filtering.butter_sos(10.0, RATE, 4, convention)
+        g30, _ = _gain_and_lag(30.0, sos)
+        g60, _ = _gain_and_lag(60.0, sos)
+        slope = np.log(g30 / g60) / np.log(np.tan(np.pi * 60 / RATE) / np.tan(np.pi * 30 / RATE))
+        assert slope == pytest.approx(n_eff, rel=0.05)
+
+
+def test_filter_bad_parameters():
+    with pytest.raises(ValueError, match="even order"):
+        filtering.butter_sos(10.0, RATE, 3, "effective")
+    with pytest.raises(ValueError, match="Nyquist"):
+        filtering.butter_sos(150.0, RATE, 4, "design")
+
+
+def test_filter_keeps_nan_gaps_and_filters_each_segment():
+    t = np.arange(0, 6, 1 / RATE)
+    x = np.column_stack([np.sin(2 * np.pi * 0.5 * t), np.cos(2 * np.pi * 0.5 * t)])
+    x[500:600, 0] = np.nan  # a long gap in one column only
+    y = filtering.lowpass(x, filtering.butter_sos(10.0, RATE))
+    assert np.isnan(y[500:600, 0]).all() and not np.isnan(np.delete(y[:, 0], range(500, 600))).any()
+    assert not np.isnan(y[:, 1]).any()
+    ok = ~np.isnan(x)
+    np.testing.assert_allclose(y[ok], x[ok], atol=1e-2)  # a slow signal passes through (odd padding at edges)
+    inner = np.r_[50:450, 650:1150]  # away from the segment ends: unchanged
+    np.testing.assert_allclose(y[inner], x[inner], atol=1e-4)
+
+
+# ---- gaps -----------------------------------------------------------------------------------------
+def test_find_gaps_runs():
+    miss = np.array([1, 1, 0, 0, 1, 0, 1, 1, 1], dtype=bool)
+    starts, lengths = gaps.find_gaps(miss)
+    assert starts.tolist() == [0, 4, 6] and lengths.tolist() == [2, 1, 3]
+    assert gaps.fillable(starts, lengths, len(miss), 2).tolist() == [False, True, False]
+
+
+def test_short_gap_filled_exactly_on_a_cubic_long_and_edge_gaps_kept():
+    t = np.arange(400) / RATE
+    xyz = np.column_stack([t**3 - 2 * t, 0.5 * t**2, np.full_like(t, 0.9)])
+    truth = xyz.copy()
+    xyz[0:5] = np.nan  # edge gap: nothing to interpolate from on one side
+    xyz[100:120] = np.nan  # 20 frames = 0.1 s: filled
+    xyz[200:221] = np.nan  # 21 frames: too long
+    out, mask, starts, lengths, done = gaps.fill_gaps(xyz, RATE, 0.1)
+    assert starts.tolist() == [0, 100, 200] and lengths.tolist() == [5, 20, 21]
+    assert done.tolist() == [False, True, False]
+    np.testing.assert_allclose(out[100:120], truth[100:120], atol=1e-9)
+    assert mask.sum() == 20 and mask[100:120].all()
+    assert np.isnan(out[200:221]).all() and np.isnan(out[:5]).all()
+    assert np.isnan(xyz[100:120]).all()  # the input is not modified
+
+
+# ---- segmentation ---------------------------------------------------------------------------------
+def _lift_profile():
+    """Height: floor 0.77 m; forward carriage 3-9 s; return 12-17 s; a 0.2 s bump at 10.5 s."""
+    t = np.arange(0, 20, 1 / RATE)
+    h = np.full_like(t, 0.77)
+
+    def ramp(t0, t1, t2, t3):
+        return np.clip((t - t0) / (t1 - t0), 0, 1) * np.clip((t3 - t) / (t3 - t2), 0, 1)
+
+    h += 0.15 * ramp(3.0, 3.4, 8.6, 9.0) + 0.15 * ramp(12.0, 12.4, 16.6, 17.0) + 0.02 * ramp(10.5, 10.6, 10.6, 10.7)
+    return t, h
+
+
+def test_carriages_on_an_analytic_height_profile():
+    t, h = _lift_profile()
+    found, h0 = segmentation.carriages(h, RATE, threshold=0.005)
+    assert h0 == pytest.approx(0.77)
+    # crossings of 0.775 m: 3 + 0.4 * 5/150 s after the ramp starts, symmetric at the end
+    dt = 0.4 * 0.005 / 0.15
+    expected = [(3.0 + dt, 9.0 - dt), (12.0 + dt, 17.0 - dt)]
+    assert len(found) == 2  # the 0.2 s bump is shorter than min_duration
+    for (a, b), (ta, tb) in zip(found, expected):
+        assert t[a] == pytest.approx(ta, abs=1 / RATE) and t[b] == pytest.approx(tb, abs=1 / RATE)
+        assert h[a] > 0.775 >= h[a - 1] and h[b] > 0.775 >= h[b + 1]
+    # a higher threshold shortens the carriages; a bump threshold above 0.02 m ignores it anyway
+    found_hi, _ = segmentation.carriages(h, RATE, threshold=0.05)
+    assert found_hi[0][0] > found[0][0] and found_hi[0][1] < found[0][1]
+
+
+def test_walking_bounds_by_speed():
+    t = np.arange(0, 6, 1 / RATE)
+    speed = np.where((t >= 1.0) & (t <= 4.5), 1.0, 0.02)
+    speed[(t > 5.0) & (t < 5.2)] = 0.3  # a short shuffle after stopping: ignored
+    a, b = segmentation.walking_bounds(speed, RATE, 0.1, 0.5)
+    assert t[a] == pytest.approx(1.0) and t[b] == pytest.approx(4.5)
+    assert segmentation.walking_bounds(np.zeros(100), RATE) is None
+
+
+# ---- normalisation --------------------------------------------------------------------------------
+def test_phase_endpoints_and_spacing():
+    ph = normalisation.phase(500)
+    assert ph[0] == 0.0 and ph[-1] == 100.0 and ph[1] == pytest.approx(100 / 499)
+
+
+@settings(max_examples=50, deadline=None)
+@given(on=st.integers(0, 50), length=st.integers(1, 400), n=st.integers(2, 600),
+       a=st.floats(-5, 5), b=st.floats(-5, 5))
+def test_normalise_reproduces_linear_signals_and_endpoints(on, length, n, a, b):
+    frames = np.arange(on + length + 10)
+    values = np.column_stack([a + b * frames, -b * frames])
+    res = normalisation.normalise(values, on, on + length, n)
+    assert res.shape == (n, 2)
+    np.testing.assert_allclose(res[0], values[on], atol=1e-9)
+    np.testing.assert_allclose(res[-1], values[on + length], atol=1e-9)
+    pos = on + length * np.arange(n) / (n - 1)
+    np.testing.assert_allclose(res[:, 0], a + b * pos, atol=1e-8)
+
+
+def test_normalise_nan_next_to_a_missing_frame_only():
+    values = np.arange(10.0)
+    values[5] = np.nan
+    res = normalisation.normalise(values, 0, 9, 10)  # exactly on the frames
+    assert np.isnan(res[5]) and np.isnan(res).sum() == 1
+    res = normalisation.normalise(values, 0, 9, 19)  # half-way points around frame 5 are NaN too
+    assert np.isnan(res).sum() == 3
+
+
+# ---- the stage ------------------------------------------------------------------------------------
+def _min_jerk(t, t0, t1):
+    tau = np.clip((t - t0) / (t1 - t0), 0, 1)
+    return 10 * tau**3 - 15 * tau**4 + 6 * tau**5
+
+
+def _rows(trial, entity, markers):
+    n = len(next(iter(markers.values())))
+    parts = []
+    for name, xyz in markers.items():
+        parts.append(pd.DataFrame({
+            "trial": trial, "frame": np.arange(n), "time": np.arange(n) / RATE, "entity": entity, "marker": name,
+            "x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2], "occluded": np.isnan(xyz).any(axis=1)}))
+    return parts
+
+
+def pelvis(x, y, theta, z=0.95):
+    c, s = np.cos(theta), np.sin(theta)
+    return {k: np.column_stack([x + c * a - s * b, y + s * a + c * b, np.full_like(x, z + h)])
+            for k, (a, b, h) in PELVIS.items()}
+
+
+def walking_trial(trial="W1", duration=5.0, start=1.0, stop=4.0, length=3.0, heading=0.5):
+    """Rest 1 s, min-jerk walk of ``length`` m along ``heading`` between start and stop, rest."""
+    t = np.arange(0, duration, 1 / RATE)
+    s = length * _min_jerk(t, start, stop)
+    return _rows(trial, "walker", pelvis(np.cos(heading) * s, np.sin(heading) * s, np.full_like(t, heading)))
+
+
+def pair_recording(trial="P1"):
+    """Table carried 3 m along +x (3-9 s) and back (12-18 s); subjects at its short ends facing it."""
+    t = np.arange(0, 20, 1 / RATE)
+    s = 3.0 * (_min_jerk(t, 3.2, 8.8) - _min_jerk(t, 12.2, 17.8))
+    lift = 0.15 * (_min_jerk(t, 3.0, 3.4) - _min_jerk(t, 8.6, 9.0) + _min_jerk(t, 12.0, 12.4) - _min_jerk(t, 17.6, 18.0))
+    parts = []
+    for name, (a, b) in TABLE.items():
+        xyz = np.column_stack([s + a, np.full_like(t, b), 0.77 + lift])
+        parts += _rows(trial, "table", {name: xyz})
+    parts += _rows(trial, "subject1", pelvis(s + 0.96, 0 * t, np.full_like(t, np.pi)))
+    parts += _rows(trial, "subject2", pelvis(s - 0.96, 0 * t, np.zeros_like(t)))
+    return parts
+
+
+def trials_row(trial, **kw):
+    row = {"study": "test", "trial": trial, "kind": "trial", "n_trials": 1, "subject": None, "pair": None,
+           "condition": "c1", "direction": None, "scenario": None, "configuration": None, "end_orientation": None,
+           "repetition": 1, "file": f"{trial}.c3d", "sha256": "0", "source_format": "c3d", "source_units": "mm",
+           "rate": RATE, "n_frames": 0}
+    row.update(kw)
+    return row
+
+
+def write_workspace(ws, parts, rows):
+    markers = pd.concat(parts, ignore_index=True)
+    write_table(markers, ws / "import" / "markers.parquet", MARKERS, rate=RATE)
+    trials = pd.DataFrame(rows)
+    for c in ("scenario", "repetition", "n_trials", "n_frames"):
+        trials[c] = trials[c].astype("Int64")
+    trials["end_orientation"] = trials["end_orientation"].astype(float)
+    write_table(trials, ws / "import" / "trials.parquet", TRIALS)
+
+
+def test_stage_walking_trial_end_to_end(tmp_path, cli):
+    ws = tmp_path / "ws"
+    parts = walking_trial("W1")
+    lasi = parts[0]  # a short gap (0.05 s) in LASI and a long one (0.5 s) in RPSI, mid-walk
+    lasi.loc[300:309, ["x", "y", "z"]] = np.nan
+    lasi.loc[300:309, "occluded"] = True
+    rpsi = parts[3]
+    rpsi.loc[400:499, ["x", "y", "z"]] = np.nan
+    rpsi.loc[400:499, "occluded"] = True
+    parts += walking_trial("W2", heading=-2.0, length=2.0)
+    write_workspace(ws, parts, [trials_row("W1", subject="S01"), trials_row("W2", subject="S02")])
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1", "--samples", "101")
+    assert code == 0, err
+    traj = read_table(ws / "preprocess" / "trajectories.parquet", TRAJECTORIES)
+    assert len(traj) == 2 * 101 and set(traj["entity"]) == {"walker"}
+    w1 = traj[traj["trial"] == "W1"].sort_values("sample")
+    assert w1["quality"].iloc[0] == "short_gaps_filled;long_gap;com_rigid_fill"
+    assert w1["subject"].iloc[0] == "S01" and w1["kind"].iloc[0] == "trial"
+    # min-jerk over 3 m in 3 s: speed 30 tau^2 (1 - tau)^2 m/s reaches 0.1 m/s at tau0 (analytic root)
+    tau0 = (1 - np.sqrt(1 - 4 * np.sqrt(1 / 300))) / 2
+    tt = w1["travel_time"].iloc[0]
+    assert tt == pytest.approx(3.0 * (1 - 2 * tau0), abs=0.02)
+    assert w1["record_time"].iloc[0] == pytest.approx(1.0 + 3.0 * tau0, abs=0.01)
+    assert w1["phase"].iloc[-1] == 100.0 and w1["time"].iloc[-1] == pytest.approx(tt)
+    # positions follow the straight line, theta the heading, gamma 0
+    np.testing.assert_allclose(np.arctan2(w1["y"], w1["x"]), 0.5, atol=1e-3)
+    np.testing.assert_allclose(w1["theta"], 0.5, atol=1e-3)
+    np.testing.assert_allclose(w1["gamma"], 0.0, atol=1e-3)
+    s0 = 10 * tau0**3 - 15 * tau0**4 + 6 * tau0**5
+    assert w1["travelled_distance"].iloc[0] == pytest.approx(3.0 * (1 - 2 * s0), abs=2e-3)
+    w2 = traj[traj["trial"] == "W2"]
+    assert (w2["quality"] == "ok").all()
+    np.testing.assert_allclose(w2["theta"], -2.0, atol=1e-3)
+    gaps_df = read_table(ws / "preprocess" / "gaps.parquet", gaps.GAPS)
+    assert gaps_df[["marker", "start_frame", "n_frames", "filled"]].values.tolist() == [
+        ["LASI", 300, 10, True], ["RPSI", 400, 100, False]]
+    assert gaps_df["duration"].tolist() == [0.05, 0.5]
+    results = (ws / "preprocess" / "results.md").read_text()
+    assert "2 recordings -> 2 trials, 2 trajectories" in results
+    # unchanged inputs and parameters: skipped; a new parameter: redone
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1", "--samples", "101")
+    assert code == 0 and "up to date" in err
+
+
+def test_stage_orientation_missing_keeps_position(tmp_path, cli):
+    ws = tmp_path / "ws"
+    parts = walking_trial("W1")
+    parts[1].loc[400:499, ["x", "y", "z"]] = np.nan  # RASI long gap: no theta for the trajectory
+    write_workspace(ws, parts, [trials_row("W1")])
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1")
+    assert code == 0, err
+    traj = read_table(ws / "preprocess" / "trajectories.parquet", TRAJECTORIES)
+    assert traj["quality"].iloc[0] == "long_gap;com_rigid_fill;orientation_missing"
+    assert traj["theta"].isna().all() and traj["gamma"].isna().all()
+    assert not traj[["x", "y"]].isna().any().any()
+    np.testing.assert_allclose(np.arctan2(traj["y"], traj["x"])[1:], 0.5, atol=1e-3)
+
+
+def test_stage_pair_recording_forward_and_return(tmp_path, cli):
+    ws = tmp_path / "ws"
+    write_workspace(ws, pair_recording("P1"), [trials_row("P1", pair="P01", scenario=1, configuration="gris",
+                                                          end_orientation=0.0, condition="d1_p4_gris")])
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1", "--keep-approach")
+    assert code == 0, err
+    traj = read_table(ws / "preprocess" / "trajectories.parquet", TRAJECTORIES)
+    per = traj.drop_duplicates(["trial", "entity"]).set_index(["trial", "entity"])
+    assert sorted(per.index) == [("P1_forward", "subject1"), ("P1_forward", "subject2"), ("P1_forward", "table"),
+                                 ("P1_return", "subject1"), ("P1_return", "subject2"), ("P1_return", "table")]
+    # subjects stand still before lifting: no approach walk is found, so no approach trial
+    assert per.loc[("P1_forward", "table"), "scenario"] == 1 and per.loc[("P1_return", "table"), "scenario"] == 3
+    assert per.loc[("P1_forward", "table"), "direction"] == "forward"
+    assert per.loc[("P1_return", "table"), "direction"] == "return"
+    dt = 0.4 * 0.005 / 0.15  # crossing of 5 mm on the lift ramp (min-jerk: a little later)
+    fwd = per.loc[("P1_forward", "table")]
+    assert fwd["travel_time"] == pytest.approx(6.0 - 2 * dt, abs=0.12)
+    assert per.loc[("P1_forward", "subject1"), "travel_time"] == fwd["travel_time"]
+    assert fwd["travelled_distance"] == pytest.approx(3.0, abs=1e-3)
+    ret = traj[(traj["trial"] == "P1_return") & (traj["entity"] == "table")]
+    assert ret["x"].iloc[0] == pytest.approx(3.0, abs=1e-3) and ret["x"].iloc[-1] == pytest.approx(0.0, abs=1e-3)
+    np.testing.assert_allclose(ret["theta"], 0.0, atol=1e-6)
+    s1 = traj[(traj["trial"] == "P1_forward") & (traj["entity"] == "subject1")]
+    np.testing.assert_allclose(s1["x"] - traj[(traj["trial"] == "P1_forward") & (traj["entity"] == "table")]["x"].to_numpy(),
+                               0.96, atol=1e-6)
+    # subject 1 walks backwards (faces -x while the table moves +x): gamma = pi
+    np.testing.assert_allclose(np.abs(s1["gamma"]), np.pi, atol=1e-3)
+    assert per.loc[("P1_return", "table"), "end_orientation"] == pytest.approx(0.0, abs=1e-6)
+
+
+# ---- bad input: one line, exit 2, no stage directory ----------------------------------------------
+def _bad(tmp_path, cli, parts, rows, expected):
+    ws = tmp_path / "ws"
+    write_workspace(ws, parts, rows)
+    code, out, err = cli("preprocess", "--out", ws, "--jobs", "1")
+    assert code == 2, err
+    lines = [ln for ln in err.splitlines() if ln.startswith("error:")]
+    assert len(lines) == 1 and expected in lines[0], err
+    line = lines[0]
+    assert "markers.parquet" in line or "trials.parquet" in line
+    assert not (ws / "preprocess").exists()
+    assert not [p for p in ws.iterdir() if p.name.startswith(".preprocess")]
+
+
+def test_bad_nan_only_trial(tmp_path, cli):
+    parts = walking_trial("W1")
+    for p in parts:
+        p[["x", "y", "z"]] = np.nan
+    _bad(tmp_path, cli, parts, [trials_row("W1")], "is NaN in every frame")
+
+
+def test_bad_empty_trial(tmp_path, cli):
+    _bad(tmp_path, cli, walking_trial("W1"), [trials_row("W1"), trials_row("W2")], "trial W2 has no pelvis or table marker samples")
+
+
+def test_bad_all_nan_marker(tmp_path, cli):
+    parts = walking_trial("W1")
+    parts[2][["x", "y", "z"]] = np.nan
+    _bad(tmp_path, cli, parts, [trials_row("W1")], "marker LPSI of walker is NaN in every frame")
+
+
+def test_bad_missing_pelvis_markers(tmp_path, cli):
+    _bad(tmp_path, cli, walking_trial("W1")[:2], [trials_row("W1")], "walker lacks markers ['LPSI', 'RPSI']")
+
+
+def test_bad_units_in_millimetres(tmp_path, cli):
+    parts = walking_trial("W1")
+    for p in parts:
+        p[["x", "y", "z"]] *= 1000
+    _bad(tmp_path, cli, parts, [trials_row("W1")], "looks like millimetres")
+
+
+def test_bad_no_walk_and_wrong_number_of_carriages(tmp_path, cli):
+    _bad(tmp_path, cli, walking_trial("W1", length=0.0), [trials_row("W1")], "no walk found")
+
+
+def test_bad_pair_recording_with_one_carriage(tmp_path, cli):
+    parts = pair_recording("P1")
+    for p in parts:
+        if p["entity"].iloc[0] == "table":
+            p.loc[p["frame"] > 2200, "z"] = 0.77  # the return is never lifted
+    _bad(tmp_path, cli, parts, [trials_row("P1")], "found 1 table carriages")
+
+
+def test_missing_import_stage(tmp_path, cli):
+    code, _, err = cli("preprocess", "--out", tmp_path / "ws")
+    assert code == 2 and "no markers.parquet in the workspace" in err and "--markers" in err
