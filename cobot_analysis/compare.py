@@ -1,0 +1,238 @@
+"""Comparing trajectories: individual vs mean, any vs any, forward vs return, table A vs table B.
+
+Long trajectory tables (one row per trajectory x sample) are pivoted once into arrays
+``(n_trajectories, N)`` (``TrajectorySet``); the pairs to compare are found with table joins on
+the metadata and all their distances (METHODS.md sec. 3: d_xy, d_theta, d_gamma) are computed in a
+few vectorised calls of ``metrics.pair_distances`` (no Python loop over pairs or samples).
+The result is ``distances.parquet``: one row per compared pair with the grouping columns of the
+first trajectory ("a") and the identity of the second ("b_*").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from cobot_analysis.errors import InputError
+from cobot_analysis.metrics import pair_distances
+from cobot_analysis.schema import TRIAL_COLUMNS, Column, TableSchema
+
+KEY = ["study", "trial", "entity"]
+#: per-trajectory metadata carried from a trajectory table (columns that exist are kept).
+META = [*TRIAL_COLUMNS, "entity", "travel_time", "travelled_distance", "quality"]
+SIGNALS = ("x", "y", "theta", "gamma")
+#: columns that identify a trajectory's condition in each study (the grouping of the means).
+WALKING_GROUPS = ["study", "condition", "entity"]
+PAIR_GROUPS = ["study", "condition", "direction", "scenario", "configuration", "end_orientation", "entity"]
+#: columns of "b" stored beside the grouping columns of "a" in distances.parquet.
+B_COLUMNS = ["trial", "kind", "subject", "pair", "scenario", "direction", "end_orientation", "repetition"]
+
+DISTANCES = TableSchema(
+    name="distances",
+    version=1,
+    description=("Distances between two time-normalised trajectories (METHODS.md sec. 3), one row per "
+                 "compared pair: grouping columns of trajectory a, identity of trajectory b (b_*)."),
+    columns={
+        "comparison": Column("string", "", "individual-mean, any-any, symmetry (forward vs reversed return), against, ..."),
+        **{k: Column(c.dtype, c.unit, f"trajectory a: {c.description}", required=c.required) for k, c in TRIAL_COLUMNS.items()},
+        "entity": Column("string", "", "walker, subject1, subject2 or table (same for a and b)"),
+        **{f"b_{k}": Column(TRIAL_COLUMNS[k].dtype, TRIAL_COLUMNS[k].unit, f"trajectory b: {k}", required=False) for k in B_COLUMNS},
+        "travel_time": Column("float", "s", "travel time of trajectory a (NaN if unknown)", required=False),
+        "travelled_distance": Column("float", "m", "start-end distance of trajectory a", required=False),
+        "global_distance": Column("float", "m", "start-goal distance of the condition (walker / table path of a's trial)", required=False),
+        "orientation_change": Column("float", "rad", "|theta_end - theta_start| of trajectory a (unwrapped)", required=False),
+        "d_xy": Column("float", "m", "linear distance (1/N) sum |p_a - p_b|"),
+        "d_theta": Column("float", "rad", "angular distance (1/N) sum |wrap(theta_a - theta_b)|; NaN if an orientation is missing"),
+        "d_gamma": Column("float", "rad", "local angular distance over N-1 samples; NaN if missing"),
+    },
+)
+
+
+@dataclass
+class TrajectorySet:
+    """Trajectories as arrays: ``meta`` has one row per trajectory (row i <-> ``x[i]``)."""
+
+    meta: pd.DataFrame
+    x: np.ndarray
+    y: np.ndarray
+    theta: np.ndarray
+    gamma: np.ndarray
+
+    @property
+    def arrays(self) -> dict[str, np.ndarray]:
+        return {"x": self.x, "y": self.y, "theta": self.theta, "gamma": self.gamma}
+
+    def __len__(self) -> int:
+        return len(self.meta)
+
+    @property
+    def n_samples(self) -> int:
+        return self.x.shape[1] if self.x.ndim == 2 else 0
+
+    def subset(self, mask) -> "TrajectorySet":
+        idx = np.flatnonzero(np.asarray(mask))
+        return TrajectorySet(self.meta.iloc[idx].reset_index(drop=True), self.x[idx], self.y[idx], self.theta[idx], self.gamma[idx])
+
+
+def pivot(df: pd.DataFrame, path: str | Path | None = None) -> TrajectorySet:
+    """Long table -> ``TrajectorySet``; every trajectory must have the same number of samples."""
+    missing = [c for c in (*KEY, "sample", "x", "y") if c not in df.columns]
+    if missing:
+        raise InputError(f"trajectory table lacks columns {missing}", path=path, remedy="pass a trajectories.parquet or means.parquet")
+    if df.empty:
+        raise InputError("trajectory table is empty", path=path, remedy="check the import / preprocess stage output")
+    df = df.sort_values([*KEY, "sample"], kind="stable").reset_index(drop=True)
+    code = df.groupby(KEY, sort=False, observed=True, dropna=False).ngroup().to_numpy()
+    counts = np.bincount(code)
+    if counts.min() != counts.max():
+        raise InputError(f"trajectories have different numbers of samples ({counts.min()} to {counts.max()})", path=path,
+                         remedy="time-normalise every trajectory to the same N (preprocess --samples)")
+    n = int(counts[0])
+    if not (df["sample"].to_numpy().reshape(-1, n) == np.arange(n)).all():
+        raise InputError("sample indices are not 0..N-1 within each trajectory", path=path, remedy="re-run the stage that wrote it")
+    first = np.flatnonzero(df["sample"].to_numpy() == 0)
+    meta = df.loc[first, [c for c in META if c in df.columns]].reset_index(drop=True)
+
+    def arr(col: str) -> np.ndarray:
+        if col not in df.columns:
+            return np.full((len(first), n), np.nan)
+        return df[col].to_numpy(dtype=float, copy=True).reshape(-1, n)
+
+    ts = TrajectorySet(meta, arr("x"), arr("y"), arr("theta"), arr("gamma"))
+    bad = ~np.isfinite(ts.x).all(axis=1) | ~np.isfinite(ts.y).all(axis=1)
+    if bad.any():
+        raise InputError(f"{int(bad.sum())} trajectories have NaN positions (e.g. {meta.loc[np.argmax(bad), 'trial']})",
+                         path=path, remedy="fill or drop gaps in preprocess; positions must be complete")
+    return ts
+
+
+def default_groups(meta: pd.DataFrame) -> list[str]:
+    """Walking: condition x entity; pair study: goal x path x scenario x end configuration x entity."""
+    is_pairs = "direction" in meta.columns and meta["direction"].notna().any()
+    cols = PAIR_GROUPS if is_pairs else WALKING_GROUPS
+    return [c for c in cols if c in meta.columns]
+
+
+def group_keys(meta: pd.DataFrame, by: list[str]) -> pd.Series:
+    """One hashable key per row from the ``by`` columns (NaN-safe, end orientation rounded)."""
+    parts = []
+    for c in by:
+        col = meta[c]
+        if c == "end_orientation":
+            col = col.astype(float).round(3)
+        parts.append(col.astype(str).where(col.notna(), "<NA>"))
+    if not parts:
+        return pd.Series(["all"] * len(meta), index=meta.index)
+    key = parts[0]
+    for p in parts[1:]:
+        key = key + "|" + p
+    return key
+
+
+def _global_distance(meta: pd.DataFrame) -> pd.Series:
+    """Global distance of each trajectory's trial: the walker's or the table's travelled distance."""
+    if "travelled_distance" not in meta.columns:
+        return pd.Series(np.nan, index=meta.index)
+    carrier = meta["entity"].isin(["walker", "table"])
+    ref = meta.loc[carrier].drop_duplicates(["study", "trial"]).set_index(["study", "trial"])["travelled_distance"]
+    idx = pd.MultiIndex.from_frame(meta[["study", "trial"]])
+    return pd.Series(ref.reindex(idx).to_numpy(), index=meta.index)
+
+
+def _rows(comparison: str, a: TrajectorySet, b: TrajectorySet, ia, ib) -> pd.DataFrame:
+    ia, ib = np.asarray(ia, dtype=int), np.asarray(ib, dtype=int)
+    out = a.meta.iloc[ia][[c for c in (*TRIAL_COLUMNS, "entity", "travel_time", "travelled_distance") if c in a.meta.columns]]
+    out = out.reset_index(drop=True)
+    out.insert(0, "comparison", comparison)
+    out["global_distance"] = _global_distance(a.meta).to_numpy()[ia]
+    out["orientation_change"] = np.abs(a.theta[ia, -1] - a.theta[ia, 0]) if len(ia) else np.zeros(0)
+    for c in B_COLUMNS:
+        out[f"b_{c}"] = b.meta[c].to_numpy()[ib] if c in b.meta.columns else None
+    out = pd.concat([out, pd.DataFrame(pair_distances(a.arrays, b.arrays, ia, ib))], axis=1)
+    return out
+
+
+def individual_vs_mean(trials: TrajectorySet, means: TrajectorySet, by: list[str] | None = None) -> pd.DataFrame:
+    """Each trajectory against the mean of its group (the ``by`` columns, default ``default_groups``)."""
+    by = by or default_groups(trials.meta)
+    absent = [c for c in by if c not in means.meta.columns]
+    if absent:
+        raise InputError(f"the means lack the grouping columns {absent}", remedy="re-run `cobot-analysis average` with the same --by")
+    mkey = group_keys(means.meta, by)
+    if mkey.duplicated().any():
+        raise InputError(f"several means per group {mkey[mkey.duplicated()].iloc[0]!r}", remedy="average with the same --by as compare")
+    lookup = pd.Series(np.arange(len(means)), index=mkey.to_numpy())
+    tkey = group_keys(trials.meta, by)
+    ib = lookup.reindex(tkey.to_numpy()).to_numpy()
+    ok = ~np.isnan(ib)
+    return _rows("individual-mean", trials, means, np.flatnonzero(ok), ib[ok].astype(int))
+
+
+def any_vs_any(ts: TrajectorySet, same: list[str], differ: list[str] = (), comparison: str = "any-any",
+               other: TrajectorySet | None = None) -> pd.DataFrame:
+    """Every pair (a, b) that agrees on the ``same`` columns and differs on each ``differ`` column.
+
+    Within one set each unordered pair is compared once (a before b); with ``other`` every a of
+    ``ts`` is compared with every matching b of ``other``.
+    """
+    b_set = ts if other is None else other
+    left = pd.DataFrame({"_k": group_keys(ts.meta, same).to_numpy(), "_ia": np.arange(len(ts))})
+    right = pd.DataFrame({"_k": group_keys(b_set.meta, same).to_numpy(), "_ib": np.arange(len(b_set))})
+    m = left.merge(right, on="_k")
+    if other is None:
+        m = m[m["_ia"] < m["_ib"]]
+    keep = np.ones(len(m), dtype=bool)
+    for c in differ:
+        va = ts.meta[c].to_numpy()[m["_ia"].to_numpy()]
+        vb = b_set.meta[c].to_numpy()[m["_ib"].to_numpy()]
+        keep &= pd.Series(va).astype(str).to_numpy() != pd.Series(vb).astype(str).to_numpy()
+    m = m[keep]
+    return _rows(comparison, ts, b_set, m["_ia"].to_numpy(), m["_ib"].to_numpy())
+
+
+def forward_vs_return(ts: TrajectorySet, match: list[str]) -> pd.DataFrame:
+    """Symmetry: each forward path against the time-reversed return path matched on ``match``.
+
+    The b trajectory's arrays are reversed in time (sample i <-> N-1-i) before d_xy/d_theta.
+    """
+    fwd = ts.subset(ts.meta["direction"].eq("forward").to_numpy())
+    ret = ts.subset(ts.meta["direction"].eq("return").to_numpy())
+    ret = TrajectorySet(ret.meta, ret.x[:, ::-1], ret.y[:, ::-1], ret.theta[:, ::-1], ret.gamma[:, ::-1])
+    if not len(fwd) or not len(ret):
+        return _rows("symmetry", ts, ts, [], [])
+    return any_vs_any(fwd, same=match, comparison="symmetry", other=ret)
+
+
+def recording_ids(meta: pd.DataFrame) -> pd.Series:
+    """The recording a forward or return trial was cut from: its trial id without the direction
+    word (``P01_d1_p4_gris_s2_forward`` and ``..._return`` -> ``P01_d1_p4_gris_s2_``)."""
+    return meta["trial"].astype(str).str.replace(r"(forward|return)", "", regex=True)
+
+
+def compare_sets(trials: TrajectorySet, means: TrajectorySet | None, *, by: list[str] | None = None,
+                 symmetry_match: list[str] | None = None) -> pd.DataFrame:
+    """The standard comparisons of a study: individual-mean; between-scenario means (pair study,
+    same goal, path, end orientation and entity); mean forward vs reversed mean return; trial-level
+    forward vs reversed return of the same recording when trials carry a pair id."""
+    parts = []
+    if means is not None and len(means):
+        parts.append(individual_vs_mean(trials, means, by))
+        if "scenario" in means.meta.columns and means.meta["scenario"].notna().any():
+            same = [c for c in ("study", "condition", "direction", "end_orientation", "entity") if c in means.meta.columns]
+            parts.append(any_vs_any(means, same=same, differ=["scenario"], comparison="scenario-scenario-mean"))
+        if "direction" in means.meta.columns and means.meta["direction"].eq("return").any():
+            parts.append(forward_vs_return(means, ["study", "condition", "end_orientation", "entity"]).assign(comparison="symmetry-mean"))
+    tr = trials.subset(trials.meta["kind"].eq("trial").to_numpy())
+    if len(tr) and "scenario" in tr.meta.columns and tr.meta["scenario"].nunique() > 1:
+        same = [c for c in ("study", "pair", "condition", "direction", "end_orientation", "entity") if c in tr.meta.columns]
+        parts.append(any_vs_any(tr, same=same, differ=["scenario"], comparison="scenario-scenario"))
+    if "direction" in tr.meta.columns and tr.meta["direction"].eq("return").any():
+        tr.meta["recording"] = recording_ids(tr.meta)
+        parts.append(forward_vs_return(tr, symmetry_match or ["study", "recording", "entity"]))
+    parts = [p for p in parts if len(p)]
+    if not parts:
+        return _rows("individual-mean", trials, trials, [], [])
+    return pd.concat(parts, ignore_index=True)

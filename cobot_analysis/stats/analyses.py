@@ -1,0 +1,262 @@
+"""Run the declared analyses of a study on its sources -> one STATS row per test.
+
+For each analysis: filter the source, split by the ``per`` columns, collect the value column per
+group level, check group sizes (too small -> a row with status "skipped: ..." and the reason),
+check normality where asked (every group normal -> the ``parametric`` test instead), run the
+test (stats.tests), and finally Holm-correct the p-values within each family
+(statsmodels ``multipletests(method="holm")``). Descriptive rows (describe, largest_subset) are
+not part of the Holm families.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pandas as pd
+
+from cobot_analysis.schema import Column, TableSchema
+from cobot_analysis.stats import tests as T
+from cobot_analysis.stats.config import Analysis, StudyConfig
+from cobot_analysis.stats.subsets import largest_subset
+
+STATS = TableSchema(
+    name="stats",
+    version=1,
+    description="Statistical tests of a study (pipelines/<study>.toml), one row per test.",
+    columns={
+        "study": Column("string", "", "study of the configuration"),
+        "id": Column("string", "", "question id (e.g. Q1.1), suffixed by the per-level and pair of levels"),
+        "question": Column("string", "", "question id as declared"),
+        "description": Column("string", "", "what is tested"),
+        "family": Column("string", "", "Holm family"),
+        "source": Column("string", "", "table the data come from (stats.sources)"),
+        "subset": Column("string", "", "row filter applied, and the per-level"),
+        "value": Column("string", "", "tested column"),
+        "group": Column("string", "", "grouping column"),
+        "levels": Column("string", "", "group levels compared"),
+        "test": Column("string", "", "test actually run (after the normality check)"),
+        "alternative": Column("string", "", "two-sided, less or greater"),
+        "statistic": Column("float", "-", "test statistic (H, U, F, t, W, r, odds ratio, chi^2, share)"),
+        "p": Column("float", "-", "p-value"),
+        "p_holm": Column("float", "-", "Holm-corrected p within the family"),
+        "significant": Column("bool", "", "p_holm < alpha"),
+        "n": Column("int", "-", "number of values (or pairs) tested"),
+        "n_groups": Column("string", "", "n per group, 'level: n; ...'"),
+        "effect_size": Column("float", "-", "effect size (see effect_name)"),
+        "effect_name": Column("string", "", "epsilon^2, rank-biserial r, odds ratio, eta^2, Cohen's d, ..."),
+        "normality_p": Column("float", "-", "smallest normality p across groups (NaN if not checked)"),
+        "summary": Column("string", "", "per group: median [q1, q3] and mean +- sd (or counts)"),
+        "status": Column("string", "", "'ok' or 'skipped: <reason>'"),
+        "note": Column("string", "", "details (e.g. the members of the largest indistinguishable subset)"),
+    },
+)
+NOT_HOLM = ("describe", "largest_subset")
+
+
+def _match(series: pd.Series, wanted) -> pd.Series:
+    values = wanted if isinstance(wanted, list) else [wanted]
+    if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+        return pd.to_numeric(series, errors="coerce").isin([float(v) for v in values])
+    if all(isinstance(v, bool) for v in values):
+        return series.isin(values)
+    return series.astype(str).isin([str(v) for v in values])
+
+
+def _label(v) -> str:
+    if isinstance(v, float) and v.is_integer():
+        return str(int(v))
+    return str(v)
+
+
+def _summary(groups: dict) -> str:
+    parts = []
+    for k, v in groups.items():
+        v = np.asarray(v, float)
+        if not len(v):
+            parts.append(f"{k}: none")
+            continue
+        q1, med, q3 = np.percentile(v, [25, 50, 75])
+        parts.append(f"{k}: {med:.3g} [{q1:.3g}, {q3:.3g}], {v.mean():.3g} +- {v.std(ddof=1) if len(v) > 1 else 0:.3g}")
+    return "; ".join(parts)
+
+
+def _chance(a: Analysis, df: pd.DataFrame) -> float:
+    if a.chance is None:
+        return 0.5
+    if isinstance(a.chance, str):
+        return float(pd.to_numeric(df[a.chance], errors="coerce").mean())
+    return float(a.chance)
+
+
+def _groups(a: Analysis, df: pd.DataFrame) -> dict:
+    if not a.group:
+        return {"all": df[a.value].to_numpy()}
+    levels = a.levels if a.levels is not None else sorted(df[a.group].dropna().unique(), key=lambda v: (str(type(v)), v))
+    return {_label(lv): df.loc[_match(df[a.group], lv), a.value].to_numpy() for lv in levels}
+
+
+def _run_one(a: Analysis, df: pd.DataFrame, groups: dict, alpha: float) -> dict:
+    """One test on prepared groups -> the STATS fields it determines."""
+    row = {"test": a.test, "levels": ", ".join(groups), "status": "ok", "note": "", "normality_p": math.nan}
+    categorical = a.test in ("fisher", "chisquare", "binomial", "describe")
+    if not categorical:
+        groups = {k: pd.to_numeric(pd.Series(v), errors="coerce").dropna().to_numpy(float) for k, v in groups.items()}
+    sizes = {k: len(v) for k, v in groups.items()}
+    row.update(n=int(sum(sizes.values())), n_groups="; ".join(f"{k}: {n}" for k, n in sizes.items()))
+    small = [k for k, n in sizes.items() if n < a.minimum]
+    if small or not sizes:
+        row["status"] = (f"skipped: group(s) {', '.join(small)} have fewer than {a.minimum} values ({row['n_groups']})"
+                         if sizes else "skipped: no data in this subset")
+        return row
+    lo, hi = T.N_GROUPS[a.test]
+    if len(groups) < lo or (hi is not None and len(groups) > hi):
+        row["status"] = f"skipped: {a.test} needs {lo}{'' if hi == lo else f'..{hi}' if hi else '+'} groups, found {len(groups)}"
+        return row
+    if not categorical:
+        row["summary"] = _summary(groups)
+    test = a.test
+    if a.normality and not categorical:
+        ps = [T.normality(v, a.normality) for v in groups.values()]
+        row["normality_p"] = float(np.nanmin(ps)) if not all(np.isnan(ps)) else math.nan
+        if a.parametric and all(p > alpha for p in ps if not np.isnan(p)) and not all(np.isnan(ps)):
+            test = a.parametric
+        row["note"] = f"{a.normality} normality p >= {row['normality_p']:.3g}: {'normal' if test != a.test else 'non-normal'} -> {test}"
+    row["test"] = test
+    if test == "describe":
+        vals = {k: pd.Series(v) for k, v in groups.items()}
+        if all(pd.api.types.is_numeric_dtype(v) and not pd.api.types.is_bool_dtype(v) for v in vals.values()):
+            row["summary"] = _summary({k: v.to_numpy(float) for k, v in vals.items()})
+        else:
+            row["summary"] = "; ".join(f"{k}: " + ", ".join(f"{c} {n}" for c, n in v.astype(str).value_counts().sort_index().items())
+                                       for k, v in vals.items())
+        return row
+    if test == "largest_subset":
+        res = largest_subset(groups, alpha)
+        row.update(statistic=res.statistic, p=res.p, levels=", ".join(map(str, res.members)),
+                   note=f"{len(res.members)} of {len(groups)} groups indistinguishable (Kruskal p > {alpha}); {res.method}")
+        return row
+    if test in ("fisher", "binomial"):
+        flag = {k: pd.Series(v).astype(bool).to_numpy() for k, v in groups.items()}
+        if len(flag) == 1 or a.chance is not None:
+            v = np.concatenate(list(flag.values()))
+            k, n = int(v.sum()), len(v)
+            p0 = _chance(a, df)
+            if test == "binomial":
+                res = T.binomial(k, n, p0, a.alternative)
+            else:
+                expect = int(round(n * p0))
+                res = T.fisher([[k, n - k], [expect, n - expect]], ["observed", "chance"], alternative=a.alternative)
+            row["summary"] = f"{k} of {n} ({100 * k / n:.1f} %) vs chance {100 * p0:.1f} %"
+        else:
+            table = [[int(v.sum()), int((~v).sum())] for v in flag.values()]
+            res = T.fisher(table, list(flag), alternative=a.alternative)
+            row["summary"] = "; ".join(f"{k}: {t[0]} of {sum(t)}" for k, t in zip(flag, table))
+    elif test == "chisquare":
+        v = pd.Series(np.concatenate(list(groups.values()))).astype(str)
+        cats = list(a.expected) if a.expected else sorted(v.unique())
+        counts = {c: int((v == c).sum()) for c in cats}
+        res = T.chisquare(counts, [a.expected[c] for c in cats] if a.expected else None)
+        row["summary"] = ", ".join(f"{c}: {n} ({100 * n / max(len(v), 1):.0f} %)" for c, n in counts.items())
+    elif test in ("pearson", "spearman"):
+        pair = df[[a.versus, a.value]].apply(pd.to_numeric, errors="coerce").dropna()
+        if len(pair) < a.minimum:
+            row["status"] = f"skipped: {len(pair)} complete ({a.versus}, {a.value}) pairs, {test} needs {a.minimum}"
+            return row
+        res = T.correlation(pair[a.versus], pair[a.value], test, a.alternative)
+        row["n"], row["summary"] = len(pair), f"r = {res.statistic:.3f} over {len(pair)} pairs"
+    elif test == "wilcoxon":
+        (k1, _), (k2, _) = groups.items()
+        sub = df.assign(_g=df[a.group].map(_label))
+        sub = sub[sub["_g"].isin([k1, k2])]
+        w = sub.pivot_table(index=a.paired_by, columns="_g", values=a.value, aggfunc="mean")
+        w = w.dropna(subset=[k1, k2]) if {k1, k2} <= set(w.columns) else w.iloc[0:0]
+        if len(w) < a.minimum:
+            row["status"] = f"skipped: {len(w)} matched pairs, wilcoxon needs {a.minimum}"
+            return row
+        res = T.wilcoxon({k1: w[k1].to_numpy(), k2: w[k2].to_numpy()}, a.alternative)
+        row["note"] = (row["note"] + "; " if row["note"] else "") + f"paired by {', '.join(a.paired_by)}: {len(w)} pairs"
+    elif test in ("mannwhitneyu", "ttest"):
+        res = getattr(T, test)(groups, a.alternative)
+    else:
+        res = getattr(T, test)(groups)
+    row.update(statistic=res.statistic, p=res.p, effect_size=res.effect_size, effect_name=res.effect_name)
+    return row
+
+
+def run_analysis(a: Analysis, df: pd.DataFrame, alpha: float) -> list[dict]:
+    """All rows of one declared analysis (one per ``per`` level and, if pairwise, per pair of levels)."""
+    for col, wanted in a.filter.items():
+        df = df[_match(df[col], wanted)]
+    subset = ", ".join(f"{c} = {v}" for c, v in a.filter.items()) or "all rows"
+    base = {"question": a.id, "description": a.description, "family": a.family, "source": a.source,
+            "value": a.value, "group": a.group or "", "alternative": a.alternative}
+    per_levels = list(df.groupby(a.per, dropna=True, sort=True)) if a.per and len(df) else [((), df)]
+    if a.per and not len(df):
+        per_levels = []
+    rows = []
+    if not per_levels:
+        rows.append({**base, "id": a.id, "subset": subset, "test": a.test, "n": 0, "n_groups": "",
+                     "status": "skipped: no data in this subset (the data do not support this question)"})
+    for key, part in per_levels:
+        key = key if isinstance(key, tuple) else (key,)
+        tag = ", ".join(f"{c} = {_label(v)}" for c, v in zip(a.per, key))
+        suffix = "".join(f"[{_label(v)}]" for v in key)
+        groups = _groups(a, part)
+        combos = list(itertools.combinations(groups, 2)) if a.pairwise else [tuple(groups)]
+        for combo in combos:
+            g = {k: groups[k] for k in combo}
+            rid = a.id + suffix + (f"[{' vs '.join(combo)}]" if a.pairwise else "")
+            rows.append({**base, "id": rid, "subset": subset + (f"; {tag}" if tag else ""), **_run_one(a, part, g, alpha)})
+    return rows
+
+
+def holm(rows: pd.DataFrame, alpha: float) -> pd.DataFrame:
+    """Holm-corrected p within each family (statsmodels), over the rows that ran a test."""
+    from statsmodels.stats.multitest import multipletests
+
+    rows = rows.copy()
+    rows["p_holm"] = np.nan
+    tested = rows["status"].eq("ok") & ~rows["test"].isin(NOT_HOLM) & rows["p"].notna()
+    for _, idx in rows[tested].groupby("family").groups.items():
+        rows.loc[idx, "p_holm"] = multipletests(rows.loc[idx, "p"].to_numpy(float), alpha=alpha, method="holm")[1]
+    rows["significant"] = rows["p_holm"].lt(alpha)
+    return rows
+
+
+def run(config: StudyConfig, sources: dict, progress=None) -> pd.DataFrame:
+    """Every analysis of ``config`` on ``sources`` -> STATS table (Holm-corrected)."""
+    items = progress(config.analyses, "stats") if progress else config.analyses
+    rows = []
+    for a in items:
+        rows += run_analysis(a, sources[a.source], config.alpha)
+    df = pd.DataFrame(rows)
+    for c, col in STATS.columns.items():
+        if c not in df.columns:
+            df[c] = np.nan if col.dtype in ("float", "int") else ""
+    df["study"] = config.study
+    df = holm(df, config.alpha)
+    for c, col in STATS.columns.items():
+        if col.dtype == "string":
+            df[c] = df[c].fillna("").astype(str)
+    df["n"] = df["n"].fillna(0).astype(int)
+    return df[list(STATS.columns)]
+
+
+def markdown(df: pd.DataFrame, title: str, alpha: float = 0.05) -> str:
+    """The Markdown table of a study's tests."""
+    lines = [f"## {title}", "",
+             f"Holm-corrected p within each family; significant = p_holm < {alpha}. Effect sizes: see "
+             "`stats.tests`. Skipped rows say why.", "",
+             "| id | description | subset | test | n | statistic | p | p (Holm) | effect size | summary / note |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    def f(v, fmt=".3g"):
+        return "" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, fmt)
+    for r in df.itertuples():
+        eff = f"{f(r.effect_size)} ({r.effect_name})" if r.effect_name else ""
+        extra = "; ".join(x for x in (r.summary, r.note, "" if r.status == "ok" else r.status) if x)
+        p_holm = f(r.p_holm) + (" *" if r.significant else "")
+        lines.append(f"| {r.id} | {r.description} | {r.subset} | {r.test} | {r.n} | {f(r.statistic)} | {f(r.p)} | "
+                     f"{p_holm} | {eff} | {extra.replace('|', '/')} |")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,168 @@
+"""Declarative statistics: ``pipelines/<study>.toml`` lists the questions of a study.
+
+    study = "pair-carriage-2022"
+    alpha = 0.05
+
+    [[analysis]]
+    id = "Q1.1"
+    description = "Travel time by scenario (forward carriages)"
+    source = "durations"            # a table of stats.sources.SOURCE_COLUMNS
+    filter = { direction = "forward" }   # column = value or [values]
+    value = "duration"              # the tested column
+    group = "scenario"              # grouping column (omit for one-sample tests)
+    test = "kruskal"                # see stats.tests.TESTS
+    family = "Q1"                   # Holm correction across the rows of a family
+
+Optional keys: ``per`` (columns: one test per level, e.g. per entity), ``pairwise`` (every pair
+of group levels), ``levels`` (the group levels to use, in order), ``alternative`` (two-sided,
+less, greater: "group 1 < group 2" for less), ``normality`` (shapiro | ks) with ``parametric``
+(anova | ttest: used instead of the test when every group passes normality), ``paired_by``
+(columns aligning the two groups of a wilcoxon test), ``versus`` (x column of a correlation),
+``expected`` (chisquare: level -> share), ``chance`` (fisher / binomial: a column holding each
+row's chance of success, or a number), ``min_size`` (override the test's minimum group size).
+
+The whole file is validated before anything is computed: unknown keys, sources, columns or tests
+raise ``InputError`` with one line naming the question.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from cobot_analysis.errors import InputError
+from cobot_analysis.stats.sources import SOURCE_COLUMNS
+from cobot_analysis.stats.tests import MIN_SIZE, N_GROUPS, TESTS
+
+ALTERNATIVES = ("two-sided", "less", "greater")
+KEYS = {"id", "description", "source", "filter", "value", "group", "test", "family", "per", "pairwise", "levels",
+        "alternative", "normality", "parametric", "paired_by", "versus", "expected", "chance", "min_size"}
+
+
+@dataclass
+class Analysis:
+    id: str
+    description: str
+    source: str
+    value: str
+    test: str
+    family: str
+    group: str | None = None
+    filter: dict[str, Any] = field(default_factory=dict)
+    per: list[str] = field(default_factory=list)
+    pairwise: bool = False
+    levels: list | None = None
+    alternative: str = "two-sided"
+    normality: str | None = None
+    parametric: str | None = None
+    paired_by: list[str] = field(default_factory=list)
+    versus: str | None = None
+    expected: dict | None = None
+    chance: str | float | None = None
+    min_size: int | None = None
+
+    @property
+    def columns(self) -> list[str]:
+        cols = [self.value, *self.filter, *self.per, *self.paired_by]
+        cols += [c for c in (self.group, self.versus) if c]
+        if isinstance(self.chance, str):
+            cols.append(self.chance)
+        return cols
+
+    @property
+    def minimum(self) -> int:
+        return self.min_size if self.min_size is not None else MIN_SIZE[self.test]
+
+
+@dataclass
+class StudyConfig:
+    study: str
+    alpha: float
+    analyses: list[Analysis]
+    path: Path | None = None
+
+
+def parse(data: dict, path: Path | None = None) -> StudyConfig:
+    """Validate a parsed TOML document (see module doc) -> ``StudyConfig``."""
+    def fail(msg: str, remedy: str = "fix the stats configuration") -> InputError:
+        return InputError(msg, path=path, remedy=remedy)
+
+    if "analysis" not in data or not isinstance(data["analysis"], list):
+        raise fail("no [[analysis]] entries", "declare at least one [[analysis]] table")
+    alpha = float(data.get("alpha", 0.05))
+    if not 0 < alpha < 1:
+        raise fail(f"alpha must be in (0, 1), got {alpha}")
+    out, seen = [], set()
+    for n, raw in enumerate(data["analysis"], 1):
+        qid = str(raw.get("id", f"#{n}"))
+        unknown = set(raw) - KEYS
+        if unknown:
+            raise fail(f"analysis {qid}: unknown key(s) {sorted(unknown)}", f"use only {sorted(KEYS)}")
+        for key in ("id", "source", "value", "test", "family"):
+            if key not in raw:
+                raise fail(f"analysis {qid}: missing key {key!r}")
+        if qid in seen:
+            raise fail(f"analysis {qid}: duplicate id")
+        seen.add(qid)
+        if raw["source"] not in SOURCE_COLUMNS:
+            raise fail(f"analysis {qid}: unknown source {raw['source']!r}", f"use one of {sorted(SOURCE_COLUMNS)}")
+        for key in ("test", "parametric"):
+            if key in raw and raw[key] not in TESTS:
+                raise fail(f"analysis {qid}: unknown test {raw[key]!r}", f"use one of {list(TESTS)}")
+        per = raw.get("per", [])
+        paired = raw.get("paired_by", [])
+        a = Analysis(id=qid, description=str(raw.get("description", "")), source=raw["source"], value=raw["value"],
+                     test=raw["test"], family=str(raw["family"]), group=raw.get("group"), filter=dict(raw.get("filter", {})),
+                     per=[per] if isinstance(per, str) else list(per), pairwise=bool(raw.get("pairwise", False)),
+                     levels=raw.get("levels"), alternative=raw.get("alternative", "two-sided"),
+                     normality=raw.get("normality"), parametric=raw.get("parametric"),
+                     paired_by=[paired] if isinstance(paired, str) else list(paired), versus=raw.get("versus"),
+                     expected=raw.get("expected"), chance=raw.get("chance"), min_size=raw.get("min_size"))
+        if a.alternative not in ALTERNATIVES:
+            raise fail(f"analysis {qid}: unknown alternative {a.alternative!r}", f"use one of {list(ALTERNATIVES)}")
+        if a.normality not in (None, "shapiro", "ks"):
+            raise fail(f"analysis {qid}: unknown normality test {a.normality!r}", "use shapiro or ks")
+        bad = [c for c in a.columns if c not in SOURCE_COLUMNS[a.source]]
+        if bad:
+            raise fail(f"analysis {qid}: unknown column(s) {bad} in source {a.source!r}",
+                       f"columns of {a.source}: {', '.join(SOURCE_COLUMNS[a.source])}")
+        lo, hi = N_GROUPS[a.test]
+        if a.test in ("pearson", "spearman") and not a.versus:
+            raise fail(f"analysis {qid}: {a.test} needs 'versus' (the x column)")
+        if lo >= 2 and not a.group:
+            raise fail(f"analysis {qid}: {a.test} compares groups and needs 'group'")
+        if hi == 2 and not a.pairwise and a.levels is not None and len(a.levels) != 2:
+            raise fail(f"analysis {qid}: {a.test} compares exactly two groups; give two 'levels' or pairwise = true")
+        if a.test == "wilcoxon" and not a.paired_by:
+            raise fail(f"analysis {qid}: wilcoxon is paired and needs 'paired_by'")
+        out.append(a)
+    return StudyConfig(str(data.get("study", "")), alpha, out, path)
+
+
+def load(path: str | Path) -> StudyConfig:
+    """Read and validate ``pipelines/<study>.toml``."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise InputError("stats configuration not found", path=path, remedy="pass --config pipelines/<study>.toml") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"not valid TOML ({exc})", path=path, remedy="fix the syntax") from None
+    return parse(data, path)
+
+
+def check_levels(config: StudyConfig, sources: dict) -> None:
+    """Second validation step, once the sources exist but before any test: declared levels and
+    filter values must occur in the (non-empty) source."""
+    for a in config.analyses:
+        df = sources[a.source]
+        if df.empty:
+            continue
+        if a.group and a.levels is not None:
+            present = {str(v) for v in df[a.group].dropna().unique()}
+            absent = [lv for lv in a.levels if str(lv) not in present]
+            if absent:
+                raise InputError(f"analysis {a.id}: group level(s) {absent} not found in column {a.group!r} "
+                                 f"(found {sorted(present)})", path=config.path, remedy="fix 'levels'")

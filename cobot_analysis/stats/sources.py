@@ -1,0 +1,237 @@
+"""The tables the declared analyses run on ("sources"), derived from the workspace outputs.
+
+Each source is a DataFrame with the columns listed in ``SOURCE_COLUMNS`` (checked before any
+test runs). A question of ``pipelines/*.toml`` names a source, filters its rows, and tests a value
+column across groups:
+
+- ``trials``: one row per trajectory (trial level): metadata, travel time, travelled distance.
+- ``durations``: one row per trial: travel time of the carriage (pair study: from durations.parquet
+  when the workspace has one, e.g. the published data, else from the table trajectories).
+- ``distances``: distances.parquet plus ``carrier`` (subject / table / walker),
+  ``start_orientation`` (walking: N E S O) and ``distance_class`` (global distance < 3 m / > 3 m).
+- ``choices``: pair study, one row per forward trial: chosen end orientation and whether it is
+  optimal for Subject 1, Subject 2, the pair (``optimal_s1`` ...), with the chance of being optimal
+  under a random choice (``chance_*``: 1 if both configurations are optimal, else 1/2).
+- ``patterns``: pair study, one row per pair and goal: which scenarios ended in the same configuration.
+- ``closer``: pair study, per pair, goal and entity whose three forward trials share the end
+  orientation: is the scenario-3 path closer to the scenario-1 or to the scenario-2 path?
+- ``return_variability``: pair study, per pair, goal and entity with 3 returns: Kruskal p across
+  the returns of the sample-wise distances to their mean (Q4.3).
+- ``pairs``: per pair and entity: mean individual-vs-mean d_xy, and weight/height differences
+  when anthropometrics are given.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from cobot_analysis.angles import wrap
+from cobot_analysis.compare import TrajectorySet
+from cobot_analysis.design import GLOBAL_DISTANCE_SPLIT
+from cobot_analysis.metrics import optimal_configurations
+
+_META = ["study", "trial", "kind", "subject", "pair", "condition", "direction", "scenario", "configuration",
+         "end_orientation", "repetition", "entity"]
+SOURCE_COLUMNS: dict[str, list[str]] = {
+    "trials": [*_META, "travel_time", "travelled_distance", "global_distance", "orientation_missing", "quality"],
+    "durations": ["study", "pair", "condition", "configuration", "direction", "scenario", "end_orientation", "duration"],
+    "distances": ["comparison", *_META, "b_trial", "b_kind", "b_subject", "b_pair", "b_scenario", "b_direction",
+                  "b_end_orientation", "b_repetition", "travel_time", "travelled_distance", "global_distance",
+                  "orientation_change", "d_xy", "d_theta", "d_gamma", "carrier", "start_orientation", "distance_class",
+                  "scenario_pair"],
+    "choices": ["study", "pair", "condition", "scenario", "end_orientation", "optimal_s1", "optimal_s2", "optimal_pair",
+                "chance_s1", "chance_s2", "chance_pair"],
+    "patterns": ["study", "pair", "condition", "pattern"],
+    "closer": ["study", "pair", "condition", "entity", "d_s3_s1", "d_s3_s2", "closer_to", "closer_s1"],
+    "return_variability": ["study", "pair", "condition", "entity", "p", "significant"],
+    "pairs": ["study", "pair", "entity", "d_xy", "weight_diff", "height_diff"],
+}
+
+
+def _empty(name: str) -> pd.DataFrame:
+    return pd.DataFrame({c: pd.Series(dtype=object) for c in SOURCE_COLUMNS[name]})
+
+
+def _conform(df: pd.DataFrame, name: str) -> pd.DataFrame:
+    for c in SOURCE_COLUMNS[name]:
+        if c not in df.columns:
+            df[c] = None
+    return df
+
+
+def trials_source(ts: TrajectorySet) -> pd.DataFrame:
+    m = ts.meta[ts.meta["kind"].eq("trial")].copy() if len(ts) else ts.meta.copy()
+    if m.empty:
+        return _empty("trials")
+    idx = m.index.to_numpy()
+    m["orientation_missing"] = ~np.isfinite(ts.theta[idx]).all(axis=1)
+    carrier = m[m["entity"].isin(["walker", "table"])].drop_duplicates(["study", "trial"])
+    m["global_distance"] = m.set_index(["study", "trial"]).index.map(
+        carrier.set_index(["study", "trial"])["travelled_distance"]).to_numpy()
+    return _conform(m.reset_index(drop=True), "trials")
+
+
+def durations_source(trials: pd.DataFrame, durations: pd.DataFrame | None) -> pd.DataFrame:
+    """Per-trial carriage durations: the published table if given, else the table trajectories."""
+    if durations is not None and len(durations):
+        d = durations.rename(columns={"duration_s": "duration"}).copy()
+        return _conform(d, "durations")
+    t = trials[trials["entity"].eq("table") & trials["travel_time"].notna()] if len(trials) else trials
+    if t.empty:
+        return _empty("durations")
+    return _conform(t.rename(columns={"travel_time": "duration"}).reset_index(drop=True), "durations")
+
+
+def distances_source(distances: pd.DataFrame | None) -> pd.DataFrame:
+    if distances is None or distances.empty:
+        return _empty("distances")
+    d = distances.copy()
+    d["carrier"] = d["entity"].map({"subject1": "subject", "subject2": "subject", "table": "table", "walker": "walker"})
+    d["start_orientation"] = d["condition"].astype(str).str[0].where(d["study"].astype(str).str.contains("walking"))
+    gd = d["global_distance"].astype(float)
+    d["distance_class"] = np.where(gd.isna(), None, np.where(gd < GLOBAL_DISTANCE_SPLIT, "< 3 m", "> 3 m"))
+    sa = pd.to_numeric(d.get("scenario"), errors="coerce")
+    sb = pd.to_numeric(d.get("b_scenario"), errors="coerce")
+    lo, hi = np.fmin(sa, sb), np.fmax(sa, sb)
+    d["scenario_pair"] = [f"S{int(a)}-S{int(b)}" if np.isfinite(a) and np.isfinite(b) else None for a, b in zip(lo, hi)]
+    return _conform(d, "distances")
+
+
+def choices_source(trials: pd.DataFrame, tol: float = 0.05) -> pd.DataFrame:
+    """Optimality of each chosen end configuration (METHODS.md sec. 3).
+
+    The distance D_k a configuration would cost Subject k is estimated as the mean travelled
+    distance of Subject k over all forward trials of that goal ending in that orientation (all pairs,
+    all scenarios); configurations within ``tol`` m of the best are all optimal.
+    """
+    f = trials[trials["direction"].eq("forward") & trials["entity"].isin(["subject1", "subject2"])] if len(trials) else trials
+    if f.empty or f["end_orientation"].isna().all():
+        return _empty("choices")
+    f = f.assign(end=wrap(f["end_orientation"].astype(float)).round(3))
+    cost = f.pivot_table(index=["study", "condition", "end"], columns="entity", values="travelled_distance", aggfunc="mean")
+    cost["pair"] = cost.sum(axis=1, min_count=2)
+    optimal = {}
+    for (study, cond), g in cost.groupby(level=[0, 1]):
+        ends = g.index.get_level_values(2)
+        for who, col in (("s1", "subject1"), ("s2", "subject2"), ("pair", "pair")):
+            opt = optimal_configurations(dict(zip(ends, g[col].to_numpy())), tol)
+            # only one configuration ever chosen: optimality cannot be judged from the data
+            optimal[(study, cond, who)] = opt if len(ends) > 1 else None
+    rows = f[f["entity"].eq("subject1")].drop_duplicates(["study", "trial"])
+    out = rows[["study", "pair", "condition", "scenario", "end_orientation", "end"]].copy()
+    for who in ("s1", "s2", "pair"):
+        sets = [optimal.get((s, c, who)) for s, c in zip(out["study"], out["condition"])]
+        out[f"optimal_{who}"] = [None if o is None else e in o for o, e in zip(sets, out["end"])]
+        out[f"chance_{who}"] = [None if o is None else len(o) / 2 for o in sets]
+    return _conform(out.drop(columns="end").dropna(subset=["optimal_s1"]).reset_index(drop=True), "choices")
+
+
+def patterns_source(trials: pd.DataFrame) -> pd.DataFrame:
+    """Q1.2: per pair and goal, which scenarios ended in the same configuration."""
+    f = trials[trials["direction"].eq("forward") & trials["entity"].eq("table")] if len(trials) else trials
+    if f.empty:
+        return _empty("patterns")
+    f = f.assign(end=wrap(f["end_orientation"].astype(float)).round(2))
+    w = f.pivot_table(index=["study", "pair", "condition"], columns="scenario", values="end", aggfunc="first")
+    if not {1, 2, 3} <= set(w.columns):
+        return _empty("patterns")
+    w = w.dropna(subset=[1, 2, 3])
+
+    def pattern(r) -> str:
+        s12, s13, s23 = r[1] == r[2], r[1] == r[3], r[2] == r[3]
+        if s12 and s13:
+            return "all three"
+        return "S1&S3 only" if s13 else "S2&S3 only" if s23 else "S1&S2 only" if s12 else "all different"
+
+    out = w.reset_index()
+    out["pattern"] = w.apply(pattern, axis=1).to_numpy()
+    return _conform(out[["study", "pair", "condition", "pattern"]], "patterns")
+
+
+def closer_source(distances: pd.DataFrame) -> pd.DataFrame:
+    """Q1.3: scenario-3 path closer to scenario 1 or 2 (same pair, goal, entity, end orientation)."""
+    d = distances[distances["comparison"].eq("scenario-scenario")] if len(distances) else distances
+    if d.empty:
+        return _empty("closer")
+    d = d.assign(sp=d["scenario_pair"])
+    w = d.pivot_table(index=["study", "pair", "condition", "entity"], columns="sp", values="d_xy", aggfunc="mean")
+    if not {"S1-S3", "S2-S3"} <= set(w.columns):
+        return _empty("closer")
+    w = w.dropna(subset=["S1-S3", "S2-S3"]).reset_index()
+    w = w.rename(columns={"S1-S3": "d_s3_s1", "S2-S3": "d_s3_s2"})
+    w["closer_to"] = np.where(w["d_s3_s1"] < w["d_s3_s2"], "S1", "S2")
+    w["closer_s1"] = w["closer_to"].eq("S1")
+    return _conform(w, "closer")
+
+
+def return_variability_source(ts: TrajectorySet, alpha: float = 0.05) -> pd.DataFrame:
+    """Q4.3: per pair, goal and entity with >= 3 returns, Kruskal across the returns of the
+    sample-wise distances |p_i - mean_i| to the mean of those returns."""
+    from scipy import stats
+
+    m = ts.meta
+    sel = m["kind"].eq("trial") & m["direction"].eq("return") if "direction" in m.columns else m["kind"].eq("x")
+    if not sel.any():
+        return _empty("return_variability")
+    rows = []
+    for (study, pair, cond, ent), g in m[sel].groupby(["study", "pair", "condition", "entity"]):
+        if len(g) < 3:
+            continue
+        i = g.index.to_numpy()
+        dev = np.hypot(ts.x[i] - ts.x[i].mean(axis=0), ts.y[i] - ts.y[i].mean(axis=0))
+        p = float(stats.kruskal(*dev).pvalue)
+        rows.append({"study": study, "pair": pair, "condition": cond, "entity": ent, "p": p, "significant": p < alpha})
+    return _conform(pd.DataFrame(rows), "return_variability") if rows else _empty("return_variability")
+
+
+def read_anthropometrics(directory: Path | None) -> pd.DataFrame | None:
+    """``pairs.csv`` (id, subject1, subject2) and ``subjects.csv`` (id, weight, height) -> per pair
+    |weight_1 - weight_2| (kg) and |height_1 - height_2| (m); None when not available."""
+    if directory is None:
+        return None
+    pairs_csv, subjects_csv = Path(directory) / "pairs.csv", Path(directory) / "subjects.csv"
+    if not (pairs_csv.is_file() and subjects_csv.is_file()):
+        return None
+    from cobot_analysis.errors import InputError
+
+    pairs, subjects = pd.read_csv(pairs_csv), pd.read_csv(subjects_csv)
+    need = {"id", "weight", "height"}
+    if not need <= set(subjects.columns) or not {"id", "subject1", "subject2"} <= set(pairs.columns):
+        raise InputError("anthropometrics need subjects.csv (id, weight, height) and pairs.csv (id, subject1, subject2)",
+                         path=directory, remedy="fix the CSV headers or omit --anthropometrics")
+    s = subjects.set_index("id")
+    out = pd.DataFrame({"pair": pairs["id"].astype(str)})
+    out["weight_diff"] = (pairs["subject1"].map(s["weight"]) - pairs["subject2"].map(s["weight"])).abs().to_numpy()
+    out["height_diff"] = (pairs["subject1"].map(s["height"]) - pairs["subject2"].map(s["height"])).abs().to_numpy()
+    return out
+
+
+def pairs_source(distances: pd.DataFrame, anthropometrics: pd.DataFrame | None) -> pd.DataFrame:
+    d = distances[distances["comparison"].eq("individual-mean") & distances["kind"].eq("trial")] if len(distances) else distances
+    if d.empty or d["pair"].isna().all():
+        return _empty("pairs")
+    out = d.groupby(["study", "pair", "entity"], as_index=False)["d_xy"].mean()
+    if anthropometrics is not None:
+        out = out.merge(anthropometrics, on="pair", how="left")
+    return _conform(out, "pairs")
+
+
+def build_sources(ts: TrajectorySet | None, distances: pd.DataFrame | None, durations: pd.DataFrame | None = None,
+                  anthropometrics: pd.DataFrame | None = None, alpha: float = 0.05) -> dict[str, pd.DataFrame]:
+    """Every source of ``SOURCE_COLUMNS`` (empty tables where the data do not support them)."""
+    trials = trials_source(ts) if ts is not None else _empty("trials")
+    dist = distances_source(distances)
+    return {
+        "trials": trials,
+        "durations": durations_source(trials, durations),
+        "distances": dist,
+        "choices": choices_source(trials) if "direction" in trials and trials["direction"].notna().any() else _empty("choices"),
+        "patterns": patterns_source(trials) if trials["direction"].notna().any() else _empty("patterns"),
+        "closer": closer_source(dist),
+        "return_variability": return_variability_source(ts, alpha) if ts is not None else _empty("return_variability"),
+        "pairs": pairs_source(dist, anthropometrics),
+    }
+
