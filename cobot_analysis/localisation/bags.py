@@ -238,13 +238,16 @@ def _pose_of(msg, msgtype: str):
     return (p.x, p.y, p.z), (q.x, q.y, q.z, q.w)
 
 
-def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str = "header") -> dict[str, PoseStream]:
-    """Read several pose streams in one pass over the bag: ``{name: PoseStream}``."""
+def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str = "header",
+                 optional: tuple[str, ...] = ()) -> dict[str, PoseStream]:
+    """Read several pose streams in one pass over the bag: ``{name: PoseStream}``; the names in
+    ``optional`` are left out (instead of an error) when their topic is not in the bag."""
     if time not in ("header", "record"):
         raise ValueError("time must be 'header' or 'record'")
     path = Path(path)
     with open_bag(path) as src:
         need = set()
+        specs = {k: v for k, v in specs.items() if k not in optional or v.is_tf or v.topic in src.topics}
         for spec in specs.values():
             if spec.is_tf:
                 present = [t for t in TF_TOPICS if t in src.topics]

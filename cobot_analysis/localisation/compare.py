@@ -1,0 +1,301 @@
+"""ICP pose against motion capture: time base, delay, structural offset, errors, drift
+(METHODS.md sec. 9, steps 1-4).
+
+Notation: ``s_i`` the ICP stamps, ``P(t)`` the motion-capture (truth) pose, ``Q_i`` the ICP pose,
+``d`` the delay (the ICP pose at ``s_i`` describes the robot at ``s_i - d``).
+
+1. Time base: the truth is interpolated at ``s_i - d`` (positions linearly, orientation by
+   quaternion slerp; yaw unwrapped), only where its bracketing samples are at most ``max_gap``
+   apart. ``association="nearest"`` instead takes the truth sample nearest to ``s_i - d`` within
+   ``max_diff`` (the nearest-stamp matching of evo).
+2. Delay: ``d* = argmin_d J(d)``, ``J(d) = sum_i sum_a w_a (r_ia(d) - mean_i r_ia(d))^2`` with
+   ``r_i(d) = Q_i - P(s_i - d)`` on the axes (x, y, z, yaw) - i.e. the difference that remains
+   after the mean offset is removed. A grid scan at the motion-capture period over the search
+   window finds the basin; a golden-section search between the grid neighbours of the best grid
+   point refines it to 1e-6 s. Standard error (sandwich, Gauss-Newton):
+   ``var d = sum_ia w_a^2 sigma_a^2 g_ia^2 / (sum_ia w_a g_ia^2)^2``, ``g_i = dP/dt (s_i - d)``
+   centred, ``sigma_a`` the residual sd of axis a (serially uncorrelated noise assumed).
+3. Structural offset: ``o = mean_i (Q_i - P(s_i - d))`` per axis (circular mean for yaw) and
+   ``Q_i - o`` (METHODS.md), or a rigid alignment of the ICP positions onto the truth: Umeyama
+   SE(3) (``"se3"``) or a rotation about z plus a translation (``"yaw"``, 4 DoF).
+4. Errors: ``e_i = Q'_i - P(s_i - d)`` per axis; mean +- sd of ``|e|``, RMSE, max; the 3-D
+   position error ``||e_xyz||`` (RMSE, mean, max as evo's APE on the translation part); drift:
+   least-squares line ``||e_xy|| = a + b s`` against the travelled distance ``s`` (planar path
+   length of the truth smoothed by a centred moving average), b in m per m.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from cobot_analysis.angles import angle_diff, circular_mean, wrap
+from cobot_analysis.localisation.poses import PoseStream, from_matrix, from_yaw, multiply, normalise, slerp, yaw_of
+
+AXES = ("x", "y", "z", "yaw")
+
+
+@dataclass
+class Delay:
+    value: float  # s
+    sd: float  # s
+    method: str
+    grid: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))  # (delay, J) of the scan
+    n: int = 0
+
+
+@dataclass
+class Alignment:
+    """How the ICP poses were brought onto the truth: ``p' = R p + t``, ``yaw' = yaw + dyaw``."""
+
+    method: str  # mean, se3, yaw, none
+    rotation: np.ndarray  # 3x3
+    translation: np.ndarray  # 3
+    offset: np.ndarray  # reported structural offset (x, y, z, yaw) = ICP minus truth
+
+    def apply(self, xyz, quat):
+        if self.method == "mean":
+            return xyz - self.offset[:3], normalise(multiply(from_yaw(-self.offset[3]), quat))
+        q_r = from_matrix(self.rotation)
+        return (self.rotation @ np.asarray(xyz).T).T + self.translation, normalise(multiply(q_r, quat))
+
+    def to_icp_frame(self, xyz, yaw):
+        """Inverse map of truth positions and yaw into the ICP (map) frame."""
+        if self.method == "mean":
+            return np.asarray(xyz) + self.offset[:3], np.asarray(yaw) + self.offset[3]
+        r_yaw = np.arctan2(self.rotation[1, 0], self.rotation[0, 0])
+        return (self.rotation.T @ (np.asarray(xyz) - self.translation).T).T, np.asarray(yaw) - r_yaw
+
+
+@dataclass
+class Comparison:
+    delay: Delay
+    alignment: Alignment
+    samples: pd.DataFrame  # one row per associated ICP sample
+    summary: dict
+
+
+# ---- 1. time base -----------------------------------------------------------------------------
+def interpolate(stream: PoseStream, t, max_gap: float = np.inf):
+    """Pose of ``stream`` at times ``t``: (xyz, quat, valid). Linear / slerp between the bracketing
+    samples; ``valid`` is False outside the stream or across a gap longer than ``max_gap``."""
+    t = np.asarray(t, dtype=float)
+    n = len(stream)
+    i = np.clip(np.searchsorted(stream.t, t, side="left"), 1, n - 1)
+    t0, t1 = stream.t[i - 1], stream.t[i]
+    dt = t1 - t0
+    f = np.clip((t - t0) / np.where(dt > 0, dt, 1.0), 0.0, 1.0)
+    xyz = stream.xyz[i - 1] + f[:, None] * (stream.xyz[i] - stream.xyz[i - 1])
+    quat = slerp(stream.quat[i - 1], stream.quat[i], f)
+    valid = (t >= stream.t[0]) & (t <= stream.t[-1]) & (dt <= max_gap)
+    return xyz, quat, valid
+
+
+def nearest(stream: PoseStream, t, max_diff: float):
+    """The sample of ``stream`` nearest to each ``t`` (ties to the earlier one): (index, valid)."""
+    t = np.asarray(t, dtype=float)
+    i = np.clip(np.searchsorted(stream.t, t, side="right"), 1, len(stream) - 1)
+    j = np.where(np.abs(stream.t[i] - t) < np.abs(t - stream.t[i - 1]), i, i - 1)
+    valid = np.abs(stream.t[j] - t) <= max_diff
+    return j, valid
+
+
+def _channels(stream: PoseStream) -> np.ndarray:
+    return np.column_stack([stream.xyz, stream.yaw])
+
+
+# ---- 2. delay ---------------------------------------------------------------------------------
+def estimate_delay(truth: PoseStream, icp: PoseStream, window: tuple[float, float] = (0.0, 1.5),
+                   weights=(1.0, 1.0, 1.0, 1.0), min_samples: int = 20) -> Delay:
+    """Delay of ``icp`` behind ``truth`` (s) minimising ``J(d)`` over ``window`` (module docstring)."""
+    lo, hi = window
+    w = np.asarray(weights, dtype=float)
+    keep = (icp.t - hi >= truth.t[0]) & (icp.t - lo <= truth.t[-1])
+    s = icp.t[keep]
+    if len(s) < min_samples:
+        return Delay(float("nan"), float("nan"), "not enough overlap", n=len(s))
+    q = _channels(icp)[keep]
+    ref = _channels(truth)
+    tref = truth.t
+
+    def residuals(d):
+        r = np.empty_like(q)
+        for a in range(4):
+            r[:, a] = q[:, a] - np.interp(s - d, tref, ref[:, a])
+        r[:, 3] = wrap(r[:, 3])
+        r[:, :3] -= r[:, :3].mean(axis=0)
+        r[:, 3] = wrap(r[:, 3] - circular_mean(r[:, 3]))
+        return r
+
+    def cost(d):
+        r = residuals(d)
+        return float(np.sum(w * r * r))
+
+    step = float(np.median(np.diff(tref)))
+    grid = np.arange(lo, hi + step / 2, step)
+    costs = np.array([cost(d) for d in grid])
+    k = int(np.argmin(costs))
+    a, b = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
+    d = golden_section(cost, a, b, 1e-6)
+    r = residuals(d)
+    h = 0.05  # s, half-width of the centred difference of the truth velocity
+    g = np.empty_like(q)
+    for ax in range(4):
+        g[:, ax] = (np.interp(s - d + h, tref, ref[:, ax]) - np.interp(s - d - h, tref, ref[:, ax])) / (2 * h)
+    g -= g.mean(axis=0)
+    sigma2 = r.var(axis=0, ddof=1)
+    denom = np.sum(w * g * g)
+    sd = float(np.sqrt(np.sum(w * w * sigma2 * g * g)) / denom) if denom > 0 else float("inf")
+    at_edge = k in (0, len(grid) - 1)
+    method = "least squares: grid scan + golden section" + (" (minimum at the window edge)" if at_edge else "")
+    return Delay(d, sd, method, np.column_stack([grid, costs]), int(len(s)))
+
+
+def golden_section(f, a: float, b: float, tol: float) -> float:
+    """Minimum of a unimodal ``f`` on ``[a, b]``: the bracket shrinks by ``1/phi`` per step."""
+    invphi = (np.sqrt(5.0) - 1.0) / 2.0
+    c, d = b - invphi * (b - a), a + invphi * (b - a)
+    fc, fd = f(c), f(d)
+    while b - a > tol:
+        if fc <= fd:
+            b, d, fd = d, c, fc
+            c = b - invphi * (b - a)
+            fc = f(c)
+        else:
+            a, c, fc = c, d, fd
+            d = a + invphi * (b - a)
+            fd = f(d)
+    return float((a + b) / 2.0)
+
+
+# ---- 3. alignment -----------------------------------------------------------------------------
+def umeyama(src, dst):
+    """Rigid ``R, t`` minimising ``sum ||dst_i - (R src_i + t)||^2`` (Umeyama 1991, no scale):
+    ``Sigma = (1/n) sum (dst_i - mu_d)(src_i - mu_s)^T = U D V^T``, ``R = U S V^T`` with
+    ``S = diag(1, 1, det(U) det(V))``, ``t = mu_d - R mu_s``."""
+    src, dst = np.asarray(src, dtype=float), np.asarray(dst, dtype=float)
+    mu_s, mu_d = src.mean(axis=0), dst.mean(axis=0)
+    sigma = (dst - mu_d).T @ (src - mu_s) / len(src)
+    u, _, vt = np.linalg.svd(sigma)
+    s = np.eye(3)
+    if np.linalg.det(u) * np.linalg.det(vt) < 0:
+        s[2, 2] = -1.0
+    r = u @ s @ vt
+    return r, mu_d - r @ mu_s
+
+
+def yaw_alignment(src, dst):
+    """Rotation about z and translation (4 DoF) minimising the same sum:
+    ``phi = atan2(sum (x_s y_d - y_s x_d), sum (x_s x_d + y_s y_d))`` on centred coordinates."""
+    src, dst = np.asarray(src, dtype=float), np.asarray(dst, dtype=float)
+    mu_s, mu_d = src.mean(axis=0), dst.mean(axis=0)
+    a, b = src - mu_s, dst - mu_d
+    phi = np.arctan2(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]), np.sum(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]))
+    c, s_ = np.cos(phi), np.sin(phi)
+    r = np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]])
+    return r, mu_d - r @ mu_s
+
+
+def align(method: str, truth_xyz, truth_yaw, icp_xyz, icp_yaw) -> Alignment:
+    diff = np.column_stack([icp_xyz - truth_xyz, angle_diff(icp_yaw, truth_yaw)])
+    if method == "mean":
+        off = np.concatenate([diff[:, :3].mean(axis=0), [float(circular_mean(diff[:, 3]))]])
+        return Alignment("mean", np.eye(3), -off[:3], off)
+    if method == "none":
+        return Alignment("none", np.eye(3), np.zeros(3), np.zeros(4))
+    r, t = umeyama(icp_xyz, truth_xyz) if method == "se3" else yaw_alignment(icp_xyz, truth_xyz)
+    # Reported offset: the transform from the truth frame to the ICP frame, as x, y, z, yaw.
+    inv_t = -r.T @ t
+    return Alignment(method, r, t, np.concatenate([inv_t, [-np.arctan2(r[1, 0], r[0, 0])]]))
+
+
+# ---- 4. errors and drift ------------------------------------------------------------------------
+def travelled_distance(truth: PoseStream, window: float = 2.0) -> np.ndarray:
+    """Cumulative planar path length of the truth smoothed by a centred moving average over
+    ``window`` seconds (about two steps: removes the lateral gait sway and the measurement noise
+    that would otherwise add to the length), m."""
+    xy = truth.xyz[:, :2]
+    k = int(round(window / float(np.median(np.diff(truth.t))))) if len(xy) > 1 else 1
+    if k > 1 and len(xy) > k:
+        c = np.cumsum(np.vstack([np.zeros((1, 2)), xy]), axis=0)
+        core = (c[k:] - c[:-k]) / k  # mean of samples i .. i+k-1
+        xy = np.vstack([np.repeat(core[:1], k // 2, axis=0), core, np.repeat(core[-1:], len(xy) - len(core) - k // 2, axis=0)])
+    return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+
+
+def summarise(err: np.ndarray, distance: np.ndarray) -> dict:
+    """Per-axis and 3-D error statistics of ``err`` (n, 4: x, y, z, yaw signed), and drift."""
+    out: dict = {"n": int(len(err))}
+    for a, name in enumerate(AXES):
+        e = np.abs(err[:, a])
+        out[f"err_{name}_mean"] = float(e.mean())
+        out[f"err_{name}_sd"] = float(e.std(ddof=1)) if len(e) > 1 else float("nan")
+        out[f"err_{name}_rmse"] = float(np.sqrt(np.mean(err[:, a] ** 2)))
+        out[f"err_{name}_max"] = float(e.max())
+    norm = np.linalg.norm(err[:, :3], axis=1)
+    out.update({"ape_rmse": float(np.sqrt(np.mean(norm**2))), "ape_mean": float(norm.mean()),
+                "ape_median": float(np.median(norm)), "ape_std": float(norm.std()), "ape_max": float(norm.max()),
+                "ape_min": float(norm.min())})
+    exy = np.hypot(err[:, 0], err[:, 1])
+    if len(err) > 2 and np.ptp(distance) > 0:
+        coef, cov = np.polyfit(distance, exy, 1, cov=True)
+        out["drift"] = float(coef[0])
+        out["drift_sd"] = float(np.sqrt(cov[0, 0]))
+        out["drift_intercept"] = float(coef[1])
+    else:
+        out["drift"] = out["drift_sd"] = out["drift_intercept"] = float("nan")
+    return out
+
+
+def compare(truth: PoseStream, icp: PoseStream, *, delay: float | None = None, window=(0.0, 1.5),
+            weights=(1.0, 1.0, 1.0, 1.0), alignment: str = "mean", association: str = "interpolate",
+            max_gap: float = 0.05, max_diff: float = 0.01, distance_window: float = 2.0,
+            min_samples: int = 20, path=None) -> Comparison:
+    """Steps 1-4 of METHODS.md sec. 9 on one run (``delay`` given or estimated)."""
+    from cobot_analysis.errors import InputError
+
+    if delay is None:
+        dl = estimate_delay(truth, icp, window, weights, min_samples)
+        if not np.isfinite(dl.value):
+            raise InputError(f"too few overlapping samples to estimate the delay ({dl.n} ICP samples inside the motion-capture "
+                             f"span for a search window of {window[0]}-{window[1]} s; need {min_samples})", path=path,
+                             remedy="check that both topics cover the same time (bag-info), or the --time option")
+    else:
+        dl = Delay(float(delay), 0.0, "given")
+    tq = icp.t - dl.value
+    if association == "nearest":
+        j, valid = nearest(truth, tq, max_diff)
+        t_xyz, t_quat = truth.xyz[j], truth.quat[j]
+        valid &= (tq >= truth.t[0] - max_diff) & (tq <= truth.t[-1] + max_diff)
+    else:
+        t_xyz, t_quat, valid = interpolate(truth, tq, max_gap)
+    n = int(valid.sum())
+    if n < min_samples:
+        raise InputError(f"too few overlapping samples: {n} ICP poses fall inside the motion capture (need {min_samples})",
+                         path=path, remedy="check that both topics cover the same time (bag-info), the --time option and --delay")
+    t_xyz, t_quat = t_xyz[valid], t_quat[valid]
+    i_xyz, i_quat = icp.xyz[valid], icp.quat[valid]
+    t_yaw = np.unwrap(yaw_of(t_quat))
+    i_yaw = np.unwrap(yaw_of(i_quat))
+    al = align(alignment, t_xyz, t_yaw, i_xyz, i_yaw)
+    c_xyz, c_quat = al.apply(i_xyz, i_quat)
+    c_yaw = np.unwrap(yaw_of(c_quat))
+    err = np.column_stack([c_xyz - t_xyz, angle_diff(c_yaw, t_yaw)])
+    dist = np.interp(tq[valid], truth.t, travelled_distance(truth, distance_window))
+    summary = summarise(err, dist)
+    summary.update({"delay": dl.value, "delay_sd": dl.sd, "delay_method": dl.method, "alignment": al.method,
+                    "association": association, "distance": float(travelled_distance(truth, distance_window)[-1]),
+                    **{f"offset_{a}": float(v) for a, v in zip(AXES, al.offset)},
+                    "duration": float(truth.t[-1] - truth.t[0]), "n_truth": int(len(truth)), "n_icp": int(len(icp))})
+    samples = pd.DataFrame({
+        "t": icp.t[valid], "t_truth": tq[valid], "distance": dist,
+        **{f"truth_{a}": v for a, v in zip(AXES, (*t_xyz.T, t_yaw))},
+        **{f"icp_{a}": v for a, v in zip(AXES, (*i_xyz.T, i_yaw))},
+        **{f"aligned_{a}": v for a, v in zip(AXES, (*c_xyz.T, c_yaw))},
+        **{f"err_{a}": err[:, k] for k, a in enumerate(AXES)},
+        "err_xyz": np.linalg.norm(err[:, :3], axis=1),
+    })
+    return Comparison(dl, al, samples, summary)
+

@@ -1,0 +1,258 @@
+"""Tables, figures and the results fragment of the localisation stage (METHODS.md sec. 9, step 6).
+
+Tables (metres, radians, seconds): ``localisation.parquet`` one row per run (like the published
+per-experiment table), ``errors.parquet`` one row per associated ICP sample, ``goals.parquet`` one
+row per commanded goal. Figures: paths overlaid in the plane with the goals, per-axis time series
+after delay and offset removal, error over time, error distributions, delay cost curves.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from cobot_analysis.schema import Column, TableSchema
+
+_AXIS_UNIT = {"x": "m", "y": "m", "z": "m", "yaw": "rad"}
+
+
+def _err_cols() -> dict[str, Column]:
+    cols = {}
+    for a, u in _AXIS_UNIT.items():
+        cols[f"err_{a}_mean"] = Column("float", u, f"mean of |error| on {a}")
+        cols[f"err_{a}_sd"] = Column("float", u, f"sd of |error| on {a}")
+        cols[f"err_{a}_rmse"] = Column("float", u, f"root mean square error on {a}")
+        cols[f"err_{a}_max"] = Column("float", u, f"max |error| on {a}")
+    return cols
+
+
+RUNS = TableSchema(
+    name="localisation-runs",
+    version=1,
+    description="Localisation accuracy per run (ICP vs motion capture, METHODS.md sec. 9).",
+    columns={
+        "run": Column("string", "", "run label"),
+        "file": Column("string", "", "bag file or directory"),
+        "map": Column("string", "", "map label given on the command line (e.g. architectural, scanned)"),
+        "truth": Column("string", "", "truth stream (topic or tf:PARENT->CHILD)"),
+        "icp": Column("string", "", "ICP stream (topic or tf:PARENT->CHILD)"),
+        "time_base": Column("string", "", "'header' stamps or bag 'record' time"),
+        "duration": Column("float", "s", "motion-capture span"),
+        "n_truth": Column("int", "-", "motion-capture poses"),
+        "n_icp": Column("int", "-", "ICP poses"),
+        "n": Column("int", "-", "ICP poses associated with the truth (the samples of the errors)"),
+        "distance": Column("float", "m", "travelled distance (planar path length of the smoothed truth)"),
+        "delay": Column("float", "s", "delay of the ICP behind the truth (estimated or given)"),
+        "delay_sd": Column("float", "s", "standard error of the delay (0 when given)"),
+        "delay_method": Column("string", "", "how the delay was obtained"),
+        "alignment": Column("string", "", "offset removal: mean (per-axis mean difference), se3 (Umeyama), yaw (4 DoF), none"),
+        "association": Column("string", "", "interpolate (truth at the ICP stamps) or nearest (nearest stamp)"),
+        "offset_x": Column("float", "m", "structural offset ICP minus truth"),
+        "offset_y": Column("float", "m", "structural offset ICP minus truth"),
+        "offset_z": Column("float", "m", "structural offset ICP minus truth"),
+        "offset_yaw": Column("float", "rad", "structural offset ICP minus truth"),
+        **_err_cols(),
+        "ape_rmse": Column("float", "m", "RMSE of the 3-D position error (evo APE, translation part)"),
+        "ape_mean": Column("float", "m", "mean 3-D position error"),
+        "ape_median": Column("float", "m", "median 3-D position error"),
+        "ape_std": Column("float", "m", "population sd of the 3-D position error"),
+        "ape_max": Column("float", "m", "max 3-D position error"),
+        "ape_min": Column("float", "m", "min 3-D position error"),
+        "drift": Column("float", "m/m", "slope of the planar position error against the travelled distance"),
+        "drift_sd": Column("float", "m/m", "standard error of the slope"),
+        "drift_intercept": Column("float", "m", "intercept of that line"),
+        "goals_commanded": Column("int", "-", "commanded goals", required=False),
+        "goals_found": Column("int", "-", "goals matched to a detected stop", required=False),
+        "goals_within_tolerance": Column("int", "-", "goals reached within the stop tolerances", required=False),
+        **{f"goal_err_{a}_{s}": Column("float", "rad" if a == "yaw" else "m", f"{'mean' if s == 'mean' else 'sd'} of |reached - goal| on {a}", required=False)
+           for a in ("x", "y", "xy", "yaw") for s in ("mean", "sd")},
+    },
+)
+
+ERRORS = TableSchema(
+    name="localisation-errors",
+    version=1,
+    description="One row per associated ICP sample: truth, raw and aligned ICP pose, signed errors.",
+    columns={
+        "run": Column("string", "", "run label"),
+        "t": Column("float", "s", "ICP stamp"),
+        "t_truth": Column("float", "s", "t minus the delay: where the truth was taken"),
+        "distance": Column("float", "m", "travelled distance at t_truth"),
+        **{f"{k}_{a}": Column("float", u, f"{d} {a}") for k, d in (("truth", "truth"), ("icp", "raw ICP"), ("aligned", "ICP after offset removal"))
+           for a, u in _AXIS_UNIT.items()},
+        **{f"err_{a}": Column("float", u, f"signed error aligned minus truth on {a}") for a, u in _AXIS_UNIT.items()},
+        "err_xyz": Column("float", "m", "3-D position error"),
+    },
+)
+
+GOALS = TableSchema(
+    name="localisation-goals",
+    version=1,
+    description="One row per commanded goal and run: matched stop, reached pose (truth, in the goal frame), errors.",
+    columns={
+        "run": Column("string", "", "run label"),
+        "goal": Column("int", "-", "goal number in command order"),
+        "goal_x": Column("float", "m", "commanded goal"), "goal_y": Column("float", "m", "commanded goal"),
+        "goal_yaw": Column("float", "rad", "commanded goal"),
+        "found": Column("bool", "", "a stop was matched to the goal"),
+        "t_start": Column("float", "s", "stop start (truth time)", required=False),
+        "t_end": Column("float", "s", "stop end", required=False),
+        "duration": Column("float", "s", "stop duration", required=False),
+        "reached_x": Column("float", "m", "mean truth pose over the stop, goal frame", required=False),
+        "reached_y": Column("float", "m", "mean truth pose over the stop, goal frame", required=False),
+        "reached_yaw": Column("float", "rad", "mean truth pose over the stop, goal frame", required=False),
+        "dx": Column("float", "m", "reached minus goal", required=False),
+        "dy": Column("float", "m", "reached minus goal", required=False),
+        "dyaw": Column("float", "rad", "reached minus goal, wrapped", required=False),
+        "err_xy": Column("float", "m", "planar distance reached to goal", required=False),
+        "within_tolerance": Column("bool", "", "err_xy <= tol_xy and |dyaw| <= tol_yaw"),
+        "icp_x": Column("float", "m", "mean ICP pose over the stop (delay removed)", required=False),
+        "icp_y": Column("float", "m", "mean ICP pose over the stop", required=False),
+        "icp_yaw": Column("float", "rad", "mean ICP pose over the stop", required=False),
+        "loc_err_xy": Column("float", "m", "planar distance ICP to reached pose at the stop", required=False),
+        "loc_err_yaw": Column("float", "rad", "|ICP yaw - reached yaw| at the stop", required=False),
+    },
+)
+
+
+# ---- figures -----------------------------------------------------------------------------------
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def figure_paths(results: list[dict]):
+    """Both paths in the plane (goal / ICP map frame) with the commanded goals."""
+    plt = _plt()
+    n = len(results)
+    fig, axes = plt.subplots(1, n, figsize=(5 * n, 5), squeeze=False)
+    for ax, r in zip(axes[0], results):
+        s = r["samples"]
+        al = r["comparison"].alignment
+        truth_xy, _ = al.to_icp_frame(np.column_stack([s["truth_x"], s["truth_y"], s["truth_z"]]), s["truth_yaw"].to_numpy())
+        ax.plot(truth_xy[:, 0], truth_xy[:, 1], "-", lw=1.2, label="motion capture (in the map frame)")
+        ax.plot(s["icp_x"], s["icp_y"], ".", ms=1.5, label="ICP")
+        g = r.get("goals")
+        if g is not None and len(g):
+            ax.quiver(g["goal_x"], g["goal_y"], np.cos(g["goal_yaw"]), np.sin(g["goal_yaw"]), color="k", scale=15, width=0.005,
+                      label="commanded goals")
+            for _, row in g.iterrows():
+                ax.annotate(str(row["goal"]), (row["goal_x"], row["goal_y"]), xytext=(4, 4), textcoords="offset points", fontsize=8)
+        ax.set_aspect("equal")
+        ax.set_title(f"{r['run']} ({r['row']['map'] or 'map'})")
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+        ax.legend(fontsize=7, loc="best")
+    fig.tight_layout()
+    return fig
+
+
+def figure_timeseries(r: dict):
+    """Per-axis time series of the truth and the ICP after delay and offset removal."""
+    plt = _plt()
+    s = r["samples"]
+    t = s["t_truth"] - s["t_truth"].iloc[0]
+    fig, axes = plt.subplots(4, 1, figsize=(9, 8), sharex=True)
+    for ax, a in zip(axes, ("x", "y", "z", "yaw")):
+        ax.plot(t, s[f"truth_{a}"], "-", lw=1.0, label="motion capture")
+        ax.plot(t, s[f"aligned_{a}"], ".", ms=1.5, label="ICP (delay and offset removed)")
+        ax.set_ylabel(f"{a} ({_AXIS_UNIT[a]})")
+    axes[0].legend(fontsize=7)
+    axes[-1].set_xlabel("time (s)")
+    axes[0].set_title(f"{r['run']}: delay {r['row']['delay']:.3f} s, alignment {r['row']['alignment']}")
+    fig.tight_layout()
+    return fig
+
+
+def figure_error_time(results: list[dict]):
+    plt = _plt()
+    fig, axes = plt.subplots(2, 1, figsize=(9, 5), sharex=True)
+    for r in results:
+        s = r["samples"]
+        t = s["t_truth"] - s["t_truth"].iloc[0]
+        axes[0].plot(t, 1000 * s["err_xyz"], lw=0.8, label=r["run"])
+        axes[1].plot(t, s["err_yaw"], lw=0.8, label=r["run"])
+    axes[0].set_ylabel("position error (mm)")
+    axes[1].set_ylabel("yaw error (rad)")
+    axes[1].set_xlabel("time (s)")
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def figure_error_distribution(results: list[dict]):
+    plt = _plt()
+    fig, axes = plt.subplots(1, 4, figsize=(14, 3.2))
+    for ax, a in zip(axes, ("x", "y", "z", "yaw")):
+        for r in results:
+            e = r["samples"][f"err_{a}"].to_numpy() * (1000 if a != "yaw" else 1)
+            ax.hist(e, bins=40, histtype="step", label=r["run"])
+        ax.set_xlabel(f"error {a} ({'mm' if a != 'yaw' else 'rad'})")
+    axes[0].set_ylabel("samples")
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def figure_delay(results: list[dict]):
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    for r in results:
+        grid = r["comparison"].delay.grid
+        if len(grid):
+            ax.plot(grid[:, 0], grid[:, 1] / grid[:, 1].min(), lw=1.0, label=r["run"])
+    ax.set_xlabel("delay (s)")
+    ax.set_ylabel("J(d) / min J")
+    ax.set_yscale("log")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+# ---- results fragment ----------------------------------------------------------------------------
+def _pm(mean, sd, scale=1.0, digits=1):
+    if mean is None or not np.isfinite(mean):
+        return "-"
+    return f"{mean * scale:.{digits}f} ± {sd * scale:.{digits}f}" if np.isfinite(sd) else f"{mean * scale:.{digits}f}"
+
+
+def results_markdown(runs: pd.DataFrame, figures: list[str], tol_xy: float, tol_yaw: float) -> str:
+    """Markdown fragment: method statement, per-run table, goal accuracy, figure list."""
+    al = sorted(set(runs["alignment"]))
+    lines = [
+        "## Localisation accuracy (LiDAR/ICP vs motion capture)", "",
+        f"Generated by `cobot-analysis localisation` from {len(runs)} run(s). Time base: the motion capture "
+        f"interpolated at the ICP stamps ({', '.join(sorted(set(runs['association'])))}); delay: "
+        f"{'; '.join(sorted(set(runs['delay_method'])))}; offset removal: {', '.join(al)} "
+        "(mean = per-axis mean difference, METHODS.md sec. 9; se3/yaw = Umeyama rigid alignment). "
+        "Errors are mean ± sd of the absolute differences after delay and offset removal.", "",
+        "| run | map | distance (m) | delay (s) | offset x, y, z (mm) | offset yaw (rad) | error x (mm) | error y (mm) "
+        "| error z (mm) | error yaw (rad) | RMSE 3-D (mm) | max 3-D (mm) | drift (mm/m) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for _, r in runs.iterrows():
+        lines.append(
+            f"| {r['run']} | {r['map'] or '-'} | {r['distance']:.2f} | {_pm(r['delay'], r['delay_sd'], 1, 3)} | "
+            f"{1000 * r['offset_x']:.1f}, {1000 * r['offset_y']:.1f}, {1000 * r['offset_z']:.1f} | {r['offset_yaw']:.4f} | "
+            f"{_pm(r['err_x_mean'], r['err_x_sd'], 1000)} | {_pm(r['err_y_mean'], r['err_y_sd'], 1000)} | "
+            f"{_pm(r['err_z_mean'], r['err_z_sd'], 1000)} | {_pm(r['err_yaw_mean'], r['err_yaw_sd'], 1, 4)} | "
+            f"{1000 * r['ape_rmse']:.1f} | {1000 * r['ape_max']:.1f} | {_pm(r['drift'], r['drift_sd'], 1000, 2)} |")
+    if "goals_commanded" in runs and runs["goals_commanded"].notna().any():
+        lines += ["", f"Goal accuracy (reached pose from the motion capture in the goal frame; tolerances {tol_xy} m, "
+                      f"{tol_yaw} rad):", "",
+                  "| run | goals found | within tolerance | error x (mm) | error y (mm) | planar error (mm) | error yaw (rad) |",
+                  "|---|---|---|---|---|---|---|"]
+        for _, r in runs.iterrows():
+            if pd.isna(r.get("goals_commanded")):
+                continue
+            lines.append(
+                f"| {r['run']} | {int(r['goals_found'])}/{int(r['goals_commanded'])} | {int(r['goals_within_tolerance'])} | "
+                f"{_pm(r['goal_err_x_mean'], r['goal_err_x_sd'], 1000)} | {_pm(r['goal_err_y_mean'], r['goal_err_y_sd'], 1000)} | "
+                f"{_pm(r['goal_err_xy_mean'], r['goal_err_xy_sd'], 1000)} | {_pm(r['goal_err_yaw_mean'], r['goal_err_yaw_sd'], 1, 4)} |")
+    if figures:
+        lines += ["", "Figures: " + ", ".join(f"`{f}`" for f in figures) + "."]
+    return "\n".join(lines) + "\n"
