@@ -217,11 +217,12 @@ def travelled_distance(truth: PoseStream, window: float = 2.0) -> np.ndarray:
     ``window`` seconds (about two steps: removes the lateral gait sway and the measurement noise
     that would otherwise add to the length), m."""
     xy = truth.xyz[:, :2]
-    k = int(round(window / float(np.median(np.diff(truth.t))))) if len(xy) > 1 else 1
-    if k > 1 and len(xy) > k:
-        c = np.cumsum(np.vstack([np.zeros((1, 2)), xy]), axis=0)
-        core = (c[k:] - c[:-k]) / k  # mean of samples i .. i+k-1
-        xy = np.vstack([np.repeat(core[:1], k // 2, axis=0), core, np.repeat(core[-1:], len(xy) - len(core) - k // 2, axis=0)])
+    k = int(round(window / float(np.median(np.diff(truth.t))))) // 2 if len(xy) > 1 else 0
+    if k >= 1 and len(xy) > 2 * k + 1:
+        # Odd reflection at both ends keeps a linear trend through the edges.
+        pad = np.vstack([2 * xy[0] - xy[k:0:-1], xy, 2 * xy[-1] - xy[-2:-k - 2:-1]])
+        c = np.cumsum(np.vstack([np.zeros((1, 2)), pad]), axis=0)
+        xy = (c[2 * k + 1:] - c[:-2 * k - 1]) / (2 * k + 1)  # centred mean of 2k + 1 samples
     return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
 
 

@@ -48,6 +48,7 @@ class SynthParams:
 
     seed: int = 0
     laps: int = 1
+    n_goals: int = 6  # goals per lap (the first n of the 6); fewer makes a short run for tests
     speed: float = 0.12
     stop: float = 8.0
     delay: float = 0.55
@@ -101,7 +102,7 @@ def make_run(params: SynthParams | None = None) -> SynthRun:
     rng = np.random.default_rng(p.seed)
     dt = 1.0 / p.mocap_rate
     ramp = 1.5  # s, cosine speed ramps at both ends of a leg
-    goals = np.tile(GOALS_MAP, (p.laps, 1))
+    goals = np.tile(GOALS_MAP[: p.n_goals], (p.laps, 1))
     k = len(goals)
     stop_err = np.column_stack([rng.uniform(-1, 1, (k, 2)) * p.stop_error[0] / np.sqrt(2),
                                 rng.uniform(-1, 1, k) * p.stop_error[1]])

@@ -1,0 +1,235 @@
+"""Localisation maths on analytic cases and invariants: quaternions, interpolation, association,
+delay, alignment, drift, stops, tf chaining (no bag I/O except the small chaining bag)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cobot_analysis.localisation import poses as P
+from cobot_analysis.localisation.compare import (
+    align,
+    compare,
+    estimate_delay,
+    golden_section,
+    interpolate,
+    nearest,
+    travelled_distance,
+    umeyama,
+    yaw_alignment,
+)
+from cobot_analysis.localisation.goals import StopRule, detect_stops
+from cobot_analysis.localisation.poses import PoseStream
+
+angles = st.floats(-3.0, 3.0, allow_nan=False)
+
+
+@settings(max_examples=50, deadline=None)
+@given(yaw=angles, pitch=st.floats(-1.2, 1.2), roll=angles, a=angles)
+def test_yaw_round_trip_and_left_rotation_adds_yaw(yaw, pitch, roll, a):
+    q = P.from_yaw(yaw, pitch, roll)
+    assert np.isclose(np.linalg.norm(q), 1.0)
+    assert np.isclose(P.yaw_of(q), yaw, atol=1e-9)
+    q2 = P.multiply(P.from_yaw(a), q)
+    assert np.isclose(np.cos(P.yaw_of(q2) - (yaw + a)), 1.0, atol=1e-9)
+    # Matrix and vector rotation agree; from_matrix inverts to_matrix up to sign.
+    v = np.array([0.3, -1.2, 0.7])
+    assert np.allclose(P.to_matrix(q) @ v, P.rotate(q, v), atol=1e-12)
+    assert np.isclose(abs(np.dot(P.from_matrix(P.to_matrix(q)), q)), 1.0, atol=1e-9)
+
+
+@settings(max_examples=30, deadline=None)
+@given(y0=angles, y1=angles, f=st.floats(0.0, 1.0))
+def test_slerp_about_z_interpolates_the_angle(y0, y1, f):
+    q = P.slerp(P.from_yaw(y0)[None], P.from_yaw(y1)[None], np.array([f]))
+    d = np.angle(np.exp(1j * (y1 - y0)))  # shorter arc
+    assert np.isclose(np.cos(P.yaw_of(q)[0] - (y0 + f * d)), 1.0, atol=1e-9)
+
+
+def test_compose_and_invert_are_inverse():
+    p, q = np.array([[1.0, 2.0, 0.5]]), P.from_yaw(np.array([0.7]), 0.1, -0.2)
+    ip, iq = P.invert(p, q)
+    cp, cq = P.compose(p, q, ip, iq)
+    assert np.allclose(cp, 0.0, atol=1e-12) and np.isclose(abs(cq[0, 3]), 1.0)
+
+
+def _line_stream(t, v=(0.2, -0.1, 0.0), yaw_rate=0.1):
+    t = np.asarray(t, float)
+    xyz = np.outer(t, v) + np.array([1.0, 2.0, 1.0])
+    return PoseStream(t, xyz, P.from_yaw(yaw_rate * t))
+
+
+def test_interpolation_is_exact_on_linear_motion_and_refuses_gaps():
+    s = _line_stream(np.arange(0, 10, 0.005))
+    tq = np.array([0.0012, 3.14159, 9.99])
+    xyz, quat, valid = interpolate(s, tq, max_gap=0.05)
+    assert valid.all()
+    assert np.allclose(xyz, np.outer(tq, (0.2, -0.1, 0.0)) + [1, 2, 1], atol=1e-12)
+    assert np.allclose(P.yaw_of(quat), 0.1 * tq, atol=1e-9)
+    gap = s.select((s.t < 4) | (s.t > 5))
+    _, _, v = interpolate(gap, np.array([4.5, 3.9, 10.5]), max_gap=0.05)
+    assert v.tolist() == [False, True, False]
+
+
+def test_nearest_association_picks_the_closest_stamp_within_max_diff():
+    s = _line_stream(np.arange(0, 1, 0.1))
+    j, valid = nearest(s, np.array([0.04, 0.06, 0.149, 0.95, -0.02, 2.0]), max_diff=0.02)
+    assert j[:3].tolist() == [0, 1, 1]
+    assert valid.tolist() == [False, False, False, False, True, False]
+    j, valid = nearest(s, np.array([0.41, 0.59]), max_diff=0.02)
+    assert j.tolist() == [4, 6] and valid.all()
+
+
+def test_golden_section_finds_the_minimum():
+    assert abs(golden_section(lambda x: (x - 0.5234) ** 2 + 1.0, 0.0, 1.0, 1e-7) - 0.5234) < 1e-6
+
+
+@settings(max_examples=25, deadline=None)
+@given(a=angles, b=st.floats(-0.5, 0.5), c=st.floats(-0.5, 0.5),
+       t=st.tuples(st.floats(-5, 5), st.floats(-5, 5), st.floats(-1, 1)))
+def test_umeyama_recovers_a_rigid_transform(a, b, c, t):
+    rng = np.random.default_rng(1)
+    src = rng.normal(size=(50, 3)) * [3, 2, 0.5]
+    r = P.to_matrix(P.from_yaw(a, b, c))
+    dst = src @ r.T + np.asarray(t)
+    r_hat, t_hat = umeyama(src, dst)
+    assert np.allclose(r_hat, r, atol=1e-9) and np.allclose(t_hat, t, atol=1e-9)
+    ry, ty = yaw_alignment(src, src @ P.to_matrix(P.from_yaw(a)).T + np.asarray(t))
+    assert np.allclose(ry, P.to_matrix(P.from_yaw(a)), atol=1e-9) and np.allclose(ty, t, atol=1e-9)
+
+
+def test_alignments_map_back_into_the_icp_frame():
+    rng = np.random.default_rng(2)
+    truth = rng.normal(size=(40, 3))
+    yaw = rng.uniform(-3, 3, 40)
+    off = np.array([0.1, -0.2, 0.05, 0.03])
+    al = align("mean", truth, yaw, truth + off[:3], yaw + off[3])
+    assert np.allclose(al.offset, off)
+    xyz, y = al.to_icp_frame(truth, yaw)
+    assert np.allclose(xyz, truth + off[:3]) and np.allclose(y, yaw + off[3])
+    r = P.to_matrix(P.from_yaw(0.3))
+    icp = (truth - [1.0, 0.5, 0.0]) @ r  # truth = R icp + t
+    al = align("se3", truth, yaw, icp, yaw)
+    back, _ = al.to_icp_frame(truth, yaw)
+    assert np.allclose(back, icp, atol=1e-9)
+    assert np.isclose(al.offset[3], -0.3)
+
+
+def _walk(duration=60.0, rate=200.0, seed=0):
+    """A swaying walk (m, rad) with its truth stream."""
+    t = np.arange(0, duration, 1 / rate)
+    x = 0.1 * t + 0.03 * np.sin(2 * np.pi * 0.55 * t)
+    y = 0.5 * np.sin(0.05 * t) + 0.02 * np.cos(2 * np.pi * 0.55 * t)
+    z = 1.0 + 0.008 * np.sin(2 * np.pi * 1.1 * t)
+    yaw = 0.3 * np.sin(0.1 * t) + 0.02 * np.sin(2 * np.pi * 0.55 * t)
+    return PoseStream(t + 1e9, np.column_stack([x, y, z]), P.from_yaw(yaw))
+
+
+def _icp_of(truth, delay, off, noise, seed=0, rate=10.0):
+    rng = np.random.default_rng(seed)
+    s = np.arange(truth.t[0] + delay + 0.013, truth.t[-1], 1 / rate)
+    xyz, quat, _ = interpolate(truth, s - delay)
+    n = rng.normal(size=(len(s), 4)) * noise
+    return PoseStream(s, xyz + off[:3] + n[:, :3], P.multiply(P.from_yaw(off[3] + n[:, 3]), quat))
+
+
+def test_delay_offset_and_noise_are_recovered_in_memory():
+    truth = _walk()
+    off = np.array([0.12, -0.08, 0.04, 0.03])
+    icp = _icp_of(truth, 0.537, off, np.array([0.005, 0.005, 0.003, 0.003]))
+    d = estimate_delay(truth, icp, (0.0, 1.5))
+    assert abs(d.value - 0.537) < 0.005 and 0 < d.sd < 0.005
+    assert abs(d.value - 0.537) < 4 * d.sd
+    c = compare(truth, icp)
+    assert np.allclose([c.summary[f"offset_{a}"] for a in ("x", "y", "z", "yaw")], off, atol=[1e-3, 1e-3, 1e-3, 1e-3])
+    # Gaussian noise: mean |e| = sd sqrt(2/pi).
+    for a, sd in zip(("x", "y", "z", "yaw"), (0.005, 0.005, 0.003, 0.003)):
+        assert c.summary[f"err_{a}_mean"] == pytest.approx(sd * np.sqrt(2 / np.pi), rel=0.1)
+    # A given delay is used as is; noise-free, the errors vanish.
+    exact = compare(truth, _icp_of(truth, 0.4, off, np.zeros(4)), delay=0.4)
+    assert exact.summary["ape_max"] < 1e-6 and exact.summary["err_yaw_max"] < 1e-6
+
+
+def test_drift_per_metre_is_the_slope_of_the_error():
+    truth = _walk(80)
+    icp = _icp_of(truth, 0.3, np.zeros(4), np.zeros(4))
+    dist = np.interp(icp.t - 0.3, truth.t, travelled_distance(truth))
+    drifting = PoseStream(icp.t, icp.xyz + np.outer(0.02 * dist, [1.0, 0.0, 0.0]), icp.quat)
+    c = compare(truth, drifting, delay=0.3, alignment="none")
+    assert c.summary["drift"] == pytest.approx(0.02, rel=1e-3)
+    assert abs(c.summary["drift_intercept"]) < 1e-4
+
+
+def test_travelled_distance_ignores_sway_and_noise():
+    t = np.arange(0, 100, 0.005)
+    rng = np.random.default_rng(0)
+    xyz = np.column_stack([0.1 * t, 0.03 * np.sin(2 * np.pi * t / 1.8), np.ones_like(t)]) + rng.normal(0, 3e-4, (len(t), 3))
+    s = travelled_distance(PoseStream(t, xyz, P.from_yaw(np.zeros_like(t))), window=1.8)
+    assert s[-1] == pytest.approx(10.0, rel=0.01)
+    assert np.all(np.diff(s) >= 0)
+
+
+def test_stops_are_detected_with_threshold_and_minimum_duration():
+    t = np.arange(0, 30, 0.005)
+    # walk 0-10 s, stop 10-18 s, walk 18-26 s, stop 26-28 s (too short), walk to the end
+    v = np.where((t < 10) | ((t >= 18) & (t < 26)) | (t >= 28), 0.1, 0.0)
+    x = np.cumsum(v) * 0.005
+    s = PoseStream(t, np.column_stack([x, np.zeros_like(t), np.ones_like(t)]), P.from_yaw(np.zeros_like(t)))
+    stops = detect_stops(s, StopRule(min_duration=3.0))
+    assert stops.shape == (1, 2)
+    assert abs(stops[0, 0] - 10.0) < 0.3 and abs(stops[0, 1] - 18.0) < 0.3
+    assert len(detect_stops(s, StopRule(min_duration=1.5))) == 2
+
+
+def test_tf_chain_with_inverse_static_and_interpolated_edges(tmp_path):
+    """map->odom (10 Hz), base_link->odom given inversely (20 Hz), static base_link->lidar."""
+    from rosbags.rosbag1 import Writer
+
+    from cobot_analysis.localisation.bags import PoseSpec, read_streams
+    from cobot_analysis.localisation.synth import _typestore
+
+    store = _typestore(ros1=True)
+    T = store.types
+    Tf, Ts = T["tf2_msgs/msg/TFMessage"], T["geometry_msgs/msg/TransformStamped"]
+
+    def ts(t, parent, child, xyz, q):
+        ns = int(round(t * 1e9))
+        return Ts(header=T["std_msgs/msg/Header"](seq=0, stamp=T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9),
+                                                  frame_id=parent), child_frame_id=child,
+                  transform=T["geometry_msgs/msg/Transform"](translation=T["geometry_msgs/msg/Vector3"](x=xyz[0], y=xyz[1], z=xyz[2]),
+                                                             rotation=T["geometry_msgs/msg/Quaternion"](x=q[0], y=q[1], z=q[2], w=q[3])))
+
+    def m_odom(t):  # map -> odom, linear in t (yaw too)
+        return [0.01 * t, -0.02 * t, 0.0], P.from_yaw(0.01 * t)
+
+    def odom_base(t):
+        return [0.1 * t, 0.05 * t, 0.0], P.from_yaw(0.02 * t)
+
+    path = tmp_path / "tf.bag"
+    msgs = []
+    for t in np.arange(100.0, 110.0, 0.1):
+        msgs.append((t, "/tf", Tf(transforms=[ts(t, "map", "odom", *m_odom(t))])))
+    for t in np.arange(99.975, 110.05, 0.05):  # interleaved with the map -> odom stamps
+        ip, iq = P.invert(np.array(odom_base(t)[0]), odom_base(t)[1])
+        msgs.append((t + 1e-4, "/tf", Tf(transforms=[ts(t, "/base_link", "odom", ip, iq)])))
+    msgs.append((100.0, "/tf_static", Tf(transforms=[ts(100.0, "base_link", "lidar", [0.0, 0.0, 0.6], P.from_yaw(np.pi / 2))])))
+    msgs.sort(key=lambda m: m[0])
+    with Writer(path) as w:
+        conns = {}
+        for t, topic, msg in msgs:
+            if topic not in conns:
+                conns[topic] = w.add_connection(topic, "tf2_msgs/msg/TFMessage", typestore=store)
+            w.write(conns[topic], int(t * 1e9), store.serialize_ros1(msg, "tf2_msgs/msg/TFMessage"))
+    s = read_streams(path, {"b": PoseSpec.parse("tf:map->base_link"), "l": PoseSpec.parse("tf:/map->lidar")})
+    b, lidar = s["b"], s["l"]
+    assert len(b) == 100  # stamps of the sparsest dynamic edge (map->odom)
+    t, zero = b.t, np.zeros_like(b.t)
+    exp_p, _ = P.compose(np.column_stack([0.01 * t, -0.02 * t, zero]), P.from_yaw(0.01 * t),
+                         np.column_stack([0.1 * t, 0.05 * t, zero]), P.from_yaw(0.02 * t))
+    assert np.allclose(b.xyz, exp_p, atol=1e-6)  # the inverse edge is interpolated between its stamps
+    assert np.allclose(np.cos(P.yaw_of(b.quat) - 0.03 * t), 1.0, atol=1e-9)
+    lp, _ = P.compose(b.xyz, b.quat, np.array([0.0, 0.0, 0.6]), P.from_yaw(np.pi / 2))
+    assert np.allclose(lidar.xyz, lp, atol=1e-9)
+    assert np.allclose(np.cos(P.yaw_of(lidar.quat) - P.yaw_of(b.quat) - np.pi / 2), 1.0)
