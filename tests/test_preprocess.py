@@ -135,6 +135,12 @@ def test_walking_bounds_by_speed():
     a, b = segmentation.walking_bounds(speed, RATE, 0.1, 0.5)
     assert t[a] == pytest.approx(1.0) and t[b] == pytest.approx(4.5)
     assert segmentation.walking_bounds(np.zeros(100), RATE) is None
+    # hysteresis: a linear ramp 0 -> 1 m/s over 1 s is found at 0.1 m/s and extended to 0.05 m/s
+    ramp = np.clip(np.minimum(t - 1.0, 5.0 - t), 0, 1)
+    a, b = segmentation.walking_bounds(ramp, RATE, 0.1, 0.5, rest_speed=0.05)
+    assert t[a] == pytest.approx(1.05, abs=1 / RATE) and t[b] == pytest.approx(4.95, abs=1 / RATE)
+    a, b = segmentation.walking_bounds(ramp, RATE, 0.1, 0.5, rest_speed=0.1)
+    assert t[a] == pytest.approx(1.1, abs=1 / RATE) and t[b] == pytest.approx(4.9, abs=1 / RATE)
 
 
 # ---- normalisation --------------------------------------------------------------------------------
@@ -239,15 +245,16 @@ def test_stage_walking_trial_end_to_end(tmp_path, cli):
     rpsi.loc[400:499, "occluded"] = True
     parts += walking_trial("W2", heading=-2.0, length=2.0)
     write_workspace(ws, parts, [trials_row("W1", subject="S01"), trials_row("W2", subject="S02")])
-    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1", "--samples", "101")
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1", "--samples", "101", "--orientation-markers", "asis")
     assert code == 0, err
     traj = read_table(ws / "preprocess" / "trajectories.parquet", TRAJECTORIES)
     assert len(traj) == 2 * 101 and set(traj["entity"]) == {"walker"}
     w1 = traj[traj["trial"] == "W1"].sort_values("sample")
     assert w1["quality"].iloc[0] == "short_gaps_filled;long_gap;com_rigid_fill"
     assert w1["subject"].iloc[0] == "S01" and w1["kind"].iloc[0] == "trial"
-    # min-jerk over 3 m in 3 s: speed 30 tau^2 (1 - tau)^2 m/s reaches 0.1 m/s at tau0 (analytic root)
-    tau0 = (1 - np.sqrt(1 - 4 * np.sqrt(1 / 300))) / 2
+    # min-jerk over 3 m in 3 s: speed 30 tau^2 (1 - tau)^2 m/s; the walk found at 0.1 m/s is
+    # extended to the rest speed 0.05 m/s, reached at tau0 (analytic root)
+    tau0 = (1 - np.sqrt(1 - 4 * np.sqrt(0.05 / 30))) / 2
     tt = w1["travel_time"].iloc[0]
     assert tt == pytest.approx(3.0 * (1 - 2 * tau0), abs=0.02)
     assert w1["record_time"].iloc[0] == pytest.approx(1.0 + 3.0 * tau0, abs=0.01)
@@ -267,9 +274,17 @@ def test_stage_walking_trial_end_to_end(tmp_path, cli):
     assert gaps_df["duration"].tolist() == [0.05, 0.5]
     results = (ws / "preprocess" / "results.md").read_text()
     assert "2 recordings -> 2 trials, 2 trajectories" in results
-    # unchanged inputs and parameters: skipped; a new parameter: redone
-    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1", "--samples", "101")
+    # unchanged inputs and parameters: skipped
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1", "--samples", "101", "--orientation-markers", "asis")
     assert code == 0 and "up to date" in err
+    # default: a long gap on any pelvis marker (here RPSI) makes the orientation missing; position kept
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1", "--samples", "101")
+    assert code == 0 and "up to date" not in err
+    traj2 = read_table(ws / "preprocess" / "trajectories.parquet", TRAJECTORIES)
+    w1b = traj2[traj2["trial"] == "W1"].sort_values("sample")
+    assert w1b["quality"].iloc[0] == "short_gaps_filled;long_gap;com_rigid_fill;orientation_missing"
+    assert w1b["theta"].isna().all() and w1b["gamma"].isna().all()
+    np.testing.assert_allclose(w1b[["x", "y"]], w1[["x", "y"]], atol=1e-12)
 
 
 def test_stage_orientation_missing_keeps_position(tmp_path, cli):

@@ -16,6 +16,11 @@ class OrderConvention(str, Enum):
     effective = "effective"
 
 
+class OrientationMarkers(str, Enum):
+    pelvis = "pelvis"
+    asis = "asis"
+
+
 @app.command("preprocess", rich_help_panel=PANEL_PROCESS)
 def preprocess_command(
     out: OutOpt = DEFAULT_OUT_PATH,
@@ -33,9 +38,14 @@ def preprocess_command(
     lift_threshold: Annotated[float, typer.Option("--lift-threshold", min=0.0, help="Pair study: table height above the floor level that marks a carriage (m).")] = 0.005,
     floor_window: Annotated[float, typer.Option("--floor-window", min=0.0, help="Pair study: floor level = median table height over this first part of the recording (s).")] = 0.5,
     speed_threshold: Annotated[float, typer.Option("--speed-threshold", min=0.0, help="Walking: CoM speed that marks walking (m/s).")] = 0.1,
+    rest_speed: Annotated[float, typer.Option("--rest-speed", min=0.0, help="Walking: the walk is extended to where the CoM speed falls below this (m/s).")] = 0.05,
     min_duration: Annotated[float, typer.Option("--min-duration", min=0.0, help="Shortest carriage / walk kept (s); shorter runs are ignored.")] = 0.5,
     gamma_min_speed: Annotated[float, typer.Option("--gamma-min-speed", min=0.0, help="Below this speed (m/s) gamma holds its last well-defined value.")] = 0.1,
     keep_approach: Annotated[bool, typer.Option("--keep-approach", help="Pair study: also keep each subject's walk to the table as a trial '<recording>_approach'.")] = False,
+    orientation_markers: Annotated[OrientationMarkers, typer.Option(
+        "--orientation-markers",
+        help="pelvis: a long gap on any pelvis marker makes theta/gamma missing for the trajectory; "
+             "asis: only a gap on LASI or RASI does (theta needs only them).")] = OrientationMarkers.pelvis,
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
     force: ForceOpt = False,
@@ -53,5 +63,6 @@ def preprocess_command(
     trials_path = trials if trials is not None else markers_path.with_name("trials.parquet")
     params = Params(max_gap=max_gap, cutoff=cutoff, order=order, order_convention=order_convention.value, n_samples=samples,
                     lift_threshold=lift_threshold, floor_window=floor_window, speed_threshold=speed_threshold,
-                    min_duration=min_duration, gamma_min_speed=gamma_min_speed, keep_approach=keep_approach)
+                    rest_speed=rest_speed, min_duration=min_duration, gamma_min_speed=gamma_min_speed, keep_approach=keep_approach,
+                    orientation_markers=orientation_markers.value)
     run(out, markers_path, trials_path, params, force=force, jobs=jobs, scheduler=scheduler)

@@ -9,10 +9,12 @@ table height ``h`` (mean z of the visible table corners, ``kinematics.table_heig
   samples lasting at least ``min_duration`` (default 0.5 s, to ignore bumps) is a carriage;
 - onset = first sample of the run, offset = its last sample (so ``travel_time = offset - onset``).
 
-Walking trials are cut by the pelvis CoM speed: the subject walks while ``|v| >= threshold``
-(default 0.1 m/s); runs shorter than ``min_duration`` (default 0.5 s) are ignored (sway while
-standing), and the trajectory goes from the first sample of the first run to the last sample of
-the last run (a brief slow-down in between stays inside the trajectory).
+Walking trials are cut by the pelvis CoM speed, with hysteresis: the subject walks while
+``|v| >= threshold`` (default 0.1 m/s); runs shorter than ``min_duration`` (default 0.5 s) are
+ignored (sway while standing); the walk spans the first to the last such run (a brief slow-down in
+between stays inside) and is then extended outwards while ``|v| >= rest_speed`` (default
+0.05 m/s, above the speed noise of a standing subject), so that onset and offset lie where the
+subject starts and stops moving rather than where it passes the detection threshold.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import numpy as np
 LIFT_THRESHOLD = 0.005  # m above the floor level
 FLOOR_WINDOW = 0.5  # s at the start of the recording
 SPEED_THRESHOLD = 0.1  # m/s
+REST_SPEED = 0.05  # m/s
 MIN_DURATION = 0.5  # s
 
 
@@ -49,11 +52,18 @@ def carriages(height: np.ndarray, rate: float, threshold: float = LIFT_THRESHOLD
 
 
 def walking_bounds(speed: np.ndarray, rate: float, threshold: float = SPEED_THRESHOLD,
-                   min_duration: float = MIN_DURATION) -> tuple[int, int] | None:
+                   min_duration: float = MIN_DURATION, rest_speed: float = REST_SPEED) -> tuple[int, int] | None:
     """(onset, offset) samples of a walking trial from its CoM speed; None if it never walks."""
+    speed = np.asarray(speed, dtype=float)
     with np.errstate(invalid="ignore"):
-        moving = np.asarray(speed, dtype=float) >= threshold
+        moving = speed >= threshold
+        resting = ~(speed >= min(rest_speed, threshold))  # NaN counts as rest
     found = runs(moving, max(1, int(round(min_duration * rate))))
     if not found:
         return None
-    return found[0][0], found[-1][1]
+    on, off = found[0][0], found[-1][1]
+    before = np.flatnonzero(resting[:on])
+    after = np.flatnonzero(resting[off + 1:])
+    on = int(before[-1]) + 1 if before.size else 0
+    off = off + int(after[0]) if after.size else len(speed) - 1
+    return on, off

@@ -14,12 +14,19 @@ Order of operations, per recording:
 6. per trajectory: gamma (``kinematics.gamma``, ends held below ``gamma_min_speed``), quality
    flags, time normalisation to N samples (``normalisation.py``) -> ``trajectories.parquet``.
 
+Orientation with a long pelvis-marker gap: by default (``orientation_markers="pelvis"``) a long
+gap on any of the 4 pelvis markers makes the trajectory's orientation missing, as in the walking
+study, where orientation is only reported when the whole pelvis is seen; with ``"asis"`` theta is
+kept whenever LASI and RASI are seen (theta only needs them, METHODS.md sec. 2.5). Position is
+always kept: the CoM is rebuilt rigidly from the 3 visible pelvis markers (exact for a rigid
+pelvis, where dropping a marker from the mean would shift the CoM by about 5 cm).
+
 Quality flags (``quality`` column, ';'-separated, 'ok' when none):
 ``short_gaps_filled`` (spline-filled frames inside the trajectory), ``long_gap`` (an unfilled gap
 of one of the entity's markers inside the trajectory), ``com_rigid_fill`` (pelvis centre
-reconstructed from 3 markers somewhere), ``orientation_missing`` (a marker that theta needs --
-LASI/RASI, or TAB1/TAB2 -- is missing somewhere in the trajectory: theta and gamma are NaN for the
-whole trajectory, position is kept, METHODS.md sec. 2.2), ``position_missing`` (some samples of
+reconstructed from 3 markers somewhere), ``orientation_missing`` (a long gap on a pelvis marker --
+or on TAB1/TAB2 for the table -- somewhere in the trajectory: theta and gamma are NaN for the whole
+trajectory, position is kept, METHODS.md sec. 2.2), ``position_missing`` (some samples of
 x, y are NaN: two or more pelvis markers missing at once), ``gamma_undefined`` (the speed never
 reaches ``gamma_min_speed``).
 """
@@ -60,9 +67,11 @@ class Params:
     lift_threshold: float = segmentation.LIFT_THRESHOLD  # m
     floor_window: float = segmentation.FLOOR_WINDOW  # s
     speed_threshold: float = segmentation.SPEED_THRESHOLD  # m/s
+    rest_speed: float = segmentation.REST_SPEED  # m/s
     min_duration: float = segmentation.MIN_DURATION  # s
     gamma_min_speed: float = kin.GAMMA_MIN_SPEED  # m/s
     keep_approach: bool = False
+    orientation_markers: str = "pelvis"  # "pelvis": theta needs all 4 pelvis markers; "asis": LASI and RASI
 
 
 @dataclass
@@ -219,7 +228,7 @@ def process_recording(rec: Recording, p: Params) -> dict[str, Any]:
         else:
             xy, rigid = kin.pelvis_com(*(mk[(e, m)] for m in PELVIS_MARKERS))
             theta = kin.pelvis_theta(mk[(e, "LASI")], mk[(e, "RASI")])
-            theta_needs = ("LASI", "RASI")
+            theta_needs = PELVIS_MARKERS if p.orientation_markers == "pelvis" else ("LASI", "RASI")
         markers = TABLE_MARKERS if e == "table" else PELVIS_MARKERS
         kinem[e] = {
             "xy": xy, "theta": theta, "v": kin.velocity(xy, rate), "rigid": rigid,
@@ -249,7 +258,7 @@ def _segments(rec, p, entities, has_table, mk, kinem):
     rate = rec.rate
     if not has_table:
         speed = np.hypot(*kinem[subjects[0]]["v"].T)
-        bounds = segmentation.walking_bounds(speed, rate, p.speed_threshold, p.min_duration)
+        bounds = segmentation.walking_bounds(speed, rate, p.speed_threshold, p.min_duration, p.rest_speed)
         if bounds is None:
             raise InputError(f"trial {rec.trial}: the CoM speed never stays above {p.speed_threshold} m/s for "
                              f"{p.min_duration} s (no walk found)", path=rec.source,
@@ -269,7 +278,7 @@ def _segments(rec, p, entities, has_table, mk, kinem):
         on = found[0][0]
         for e in subjects:
             speed = np.hypot(*kinem[e]["v"][: on + 1].T)
-            bounds = segmentation.walking_bounds(speed, rate, p.speed_threshold, p.min_duration)
+            bounds = segmentation.walking_bounds(speed, rate, p.speed_threshold, p.min_duration, p.rest_speed)
             if bounds is not None:
                 segs.insert(0, ("approach", bounds[0], bounds[1], [e]))
     return segs
