@@ -1,0 +1,33 @@
+"""``cobot-analysis import-published``: the published CoBot datasets -> trajectories.parquet."""
+
+from __future__ import annotations
+
+from enum import Enum
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from cobot_analysis.cli.app import DEFAULT_OUT_PATH, PANEL_DATA, ForceOpt, OutOpt, app
+
+
+class Dataset(str, Enum):
+    walking_2020 = "walking-2020"
+    pair_carriage_2022 = "pair-carriage-2022"
+
+
+@app.command("import-published", rich_help_panel=PANEL_DATA)
+def import_published_command(
+    dataset: Annotated[Dataset, typer.Argument(help="Which published dataset PATH holds.")],
+    path: Annotated[Path, typer.Argument(help="Folder of the dataset (e.g. ../shared/datasets/walking-2020).")],
+    out: OutOpt = DEFAULT_OUT_PATH,
+    gamma_limit: Annotated[float, typer.Option("--gamma-limit", min=0.0, help="walking-2020: flag a trajectory implausible_gamma when its median |gamma| over 20-80 % of the path exceeds this (rad).")] = 0.5,
+    force: ForceOpt = False,
+) -> None:
+    """Read a published dataset into OUT/import-published/trajectories.parquet (500-sample
+    trajectories; pairs: also durations.parquet and subject_wrt_table.parquet) and report its
+    data-quality facts (missing orientation, implausible gamma, trial counts) in results.md.
+    """
+    from cobot_analysis.io.published import run_import_published
+
+    run_import_published(dataset.value, path, out, gamma_limit=gamma_limit, force=force)
