@@ -366,3 +366,39 @@ def test_bad_map_option(tmp_path, cli):
     proto = protocol(tmp_path, [write_c3d(tmp_path / "a.c3d", person(10))])
     assert_rejected(cli, tmp_path / "ws", [proto, "--map", "LASI"], "--map 'LASI' is not LAB=CANON")
     assert_rejected(cli, tmp_path / "ws", [proto, "--marker-map", tmp_path / "none.yaml"], "none.yaml: marker map file not found")
+
+
+# ---- a small synthetic study (cobot_analysis.synth) -----------------------------------------------
+def _barycentre_error(markers: pd.DataFrame, truth: pd.DataFrame) -> float:
+    """Largest horizontal distance between the imported pelvis barycentre and the true CoM (m)."""
+    pelvis = markers[markers["marker"].isin(["LASI", "RASI", "LPSI", "RPSI"])]
+    wide = pelvis.pivot_table(index=["trial", "entity", "frame"], columns="marker", values=["x", "y"], observed=True)
+    full = wide.dropna()  # frames where the 4 pelvis markers are visible
+    com = pd.DataFrame({"x": full["x"].mean(axis=1), "y": full["y"].mean(axis=1)})
+    true = truth.set_index(["trial", "entity", "frame"])[["x", "y"]].rename(columns={"x": "x_true", "y": "y_true"})
+    joined = com.join(true, how="inner")
+    assert len(joined) == len(com)
+    return float(np.hypot(joined["x"] - joined["x_true"], joined["y"] - joined["y_true"]).max())
+
+
+def test_import_synthetic_walking_and_pair_studies(tmp_path, cli):
+    walking = pytest.importorskip("cobot_analysis.synth.walking")
+    pairs = pytest.importorskip("cobot_analysis.synth.pairs")
+    for proto, n_trials, entities in (
+        (walking.generate(tmp_path / "w", n_subjects=2, n_trials=1, conditions=["E4015", "N0615"]), 4, {"walker"}),
+        (pairs.generate(tmp_path / "p", n_pairs=1, goals=["d1_p4_gris"], scenarios=[3]), 1, {"subject1", "subject2", "table"}),
+    ):
+        ws = tmp_path / f"ws_{proto.parent.name}"
+        code, _, err = cli("import", proto, "--out", ws, "--jobs", "2")
+        assert code == 0, err
+        markers = read_table(ws / "import" / "markers.parquet", MARKERS)
+        trials = read_table(ws / "import" / "trials.parquet", TRIALS)
+        assert len(trials) == n_trials and set(markers["entity"]) == entities
+        assert (trials["source_units"] == "mm").all() and (trials["rate"] == 200.0).all()
+        assert markers.groupby("trial", observed=True)["frame"].max().add(1).tolist() == trials["n_frames"].tolist()
+        truth = pd.read_parquet(proto.parent / "truth.parquet")
+        truth = truth[truth["entity"] != "table"]
+        assert _barycentre_error(markers, truth) < 0.005  # sensor noise ~1 mm
+        occluded = markers[markers["marker"].isin(["LASI", "RASI", "LPSI", "RPSI"])].groupby(["trial", "entity", "frame"], observed=True)["occluded"].sum()
+        lost = truth.set_index(["trial", "entity", "frame"])["pelvis_occluded"]
+        assert (occluded.reindex(lost.index) == lost).all()
