@@ -83,7 +83,7 @@ def test_walking_recovery(tmp_path, cli):
 def test_pair_recovery(tmp_path, cli):
     pairs = pytest.importorskip("cobot_analysis.synth.pairs")
     study = tmp_path / "study"
-    protocol = pairs.generate(study, seed=5, n_pairs=1, goals=2)
+    protocol = pairs.generate(study, seed=5, n_pairs=1, goals=["d1_p4_gris", "d2_p7_jaune"], scenarios=(1, 3))
     ws = tmp_path / "ws"
     code, _, err = cli("import", protocol, "--out", ws, "--jobs", "1")
     assert code == 0, err
