@@ -77,6 +77,7 @@ def synth_localisation_command(
     force: ForceOpt = False,
     seed: SeedOpt = 0,
     laps: Annotated[int, typer.Option(min=1, help="Tours through the 6 goals (about 10 m and 2.4 min each).")] = 1,
+    goals_per_lap: Annotated[int, typer.Option(min=1, max=6, help="Goals per lap (the first N of the 6; fewer = shorter run).")] = 6,
     speed: Annotated[float, typer.Option(min=0.01, help="Walking speed (m/s).")] = 0.12,
     delay: Annotated[float, typer.Option(min=0.0, help="Planted ICP delay (s).")] = 0.55,
     offset: Annotated[str, typer.Option(help="Planted structural offset x,y,z,yaw (m, rad), ICP minus truth.")] = "0.12,-0.085,0.045,0.03",
@@ -94,7 +95,7 @@ def synth_localisation_command(
     unknown = sorted(set(fmts) - {"ros1", "ros2", "mcap"})
     if unknown or not fmts:
         raise InputError(f"unknown format(s) {unknown or formats!r}", remedy="use --formats ros1,ros2,mcap")
-    params = synth.SynthParams(seed=seed, laps=laps, speed=speed, delay=delay, offset=_floats(offset, 4, "--offset"),
+    params = synth.SynthParams(seed=seed, laps=laps, n_goals=goals_per_lap, speed=speed, delay=delay, offset=_floats(offset, 4, "--offset"),
                                noise=_floats(noise, 4, "--noise"), stop=stop)
     with Stage(out, SYNTH_STAGE, params={**params.__dict__, "formats": fmts}, force=force) as stage:
         if stage.skipped:
