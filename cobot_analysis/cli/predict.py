@@ -57,13 +57,12 @@ def predict_command(
     Resumable: an interrupted run continues where it stopped (finished trajectories are kept in
     OUT/.predict-work until the stage completes).
     """
-    import numpy as np
 
     from cobot_analysis.console import info, warn
     from cobot_analysis.errors import InputError
     from cobot_analysis.models.presets import load_weights
     from cobot_analysis.models.sweep import (PREDICTION_COMPARISON, PREDICTION_SUMMARY, PREDICTION_WINDOWS, PREDICTIONS,
-                                             SweepConfig, WorkDir, compare_table, run_sweep, summary_table,
+                                             SweepConfig, WorkDir, compare_table, predictable_windows, run_sweep, summary_table,
                                              trajectories_from_table)
     from cobot_analysis.schema import TRAJECTORIES, read_table, write_table
     from cobot_analysis.workspace import Stage, find_input
@@ -89,6 +88,15 @@ def predict_command(
     trajs = trajectories_from_table(df, config, path)
     if limit:
         trajs = trajs[:limit]
+    n0_min = min(n0 for n0, _ in config.settings)
+    unpredictable = [t.label for t in trajs if not predictable_windows(t, n0_min)]
+    trajs = [t for t in trajs if predictable_windows(t, n0_min)]
+    if not trajs:
+        raise InputError(f"no window can be predicted: no trajectory has {n0_min} consecutive samples with finite positions",
+                         path=path, remedy="check the trajectories (gaps left by preprocess) or lower N0")
+    if unpredictable:
+        warn(f"predict: {len(unpredictable)} trajectories left out, fewer than N0 = {n0_min} consecutive finite positions: "
+             + ", ".join(unpredictable[:5]) + (" ..." if len(unpredictable) > 5 else ""))
     params = {"config": config.__dict__, "study": study, "entity": entity, "kind": kind, "limit": limit}
     work = WorkDir(Path(out) / WORK, config)
     with Stage(out, STAGE, inputs=[path, *inputs], params=params, force=force) as stage:
@@ -107,9 +115,6 @@ def predict_command(
         failed = metrics.loc[metrics["predictor"] == "oc", "n_failed"].sum() if "oc" in config.predictors else 0
         if failed:
             warn(f"predict: {failed} OC windows failed to converge (left out of every predictor's metrics)")
-        if not np.isfinite(metrics["delta_xy"]).any():
-            raise InputError("no window could be predicted (every window has NaN positions)", path=path,
-                             remedy="check the trajectories (preprocess gaps) or lower N0")
         summary = summary_table(metrics)
         comparison = compare_table(metrics, windows)
         meta = {"weights": weights or "walking-2021 (walkers) / table-2022 (tables)", "g0": g0, "g1": g1}
@@ -119,7 +124,7 @@ def predict_command(
         write_table(comparison, stage.path("prediction_comparison.parquet"), PREDICTION_COMPARISON, **meta)
         example = example_trajectory(metrics, trajs, config)
         figures(stage, metrics, example, config)
-        stage.path("results.md").write_text(results_fragment(metrics, summary, comparison, config, example))
+        stage.path("results.md").write_text(results_fragment(metrics, summary, comparison, config, example, unpredictable))
     work.clear()
     info(f"[green]predict[/green]: {stage.final_dir}")
 
@@ -147,6 +152,7 @@ def figures(stage, metrics, traj, config) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
+    from matplotlib.collections import LineCollection
 
     from cobot_analysis.models.predict import make_predictor
 
@@ -160,9 +166,9 @@ def figures(stage, metrics, traj, config) -> None:
 
     fig, axes = plt.subplots(1, len(preds), figsize=(4.2 * len(preds), 4.2), squeeze=False)
     for ax, (name, P) in zip(axes[0], preds.items()):
-        for w in P:
-            ax.plot(w[:, 0], w[:, 1], color=colours[name], lw=0.4, alpha=0.25)
-        ax.plot(*xy.T, color="k", lw=1.5, label="recorded")
+        ax.plot(*xy.T, color="0.6", lw=2.5, label="recorded", zorder=1)
+        ax.add_collection(LineCollection(P[np.isfinite(P[:, 0, 0]), :, :2], colors=colours[name], linewidths=0.5,
+                                         alpha=0.4, zorder=2))
         ax.set_title(f"{name}: all {np.isfinite(P[:, 0, 0]).sum()} predictions")
         ax.set_aspect("equal")
         ax.set_xlabel("x (m)")
@@ -214,7 +220,7 @@ def _p(v) -> str:
     return "n/a" if math.isnan(v) else ("< 0.001" if v < 1e-3 else f"{v:.3f}")
 
 
-def results_fragment(metrics, summary, comparison, config, example) -> str:
+def results_fragment(metrics, summary, comparison, config, example, unpredictable=()) -> str:
     """Markdown fragment of the stage (assembled into docs/results.md)."""
     import numpy as np
 
@@ -237,7 +243,8 @@ def results_fragment(metrics, summary, comparison, config, example) -> str:
     skipped = int(first["n_skipped"].sum())
     failed = int(metrics.loc[metrics["predictor"] == "oc", "n_failed"].sum()) if "oc" in config.predictors else 0
     lines.append(f"Windows: {int(first['n_windows'].sum())} per predictor, {skipped} skipped (NaN positions), "
-                 f"{failed} failed OC solves; metrics use the windows every predictor predicted.")
+                 f"{failed} failed OC solves; metrics use the windows every predictor predicted."
+                 + (f" {len(unpredictable)} trajectories left out (no N0 consecutive finite positions)." if unpredictable else ""))
     lines += ["", "### Errors per setting (mean +- sd over trajectories; r = Pearson correlation with the global distance)", "",
               "| N0 | N_OC | predictor | delta_xy (m) | delta_theta (rad) | d_pred (m) | ADE (m) | FDE (m) | r(delta_xy, D) |",
               "|---|---|---|---|---|---|---|---|---|"]

@@ -135,13 +135,15 @@ class OCPredictor(Predictor):
     with its own velocity); cold start (first window, after a skipped or failed window): the
     measured past on the first N0 nodes, then the last measured displacement extrapolated.
     A window whose solve fails (fatrop, then IPOPT) gives no prediction and is counted in ``failed``.
+    ``warm_start=False`` solves every window cold (same optimum, for comparison and benchmarks).
     """
 
     name = "oc"
     min_past = 3
 
     def __init__(self, n0: int, n_oc: int, dt: float = 1.0, *, weights: str | dict | None = "walking-2021",
-                 g0: float = 10.0, g1: float = 10.0, fit: int = 5, tol: float = 1e-6, solver: str = "fatrop"):
+                 g0: float = 10.0, g1: float = 10.0, fit: int = 5, tol: float = 1e-8, solver: str = "fatrop",
+                 warm_start: bool = True):
         from cobot_analysis.models.ocp import OCPShape, get_ocp
         from cobot_analysis.models.presets import load_weights
 
@@ -150,6 +152,7 @@ class OCPredictor(Predictor):
         self.weights = np.array([w["a0"], w["a1"], w["a2"], w["a3"]] + [0.0] * 7)
         self.track_weights = (float(g0), float(g1))
         self.fit = int(fit)
+        self.warm_start = bool(warm_start)
         self.ocp = get_ocp(OCPShape(n_intervals=n_oc - 1, tol=tol, solver=solver))
         super().__init__(n0, n_oc, dt)
 
@@ -221,5 +224,5 @@ class OCPredictor(Predictor):
         if not sol.success:
             self._warm = None
             return None
-        self._warm = sol.primal
+        self._warm = sol.primal if self.warm_start else None
         return sol.X[self.n0 - 1:, :3].copy()

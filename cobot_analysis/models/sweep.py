@@ -199,7 +199,9 @@ def trajectories_from_table(df: pd.DataFrame, config: SweepConfig, path: str | o
             raise InputError(f"trajectory {label} has {len(poses)} samples, fewer than N0 = {n0_max}", path=path,
                              remedy="lower N0 in --settings (or a smaller --t-oc), or leave the trajectory out")
         dt = config.t_oc if config.t_oc is not None else duration / (len(poses) - 1)
-        if not dt > 0:
+        if not dt > 0 and np.isfinite(poses[:, :2]).all(axis=1).sum() < 2:
+            dt = float("nan")  # no position at all: every window will be skipped (see predictable_windows)
+        elif not dt > 0:
             raise InputError(f"trajectory {label} does not move (zero duration)", path=path,
                              remedy="leave it out or give its travel time")
         first = g.iloc[0]
@@ -218,6 +220,12 @@ def trajectories_from_table(df: pd.DataFrame, config: SweepConfig, path: str | o
                 "start_orientation": orientation, "global_distance": float(dist)}
         out.append(Trajectory(str(study), str(trial), str(entity), poses, float(dt), float(duration), source, meta))
     return out
+
+
+def predictable_windows(traj: Trajectory, n0: int) -> int:
+    """Windows of ``traj`` whose measured past (N0 samples) has finite positions."""
+    finite = np.isfinite(traj.poses[:, :2]).all(axis=1).astype(int)
+    return int((np.convolve(finite, np.ones(n0, dtype=int), mode="valid") == n0).sum())
 
 
 # ---- one trajectory ---------------------------------------------------------------------------

@@ -1,0 +1,160 @@
+"""Prediction (METHODS.md sec. 7): metrics by hand, baselines exact where they must be, the OC
+predictor on its own model, step-by-step == offline, warm == cold starts."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cobot_analysis.errors import InputError
+from cobot_analysis.models.predict import OCPredictor, make_predictor
+from cobot_analysis.models.predict_metrics import summarise, truth_windows, window_errors
+
+
+# ---- metrics ----------------------------------------------------------------------------------
+def _ten_samples():
+    """x_i = i, y = 0, theta = 0 (N = 10); N0 = 3, N_OC = 5 (H = 2): windows k = 2..9.
+    Prediction of window k for sample k + j: x = k + j + 0.1 j, theta = 0.05 j."""
+    poses = np.c_[np.arange(10.0), np.zeros(10), np.zeros(10)]
+    k = np.arange(2, 10)[:, None]
+    j = np.arange(3)[None, :]
+    pred = np.stack([k + j + 0.1 * j, 0.0 * (k + j), 0.05 * j + 0.0 * k], axis=-1)
+    return poses, pred
+
+
+def test_metrics_match_hand_computation_on_ten_samples():
+    poses, pred = _ten_samples()
+    err = window_errors(poses, pred, n0=3)
+    # N_k = min(k + 2, 9) - k + 1 = 3 for k = 2..7, 2 for k = 8, 1 for k = 9; error at j = 0.1 j
+    np.testing.assert_allclose(err.error_xy, [0.1] * 6 + [0.05, 0.0])
+    m = summarise(err)
+    assert m.delta_xy == pytest.approx((6 * 0.1 + 0.05 + 0.0) / 8)  # 0.08125
+    assert m.delta_theta == pytest.approx((6 * 0.05 + 0.025 + 0.0) / 8)  # 0.040625
+    assert m.d_pred == pytest.approx(2.2)  # ||x*_k - x*_{k+2}|| = 2 + 0.2
+    assert m.ade == pytest.approx(0.15)  # full horizons k = 2..7: mean of 0.1 and 0.2
+    assert m.fde == pytest.approx(0.2)
+    assert (m.n_windows, m.n_used, m.n_full) == (8, 8, 6)
+
+
+def test_skipped_windows_are_left_out_and_counted():
+    poses, pred = _ten_samples()
+    pred[0] = np.nan  # window k = 2 skipped
+    m = summarise(window_errors(poses, pred, n0=3))
+    assert m.n_used == 7 and m.n_full == 5
+    assert m.delta_xy == pytest.approx((5 * 0.1 + 0.05) / 7)
+
+
+def test_truth_windows_pad_past_the_end():
+    poses = np.c_[np.arange(6.0), np.zeros(6), np.zeros(6)]
+    t = truth_windows(poses, n0=2, horizon=3)
+    assert t.shape == (5, 4, 3)
+    np.testing.assert_array_equal(t[0, :, 0], [1, 2, 3, 4])
+    np.testing.assert_array_equal(t[-1, :, 0], [5, np.nan, np.nan, np.nan])
+
+
+def test_angle_errors_are_wrapped():
+    poses = np.c_[np.zeros(4), np.zeros(4), np.full(4, np.pi - 0.01)]
+    pred = np.zeros((3, 2, 3))
+    pred[..., 2] = -np.pi + 0.01  # 0.02 rad away across the cut
+    assert summarise(window_errors(poses, pred, n0=2)).delta_theta == pytest.approx(0.02)
+
+
+# ---- baselines --------------------------------------------------------------------------------
+@settings(max_examples=30, deadline=None)
+@given(x0=st.floats(-5, 5), y0=st.floats(-5, 5), speed=st.floats(0.0, 0.05), heading=st.floats(-np.pi, np.pi),
+       th0=st.floats(-np.pi, np.pi), rate=st.floats(-0.05, 0.05))
+def test_constant_velocity_is_exact_on_a_straight_constant_speed_path(x0, y0, speed, heading, th0, rate):
+    i = np.arange(40.0)
+    poses = np.c_[x0 + speed * i * np.cos(heading), y0 + speed * i * np.sin(heading), th0 + rate * i]
+    m = summarise(window_errors(poses, make_predictor("cv", 5, 15).predict_offline(poses), 5))
+    assert m.delta_xy < 1e-9 and m.delta_theta < 1e-9 and m.fde < 1e-9
+    assert m.d_pred == pytest.approx(10 * speed, abs=1e-9)
+
+
+@settings(max_examples=30, deadline=None)
+@given(radius=st.floats(0.3, 10), step=st.floats(0.005, 0.05), turn=st.sampled_from([-1, 1]), phase=st.floats(-np.pi, np.pi))
+def test_ctrv_is_exact_on_a_circle_at_constant_speed(radius, step, turn, phase):
+    a = phase + turn * step * np.arange(60)
+    poses = np.c_[radius * np.cos(a), radius * np.sin(a), a + turn * np.pi / 2]
+    m = summarise(window_errors(poses, make_predictor("ctrv", 4, 20).predict_offline(poses), 4))
+    assert m.delta_xy < 1e-9 * max(1, radius) and m.delta_theta < 1e-9
+    cv = summarise(window_errors(poses, make_predictor("cv", 4, 20).predict_offline(poses), 4))
+    assert cv.delta_xy > 1e3 * m.delta_xy  # the straight extrapolation leaves the circle
+
+
+def test_baselines_do_not_need_orientation():
+    i = np.arange(30.0)
+    poses = np.c_[0.02 * i, 0.01 * i, np.full(30, np.nan)]
+    for name in ("cv", "ctrv"):
+        P = make_predictor(name, 5, 10).predict_offline(poses)
+        assert np.isfinite(P[..., :2]).all() and np.isnan(P[..., 2]).all()
+
+
+def test_bad_settings_are_input_errors():
+    with pytest.raises(InputError, match="N_OC = 50 must be larger than N0 = 50"):
+        make_predictor("cv", 50, 50)
+    with pytest.raises(InputError, match="fewer than N0 = 25"):
+        make_predictor("cv", 25, 100).predict_offline(np.zeros((20, 3)))
+    with pytest.raises(InputError, match="unknown predictor 'kalman'"):
+        make_predictor("kalman", 5, 10)
+    with pytest.raises(InputError, match="unknown preset"):
+        make_predictor("oc", 5, 10, weights="no-such-preset")
+
+
+# ---- the OC predictor -------------------------------------------------------------------------
+DT = 0.02
+
+
+def model_path(n=90, v_forw=1.0, v_orth=0.2, omega=0.5, theta0=0.3):
+    """A trajectory of the OC model itself: the holonomic walker with zero controls (the optimum of
+    the free future for any weights), i.e. constant (v_forw, v_orth, omega), integrated exactly."""
+    t = np.arange(n) * DT
+    th = theta0 + omega * t
+    x = (v_forw * np.sin(th) + v_orth * np.cos(th)) / omega
+    y = (-v_forw * np.cos(th) + v_orth * np.sin(th)) / omega
+    return np.c_[x - x[0], y - y[0], th]
+
+
+def test_oc_predictor_error_is_near_zero_on_its_own_model():
+    poses = model_path()
+    oc = make_predictor("oc", 10, 30, DT, weights="walking-2021")
+    m = summarise(window_errors(poses, oc.predict_offline(poses), 10))
+    cv = summarise(window_errors(poses, make_predictor("cv", 10, 30, DT).predict_offline(poses), 10))
+    assert oc.failed == 0 and m.n_used == 81
+    assert m.delta_xy < 5e-4 and m.fde < 1e-3 and m.delta_theta < 1e-4  # mm-level over a 0.4 s horizon
+    assert cv.delta_xy > 20 * m.delta_xy
+    assert m.d_pred == pytest.approx(20 * DT * np.hypot(1.0, 0.2), rel=0.02)  # chord of a 0.4 s arc
+
+
+def test_oc_predictor_tracks_positions_only_without_orientation():
+    poses = model_path(v_orth=0.0)  # facing the direction of travel, as assumed without theta
+    poses[:, 2] = np.nan
+    oc = make_predictor("oc", 10, 30, DT)
+    m = summarise(window_errors(poses, oc.predict_offline(poses), 10))
+    assert oc.failed == 0 and m.delta_xy < 1e-3 and np.isnan(m.delta_theta)
+
+
+def test_initial_state_estimates_the_velocity():
+    poses = model_path()
+    x0, has_theta = OCPredictor(10, 30, DT).initial_state(poses[:10])
+    assert has_theta
+    np.testing.assert_allclose(x0, [0, 0, 0.3, 1.0, 0.2, 0.5], atol=1e-3)
+
+
+def test_step_by_step_equals_offline_and_warm_equals_cold():
+    poses = model_path(n=60) + np.random.default_rng(1).normal(0, 0.003, (60, 3))
+    poses[30] = np.nan  # skipped windows too
+    results = {}
+    for name in ("oc", "cv", "ctrv"):
+        p = make_predictor(name, 8, 20, DT)
+        offline = results[name] = p.predict_offline(poses)
+        p.reset()
+        online = [p.update(pose) for pose in poses]
+        assert all(o is None for o in online[:7])
+        stacked = np.stack([np.full((13, 3), np.nan) if o is None else o for o in online[7:]])
+        np.testing.assert_array_equal(stacked, offline)
+        assert p.skipped == 8  # windows k = 30..37 hold sample 30 in their past
+    cold = OCPredictor(8, 20, DT, warm_start=False).predict_offline(poses)
+    np.testing.assert_allclose(cold, results["oc"], atol=1e-6, equal_nan=True)

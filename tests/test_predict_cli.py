@@ -1,0 +1,172 @@
+"""The prediction sweep and the ``predict`` command: outputs, T_OC, NaN-window accounting,
+resuming, Dask == local pool, and bad input (exit 2, one line, no partial output)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from cobot_analysis.models import sweep as sweep_mod
+from cobot_analysis.models.sweep import SweepConfig, WorkDir, run_sweep, trajectories_from_table
+from cobot_analysis.schema import TRAJECTORIES, read_table, write_table
+
+N = 60
+CONDITIONS = ("E1500", "N4015", "S-0640", "O0640")
+
+
+def trajectories_table(n_traj=4, n=N, travel_time=None, nan_at=None, all_nan=False) -> pd.DataFrame:
+    """Arcs of radius 1.5 + i m walked at constant speed: trajectory i has condition CONDITIONS[i]."""
+    rows = []
+    for i in range(n_traj):
+        a = np.linspace(0.0, 1.0, n)
+        r = 1.5 + i
+        x, y, th = r * np.cos(a), r * np.sin(a), a + np.pi / 2
+        if i == 0 and nan_at is not None:
+            x[nan_at] = np.nan
+        if all_nan:
+            x[:] = np.nan
+        tt = np.nan if travel_time is None or i % 2 else travel_time
+        rows.append(pd.DataFrame({
+            "study": "synthetic-walking", "trial": f"t{i}", "kind": "trial", "n_trials": 1, "subject": f"s{i}",
+            "condition": CONDITIONS[i % 4], "entity": "walker", "sample": np.arange(n), "phase": 100 * np.arange(n) / (n - 1),
+            "time": np.nan, "x": x, "y": y, "theta": th, "travel_time": tt, "travelled_distance": np.hypot(x[-1] - x[0], y[-1] - y[0]),
+            "quality": "ok"}))
+    return pd.concat(rows, ignore_index=True)
+
+
+@pytest.fixture
+def traj_file(tmp_path):
+    def make(**kw):
+        path = tmp_path / "trajectories.parquet"
+        write_table(trajectories_table(**kw), path, TRAJECTORIES)
+        return path
+    return make
+
+
+FAST = ["--settings", "8:20,10:30", "-j", "1"]
+
+
+def test_predict_command_writes_tables_figures_and_results(cli, tmp_path, traj_file):
+    path = traj_file(travel_time=3.0)
+    out = tmp_path / "ws"
+    code, _, err = cli("predict", "--out", out, "--trajectories", path, *FAST)
+    assert code == 0, err
+    stage = out / "predict"
+    m = pd.read_parquet(stage / "predictions.parquet")
+    assert len(m) == 4 * 2 * 3
+    assert set(m["predictor"]) == {"oc", "cv", "ctrv"}
+    # T_OC: the recorded travel time (trials 0, 2) or path length / 1 m/s (trials 1, 3) over N - 1 intervals
+    t = m.drop_duplicates("trial").set_index("trial")
+    assert t.loc["t0", "t_oc"] == pytest.approx(3.0 / (N - 1)) and t.loc["t0", "duration_source"] == "travel_time"
+    assert t.loc["t1", "duration"] == pytest.approx(2.5 * 1.0 * np.sin(0.5 / (N - 1)) * 2 * (N - 1), rel=1e-9)
+    assert t.loc["t1", "duration_source"] == "nominal_speed"
+    # constant-speed arcs: CTRV exact, the OC predictor near it, CV not
+    s = m[m["n0"] == 10].set_index(["trial", "predictor"])
+    assert (s.xs("ctrv", level="predictor")["delta_xy"] < 1e-9).all()
+    assert (s.xs("oc", level="predictor")["delta_xy"] < 2e-3).all()
+    assert (s.xs("cv", level="predictor")["delta_xy"] > 5e-3).all()
+    assert (m["n_windows"] == N - m["n0"] + 1).all() and (m["n_used"] == m["n_windows"]).all()
+    w = read_table(stage / "prediction_windows.parquet", sweep_mod.PREDICTION_WINDOWS)
+    assert len(w) == 4 * 3 * ((N - 7) + (N - 9))
+    summary = pd.read_parquet(stage / "prediction_summary.parquet")
+    row = summary[(summary["n0"] == 10) & (summary["predictor"] == "cv") & (summary["metric"] == "delta_xy")].iloc[0]
+    cvs = s.xs("cv", level="predictor")["delta_xy"]
+    assert row["mean"] == pytest.approx(cvs.mean()) and row["sd"] == pytest.approx(cvs.std())
+    assert row["pearson_r"] > 0.99  # same turn per sample on every arc: the CV error grows with the radius
+    comp = pd.read_parquet(stage / "prediction_comparison.parquet")
+    allcv = comp[(comp["baseline"] == "cv") & (comp["group"] == "all") & (comp["n0"] == 10)].iloc[0]
+    assert allcv["n"] == 4 and allcv["oc_wins"] == 1.0 and allcv["median_difference"] < 0
+    assert set(comp["group"]) == {"all", "E", "N", "S", "O"}
+    text = (stage / "results.md").read_text()
+    assert "## Trajectory prediction" in text and "| 10 | 30 | cv |" in text and "Wilcoxon" in text
+    for fig in ("prediction_overlay", "prediction_at_k", "prediction_error_vs_distance"):
+        assert (stage / f"{fig}.png").stat().st_size > 10_000
+    assert not (out / ".predict-work").exists()  # merged and removed on success
+    manifest = json.loads((stage / "manifest.json").read_text())
+    assert manifest["params"]["config"]["settings"] == [[8, 20], [10, 30]]
+    code, _, err = cli("predict", "--out", out, "--trajectories", path, *FAST)
+    assert code == 0 and "up to date" in err
+
+
+def test_nan_samples_skip_windows_and_are_counted(cli, tmp_path, traj_file):
+    path = traj_file(nan_at=[20, 21])
+    out = tmp_path / "ws"
+    code, _, err = cli("predict", "--out", out, "--trajectories", path, "--predictors", "cv,ctrv", *FAST)
+    assert code == 0, err
+    assert "20 windows of 1 trajectories skipped" in err
+    m = pd.read_parquet(out / "predict" / "predictions.parquet").set_index(["trial", "n0", "predictor"])
+    # samples 20, 21 NaN: windows k = 20 .. 21 + N0 - 1 have them in their past
+    assert m.loc[("t0", 8, "cv"), "n_skipped"] == 9 and m.loc[("t0", 10, "cv"), "n_skipped"] == 11
+    assert m.loc[("t0", 8, "cv"), "n_used"] == N - 8 + 1 - 9
+    assert m.loc[("t1", 8, "cv"), "n_skipped"] == 0
+    assert "20 skipped (NaN positions)" in (out / "predict" / "results.md").read_text()  # 9 + 11 per predictor
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--settings", "20:20"], "N_OC = 20 must be larger than N0 = 20"),
+    (["--settings", "70:90"], "has 60 samples, fewer than N0 = 70"),
+    (["--settings", "ten:20"], "bad setting 'ten:20'"),
+    (["--weights", "no-such-preset"], "unknown preset or missing weights file 'no-such-preset'"),
+    (["--predictors", "oc,kalman"], "unknown predictor(s) ['kalman']"),
+    (["--kind", "average"], "unknown --kind 'average'"),
+])
+def test_bad_options_exit_2_without_output(cli, tmp_path, traj_file, args, message):
+    out = tmp_path / "ws"
+    code, _, err = cli("predict", "--out", out, "--trajectories", traj_file(), "-j", "1", *args)
+    assert code == 2 and message in err
+    assert len(err.strip().splitlines()) == 1
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_bad_trajectories_exit_2_without_output(cli, tmp_path, traj_file):
+    out = tmp_path / "ws"
+    code, _, err = cli("predict", "--out", out, "--settings", "8:20")
+    assert code == 2 and "no trajectories.parquet in the workspace" in err
+    code, _, err = cli("predict", "--out", out, "--trajectories", traj_file(all_nan=True), "--settings", "8:20")
+    assert code == 2 and "no window can be predicted" in err and "trajectories.parquet" in err
+    bad = tmp_path / "bad.parquet"
+    bad.write_bytes(b"PAR1 truncated")
+    code, _, err = cli("predict", "--out", out, "--trajectories", bad, "--settings", "8:20")
+    assert code == 2 and "bad.parquet: not a readable Parquet file" in err
+    code, _, err = cli("predict", "--out", out, "--trajectories", traj_file(), "--study", "nope", "--settings", "8:20")
+    assert code == 2 and "empty selection" in err
+    assert not out.exists() or not any(out.iterdir())
+
+
+# ---- the sweep --------------------------------------------------------------------------------
+CONFIG = SweepConfig(settings=((8, 20),), predictors=("oc", "cv"))
+
+
+def test_interrupted_sweep_resumes_without_redoing_finished_trajectories(tmp_path, monkeypatch):
+    trajs = trajectories_from_table(trajectories_table(), CONFIG)
+    reference, _, _ = run_sweep(trajs, CONFIG, WorkDir(tmp_path / "ref", CONFIG), jobs=1)
+    work = WorkDir(tmp_path / "work", CONFIG)
+    real = sweep_mod.predict_trajectory
+
+    def failing(traj, config):
+        if traj.trial == "t2":
+            raise KeyboardInterrupt
+        return real(traj, config)
+
+    monkeypatch.setattr(sweep_mod, "predict_trajectory", failing)
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(trajs, CONFIG, work, jobs=1)
+    finished = {t.trial for t in trajs if work.done(t.digest())}
+    assert finished == {"t0", "t1", "t3"}  # saved as they finished; t2 was interrupted
+    calls = []
+    monkeypatch.setattr(sweep_mod, "predict_trajectory", lambda t, c: calls.append(t.trial) or real(t, c))
+    metrics, windows, resumed = run_sweep(trajs, CONFIG, work, jobs=1)
+    assert resumed == 3 and calls == ["t2"]
+    pd.testing.assert_frame_equal(metrics, reference)
+
+
+def test_dask_cluster_gives_the_same_results_as_the_local_pool(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    trajs = trajectories_from_table(trajectories_table(n_traj=3), CONFIG)
+    local, _, _ = run_sweep(trajs, CONFIG, WorkDir(tmp_path / "local", CONFIG), jobs=1)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        dask, _, _ = run_sweep(trajs, CONFIG, WorkDir(tmp_path / "dask", CONFIG), scheduler=cluster.scheduler_address)
+    pd.testing.assert_frame_equal(dask, local)
