@@ -231,3 +231,172 @@ def test_cli_synth_walking_bad_usage_exits_2_without_output(cli, tmp_path, args,
     assert code == 2 and message in err
     assert not (out / "synth-walking").exists()
     assert not out.exists() or not any(out.iterdir())
+
+
+# ---- pairs -----------------------------------------------------------------------------------
+from cobot_analysis.design import PAIR_GOALS  # noqa: E402
+from cobot_analysis.metrics import d_xy  # noqa: E402
+from cobot_analysis.synth import pairs  # noqa: E402
+
+PAIR_SMALL = ["d1_p4_jaune", "d3_p7_gris"]  # a half-turn goal and a straight one
+
+
+@pytest.fixture(scope="module")
+def small_pairs(tmp_path_factory):
+    d = tmp_path_factory.mktemp("pairs")
+    return pairs.generate(d, seed=5, n_pairs=2, goals=PAIR_SMALL)
+
+
+@pytest.fixture(scope="module")
+def pair_truth(small_pairs):
+    return (read_table(small_pairs.parent / "truth.parquet", TRUTH),
+            read_table(small_pairs.parent / "truth_trials.parquet", TRUTH_TRIALS))
+
+
+def test_pairs_design_counts_and_protocol(small_pairs, pair_truth):
+    proto = load_protocol(small_pairs)
+    assert len(proto.trials) == 2 * 2 * 3
+    assert {"pair", "condition", "scenario", "configuration", "end_orientation", "repetition"} <= set(proto.trials.columns)
+    assert proto.entities["S1"] == "subject1" and proto.entities["Table"] == "table"
+    assert proto.pairs.to_dict("list") == {"id": ["P01", "P02"], "subject1": ["S01", "S03"], "subject2": ["S02", "S04"]}
+    assert len(proto.subjects) == 4
+    for _, row in proto.trials.iterrows():
+        goal = next(g for g in PAIR_GOALS if g.stem == row.condition)
+        assert row.configuration == goal.family
+        assert any(abs(row.end_orientation - th) < 1e-12 for th in goal.end_orientations)
+    truth, tt = pair_truth
+    assert set(truth["entity"]) == {"subject1", "subject2", "table"}
+    # per recording: 2 walks to the table, and 3 entities x (forward, return)
+    counts = tt.groupby("segment").size().to_dict()
+    assert counts == {"walk_to_table": 24, "forward": 36, "return": 36}
+    assert (tt.loc[tt.segment == "return", "scenario"] == 3).all()
+    labels, xyz, rate, units, _ = read_c3d(small_pairs.parent / "raw" / "P02_d3_p7_gris_s2.c3d")
+    assert rate == 200.0 and units == "mm" and len(labels) == 31
+    assert labels[0] == "S1:LASI" and labels[14] == "S2:LASI" and labels[-3:] == ["Table:TAB1", "Table:TAB2", "Table:TAB3"]
+
+
+def test_table_height_above_5mm_exactly_during_carriages(small_pairs, pair_truth):
+    truth, tt = pair_truth
+    for trial, g in truth[truth.entity == "table"].groupby("trial", observed=True):
+        seg = g["segment"].to_numpy()
+        carried = np.isin(seg, ["forward", "return"])
+        assert np.array_equal(g["z"].to_numpy() - 0.77 > pairs.LIFT_THRESHOLD, carried)
+        # one forward then one return, each contiguous, separated by a pause
+        runs = [s for i, s in enumerate(seg) if i == 0 or s != seg[i - 1]]
+        assert runs == ["rest", "forward", "pause", "return", "rest"]
+        _, xyz, *_ = read_c3d(small_pairs.parent / "raw" / f"{trial}.c3d")
+        height = np.nanmean(xyz[:, -3:, 2], axis=1) - 0.77  # measured: noisy, some corners occluded
+        on_floor = g["z"].to_numpy() == 0.77
+        assert on_floor.sum() > 0.2 * len(seg) and np.abs(height[on_floor]).max() < 0.003
+        assert np.nanmin(height[carried]) > 0.001 and np.median(height[carried]) > 0.08
+        mismatch = np.flatnonzero((height > pairs.LIFT_THRESHOLD) != carried)
+        assert len(mismatch) <= 8  # only at the 4 threshold crossings
+
+
+def test_carriage_geometry_goal_reached_subjects_face_each_other(pair_truth):
+    truth, tt = pair_truth
+    table = tt[tt.entity == "table"].set_index(["trial", "segment"])
+    for trial, g in truth.groupby("trial", observed=True):
+        goal = next(gl for gl in PAIR_GOALS if gl.stem in trial)
+        fwd, ret = table.loc[(trial, "forward")], table.loc[(trial, "return")]
+        assert math.hypot(fwd.xf - goal.position[0], fwd.yf - goal.position[1]) < 0.12
+        assert abs(angle_diff(fwd.thetaf, fwd.end_orientation)) < 0.12
+        assert math.hypot(ret.xf, ret.yf) < 0.1 and abs(angle_diff(ret.thetaf, goal.start_pose[2])) < 0.1
+        s1, s2 = (g[g.entity == e].reset_index(drop=True) for e in ("subject1", "subject2"))
+        carry = np.isin(s1["segment"].to_numpy(), ["forward", "return"])
+        dist = np.hypot(s2.x - s1.x, s2.y - s1.y)[carry]
+        assert dist.min() > 1.6 and dist.max() < 2.1  # METHODS 5.6: 1.6 < d < 2.1 m
+        bearing = np.arctan2(s2.y - s1.y, s2.x - s1.x)[carry]
+        assert np.median(np.abs(angle_diff(s1.theta[carry], bearing))) < 0.4  # Subject 1 faces Subject 2
+        assert np.median(np.abs(angle_diff(s2.theta[carry], bearing + np.pi))) < 0.4
+
+
+def _normalised(g, a, b, n=100):
+    t = np.linspace(a, b, n)
+    return np.interp(t, g.time, g.x), np.interp(t, g.time, g.y)
+
+
+def test_return_is_close_to_the_reversed_forward_path_table_more_than_subjects(pair_truth):
+    truth, tt = pair_truth
+    tt = tt.set_index(["trial", "entity", "segment"])
+    sym = {"table": [], "subject1": [], "subject2": []}
+    for (trial, entity), g in truth.groupby(["trial", "entity"], observed=True):
+        f, r = tt.loc[(trial, entity, "forward")], tt.loc[(trial, entity, "return")]
+        fx, fy = _normalised(g, f.onset, f.offset)
+        rx, ry = _normalised(g, r.onset, r.offset)
+        sym[entity].append(float(d_xy(fx, fy, rx[::-1], ry[::-1])))
+    assert max(sym["table"]) < 0.1 and np.mean(sym["table"]) < 0.05
+    assert np.mean(sym["table"]) < 0.7 * min(np.mean(sym["subject1"]), np.mean(sym["subject2"]))
+
+
+def test_planted_effects_recorded_per_carriage(pair_truth):
+    _, tt = pair_truth
+    carr = tt[tt.segment.isin(["forward", "return"])]
+    assert (carr["time_factor"] == carr["scenario"].map(pairs.SCENARIO_TIME_FACTOR)).all()
+    assert carr["duration_noise"].between(0.6, 1.6).all()
+    # optimal flag and probability follow the nominal D1 + D2 of the two configurations
+    assert (carr["optimal"] == (carr["distance_chosen"] <= carr["distance_other"] + 1e-9)).all()
+    p_expected = 1 / (1 + np.exp(-pairs.CONFIG_BETA * (carr["distance_other"] - carr["distance_chosen"])))
+    assert np.allclose(carr["p_chosen"], p_expected)
+
+
+@pytest.fixture(scope="module")
+def pair_truth_only(tmp_path_factory):
+    """4 pairs x 9 goals x scenarios 1 and 3, truth only (no C3D): enough to see the planted effects."""
+    d = tmp_path_factory.mktemp("pairs_truth")
+    pairs.generate(d, seed=11, n_pairs=4, scenarios=(1, 3), write_raw=False)
+    return read_table(d / "truth_trials.parquet", TRUTH_TRIALS)
+
+
+def test_planted_effects_are_detectable(pair_truth_only):
+    from scipy import stats
+
+    tt = pair_truth_only
+    table = tt[tt.entity == "table"]
+    fwd = table[table.segment == "forward"].set_index(["pair", "condition", "scenario"])["travel_time"].unstack()
+    ratio = fwd[3] / fwd[1]  # same pair and goal, scenario 3 vs scenario 1
+    assert 0.85 < np.exp(np.log(ratio).mean()) < 0.95  # planted factor 0.9
+    assert stats.wilcoxon(fwd[3], fwd[1]).pvalue < 1e-3
+    # configuration choices favour the distance-minimising one (goals with unequal distances)
+    choice = table[(table.segment == "forward") & (table.distance_chosen != table.distance_other).abs().astype(bool)]
+    unequal = choice[np.abs(choice.distance_chosen - choice.distance_other) > 1e-6]
+    assert stats.binomtest(int(unequal["optimal"].sum()), len(unequal), 0.5).pvalue < 1e-3
+    # no pair effect on travel time (relative to the goal and scenario mean)
+    fwd_all = table[table.segment == "forward"].copy()
+    fwd_all["rel"] = fwd_all["travel_time"] / fwd_all.groupby(["condition", "scenario"])["travel_time"].transform("mean")
+    assert stats.kruskal(*[g["rel"] for _, g in fwd_all.groupby("pair")]).pvalue > 0.01
+    # table paths vary less across pairs than subjects' paths: spread of the end-to-end path length
+    for seg in ("forward", "return"):
+        s = tt[tt.segment == seg]
+        spread = s.groupby("entity")["path_length"].apply(
+            lambda v: (v / s.loc[v.index].groupby(["condition", "end_orientation"])["path_length"].transform("mean")).std())
+        assert spread["table"] < spread["subject1"] and spread["table"] < spread["subject2"]
+
+
+def test_pairs_same_seed_same_bytes(small_pairs, tmp_path):
+    pairs.generate(tmp_path, seed=5, n_pairs=2, goals=["d3_p7_gris"], scenarios=(2,))
+    name = "P02_d3_p7_gris_s2.c3d"
+    assert (tmp_path / "raw" / name).read_bytes() == (small_pairs.parent / "raw" / name).read_bytes()
+
+
+def test_cli_synth_pairs_small_study(cli, tmp_path):
+    out = tmp_path / "ws"
+    code, _, err = cli("synth", "pairs", "--out", out, "--pairs", "1", "--goals", "d2_p7_jaune", "--scenarios", "3",
+                       "--jobs", "1")
+    assert code == 0, err
+    proto = load_protocol(out / "synth-pairs" / "protocol.yaml")
+    assert proto.trials["trial"].tolist() == ["P01_d2_p7_jaune_s3"]
+    assert (out / "synth-pairs" / "results.md").read_text().startswith("## Synthetic pair-carriage study")
+
+
+@pytest.mark.parametrize("args, message", [
+    (("--pairs", "0"), "--pairs"),
+    (("--goals", "d9_p1_gris"), "unknown value"),
+    (("--scenarios", "4"), "unknown value"),
+    (("--scenarios", ""), "unknown value"),
+])
+def test_cli_synth_pairs_bad_usage_exits_2_without_output(cli, tmp_path, args, message):
+    out = tmp_path / "ws"
+    code, _, err = cli("synth", "pairs", "--out", out, *args)
+    assert code == 2 and message in err
+    assert not (out / "synth-pairs").exists()

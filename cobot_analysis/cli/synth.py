@@ -12,12 +12,12 @@ from cobot_analysis.console import info
 from cobot_analysis.errors import InputError
 
 
-def select(spec: str, universe: Sequence, option: str) -> list:
-    """``all`` -> every item; ``N`` -> the first N; ``a,b,c`` -> those items (checked)."""
+def select(spec: str, universe: Sequence, option: str, counts: bool = True) -> list:
+    """``all`` -> every item; ``N`` -> the first N (if ``counts``); ``a,b,c`` -> those items (checked)."""
     spec = spec.strip()
     if spec.lower() == "all":
         return list(universe)
-    if spec.isdigit():
+    if counts and spec.isdigit():
         n = int(spec)
         if not 1 <= n <= len(universe):
             raise InputError(f"{option} {spec}: must be between 1 and {len(universe)}", remedy=f"pass {option} all, a count, or a list")
@@ -27,7 +27,7 @@ def select(spec: str, universe: Sequence, option: str) -> list:
     unknown = [s for s in chosen if s not in names]
     if unknown or not chosen:
         raise InputError(f"{option}: unknown value(s) {unknown or [spec]}",
-                         remedy=f"use all, a count, or a comma-separated list of {', '.join(names)}")
+                         remedy=f"use all{', a count' if counts else ''}, or a comma-separated list of {', '.join(names)}")
     return [names[s] for s in dict.fromkeys(chosen)]
 
 
@@ -59,3 +59,35 @@ def walking_command(
         walking.generate(stage.dir, seed=seed, n_subjects=subjects, n_trials=trials, conditions=codes,
                          jobs=jobs, scheduler=scheduler)
     info(f"[green]{walking.STAGE}[/green]: {subjects * len(codes) * trials} trials -> {stage.final_dir}")
+
+
+@synth_app.command("pairs")
+def pairs_command(
+    out: OutOpt = DEFAULT_OUT_PATH,
+    seed: SeedOpt = 0,
+    pairs: Annotated[int, typer.Option("--pairs", min=1, help="Number of pairs (2 subjects each).")] = 20,
+    goals: Annotated[str, typer.Option("--goals", help="Goals: all, N (the first N of the design), or stems like d1_p4_gris,d3_p7_gris.")] = "all",
+    scenarios: Annotated[str, typer.Option("--scenarios", help="Scenarios of the forward carriage: all or a list like 1,3 (1 = S1 leader, 2 = S2 leader, 3 = both know).")] = "all",
+    jobs: JobsOpt = None,
+    scheduler: SchedulerOpt = None,
+    force: ForceOpt = False,
+) -> None:
+    """Synthetic pair-carriage study (20 pairs x 9 goals x 3 scenarios = 540 recordings by default).
+
+    Each recording holds walk-to-table, forward carriage, pause and return carriage. Writes
+    OUT/synth-pairs/: protocol.yaml, trials.csv, subjects.csv, pairs.csv, raw/*.c3d (200 Hz, mm,
+    S1:/S2:/Table: labels), truth.parquet, truth_trials.parquet (with the planted effects).
+    """
+    from cobot_analysis.design import PAIR_GOALS, SCENARIOS
+    from cobot_analysis.synth import pairs as synth_pairs
+    from cobot_analysis.workspace import Stage
+
+    stems = select(goals, [g.stem for g in PAIR_GOALS], "--goals")
+    scens = select(scenarios, sorted(SCENARIOS), "--scenarios", counts=False)
+    params = {"seed": seed, "pairs": pairs, "goals": stems, "scenarios": scens}
+    with Stage(out, synth_pairs.STAGE, params=params, force=force) as stage:
+        if stage.skipped:
+            return
+        synth_pairs.generate(stage.dir, seed=seed, n_pairs=pairs, goals=stems, scenarios=scens, jobs=jobs,
+                             scheduler=scheduler)
+    info(f"[green]{synth_pairs.STAGE}[/green]: {pairs * len(stems) * len(scens)} recordings -> {stage.final_dir}")

@@ -44,7 +44,7 @@ N_TRIALS = 3
 #: share of trials with one long gap on a pelvis marker (walking-2020 lost orientation in 125/400).
 P_LONG_GAP = 0.28
 _PELVIS_COLS = tuple(SUBJECT_MARKERS.index(m) for m in PELVIS_MARKERS)
-_SUBJECT_KEY, _TRIAL_KEY = 1, 2  # first words of the SeedSequence entropy, per use
+_SUBJECT_KEY, _TRIAL_KEY, _NOISE_KEY = 1, 2, 6  # first words of the SeedSequence entropy, per use
 
 
 @dataclass(frozen=True)
@@ -75,13 +75,9 @@ class Subject:
     style: Style
 
 
-def draw_subject(seed: int, index: int) -> Subject:
-    """Subject ``index`` (0-based) of the study with ``seed``: anthropometry, gait and style."""
-    rng = np.random.default_rng(np.random.SeedSequence([seed, _SUBJECT_KEY, index]))
-    female = index % 5 == 2  # 2 women out of 10, as in walking-2020
-    height = float(rng.normal(1.65, 0.05) if female else rng.normal(1.77, 0.06))
-    weight = float(np.clip(rng.normal(22.5, 2.0), 18.5, 29.0) * height**2)
-    style = Style(
+def draw_style(rng: np.random.Generator) -> Style:
+    """A walking style: peak speed 1.0-1.3 m/s, ramps 1.0-1.4 s, start offset, bulge, turning habits."""
+    return Style(
         v_peak=float(np.clip(rng.normal(1.15, 0.08), 1.0, 1.3)),
         t_ramp=float(rng.uniform(1.0, 1.4)),
         start_bias=(float(rng.normal(0, 0.08)), float(rng.normal(0, 0.08))),
@@ -94,6 +90,15 @@ def draw_subject(seed: int, index: int) -> Subject:
         theta_end_bias=float(rng.normal(0, 0.05)),
         turn_sign=float(rng.choice([-1.0, 1.0])),
     )
+
+
+def draw_subject(seed: int, index: int) -> Subject:
+    """Subject ``index`` (0-based) of the study with ``seed``: anthropometry, gait and style."""
+    rng = np.random.default_rng(np.random.SeedSequence([seed, _SUBJECT_KEY, index]))
+    female = index % 5 == 2  # 2 women out of 10, as in walking-2020
+    height = float(rng.normal(1.65, 0.05) if female else rng.normal(1.77, 0.06))
+    weight = float(np.clip(rng.normal(22.5, 2.0), 18.5, 29.0) * height**2)
+    style = draw_style(rng)
     return Subject(f"S{index + 1:02d}", "F" if female else "M", round(weight, 1), round(height, 3),
                    bd.Body.draw(rng, height), bd.Gait.draw(rng), style)
 
@@ -141,11 +146,13 @@ def trial_id(subject: str, condition: str, repetition: int) -> str:
 
 
 def simulate_trial(task: tuple) -> tuple[dict, dict]:
-    """Make one trial and write its C3D: ``task = (directory, seed, subject index, condition, repetition)``.
+    """Make one trial and write its C3D: ``task = (directory, seed, subject index, condition, repetition, raw)``.
+
+    With ``raw`` false the C3D file is not written (truth only).
 
     Returns (truth columns as arrays, truth_trials row).
     """
-    directory, seed, i_subject, code, repetition = task
+    directory, seed, i_subject, code, repetition, raw = task
     rate = bd.RATE
     subject = draw_subject(seed, i_subject)
     rng = np.random.default_rng(np.random.SeedSequence(
@@ -165,12 +172,15 @@ def simulate_trial(task: tuple) -> tuple[dict, dict]:
     base_xy, base_theta = hold(path.xy, before, after), hold(theta, before, after)
     speed = np.pad(path.speed, (before, after))
     com, dz, theta_true = bd.oscillate(t, base_xy, base_theta, speed, subject.gait)
-    xyz = bd.add_noise(rng, bd.subject_markers(t, com, dz, theta_true, speed, subject.body, subject.gait))
     long = rng.random() < P_LONG_GAP
     missing, gaps = bd.plan_gaps(rng, n, len(SUBJECT_MARKERS), long_markers=_PELVIS_COLS if long else (),
                                  long_window=(before, before + m))
     trial = trial_id(subject.id, code, repetition)
-    write_c3d(Path(directory) / "raw" / f"{trial}.c3d", SUBJECT_MARKERS, xyz, rate, missing)
+    if raw:  # noise from its own stream, so that the truth does not depend on ``raw``
+        noise = np.random.default_rng(np.random.SeedSequence(
+            [seed, _NOISE_KEY, i_subject, WALKING_CONDITIONS.index(code), repetition]))
+        xyz = bd.add_noise(noise, bd.subject_markers(t, com, dz, theta_true, speed, subject.body, subject.gait))
+        write_c3d(Path(directory) / "raw" / f"{trial}.c3d", SUBJECT_MARKERS, xyz, rate, missing)
 
     lost = np.zeros(n, dtype=bool)
     for g in gaps:
@@ -204,10 +214,12 @@ def truth_frame(pieces: Sequence[dict]) -> pd.DataFrame:
 
 
 def generate(directory, seed: int = 0, n_subjects: int = N_SUBJECTS, n_trials: int = N_TRIALS,
-             conditions: Sequence[str] | None = None, jobs: int | None = 1, scheduler: str | None = None) -> Path:
+             conditions: Sequence[str] | None = None, jobs: int | None = 1, scheduler: str | None = None,
+             write_raw: bool = True) -> Path:
     """Write a synthetic walking study into ``directory``; return the path of ``protocol.yaml``.
 
     ``conditions``: start-condition codes (default: all 40 of ``design.WALKING_CONDITIONS``).
+    ``write_raw=False`` skips the C3D files (truth and protocol only).
     """
     from cobot_analysis.parallel import map_tasks
     from cobot_analysis.schema import write_table
@@ -220,7 +232,7 @@ def generate(directory, seed: int = 0, n_subjects: int = N_SUBJECTS, n_trials: i
             raise ValueError(f"unknown walking condition {code!r}")
     directory = Path(directory)
     (directory / "raw").mkdir(parents=True, exist_ok=True)
-    tasks = [(str(directory), seed, i, code, r) for i in range(n_subjects) for code in conditions
+    tasks = [(str(directory), seed, i, code, r, write_raw) for i in range(n_subjects) for code in conditions
              for r in range(1, n_trials + 1)]
     results = map_tasks(simulate_trial, tasks, jobs=jobs, scheduler=scheduler, description="synth walking")
     truth = truth_frame([r[0] for r in results])
