@@ -1,0 +1,190 @@
+"""Study reports: a Markdown file (README.md) embedding the tables and figures of a workspace.
+
+``build_report("walking" | "pairs", inputs, stage)`` reads what the workspace holds (trajectories,
+means, distances, stats, reconstruction), draws the figures of ``reports.figures`` into the stage
+directory (PNG + PDF) and writes README.md (the report) and results.md (a fragment for
+docs/results.md). Sections whose data are absent say so instead of failing.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from cobot_analysis.reports import figures
+
+ENTITY_ORDER = ["walker", "subject1", "subject2", "table"]
+
+
+def report_inputs(out: Path) -> dict[str, Path]:
+    """The workspace files a report can use (only those that exist)."""
+    cands = {
+        "trajectories": [out / "preprocess" / "trajectories.parquet", out / "import-published" / "trajectories.parquet"],
+        "means": [out / "average" / "means.parquet"],
+        "distances": [out / "compare" / "distances.parquet"],
+        "stats": [out / "stats" / "stats.parquet"],
+        "reconstruction": [out / "reconstruct" / "reconstruction.parquet"],
+    }
+    found = {}
+    for name, paths in cands.items():
+        for p in paths:
+            if p.is_file():
+                found[name] = p
+                break
+    return found
+
+
+def _load(inputs: dict) -> dict:
+    from cobot_analysis.averaging import MEANS
+    from cobot_analysis.compare import DISTANCES, pivot
+    from cobot_analysis.reconstruct import RECONSTRUCTION
+    from cobot_analysis.schema import TRAJECTORIES, read_table
+    from cobot_analysis.stats.analyses import STATS
+
+    data = {}
+    if "trajectories" in inputs:
+        data["ts"] = pivot(read_table(inputs["trajectories"], TRAJECTORIES), inputs["trajectories"])
+    if "means" in inputs:
+        data["means"] = pivot(read_table(inputs["means"], MEANS), inputs["means"])
+    for key, schema in (("distances", DISTANCES), ("stats", STATS), ("reconstruction", RECONSTRUCTION)):
+        if key in inputs:
+            data[key] = read_table(inputs[key], schema)
+    return data
+
+
+def _fig(stage, fig, stem: str, caption: str, lines: list[str]) -> None:
+    stage.savefig(fig, stem)
+    lines += [f"![{caption}]({stem}.png)", "", f"*{caption}* ([PDF]({stem}.pdf))", ""]
+
+
+SCENARIO_STYLE = {1: "-", 2: "--", 3: ":"}
+
+
+def _path_panels(ts, means, keys: list[str], title_of, select=None) -> list[dict]:
+    panels = {}
+    order = []
+    for src, kind in ((ts, "lines"), (means, "means")):
+        if src is None:
+            continue
+        m = src.meta
+        rows = np.flatnonzero(select(m)) if select else np.arange(len(m))
+        if kind == "lines":
+            rows = rows[m["kind"].to_numpy()[rows] == "trial"]
+        for i in rows:
+            key = tuple(m[k].iloc[i] for k in keys)
+            if key not in panels:
+                panels[key] = {"title": title_of(key), "lines": [], "means": []}
+                order.append(key)
+            ent = m["entity"].iloc[i]
+            if kind == "lines":
+                panels[key]["lines"].append((src.x[i], src.y[i], ent))
+            else:
+                sc = m["scenario"].iloc[i] if "scenario" in m.columns and m["direction"].iloc[i] == "forward" else None
+                panels[key]["means"].append((src.x[i], src.y[i], src.theta[i], ent, SCENARIO_STYLE.get(sc, "-")))
+    return [panels[k] for k in sorted(order, key=lambda k: tuple(str(v) for v in k))]
+
+
+def _stats_section(data: dict, lines: list[str]) -> None:
+    from cobot_analysis.stats.analyses import markdown
+
+    if "stats" in data:
+        lines.append(markdown(data["stats"], "Statistics"))
+    else:
+        lines += ["## Statistics", "", "Not computed: run `cobot-analysis stats` first.", ""]
+
+
+def _walking(data: dict, stage, lines: list[str], results: list[str]) -> None:
+    ts, means, dist = data.get("ts"), data.get("means"), data.get("distances")
+    if ts is not None:
+        tr = ts.meta[ts.meta["kind"].eq("trial")]
+        missing = ~np.isfinite(ts.theta).all(axis=1)
+        per_subject = pd.Series(missing[tr.index]).groupby(tr["subject"].to_numpy()).sum()
+        mean_rows = ts.meta["kind"].eq("mean").to_numpy()
+        txt = (f"Trajectories without orientation: {int(missing[tr.index].sum())} of {len(tr)} subject trajectories "
+               f"({', '.join(f'{k}: {int(v)}' for k, v in per_subject.items())}); "
+               f"{int(missing[mean_rows].sum())} of {int(mean_rows.sum())} published means.")
+        lines += ["## Data", "", txt, ""]
+        results += ["## Walking study: data", "", txt, ""]
+    if ts is not None or means is not None:
+        panels = _path_panels(ts, means, ["condition"], lambda k: str(k[0]))
+        _fig(stage, figures.paths(panels, ncols=8, title="Paths per start condition: individual (thin), mean (bold), orientation arrows"),
+             "paths", "Individual paths, recomputed mean and its orientation per start condition", lines)
+    if dist is not None:
+        ind = dist[dist["comparison"].eq("individual-mean")]
+        if len(ind):
+            for col, unit in (("d_xy", "m"), ("d_gamma", "rad")):
+                g = {s: v[col].dropna().to_numpy() for s, v in ind.groupby("subject")}
+                _fig(stage, figures.boxplots(g, f"{col} individual vs mean ({unit})", f"{col} by subject"),
+                     f"box_{col}_subject", f"Individual vs mean {col} by subject", lines)
+            g = {o: v["d_xy"].to_numpy() for o, v in ind.groupby(ind["condition"].astype(str).str[0])}
+            _fig(stage, figures.boxplots(g, "d_xy (m)", "d_xy by start orientation"), "box_d_xy_orientation",
+                 "Individual vs mean d_xy by start orientation", lines)
+            _fig(stage, figures.scatter_r({"walker": (ind["global_distance"], ind["d_xy"])}, "global distance (m)", "d_xy (m)"),
+                 "scatter_d_xy_global", "Individual vs mean d_xy against the global distance", lines)
+
+
+def _pairs(data: dict, stage, lines: list[str], results: list[str]) -> None:
+    from cobot_analysis.stats.sources import build_sources
+
+    ts, means, dist = data.get("ts"), data.get("means"), data.get("distances")
+    for direction in ("forward", "return"):
+        panels = _path_panels(ts, means, ["condition"], lambda k: str(k[0]),
+                              select=lambda m, d=direction: m["direction"].eq(d).to_numpy())
+        if panels:
+            styles = "; mean per scenario and end orientation: S1 solid, S2 dashed, S3 dotted" if direction == "forward" else ""
+            _fig(stage, figures.paths(panels, ncols=5, title=f"{direction} paths: individual (thin), means (bold){styles}"),
+                 f"paths_{direction}", f"{direction.capitalize()} paths per goal: individual trials, means and orientation arrows", lines)
+    if dist is None:
+        return
+    sources = build_sources(ts, dist)
+    dur = sources["durations"]
+    if len(dur):
+        g = {f"{d[:3]} S{s:g}": v["duration"].to_numpy() for (d, s), v in dur.groupby(["direction", "scenario"])}
+        _fig(stage, figures.boxplots(g, "travel time (s)", "Travel time by direction and scenario"), "box_travel_time",
+             "Travel time by direction and scenario", lines)
+    ind = dist[dist["comparison"].eq("individual-mean") & dist["kind"].eq("trial")]
+    if len(ind):
+        g, colors = {}, []
+        for (ent, d, s), v in ind.groupby(["entity", "direction", "scenario"]):
+            g[f"{ent[:2] if ent != 'table' else 'T'} {d[:3]} S{s:g}"] = v["d_xy"].to_numpy()
+            colors.append(figures.COLORS[ent])
+        _fig(stage, figures.boxplots(g, "d_xy individual vs mean (m)", "Variability by entity, direction and scenario", colors),
+             "box_d_xy", "Individual vs mean d_xy by entity, direction and scenario", lines)
+        _fig(stage, figures.scatter_r({e: (v["global_distance"], v["d_xy"]) for e, v in ind.groupby("entity")},
+                                      "global distance (m)", "d_xy (m)"), "scatter_d_xy_global",
+             "Individual vs mean d_xy against the global distance", lines)
+    sym = dist[dist["comparison"].eq("symmetry")]
+    if len(sym):
+        _fig(stage, figures.boxplots({e: v["d_xy"].to_numpy() for e, v in sym.groupby("entity")}, "d_xy forward vs reversed return (m)",
+                                     "Forward/return symmetry", [figures.COLORS[e] for e in sorted(sym["entity"].unique())]),
+             "box_symmetry", "Forward vs time-reversed return distance per entity", lines)
+    charts = {}
+    if len(sources["patterns"]):
+        charts["same configuration"] = sources["patterns"]["pattern"].value_counts().to_dict()
+    ch = sources["choices"]
+    for who, name in (("s1", "optimal for S1"), ("s2", "optimal for S2"), ("pair", "optimal for the pair")):
+        if len(ch):
+            v = ch[f"optimal_{who}"].astype(bool)
+            charts[name] = {"optimal": int(v.sum()), "not optimal": int((~v).sum())}
+    if charts:
+        _fig(stage, figures.pies(charts, "End configuration choices"), "pies_configuration",
+             "Configuration patterns across scenarios and optimality of the chosen configuration", lines)
+
+
+def build_report(study: str, inputs: dict, stage, out: Path) -> None:
+    """Write README.md (report), figures and results.md into ``stage``."""
+    data = _load(inputs)
+    title = {"walking": "Single walking study", "pairs": "Pair carriage study"}[study]
+    lines = [f"# {title}: report", "", "Generated by `cobot-analysis report`; every number and figure comes from the workspace "
+             f"files: {', '.join(f'`{p.parent.name}/{p.name}`' for p in inputs.values())}.", ""]
+    results: list[str] = []
+    (_walking if study == "walking" else _pairs)(data, stage, lines, results)
+    for name in ("average", "compare", "reconstruct"):
+        frag = Path(out) / name / "results.md"
+        if frag.is_file():
+            lines += [frag.read_text(), ""]
+    _stats_section(data, lines)
+    stage.path("README.md").write_text("\n".join(lines) + "\n")
+    stage.path("results.md").write_text("\n".join(results) + "\n" if results else f"## {title}: report\n\nSee reports/{study}/README.md.\n")
