@@ -183,34 +183,38 @@ def import_trial(task: TrialTask) -> ImportedTrial:
 def long_table(trials: list[ImportedTrial]) -> pd.DataFrame:
     """Tidy long markers table (schema.MARKERS), rows ordered by trial, entity/marker, frame.
 
-    Built with vectorised numpy per trial and one concatenation; labels are categorical.
+    Every column is allocated once and filled trial by trial with vectorised numpy (no copy by
+    concatenation); labels are categorical.
     """
-    trial_cats = [t.trial for t in trials]
     entity_cats = sorted({e for t in trials for e in t.entities})
     marker_cats = sorted({m for t in trials for m in t.markers})
     e_index = {e: i for i, e in enumerate(entity_cats)}
     m_index = {m: i for i, m in enumerate(marker_cats)}
-    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("trial", "frame", "time", "entity", "marker", "xyz")}
+    n_rows = sum(t.xyz.shape[0] * t.xyz.shape[1] for t in trials)
+    trial_code = np.empty(n_rows, dtype=np.int32)
+    entity_code = np.empty(n_rows, dtype=np.int32)
+    marker_code = np.empty(n_rows, dtype=np.int32)
+    frame = np.empty(n_rows, dtype=np.int64)
+    floats = np.empty((4, n_rows))  # time, x, y, z: one block, no copy when the DataFrame is built
+    start = 0
     for i, t in enumerate(trials):
         n_frames, n_markers, _ = t.xyz.shape
-        frames = np.arange(n_frames, dtype=np.int64)
-        parts["trial"].append(np.full(n_frames * n_markers, i, dtype=np.int32))
-        parts["frame"].append(np.tile(frames, n_markers))
-        parts["time"].append(np.tile(frames / t.rate, n_markers))
-        parts["entity"].append(np.repeat(np.array([e_index[e] for e in t.entities], dtype=np.int32), n_frames))
-        parts["marker"].append(np.repeat(np.array([m_index[m] for m in t.markers], dtype=np.int32), n_frames))
-        parts["xyz"].append(t.xyz.transpose(1, 0, 2).reshape(-1, 3))
-    cat = {k: np.concatenate(v) for k, v in parts.items()}
-    xyz = cat.pop("xyz")
-    return pd.DataFrame({
-        "trial": pd.Categorical.from_codes(cat["trial"], trial_cats),
-        "frame": cat["frame"],
-        "time": cat["time"],
-        "entity": pd.Categorical.from_codes(cat["entity"], entity_cats),
-        "marker": pd.Categorical.from_codes(cat["marker"], marker_cats),
-        "x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2],
-        "occluded": np.isnan(xyz[:, 0]),
-    })
+        rows = slice(start, start + n_frames * n_markers)
+        trial_code[rows] = i
+        entity_code[rows] = np.repeat(np.array([e_index[e] for e in t.entities], dtype=np.int32), n_frames)
+        marker_code[rows] = np.repeat(np.array([m_index[m] for m in t.markers], dtype=np.int32), n_frames)
+        frame[rows].reshape(n_markers, n_frames)[:] = np.arange(n_frames)
+        floats[0, rows].reshape(n_markers, n_frames)[:] = np.arange(n_frames) / t.rate
+        for k in range(3):
+            floats[1 + k, rows].reshape(n_markers, n_frames)[:] = t.xyz[:, :, k].T
+        start = rows.stop
+    df = pd.DataFrame(floats.T, columns=["time", "x", "y", "z"], copy=False)
+    df.insert(0, "trial", pd.Categorical.from_codes(trial_code, [t.trial for t in trials]))
+    df.insert(1, "frame", frame)
+    df.insert(3, "entity", pd.Categorical.from_codes(entity_code, entity_cats))
+    df.insert(4, "marker", pd.Categorical.from_codes(marker_code, marker_cats))
+    df["occluded"] = np.isnan(floats[1])
+    return df
 
 
 def trials_table(protocol: Protocol, trials: list[ImportedTrial]) -> pd.DataFrame:
