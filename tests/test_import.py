@@ -236,6 +236,9 @@ def test_pair_labels_resolve_to_entities(tmp_path, cli):
                                        + [("table", k) for k in TABLE_OFFSETS])
     trials = read_table(ws / "import" / "trials.parquet", TRIALS)
     assert trials["scenario"].tolist() == [3] and trials["pair"].tolist() == ["P01"]
+    assert cli("import", proto, "--out", ws, "--jobs", "1", "--keep-all-markers")[0] == 0
+    kept = read_table(ws / "import" / "markers.parquet", MARKERS)
+    assert len(kept) == len(df) + 50 and set(kept.loc[kept["marker"] == "Extra", "entity"]) == {"table"}
 
 
 def test_marker_map_options(tmp_path, cli):
@@ -347,6 +350,11 @@ def test_empty_trials(tmp_path, cli):
     empty = tmp_path / "c.c3d"
     empty.write_bytes(b"")
     assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [empty])], "c.c3d: empty file")
+    # ezc3d cannot write a C3D without frames: patch a 1-frame file's header to frames 1..0
+    one = bytearray(write_c3d(tmp_path / "d.c3d", {k: v[:1] for k, v in person(1).items()}).read_bytes())
+    one[6:10] = (1).to_bytes(2, "little") + (0).to_bytes(2, "little")
+    (tmp_path / "d.c3d").write_bytes(bytes(one))
+    assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [tmp_path / "d.c3d"])], "d.c3d: empty trial (the C3D file holds no frames)")
 
 
 def test_failed_import_leaves_previous_output_unchanged(tmp_path, cli):

@@ -78,9 +78,12 @@ def check_c3d_header(path: str | os.PathLike) -> dict[str, int | bool]:
     proc = pblock[3]
     n_points, n_analog, first, last = struct.unpack(order + "4H", head[2:10])
     data_start, = struct.unpack(order + "H", head[16:18])
-    if data_start < head[0] + pblock[2] or last < first:
+    if data_start < head[0] + pblock[2] or last < first - 1:
         raise InputError("corrupt C3D header (data block or frame range inconsistent)", path=path,
                          remedy="re-export the trial from the capture software")
+    if last == first - 1:
+        raise InputError("empty trial (the C3D file holds no frames)", path=path,
+                         remedy="remove the trial from the protocol or re-export it")
     n_frames = last - first + 1
     # Float data when the scale factor (words 7-8) is negative: read its sign bit only (DEC
     # floats are not IEEE but keep the sign in bit 15 of their first word).

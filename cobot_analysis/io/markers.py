@@ -14,7 +14,8 @@ empty trial, two labels mapped to one marker, missing pelvis markers of a person
 RPSI of walker / subject1 / subject2) or table corners (TAB1..TAB3), a required marker never
 visible, and an implausible length scale. Scale check: the median inter-ASIS distance
 |LASI - RASI| of adults is 0.15-0.40 m (for a table-only recording, |TAB1 - TAB2| is 0.5-2.5 m);
-a value 1000 times too large or too small means mm and m were confused.
+a value 1000 times too large or too small means mm and m were confused. Pelvis heights are not
+used: labs differ in their vertical axis and floor origin, distances do not.
 """
 
 from __future__ import annotations
@@ -107,9 +108,13 @@ def _strip_subject_name(label: str, task: TrialTask) -> str:
 
 def _scale_check(path: Path, units: str, pairs: list[tuple[np.ndarray, np.ndarray]], bounds: tuple[float, float], what: str) -> None:
     """Refuse a length scale 1000x off (mm read as m, or m read as mm)."""
-    dist = np.nanmedian(np.concatenate([np.linalg.norm(a - b, axis=1) for a, b in pairs]))
+    dist = np.concatenate([np.linalg.norm(a - b, axis=1) for a, b in pairs])
+    dist = dist[np.isfinite(dist)]
+    if dist.size == 0:  # never both visible: nothing to judge
+        return
+    dist = float(np.median(dist))
     lo, hi = bounds
-    if np.isnan(dist) or lo <= dist <= hi:
+    if lo <= dist <= hi:
         return
     if lo <= dist / 1000 <= hi:
         raise InputError(f"marker distances look like millimetres labelled as metres (median {what} {dist:.4g} m; "
