@@ -47,7 +47,7 @@ DEFAULT_DURATION = {"unicycle": "free", "mombaur": "grid", "improved": "free", "
 
 
 def solve_model(model: str, start, goal, weights, *, n_intervals: int = 100, duration: str | None = None,
-                v_nominal: float = 1.0, solver: str = "fatrop", guess="rest", T=None):
+                v_nominal: float = 1.0, solver: str = "fatrop", guess="rest", T=None, max_iter: int = 500):
     """Solve the OC model for one start/goal; returns an ``ocp.OCPSolution`` (check ``success``).
 
     ``weights``: the 11-vector (a0..a6, b0..b3); ``guess``: "rest", "line", a previous primal vector
@@ -65,9 +65,9 @@ def solve_model(model: str, start, goal, weights, *, n_intervals: int = 100, dur
     best = None
     for g in guesses:
         if duration == "free":
-            sol = get_ocp(OCPShape(n_intervals, dyn, free_time=True, solver=solver)).solve(start, goal, weights, T0, guess=g)
+            sol = get_ocp(OCPShape(n_intervals, dyn, free_time=True, solver=solver, max_iter=max_iter)).solve(start, goal, weights, T0, guess=g)
         else:
-            ocp = get_ocp(OCPShape(n_intervals, dyn, free_time=False, solver=solver))
+            ocp = get_ocp(OCPShape(n_intervals, dyn, free_time=False, solver=solver, max_iter=max_iter))
             if duration == "search":
                 sol = search_duration(ocp, start, goal, weights, T0, guess=g)
             elif duration == "grid":
@@ -130,7 +130,7 @@ def _frame(arrays: dict[str, np.ndarray], *, model: str, weights_label: str, ent
 def generate(model: str, start: Sequence[float], goal: Sequence[float], weights=None, n_samples: int = 500, *,
              n_intervals: int = 100, duration: str | None = None, v_nominal: float = 1.0, solver: str = "fatrop",
              guesses=("rest", "line"), trial: str | None = None, condition: str = "", study: str = "model",
-             entity: str | None = None) -> pd.DataFrame:
+             entity: str | None = None, max_iter: int = 500) -> pd.DataFrame:
     """A trajectory of ``model`` from ``start`` to ``goal`` (poses (x, y, theta), goal heading on the
     branch wanted) with the columns of measured trajectories; see the module docstring.
 
@@ -156,7 +156,7 @@ def generate(model: str, start: Sequence[float], goal: Sequence[float], weights=
     label = weights if isinstance(weights, str) else (DEFAULT_PRESET[model] if weights is None else "custom")
     w = weights_vector(load_weights(weights if weights is not None else DEFAULT_PRESET[model], "improved"))
     sol = solve_model(model, start, goal, w, n_intervals=n_intervals, duration=duration, v_nominal=v_nominal,
-                      solver=solver, guess=guesses)
+                      solver=solver, guess=guesses, max_iter=max_iter)
     sol.check(f"{model} model from {tuple(np.round(start, 3))} to {tuple(np.round(goal, 3))}")
     arrays = resample(sol, n_samples, "unicycle" if model == "unicycle" else "walker")
     return _frame(arrays, model=model, weights_label=str(label), entity=entity, trial=trial, condition=condition,

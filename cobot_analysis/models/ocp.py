@@ -32,6 +32,7 @@ that neither converges is returned with ``success=False`` and callers must not u
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -140,6 +141,7 @@ class WalkerOCP:
         self._xi = np.array([[k * stride + i for i in range(nx)] for k in range(N + 1)])
         self._ui = np.array([[k * stride + nx + i for i in range(nu)] for k in range(N)])
         self._solvers: dict[str, object] = {}
+        self._lock = threading.Lock()  # a casadi solver object must not run two solves at once
         self._solver(shape.solver)  # build the primary solver now
 
     # -- solvers ---------------------------------------------------------------------------------
@@ -193,8 +195,12 @@ class WalkerOCP:
 
     # -- solve -----------------------------------------------------------------------------------
     def solve(self, start, goal, weights, T, *, guess: np.ndarray | str = "rest", start_velocity=(0.0, 0.0, 0.0),
-              track=None, track_weights=(10.0, 10.0), n_track=None, fallback: bool = True) -> OCPSolution:
+              track=None, track_weights=(10.0, 10.0), n_track=None, fallback: bool = True,
+              T_bounds: tuple[float, float] = (0.4, 2.5)) -> OCPSolution:
         """Solve for one start/goal/weights/duration (``T`` is the initial guess when ``free_time``).
+
+        With ``free_time``, T is bounded to ``T_bounds`` x T: without a lower bound a start facing
+        away from the goal has a degenerate local minimum at T -> 0 (stand still, pay the terminal cost).
 
         ``guess``: a previous ``OCPSolution.primal`` (warm start), or ``"rest"`` / ``"line"``.
         If the primary solver fails and ``fallback``, IPOPT is tried from the same guess.
@@ -202,12 +208,20 @@ class WalkerOCP:
         p = self.parameters(start, goal, weights, T, start_velocity=start_velocity, track=track,
                             track_weights=track_weights, n_track=n_track)
         w0 = self.guess(start, goal, T, guess, start_velocity) if isinstance(guess, str) else np.asarray(guess, float)
+        lbx, ubx = -np.inf, np.inf
+        if self.shape.free_time:
+            lbx, ubx = np.full(self.n_vars, -np.inf), np.full(self.n_vars, np.inf)
+            lbx[self._xi[:, N_STATE]] = math.log(T_bounds[0] * T)
+            ubx[self._xi[:, N_STATE]] = math.log(T_bounds[1] * T)
+            w0 = w0.copy()
+            w0[self._xi[:, N_STATE]] = np.clip(w0[self._xi[:, N_STATE]], lbx[self._xi[0, N_STATE]], ubx[self._xi[0, N_STATE]])
         names = [self.shape.solver] + (["ipopt"] if fallback and self.shape.solver != "ipopt" else [])
         sol = None
         for name in names:
-            solver = self._solver(name)
-            res = solver(x0=w0, p=p, lbg=0.0, ubg=0.0)
-            st = solver.stats()
+            with self._lock:
+                solver = self._solver(name)
+                res = solver(x0=w0, p=p, lbg=0.0, ubg=0.0, lbx=lbx, ubx=ubx)
+                st = solver.stats()
             sol = self._unpack(np.asarray(res["x"]).ravel(), float(res["f"]), p, name, st)
             if sol.success:
                 break

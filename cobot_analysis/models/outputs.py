@@ -43,3 +43,17 @@ IOC_DISTANCES = TableSchema(
         "D": Column("float", "-", "IOC objective term: d_xy + 0.5 d_gamma (walker) or d_xy + 0.5 d_theta (table)"),
     },
 )
+
+VELOCITY_COMMANDS = TableSchema(
+    name="velocity_commands",
+    version=1,
+    description="Velocity commands for a walking robot following a generated path (METHODS.md sec. 10), robot frame.",
+    columns={
+        "trial": Column("string", "", "generated trajectory the commands follow"),
+        "time": Column("float", "s", "command time from the start of the path"),
+        "v_x": Column("float", "m/s", "forward velocity command (saturated)"),
+        "v_y": Column("float", "m/s", "lateral velocity command (saturated)"),
+        "omega": Column("float", "rad/s", "yaw-rate command (saturated)"),
+        "saturated": Column("bool", "", "true where a component was clipped to its limit"),
+    },
+)

@@ -1,0 +1,396 @@
+"""``generate``, ``fit-ioc`` and ``velocity-commands``: walking-path models (METHODS.md sec. 5, 6, 10)."""
+
+from __future__ import annotations
+
+from enum import Enum
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from cobot_analysis.cli.app import PANEL_MODELS, DEFAULT_OUT_PATH, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, SeedOpt, app
+
+MODEL_CHOICES = ("unicycle", "clothoid", "mombaur", "improved", "table", "all")
+
+
+class Duration(str, Enum):
+    free = "free"
+    search = "search"
+    grid = "grid"
+
+
+class Optimizer(str, Enum):
+    powell = "powell"
+    nelder_mead = "nelder-mead"
+
+
+class Per(str, Enum):
+    all = "all"
+    subject = "subject"
+
+
+class GoalChoice(str, Enum):
+    auto = "auto"
+    design = "design"
+    end = "end"
+
+
+class Format(str, Enum):
+    csv = "csv"
+    parquet = "parquet"
+
+
+# ---- generate ----------------------------------------------------------------------------------
+def _generate_task(task):
+    """Worker: one model run (top-level, picklable)."""
+    from cobot_analysis.models import generate
+
+    model, start, goal, weights, kw = task
+    return generate(model, start, goal, weights=weights, **kw)
+
+
+@app.command("generate", rich_help_panel=PANEL_MODELS)
+def generate_command(
+    out: OutOpt = DEFAULT_OUT_PATH,
+    model: Annotated[str, typer.Option("--model", "-m", help=f"Model: {', '.join(MODEL_CHOICES)}.")] = "improved",
+    weights: Annotated[Optional[str], typer.Option("--weights", "-w", help="Preset (mombaur-2010, walking-2021, table-2022) or weights.json from fit-ioc; default: the model's preset.")] = None,
+    start: Annotated[Optional[tuple[float, float, float]], typer.Option("--start", help="Start pose X Y THETA (m, m, rad).")] = None,
+    goal: Annotated[Optional[tuple[float, float, float]], typer.Option("--goal", help="Goal pose X Y THETA (default: the walking goal 0 0 pi/2).")] = None,
+    study: Annotated[Optional[str], typer.Option("--study", help="Generate all conditions of a study instead of one start: walking-2020.")] = None,
+    samples: Annotated[int, typer.Option("--samples", "-n", min=2, help="Samples of each generated trajectory.")] = 500,
+    intervals: Annotated[int, typer.Option("--intervals", min=10, help="Intervals of the OC grid (solution resampled to --samples).")] = 100,
+    duration: Annotated[Optional[Duration], typer.Option("--duration", help="Duration T: free (decision variable), search (1-D Brent), grid (Mombaur); default per model.")] = None,
+    v_nominal: Annotated[float, typer.Option("--v-nominal", min=0.01, help="Nominal speed for the initial duration d / v + 1 s (m/s); clothoid speed.")] = 1.0,
+    max_iter: Annotated[int, typer.Option("--max-iter", min=1, help="Iteration limit of the OC solver (a solve that hits it is an error).")] = 500,
+    jobs: JobsOpt = None,
+    scheduler: SchedulerOpt = None,
+    force: ForceOpt = False,
+) -> None:
+    """Generate trajectories with a walking-path model (one start/goal, or every condition of a study).
+
+    Writes OUT/generate/generated.parquet (the columns of measured trajectories plus the model's
+    velocities, controls and cost) and results.md. A solve that does not converge is an error.
+    """
+    import math
+
+    import pandas as pd
+
+    from cobot_analysis.design import WALKING_CONDITIONS, WALKING_GOAL, walking_condition
+    from cobot_analysis.errors import InputError
+    from cobot_analysis.models import MODELS, check_endpoints
+    from cobot_analysis.models.outputs import GENERATED
+    from cobot_analysis.models.presets import load_weights
+    from cobot_analysis.parallel import map_tasks
+    from cobot_analysis.schema import write_table
+    from cobot_analysis.workspace import Stage
+
+    models = list(MODELS) if model == "all" else [model]
+    if model not in MODEL_CHOICES:
+        raise InputError(f"unknown model {model!r}", remedy=f"use one of {', '.join(MODEL_CHOICES)}")
+    inputs = []
+    for m in models:  # validate weights before any work
+        if m != "clothoid":
+            load_weights(weights, "improved") if weights else None
+    if weights and Path(weights).is_file():
+        inputs.append(Path(weights))
+    goal = tuple(goal) if goal is not None else WALKING_GOAL
+    if study is not None:
+        if study != "walking-2020":
+            raise InputError(f"unknown study {study!r}", remedy="use --study walking-2020 or give --start")
+        cases = [(c, walking_condition(c).start) for c in WALKING_CONDITIONS]
+    elif start is not None:
+        cases = [("", tuple(start))]
+    else:
+        raise InputError("nothing to generate", remedy="give --start X Y THETA or --study walking-2020")
+    for _, s in cases:
+        check_endpoints(s, goal)
+    kw = {"n_samples": samples, "n_intervals": intervals, "duration": duration.value if duration else None,
+          "v_nominal": v_nominal, "max_iter": max_iter}
+    params = {"models": models, "weights": weights, "goal": goal, "cases": cases, **kw}
+    with Stage(out, "generate", inputs=inputs, params=params, force=force) as stage:
+        if stage.skipped:
+            return
+        tasks = [(m, s, goal, weights if m != "clothoid" else None,
+                  {**kw, "trial": f"{m}_{c}" if c else m, "condition": c, "study": study or "model"})
+                 for m in models for c, s in cases]
+        frames = map_tasks(_generate_task, tasks, jobs=jobs, scheduler=scheduler, description="generate")
+        df = pd.concat(frames, ignore_index=True)
+        write_table(df, stage.path("generated.parquet"), GENERATED, n_samples=samples, n_intervals=intervals)
+        ends = df.groupby("trial").tail(1)
+        lines = ["## Generated trajectories", "",
+                 f"Models {', '.join(models)}; weights {weights or 'model presets'}; goal {tuple(round(g, 3) for g in goal)}; "
+                 f"OC grid {intervals} intervals resampled to {samples} samples.", "",
+                 "| trial | T (s) | cost | end error (m) |", "|---|---|---|---|"]
+        for _, r in ends.iterrows():
+            lines.append(f"| {r.trial} | {r.travel_time:.2f} | {r.cost:.3f} | {math.hypot(r.x - goal[0], r.y - goal[1]):.3f} |")
+        stage.path("results.md").write_text("\n".join(lines) + "\n")
+
+
+# ---- fit-ioc -----------------------------------------------------------------------------------
+def _read_trajectories(path: Path):
+    """A trajectories or means table (chosen by the file's metadata)."""
+    from cobot_analysis.averaging import MEANS
+    from cobot_analysis.schema import TRAJECTORIES, read_table, table_metadata
+
+    try:
+        name = table_metadata(path).get("table")
+    except Exception:  # noqa: BLE001 - read_table below reports the file properly
+        name = None
+    return read_table(path, MEANS if name == "means" else TRAJECTORIES)
+
+
+@app.command("fit-ioc", rich_help_panel=PANEL_MODELS)
+def fit_ioc_command(
+    out: OutOpt = DEFAULT_OUT_PATH,
+    means: Annotated[Optional[Path], typer.Option("--means", help="means.parquet (default: OUT/average/, else the kind=mean rows of --trajectories).")] = None,
+    trajectories: Annotated[Optional[Path], typer.Option("--trajectories", help="trajectories.parquet (default: OUT/import-published/ or OUT/preprocess/); its trials serve --per subject and the subjects-vs-mean statistics.")] = None,
+    model: Annotated[str, typer.Option("--model", "-m", help="improved (walkers, D = d_xy + 0.5 d_gamma) or table (D = d_xy + 0.5 d_theta).")] = "improved",
+    start_weights: Annotated[Optional[str], typer.Option("--start-weights", "-w", help="Preset or weights.json to start from; 'ones' = neutral start (every fitted weight 1).")] = None,
+    fit_names: Annotated[str, typer.Option("--fit", help="Comma-separated weights to fit (the others stay at their start value).")] = "a0,a1,a2,a3,a4,b1,b2,b3",
+    optimizer: Annotated[Optional[Optimizer], typer.Option("--optimizer", help="Upper-level derivative-free method.")] = Optimizer.powell,
+    max_evaluations: Annotated[int, typer.Option("--max-evaluations", min=1, help="Budget of upper-level evaluations per fit.")] = 2000,
+    per: Annotated[Per, typer.Option("--per", help="all: one fit over the means; subject: one fit per subject over its trials.")] = Per.all,
+    subjects: Annotated[Optional[int], typer.Option("--subjects", min=1, help="With --per subject: fit only the first N subjects.")] = None,
+    goal: Annotated[GoalChoice, typer.Option("--goal", help="Goal of each OC problem: design (walking goal 0 0 pi/2), end (last measured pose), auto (design for walking conditions).")] = GoalChoice.auto,
+    intervals: Annotated[int, typer.Option("--intervals", min=10, help="Intervals of the OC grid.")] = 100,
+    compare: Annotated[bool, typer.Option("--compare/--no-compare", help="Compare unicycle, clothoid, Mombaur, published and fitted models.")] = True,
+    resume: Annotated[bool, typer.Option("--resume", help="Continue from the checkpoint of an interrupted run with the same inputs and options.")] = False,
+    seed: SeedOpt = 0,
+    jobs: JobsOpt = None,
+    scheduler: SchedulerOpt = None,
+    force: ForceOpt = False,
+) -> None:
+    """Bi-level inverse optimal control: fit the OC cost weights to mean (or per-subject) trajectories.
+
+    Writes OUT/fit-ioc/weights.json (fitted weights per fit, usable as --weights), distances.parquet
+    (per trajectory and model), history.parquet (upper-level evaluations), figures and results.md.
+    A checkpoint is kept in OUT/.fit-ioc.checkpoint after every upper-level iteration (--resume).
+    """
+    import json
+
+    import pandas as pd
+
+    from cobot_analysis.console import progress
+    from cobot_analysis.design import WALKING_GOAL, walking_condition
+    from cobot_analysis.errors import InputError
+    from cobot_analysis.models.ioc import IOCSpec, fit, targets_from_table
+    from cobot_analysis.models.outputs import IOC_DISTANCES
+    from cobot_analysis.models.presets import WALKER_WEIGHTS, load_weights, weights_vector
+    from cobot_analysis.models.report import (COMPARED, compare_models, figure_boxplots, figure_paths, statistics,
+                                              subject_distances, summary_table)
+    from cobot_analysis.parallel import default_jobs, executor
+    from cobot_analysis.schema import Column, TableSchema, write_table
+    from cobot_analysis.workspace import Stage, find_input
+
+    if model not in ("improved", "table"):
+        raise InputError(f"fit-ioc fits the improved or table model, not {model!r}", remedy="use --model improved or --model table")
+    names = tuple(n.strip() for n in fit_names.split(",") if n.strip())
+    bad = [n for n in names if n not in WALKER_WEIGHTS]
+    if bad or not names:
+        raise InputError(f"--fit names {bad or '(none)'} are not weights of the model ({', '.join(WALKER_WEIGHTS)})", remedy="e.g. --fit a1,a2,a4")
+    if start_weights == "ones":
+        w0 = weights_vector(load_weights(None, model))
+        for n in names:
+            w0[WALKER_WEIGHTS.index(n)] = 1.0
+    else:
+        w0 = weights_vector(load_weights(start_weights, "improved" if model == "improved" else "table"))
+    entity = "table" if model == "table" else "walker"
+
+    # inputs
+    traj_path = trajectories
+    if traj_path is None:
+        try:
+            traj_path = find_input(out, "trajectories.parquet", ["import-published", "preprocess"], "--trajectories")
+        except InputError:
+            traj_path = None
+    if means is None:
+        try:
+            means = find_input(out, "means.parquet", ["average"], "--means")
+        except InputError:
+            if traj_path is None:
+                raise
+    mean_df = _read_trajectories(means) if means is not None else _read_trajectories(traj_path)
+    mean_src = means if means is not None else traj_path
+    mean_df = mean_df[mean_df["kind"] == "mean"] if "kind" in mean_df else mean_df
+    traj_df = _read_trajectories(traj_path) if traj_path is not None else None
+    trial_df = traj_df[traj_df["kind"] == "trial"] if traj_df is not None else None
+
+    def goal_for(df) -> tuple | None:
+        if goal is GoalChoice.end:
+            return None
+        if goal is GoalChoice.design:
+            return WALKING_GOAL
+        try:
+            for c in df["condition"].unique():
+                walking_condition(str(c))
+            return WALKING_GOAL
+        except ValueError:
+            return None
+
+    mean_targets = targets_from_table(mean_df, path=mean_src, entity=entity, goal=goal_for(mean_df))
+    fits: dict[str, list] = {}
+    if per is Per.all:
+        if not mean_targets:
+            raise InputError(f"no mean {entity} trajectory with orientation", path=mean_src, remedy="check the input (run average first?)")
+        fits["all"] = mean_targets
+    else:
+        if trial_df is None or trial_df.empty:
+            raise InputError("--per subject needs subject trials", path=traj_path or out, remedy="pass --trajectories with kind=trial rows")
+        for subject, g in sorted(trial_df.groupby("subject")):
+            ts = targets_from_table(g, path=traj_path, entity=entity, goal=goal_for(g))
+            if ts:
+                fits[str(subject)] = ts
+        if subjects:
+            fits = dict(list(fits.items())[:subjects])
+        if not fits:
+            raise InputError("no subject trajectory with orientation", path=traj_path, remedy="check the input table")
+
+    spec = IOCSpec(model=model, start_weights=tuple(map(float, w0)), fitted=names, optimizer=optimizer.value,
+                   max_evaluations=max_evaluations, n_intervals=intervals)
+    inputs = [p for p in (means, traj_path) if p is not None]
+    if start_weights and Path(start_weights).is_file():
+        inputs.append(Path(start_weights))
+    params = {"spec": spec.__dict__, "per": per.value, "subjects": subjects, "goal": goal.value, "compare": compare, "seed": seed}
+    checkpoint_dir = Path(out) / ".fit-ioc.checkpoint"
+    n_chunks = 4 * (default_jobs() if jobs is None else jobs) if scheduler is None else 8
+    with Stage(out, "fit-ioc", inputs=inputs, params=params, force=force) as stage:
+        if stage.skipped:
+            return
+        results = {}
+        with executor(jobs, scheduler) as pool, progress() as bar:
+            for key, targets in fits.items():
+                task = bar.add_task(f"IOC {key} ({len(targets)} paths)", total=max_evaluations, status="")
+
+                def on_eval(n, f, best, task=task):
+                    bar.update(task, completed=n, status=f"D = {f:.4f}, best {best:.4f}")
+
+                safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in key)
+                results[key] = fit(spec, targets, pool=pool, chunks=n_chunks, checkpoint=checkpoint_dir / f"{safe}.json",
+                                   resume=resume, on_evaluation=on_eval)
+                bar.update(task, total=results[key].evaluations, completed=results[key].evaluations)
+        stage.path("weights.json").write_text(json.dumps({
+            "model": model, "weights_order": list(WALKER_WEIGHTS),
+            "weights": results["all"].weights if "all" in results else None,
+            "fits": {k: r.to_json() for k, r in results.items()}}, indent=2, default=float) + "\n")
+        for k, r in results.items():  # each fit also as a file usable with --weights
+            stage.path(f"weights/{k}.json").write_text(json.dumps({"weights": r.weights}, indent=2) + "\n")
+
+        # distances: fitted model per trajectory; full model comparison on the means
+        rows = []
+        for k, r in results.items():
+            for t, d in zip(fits[k], r.per_target):
+                rows.append({"model": "improved OC (fitted)", "fit": k, "trial": t.trial, "condition": t.condition, "subject": t.subject,
+                             "orientation": "", "global_distance": t.global_distance, "d_xy": d["d_xy"], "d_theta": d["d_theta"],
+                             "d_gamma": d["d_gamma"], "D": d["D"], "converged": d["success"]})
+        dist = pd.DataFrame(rows)
+        angle = spec.angle
+        comparison = None
+        if compare and "all" in results:
+            models = dict(COMPARED) if model == "improved" else {"table OC (published)": ("table", "table-2022")}
+            models["improved OC (fitted)" if model == "improved" else "table OC (fitted)"] = (
+                "improved" if model == "improved" else "table", results["all"].weights)
+            comparison = compare_models(mean_targets, models, n_intervals=intervals, angle=angle, jobs=jobs, scheduler=scheduler)
+            if trial_df is not None and not trial_df.empty and model == "improved":
+                trials = targets_from_table(trial_df, path=traj_path, entity=entity)
+                comparison = pd.concat([comparison, subject_distances(trials, mean_targets, angle)], ignore_index=True)
+            dist = pd.concat([dist[dist["fit"] != "all"], comparison], ignore_index=True)
+        from cobot_analysis.models.report import orientation_of
+
+        dist["orientation"] = [orientation_of(c) for c in dist["condition"]]
+        dist["subject"] = dist["subject"].fillna("")
+        write_table(dist.drop(columns=["converged"]).assign(converged=dist["converged"].astype(bool)),
+                    stage.path("distances.parquet"), TableSchema(
+                        name=IOC_DISTANCES.name, version=IOC_DISTANCES.version, description=IOC_DISTANCES.description,
+                        columns={**IOC_DISTANCES.columns, "converged": Column("bool", "", "the model's OC solve converged")}))
+        hist = pd.DataFrame([{"fit": k, "objective": r.objective, "start_objective": r.start_objective,
+                              "evaluations": r.evaluations, "iterations": r.iterations, "failed": r.failed, **r.weights}
+                             for k, r in results.items()])
+        hist.to_csv(stage.path("fits.csv"), index=False)
+
+        # report
+        lines = [f"## Inverse optimal control ({model} model)", "",
+                 f"Bi-level IOC (METHODS.md sec. 6): upper level {optimizer.value} over log10 of ({', '.join(names)}), "
+                 f"bounds 1e-7..1e3, the other weights held at their start value "
+                 f"({'neutral start: fitted weights 1' if start_weights == 'ones' else start_weights or 'model preset'}); "
+                 f"lower level: OC with free duration on {intervals} intervals, warm-started from the solution at the start "
+                 f"weights; objective D = d_xy + 0.5 d_{angle} averaged over the trajectories (orientation required; "
+                 f"goal: {goal.value}). gamma of measured and generated paths from the path (metrics.gamma_from_path).", "",
+                 "| fit | paths | D start | D fitted | evaluations | not converged | " + " | ".join(names) + " |",
+                 "|---|---|---|---|---|---|" + "---|" * len(names)]
+        for k, r in results.items():
+            lines.append(f"| {k} | {len(fits[k])} | {r.start_objective:.4f} | {r.objective:.4f} | {r.evaluations} | {r.failed} | "
+                         + " | ".join(f"{r.weights[n]:.3g}" for n in names) + " |")
+        lines.append("")
+        if comparison is not None:
+            lines += ["### Model comparison on the mean trajectories", "", summary_table(comparison, angle),
+                      "### Statistics", "", statistics(comparison, list(models)[-1], angle)]
+            stage.savefig(figure_boxplots(comparison, angle), "distances_boxplot")
+            lines += ["![distances per model](distances_boxplot.png)", ""]
+            from cobot_analysis.models import generate
+
+            fitted_w = results["all"].weights
+            gen = {"published": [], "fitted": []}
+            for t in mean_targets:
+                for lab, w in (("published", "walking-2021" if model == "improved" else "table-2022"), ("fitted", fitted_w)):
+                    try:
+                        gen[lab].append(generate("table" if model == "table" else "improved", t.start, t.goal, weights=w,
+                                                 n_samples=len(t.x), n_intervals=intervals))
+                    except Exception:  # noqa: BLE001 - a failed model run is left out of the figure
+                        gen[lab].append(None)
+            stage.savefig(figure_paths(mean_targets, gen, "mean (black) vs improved OC: published, fitted"), "paths")
+            lines += ["![generated vs mean paths](paths.png)", ""]
+        stage.path("results.md").write_text("\n".join(lines) + "\n")
+
+
+# ---- velocity-commands -------------------------------------------------------------------------
+@app.command("velocity-commands", rich_help_panel=PANEL_MODELS)
+def velocity_commands_command(
+    out: OutOpt = DEFAULT_OUT_PATH,
+    generated: Annotated[Optional[Path], typer.Option("--generated", help="generated.parquet (default: OUT/generate/).")] = None,
+    trial: Annotated[Optional[str], typer.Option("--trial", help="Generated trajectory to export (default: the only one).")] = None,
+    rate: Annotated[float, typer.Option("--rate", min=0.1, help="Command rate f (Hz).")] = 10.0,
+    v_max: Annotated[float, typer.Option("--v-max", min=0.0, help="Saturation of the x and y velocity commands (m/s).")] = 0.1,
+    omega_max: Annotated[float, typer.Option("--omega-max", min=0.0, help="Saturation of the yaw-rate command (deg/s).")] = 7.0,
+    fmt: Annotated[Format, typer.Option("--format", help="Output format.")] = Format.csv,
+    force: ForceOpt = False,
+) -> None:
+    """Export velocity commands for a walking robot following a generated path (METHODS.md sec. 10).
+
+    v = (p_sim(t+1) - p_real(t)) f in the robot frame, open loop (p_real = p_sim), saturated at
+    --v-max (x, y) and --omega-max (yaw). Writes OUT/velocity-commands/commands.csv (or .parquet).
+    """
+    import math
+
+    from cobot_analysis.errors import InputError
+    from cobot_analysis.models.outputs import GENERATED, VELOCITY_COMMANDS
+    from cobot_analysis.models.velocity_commands import resample_path, velocity_commands
+    from cobot_analysis.schema import read_table, write_table
+    from cobot_analysis.workspace import Stage, find_input
+
+    path = generated if generated is not None else find_input(out, "generated.parquet", ["generate"], "--generated")
+    df = read_table(path, GENERATED)
+    trials = list(dict.fromkeys(df["trial"]))
+    if trial is None:
+        if len(trials) != 1:
+            raise InputError(f"holds {len(trials)} trajectories", path=path, remedy=f"choose one with --trial ({', '.join(trials[:5])}, ...)")
+        trial = trials[0]
+    g = df[df["trial"] == trial].sort_values("sample")
+    if g.empty:
+        raise InputError(f"no generated trajectory {trial!r}", path=path, remedy=f"use one of {', '.join(trials[:8])}")
+    if g[["time", "x", "y", "theta"]].isna().any().any():
+        raise InputError(f"trajectory {trial!r} has NaN time or pose", path=path, remedy="re-run generate")
+    params = {"trial": trial, "rate": rate, "v_max": v_max, "omega_max": omega_max, "format": fmt.value}
+    with Stage(out, "velocity-commands", inputs=[path], params=params, force=force) as stage:
+        if stage.skipped:
+            return
+        sim = resample_path(g["time"], g["x"], g["y"], g["theta"], rate)
+        cmd = velocity_commands(sim, rate, v_max=v_max, omega_max=math.radians(omega_max))
+        cmd.insert(0, "trial", trial)
+        if fmt is Format.csv:
+            cmd.to_csv(stage.path("commands.csv"), index=False, float_format="%.6g")
+        else:
+            write_table(cmd, stage.path("commands.parquet"), VELOCITY_COMMANDS, rate=rate, v_max=v_max,
+                        omega_max_deg_s=omega_max)
+        stage.path("results.md").write_text(
+            f"## Velocity commands\n\nTrajectory {trial} at {rate:g} Hz: {len(cmd)} commands, saturated at "
+            f"{v_max:g} m/s and {omega_max:g} deg/s; {cmd['saturated'].mean() * 100:.0f} % of the commands hit a limit.\n")

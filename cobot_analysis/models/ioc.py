@@ -1,0 +1,320 @@
+"""Bi-level inverse optimal control (METHODS.md sec. 6): fit the cost weights of an OC model to
+measured (mean) trajectories.
+
+Upper level: ``min_w (1/N_traj) sum_n D_n(w)`` over the log10 of the fitted weights, derivative-
+free (Powell, as published, or Nelder-Mead), within bounds; one weight (``b0`` by default) is held
+fixed because the lower-level optimum does not change when all weights are scaled together.
+Lower level: the OC problem from the measured start pose to the measured end pose of each
+trajectory with weights w, T free (``ocp.py``), resampled to the measured number of samples.
+D_n = d_xy + 0.5 d_gamma (walker) or d_xy + 0.5 d_theta (table), with the distances of
+``cobot_analysis.metrics``; gamma of both paths from the path (``metrics.gamma_from_path``).
+
+Speed and reproducibility:
+- every lower-level solve is warm-started from the solution at the starting weights (itself the
+  best of a 'rest' and a 'line' initial guess), so an evaluation is a pure function of the
+  weights: the same on a local pool and on a Dask cluster, and resumable exactly;
+- the lower levels of one evaluation run in parallel (``cobot_analysis.parallel.executor``: local
+  processes or ``--scheduler``), in chunks, on processes that keep their NLP built;
+- after every upper-level iteration the log of evaluations is written to a checkpoint; a resumed
+  fit replays the optimiser against that log (no solve) and continues where it stopped, giving
+  the same result as an uninterrupted run;
+- a lower level that does not converge (after a cold retry) counts as ``FAILED_D`` (a penalty)
+  and is counted in the result, never silently averaged in.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from cobot_analysis.errors import InputError
+from cobot_analysis.models.presets import WALKER_WEIGHTS
+
+FAILED_D = 10.0  # objective term of a lower level that did not converge (m-equivalent; >> any real D)
+OPTIMIZERS = ("powell", "nelder-mead")
+LOG_BOUNDS = (-7.0, 3.0)  # log10 of a fitted weight
+
+
+@dataclass
+class Target:
+    """One measured trajectory the model is fitted to."""
+
+    trial: str
+    condition: str
+    subject: str
+    x: np.ndarray
+    y: np.ndarray
+    theta: np.ndarray
+    goal_pose: tuple[float, float, float] | None = None  # None: the last measured pose
+
+    @property
+    def start(self) -> tuple[float, float, float]:
+        return (float(self.x[0]), float(self.y[0]), float(self.theta[0]))
+
+    @property
+    def goal(self) -> tuple[float, float, float]:
+        """The goal pose of the OC problem; its heading on the branch of the last measured theta."""
+        if self.goal_pose is None:
+            return (float(self.x[-1]), float(self.y[-1]), float(self.theta[-1]))
+        gx, gy, gth = self.goal_pose
+        k = round((self.theta[-1] - gth) / (2 * math.pi))
+        return (float(gx), float(gy), float(gth + 2 * math.pi * k))
+
+    @property
+    def global_distance(self) -> float:
+        return math.hypot(self.x[-1] - self.x[0], self.y[-1] - self.y[0])
+
+
+def targets_from_table(df: pd.DataFrame, *, path=None, entity: str = "walker", goal=None) -> list[Target]:
+    """Targets from a long trajectories/means table (one per trial x entity); rows without
+    orientation are left out (METHODS.md sec. 6). NaN in positions is refused. ``goal``: the goal
+    pose of every target (e.g. the walking study's (0, 0, pi/2)), None for the last measured pose."""
+    need = {"trial", "condition", "entity", "sample", "x", "y", "theta"}
+    missing = sorted(need - set(df.columns))
+    if missing:
+        raise InputError(f"trajectory table lacks columns {missing}", path=path, remedy="pass a trajectories.parquet or means.parquet")
+    df = df[df["entity"] == entity]
+    targets = []
+    for trial, g in df.groupby("trial", sort=True):
+        g = g.sort_values("sample")
+        x, y, th = (g[c].to_numpy(float) for c in ("x", "y", "theta"))
+        if np.isnan(th).all():
+            continue  # no orientation: left out
+        if not (np.isfinite(x).all() and np.isfinite(y).all() and np.isfinite(th).all()):
+            raise InputError(f"trajectory {trial!r} has NaN samples", path=path,
+                             remedy="fill or drop the gaps in preprocessing (or re-run average) before fitting")
+        subject = g["subject"].iloc[0] if "subject" in g and isinstance(g["subject"].iloc[0], str) else ""
+        targets.append(Target(str(trial), str(g["condition"].iloc[0]), subject, x, y, th, goal))
+    return targets
+
+
+@dataclass(frozen=True)
+class IOCSpec:
+    """What the fit is (hashed into the checkpoint so a resume only continues the same fit)."""
+
+    model: str = "improved"  # improved (walker, d_gamma) or table (d_theta)
+    start_weights: tuple[float, ...] = ()  # the 11-vector a0..a6, b0..b3 the fit starts from
+    fitted: tuple[str, ...] = ("a0", "a1", "a2", "a3", "a4", "b1", "b2", "b3")
+    optimizer: str = "powell"
+    max_evaluations: int = 2000
+    xtol: float = 1e-2  # log10 units
+    ftol: float = 1e-5
+    n_intervals: int = 100
+    angle_weight: float = 0.5
+
+    @property
+    def angle(self) -> str:
+        return "theta" if self.model == "table" else "gamma"
+
+    def weights(self, z: np.ndarray) -> np.ndarray:
+        """Full 11-vector from the upper-level variables z = log10(fitted weights)."""
+        w = np.array(self.start_weights, dtype=float)
+        for name, zi in zip(self.fitted, z):
+            w[WALKER_WEIGHTS.index(name)] = 10.0 ** float(zi)
+        return w
+
+    def z0(self) -> np.ndarray:
+        w = np.array(self.start_weights, dtype=float)
+        return np.log10(np.maximum([w[WALKER_WEIGHTS.index(n)] for n in self.fitted], 10.0 ** LOG_BOUNDS[0]))
+
+
+# ---- lower level (runs on workers) -------------------------------------------------------------
+def distances(t: Target, x, y, theta) -> dict[str, float]:
+    """d_xy, d_theta, d_gamma of a generated path (x, y, theta) against target ``t`` (same N)."""
+    from cobot_analysis.metrics import d_gamma, d_theta, d_xy, gamma_from_path
+
+    return {"d_xy": float(d_xy(t.x, t.y, x, y)), "d_theta": float(d_theta(t.theta, theta)),
+            "d_gamma": float(d_gamma(gamma_from_path(t.x, t.y, t.theta), gamma_from_path(x, y, theta)))}
+
+
+def solve_target(spec: IOCSpec, w: np.ndarray, t: Target, guess):
+    """Lower level for one target: (distances dict with D and success, solution)."""
+    from cobot_analysis.models import resample, solve_model
+
+    model = "table" if spec.model == "table" else "improved"
+    sol = solve_model(model, t.start, t.goal, w, n_intervals=spec.n_intervals, duration="free", guess=guess)
+    if not sol.success and not isinstance(guess, str):
+        sol = solve_model(model, t.start, t.goal, w, n_intervals=spec.n_intervals, duration="free", guess=("rest", "line"))
+    if not sol.success:
+        return {"D": FAILED_D, "d_xy": math.nan, "d_theta": math.nan, "d_gamma": math.nan, "T": math.nan, "success": False}, sol
+    r = resample(sol, len(t.x))
+    d = distances(t, r["x"], r["y"], r["theta"])
+    d["D"] = d["d_xy"] + spec.angle_weight * d[f"d_{spec.angle}"]
+    d["T"] = sol.T
+    d["success"] = True
+    return d, sol
+
+
+def evaluate_chunk(task) -> list[dict]:
+    """Worker task: lower levels of a chunk of targets for one weight vector (top-level, picklable)."""
+    spec, w, targets, guesses = task
+    return [solve_target(spec, w, t, g)[0] for t, g in zip(targets, guesses)]
+
+
+def reference_chunk(task) -> list[tuple[dict, np.ndarray]]:
+    """Worker task: the reference solutions at the starting weights (best of two cold guesses)."""
+    spec, w, targets = task
+    out = []
+    for t in targets:
+        d, sol = solve_target(spec, w, t, ("rest", "line"))
+        out.append((d, sol.primal if sol.success else None))
+    return out
+
+
+# ---- upper level -------------------------------------------------------------------------------
+@dataclass
+class IOCResult:
+    spec: IOCSpec
+    weights: dict[str, float]
+    objective: float
+    start_objective: float
+    evaluations: int
+    iterations: int
+    failed: int  # lower levels that did not converge at the fitted weights
+    per_target: list[dict] = field(default_factory=list)
+    message: str = ""
+
+    def to_json(self) -> dict:
+        d = asdict(self)
+        d["spec"] = asdict(self.spec)
+        return d
+
+
+class Checkpoint:
+    """Log of upper-level evaluations (JSON, atomic writes) keyed by the spec and the targets."""
+
+    def __init__(self, path: Path | None, key: str):
+        self.path, self.key = path, key
+        self.log: list[dict] = []  # {"z": [...], "f": float, "terms": [...]}
+        self.iterations = 0
+
+    def load(self) -> bool:
+        if self.path is None or not self.path.is_file():
+            return False
+        try:
+            data = json.loads(self.path.read_text())
+        except ValueError:
+            return False
+        if data.get("key") != self.key:
+            return False
+        self.log, self.iterations = data["log"], data["iterations"]
+        return True
+
+    def save(self) -> None:
+        if self.path is None:
+            return
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = self.path.with_name(f".{self.path.name}.tmp")
+        tmp.write_text(json.dumps({"key": self.key, "iterations": self.iterations, "log": self.log}))
+        os.replace(tmp, self.path)
+
+
+def fit_key(spec: IOCSpec, targets: list[Target]) -> str:
+    h = hashlib.sha256(json.dumps(asdict(spec), sort_keys=True).encode())
+    for t in targets:
+        h.update(t.trial.encode())
+        h.update(np.ascontiguousarray(np.c_[t.x, t.y, t.theta]).tobytes())
+    return h.hexdigest()[:16]
+
+
+class _Interrupted(Exception):
+    pass
+
+
+def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, checkpoint: Path | None = None,
+        resume: bool = False, on_evaluation: Callable[[int, float, float], None] | None = None,
+        interrupt_after: int | None = None) -> IOCResult:
+    """Fit ``spec.fitted`` to ``targets``; ``pool`` is a concurrent.futures executor (None: in-process).
+
+    ``interrupt_after``: stop (KeyboardInterrupt) after that many new evaluations (tests of resume).
+    """
+    from scipy.optimize import minimize
+
+    from cobot_analysis.parallel import _InlineExecutor
+
+    if not targets:
+        raise InputError("no trajectory with orientation to fit", remedy="check the input table (orientation missing everywhere?)")
+    if spec.optimizer not in OPTIMIZERS:
+        raise InputError(f"unknown optimizer {spec.optimizer!r}", remedy=f"use one of {', '.join(OPTIMIZERS)}")
+    pool = pool or _InlineExecutor()
+    n_chunks = max(1, min(chunks, len(targets)))
+    parts = [list(range(i, len(targets), n_chunks)) for i in range(n_chunks)]  # interleaved: balanced lengths
+
+    def run(tasks_fn, collect):
+        futures = [pool.submit(tasks_fn, task) for task in collect]
+        return [f.result() for f in futures]
+
+    # reference solutions at the starting weights: the warm start of every later evaluation
+    w0 = spec.weights(spec.z0())
+    ref = run(reference_chunk, [(spec, w0, [targets[i] for i in p]) for p in parts])
+    guesses: list = [None] * len(targets)
+    start_terms: list = [None] * len(targets)
+    for p, res in zip(parts, ref):
+        for i, (d, primal) in zip(p, res):
+            guesses[i] = primal if primal is not None else "rest"
+            start_terms[i] = d
+    start_objective = float(np.mean([d["D"] for d in start_terms]))
+
+    ck = Checkpoint(checkpoint, fit_key(spec, targets))
+    if resume:
+        ck.load()
+    cache = {tuple(e["z"]): e for e in ck.log}
+    new = 0
+    best = {"f": math.inf}
+
+    def evaluate(z: np.ndarray) -> float:
+        nonlocal new
+        key = tuple(float(v) for v in z)
+        if key in cache:
+            e = cache[key]
+        else:
+            if interrupt_after is not None and new >= interrupt_after:
+                raise _Interrupted
+            w = spec.weights(z)
+            res = run(evaluate_chunk, [(spec, w, [targets[i] for i in p], [guesses[i] for i in p]) for p in parts])
+            terms: list = [None] * len(targets)
+            for p, r in zip(parts, res):
+                for i, d in zip(p, r):
+                    terms[i] = d
+            e = {"z": list(key), "f": float(np.mean([d["D"] for d in terms])), "terms": terms}
+            cache[key] = e
+            ck.log.append(e)
+            new += 1
+        if e["f"] < best["f"]:
+            best.update(e)
+        if on_evaluation:
+            on_evaluation(len(cache), e["f"], best["f"])
+        return e["f"]
+
+    iteration = 0
+
+    def callback(*_args) -> None:
+        nonlocal iteration
+        iteration += 1
+        if iteration > ck.iterations:
+            ck.iterations = iteration
+            ck.save()
+
+    bounds = [LOG_BOUNDS] * len(spec.fitted)
+    method = {"powell": "Powell", "nelder-mead": "Nelder-Mead"}[spec.optimizer]
+    opts = {"maxfev": spec.max_evaluations, "xtol": spec.xtol, "ftol": spec.ftol} if method == "Powell" else \
+        {"maxfev": spec.max_evaluations, "xatol": spec.xtol, "fatol": spec.ftol}
+    try:
+        res = minimize(evaluate, spec.z0(), method=method, bounds=bounds, callback=callback, options=opts)
+    except _Interrupted:
+        ck.save()
+        raise KeyboardInterrupt("IOC interrupted (test hook); resume with the same checkpoint") from None
+    ck.save()
+    w_best = spec.weights(np.array(best["z"]))
+    return IOCResult(spec=spec, weights=dict(zip(WALKER_WEIGHTS, map(float, w_best))), objective=float(best["f"]),
+                     start_objective=start_objective, evaluations=len(cache), iterations=iteration,
+                     failed=sum(not d["success"] for d in best["terms"]), per_target=best["terms"],
+                     message=str(res.message))

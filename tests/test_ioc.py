@@ -1,0 +1,176 @@
+"""Inverse optimal control (METHODS.md sec. 6) and the model commands: recovery of planted weights,
+exact resume, Dask = local, bad input through the CLI."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from cobot_analysis.design import WALKING_GOAL, walking_condition
+from cobot_analysis.models import generate
+from cobot_analysis.models.ioc import IOCSpec, Target, fit, targets_from_table
+from cobot_analysis.models.presets import PRESETS, weights_vector
+from cobot_analysis.schema import TRAJECTORIES, read_table, write_table
+
+PLANTED = {**PRESETS["walking-2021"], "a1": 8.0, "a2": 10.0, "a4": 4.0}
+CONDITIONS = ("E4015", "O1515", "N-0615", "S4040")
+N = 200  # samples per trajectory (the published data have 500; fewer keep the tests fast)
+
+
+def _paths(weights=PLANTED, conditions=CONDITIONS, n=N):
+    return {c: generate("improved", walking_condition(c).start, WALKING_GOAL, weights=weights, n_samples=n) for c in conditions}
+
+
+@pytest.fixture(scope="module")
+def planted_paths():
+    return _paths()
+
+
+def _targets(paths):
+    return [Target(c, c, "", df.x.to_numpy(), df.y.to_numpy(), df.theta.to_numpy(), WALKING_GOAL) for c, df in paths.items()]
+
+
+def _table(paths, subjects=0, seed=0):
+    """A trajectories table: the paths as means, and ``subjects`` noisy copies as subject trials."""
+    rng = np.random.default_rng(seed)
+    frames = []
+    for c, df in paths.items():
+        base = df[list(TRAJECTORIES.columns.keys() & set(df.columns))].copy()
+        base = base.assign(study="test-walking", trial=f"mean_{c}", kind="mean", n_trials=max(subjects, 1), subject=None)
+        frames.append(base)
+        for k in range(subjects):
+            s = np.sin(np.linspace(0, np.pi, len(df)))
+            tr = base.assign(trial=f"S{k + 1}_{c}", kind="trial", n_trials=1, subject=f"S{k + 1}",
+                             x=base.x + rng.normal(0, 0.05) * s, y=base.y + rng.normal(0, 0.05) * s)
+            frames.append(tr)
+    return pd.concat(frames, ignore_index=True)
+
+
+def test_ioc_recovers_the_paths_of_planted_weights(planted_paths):
+    """Error on the path, not on the weights: fitted paths within 5 mm (mean d_xy) of the planted ones."""
+    targets = _targets(planted_paths)[:3]
+    spec = IOCSpec(start_weights=tuple(weights_vector(PRESETS["walking-2021"])), fitted=("a1", "a2", "a4"), max_evaluations=150)
+    r = fit(spec, targets)
+    assert r.start_objective > 0.02  # the published weights do not explain the planted paths
+    assert r.objective < 0.006
+    assert np.mean([d["d_xy"] for d in r.per_target]) < 0.005
+    assert r.failed == 0
+
+
+def test_targets_leave_out_missing_orientation_and_refuse_nan(planted_paths, tmp_path):
+    df = _table(planted_paths)
+    df.loc[df.trial == "mean_E4015", "theta"] = np.nan
+    assert [t.trial for t in targets_from_table(df)] == ["mean_N-0615", "mean_O1515", "mean_S4040"]
+    df.loc[(df.trial == "mean_O1515") & (df["sample"] == 7), "x"] = np.nan
+    from cobot_analysis.errors import InputError
+
+    with pytest.raises(InputError, match="'mean_O1515' has NaN samples"):
+        targets_from_table(df)
+    t = targets_from_table(_table(planted_paths), goal=WALKING_GOAL)[0]
+    assert t.goal[2] == pytest.approx(t.theta[-1], abs=0.5)  # goal heading on the measured branch
+
+
+def test_resumed_fit_equals_uninterrupted_fit(planted_paths, tmp_path):
+    targets = _targets(planted_paths)[:2]
+    spec = IOCSpec(start_weights=tuple(weights_vector(PRESETS["walking-2021"])), fitted=("a1", "a4"), max_evaluations=30)
+    full = fit(spec, targets)
+    ck = tmp_path / "ck.json"
+    with pytest.raises(KeyboardInterrupt):
+        fit(spec, targets, checkpoint=ck, interrupt_after=12)
+    assert ck.is_file() and len(json.loads(ck.read_text())["log"]) == 12
+    resumed = fit(spec, targets, checkpoint=ck, resume=True)
+    assert resumed.weights == full.weights and resumed.objective == full.objective
+    assert resumed.evaluations == full.evaluations
+
+
+def test_fit_ioc_command_end_to_end_and_per_subject(planted_paths, tmp_path, cli):
+    paths = {c: planted_paths[c] for c in CONDITIONS[:2]}
+    src = write_table(_table(paths, subjects=2), tmp_path / "trajectories.parquet", TRAJECTORIES)
+    out = tmp_path / "ws"
+    code, _, err = cli("fit-ioc", "--out", out, "--trajectories", src, "--fit", "a1,a4", "--max-evaluations", "12", "-j", "1")
+    assert code == 0, err
+    w = json.loads((out / "fit-ioc" / "weights.json").read_text())
+    assert set(w["weights"]) == set(PRESETS["walking-2021"]) and w["fits"]["all"]["evaluations"] <= 12 + 2
+    dist = read_table(out / "fit-ioc" / "distances.parquet", __import__("cobot_analysis.models.outputs", fromlist=["x"]).IOC_DISTANCES)
+    assert {"unicycle", "clothoid", "Mombaur OC", "improved OC (published)", "improved OC (fitted)", "subjects vs mean"} <= set(dist.model)
+    fitted = dist[dist.model == "improved OC (fitted)"]
+    published = dist[dist.model == "improved OC (published)"]
+    assert fitted.D.mean() < published.D.mean()  # the fit improves on its start
+    text = (out / "fit-ioc" / "results.md").read_text()
+    assert "Model comparison" in text and "mannwhitneyu" in text
+    assert (out / "fit-ioc" / "paths.png").is_file() and (out / "fit-ioc" / "distances_boxplot.png").is_file()
+    # fitted weights are usable as --weights
+    code, _, err = cli("generate", "--out", out, "--weights", out / "fit-ioc" / "weights" / "all.json", "--start", "-1.5", "-3.4", "0")
+    assert code == 0, err
+    # per subject
+    code, _, err = cli("fit-ioc", "--out", tmp_path / "ws2", "--trajectories", src, "--per", "subject", "--fit", "a4",
+                       "--max-evaluations", "6", "--no-compare", "-j", "1")
+    assert code == 0, err
+    fits = json.loads((tmp_path / "ws2" / "fit-ioc" / "weights.json").read_text())["fits"]
+    assert sorted(fits) == ["S1", "S2"]
+
+
+def test_fit_ioc_on_dask_equals_local_run(planted_paths, tmp_path, cli):
+    from distributed import LocalCluster
+
+    paths = {c: planted_paths[c] for c in CONDITIONS[:2]}
+    src = write_table(_table(paths), tmp_path / "t.parquet", TRAJECTORIES)
+    args = ["--trajectories", src, "--fit", "a1,a4", "--max-evaluations", "8", "--no-compare"]
+    code, _, err = cli("fit-ioc", "--out", tmp_path / "local", *args, "-j", "1")
+    assert code == 0, err
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        code, _, err = cli("fit-ioc", "--out", tmp_path / "dask", *args, "--scheduler", cluster.scheduler_address)
+    assert code == 0, err
+    local = json.loads((tmp_path / "local" / "fit-ioc" / "weights.json").read_text())["fits"]["all"]
+    dask = json.loads((tmp_path / "dask" / "fit-ioc" / "weights.json").read_text())["fits"]["all"]
+    assert dask["weights"] == local["weights"] and dask["objective"] == local["objective"]
+
+
+def _no_stage(out, name):
+    return not (out / name).exists() and not any(p.name.startswith(f".{name}.") for p in out.glob(".*")) if out.exists() else True
+
+
+def test_bad_inputs_exit_2_with_one_line_and_no_output(planted_paths, tmp_path, cli):
+    out = tmp_path / "ws"
+    df = _table({c: planted_paths[c] for c in CONDITIONS[:2]})
+    df.loc[(df.trial == "mean_E4015") & (df["sample"] == 3), "y"] = np.nan
+    bad = write_table(df, tmp_path / "nan.parquet", TRAJECTORIES)
+    code, _, err = cli("fit-ioc", "--out", out, "--trajectories", bad, "--max-evaluations", "2")
+    assert code == 2 and "nan.parquet: trajectory 'mean_E4015' has NaN samples" in err and len(err.strip().splitlines()) == 1
+    assert _no_stage(out, "fit-ioc")
+    code, _, err = cli("fit-ioc", "--out", out, "--trajectories", bad, "--start-weights", "walking-1999")
+    assert code == 2 and "unknown preset" in err
+    code, _, err = cli("generate", "--out", out, "--weights", "walking-1999", "--start", "-1", "-2", "0")
+    assert code == 2 and "unknown preset or missing weights file 'walking-1999'" in err
+    short = tmp_path / "w.json"
+    short.write_text("[1, 2, 3]")
+    code, _, err = cli("generate", "--out", out, "--weights", short, "--start", "-1", "-2", "0")
+    assert code == 2 and "has 3 values" in err
+    code, _, err = cli("generate", "--out", out, "--start", "0", "0", "0")
+    assert code == 2 and "start equals goal" in err
+    code, _, err = cli("generate", "--out", out, "--start", "-3", "-2", "0", "--max-iter", "2")
+    assert code == 2 and "did not converge" in err
+    assert _no_stage(out, "generate")
+
+
+def test_velocity_commands_are_saturated_in_the_robot_frame(tmp_path, cli):
+    from cobot_analysis.models.velocity_commands import velocity_commands
+
+    t = np.arange(0, 2.01, 0.1)
+    slow_y = pd.DataFrame({"time": t, "x": 0.0 * t, "y": 0.05 * t, "theta": np.full_like(t, math.pi / 2)})
+    cmd = velocity_commands(slow_y, 10.0)
+    assert np.allclose(cmd.v_x.iloc[:-1], 0.05) and np.abs(cmd.v_y).max() < 1e-12  # forward in the robot frame
+    fast = pd.DataFrame({"time": t, "x": -1.0 * t, "y": 0.0 * t, "theta": 0.3 * t})
+    cmd = velocity_commands(fast, 10.0)
+    assert np.abs(cmd[["v_x", "v_y"]]).max().max() == pytest.approx(0.1)
+    assert np.allclose(cmd.omega.iloc[:-1], math.radians(7.0)) and cmd.saturated.iloc[:-1].all()
+    out = tmp_path / "ws"
+    assert cli("generate", "--out", out, "--start", "-1.5", "-1", "0")[0] == 0
+    code, _, err = cli("velocity-commands", "--out", out, "--rate", "20")
+    assert code == 0, err
+    csv = pd.read_csv(out / "velocity-commands" / "commands.csv")
+    assert csv.v_x.max() <= 0.1 + 1e-12 and abs(csv.time.diff().iloc[1] - 0.05) < 1e-9
