@@ -138,6 +138,35 @@ def test_same_seed_same_bytes_and_subset_equals_full_study(small_walking, tmp_pa
     assert (other / "raw" / "S01_S4015_1.c3d").read_bytes() != (tmp_path / "raw" / "S01_S4015_1.c3d").read_bytes()
 
 
+@pytest.fixture(scope="module")
+def walking_truth_only(tmp_path_factory):
+    """5 subjects x 40 conditions x 1 trial, truth only (no C3D): enough for study-level properties."""
+    d = tmp_path_factory.mktemp("walk_truth")
+    walking.generate(d, seed=2, n_subjects=5, n_trials=1, write_raw=False)
+    return read_table(d / "truth_trials.parquet", TRUTH_TRIALS)
+
+
+def test_walking_study_level_properties(walking_truth_only):
+    from scipy import stats
+
+    tt = walking_truth_only
+    assert len(tt) == 200 and tt["condition"].nunique() == 40
+    # long gaps (orientation lost) in about P_LONG_GAP of the trials: binomial, n = 200
+    share = tt["orientation_lost"].mean()
+    assert abs(share - walking.P_LONG_GAP) < 3 * math.sqrt(walking.P_LONG_GAP * (1 - walking.P_LONG_GAP) / len(tt))
+    # subjects keep their own style: peak speed differs between subjects (Kruskal), and travel time
+    # grows with the path length at a walking pace
+    assert stats.kruskal(*[g["peak_speed"] for _, g in tt.groupby("subject")]).pvalue < 1e-3
+    long = tt[tt["path_length"] > 3]
+    assert long["peak_speed"].between(0.85, 1.5).all() and 1.05 < long["peak_speed"].mean() < 1.25
+    assert stats.pearsonr(tt["path_length"], tt["travel_time"]).statistic > 0.9
+    pace = long["path_length"] / long["travel_time"]
+    assert pace.between(0.6, 1.3).all()
+    # paths bend: longer than the start-goal distance, but not absurdly so
+    straight = np.hypot(tt["xf"] - tt["x0"], tt["yf"] - tt["y0"])
+    assert (tt["path_length"] >= straight - 1e-9).all() and (tt["path_length"] < 1.6 * straight + 0.3).all()
+
+
 # ---- building blocks ---------------------------------------------------------------------------
 @settings(max_examples=40, deadline=None)
 @given(length=st.floats(0.3, 8.0), v_peak=st.floats(0.5, 1.5), t_ramp=st.floats(0.5, 2.0))

@@ -119,7 +119,3 @@ def turn_profile(t, duration: float, heading, theta0: float, thetaf: float, turn
     df = thetaf - heading[-1]
     return heading + d0 * (1.0 - smoothstep(t / turn_start)) + df * smoothstep((t - duration + turn_end) / turn_end)
 
-
-def reverse(path: BasePath) -> BasePath:
-    """The same path travelled backwards in the same time (time reversal)."""
-    return BasePath(path.t.copy(), path.xy[::-1].copy(), path.heading[::-1] + np.pi, path.speed[::-1].copy(), path.length)
