@@ -74,6 +74,7 @@ DURATIONS = TableSchema(
     version=1,
     description="Pair study: duration and mean velocity of each published trial (one per pair, goal, scenario, direction).",
     columns={
+        "study": Column("string", "", "pair-carriage-2022"),
         "pair": Column("string", "", "pair id P01..P20 (order of the published files)"),
         "subject1": Column("string", "", "Subject 1 name as published"),
         "subject2": Column("string", "", "Subject 2 name as published"),
@@ -389,11 +390,11 @@ def read_pair_durations(directory: str | os.PathLike) -> pd.DataFrame:
                     duration, velocity = float(v["Duration (s)"]), float(v["Mean_velocity (m.s^-1)"])
                 except (KeyError, TypeError, ValueError) as exc:
                     raise InputError(f"{pair_key} / {stem}: missing or bad duration/velocity ({exc})", path=path, remedy=REMEDY_DATASET) from exc
-                rows.append({"pair": pair, "subject1": m.group(1), "subject2": m.group(2),
+                rows.append({"study": PAIRS, "pair": pair, "subject1": m.group(1), "subject2": m.group(2),
                              "scenario": 3 if d == "2" else scenario, "condition": goal, "configuration": goal.rsplit("_", 1)[1],
                              "direction": "forward" if d == "1" else "return", "duration": duration, "mean_velocity": velocity})
     df = pd.DataFrame(rows)
-    return df.astype({"pair": "string", "subject1": "string", "subject2": "string", "scenario": "Int64", "condition": "string",
+    return df.astype({"study": "string", "pair": "string", "subject1": "string", "subject2": "string", "scenario": "Int64", "condition": "string",
                       "configuration": "string", "direction": "string"})
 
 
