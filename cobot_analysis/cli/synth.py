@@ -48,11 +48,11 @@ def walking_command(
     14 markers), truth.parquet (true CoM and pelvis orientation per frame), truth_trials.parquet.
     """
     from cobot_analysis.design import WALKING_CONDITIONS
-    from cobot_analysis.synth import walking
+    from cobot_analysis.synth import GENERATOR_VERSION, walking
     from cobot_analysis.workspace import Stage
 
     codes = select(conditions, WALKING_CONDITIONS, "--conditions")
-    params = {"seed": seed, "subjects": subjects, "trials": trials, "conditions": codes}
+    params = {"seed": seed, "subjects": subjects, "trials": trials, "conditions": codes, "generator": GENERATOR_VERSION}
     with Stage(out, walking.STAGE, params=params, force=force) as stage:
         if stage.skipped:
             return
@@ -79,12 +79,13 @@ def pairs_command(
     S1:/S2:/Table: labels), truth.parquet, truth_trials.parquet (with the planted effects).
     """
     from cobot_analysis.design import PAIR_GOALS, SCENARIOS
+    from cobot_analysis.synth import GENERATOR_VERSION
     from cobot_analysis.synth import pairs as synth_pairs
     from cobot_analysis.workspace import Stage
 
     stems = select(goals, [g.stem for g in PAIR_GOALS], "--goals")
     scens = select(scenarios, sorted(SCENARIOS), "--scenarios", counts=False)
-    params = {"seed": seed, "pairs": pairs, "goals": stems, "scenarios": scens}
+    params = {"seed": seed, "pairs": pairs, "goals": stems, "scenarios": scens, "generator": GENERATOR_VERSION}
     with Stage(out, synth_pairs.STAGE, params=params, force=force) as stage:
         if stage.skipped:
             return

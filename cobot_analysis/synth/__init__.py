@@ -7,3 +7,7 @@
 - ``truth``: the TRUTH / TRUTH_TRIALS tables;
 - ``walking``: the single-walking study; ``pairs``: the pair-carriage study.
 """
+
+#: version of the generators: bump it when a change alters the generated data, so that a workspace
+#: stage made by an older generator is regenerated instead of skipped as up to date.
+GENERATOR_VERSION = 1
