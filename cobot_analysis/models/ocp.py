@@ -4,7 +4,7 @@ Built once per problem *shape* (number of intervals, dynamics, free or fixed dur
 for every solve: the start state, the goal, the duration, the weights and an optional tracking
 reference are NLP parameters, so a new start/goal/weights costs a solve, not a rebuild.
 
-Cost (multiple shooting, N intervals of dt = T / N, RK4 dynamics, controls piecewise constant):
+Cost (multiple shooting, N intervals of dt = T / N, ``dynamics.step``, controls piecewise constant):
 
     J = sum_{k<N} dt [a0 + a1 u1^2 + a2 u2^2 + a3 u3^2 + a4 psi_k^2 r_k^2 / (r_k^2 + eps^2)
                       + a5 r_k^2 + a6 (thf - theta_k)^2]
@@ -39,7 +39,7 @@ from functools import lru_cache
 import numpy as np
 
 from cobot_analysis.errors import SolverError
-from cobot_analysis.models.dynamics import N_CONTROL, N_STATE, rk4_step
+from cobot_analysis.models.dynamics import N_CONTROL, N_STATE, step
 
 N_WEIGHTS = 11  # a0..a6, b0..b3 (presets.WALKER_WEIGHTS)
 SOLVERS = ("fatrop", "ipopt")
@@ -118,7 +118,7 @@ class WalkerOCP:
         Ltr = ca.Function("Ltr", [xs, gs, rs], [track])
         terminal = ws[7] * r2 + ws[8] * dth**2 + ws[9] * (xs[3]**2 + xs[4]**2) + ws[10] * xs[5]**2
         Lf = ca.Function("Lf", [xs, ws, gl], [terminal])
-        F = ca.Function("F", [xs, us, dts], [rk4_step(xs, us, dts, shape.dynamics)])
+        F = ca.Function("F", [xs, us, dts], [step(xs, us, dts, shape.dynamics)])
 
         Xk = [ca.SX.sym(f"x{k}", nx) for k in range(N + 1)]
         Uk = [ca.SX.sym(f"u{k}", nu) for k in range(N)]
