@@ -149,6 +149,22 @@ def test_format_is_detected_from_content_not_name(tmp_path):
         detect_format(tmp_path / "x.c3d")
 
 
+@settings(max_examples=20, deadline=None)
+@given(n=st.integers(1, 30), n_markers=st.integers(1, 4), seed=st.integers(0, 2**16))
+def test_text_exports_round_trip(tmp_path_factory, n, n_markers, seed):
+    """Any values (mm, 5 decimals) and occlusion pattern come back in metres, NaN where occluded."""
+    rng = np.random.default_rng(seed)
+    xyz = np.round(rng.uniform(-3.0, 3.0, size=(n, n_markers, 3)), 8)
+    xyz[np.abs(xyz) < 1e-3] = 0.5  # QTM reads an exact 0 0 0 as occluded
+    xyz[rng.random((n, n_markers)) < 0.3] = np.nan
+    markers = {f"M{k}": xyz[:, k] for k in range(n_markers)}
+    d = tmp_path_factory.mktemp("rt")
+    for reader, writer in ((read_vicon_csv, write_vicon_csv), (read_qualisys_tsv, write_qtm_tsv)):
+        raw = reader(writer(d / "t.txt", markers))
+        assert raw.xyz.shape == xyz.shape
+        np.testing.assert_allclose(raw.xyz, xyz, atol=1e-8)  # equal_nan: occlusions at the same samples
+
+
 @settings(max_examples=25, deadline=None)
 @given(shapes=st.lists(st.tuples(st.integers(1, 12), st.integers(1, 4)), min_size=1, max_size=4), seed=st.integers(0, 2**16))
 def test_long_table_round_trips_every_sample(shapes, seed):
