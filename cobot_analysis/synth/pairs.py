@@ -135,9 +135,6 @@ class Carriage:
     theta: np.ndarray  # table long-axis orientation (k,), unwrapped
     height: np.ndarray  # lift of the table top above its rest height (k,)
     progress: np.ndarray  # travelled fraction of the path (k,)
-    length: float  # m, table path length
-    duration_target: float
-    peak_speed: float
 
 
 def carriage_duration(length: float, lift: float, setdown: float, scenario: int, eps: float) -> float:
@@ -191,7 +188,7 @@ def carry(points: np.ndarray, theta0: float, theta1: float, window: tuple[float,
     progress = hold(frac, m0, n - m0 - n_motion)
     a, b = window
     theta = theta0 + (theta1 - theta0) * paths.smoothstep((progress - a) / (b - a))
-    return Carriage(xy, theta, height, progress, length, target, float(path.speed.max()))
+    return Carriage(xy, theta, height, progress)
 
 
 def at_table(table_xy, table_theta, progress, sign: float, grip, amplitudes) -> tuple[np.ndarray, np.ndarray]:
@@ -247,8 +244,8 @@ def simulate_recording(task: tuple) -> tuple[list[dict], list[dict], dict]:
     fwd_pts = paths.hermite(start, end, heading, heading, k=1.0, bulge=bulge)
     window = (rng.uniform(0.05, 0.25), rng.uniform(0.7, 0.95))
     eps_f, eps_r = rng.normal(0, DURATION_NOISE_SD, 2)
-    lift = Lift.draw(rng)
-    fwd = carry(fwd_pts, th_start, th_end, window, lift, scenario, eps_f, rate)
+    handling = Lift.draw(rng)
+    fwd = carry(fwd_pts, th_start, th_end, window, handling, scenario, eps_f, rate)
     # return: the forward path reversed, ending at the start marks, with a small change of bulge
     back = np.asarray(start) + rng.normal(0, 0.02, 2)
     u = np.linspace(0.0, 1.0, len(fwd_pts))[:, None]
@@ -256,7 +253,7 @@ def simulate_recording(task: tuple) -> tuple[list[dict], list[dict], dict]:
     normal = np.array([chord[1], -chord[0]]) / d  # left normal of the return chord
     ret_pts = ret_pts + rng.normal(0, RETURN_SD) * np.sin(np.pi * u) ** 2 * normal
     ret_window = (1 - window[1] + rng.normal(0, 0.03), 1 - window[0] + rng.normal(0, 0.03))
-    ret = carry(ret_pts, th_end, th_start + rng.normal(0, 0.02), ret_window, lift.reversed(rng), 3, eps_r, rate)
+    ret = carry(ret_pts, th_end, th_start + rng.normal(0, 0.02), ret_window, handling.reversed(rng), 3, eps_r, rate)
 
     # -- walking to the table ---------------------------------------------------------------------
     grips = [(rng.normal(0, 0.02), rng.normal(0, 0.03), rng.normal(0, 0.1)) for _ in range(2)]
@@ -279,12 +276,12 @@ def simulate_recording(task: tuple) -> tuple[list[dict], list[dict], dict]:
     t = np.arange(n) / rate
 
     table_xy = np.empty((n, 2))
-    table_th, lift = np.empty(n), np.zeros(n)
+    table_th, raised = np.empty(n), np.zeros(n)
     spans = ((k_lift1, fwd), (k_lift2, ret))
     table_xy[:k_lift1], table_th[:k_lift1] = fwd.xy[0], fwd.theta[0]
     for i, (k0, car) in enumerate(spans):
         k1 = k0 + len(car.height)
-        table_xy[k0:k1], table_th[k0:k1], lift[k0:k1] = car.xy, car.theta, car.height
+        table_xy[k0:k1], table_th[k0:k1], raised[k0:k1] = car.xy, car.theta, car.height
         nxt = spans[i + 1][0] if i + 1 < len(spans) else n
         table_xy[k1:nxt], table_th[k1:nxt] = car.xy[-1], car.theta[-1]
 
@@ -308,7 +305,7 @@ def simulate_recording(task: tuple) -> tuple[list[dict], list[dict], dict]:
 
     # -- gaps, then markers (noise from its own stream so that truth does not depend on ``raw``) --
     psi = np.pi * gaits[0].f_step * t + gaits[0].psi0
-    z_top = TABLE_REST_HEIGHT + lift + 0.003 * bd.envelope(bd.speed_of(table_xy, rate)) * np.cos(2 * psi)
+    z_top = TABLE_REST_HEIGHT + raised + 0.003 * bd.envelope(bd.speed_of(table_xy, rate)) * np.cos(2 * psi)
     labels = [f"{_PREFIX[e]}:{m}" for e in ("subject1", "subject2") for m in SUBJECT_MARKERS]
     labels += [f"Table:{m}" for m in TABLE_MARKERS]
     pelvis_cols = [k * _N_SUBJECT_MARKERS + SUBJECT_MARKERS.index(m) for k in range(2) for m in PELVIS_MARKERS]
