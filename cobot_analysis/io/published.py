@@ -48,7 +48,7 @@ import pandas as pd
 
 from cobot_analysis.angles import angle_diff, wrap
 from cobot_analysis.console import track
-from cobot_analysis.design import POSITION_CODES, WALKING_CONDITIONS
+from cobot_analysis.design import POSITION_CODES, WALKING_CONDITIONS, WALKING_GOAL
 from cobot_analysis.errors import InputError
 from cobot_analysis.schema import TRAJECTORIES, Column, TableSchema
 
@@ -232,6 +232,8 @@ def read_walking_2020(directory: str | os.PathLike, gamma_limit: float = GAMMA_L
         "implausible_inconsistent": int((inconsistent & ~missing & subj).sum()),
         "implausible_subject": int((implausible & subj).sum()),
         "implausible_mean": int((implausible & is_mean).sum()),
+        "implausible_means": sorted(conds[implausible & is_mean].tolist()),
+        "end_heading_off": int((np.abs(angle_diff(theta[:, -1], WALKING_GOAL[2])) > GAMMA_LIMIT)[subj & ~missing].sum()),
         "with_orientation_subject": int((~missing & subj).sum()),
         "gamma_limit": gamma_limit,
         "median_abs_gamma_subject": float(np.nanmedian(np.abs(gamma[subj & ~missing][:, 100:401]))),
@@ -274,8 +276,14 @@ def walking_results_markdown(facts: dict[str, Any]) -> str:
         f"|gamma| > {f['gamma_limit']} rad, or gamma disagreeing with theta minus the CoM-path heading by a median "
         f"> {GAMMA_CONSISTENCY} rad. Flagged: {f['implausible_subject']} of {f['with_orientation_subject']} subject "
         f"trajectories with orientation ({f['implausible_too_large']} too large, {f['implausible_inconsistent']} "
-        f"inconsistent with the path) and {f['implausible_mean']} of the means. Median |gamma| over 20-80 % of the subject "
-        f"paths: {f['median_abs_gamma_subject']:.2f} rad. Per subject: {implausible}.",
+        f"inconsistent with the path) and {f['implausible_mean']} of the means ({', '.join(f['implausible_means']) or 'none'}). "
+        f"Median |gamma| over 20-80 % of the subject paths: {f['median_abs_gamma_subject']:.2f} rad. Per subject: {implausible}.",
+        "",
+        f"Gamma agrees with theta minus the heading of the CoM path in {f['with_orientation_subject'] - f['implausible_inconsistent']} "
+        f"of {f['with_orientation_subject']} subject trajectories, so the large values come from theta (the pelvis orientation) "
+        f"itself, not from how gamma was derived; consistently, the final theta of {f['end_heading_off']} of them is more than "
+        f"{GAMMA_LIMIT} rad away from the goal heading pi/2. Analyses of orientation should treat flagged trajectories "
+        "with caution (they are kept, and can be filtered on `quality`).",
         "",
     ])
 
