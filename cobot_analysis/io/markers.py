@@ -303,16 +303,18 @@ def run_import(protocol_path: str | os.PathLike, out: str | os.PathLike, *, unit
         for t in imported:
             for note in t.notes:
                 warn(note)
-        markers = long_table(imported)
+        trials = trials_table(protocol, imported)
         rates = {t.trial: t.rate for t in imported}
         unique_rates = sorted(set(rates.values()))
-        write_table(markers, stage.path("markers.parquet"), MARKERS, study=protocol.study,
-                    rate=unique_rates[0] if len(unique_rates) == 1 else None, rates=rates,
-                    source_units={t.trial: t.source_units for t in imported},
-                    source_format={t.trial: t.source_format for t in imported})
-        write_table(trials_table(protocol, imported), stage.path("trials.parquet"), TRIALS, study=protocol.study)
+        meta = {"study": protocol.study, "rate": unique_rates[0] if len(unique_rates) == 1 else None, "rates": rates,
+                "source_units": {t.trial: t.source_units for t in imported},
+                "source_format": {t.trial: t.source_format for t in imported}}
+        markers = long_table(imported)
+        del imported  # the per-trial arrays: the long table holds a copy
+        write_table(markers, stage.path("markers.parquet"), MARKERS, **meta)
+        write_table(trials, stage.path("trials.parquet"), TRIALS, study=protocol.study)
         n_occ = int(markers["occluded"].sum())
-        info(f"[green]import[/green]: {len(imported)} trials, {len(markers)} marker samples "
+        info(f"[green]import[/green]: {len(trials)} trials, {len(markers)} marker samples "
              f"({n_occ / max(len(markers), 1):.1%} occluded) -> {stage.final_dir}")
     return stage.final_dir
 
