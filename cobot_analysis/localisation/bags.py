@@ -80,32 +80,44 @@ class Topic:
 
 
 class _Source:
-    """A bag opened for reading: its topics and an iterator of ``(topic, msgtype, record_ns, msg)``."""
+    """A bag opened for reading: its topics, ``raw(topics)`` yielding ``(topic, msgtype,
+    record_ns, bytes)`` in record order, and ``deserialize(bytes, msgtype)``."""
+
+    ros1 = False
 
     def __init__(self, path: Path):
         self.path = path
         self.topics: dict[str, Topic] = {}
 
-    def messages(self, topics: list[str]) -> Iterator[tuple[str, str, int, object]]:  # pragma: no cover
-        raise NotImplementedError
+    def messages(self, topics) -> Iterator[tuple[str, str, int, object]]:
+        for topic, msgtype, ts, raw in self.raw(topics):
+            yield topic, msgtype, ts, self.deserialize(raw, msgtype)
 
 
 class _RosbagsSource(_Source):
     def __init__(self, path: Path, reader):
         super().__init__(path)
         self.reader = reader
+        self.ros1 = not reader.is2
         for c in reader.connections:
             t = self.topics.setdefault(c.topic, Topic(c.topic, c.msgtype, 0))
             t.count += c.msgcount
 
-    def messages(self, topics):
+    def raw(self, topics):
         conns = [c for c in self.reader.connections if c.topic in topics]
-        for c, ts, raw in self.reader.messages(connections=conns):
-            yield c.topic, c.msgtype, ts, self.reader.deserialize(raw, c.msgtype)
+        # One container: iterate it directly (AnyReader's merge of several bags is not needed).
+        it = self.reader.readers[0].messages(connections=conns) if len(self.reader.readers) == 1 else self.reader.messages(connections=conns)
+        for c, ts, raw in it:
+            yield c.topic, c.msgtype, ts, raw
+
+    def deserialize(self, raw, msgtype):
+        return self.reader.deserialize(raw, msgtype)
 
 
 class _McapRos1Source(_Source):
     """MCAP with ROS1-encoded channels: containers by the mcap library, decoding by rosbags."""
+
+    ros1 = True
 
     def __init__(self, path: Path, fh, reader, summary):
         from rosbags.typesys import Stores, get_types_from_msg, get_typestore
@@ -124,10 +136,13 @@ class _McapRos1Source(_Source):
             t = self.topics.setdefault(ch.topic, Topic(ch.topic, msgtype, 0))
             t.count += counts.get(cid, 0)
 
-    def messages(self, topics):
+    def raw(self, topics):
         for _schema, channel, message in self.reader.iter_messages(topics=list(topics), log_time_order=True):
             topic, msgtype = self.channels[channel.id]
-            yield topic, msgtype, message.log_time, self.store.deserialize_ros1(message.data, msgtype)
+            yield topic, msgtype, message.log_time, message.data
+
+    def deserialize(self, raw, msgtype):
+        return self.store.deserialize_ros1(raw, msgtype)
 
 
 def _ros2_name(name: str) -> str:
@@ -212,9 +227,9 @@ def bag_info(path: str | os.PathLike) -> tuple[list[dict], list[dict]]:
     return rows, [{"parent": p, "child": c, **v} for (p, c), v in sorted(edges.items())]
 
 
-def _checked(src: _Source, topics) -> Iterator[tuple[str, str, int, object]]:
+def _checked(src: _Source, topics, raw: bool = False) -> Iterator[tuple[str, str, int, object]]:
     try:
-        yield from src.messages(topics)
+        yield from (src.raw(topics) if raw else src.messages(topics))
     except InputError:
         raise
     except Exception as exc:  # noqa: BLE001
@@ -265,13 +280,15 @@ def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str 
                 if mt == TF_TYPE:
                     raise InputError(f"topic {spec.topic} is a tf topic", path=path, remedy="ask for a frame pair: tf:PARENT->CHILD")
                 need.add(spec.topic)
-        data: dict[str, list] = defaultdict(list)
+        data: dict[str, np.ndarray] = {}
         tf: dict[tuple[str, str], list] = defaultdict(list)
         static: dict[tuple[str, str], tuple] = {}
         frame_ids: dict[str, str] = {}
-        for topic, msgtype, ts, msg in _checked(src, sorted(need)):
+        raws: dict[str, list] = defaultdict(list)
+        stamps: dict[str, list] = defaultdict(list)
+        for topic, msgtype, ts, raw in _checked(src, sorted(need), raw=True):
             if msgtype == TF_TYPE:
-                for tr in msg.transforms:
+                for tr in _decode(src, raw, msgtype).transforms:
                     key = (_frame(tr.header.frame_id), _frame(tr.child_frame_id))
                     pose = _pose_of(tr, "geometry_msgs/msg/TransformStamped")
                     if topic == "/tf_static":
@@ -279,19 +296,80 @@ def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str 
                     else:
                         tf[key].append((_stamp(tr) if time == "header" else ts * 1e-9, *pose[0], *pose[1]))
             else:
-                p, q = _pose_of(msg, msgtype)
-                frame_ids.setdefault(topic, _frame(msg.header.frame_id))
-                data[topic].append((_stamp(msg) if time == "header" else ts * 1e-9, *p, *q))
+                raws[topic].append(raw)
+                stamps[topic].append(ts)
+        for topic, items in raws.items():
+            msgtype = src.topics[topic].msgtype
+            rows = _fast_rows(items, msgtype, src.ros1)
+            if rows is None:  # layouts differ between messages: decode one by one
+                msgs = [_decode(src, r, msgtype) for r in items]
+                frame_ids[topic] = _frame(msgs[0].header.frame_id)
+                rows = np.array([(_stamp(m), *_pose_of(m, msgtype)[0], *_pose_of(m, msgtype)[1]) for m in msgs], dtype=float)
+            else:
+                frame_ids[topic] = _frame(_decode(src, items[0], msgtype).header.frame_id)
+            if time == "record":
+                rows[:, 0] = np.asarray(stamps[topic], dtype=np.int64) * 1e-9
+            data[topic] = rows
     out = {}
     for name, spec in specs.items():
         if spec.is_tf:
             out[name] = _chain(path, spec, tf, static)
         else:
-            rows = np.asarray(data[spec.topic], dtype=float).reshape(-1, 8)
+            rows = np.asarray(data.get(spec.topic, []), dtype=float).reshape(-1, 8)
             if len(rows) == 0:
                 raise InputError(f"topic {spec.topic} has no messages", path=path, remedy=f"topics in the bag: {_topic_list_from(data)}")
             out[name] = _stream(path, str(spec), rows, frame_ids.get(spec.topic, ""))
     return out
+
+
+def _decode(src: _Source, raw, msgtype: str):
+    try:
+        return src.deserialize(raw, msgtype)
+    except Exception as exc:  # noqa: BLE001
+        raise InputError(f"cannot decode a {msgtype.replace('/msg/', '/')} message ({type(exc).__name__}: {exc})",
+                         path=src.path, remedy="the bag may be corrupt, or its message definition differs from the standard one") from exc
+
+
+# Fixed-layout decoding: pose messages of one topic usually have the same frame names and hence
+# the same byte layout; then all stamps and poses are read at once with numpy views.
+_CHILD = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/TransformStamped")
+
+
+def _fast_rows(raws: list, msgtype: str, ros1: bool) -> np.ndarray | None:
+    """``(n, 8)`` rows ``(t, x, y, z, qx, qy, qz, qw)`` decoded from the serialised messages when
+    they all share one layout (ROS1 or little-endian CDR), else None."""
+    n = len(raws)
+    size = len(raws[0])
+    if any(len(r) != size for r in raws):
+        return None
+    first = bytes(raws[0])
+    base = 0 if ros1 else 4
+    if not ros1 and first[1] != 1:  # CDR encapsulation: 0x0001 = little endian
+        return None
+
+    def u32(buf, k):
+        return int.from_bytes(buf[k:k + 4], "little")
+
+    stamp = base + (4 if ros1 else 0)  # ROS1 headers start with a sequence number
+    strings = [stamp + 8]
+    pos = stamp + 12 + u32(first, stamp + 8)
+    if msgtype in _CHILD:
+        if not ros1:
+            pos = base + -(-(pos - base) // 4) * 4
+        strings.append(pos)
+        pos += 4 + u32(first, pos)
+    if not ros1:
+        pos = base + -(-(pos - base) // 8) * 8  # doubles are 8-aligned from the CDR origin
+    if pos + 56 > size:
+        return None
+    buf = np.frombuffer(b"".join(raws), dtype=np.uint8).reshape(n, size)
+    for k in strings:  # every message must carry strings of the same lengths
+        if not np.all(buf[:, k:k + 4] == buf[0, k:k + 4]):
+            return None
+    sec = np.ascontiguousarray(buf[:, stamp:stamp + 4]).view("<u4" if ros1 else "<i4")[:, 0].astype(float)
+    nsec = np.ascontiguousarray(buf[:, stamp + 4:stamp + 8]).view("<u4")[:, 0].astype(float)
+    pose = np.ascontiguousarray(buf[:, pos:pos + 56]).view("<f8")
+    return np.column_stack([sec + nsec * 1e-9, pose])
 
 
 def _topic_list(src: _Source) -> str:
