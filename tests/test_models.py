@@ -169,3 +169,24 @@ def test_discrete_step_matches_the_continuous_dynamics():
             approx = np.asarray(step(ca.DM(X0), ca.DM(U), dt, kind)).ravel()
             assert np.abs(approx[2:] - exact[2:]).max() < 1e-12  # heading and velocities exact
             assert np.abs(approx[:2] - exact[:2]).max() < 0.1 * dt**3  # midpoint rule: O(dt^3) per step
+
+
+def test_coupled_carriers_start_at_rest_and_mirror_problems_give_mirrored_paths():
+    """Pair-study-like start (table at the origin heading pi/2, carriers 0.9 m ahead and behind,
+    facing it) to a goal 3.7 m away, and its mirror image x -> -x (theta -> pi - theta)."""
+    from cobot_analysis.angles import angle_diff
+    from cobot_analysis.models.coupled import solve_pair
+
+    w = weights_vector(PRESETS["pair-2022"], "coupled")
+    start = np.array([(0.0, 0.9, -math.pi / 2), (0.0, -0.9, math.pi / 2)])
+    goal = np.array([(-2.17, -2.25, math.pi), (-3.97, -2.25, 0.0)])
+    mirror = lambda p: np.c_[-p[:, 0], p[:, 1], math.pi - p[:, 2]]  # noqa: E731
+    a = solve_pair(start, goal, w, n_intervals=60).check()
+    b = solve_pair(mirror(start), mirror(goal), w, n_intervals=60).check()
+    assert a.X[0, [0, 1, 2, 6, 7, 8]] == pytest.approx(start.ravel(), abs=1e-9)
+    assert np.abs(a.X[0, [3, 4, 5, 9, 10, 11]]).max() < 1e-9  # at rest
+    assert a.cost == pytest.approx(b.cost, rel=1e-6)
+    assert np.abs(a.X[:, [0, 6]] + b.X[:, [0, 6]]).max() < 1e-3 and np.abs(a.X[:, [1, 7]] - b.X[:, [1, 7]]).max() < 1e-3
+    assert np.abs(angle_diff(a.X[:, [2, 8]], math.pi - b.X[:, [2, 8]])).max() < 1e-3
+    ends = np.hypot(a.X[-1, [0, 6]] - goal[:, 0], a.X[-1, [1, 7]] - goal[:, 1])
+    assert ends.max() < 0.2  # m, soft terminal cost with the published weights

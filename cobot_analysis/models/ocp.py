@@ -135,6 +135,7 @@ class WalkerOCP:
         w = ca.vertcat(*[v for k in range(N) for v in (Xk[k], Uk[k])], Xk[N])
         g = ca.vertcat(*g)
         self._nlp = {"x": w, "p": p, "f": J, "g": g}
+        self._T_index = N_STATE + 3
         self.n_vars, self.n_cons = w.shape[0], g.shape[0]
         # index of state k / control k in the primal vector
         stride = nx + nu
@@ -215,6 +216,10 @@ class WalkerOCP:
             ubx[self._xi[:, N_STATE]] = math.log(T_bounds[1] * T)
             w0 = w0.copy()
             w0[self._xi[:, N_STATE]] = np.clip(w0[self._xi[:, N_STATE]], lbx[self._xi[0, N_STATE]], ubx[self._xi[0, N_STATE]])
+        return self._run(w0, p, lbx, ubx, fallback)
+
+    def _run(self, w0, p, lbx, ubx, fallback: bool) -> OCPSolution:
+        """The primary solver, then IPOPT on the same NLP if it failed and ``fallback``."""
         names = [self.shape.solver] + (["ipopt"] if fallback and self.shape.solver != "ipopt" else [])
         sol = None
         for name in names:
@@ -230,9 +235,10 @@ class WalkerOCP:
     def _unpack(self, w, f, p, name, st) -> OCPSolution:
         X = w[self._xi]
         U = w[self._ui]
-        T = float(np.exp(X[0, N_STATE])) if self.shape.free_time else float(p[N_STATE + 3])
+        ns = self.nx - (1 if self.shape.free_time else 0)
+        T = float(np.exp(X[0, ns])) if self.shape.free_time else float(p[self._T_index])
         ok = bool(st.get("success", False)) and bool(np.isfinite(f)) and bool(np.all(np.isfinite(w)))
-        return OCPSolution(X=X[:, :N_STATE].copy(), U=U.copy(), T=T, cost=f, success=ok,
+        return OCPSolution(X=X[:, :ns].copy(), U=U.copy(), T=T, cost=f, success=ok,
                            status=str(st.get("return_status", st.get("unified_return_status", "?"))), solver=name,
                            iterations=int(st.get("iter_count", -1)), primal=w.copy())
 

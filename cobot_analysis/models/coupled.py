@@ -1,0 +1,135 @@
+"""Coupled OC model of two carriers (METHODS.md 5.6), solved like the single walker (``ocp.py``).
+
+Two holonomic walkers (12 states, 6 controls), both starting at rest, with
+
+  phi_r = a0 + a1 u11^2 + a2 u12^2 + a3 u13^2 + a4 u21^2 + a5 u22^2 + a6 u23^2
+        + a7 psi1^2 + a8 psi2^2 + a9 chi + a10 (xi1 + xi2)
+  phi_t = b0 (|p1 - p1f|^2 + |p2 - p2f|^2) + b1 ((th1f - th1)^2 + (th2f - th2)^2)
+        + b2 (|v1|^2 + |v2|^2) + b3 (omega1^2 + omega2^2)
+
+  chi  = 0 if 1.6 < d < 2.1 else exp(min(|d - 2.1|, |d - 1.6|)) - 1   (d = distance between carriers)
+  xi_i = 0 if g_i < pi/3 else exp(g_i - pi/3) - 1,  g_i = |bearing of the other carrier seen from i|
+
+psi_i is regularised at the goal as in ``ocp.py``. chi and xi are continuous with a kink at the
+band edges (as published; the interior-point solvers handle it). T is a decision variable (free
+duration), bounded to [0.4, 2.5] x T0. For return paths the roles of the subjects are swapped by
+the caller (Subject 2 is carrier 1).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from functools import lru_cache
+
+import numpy as np
+
+from cobot_analysis.models.dynamics import N_CONTROL, N_STATE, step
+from cobot_analysis.models.ocp import OCPShape, OCPSolution, WalkerOCP
+
+N_COUPLED_WEIGHTS = 15  # a0..a10, b0..b3 (presets.COUPLED_WEIGHTS)
+BAND = (1.6, 2.1)  # m, comfortable distance between the carriers
+FACING = math.pi / 3
+
+
+class CoupledOCP(WalkerOCP):
+    """Parametric NLP of the two-carrier problem (free duration); ``X`` has 12 columns
+    (carrier 1 then carrier 2), ``U`` 6."""
+
+    def __init__(self, shape: OCPShape = OCPShape(free_time=True)):
+        import casadi as ca
+
+        self.shape = shape
+        N = shape.n_intervals
+        ns, nu = 2 * N_STATE, 2 * N_CONTROL
+        nx = ns + 1  # + log T
+        self.nx, self.nu, self.N = nx, nu, N
+        X0, goal, Tp, W = ca.SX.sym("X0", ns), ca.SX.sym("goal", 6), ca.SX.sym("T"), ca.SX.sym("W", N_COUPLED_WEIGHTS)
+        p = ca.vertcat(X0, goal, Tp, W)
+        self.n_params = p.shape[0]
+        self._T_index = ns + 6
+
+        xs, us, gl, ws = ca.SX.sym("x", ns), ca.SX.sym("u", nu), ca.SX.sym("g", 6), ca.SX.sym("w", N_COUPLED_WEIGHTS)
+        eps2 = shape.psi_eps**2
+
+        def bearing(xi, tx, ty):
+            dx, dy = tx - xi[0], ty - xi[1]
+            return ca.atan2(-ca.sin(xi[2]) * dx + ca.cos(xi[2]) * dy, ca.cos(xi[2]) * dx + ca.sin(xi[2]) * dy), dx**2 + dy**2
+
+        x1, x2 = xs[:N_STATE], xs[N_STATE:]
+        psi1, r1 = bearing(x1, gl[0], gl[1])
+        psi2, r2 = bearing(x2, gl[3], gl[4])
+        d = ca.sqrt((x1[0] - x2[0])**2 + (x1[1] - x2[1])**2 + 1e-12)
+        chi = ca.if_else(d < BAND[0], ca.exp(BAND[0] - d) - 1, ca.if_else(d > BAND[1], ca.exp(d - BAND[1]) - 1, 0))
+        g1 = ca.fabs(bearing(x1, x2[0], x2[1])[0])
+        g2 = ca.fabs(bearing(x2, x1[0], x1[1])[0])
+        xi = ca.if_else(g1 > FACING, ca.exp(g1 - FACING) - 1, 0) + ca.if_else(g2 > FACING, ca.exp(g2 - FACING) - 1, 0)
+        running = (ws[0] + ws[1] * us[0]**2 + ws[2] * us[1]**2 + ws[3] * us[2]**2 + ws[4] * us[3]**2 + ws[5] * us[4]**2
+                   + ws[6] * us[5]**2 + ws[7] * psi1**2 * r1 / (r1 + eps2) + ws[8] * psi2**2 * r2 / (r2 + eps2)
+                   + ws[9] * chi + ws[10] * xi)
+        terminal = (ws[11] * (r1 + r2) + ws[12] * ((gl[2] - x1[2])**2 + (gl[5] - x2[2])**2)
+                    + ws[13] * (x1[3]**2 + x1[4]**2 + x2[3]**2 + x2[4]**2) + ws[14] * (x1[5]**2 + x2[5]**2))
+        L = ca.Function("L", [xs, us, ws, gl], [running])
+        Lf = ca.Function("Lf", [xs, ws, gl], [terminal])
+        dts = ca.SX.sym("dt")
+        F = ca.Function("F", [xs, us, dts], [ca.vertcat(step(x1, us[:N_CONTROL], dts), step(x2, us[N_CONTROL:], dts))])
+
+        Xk = [ca.SX.sym(f"x{k}", nx) for k in range(N + 1)]
+        Uk = [ca.SX.sym(f"u{k}", nu) for k in range(N)]
+        J = 0
+        g = [Xk[0][:ns] - X0]
+        for k in range(N):
+            dt = ca.exp(Xk[k][ns]) / N
+            J += dt * L(Xk[k][:ns], Uk[k], W, goal)
+            g.append(Xk[k + 1] - ca.vertcat(F(Xk[k][:ns], Uk[k], dt), Xk[k][ns]))
+        J += Lf(Xk[N][:ns], W, goal)
+        w = ca.vertcat(*[v for k in range(N) for v in (Xk[k], Uk[k])], Xk[N])
+        g = ca.vertcat(*g)
+        self._nlp = {"x": w, "p": p, "f": J, "g": g}
+        self.n_vars, self.n_cons = w.shape[0], g.shape[0]
+        stride = nx + nu
+        self._xi = np.array([[k * stride + i for i in range(nx)] for k in range(N + 1)])
+        self._ui = np.array([[k * stride + nx + i for i in range(nu)] for k in range(N)])
+        self._solvers = {}
+        self._lock = threading.Lock()
+        self._solver(shape.solver)
+
+    def solve(self, start, goal, weights, T, *, guess="rest", fallback: bool = True,
+              T_bounds: tuple[float, float] = (0.4, 2.5)) -> OCPSolution:
+        """``start``, ``goal``: the two carriers' poses, shape (2, 3); ``weights``: the 15-vector."""
+        start, goal = np.asarray(start, float).reshape(2, 3), np.asarray(goal, float).reshape(2, 3)
+        X0 = np.r_[start[0], np.zeros(3), start[1], np.zeros(3)]
+        p = np.r_[X0, goal.ravel(), float(T), np.asarray(weights, float)]
+        if isinstance(guess, str):
+            w0 = np.zeros(self.n_vars)
+            for k in range(self.N + 1):
+                a = k / self.N if guess == "line" else 0.0
+                s = (1 - a) * start + a * goal
+                w0[self._xi[k, :-1]] = np.r_[s[0], np.zeros(3), s[1], np.zeros(3)]
+        else:
+            w0 = np.asarray(guess, float).copy()
+        lbx, ubx = np.full(self.n_vars, -np.inf), np.full(self.n_vars, np.inf)
+        lbx[self._xi[:, -1]] = math.log(T_bounds[0] * T)
+        ubx[self._xi[:, -1]] = math.log(T_bounds[1] * T)
+        w0[self._xi[:, -1]] = np.clip(w0[self._xi[:, -1]] if not isinstance(guess, str) else math.log(T),
+                                      lbx[self._xi[0, -1]], ubx[self._xi[0, -1]])
+        return self._run(w0, p, lbx, ubx, fallback)
+
+
+@lru_cache(maxsize=4)
+def get_coupled_ocp(shape: OCPShape = OCPShape(free_time=True)) -> CoupledOCP:
+    return CoupledOCP(shape)
+
+
+def solve_pair(start, goal, weights, *, n_intervals: int = 100, v_nominal: float = 1.0, guess=("rest", "line"),
+               solver: str = "fatrop") -> OCPSolution:
+    """Best converged solution over the initial guesses; T0 = longest carrier distance / v + 1 s."""
+    start, goal = np.asarray(start, float).reshape(2, 3), np.asarray(goal, float).reshape(2, 3)
+    T0 = max(math.hypot(*(goal[i, :2] - start[i, :2])) for i in range(2)) / v_nominal + 1.0
+    ocp = get_coupled_ocp(OCPShape(n_intervals, free_time=True, solver=solver))
+    best = None
+    for g in [guess] if isinstance(guess, str | np.ndarray) else guess:
+        s = ocp.solve(start, goal, weights, T0, guess=g)
+        if best is None or (s.success and (not best.success or s.cost < best.cost)):
+            best = s
+    return best
