@@ -14,7 +14,6 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from cobot_analysis.angles import circular_mean, circular_std
 from cobot_analysis.compare import TrajectorySet, default_groups, group_keys
 from cobot_analysis.schema import TRIAL_COLUMNS, Column, TableSchema
 
@@ -53,62 +52,76 @@ MEANS = TableSchema(
 )
 
 
-def mean_of(ts: TrajectorySet) -> dict[str, np.ndarray]:
-    """Sample-wise mean and spread of all trajectories of ``ts`` (arrays of length N)."""
-    with np.errstate(invalid="ignore", divide="ignore"):
-        has_theta = np.isfinite(ts.theta).all(axis=1)
-        th = ts.theta[has_theta]
-        ga = ts.gamma[np.isfinite(ts.gamma).all(axis=1)]
-        n = len(ts)
-        ddof = 1 if n > 1 else 0
-        out = {
-            "x": ts.x.mean(axis=0), "y": ts.y.mean(axis=0),
-            "x_sd": ts.x.std(axis=0, ddof=ddof), "y_sd": ts.y.std(axis=0, ddof=ddof),
-            "theta": np.unwrap(circular_mean(th, axis=0)) if len(th) else np.full(ts.n_samples, np.nan),
-            "theta_sd": circular_std(th, axis=0) if len(th) else np.full(ts.n_samples, np.nan),
-            "gamma": circular_mean(ga, axis=0) if len(ga) else np.full(ts.n_samples, np.nan),
-            "gamma_sd": circular_std(ga, axis=0) if len(ga) else np.full(ts.n_samples, np.nan),
-        }
-    if len(th):  # put the unwrapped mean on the same turn as the members (e.g. start near +pi/2, not -3pi/2)
-        out["theta"] += 2 * np.pi * np.round((np.nanmean(th[:, 0]) - out["theta"][0]) / (2 * np.pi))
-    out["n_theta"] = np.full(ts.n_samples, len(th))
-    for k in ("x", "y", "theta"):
-        out[f"{k}_lo"] = out[k] - Z95 * out[f"{k}_sd"]
-        out[f"{k}_hi"] = out[k] + Z95 * out[f"{k}_sd"]
-    return out
+def _group_sums(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Sums of consecutive row blocks starting at ``starts`` (rows sorted by group), NaN as 0."""
+    return np.add.reduceat(np.where(np.isfinite(values), values, 0.0), starts, axis=0)
 
 
 def mean_trajectories(ts: TrajectorySet, by: list[str] | None = None, progress=None) -> pd.DataFrame:
     """Mean trajectory of every group of ``ts`` defined by the ``by`` columns -> MEANS long table.
 
-    ``progress`` wraps the loop over groups (e.g. ``console.track``); the work inside each group
-    is vectorised over samples and trajectories.
+    Vectorised over groups, trajectories and samples: trajectories are sorted by group and summed
+    block-wise (``np.add.reduceat``). Means: ``sum x / n``; sd with ddof = 1 (0 for a single
+    trajectory); circular mean ``atan2(S, C)`` and circular sd ``sqrt(-2 ln R)``, R = |(C, S)| / n_theta,
+    over the trajectories whose orientation is complete. ``progress`` is accepted for API symmetry
+    with other stages (there is no loop to track).
     """
     by = by or default_groups(ts.meta)
-    keys = group_keys(ts.meta, by)
-    groups = list(pd.Series(np.arange(len(ts))).groupby(keys.to_numpy(), sort=True))
-    n = ts.n_samples
+    keys = group_keys(ts.meta, by).to_numpy()
+    order = np.argsort(keys, kind="stable")
+    sorted_keys = keys[order]
+    starts = np.flatnonzero(np.r_[True, sorted_keys[1:] != sorted_keys[:-1]])
+    counts = np.diff(np.r_[starts, len(order)])
+    n_groups, n = len(starts), ts.n_samples
+    x, y = ts.x[order], ts.y[order]
+    cnt = counts[:, None].astype(float)
+    out: dict[str, np.ndarray] = {}
+    for k, v in (("x", x), ("y", y)):
+        mean = _group_sums(v, starts) / cnt
+        sq = _group_sums(v ** 2, starts) - cnt * mean ** 2
+        out[k], out[f"{k}_sd"] = mean, np.sqrt(np.clip(sq, 0, None) / np.maximum(cnt - 1, 1))
+    for k in ("theta", "gamma"):
+        a = getattr(ts, k)[order]
+        ok = np.isfinite(a).all(axis=1)
+        w = ok[:, None].astype(float)
+        s_ = np.add.reduceat(np.where(ok[:, None], np.sin(np.where(ok[:, None], a, 0)), 0) * w, starts, axis=0)
+        c_ = np.add.reduceat(np.where(ok[:, None], np.cos(np.where(ok[:, None], a, 0)), 0) * w, starts, axis=0)
+        n_ok = np.add.reduceat(ok.astype(float), starts)[:, None]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = np.where(n_ok > 0, np.arctan2(s_, c_), np.nan)
+            r = np.hypot(s_, c_) / n_ok
+            out[f"{k}_sd"] = np.where(n_ok > 0, np.sqrt(-2 * np.log(np.clip(r, 1e-300, 1.0))), np.nan)
+        if k == "theta":
+            mean = np.unwrap(np.where(np.isnan(mean), 0, mean), axis=1)
+            # same turn as the members at the start (e.g. +pi/2, not -3 pi/2)
+            first = np.add.reduceat(np.where(ok, a[:, 0], 0), starts) / np.maximum(n_ok[:, 0], 1)
+            mean += 2 * np.pi * np.round((first[:, None] - mean[:, :1]) / (2 * np.pi))
+            mean = np.where(n_ok > 0, mean, np.nan)
+            out["n_theta"] = np.repeat(n_ok.astype(int), n, axis=1)
+        out[k] = mean
+    for k in ("x", "y", "theta"):
+        out[f"{k}_lo"] = out[k] - Z95 * out[f"{k}_sd"]
+        out[f"{k}_hi"] = out[k] + Z95 * out[f"{k}_sd"]
+
+    first_rows = ts.meta.iloc[order[starts]].reset_index(drop=True)
+    meta = pd.DataFrame({c: first_rows[c] if c in by else None for c in TRIAL_COLUMNS})
+    meta["trial"] = ["mean:" + k for k in sorted_keys[starts]]
+    meta["kind"] = "mean"
+    meta["n_trials"] = counts
+    meta["entity"] = first_rows["entity"]
+    if "travel_time" in ts.meta.columns:
+        tt = ts.meta["travel_time"].to_numpy(dtype=float)[order]
+        meta["travel_time"] = np.add.reduceat(np.nan_to_num(tt), starts) / np.maximum(np.add.reduceat(np.isfinite(tt).astype(float), starts), 1)
+        meta.loc[np.add.reduceat(np.isfinite(tt).astype(float), starts) == 0, "travel_time"] = np.nan
+    else:
+        meta["travel_time"] = np.nan
+    meta["travelled_distance"] = np.hypot(out["x"][:, -1] - out["x"][:, 0], out["y"][:, -1] - out["y"][:, 0])
+    meta["quality"] = np.where(out["n_theta"][:, 0] > 0, "ok", "orientation_missing")
+    long = meta.loc[np.repeat(np.arange(n_groups), n)].reset_index(drop=True)
     phase = 100.0 * np.arange(n) / max(n - 1, 1)
-    frames = []
-    iterator = progress(groups, "average") if progress else groups
-    for key, idx in iterator:
-        member = ts.subset(np.isin(np.arange(len(ts)), idx.to_numpy()))
-        m = mean_of(member)
-        first = member.meta.iloc[0]
-        tt = member.meta["travel_time"].mean() if "travel_time" in member.meta else np.nan
-        row = {c: first[c] if c in by else None for c in TRIAL_COLUMNS}
-        row.update({
-            "trial": f"mean:{key}", "kind": "mean", "n_trials": len(member),
-            "entity": first["entity"], "travel_time": tt,
-            "travelled_distance": float(np.hypot(m["x"][-1] - m["x"][0], m["y"][-1] - m["y"][0])),
-            "quality": "ok" if m["n_theta"][0] else "orientation_missing",
-        })
-        for c in by:
-            row[c] = first[c]
-        frame = pd.DataFrame({**m, "sample": np.arange(n), "phase": phase, "time": phase * tt / 100.0})
-        for c, v in row.items():
-            frame[c] = v
-        frames.append(frame)
-    out = pd.concat(frames, ignore_index=True)
-    cols = list(MEANS.columns)
-    return out[cols + [c for c in out.columns if c not in cols]]
+    long["sample"] = np.tile(np.arange(n), n_groups)
+    long["phase"] = np.tile(phase, n_groups)
+    long["time"] = long["phase"] * long["travel_time"] / 100.0
+    for k, v in out.items():
+        long[k] = v.reshape(-1)
+    return long[list(MEANS.columns)]

@@ -22,13 +22,28 @@ N = 40
 ARM = 0.9  # m, subject centre from the table centre
 
 
-def _frame(meta: dict, x, y, theta, n=N) -> pd.DataFrame:
+def _frame(meta: dict, x, y, theta, n=N) -> dict:
+    """One trajectory as a dict of per-trajectory scalars and per-sample arrays (see ``_table``)."""
     phase = 100.0 * np.arange(n) / (n - 1)
-    gamma = np.zeros(n)
-    d = {**meta, "sample": np.arange(n), "phase": phase, "time": phase * meta["travel_time"] / 100,
-         "x": x, "y": y, "theta": theta, "gamma": gamma,
-         "travelled_distance": float(np.hypot(x[-1] - x[0], y[-1] - y[0])), "quality": meta.get("quality", "ok")}
-    return pd.DataFrame(d)
+    return {**meta, "sample": np.arange(n), "phase": phase, "time": phase * meta["travel_time"] / 100,
+            "x": np.asarray(x, float), "y": np.asarray(y, float), "theta": np.asarray(theta, float), "gamma": np.zeros(n),
+            "travelled_distance": float(np.hypot(x[-1] - x[0], y[-1] - y[0])), "quality": meta.get("quality", "ok")}
+
+
+def _table(frames: list[dict]) -> pd.DataFrame:
+    """Long table from trajectory dicts in one concatenation (fast for thousands of trajectories)."""
+    n = len(frames[0]["sample"])
+    cols = {}
+    for c in frames[0]:
+        if isinstance(frames[0][c], np.ndarray):
+            cols[c] = np.concatenate([f[c] for f in frames])
+        else:
+            cols[c] = np.repeat(np.array([f[c] for f in frames], dtype=object), n)
+    df = pd.DataFrame(cols)
+    for c in ("n_trials", "repetition", "scenario", "end_orientation", "travel_time", "travelled_distance"):
+        if c in df and df[c].notna().any():
+            df[c] = pd.to_numeric(df[c])
+    return df[[c for c in TRAJECTORIES.columns if c in df.columns]]
 
 
 def _bulge(rng, sd, n=N):
@@ -56,9 +71,9 @@ def walking_table(seed=0, n_subjects=5, n_conditions=3, n_trials=3, subject_effe
                         "quality": "orientation_missing" if miss else "ok"}
                 f = _frame(meta, x, y, np.full(n, np.nan) if miss else theta, n)
                 if miss:
-                    f["gamma"] = np.nan
+                    f["gamma"] = np.full(n, np.nan)
                 frames.append(f)
-    return pd.concat(frames, ignore_index=True)
+    return _table(frames)
 
 
 def pair_table(seed=0, n_pairs=6, goals=4, speedup=0.10, table_sd=0.03, subject_sd=0.10, p_optimal=0.85, n=N,
@@ -101,5 +116,4 @@ def pair_table(seed=0, n_pairs=6, goals=4, speedup=0.10, table_sd=0.03, subject_
                         sx = X + sign * ARM * np.cos(TH) + b_s * nx
                         sy = Y + sign * ARM * np.sin(TH) + b_s * ny
                         frames.append(_frame({**rec, "trial": trial, "entity": ent}, sx, sy, TH + face, n))
-    df = pd.concat(frames, ignore_index=True)
-    return df[[c for c in TRAJECTORIES.columns if c in df.columns]]
+    return _table(frames)

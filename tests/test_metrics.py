@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from cobot_analysis import metrics
+from cobot_analysis.angles import angle_diff, circular_mean, circular_std
 from cobot_analysis.averaging import mean_trajectories
 from cobot_analysis.compare import any_vs_any, compare_sets, individual_vs_mean, pivot
 
@@ -110,6 +111,10 @@ def test_means_recover_common_path_and_circular_angles():
     th = pivot(mean_trajectories(ts)).theta
     np.testing.assert_allclose(np.abs(metrics.angle_diff(th, math.pi)), 0, atol=1e-9)
     assert (means["x_hi"] >= means["x_lo"]).all()
+    ref = circular_mean(first.theta, axis=0)
+    np.testing.assert_allclose(angle_diff(m.theta[0], ref), 0, atol=1e-12)
+    np.testing.assert_allclose(means["theta_sd"].to_numpy()[:first.n_samples], circular_std(first.theta, axis=0), atol=1e-9)
+    np.testing.assert_allclose(means["x_sd"].to_numpy()[:first.n_samples], first.x.std(axis=0, ddof=1), atol=1e-12)
 
 
 def test_orientation_missing_trials_excluded_from_angle_mean_only():

@@ -176,13 +176,20 @@ def kruskal_rows(values: np.ndarray) -> np.ndarray:
     g, k, n = values.shape
     m = k * n
     flat = values.reshape(g, m)
-    ranks = stats.rankdata(flat, axis=1).reshape(g, k, n)
-    h = 12.0 / (m * (m + 1)) * (ranks.sum(axis=2) ** 2 / n).sum(axis=1) - 3 * (m + 1)
-    srt = np.sort(flat, axis=1)
-    ties = np.ones(g)
-    for row in np.flatnonzero((np.diff(srt, axis=1) == 0).any(axis=1)):  # rare with continuous data
-        _, t = np.unique(srt[row], return_counts=True)
-        ties[row] = 1 - (t ** 3 - t).sum() / (m ** 3 - m)
+    idx = np.argsort(flat, axis=1, kind="stable")
+    srt = np.take_along_axis(flat, idx, axis=1)
+    pos = np.broadcast_to(np.arange(m), (g, m))
+    new = np.ones((g, m), dtype=bool)
+    new[:, 1:] = srt[:, 1:] != srt[:, :-1]
+    last = np.ones((g, m), dtype=bool)
+    last[:, :-1] = new[:, 1:]
+    start = np.maximum.accumulate(np.where(new, pos, 0), axis=1)  # first position of each tie block
+    end = np.minimum.accumulate(np.where(last, pos, m - 1)[:, ::-1], axis=1)[:, ::-1]  # last position
+    ranks = np.empty((g, m))
+    np.put_along_axis(ranks, idx, (start + end) / 2.0 + 1.0, axis=1)  # average ranks, 1-based
+    h = 12.0 / (m * (m + 1)) * (ranks.reshape(g, k, n).sum(axis=2) ** 2 / n).sum(axis=1) - 3 * (m + 1)
+    t = (end - start + 1).astype(float)
+    ties = 1 - (t ** 2 - 1).sum(axis=1) / (m ** 3 - m)  # sum over blocks of t^3 - t
     with np.errstate(invalid="ignore", divide="ignore"):
         return stats.chi2.sf(h / ties, k - 1)
 

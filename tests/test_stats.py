@@ -1,0 +1,207 @@
+"""Statistics: reference values (scipy / statsmodels / hand-computed effect sizes), the declarative
+configuration, the largest indistinguishable subset, and planted / null effects over several seeds."""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import stats
+
+from cobot_analysis.averaging import mean_trajectories
+from cobot_analysis.compare import compare_sets, pivot
+from cobot_analysis.errors import InputError
+from cobot_analysis.stats import analyses, config
+from cobot_analysis.stats import tests as T
+from cobot_analysis.stats.sources import build_sources, kruskal_rows
+from cobot_analysis.stats.subsets import largest_subset
+
+sys.path.insert(0, str(Path(__file__).parent))
+from synthetic_tables import pair_table  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+A = [1.1, 2.3, 2.9, 4.0, 5.2]
+B = [3.0, 4.4, 5.1, 6.3, 7.7, 8.1]
+C = [0.5, 0.9, 1.7, 2.2]
+
+
+# ---- tests and effect sizes against references -----------------------------------------------------
+def test_kruskal_matches_scipy_and_epsilon_squared_by_hand():
+    r = T.kruskal({"a": A, "b": B, "c": C})
+    h, p = stats.kruskal(A, B, C)
+    assert r.statistic == pytest.approx(h) and r.p == pytest.approx(p)
+    n = 15
+    assert r.effect_size == pytest.approx(h * (n + 1) / (n * n - 1))
+    assert r.n == {"a": 5, "b": 6, "c": 4}
+
+
+def test_mannwhitney_rank_biserial_by_hand():
+    r = T.mannwhitneyu({"a": A, "b": B})
+    # U_a = number of (a, b) pairs with a > b (no ties): 4.0 > 3.0; 5.2 > 3.0, 4.4, 5.1 -> 4
+    assert r.statistic == pytest.approx(4.0)
+    assert r.p == pytest.approx(stats.mannwhitneyu(A, B).pvalue)
+    assert r.effect_size == pytest.approx(2 * 4 / 30 - 1)  # -0.733: a tends to be smaller
+    less = T.mannwhitneyu({"a": A, "b": B}, "less")
+    assert less.p == pytest.approx(stats.mannwhitneyu(A, B, alternative="less").pvalue) and less.p < r.p
+
+
+def test_fisher_odds_ratio_and_larger_tables():
+    r = T.fisher([[8, 2], [1, 5]])
+    assert r.effect_size == pytest.approx(8 * 5 / (2 * 1))
+    assert r.p == pytest.approx(stats.fisher_exact([[8, 2], [1, 5]]).pvalue)
+    big = T.fisher([[5, 1, 0], [1, 4, 5]])
+    assert big.effect_name == "Cramer's V" and 0 < big.effect_size <= 1 and big.p < 0.05
+
+
+def test_anova_ttest_wilcoxon_correlation_chisquare_binomial_by_hand():
+    an = T.anova({"a": A, "b": B, "c": C})
+    allv = np.array(A + B + C)
+    ssb = sum(len(g) * (np.mean(g) - allv.mean()) ** 2 for g in (A, B, C))
+    assert an.effect_size == pytest.approx(ssb / ((allv - allv.mean()) ** 2).sum())
+    assert an.p == pytest.approx(stats.f_oneway(A, B, C).pvalue)
+    tt = T.ttest({"a": A, "b": B})
+    sp = math.sqrt((4 * np.var(A, ddof=1) + 5 * np.var(B, ddof=1)) / 9)
+    assert tt.effect_size == pytest.approx((np.mean(A) - np.mean(B)) / sp)
+    assert tt.p == pytest.approx(stats.ttest_ind(A, B, equal_var=False).pvalue)
+    x, y = [1.0, 2.0, 3.0, 4.0, 5.0], [1.2, 1.9, 3.4, 3.9, 5.3]
+    w = T.wilcoxon({"x": x, "y": y})
+    # differences -0.2 0.1 -0.4 0.1 -0.3 -> ranks 3 1.5 5 1.5 4: W+ = 3, W- = 12
+    assert w.effect_size == pytest.approx((3 - 12) / 15)
+    assert T.correlation(x, y).statistic == pytest.approx(stats.pearsonr(x, y).statistic)
+    ch = T.chisquare({"u": 30, "v": 10})
+    assert ch.statistic == pytest.approx(10.0) and ch.effect_size == pytest.approx(math.sqrt(10 / 40))
+    b = T.binomial(15, 20, 0.5)
+    assert b.p == pytest.approx(stats.binomtest(15, 20).pvalue)
+    assert b.effect_size == pytest.approx(2 * math.asin(math.sqrt(0.75)) - 2 * math.asin(math.sqrt(0.5)))
+
+
+def test_normality_checks():
+    rng = np.random.default_rng(0)
+    normal, skewed = rng.normal(size=200), rng.exponential(size=200)
+    assert T.normality(normal, "shapiro") > 0.05 and T.normality(skewed, "shapiro") < 1e-6
+    assert T.normality(skewed, "ks") < 0.01
+    assert math.isnan(T.normality([1.0, 1.0, 1.0], "ks"))
+
+
+def test_holm_matches_statsmodels_and_hand():
+    rows = pd.DataFrame({"family": ["f"] * 4 + ["g"], "status": "ok", "test": "kruskal",
+                         "p": [0.01, 0.04, 0.03, 0.005, 0.04]})
+    out = analyses.holm(rows, 0.05)
+    # sorted 0.005 0.01 0.03 0.04 -> x4 x3 x2 x1 = 0.02 0.03 0.06 0.04 -> monotone 0.02 0.03 0.06 0.06
+    assert out["p_holm"].tolist() == pytest.approx([0.03, 0.06, 0.06, 0.02, 0.04])
+    assert out["significant"].tolist() == [True, False, False, True, True]
+
+
+def test_vectorised_kruskal_matches_scipy_with_ties():
+    rng = np.random.default_rng(2)
+    v = rng.normal(size=(6, 3, 15))
+    v[0, 1, :4] = v[0, 0, :4]  # ties
+    assert kruskal_rows(v) == pytest.approx([stats.kruskal(*r).pvalue for r in v])
+
+
+# ---- largest indistinguishable subset ----------------------------------------------------------------
+def test_largest_subset_exact_and_greedy_find_the_planted_outliers():
+    rng = np.random.default_rng(5)
+    groups = {f"S{k}": rng.normal(0, 1, 40) for k in range(7)}
+    groups["S2"] = groups["S2"] + 3
+    groups["S5"] = groups["S5"] - 3
+    exact = largest_subset(groups)
+    assert sorted(exact.members) == ["S0", "S1", "S3", "S4", "S6"] and exact.p > 0.05
+    assert exact.method.startswith("exact (")
+    greedy = largest_subset(groups, max_exact=3)
+    assert greedy.method.startswith("greedy") and sorted(greedy.members) == sorted(exact.members)
+    assert stats.kruskal(*[groups[k] for k in exact.members]).pvalue == pytest.approx(exact.p)
+
+
+# ---- configuration ---------------------------------------------------------------------------------
+def _cfg(**extra):
+    base = {"id": "Q", "source": "durations", "value": "duration", "group": "scenario", "test": "kruskal", "family": "f"}
+    return {"study": "s", "analysis": [{**base, **extra}]}
+
+
+@pytest.mark.parametrize("extra, message", [
+    ({"value": "speed"}, "analysis Q: unknown column(s) ['speed'] in source 'durations'"),
+    ({"test": "kruskall"}, "analysis Q: unknown test 'kruskall'"),
+    ({"source": "nope"}, "analysis Q: unknown source 'nope'"),
+    ({"filter": {"goal": "x"}}, "unknown column(s) ['goal']"),
+    ({"colour": 1}, "unknown key(s) ['colour']"),
+    ({"alternative": "bigger"}, "unknown alternative 'bigger'"),
+    ({"test": "pearson"}, "pearson needs 'versus'"),
+    ({"group": None, "test": "mannwhitneyu"}, "needs 'group'"),
+])
+def test_config_errors_are_one_line(extra, message):
+    data = _cfg(**extra)
+    if extra.get("group", 1) is None:
+        del data["analysis"][0]["group"]
+    with pytest.raises(InputError) as err:
+        config.parse(data, Path("study.toml"))
+    assert message in str(err.value) and "\n" not in str(err.value) and str(err.value).startswith("study.toml: ")
+
+
+def test_unknown_group_level_is_rejected_before_any_test():
+    cfg = config.parse(_cfg(levels=[1, 2, 5]))
+    sources = {"durations": pd.DataFrame({"scenario": [1, 1, 2, 2, 3], "duration": [1.0, 2, 3, 4, 5]})}
+    with pytest.raises(InputError, match=r"group level\(s\) \[5\] not found"):
+        config.check_levels(cfg, sources)
+
+
+@pytest.mark.parametrize("name", ["walking-2020", "pair-carriage-2022", "synthetic-pairs"])
+def test_shipped_configurations_are_valid(name):
+    cfg = config.load(ROOT / "pipelines" / f"{name}.toml")
+    assert cfg.analyses and cfg.study
+
+
+def test_small_groups_are_skipped_with_the_reason_and_normality_selects_the_test():
+    df = pd.DataFrame({"scenario": [1, 1, 1, 2, 3, 3, 3], "duration": [1.0, 1.1, 0.9, 5.0, 2.0, 2.2, 2.1]})
+    cfg = config.parse(_cfg(pairwise=True, test="mannwhitneyu"))
+    rows = analyses.run(cfg, {"durations": df})
+    assert rows.set_index("id").loc["Q[1 vs 3]", "status"] == "ok"
+    skipped = rows[rows["id"].str.contains("2")]
+    assert len(skipped) == 2
+    assert all(s.startswith("skipped: group(s) 2 have fewer than 2 values") for s in skipped["status"])
+    assert skipped["p_holm"].isna().all()  # skipped rows are outside the Holm family
+    rng = np.random.default_rng(1)
+    norm = pd.DataFrame({"scenario": np.repeat([1, 2], 60), "duration": rng.normal(10, 1, 120)})
+    row = analyses.run(config.parse(_cfg(normality="shapiro", parametric="anova")), {"durations": norm}).iloc[0]
+    assert row["test"] == "anova" and row["p"] == pytest.approx(stats.f_oneway(*[g["duration"] for _, g in norm.groupby("scenario")]).pvalue)
+
+
+# ---- planted and null effects ------------------------------------------------------------------------
+def _study_stats(seed, **kw):
+    ts = pivot(pair_table(seed=seed, n_pairs=20, goals=9, n=20, **kw))
+    d = compare_sets(ts, pivot(mean_trajectories(ts)))
+    cfg = config.load(ROOT / "pipelines" / "synthetic-pairs.toml")
+    out = analyses.run(cfg, build_sources(ts, d))
+    return out.set_index("id")
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_planted_effects_are_detected(seed):
+    s = _study_stats(seed)
+    assert s.loc["Q1.1", "significant"]  # scenario 3 faster
+    assert s.loc["Q1.1-pairwise[1 vs 3]", "significant"] and s.loc["Q1.1-pairwise[2 vs 3]", "significant"]
+    assert not s.loc["Q1.1-pairwise[1 vs 2]", "significant"]
+    assert s.loc["Q4.1-entity", "significant"] and s.loc["Q4.1-entity", "effect_size"] > 0  # table less variable
+    assert all(s.loc[f"Q3[{k}]", "significant"] for k in (1, 2, 3))  # optimal for Subject 1 chosen
+    assert s.loc["Q2.1", "significant"]  # table returns closer to reversed forward paths than subjects'
+
+
+def test_no_effect_reported_where_none_was_planted():
+    """Null study: no scenario effect, random configuration choices, no pair effect. The pair effect
+    (Q4.2) is checked on a balanced design (every pair makes the same choices): with random choices,
+    trials in rarely chosen configurations sit close to means of few trials, which is a design
+    effect and not a pair effect."""
+    false = {"Q1.1": 0, "Q3": 0, "Q4.2": 0}
+    seeds = range(10, 13)
+    for seed in seeds:
+        s = _study_stats(seed, speedup=0.0, p_optimal=0.5)
+        false["Q1.1"] += bool(s.loc["Q1.1", "significant"])
+        false["Q3"] += any(bool(s.loc[f"Q3[{k}]", "significant"]) for k in (1, 2, 3))
+        s = _study_stats(seed, speedup=0.0, p_optimal=1.0)
+        false["Q4.2"] += any(bool(s.loc[f"Q4.2[{e}]", "significant"]) for e in ("subject1", "subject2", "table"))
+    # Holm keeps the family-wise error at 5 %: at most one false alarm per question over 3 seeds
+    assert all(v <= 1 for v in false.values()), false
