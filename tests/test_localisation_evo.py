@@ -18,7 +18,7 @@ from cobot_analysis.localisation.analysis import Options, analyse_run  # noqa: E
 @pytest.fixture(scope="module")
 def bags(tmp_path_factory):
     d = tmp_path_factory.mktemp("evo")
-    run = synth.make_run(synth.SynthParams(n_goals=3, seed=3))
+    run = synth.make_run(synth.SynthParams(n_goals=2, seed=3))
     return {"ros1": synth.write_ros1(run, d / "run.bag"), "ros2": synth.write_ros2(run, d / "run_ros2"),
             "mcap": synth.write_mcap(run, d / "run.mcap")}
 
