@@ -179,11 +179,11 @@ def read_c3d(path: str | os.PathLike, units: str | None = None) -> RawMarkers:
             break
         labels += [str(s).strip() for s in more["value"]]
     points = c3d["data"]["points"]  # (4, markers, frames)
-    labels = labels[: points.shape[1]]
+    labels = labels[: points.shape[1]] + [f"*{i}" for i in range(len(labels), points.shape[1])]  # unlabelled: Vicon's "*N"
     stated = (point.get("UNITS", {}).get("value") or [""])[0].strip()
     source_units = (units or stated or "mm").lower()
     factor = to_metres_factor(source_units, path)
-    xyz = np.transpose(points[:3], (2, 1, 0)).astype(float) * factor
+    xyz = points[:3].transpose(2, 1, 0) * factor  # [frames, markers, 3], one copy
     residuals = c3d["data"]["meta_points"]["residuals"]
     if residuals.size:
         xyz[np.transpose(residuals[0] < 0)] = np.nan
