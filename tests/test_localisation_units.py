@@ -316,3 +316,13 @@ def test_fixed_layout_decoding_equals_rosbags(ros1, msgtype, frames, values, sec
         p, q = _pose_of(m, msgtype)
         assert row[0] == m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
         assert tuple(row[1:4]) == p and tuple(row[4:]) == q
+
+
+def test_delay_standard_error_matches_the_spread_over_noise_draws():
+    truth = _walk(40)
+    noise = np.array([0.005, 0.005, 0.003, 0.003])
+    est = [estimate_delay(truth, _icp_of(truth, 0.55, np.zeros(4), noise, seed=k), (0.2, 0.9)) for k in range(30)]
+    spread = np.std([e.value for e in est], ddof=1)
+    sd = np.mean([e.sd for e in est])
+    assert abs(np.mean([e.value for e in est]) - 0.55) < 3 * spread / np.sqrt(30) + 1e-4
+    assert 0.6 < spread / sd < 1.6
