@@ -40,6 +40,7 @@ def predict_command(
     g0: Annotated[float, typer.Option("--g0", min=0.0, help="Weight of the position tracking of the measured past.")] = 10.0,
     g1: Annotated[float, typer.Option("--g1", min=0.0, help="Weight of the orientation tracking (0 where theta is missing).")] = 10.0,
     t_oc: Annotated[Optional[float], typer.Option("--t-oc", help="Sampling period T_OC (s): resample each trajectory to it. Default: the trajectory's own sample period.")] = None,
+    orientation: Annotated[str, typer.Option("--orientation", help="Give the measured theta to the predictors: auto (unless flagged orientation_missing / implausible_gamma), track (always), ignore (positions only).")] = "auto",
     nominal_speed: Annotated[float, typer.Option("--nominal-speed", help="Speed (m/s) giving the assumed duration (path length / speed) of trajectories without a travel time.")] = 1.0,
     study: Annotated[Optional[list[str]], typer.Option("--study", help="Only these studies (repeatable).")] = None,
     entity: Annotated[Optional[list[str]], typer.Option("--entity", help="Only these entities: walker, subject1, subject2, table (repeatable).")] = None,
@@ -68,7 +69,7 @@ def predict_command(
     from cobot_analysis.workspace import Stage, find_input
 
     config = SweepConfig(settings=parse_settings(settings), predictors=tuple(p.strip() for p in predictors.split(",") if p.strip()),
-                         weights=weights, g0=g0, g1=g1, t_oc=t_oc, nominal_speed=nominal_speed)
+                         weights=weights, g0=g0, g1=g1, t_oc=t_oc, nominal_speed=nominal_speed, orientation=orientation)
     if kind not in ("trial", "mean", "all"):
         raise InputError(f"unknown --kind {kind!r}", remedy="use trial, mean or all")
     inputs = []
@@ -160,7 +161,7 @@ def figures(stage, metrics, traj, config) -> None:
     preds = {}
     for name in config.predictors:
         options = {"weights": config.weights_for(traj.entity), "g0": config.g0, "g1": config.g1} if name == "oc" else {}
-        preds[name] = make_predictor(name, n0, n_oc, traj.dt, **options).predict_offline(traj.poses)
+        preds[name] = make_predictor(name, n0, n_oc, traj.dt, **options).predict_offline(traj.seen)
     xy = traj.poses[:, :2]
     colours = {"oc": "tab:blue", "cv": "tab:orange", "ctrv": "tab:green"}
 
@@ -227,6 +228,7 @@ def results_fragment(metrics, summary, comparison, config, example, unpredictabl
     traj = metrics.drop_duplicates(["study", "trial", "entity"])
     studies = ", ".join(f"{s} ({n})" for s, n in traj.groupby("study").size().items())
     no_theta = int((~traj["orientation"]).sum())
+    untracked = int((traj["orientation"] & ~traj["theta_tracked"]).sum())
     assumed = traj[traj["duration_source"] == "nominal_speed"]
     lines = [
         "## Trajectory prediction (METHODS.md sec. 7)", "",
@@ -237,7 +239,11 @@ def results_fragment(metrics, summary, comparison, config, example, unpredictabl
         f"median {1000 * traj['t_oc'].median():.1f} ms (range {1000 * traj['t_oc'].min():.1f}-{1000 * traj['t_oc'].max():.1f} ms). "
         + (f"{len(assumed)} trajectories have no recorded duration: assumed duration = path length / {config.nominal_speed:g} m/s "
            f"(median {assumed['duration'].median():.2f} s). " if len(assumed) else "Durations: recorded travel times. ")
-        + (f"{no_theta} trajectories have no orientation: position-only tracking (g1 = 0), delta_theta not computed." if no_theta else ""),
+        + (f"{no_theta} trajectories have no orientation" if no_theta else "")
+        + (f"; {untracked} have one that was not used (orientation mode {config.orientation}: flagged "
+           "implausible or ignored)" if untracked else "")
+        + (": predicted from positions only (OC g1 = 0, start heading = direction of travel), no delta_theta."
+           if no_theta or untracked else ""),
     ]
     first = metrics.drop_duplicates(["study", "trial", "entity", "n0", "n_oc"])
     skipped = int(first["n_skipped"].sum())

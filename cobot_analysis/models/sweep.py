@@ -12,6 +12,12 @@ the duration ``D`` = the trial's travel time when known, else an assumed duratio
 durations). With ``t_oc`` given, the trajectory is first resampled (linear interpolation of x, y
 and unwrapped theta) every ``t_oc`` seconds over its duration and N0, N_OC count those samples.
 
+Orientation. Where theta is tracked, the OC cost holds g1 (ctheta - theta)^2 and delta_theta is
+reported. ``orientation="auto"`` (default) tracks it unless the trajectory's quality flags say it is
+missing or implausible (``orientation_missing``, ``implausible_gamma``): those trajectories are
+predicted from positions only (OC g1 = 0, see ``OCPredictor``; baselines predict no theta) and get
+no delta_theta. ``"track"`` tracks every measured theta, ``"ignore"`` none.
+
 Windows compared between predictors. A window enters a trajectory's metrics only if every
 predictor of the sweep predicted it (so the OC predictor and the baselines are compared on the same
 windows); windows skipped for NaN positions and failed OC solves are counted per predictor.
@@ -37,6 +43,9 @@ from cobot_analysis.schema import Column, TableSchema
 DEFAULT_SETTINGS = ((25, 100), (50, 100), (75, 100), (50, 200))
 NOMINAL_SPEED = 1.0  # m/s: assumed mean walking speed when a trajectory's duration is unknown
 TABLE_ENTITIES = ("table",)
+ORIENTATION_MODES = ("auto", "track", "ignore")
+#: quality flags (schema ``trajectories``) that make the measured orientation unusable in "auto" mode
+ORIENTATION_FLAGS = ("orientation_missing", "implausible_gamma")
 
 _ID = {
     "study": Column("string", "", "study name"),
@@ -62,7 +71,8 @@ PREDICTIONS = TableSchema(
         "t_oc": Column("float", "s", "sampling period T_OC of the prediction"),
         "duration": Column("float", "s", "trajectory duration used for T_OC"),
         "duration_source": Column("string", "", "'travel_time' (measured) or 'nominal_speed' (path length / nominal speed)"),
-        "orientation": Column("bool", "", "the trajectory has an orientation (else position-only tracking, delta_theta NaN)"),
+        "orientation": Column("bool", "", "the trajectory has a measured orientation"),
+        "theta_tracked": Column("bool", "", "the orientation was given to the predictors (else positions only, delta_theta NaN)"),
         "n_samples": Column("int", "-", "samples of the (resampled) trajectory"),
         "n_windows": Column("int", "-", "N_hum = N - N0 + 1 windows"),
         "n_used": Column("int", "-", "windows every predictor predicted (behind the metrics)"),
@@ -108,6 +118,7 @@ class SweepConfig:
     g1: float = 10.0
     t_oc: float | None = None
     nominal_speed: float = NOMINAL_SPEED
+    orientation: str = "auto"  # track theta: "auto" (unless flagged), "track" (wherever present), "ignore"
 
     def __post_init__(self) -> None:
         for n0, n_oc in self.settings:
@@ -117,6 +128,8 @@ class SweepConfig:
             raise InputError(f"unknown predictor(s) {unknown}", remedy=f"use some of {', '.join(PREDICTORS)}")
         if self.t_oc is not None and not self.t_oc > 0:
             raise InputError(f"T_OC must be positive (got {self.t_oc})", remedy="pass a positive --t-oc")
+        if self.orientation not in ORIENTATION_MODES:
+            raise InputError(f"unknown orientation mode {self.orientation!r}", remedy=f"use one of {', '.join(ORIENTATION_MODES)}")
         if not self.nominal_speed > 0:
             raise InputError(f"nominal speed must be positive (got {self.nominal_speed})", remedy="pass a positive --nominal-speed")
 
@@ -138,14 +151,24 @@ class Trajectory:
     dt: float
     duration: float
     duration_source: str
+    track_theta: bool = True  # the predictors see the measured orientation
     meta: dict = field(default_factory=dict)  # kind, condition, subject, start_orientation, global_distance
+
+    @property
+    def seen(self) -> np.ndarray:
+        """The poses the predictors see: theta NaN unless it is tracked."""
+        if self.track_theta:
+            return self.poses
+        seen = self.poses.copy()
+        seen[:, 2] = np.nan
+        return seen
 
     @property
     def label(self) -> str:
         return f"{self.study}/{self.trial}/{self.entity}"
 
     def digest(self) -> str:
-        h = hashlib.sha256(json.dumps([self.label, self.dt, self.meta], sort_keys=True, default=str).encode())
+        h = hashlib.sha256(json.dumps([self.label, self.dt, self.track_theta, self.meta], sort_keys=True, default=str).encode())
         h.update(np.ascontiguousarray(self.poses).tobytes())
         return h.hexdigest()[:20]
 
@@ -218,7 +241,10 @@ def trajectories_from_table(df: pd.DataFrame, config: SweepConfig, path: str | o
         meta = {"kind": str(first.get("kind") or ""), "condition": condition,
                 "subject": None if subject is None or pd.isna(subject) else str(subject),
                 "start_orientation": orientation, "global_distance": float(dist)}
-        out.append(Trajectory(str(study), str(trial), str(entity), poses, float(dt), float(duration), source, meta))
+        flags = set(str(first.get("quality") or "").split(";"))
+        has_theta = bool(np.isfinite(poses[:, 2]).any())
+        track = has_theta and (config.orientation == "track" or (config.orientation == "auto" and not flags & set(ORIENTATION_FLAGS)))
+        out.append(Trajectory(str(study), str(trial), str(entity), poses, float(dt), float(duration), source, track, meta))
     return out
 
 
@@ -239,7 +265,7 @@ def predict_trajectory(traj: Trajectory, config: SweepConfig) -> tuple[pd.DataFr
         for name in config.predictors:
             options = {"weights": config.weights_for(traj.entity), "g0": config.g0, "g1": config.g1} if name == "oc" else {}
             predictor = make_predictor(name, n0, n_oc, traj.dt, **options)
-            predictions = predictor.predict_offline(traj.poses)
+            predictions = predictor.predict_offline(traj.seen)
             results[name] = (window_errors(traj.poses, predictions, n0), predictor.skipped, predictor.failed, options)
         common = np.logical_and.reduce([err.valid for err, *_ in results.values()])
         k = np.arange(n0 - 1, n)
@@ -248,14 +274,14 @@ def predict_trajectory(traj: Trajectory, config: SweepConfig) -> tuple[pd.DataFr
             rows.append({"study": traj.study, "trial": traj.trial, "entity": traj.entity, **traj.meta,
                          "n0": n0, "n_oc": n_oc, "predictor": name, "weights": options.get("weights", ""),
                          "t_oc": traj.dt, "duration": traj.duration, "duration_source": traj.duration_source,
-                         "orientation": has_theta, "n_samples": n, "n_windows": m.n_windows, "n_used": m.n_used,
+                         "orientation": has_theta, "theta_tracked": traj.track_theta, "n_samples": n, "n_windows": m.n_windows, "n_used": m.n_used,
                          "n_skipped": skipped, "n_failed": failed, "n_full": m.n_full, "delta_xy": m.delta_xy,
-                         "delta_theta": m.delta_theta if has_theta else float("nan"), "d_pred": m.d_pred,
+                         "delta_theta": m.delta_theta if traj.track_theta else float("nan"), "d_pred": m.d_pred,
                          "ade": m.ade, "fde": m.fde})
             windows.append(pd.DataFrame({
                 "study": traj.study, "trial": traj.trial, "entity": traj.entity, "n0": n0, "n_oc": n_oc,
                 "predictor": name, "k": k, "phase": 100.0 * k / (n - 1), "used": common,
-                "error_xy": err.error_xy, "error_theta": err.error_theta, "reach": err.reach,
+                "error_xy": err.error_xy, "error_theta": err.error_theta if traj.track_theta else np.nan, "reach": err.reach,
                 "ade": err.ade, "fde": err.fde}))
     return pd.DataFrame(rows), pd.concat(windows, ignore_index=True)
 
@@ -362,7 +388,7 @@ PREDICTION_COMPARISON = TableSchema(
         "n0": Column("int", "-", "N0"),
         "n_oc": Column("int", "-", "N_OC"),
         "baseline": Column("string", "", "cv or ctrv"),
-        "group": Column("string", "", "'all' or the start orientation (N, E, S, O) or entity"),
+        "group": Column("string", "", "'all', a start orientation (N, E, S, O), 'theta tracked' or 'positions only'"),
         "n": Column("int", "-", "paired trajectories"),
         "oc_median": Column("float", "m", "median delta_xy of the OC predictor"),
         "baseline_median": Column("float", "m", "median delta_xy of the baseline"),
@@ -406,7 +432,7 @@ def compare_table(metrics: pd.DataFrame, windows: pd.DataFrame) -> pd.DataFrame:
         return pd.DataFrame(columns=list(PREDICTION_COMPARISON.columns))
     keys = ["study", "trial", "entity", "n0", "n_oc"]
     wide = metrics.pivot_table(index=keys, columns="predictor", values="delta_xy").reset_index()
-    info = metrics.drop_duplicates(keys).set_index(keys)[["start_orientation"]]
+    info = metrics.drop_duplicates(keys).set_index(keys)[["start_orientation", "theta_tracked"]]
     wide = wide.join(info, on=keys)
     used = windows[windows["used"]]
     wkeys = keys + ["k"]
@@ -415,6 +441,8 @@ def compare_table(metrics: pd.DataFrame, windows: pd.DataFrame) -> pd.DataFrame:
     for baseline in [p for p in ("cv", "ctrv") if p in wide.columns]:
         for (n0, n_oc), g in wide.groupby(["n0", "n_oc"], sort=True):
             groups = [("all", g)] + [(o, gg) for o, gg in g.groupby("start_orientation", sort=True) if o]
+            if g["theta_tracked"].nunique() > 1:
+                groups += [("theta tracked", g[g["theta_tracked"]]), ("positions only", g[~g["theta_tracked"]])]
             wg = wwide[(wwide["n0"] == n0) & (wwide["n_oc"] == n_oc)]
             for name, gg in groups:
                 pair = gg[["oc", baseline]].dropna()
