@@ -518,7 +518,7 @@ def pair_results_markdown(facts: dict[str, Any]) -> str:
 def run_import_published(dataset: str, path: str | os.PathLike, out: str | os.PathLike, *, gamma_limit: float = GAMMA_LIMIT,
                          force: bool = False) -> Path:
     """Stage "import-published": trajectories.parquet (+ durations, subject_wrt_table for the pairs) and results.md."""
-    from cobot_analysis.console import info
+    from cobot_analysis.console import info, warn
     from cobot_analysis.schema import write_table
     from cobot_analysis.workspace import Stage
 
@@ -535,8 +535,13 @@ def run_import_published(dataset: str, path: str | os.PathLike, out: str | os.Pa
         if dataset == WALKING:
             traj, facts = read_walking_2020(path, gamma_limit=gamma_limit)
             text = walking_results_markdown(facts)
+            warn(f"walking-2020: {facts['orientation_missing_subject']} subject trajectories and "
+                 f"{facts['orientation_missing_mean']} means without orientation (theta, gamma NaN); "
+                 f"{facts['implausible_subject']} subject trajectories flagged implausible_gamma (see results.md)")
         else:
             traj, durations, rel, facts = read_pair_carriage_2022(path)
+            warn(f"pair-carriage-2022: {len(facts['plain_angle_means'])} means flagged plain_angle_mean "
+                 "(table orientation off its configuration: angles averaged as plain numbers; see results.md)")
             write_table(durations, stage.path("durations.parquet"), DURATIONS, study=PAIRS)
             write_table(rel, stage.path("subject_wrt_table.parquet"), SUBJECT_WRT_TABLE, study=PAIRS)
             text = pair_results_markdown(facts)
