@@ -138,6 +138,22 @@ def test_vicon_csv_missing_frames_become_occluded(tmp_path):
     np.testing.assert_allclose(raw.xyz[4, 0], m["LASI"][3], atol=1e-6)
 
 
+def test_qualisys_variants_without_header_row_or_time(tmp_path):
+    m = person(12)
+    full = write_qtm_tsv(tmp_path / "a.tsv", m).read_text().splitlines()
+    header = [i for i, ln in enumerate(full) if ln.startswith("Frame")][0]
+    ref = read_qualisys_tsv(tmp_path / "a.tsv").xyz
+    old = full[:header] + full[header + 1:]  # old QTM exports: no column header row
+    (tmp_path / "b.tsv").write_text("\n".join(old) + "\n")
+    np.testing.assert_array_equal(read_qualisys_tsv(tmp_path / "b.tsv").xyz, ref)
+    bare = full[:header] + ["\t".join(ln.split("\t")[2:]) for ln in full[header + 1:]]  # marker columns only
+    (tmp_path / "c.tsv").write_text("\n".join(bare) + "\n")
+    np.testing.assert_array_equal(read_qualisys_tsv(tmp_path / "c.tsv").xyz, ref)
+    no_time = full[:header] + ["\t".join(c for j, c in enumerate(ln.split("\t")) if j != 1) for ln in full[header:]]
+    (tmp_path / "d.tsv").write_text("\n".join(no_time) + "\n")
+    np.testing.assert_array_equal(read_qualisys_tsv(tmp_path / "d.tsv").xyz, ref)
+
+
 def test_format_is_detected_from_content_not_name(tmp_path):
     m = person(10)
     c3d = write_c3d(tmp_path / "trial.c3d", m).rename(tmp_path / "trial.dat")  # ezc3d only writes *.c3d
@@ -330,6 +346,16 @@ def test_all_nan_pelvis_marker(tmp_path, cli):
     m["LPSI"][:] = np.nan
     assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [write_c3d(tmp_path / "a.c3d", m)])],
                     "a.c3d: marker LPSI of walker is never visible (all 30 samples missing)")
+
+
+def test_never_visible_optional_marker_is_a_warning(tmp_path, cli):
+    m = person(30)
+    m["LHEE"][:] = np.nan
+    proto = protocol(tmp_path, [write_c3d(tmp_path / "a.c3d", m)])
+    code, _, err = cli("import", proto, "--out", tmp_path / "ws", "--jobs", "1")
+    assert code == 0 and "a.c3d: marker LHEE of walker is never visible" in " ".join(err.split())
+    df = read_table(tmp_path / "ws" / "import" / "markers.parquet", MARKERS)
+    assert df.loc[df["marker"] == "LHEE", "occluded"].all() and len(df) == 5 * 30
 
 
 def test_non_monotonic_and_duplicated_time(tmp_path, cli):

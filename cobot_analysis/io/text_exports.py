@@ -150,27 +150,27 @@ def read_qualisys_tsv(path: str | os.PathLike, units: str | None = None) -> RawM
         rate = float(header["FREQUENCY"][0])
     except (KeyError, IndexError, ValueError) as exc:
         raise InputError("no FREQUENCY line in this Qualisys TSV export", path=path, remedy=_REEXPORT) from exc
-    has_time = False
+    columns: list[str] = []  # the "Frame  Time  LASI X ..." header row, when present
     if i < len(lines) and lines[i].split("\t")[0].strip() == "Frame":
-        has_time = "Time" in [c.strip() for c in lines[i].split("\t")]
+        columns = [c.strip() for c in lines[i].split("\t")]
         i += 1
     rows = [ln.split("\t") for ln in lines[i:] if ln.strip()]
     data = _numeric(rows, path, i + 1)
-    lead = 2 if has_time else 0
-    n = len(labels)
-    if data.size and data.shape[1] == 3 * n + 2 and not has_time:
-        lead, has_time = 2, True  # header row absent but Frame and Time columns present
     if data.size == 0:
         raise InputError("empty trial (no data rows)", path=path, remedy="remove the trial from the protocol or re-export it")
+    n = len(labels)
+    if columns:
+        lead = next((j for j, c in enumerate(columns) if c.endswith(" X")), len(columns))
+    else:  # no header row: Frame and Time columns present when the width says so
+        lead = 2 if data.shape[1] == 3 * n + 2 else 0
+        columns = ["Frame", "Time"] if lead == 2 else []
     if data.shape[1] < lead + 3 * n:
         raise InputError(f"data rows have {data.shape[1]} columns, {lead + 3 * n} expected for {n} markers", path=path, remedy=_REEXPORT)
     xyz = data[:, lead:lead + 3 * n].reshape(len(data), n, 3)
     xyz[np.all(xyz == 0.0, axis=2)] = np.nan  # QTM writes 0 0 0 for an unlabelled/occluded marker
-    if has_time:
-        _frames_to_grid(data[:, 1], data[:, :1], path, "Time values")
-        frame = data[:, 0]
-    else:
-        frame = np.arange(len(data), dtype=float)
+    if "Time" in columns[:lead]:
+        _frames_to_grid(data[:, columns.index("Time")], data[:, :1], path, "Time values")
+    frame = data[:, 0] if "Frame" in columns[:lead] else np.arange(len(data), dtype=float)
     source_units = (units or "mm").lower()
     xyz = _frames_to_grid(frame, xyz, path, "frame numbers") * to_metres_factor(source_units, path)
     return RawMarkers(labels, _occlude(xyz), rate, source_units)
