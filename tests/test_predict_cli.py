@@ -84,7 +84,6 @@ def test_predict_command_writes_tables_figures_and_results(cli, tmp_path, traj_f
     assert "## Trajectory prediction" in text and "| 10 | 30 | cv |" in text and "Wilcoxon" in text
     for fig in ("prediction_overlay", "prediction_at_k", "prediction_error_vs_distance"):
         assert (stage / f"{fig}.png").stat().st_size > 10_000
-    assert not (out / ".predict-work").exists()  # merged and removed on success
     manifest = json.loads((stage / "manifest.json").read_text())
     assert manifest["params"]["config"]["settings"] == [[8, 20], [10, 30]]
     code, _, err = cli("predict", "--out", out, "--trajectories", path, *FAST)
@@ -142,8 +141,8 @@ CONFIG = SweepConfig(settings=((8, 20),), predictors=("oc", "cv"))
 
 def test_interrupted_sweep_resumes_without_redoing_finished_trajectories(tmp_path, monkeypatch):
     trajs = trajectories_from_table(trajectories_table(), CONFIG)
-    reference, _, _ = run_sweep(trajs, CONFIG, WorkDir(tmp_path / "ref", CONFIG), jobs=1)
-    work = WorkDir(tmp_path / "work", CONFIG)
+    reference, _, _ = run_sweep(trajs, CONFIG, WorkDir(tmp_path / "ref"), jobs=1)
+    work = WorkDir(tmp_path / "work")
     real = sweep_mod.predict_trajectory
 
     def failing(traj, config):
@@ -154,19 +153,26 @@ def test_interrupted_sweep_resumes_without_redoing_finished_trajectories(tmp_pat
     monkeypatch.setattr(sweep_mod, "predict_trajectory", failing)
     with pytest.raises(KeyboardInterrupt):
         run_sweep(trajs, CONFIG, work, jobs=1)
-    finished = {t.trial for t in trajs if work.done(t.digest())}
+    finished = {t.trial for t in trajs if not work.missing(t, CONFIG)}
     assert finished == {"t0", "t1", "t3"}  # saved as they finished; t2 was interrupted
     calls = []
     monkeypatch.setattr(sweep_mod, "predict_trajectory", lambda t, c: calls.append(t.trial) or real(t, c))
     metrics, windows, resumed = run_sweep(trajs, CONFIG, work, jobs=1)
     assert resumed == 3 and calls == ["t2"]
     pd.testing.assert_frame_equal(metrics, reference)
+    # a sweep that adds a setting computes only that setting
+    more = SweepConfig(settings=((8, 20), (10, 30)), predictors=("oc", "cv"))
+    seen = []
+    monkeypatch.setattr(sweep_mod, "predict_trajectory", lambda t, c: seen.append(c.settings) or real(t, c))
+    metrics, _, resumed = run_sweep(trajs, more, work, jobs=1)
+    assert resumed == 0 and seen == [((10, 30),)] * 4 and len(metrics) == 4 * 2 * 2
+    pd.testing.assert_frame_equal(metrics[metrics["n0"] == 8].reset_index(drop=True), reference)
 
 
 def test_dask_cluster_gives_the_same_results_as_the_local_pool(tmp_path):
     distributed = pytest.importorskip("distributed")
     trajs = trajectories_from_table(trajectories_table(n_traj=3), CONFIG)
-    local, _, _ = run_sweep(trajs, CONFIG, WorkDir(tmp_path / "local", CONFIG), jobs=1)
+    local, _, _ = run_sweep(trajs, CONFIG, WorkDir(tmp_path / "local"), jobs=1)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
-        dask, _, _ = run_sweep(trajs, CONFIG, WorkDir(tmp_path / "dask", CONFIG), scheduler=cluster.scheduler_address)
+        dask, _, _ = run_sweep(trajs, CONFIG, WorkDir(tmp_path / "dask"), scheduler=cluster.scheduler_address)
     pd.testing.assert_frame_equal(dask, local)

@@ -55,8 +55,9 @@ def predict_command(
     For each trajectory x (N0, N_OC) setting x predictor: delta_xy, delta_theta, d_pred (METHODS.md
     sec. 7), ADE/FDE; a summary per setting (mean +- sd, Pearson r with the global distance), the
     OC predictor vs the baselines on the same windows (Wilcoxon), figures and results.md.
-    Resumable: an interrupted run continues where it stopped (finished trajectories are kept in
-    OUT/.predict-work until the stage completes).
+    Resumable: an interrupted run continues where it stopped, and a run that adds a setting
+    computes only that one (finished trajectory x setting results are kept in OUT/.predict-work;
+    --force clears them).
     """
 
     from cobot_analysis.console import info, warn
@@ -99,12 +100,12 @@ def predict_command(
         warn(f"predict: {len(unpredictable)} trajectories left out, fewer than N0 = {n0_min} consecutive finite positions: "
              + ", ".join(unpredictable[:5]) + (" ..." if len(unpredictable) > 5 else ""))
     params = {"config": config.__dict__, "study": study, "entity": entity, "kind": kind, "limit": limit}
-    work = WorkDir(Path(out) / WORK, config)
+    work = WorkDir(Path(out) / WORK)
     with Stage(out, STAGE, inputs=[path, *inputs], params=params, force=force) as stage:
         if stage.skipped:
             return
         if force:
-            work.clear()
+            work.clear()  # --force recomputes everything
         info(f"predict: {len(trajs)} trajectories x {len(config.settings)} settings x {len(config.predictors)} predictors")
         metrics, windows, resumed = run_sweep(trajs, config, work, jobs=jobs, scheduler=scheduler)
         if resumed:
@@ -126,7 +127,6 @@ def predict_command(
         example = example_trajectory(metrics, trajs, config)
         figures(stage, metrics, example, config)
         stage.path("results.md").write_text(results_fragment(metrics, summary, comparison, config, example, unpredictable))
-    work.clear()
     info(f"[green]predict[/green]: {stage.final_dir}")
 
 

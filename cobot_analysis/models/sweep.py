@@ -1,8 +1,9 @@
 """The prediction sweep: trajectories x (N0, N_OC) settings x predictors (METHODS.md sec. 7).
 
 Each trajectory is one task (all settings and predictors), run on a local process pool or a Dask
-cluster through ``parallel.map_tasks``. Finished trajectories are saved at once in a work directory
-(``WS/.predict-work/<sweep key>/``), so an interrupted sweep resumes where it stopped; the stage
+cluster through ``parallel.map_tasks``. Finished results are saved at once, per trajectory and
+setting, in a work directory (``WS/.predict-work/``, see ``WorkDir``), so an interrupted sweep
+resumes where it stopped and a sweep that adds a setting computes only that setting; the stage
 merges them into its tables at the end.
 
 Sampling period. N0 and N_OC count samples; one OC node per sample, ``T_OC`` = the sample period.
@@ -135,9 +136,6 @@ class SweepConfig:
 
     def weights_for(self, entity: str) -> str:
         return self.weights or ("table-2022" if entity in TABLE_ENTITIES else "walking-2021")
-
-    def key(self) -> str:
-        return hashlib.sha256(json.dumps(asdict(self), sort_keys=True).encode()).hexdigest()[:16]
 
 
 @dataclass
@@ -286,7 +284,7 @@ def predict_trajectory(traj: Trajectory, config: SweepConfig) -> tuple[pd.DataFr
     return pd.DataFrame(rows), pd.concat(windows, ignore_index=True)
 
 
-def sweep_task(item: tuple[Trajectory, SweepConfig, "WorkDir | None"]) -> tuple[str, pd.DataFrame, pd.DataFrame]:
+def sweep_task(item: tuple[Trajectory, SweepConfig, "WorkDir | None"]) -> tuple[Trajectory, pd.DataFrame, pd.DataFrame]:
     """Task of the parallel sweep (top level so that process pools and Dask can pickle it).
 
     The task saves its result in the work directory itself when it can reach it (local pool, a
@@ -295,40 +293,64 @@ def sweep_task(item: tuple[Trajectory, SweepConfig, "WorkDir | None"]) -> tuple[
     """
     traj, config, work = item
     metrics, windows = predict_trajectory(traj, config)
-    digest = traj.digest()
     if work is not None:
         try:
-            work.save(digest, metrics, windows)
+            work.save(traj, config, metrics, windows)
         except OSError:
             pass
-    return digest, metrics, windows
+    return traj, metrics, windows
 
 
 # ---- the resumable sweep ----------------------------------------------------------------------
+def code_digest() -> str:
+    """Hash of the modules that determine a prediction (a change invalidates the work directory)."""
+    from cobot_analysis import __version__
+    from cobot_analysis.models import baselines, dynamics, ocp, predict, predict_metrics, presets
+
+    h = hashlib.sha256(__version__.encode())
+    for mod in (baselines, dynamics, ocp, predict, predict_metrics, presets):
+        h.update(Path(mod.__file__).read_bytes())
+    return h.hexdigest()[:12]
+
+
 class WorkDir:
-    """Finished trajectories of one sweep (``<root>/<sweep key>/<trajectory digest>.*.parquet``)."""
+    """Finished (trajectory, setting) results of sweeps: ``<root>/<key>.{metrics,windows}.parquet``.
 
-    def __init__(self, root: Path, config: SweepConfig):
+    The key hashes the trajectory, the setting, every other sweep parameter and the prediction
+    code, so a finished result is reused by any later sweep that needs exactly it (e.g. after an
+    interruption, or when a setting is added) and never when something that changes it changed.
+    """
+
+    def __init__(self, root: Path):
         self.root = Path(root)
-        self.dir = self.root / config.key()
+        self._code = code_digest()
 
-    def _paths(self, digest: str) -> tuple[Path, Path]:
-        return self.dir / f"{digest}.metrics.parquet", self.dir / f"{digest}.windows.parquet"
+    def key(self, traj: Trajectory, config: SweepConfig, setting: tuple[int, int]) -> str:
+        params = {**asdict(config), "settings": list(setting), "code": self._code, "trajectory": traj.digest()}
+        return hashlib.sha256(json.dumps(params, sort_keys=True).encode()).hexdigest()[:24]
 
-    def done(self, digest: str) -> bool:
-        return self._paths(digest)[0].is_file()
+    def _paths(self, key: str) -> tuple[Path, Path]:
+        return self.root / f"{key}.metrics.parquet", self.root / f"{key}.windows.parquet"
 
-    def save(self, digest: str, metrics: pd.DataFrame, windows: pd.DataFrame) -> None:
-        """Windows first, metrics last: the metrics file marks the trajectory as finished."""
-        self.dir.mkdir(parents=True, exist_ok=True)
-        for df, path in zip((windows, metrics), reversed(self._paths(digest))):
-            tmp = path.with_name(f".{path.name}.tmp")
-            df.to_parquet(tmp, index=False)
-            os.replace(tmp, path)
+    def missing(self, traj: Trajectory, config: SweepConfig) -> tuple[tuple[int, int], ...]:
+        """The settings of ``config`` not yet finished for ``traj``."""
+        return tuple(s for s in config.settings if not self._paths(self.key(traj, config, s))[0].is_file())
 
-    def load(self, digest: str) -> tuple[pd.DataFrame, pd.DataFrame]:
-        m, w = self._paths(digest)
-        return pd.read_parquet(m), pd.read_parquet(w)
+    def save(self, traj: Trajectory, config: SweepConfig, metrics: pd.DataFrame, windows: pd.DataFrame) -> None:
+        """Per setting; windows first, metrics last: the metrics file marks the result finished."""
+        self.root.mkdir(parents=True, exist_ok=True)
+        for n0, n_oc in config.settings:
+            m, w = self._paths(self.key(traj, config, (n0, n_oc)))
+            for df, path in ((windows, w), (metrics, m)):
+                part = df[(df["n0"] == n0) & (df["n_oc"] == n_oc)]
+                tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+                part.to_parquet(tmp, index=False)
+                os.replace(tmp, path)
+
+    def load(self, traj: Trajectory, config: SweepConfig) -> tuple[pd.DataFrame, pd.DataFrame]:
+        parts = [self._paths(self.key(traj, config, s)) for s in config.settings]
+        return (pd.concat([pd.read_parquet(m) for m, _ in parts], ignore_index=True),
+                pd.concat([pd.read_parquet(w) for _, w in parts], ignore_index=True))
 
     def clear(self) -> None:
         shutil.rmtree(self.root, ignore_errors=True)
@@ -336,21 +358,25 @@ class WorkDir:
 
 def run_sweep(trajectories: list[Trajectory], config: SweepConfig, work: WorkDir, *, jobs: int | None = None,
               scheduler: str | None = None) -> tuple[pd.DataFrame, pd.DataFrame, int]:
-    """Predict every trajectory not yet in ``work``; return (metrics, windows, number resumed)."""
+    """Predict every (trajectory, setting) not yet in ``work``; return (metrics, windows, number of
+    trajectories resumed, i.e. with every setting already finished)."""
+    from dataclasses import replace
+
     from cobot_analysis.parallel import map_tasks
 
-    todo = [t for t in trajectories if not work.done(t.digest())]
+    todo = [(t, replace(config, settings=m)) for t in trajectories if (m := work.missing(t, config))]
 
     def keep(result) -> str:  # runs here as each trajectory arrives: save it unless its task did
-        digest, metrics, windows = result
-        if not work.done(digest):
-            work.save(digest, metrics, windows)
-        return f"{metrics['trial'].iloc[0]}" if len(metrics) else ""
+        traj, metrics, windows = result
+        partial = replace(config, settings=tuple(dict.fromkeys(zip(metrics["n0"], metrics["n_oc"]))))
+        if work.missing(traj, partial):
+            work.save(traj, partial, metrics, windows)
+        return traj.trial
 
     if todo:
-        map_tasks(sweep_task, [(t, config, work) for t in todo], jobs=jobs, scheduler=scheduler,
+        map_tasks(sweep_task, [(t, c, work) for t, c in todo], jobs=jobs, scheduler=scheduler,
                   description="predict", status=keep)
-    parts = [work.load(t.digest()) for t in trajectories]
+    parts = [work.load(t, config) for t in trajectories]
     metrics = pd.concat([p[0] for p in parts], ignore_index=True)
     windows = pd.concat([p[1] for p in parts], ignore_index=True)
     for col in ("study", "trial", "entity", "predictor"):
