@@ -370,6 +370,13 @@ def test_non_monotonic_and_duplicated_time(tmp_path, cli):
     assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [csv])], "b.csv: duplicated frame numbers at data row 4")
 
 
+def test_non_numeric_cells(tmp_path, cli):
+    lines = write_qtm_tsv(tmp_path / "a.tsv", person(5)).read_text().splitlines()
+    (tmp_path / "a.tsv").write_text("\n".join(ln.replace(".", ",") if ln[:1].isdigit() else ln for ln in lines) + "\n")
+    assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [tmp_path / "a.tsv"])], "a.tsv: non-numeric value '0,00000'",
+                    "'.' as the decimal separator")
+
+
 def test_mm_m_confusion_is_detected(tmp_path, cli):
     m = person(30)
     metres_as_mm = write_c3d(tmp_path / "a.c3d", m, units="mm", scale=1.0)

@@ -54,14 +54,15 @@ def _numeric(rows: list[list[str]], path: Path, first_line: int) -> np.ndarray:
     import pandas as pd
 
     width = max((len(r) for r in rows), default=0)
-    text = "\n".join(",".join(c.strip() for c in r) + "," * (width - len(r)) for r in rows)
+    text = "\n".join("\t".join(c.strip() for c in r) + "\t" * (width - len(r)) for r in rows)
     if not text:
         return np.empty((0, 0))
-    df = pd.read_csv(io.StringIO(text), header=None, na_values=["null", "NaN", "nan"], skip_blank_lines=False)
+    df = pd.read_csv(io.StringIO(text), sep="\t", header=None, na_values=["null", "NaN", "nan"], skip_blank_lines=False)
     for j, col in df.items():
-        if col.dtype == object:
+        if not pd.api.types.is_numeric_dtype(col):
             bad = col[pd.to_numeric(col, errors="coerce").isna() & col.notna()].iloc[0]
-            raise InputError(f"non-numeric value {bad!r} in the data rows (from line {first_line})", path=path, remedy=_REEXPORT)
+            remedy = "export with '.' as the decimal separator" if "," in str(bad) else _REEXPORT
+            raise InputError(f"non-numeric value {bad!r} in the data rows (from line {first_line})", path=path, remedy=remedy)
     return df.to_numpy(dtype=float)
 
 
