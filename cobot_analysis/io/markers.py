@@ -45,8 +45,12 @@ MAP_REMEDY = "map the lab's labels with --map LAB=CANON (repeatable), --marker-m
 def detect_format(path: str | os.PathLike) -> str:
     """'c3d', 'vicon-csv' or 'qualisys-tsv' from the file's content (not its name)."""
     path = Path(path)
-    with open(path, "rb") as fh:
-        head = fh.read(4096)
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4096)
+    except OSError as exc:
+        raise InputError(f"cannot read the file ({exc.strerror or type(exc).__name__})", path=path,
+                         remedy="check that it exists and is readable") from exc
     if not head:
         raise InputError("empty file", path=path, remedy="re-export the trial from the capture software")
     if is_c3d(head):
