@@ -167,6 +167,19 @@ def test_walking_study_level_properties(walking_truth_only):
     assert (tt["path_length"] >= straight - 1e-9).all() and (tt["path_length"] < 1.6 * straight + 0.3).all()
 
 
+@pytest.mark.datasets
+def test_walking_starts_and_ends_match_the_published_means(walking_truth_only, datasets):
+    """Mean synthetic start / end per condition vs the first / last sample of the published mean."""
+    tt = walking_truth_only.groupby("condition")[["x0", "y0", "xf", "yf"]].mean()
+    start_err, end_err = [], []
+    for code, row in tt.iterrows():
+        mean = np.loadtxt(datasets / "walking-2020" / f"{code}.dat", max_rows=2)  # rows x, y of the mean block
+        start_err.append(math.hypot(mean[0, 0] - row.x0, mean[1, 0] - row.y0))
+        end_err.append(math.hypot(mean[0, -1] - row.xf, mean[1, -1] - row.yf))
+    assert np.mean(start_err) < 0.1 and max(start_err) < 0.25  # 5 subjects, start sd ~0.1 m
+    assert max(end_err) < 0.1
+
+
 # ---- building blocks ---------------------------------------------------------------------------
 @settings(max_examples=40, deadline=None)
 @given(length=st.floats(0.3, 8.0), v_peak=st.floats(0.5, 1.5), t_ramp=st.floats(0.5, 2.0))
@@ -429,3 +442,29 @@ def test_cli_synth_pairs_bad_usage_exits_2_without_output(cli, tmp_path, args, m
     code, _, err = cli("synth", "pairs", "--out", out, *args)
     assert code == 2 and message in err
     assert not (out / "synth-pairs").exists()
+
+
+@pytest.mark.datasets
+def test_pair_durations_speeds_and_places_match_the_published_data(pair_truth_only, datasets):
+    import json
+
+    folder = datasets / "pair-carriage-2022"
+    files = {1: "time_and_vel_sub1_leader.json", 3: "time_and_vel_sub1_2_leader.json"}
+    tt = pair_truth_only
+    table = tt[(tt.entity == "table") & (tt.segment == "forward")]
+    for scenario, name in files.items():
+        published = json.loads((folder / name).read_text())
+        rows = [v for trials in published.values() for k, v in trials.items() if k.endswith("_1")]
+        duration = np.median([r["Duration (s)"] for r in rows])
+        speed = np.median([r["Mean_velocity (m.s^-1)"] for r in rows])
+        ours = table[table.scenario == scenario]
+        assert abs(ours["travel_time"].median() / duration - 1) < 0.2
+        assert abs((ours["path_length"] / ours["travel_time"]).median() / speed - 1) < 0.25
+    # subjects' place at the table: distance of each pelvis to the table centre at the onset
+    on = tt[tt.segment == "forward"].set_index(["trial", "entity"])
+    for entity, k in (("subject1", 1), ("subject2", 2)):
+        rel = np.loadtxt(folder / f"subject{k}_wrt_table.dat")  # rows x_fwd x_ret y_fwd y_ret th_fwd th_ret
+        published = math.hypot(rel[0, 0], rel[2, 0])
+        dist = np.hypot(on.xs(entity, level=1).x0 - on.xs("table", level=1).x0,
+                        on.xs(entity, level=1).y0 - on.xs("table", level=1).y0)
+        assert abs(dist.median() - published) < 0.1

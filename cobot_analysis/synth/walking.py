@@ -43,6 +43,12 @@ N_SUBJECTS = 10
 N_TRIALS = 3
 #: share of trials with one long gap on a pelvis marker (walking-2020 lost orientation in 125/400).
 P_LONG_GAP = 0.28
+#: where subjects stand relative to the nominal start of ``design.walking_condition(code).start``:
+#: shifted by START_SHIFT (m) and START_BEHIND (m) behind the start orientation. Fitted by eye to
+#: the first samples of the published mean trajectories of walking-2020 (mean offsets per start
+#: orientation N (0.0, 0.02), E (-0.11, 0.16), S (0.01, 0.27), O (0.12, 0.16) m).
+START_SHIFT = (0.0, 0.145)
+START_BEHIND = 0.12
 _PELVIS_COLS = tuple(SUBJECT_MARKERS.index(m) for m in PELVIS_MARKERS)
 _SUBJECT_KEY, _TRIAL_KEY, _NOISE_KEY = 1, 2, 6  # first words of the SeedSequence entropy, per use
 
@@ -159,7 +165,8 @@ def simulate_trial(task: tuple) -> tuple[dict, dict]:
         [seed, _TRIAL_KEY, i_subject, WALKING_CONDITIONS.index(code), repetition]))
     cond = walking_condition(code)
     x0, y0, th0 = cond.start
-    start = np.array([x0, y0]) + subject.style.start_bias + rng.normal(0, 0.06, 2)
+    behind = -START_BEHIND * np.array([math.cos(th0), math.sin(th0)])
+    start = np.array([x0, y0]) + START_SHIFT + behind + subject.style.start_bias + rng.normal(0, 0.06, 2)
     theta0 = th0 + rng.normal(0, 0.08)
     goal = np.array(WALKING_GOAL[:2]) + rng.normal(0, 0.03, 2)
     thetaf = WALKING_GOAL[2] + subject.style.theta_end_bias + rng.normal(0, 0.04)
