@@ -105,6 +105,11 @@ class _RosbagsSource(_Source):
 
     def raw(self, topics):
         conns = [c for c in self.reader.connections if c.topic in topics]
+        if self.ros1 and len(self.reader.readers) == 1:
+            fast = _ros1_chunk_scan(self.reader.readers[0], conns)
+            if fast is not None:
+                yield from fast
+                return
         # One container: iterate it directly (AnyReader's merge of several bags is not needed).
         it = self.reader.readers[0].messages(connections=conns) if len(self.reader.readers) == 1 else self.reader.messages(connections=conns)
         for c, ts, raw in it:
@@ -112,6 +117,35 @@ class _RosbagsSource(_Source):
 
     def deserialize(self, raw, msgtype):
         return self.reader.deserialize(raw, msgtype)
+
+
+def _ros1_chunk_scan(reader, conns) -> list | None:
+    """Messages of ``conns`` from a ROS1 bag read chunk by chunk in file order (each chunk
+    decompressed once; records sliced at the offsets of the bag's own index, which rosbags has
+    parsed), or None when the bag does not look as expected (then rosbags reads it). Per topic
+    the order is the recording order; no merge across topics is needed here."""
+    import struct
+
+    try:
+        entries = sorted((e.chunk_pos, e.offset, e.time, c) for c in conns for e in reader.indexes[c.id])
+        out = []
+        u32 = struct.Struct("<I").unpack_from
+        pos, buf = None, b""
+        for chunk_pos, off, ts, c in entries:
+            if chunk_pos != pos:
+                chunk = reader.chunks[chunk_pos]
+                reader.bio.seek(chunk.datapos)
+                buf = chunk.decompressor(reader.bio.read(chunk.datasize))
+                pos = chunk_pos
+            (hl,) = u32(buf, off)
+            if buf.find(b"op=\x02", off + 4, off + 4 + hl) < 0:
+                return None
+            (dl,) = u32(buf, off + 4 + hl)
+            start = off + 8 + hl
+            out.append((c.topic, c.msgtype, ts, buf[start:start + dl]))
+        return out
+    except (AttributeError, KeyError, TypeError, struct.error):
+        return None
 
 
 class _McapRos1Source(_Source):
