@@ -217,6 +217,9 @@ def test_import_two_c3d_trials(tmp_path, cli):
     df = read_table(ws / "import" / "markers.parquet", MARKERS)
     assert len(df) == 100 * 5 + 80 * 5  # 4 pelvis markers + LHEE each
     assert set(df["entity"]) == {"walker"} and set(df["marker"]) == {"LASI", "RASI", "LPSI", "RPSI", "LHEE"}
+    first = df[df["trial"] == "t1"]
+    assert first["marker"].astype(str).tolist() == [m for m in ("LASI", "LHEE", "LPSI", "RASI", "RPSI") for _ in range(100)]
+    assert first["frame"].tolist() == list(range(100)) * 5
     lasi = df[(df["trial"] == "t1") & (df["marker"] == "LASI")].sort_values("frame")
     assert lasi["occluded"].tolist() == [False] * 20 + [True] * 10 + [False] * 70
     assert lasi[["x", "y", "z"]].iloc[20:30].isna().all().all()

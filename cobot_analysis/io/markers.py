@@ -167,6 +167,7 @@ def import_trial(task: TrialTask) -> ImportedTrial:
         found = ", ".join(raw.labels[:20]) + (" ..." if len(raw.labels) > 20 else "")
         raise InputError(f"required markers missing: {', '.join(missing)} (labels found: {found})", path=path, remedy=MAP_REMEDY)
 
+    keep.sort(key=lambda j: resolved[j])  # canonical order: entity, then marker
     xyz = raw.xyz[:, keep, :]
     ents = [resolved[j][0] for j in keep]
     marks = [resolved[j][1] for j in keep]
@@ -190,7 +191,7 @@ def import_trial(task: TrialTask) -> ImportedTrial:
 
 
 def long_table(trials: list[ImportedTrial]) -> pd.DataFrame:
-    """Tidy long markers table (schema.MARKERS), rows ordered by trial, entity/marker, frame.
+    """Tidy long markers table (schema.MARKERS), rows ordered by trial, entity, marker, frame.
 
     Every column is allocated once and filled trial by trial with vectorised numpy (no copy by
     concatenation); labels are categorical.
