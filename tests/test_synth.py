@@ -266,6 +266,7 @@ def test_cli_synth_walking_small_study_and_skip(cli, tmp_path):
     (("--trials", "0"), "--trials"),
     (("--conditions", "X1500"), "unknown value"),
     (("--conditions", "41"), "between 1 and 40"),
+    (("--seed", "-1"), "seeds must be >= 0"),
 ])
 def test_cli_synth_walking_bad_usage_exits_2_without_output(cli, tmp_path, args, message):
     out = tmp_path / "ws"
@@ -436,6 +437,7 @@ def test_cli_synth_pairs_small_study(cli, tmp_path):
     (("--goals", "d9_p1_gris"), "unknown value"),
     (("--scenarios", "4"), "unknown value"),
     (("--scenarios", ""), "unknown value"),
+    (("--seed", "-3"), "seeds must be >= 0"),
 ])
 def test_cli_synth_pairs_bad_usage_exits_2_without_output(cli, tmp_path, args, message):
     out = tmp_path / "ws"

@@ -12,6 +12,11 @@ from cobot_analysis.console import info
 from cobot_analysis.errors import InputError
 
 
+def check_seed(seed: int) -> None:
+    if seed < 0:
+        raise InputError(f"--seed {seed}: seeds must be >= 0", remedy="pass a non-negative integer")
+
+
 def select(spec: str, universe: Sequence, option: str, counts: bool = True) -> list:
     """``all`` -> every item; ``N`` -> the first N (if ``counts``); ``a,b,c`` -> those items (checked)."""
     spec = spec.strip()
@@ -51,6 +56,7 @@ def walking_command(
     from cobot_analysis.synth import GENERATOR_VERSION, walking
     from cobot_analysis.workspace import Stage
 
+    check_seed(seed)
     codes = select(conditions, WALKING_CONDITIONS, "--conditions")
     params = {"seed": seed, "subjects": subjects, "trials": trials, "conditions": codes, "generator": GENERATOR_VERSION}
     with Stage(out, walking.STAGE, params=params, force=force) as stage:
@@ -83,6 +89,7 @@ def pairs_command(
     from cobot_analysis.synth import pairs as synth_pairs
     from cobot_analysis.workspace import Stage
 
+    check_seed(seed)
     stems = select(goals, [g.stem for g in PAIR_GOALS], "--goals")
     scens = select(scenarios, sorted(SCENARIOS), "--scenarios", counts=False)
     params = {"seed": seed, "pairs": pairs, "goals": stems, "scenarios": scens, "generator": GENERATOR_VERSION}
