@@ -326,3 +326,20 @@ def test_delay_standard_error_matches_the_spread_over_noise_draws():
     sd = np.mean([e.sd for e in est])
     assert abs(np.mean([e.value for e in est]) - 0.55) < 3 * spread / np.sqrt(30) + 1e-4
     assert 0.6 < spread / sd < 1.6
+
+
+def test_ros1_chunk_scan_equals_rosbags_iteration_on_compressed_bags(tmp_path, monkeypatch):
+    from cobot_analysis.localisation import bags, synth
+
+    run = synth.make_run(synth.SynthParams(n_goals=1, stop=3.0, speed=0.3))
+    specs = {"truth": bags.PoseSpec.parse("/mocap/pose"), "icp": bags.PoseSpec.parse("tf:map->os_sensor")}
+    plain = bags.read_streams(synth.write_ros1(run, tmp_path / "plain.bag"), specs, time="record")
+    for comp in ("bz2", "lz4"):
+        packed = synth.write_ros1(run, tmp_path / f"{comp}.bag", compression=comp)
+        fast = bags.read_streams(packed, specs, time="record")
+        with monkeypatch.context() as m:
+            m.setattr(bags, "_ros1_chunk_scan", lambda reader, conns: None)  # force rosbags' own iteration
+            slow = bags.read_streams(packed, specs, time="record")
+        for k in specs:
+            assert np.array_equal(fast[k].t, plain[k].t) and np.array_equal(fast[k].t, slow[k].t)
+            assert np.array_equal(fast[k].xyz, slow[k].xyz) and np.array_equal(fast[k].quat, plain[k].quat)

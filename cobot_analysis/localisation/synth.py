@@ -284,16 +284,20 @@ def _messages(run: SynthRun, store, ros1: bool):
     return out
 
 
-def write_ros1(run: SynthRun, path: Path, edit=None) -> Path:
-    """ROS1 bag (format 2.0), uncompressed. ``edit(messages, typestore)`` may alter the list of
-    ``(record ns, topic, msgtype, message)`` first (tests use it to make defective bags)."""
+def write_ros1(run: SynthRun, path: Path, edit=None, compression: str | None = None) -> Path:
+    """ROS1 bag (format 2.0), uncompressed or with ``compression`` 'bz2' / 'lz4' chunks.
+    ``edit(messages, typestore)`` may alter the list of ``(record ns, topic, msgtype, message)``
+    first (tests use it to make defective bags)."""
     from rosbags.rosbag1 import Writer
 
     store = _typestore(ros1=True)
     msgs = _messages(run, store, ros1=True)
     if edit is not None:
         msgs = edit(msgs, store)
-    with Writer(path) as writer:
+    writer = Writer(path)
+    if compression:
+        writer.set_compression(Writer.CompressionFormat[compression.upper()])
+    with writer:
         conns = {}
         for ts, topic, msgtype, msg in msgs:
             if topic not in conns:
