@@ -55,6 +55,16 @@ def test_filter_effective_order_is_four_and_design_order_is_eight():
         assert slope == pytest.approx(n_eff, rel=0.05)
 
 
+def test_filtfilt_equals_scipy_sosfiltfilt():
+    from scipy.signal import sosfiltfilt
+
+    x = np.random.default_rng(0).normal(size=(300, 4)).cumsum(axis=0)
+    for convention in filtering.CONVENTIONS:
+        sos = filtering.butter_sos(10.0, RATE, 4, convention)
+        for pad in (0, 5, 27, 299):
+            np.testing.assert_allclose(filtering.filtfilt(sos, x, pad), sosfiltfilt(sos, x, axis=0, padlen=pad), atol=1e-12)
+
+
 def test_filter_bad_parameters():
     with pytest.raises(ValueError, match="even order"):
         filtering.butter_sos(10.0, RATE, 3, "effective")

@@ -22,6 +22,7 @@ segments of fewer than 2 samples are left as they are.
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 
@@ -50,8 +51,9 @@ def design_cutoff(cutoff: float, rate: float, order: int, convention: str = DEFA
     return half, f
 
 
+@lru_cache(maxsize=64)
 def butter_sos(cutoff: float, rate: float, order: int = ORDER, convention: str = DEFAULT_CONVENTION) -> np.ndarray:
-    """Second-order sections of the Butterworth low-pass to run forward-backward."""
+    """Second-order sections of the Butterworth low-pass to run forward-backward (cached: do not modify)."""
     from scipy.signal import butter
 
     n, f = design_cutoff(cutoff, rate, order, convention)
@@ -70,14 +72,33 @@ def segments(missing: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(edges[0::2], edges[1::2]))
 
 
+@lru_cache(maxsize=64)
+def _zi(sos_bytes: bytes, n_sections: int) -> np.ndarray:
+    from scipy.signal import sosfilt_zi
+
+    return sosfilt_zi(np.frombuffer(sos_bytes).reshape(n_sections, 6))
+
+
+def filtfilt(sos: np.ndarray, x: np.ndarray, padlen: int) -> np.ndarray:
+    """``scipy.signal.sosfiltfilt(sos, x, axis=0, padtype="odd", padlen=padlen)``, with the filter's
+    steady-state initial conditions cached (computing them dominates for short signals)."""
+    from scipy.signal import sosfilt
+
+    zi = _zi(np.ascontiguousarray(sos, dtype=float).tobytes(), len(sos)).reshape((len(sos), 2) + (1,) * (x.ndim - 1))
+    if padlen > 0:  # odd extension: 2 x_0 - x_k before, 2 x_-1 - x_-1-k after
+        x = np.concatenate([2 * x[:1] - x[padlen:0:-1], x, 2 * x[-1:] - x[-2:-padlen - 2:-1]])
+    y, _ = sosfilt(sos, x, axis=0, zi=zi * x[:1])
+    y, _ = sosfilt(sos, y[::-1], axis=0, zi=zi * y[-1:])
+    y = y[::-1]
+    return y[padlen:len(y) - padlen] if padlen > 0 else y
+
+
 def lowpass(x: np.ndarray, sos: np.ndarray) -> np.ndarray:
     """Zero-phase filter the columns of ``x (T, ...)`` along time, each continuous segment apart.
 
     Columns that share their NaN pattern (the usual case: x, y, z of a marker; all markers
     without gaps) are filtered together in one call.
     """
-    from scipy.signal import sosfiltfilt
-
     x = np.asarray(x, dtype=float)
     flat = x.reshape(len(x), -1)
     out = np.full_like(flat, np.nan)
@@ -92,5 +113,5 @@ def lowpass(x: np.ndarray, sos: np.ndarray) -> np.ndarray:
             if b - a < 2:
                 out[a:b, cols] = seg
             else:
-                out[a:b, cols] = sosfiltfilt(sos, seg, axis=0, padlen=min(pad, b - a - 1))
+                out[a:b, cols] = filtfilt(sos, seg, min(pad, b - a - 1))
     return out.reshape(x.shape)

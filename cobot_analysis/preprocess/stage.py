@@ -89,8 +89,8 @@ class Recording:
 def load_recordings(markers_path: Path, trials_path: Path) -> list[Recording]:
     """Read the markers the stage uses and the trials table; one ``Recording`` per trial.
 
-    Only the pelvis and table-corner rows are read (Parquet predicate push-down), so memory stays
-    at about 4 markers x frames x trials. Raises ``InputError`` for foreign or broken files,
+    Only the pelvis and table-corner rows are kept (``_read_marker_rows``), so memory stays at
+    about 4 markers x frames x trials. Raises ``InputError`` for foreign or broken files,
     trials without marker rows, and marker rows of unknown trials.
     """
     import pyarrow.parquet as pq
@@ -102,37 +102,22 @@ def load_recordings(markers_path: Path, trials_path: Path) -> list[Recording]:
     if meta.get("table") != MARKERS.name:
         raise InputError(f"is not a markers table (found {meta.get('table')!r})", path=markers_path,
                          remedy="pass the markers.parquet written by `cobot-analysis import`")
-    cols = ["trial", "frame", "entity", "marker", "x", "y", "z", "occluded"]
     try:
-        table = pq.read_table(markers_path, columns=cols, filters=[("marker", "in", list(USED_MARKERS))])
+        names, tcode, slots, slot, frame, xyz = _read_marker_rows(markers_path)
+    except InputError:
+        raise
     except Exception as exc:  # pyarrow raises several types for corrupt files or missing columns
-        raise InputError(f"cannot read the marker columns {cols} ({type(exc).__name__})", path=markers_path,
+        raise InputError(f"cannot read the marker columns ({type(exc).__name__}: {exc})", path=markers_path,
                          remedy="re-run `cobot-analysis import`") from exc
-    df = table.to_pandas(strings_to_categorical=True)
-    del table
-    for c in ("trial", "entity", "marker"):
-        if not isinstance(df[c].dtype, pd.CategoricalDtype):
-            df[c] = df[c].astype("category")
     known = set(trials["trial"].astype(str))
-    stray = sorted(set(df["trial"].cat.categories[np.unique(df["trial"].cat.codes)]) - known)
+    stray = sorted({names[i] for i in np.unique(tcode)} - known)
     if stray:
         raise InputError(f"marker rows of trials {stray[:3]} that {trials_path.name} does not list", path=markers_path,
                          remedy="pass the trials.parquet written with these markers (same import)")
-    tcode = df["trial"].cat.codes.to_numpy()
     if np.any(np.diff(tcode) < 0):
         order = np.argsort(tcode, kind="stable")
-        df = df.iloc[order]
-        tcode = tcode[order]
-    names = df["trial"].cat.categories
+        tcode, slot, frame, xyz = tcode[order], slot[order], frame[order], xyz[order]
     bounds = np.searchsorted(tcode, np.arange(len(names) + 1))
-    slot_ent = df["entity"].cat.codes.to_numpy()
-    slot_mk = df["marker"].cat.codes.to_numpy()
-    ents, mks = df["entity"].cat.categories, df["marker"].cat.categories
-    slot = slot_ent.astype(np.int64) * len(mks) + slot_mk
-    frame = df["frame"].to_numpy(np.int64)
-    xyz = df[["x", "y", "z"]].to_numpy(np.float64, copy=True)
-    xyz[df["occluded"].fillna(False).to_numpy(bool)] = np.nan
-    del df
     where = {name: i for i, name in enumerate(names)}
     recordings = []
     for _, row in trials.iterrows():
@@ -156,9 +141,62 @@ def load_recordings(markers_path: Path, trials_path: Path) -> list[Recording]:
         dense = np.full((len(present), n, 3), np.nan)
         dense[inverse, f] = xyz[a:b]
         for k, code in enumerate(present):
-            rec.markers[(str(ents[code // len(mks)]), str(mks[code % len(mks)]))] = dense[k]
+            rec.markers[slots[code]] = dense[k]
         recordings.append(rec)
     return recordings
+
+
+def _codes(column) -> tuple[np.ndarray, list]:
+    """Dictionary indices (-1 for null) and dictionary values of a string column."""
+    import pyarrow as pa
+
+    arr = column.combine_chunks() if hasattr(column, "combine_chunks") else column
+    if not pa.types.is_dictionary(arr.type):
+        arr = arr.dictionary_encode()
+    return arr.indices.fill_null(-1).to_numpy(zero_copy_only=False), arr.dictionary.to_pylist()
+
+
+def _read_marker_rows(path: Path):
+    """The pelvis / table-corner rows of a markers file, row group by row group, as numpy arrays.
+
+    Strings stay dictionary-encoded (never materialised): returns ``(trial names, trial code per
+    row, slot keys [(entity, marker)], slot code per row, frame, xyz with NaN where occluded)``.
+    """
+    import pyarrow.parquet as pq
+
+    cols = ["trial", "frame", "entity", "marker", "x", "y", "z", "occluded"]
+    pf = pq.ParquetFile(path, read_dictionary=["trial", "entity", "marker"])
+    missing = [c for c in cols if c not in pf.schema_arrow.names]
+    if missing:
+        raise InputError(f"markers table lacks columns {missing}", path=path, remedy="re-run `cobot-analysis import`")
+    trial_ids: dict[str, int] = {}
+    slot_ids: dict[tuple[str, str], int] = {}
+    parts = []
+    for i in range(pf.num_row_groups):
+        rg = pf.read_row_group(i, columns=cols)
+        m_idx, m_dict = _codes(rg.column("marker"))
+        keep_local = np.array([m in USED_MARKERS for m in m_dict] + [False])  # index -1 (null) -> False
+        keep = keep_local[m_idx]
+        if not keep.any():
+            continue
+        e_idx, e_dict = _codes(rg.column("entity"))
+        t_idx, t_dict = _codes(rg.column("trial"))
+        t_map = np.array([trial_ids.setdefault(str(t), len(trial_ids)) for t in t_dict] + [-1], dtype=np.int64)
+        pair = e_idx[keep].astype(np.int64) * (len(m_dict) + 1) + m_idx[keep]
+        lut = np.full((len(e_dict) + 1) * (len(m_dict) + 1), -1, dtype=np.int64)  # local pair -> global slot
+        for u in np.flatnonzero(np.bincount(pair, minlength=len(lut))):
+            lut[u] = slot_ids.setdefault((str(e_dict[u // (len(m_dict) + 1)]), str(m_dict[u % (len(m_dict) + 1)])),
+                                         len(slot_ids))
+        xyz = np.empty((int(keep.sum()), 3))
+        for j, c in enumerate(("x", "y", "z")):
+            xyz[:, j] = rg.column(c).to_numpy()[keep]
+        occluded = rg.column("occluded").fill_null(False).to_numpy(zero_copy_only=False)[keep]
+        xyz[occluded] = np.nan
+        parts.append((t_map[t_idx[keep]], lut[pair], rg.column("frame").to_numpy()[keep], xyz))
+    if not parts:
+        return list(trial_ids), np.empty(0, np.int64), list(slot_ids), np.empty(0, np.int64), np.empty(0, np.int64), np.empty((0, 3))
+    tcode, slot, frame, xyz = (np.concatenate([p[k] for p in parts]) for k in range(4))
+    return list(trial_ids), tcode, list(slot_ids), slot, frame, xyz
 
 
 # ---- one recording --------------------------------------------------------------------------------
@@ -325,20 +363,18 @@ def assemble(results: list[dict[str, Any]], n_samples: int) -> tuple[pd.DataFram
     """Concatenate per-recording results into the trajectories and gaps tables."""
     trajs = [t for r in results for t in r["trajectories"]]
     numeric = np.concatenate([a for _, a in trajs]) if trajs else np.empty((0, len(NUMERIC)))
-    cols: dict[str, Any] = {}
-    for c in (*TRIAL_COLUMNS, "entity"):
-        cols[c] = np.repeat(np.array([m.get(c) for m, _ in trajs], dtype=object), n_samples)
-    for j, c in enumerate(NUMERIC):
-        cols[c] = numeric[:, j]
-    cols["quality"] = np.repeat(np.array([m["quality"] for m, _ in trajs], dtype=object), n_samples)
-    df = pd.DataFrame(cols)
-    df["sample"] = df["sample"].astype(np.int64)
+    meta = pd.DataFrame([m for m, _ in trajs], columns=[*TRIAL_COLUMNS, "entity", "quality"])
     for c in ("scenario", "repetition", "n_trials"):
-        df[c] = pd.to_numeric(df[c], errors="coerce").astype("Int64")
-    df["end_orientation"] = pd.to_numeric(df["end_orientation"], errors="coerce").astype(float)
-    for c in (*TRIAL_COLUMNS, "entity", "quality"):
-        if TRIAL_COLUMNS.get(c) is None or TRIAL_COLUMNS[c].dtype == "string":
-            df[c] = df[c].map(lambda v: None if v is None or (isinstance(v, float) and np.isnan(v)) else str(v))
+        meta[c] = pd.to_numeric(meta[c], errors="coerce").astype("Int64")
+    meta["end_orientation"] = pd.to_numeric(meta["end_orientation"], errors="coerce").astype(float)
+    for c in meta.columns:  # labels: str or None (never NaN, never numbers)
+        if c in ("entity", "quality") or TRIAL_COLUMNS[c].dtype == "string":
+            meta[c] = [None if v is None or (isinstance(v, float) and np.isnan(v)) else str(v) for v in meta[c]]
+    df = meta.iloc[np.repeat(np.arange(len(meta)), n_samples)].reset_index(drop=True)
+    for j, c in enumerate(NUMERIC):
+        df[c] = numeric[:, j]
+    df["sample"] = df["sample"].astype(np.int64)
+    df = df[[*TRIAL_COLUMNS, "entity", *NUMERIC, "quality"]]
     gap_df = pd.DataFrame([g for r in results for g in r["gaps"]],
                           columns=["trial", "entity", "marker", "start_frame", "n_frames", "duration", "filled"])
     gap_df = gap_df.astype({"start_frame": np.int64, "n_frames": np.int64, "duration": float, "filled": bool})
