@@ -18,6 +18,7 @@ import argparse
 import json
 import os
 import platform
+import resource
 import shutil
 import statistics
 import subprocess
@@ -29,9 +30,17 @@ from pathlib import Path
 
 
 def wall(cmd: list[str]) -> float:
+    return timed(cmd)[0]
+
+
+def timed(cmd: list[str]) -> tuple[float, float]:
+    """Wall time and CPU time (user + system) of a child process, s."""
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    return time.perf_counter() - t0
+    t = time.perf_counter() - t0
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return t, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
 
 
 def main() -> None:
@@ -52,21 +61,25 @@ def main() -> None:
         rows = []
         for name, sub in (("run.bag", "bag"), ("run.mcap", "mcap")):
             bag = str(tmp / "synth-localisation" / name)
-            ours, theirs, figs = [], [], []
+            ours, theirs = [], []
             for _ in range(args.repeats):
-                ours.append(wall([*cli, "-q", "localisation", bag, "--out", str(tmp / "ws"), "--no-figures", "--force"]))
+                ours.append(timed([*cli, "-q", "localisation", bag, "--out", str(tmp / "ws"), "--no-figures", "--force"]))
                 if evo:
-                    theirs.append(wall([evo, sub, bag, "/mocap/pose", "/icp/pose", "-a", "--sync_method", "interpolation",
-                                        "--t_offset", str(-truth["delay"]), "--no_warnings"]))
-            figs.append(wall([*cli, "-q", "localisation", bag, "--out", str(tmp / "ws"), "--force"]))
-            rows.append((name, statistics.median(ours), statistics.median(theirs) if theirs else float("nan"), figs[0]))
+                    theirs.append(timed([evo, sub, bag, "/mocap/pose", "/icp/pose", "-a", "--sync_method", "interpolation",
+                                         "--t_offset", str(-truth["delay"]), "--no_warnings"]))
+            figs = wall([*cli, "-q", "localisation", bag, "--out", str(tmp / "ws"), "--force"])
+            med = [statistics.median(v) for v in zip(*ours)]
+            med_evo = [statistics.median(v) for v in zip(*theirs)] if theirs else [float("nan")] * 2
+            rows.append((name, *med, *med_evo, figs))
             print(f"{name}: ours {ours}, evo {theirs}, ours with figures {figs}", file=sys.stderr)
         print(f"\nMeasured {date.today().isoformat()} on {platform.machine()}, {os.cpu_count()} cores, Python "
-              f"{platform.python_version()}; {args.repeats} alternating repeats, median wall time of the whole process.\n")
-        print("| bag | cobot-analysis localisation (s) | evo_ape -a (s) | ratio ours / evo | ours with figures (s) |")
-        print("|---|---|---|---|---|")
-        for name, o, e, f in rows:
-            print(f"| {name} ({truth['duration']:.0f} s run) | {o:.2f} | {e:.2f} | {o / e:.2f} | {f:.2f} |")
+              f"{platform.python_version()}, load average {os.getloadavg()[0]:.1f}; {args.repeats} alternating repeats, "
+              "medians of the whole process (wall and CPU = user + system).\n")
+        print("| bag | ours wall (s) | evo wall (s) | wall ratio ours / evo | ours CPU (s) | evo CPU (s) | CPU ratio | ours with figures, wall (s) |")
+        print("|---|---|---|---|---|---|---|---|")
+        for name, ow, oc, ew, ec, f in rows:
+            print(f"| {name} ({truth['duration']:.0f} s run) | {ow:.2f} | {ew:.2f} | {ow / ew:.2f} | {oc:.2f} | {ec:.2f} | "
+                  f"{oc / ec:.2f} | {f:.2f} |")
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
