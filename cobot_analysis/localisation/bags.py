@@ -240,11 +240,11 @@ def bag_info(path: str | os.PathLike) -> tuple[list[dict], list[dict]]:
     with open_bag(path) as src:
         topics = sorted(src.topics)
         first, last = {}, {}
-        for topic, msgtype, ts, msg in _checked(src, topics):
-            first.setdefault(topic, ts)
-            last[topic] = ts
+        for topic, msgtype, ts, raw in _checked(src, topics, raw=True):  # only tf messages are decoded
+            first[topic] = min(ts, first.get(topic, ts))
+            last[topic] = max(ts, last.get(topic, ts))
             if msgtype == TF_TYPE:
-                for tr in msg.transforms:
+                for tr in _decode(src, raw, msgtype).transforms:
                     e = edges[(_frame(tr.header.frame_id), _frame(tr.child_frame_id))]
                     e["count"] += 1
                     e["static"] |= topic == "/tf_static"
