@@ -1,11 +1,13 @@
 """C3D marker files: header check, then ezc3d.
 
-ezc3d reads a truncated C3D silently (fewer frames) and may abort on garbage, so the header is
-checked here first (C3D User Guide, "The C3D file header"): byte 1 is the key 0x50; byte 0 is the
-512-byte block number of the parameter section; words 2-5 give the number of points, analog
-values per frame and the first and last frame; words 7-8 the scale factor (negative = float
-data); word 9 the data start block; words 11-12 the frame rate. The file must be long enough to
-hold ``frames x (points x 4 + analogs) x (4 bytes if float else 2)`` bytes from the data start.
+ezc3d reads a truncated C3D silently (fewer frames), and a corrupt parameter section made it
+segfault or hang in our tests, so the file is checked here first (C3D User Guide):
+- header: byte 1 is the key 0x50; byte 0 is the 512-byte block number of the parameter section;
+  words 2-5 give the number of points, analog values per frame and the first and last frame;
+  words 7-8 the scale factor (negative = float data); word 9 the data start block. The file must
+  hold ``frames x (points x 4 + analogs) x (4 bytes if float else 2)`` bytes from the data start.
+- parameter section: every group/parameter record is walked; names must be text, pointers and
+  data must stay inside the section, and POINT:USED must equal the header's point count.
 The byte order follows the processor type stored in the parameter section (84 Intel, 85 DEC,
 86 MIPS big-endian).
 
