@@ -152,7 +152,7 @@ def fit_ioc_command(
     per: Annotated[Per, typer.Option("--per", help="all: one fit over the means; subject: one fit per subject over its trials.")] = Per.all,
     subjects: Annotated[Optional[int], typer.Option("--subjects", min=1, help="With --per subject: fit only the first N subjects.")] = None,
     goal: Annotated[GoalChoice, typer.Option("--goal", help="Goal of each OC problem: design (walking goal 0 0 pi/2), end (last measured pose), auto (design for walking conditions).")] = GoalChoice.auto,
-    intervals: Annotated[int, typer.Option("--intervals", min=10, help="Intervals of the OC grid.")] = 100,
+    intervals: Annotated[int, typer.Option("--intervals", min=10, help="Intervals of the OC grid (50: 2-12 mm from a 500-interval solve).")] = 50,
     compare: Annotated[bool, typer.Option("--compare/--no-compare", help="Compare unicycle, clothoid, Mombaur, published and fitted models.")] = True,
     resume: Annotated[bool, typer.Option("--resume", help="Continue from the checkpoint of an interrupted run with the same inputs and options.")] = False,
     seed: SeedOpt = 0,
@@ -312,8 +312,8 @@ def fit_ioc_command(
                  f"Bi-level IOC (METHODS.md sec. 6): upper level {optimizer.value} over log10 of ({', '.join(names)}), "
                  f"bounds 1e-7..1e3, the other weights held at their start value "
                  f"({'neutral start: fitted weights 1' if start_weights == 'ones' else start_weights or 'model preset'}); "
-                 f"lower level: OC with free duration on {intervals} intervals, warm-started from the solution at the start "
-                 f"weights; objective D = d_xy + 0.5 d_{angle} averaged over the trajectories (orientation required; "
+                 f"lower level: OC with free duration on {intervals} intervals, warm-started from the solution at the best "
+                 f"weights so far; objective D = d_xy + 0.5 d_{angle} averaged over the trajectories (orientation required; "
                  f"goal: {goal.value}). gamma of measured and generated paths from the path (metrics.gamma_from_path).", "",
                  "| fit | paths | D start | D fitted | evaluations | not converged | " + " | ".join(names) + " |",
                  "|---|---|---|---|---|---|" + "---|" * len(names)]

@@ -10,14 +10,14 @@ D_n = d_xy + 0.5 d_gamma (walker) or d_xy + 0.5 d_theta (table), with the distan
 ``cobot_analysis.metrics``; gamma of both paths from the path (``metrics.gamma_from_path``).
 
 Speed and reproducibility:
-- every lower-level solve is warm-started from the solution at the starting weights (itself the
-  best of a 'rest' and a 'line' initial guess), so an evaluation is a pure function of the
-  weights: the same on a local pool and on a Dask cluster, and resumable exactly;
+- every lower-level solve is warm-started from the solution at the best weights found so far
+  (at first: the starting weights, best of a 'rest' and a 'line' initial guess); the sequence of
+  evaluations is deterministic, so the result is the same on a local pool and on a Dask cluster;
 - the lower levels of one evaluation run in parallel (``cobot_analysis.parallel.executor``: local
   processes or ``--scheduler``), in chunks, on processes that keep their NLP built;
-- after every upper-level iteration the log of evaluations is written to a checkpoint; a resumed
-  fit replays the optimiser against that log (no solve) and continues where it stopped, giving
-  the same result as an uninterrupted run;
+- after every upper-level iteration the log of evaluations and the current warm starts are
+  written to a checkpoint; a resumed fit replays the optimiser against that log (no solve),
+  restores the warm starts and continues where it stopped: the same result as an uninterrupted run;
 - a lower level that does not converge (after a cold retry) counts as ``FAILED_D`` (a penalty)
   and is counted in the result, never silently averaged in.
 """
@@ -107,8 +107,9 @@ class IOCSpec:
     max_evaluations: int = 2000
     xtol: float = 1e-2  # log10 units
     ftol: float = 1e-5
-    n_intervals: int = 100
+    n_intervals: int = 50  # 50 vs 500 intervals: 2-12 mm apart (d_xy) on the published weights
     angle_weight: float = 0.5
+    max_iter: int = 200  # lower-level iteration limit (a solve that hits it is retried cold, then failed)
 
     @property
     def angle(self) -> str:
@@ -140,9 +141,10 @@ def solve_target(spec: IOCSpec, w: np.ndarray, t: Target, guess):
     from cobot_analysis.models import resample, solve_model
 
     model = "table" if spec.model == "table" else "improved"
-    sol = solve_model(model, t.start, t.goal, w, n_intervals=spec.n_intervals, duration="free", guess=guess)
+    kw = {"n_intervals": spec.n_intervals, "duration": "free", "max_iter": spec.max_iter}
+    sol = solve_model(model, t.start, t.goal, w, guess=guess, **kw)
     if not sol.success and not isinstance(guess, str):
-        sol = solve_model(model, t.start, t.goal, w, n_intervals=spec.n_intervals, duration="free", guess=("rest", "line"))
+        sol = solve_model(model, t.start, t.goal, w, guess=("rest", "line"), **kw)
     if not sol.success:
         return {"D": FAILED_D, "d_xy": math.nan, "d_theta": math.nan, "d_gamma": math.nan, "T": math.nan, "success": False}, sol
     r = resample(sol, len(t.x))
@@ -153,10 +155,15 @@ def solve_target(spec: IOCSpec, w: np.ndarray, t: Target, guess):
     return d, sol
 
 
-def evaluate_chunk(task) -> list[dict]:
-    """Worker task: lower levels of a chunk of targets for one weight vector (top-level, picklable)."""
+def evaluate_chunk(task) -> list[tuple[dict, np.ndarray | None]]:
+    """Worker task: lower levels of a chunk of targets for one weight vector (top-level, picklable);
+    returns (distances, primal solution or None) per target."""
     spec, w, targets, guesses = task
-    return [solve_target(spec, w, t, g)[0] for t, g in zip(targets, guesses)]
+    out = []
+    for t, g in zip(targets, guesses):
+        d, sol = solve_target(spec, w, t, g)
+        out.append((d, sol.primal if d["success"] else None))
+    return out
 
 
 def reference_chunk(task) -> list[tuple[dict, np.ndarray]]:
@@ -195,6 +202,7 @@ class Checkpoint:
         self.path, self.key = path, key
         self.log: list[dict] = []  # {"z": [...], "f": float, "terms": [...]}
         self.iterations = 0
+        self.guesses: list | None = None  # warm starts (primal vectors) after the last logged evaluation
 
     def load(self) -> bool:
         if self.path is None or not self.path.is_file():
@@ -206,6 +214,7 @@ class Checkpoint:
         if data.get("key") != self.key:
             return False
         self.log, self.iterations = data["log"], data["iterations"]
+        self.guesses = [np.array(g) if isinstance(g, list) else g for g in data["guesses"]]
         return True
 
     def save(self) -> None:
@@ -213,7 +222,8 @@ class Checkpoint:
             return
         self.path.parent.mkdir(parents=True, exist_ok=True)
         tmp = self.path.with_name(f".{self.path.name}.tmp")
-        tmp.write_text(json.dumps({"key": self.key, "iterations": self.iterations, "log": self.log}))
+        guesses = [g.tolist() if isinstance(g, np.ndarray) else g for g in (self.guesses or [])]
+        tmp.write_text(json.dumps({"key": self.key, "iterations": self.iterations, "log": self.log, "guesses": guesses}))
         os.replace(tmp, self.path)
 
 
@@ -264,8 +274,9 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
     start_objective = float(np.mean([d["D"] for d in start_terms]))
 
     ck = Checkpoint(checkpoint, fit_key(spec, targets))
-    if resume:
-        ck.load()
+    if resume and ck.load():
+        guesses = list(ck.guesses)
+    ck.guesses = guesses
     cache = {tuple(e["z"]): e for e in ck.log}
     new = 0
     best = {"f": math.inf}
@@ -281,13 +292,18 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
             w = spec.weights(z)
             res = run(evaluate_chunk, [(spec, w, [targets[i] for i in p], [guesses[i] for i in p]) for p in parts])
             terms: list = [None] * len(targets)
+            primals: list = [None] * len(targets)
             for p, r in zip(parts, res):
-                for i, d in zip(p, r):
-                    terms[i] = d
+                for i, (d, primal) in zip(p, r):
+                    terms[i], primals[i] = d, primal
             e = {"z": list(key), "f": float(np.mean([d["D"] for d in terms])), "terms": terms}
             cache[key] = e
             ck.log.append(e)
             new += 1
+            if e["f"] < best["f"]:  # warm starts follow the best weights
+                for i, primal in enumerate(primals):
+                    if primal is not None:
+                        guesses[i] = primal
         if e["f"] < best["f"]:
             best.update(e)
         if on_evaluation:
