@@ -22,7 +22,7 @@ from __future__ import annotations
 import os
 from collections import defaultdict, deque
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -211,26 +211,30 @@ def open_bag(path: str | os.PathLike) -> Iterator[_Source]:
         raise InputError(f"not a ROS bag (unknown extension {path.suffix!r})", path=path, remedy=_NOT_A_BAG)
     if path.is_dir() and not (path / "metadata.yaml").is_file():
         raise InputError("not a ROS2 bag directory (no metadata.yaml)", path=path, remedy=_NOT_A_BAG)
-    from rosbags.highlevel import AnyReader
-
+    stack = ExitStack()
     try:
-        if path.suffix == ".mcap":
-            with open(path, "rb") as fh:
-                try:
-                    reader, summary = _mcap_ros1_summary(path, fh)
-                except Exception:  # noqa: BLE001 - let rosbags try (it also scans unindexed files)
-                    reader, summary = None, None
-                if reader is not None:
-                    yield _McapRos1Source(path, fh, reader, summary)
-                    return
-        with AnyReader([path]) as reader:
-            yield _RosbagsSource(path, reader)
-    except InputError:
-        raise
+        src = _open(path, stack)
     except Exception as exc:  # noqa: BLE001 - rosbags/mcap raise many types on corrupt input
+        stack.close()
         raise InputError(f"not a readable ROS bag ({type(exc).__name__}: {exc})".replace("\n", " "), path=path,
                          remedy="the file may be truncated or corrupt: re-export or reindex it (rosbag reindex) "
                                 "and check it with `cobot-analysis bag-info`") from exc
+    with stack:
+        yield src
+
+
+def _open(path: Path, stack: ExitStack) -> _Source:
+    from rosbags.highlevel import AnyReader
+
+    if path.suffix == ".mcap":
+        fh = stack.enter_context(open(path, "rb"))
+        try:
+            reader, summary = _mcap_ros1_summary(path, fh)
+        except Exception:  # noqa: BLE001 - let rosbags try (it also scans unindexed files)
+            reader, summary = None, None
+        if reader is not None:
+            return _McapRos1Source(path, fh, reader, summary)
+    return _RosbagsSource(path, stack.enter_context(AnyReader([path])))
 
 
 # ---- bag-info ---------------------------------------------------------------------------------
