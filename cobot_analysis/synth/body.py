@@ -6,7 +6,9 @@ vanishes at rest), with the stride phase ``psi = pi f_step t + psi0`` (one strid
 - lateral sway of the pelvis centre at the stride frequency ``f_step / 2`` (~0.9 Hz):
   ``a_lat e sin(psi)`` along the pelvis' left axis (``a_lat`` about 4-5 cm);
 - vertical bob at the step frequency ``f_step`` (~1.8 Hz): ``a_z e cos(2 psi)`` (about 1.5-2 cm);
-- pelvis yaw (transverse rotation) at the stride frequency: ``a_yaw e cos(psi)`` (about 3-4 deg).
+- pelvis yaw (transverse rotation) at the stride frequency: ``a_yaw e cos(psi)`` (about 3-4 deg);
+- postural sway when standing: ``a_post (1 - e) (sin(2 pi 0.23 t + p1), sin(2 pi 0.31 t + p2))``
+  (a few mm, speed below 1 cm/s), so that "at rest" is as still as a standing person, not frozen.
 
 Pelvis markers are rigid in the pelvis frame (x forward, y left, z up) with their barycentre at the
 true CoM: ``LASI (d/2, w/2, 0)``, ``RASI (d/2, -w/2, 0)``, ``LPSI (-d/2, p/2, 0.03)``,
@@ -29,6 +31,8 @@ STEP_FREQUENCY = 1.8  # Hz, mean step frequency (subject values 1.7-1.95)
 LATERAL_SWAY = 0.045  # m, amplitude of the lateral pelvis sway (subject values 0.035-0.055)
 VERTICAL_BOB = 0.018  # m, amplitude of the vertical pelvis oscillation
 YAW_OSCILLATION = 0.06  # rad, amplitude of the pelvis yaw oscillation (~3.4 deg)
+POSTURAL_SWAY = 0.003  # m, amplitude of the postural sway when standing
+POSTURAL_FREQUENCIES = (0.23, 0.31)  # Hz, of the postural sway along x and y
 ENVELOPE_SPEED = 0.35  # m/s, speed scale of the gait envelope e = tanh(v / ENVELOPE_SPEED)
 NOISE_SD = 0.0007  # m, standard deviation of the measurement noise per coordinate
 RATE = 200.0  # Hz, Vicon rate of both studies
@@ -65,12 +69,15 @@ class Gait:
     a_z: float = VERTICAL_BOB
     a_yaw: float = YAW_OSCILLATION
     psi0: float = 0.0
+    a_post: float = POSTURAL_SWAY
+    post_phase: tuple[float, float] = (0.0, 0.0)
 
     @classmethod
     def draw(cls, rng: np.random.Generator, scale: float = 1.0) -> "Gait":
         return cls(f_step=float(rng.uniform(1.7, 1.95)), a_lat=scale * float(rng.uniform(0.035, 0.055)),
                    a_z=scale * float(rng.uniform(0.014, 0.022)), a_yaw=float(rng.uniform(0.04, 0.08)),
-                   psi0=float(rng.uniform(0, 2 * np.pi)))
+                   psi0=float(rng.uniform(0, 2 * np.pi)), a_post=float(rng.uniform(0.5, 1.0)) * POSTURAL_SWAY,
+                   post_phase=(float(rng.uniform(0, 2 * np.pi)), float(rng.uniform(0, 2 * np.pi))))
 
 
 def envelope(speed) -> np.ndarray:
@@ -84,12 +91,15 @@ def speed_of(xy: np.ndarray, rate: float) -> np.ndarray:
 
 
 def oscillate(t, xy, theta, speed, gait: Gait):
-    """Gait oscillation of a base path -> (true CoM xy, vertical offset, true pelvis theta)."""
+    """Gait oscillation and postural sway of a base path -> (true CoM xy, vertical offset, true pelvis theta)."""
+    t = np.asarray(t)
     e = envelope(speed)
-    psi = np.pi * gait.f_step * np.asarray(t) + gait.psi0
+    psi = np.pi * gait.f_step * t + gait.psi0
     lat = gait.a_lat * e * np.sin(psi)
     left = np.column_stack([-np.sin(theta), np.cos(theta)])
-    return xy + lat[:, None] * left, gait.a_z * e * np.cos(2 * psi), theta + gait.a_yaw * e * np.cos(psi)
+    post = gait.a_post * (1.0 - e)[:, None] * np.column_stack(
+        [np.sin(2 * np.pi * f * t + p) for f, p in zip(POSTURAL_FREQUENCIES, gait.post_phase)])
+    return xy + lat[:, None] * left + post, gait.a_z * e * np.cos(2 * psi), theta + gait.a_yaw * e * np.cos(psi)
 
 
 def _place(origin_xy, z, theta, local) -> np.ndarray:
