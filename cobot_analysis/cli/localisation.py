@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Annotated, Optional
 
@@ -210,8 +211,9 @@ def localisation_command(
                 stage.savefig(fig, stem)
                 names.append(f"{stem}.png")
             for r in results:
-                stage.savefig(report.figure_timeseries(r), f"timeseries_{r['run']}")
-                names.append(f"timeseries_{r['run']}.png")
+                stem = "timeseries_" + re.sub(r"[^A-Za-z0-9_-]+", "_", r["run"])
+                stage.savefig(report.figure_timeseries(r), stem)
+                names.append(f"{stem}.png")
         stage.path("results.md").write_text(report.results_markdown(runs, names, tol_xy, tol_yaw))
     for r in results:
         row = r["row"]

@@ -143,7 +143,7 @@ def figure_paths(results: list[dict]):
             for _, row in g.iterrows():
                 ax.annotate(str(row["goal"]), (row["goal_x"], row["goal_y"]), xytext=(4, 4), textcoords="offset points", fontsize=8)
         ax.set_aspect("equal")
-        ax.set_title(f"{r['run']} ({r['row']['map'] or 'map'})")
+        ax.set_title(f"{r['run']} ({r['row']['map']})" if r["row"]["map"] else r["run"])
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
         ax.legend(fontsize=7, loc="best")
