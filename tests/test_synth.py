@@ -472,3 +472,20 @@ def test_pair_durations_speeds_and_places_match_the_published_data(pair_truth_on
         dist = np.hypot(on.xs(entity, level=1).x0 - on.xs("table", level=1).x0,
                         on.xs(entity, level=1).y0 - on.xs("table", level=1).y0)
         assert abs(dist.median() - published) < 0.1
+
+
+def test_pair_gaps_match_truth_flags_per_entity(small_pairs, pair_truth):
+    truth, _ = pair_truth
+    proto = load_protocol(small_pairs)
+    for trial, g in truth.groupby("trial", observed=True):
+        labels, xyz, *_ = read_c3d(small_pairs.parent / "raw" / f"{trial}.c3d")
+        owner = [proto.resolve_label(lab) for lab in labels]  # "S2:LASI" -> ("subject2", "LASI")
+        gone = np.isnan(xyz).any(axis=-1)
+        for entity, e in g.groupby("entity", observed=True):
+            names = PELVIS_MARKERS if entity != "table" else ("TAB1", "TAB2", "TAB3")
+            cols = [owner.index((entity, m)) for m in names]
+            assert np.array_equal(gone[:, cols].sum(axis=1), e["pelvis_occluded"].to_numpy())
+            lost = e["orientation_lost"].to_numpy()
+            assert gone[lost][:, cols].any(axis=1).all()
+            if entity == "table":
+                assert not lost.any()

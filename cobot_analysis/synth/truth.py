@@ -32,8 +32,8 @@ TRUTH = TableSchema(
         "z": Column("float", "m", "table: height of the table top (0.77 m on the floor); NaN for people"),
         "segment": Column("string", "", "rest, walk, walk_to_table, forward, pause or return"),
         "orientation_lost": Column("bool", "", "a long gap (>= 0.3 s) hides a pelvis marker at this frame"),
-        "pelvis_occluded": Column("int", "-", "number of pelvis markers missing (NaN) in the C3D at this frame "
-                                             "(short gaps included)", required=False),
+        "pelvis_occluded": Column("int", "-", "number of pelvis markers (table: corner markers) missing (NaN) in "
+                                             "the C3D at this frame, short gaps included", required=False),
     },
 )
 
