@@ -15,7 +15,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from cobot_analysis.design import PAIR_GOALS
+from cobot_analysis.design import PAIR_GOALS, WALKING_CONDITIONS, walking_condition
 from cobot_analysis.schema import TRAJECTORIES
 
 N = 40
@@ -55,8 +55,8 @@ def walking_table(seed=0, n_subjects=5, n_conditions=3, n_trials=3, subject_effe
     """Walking study: each subject's paths deviate by ``0.05 + subject_effect * k`` m (k = subject index)."""
     rng = np.random.default_rng(seed)
     frames = []
-    for c in range(n_conditions):
-        start = np.array([-1.0 - c, -2.0 + 0.5 * c])
+    for c, code in enumerate(WALKING_CONDITIONS[:n_conditions]):
+        start = np.array(walking_condition(code).start[:2])
         for k in range(n_subjects):
             for r in range(n_trials):
                 b, s = _bulge(rng, 0.05 + subject_effect * k, n)
@@ -64,8 +64,8 @@ def walking_table(seed=0, n_subjects=5, n_conditions=3, n_trials=3, subject_effe
                 y = start[1] * (1 - s)
                 theta = np.arctan2(-start[1], -start[0]) + 0.1 * b
                 miss = rng.random() < missing_theta
-                meta = {"study": "synthetic-walking", "trial": f"S{k:02d}_C{c}_{r}", "kind": "trial", "n_trials": 1,
-                        "subject": f"S{k + 1:02d}", "pair": None, "condition": f"C{c}", "direction": None, "scenario": None,
+                meta = {"study": "synthetic-walking", "trial": f"S{k:02d}_{code}_{r}", "kind": "trial", "n_trials": 1,
+                        "subject": f"S{k + 1:02d}", "pair": None, "condition": code, "direction": None, "scenario": None,
                         "configuration": None, "end_orientation": None, "repetition": r + 1, "entity": "walker",
                         "travel_time": float(np.hypot(*start) / 1.1 * rng.lognormal(0, 0.05)),
                         "quality": "orientation_missing" if miss else "ok"}

@@ -32,7 +32,13 @@ def _trajectories(out: Path, path: Optional[Path]):
     from cobot_analysis.workspace import find_input
 
     path = path or find_input(out, "trajectories.parquet", TRAJ_STAGES, "--trajectories")
-    return path, pivot(read_table(path, TRAJECTORIES), path)
+    return path, pivot(_plain(read_table(path, TRAJECTORIES)), path)
+
+
+def _plain(df):
+    """Drop the file metadata from ``df.attrs``: pandas deep-copies attrs on every operation."""
+    df.attrs = {}
+    return df
 
 
 def _by(value: Optional[str], columns, path=None) -> list[str] | None:
@@ -83,7 +89,7 @@ def average_command(
             how = f"recomputed from {len(trials)} trajectories"
         else:
             warn(f"{path}: no per-trial trajectories; the published means are carried over unchanged")
-            means = read_table(path, TRAJECTORIES)
+            means = _plain(read_table(path, TRAJECTORIES))
             means = means[means["kind"].eq("mean")].copy()
             means["n_theta"] = np.where(means.groupby(["study", "trial", "entity"])["theta"].transform(lambda v: v.notna().all()),
                                         means["n_trials"], 0)
@@ -130,7 +136,7 @@ def compare_command(
     means_path = means or find_input(out, "means.parquet", ["average"], "--means")
     means_df = read_table(means_path, MEANS)
     stored = means_df.attrs.get("cobot_analysis", {}).get("grouping")
-    mts = pivot(means_df, means_path)
+    mts = pivot(_plain(means_df), means_path)
     groups = _by(by, list(ts.meta.columns), path) or stored or default_groups(ts.meta)
     other = None
     if against is not None:
@@ -210,7 +216,7 @@ def stats_command(
         config = default_config(study)
         study_cfg = cfg.load(config)
     dist_path = distances or find_input(out, "distances.parquet", ["compare"], "--distances")
-    dist = read_table(dist_path, DISTANCES)
+    dist = _plain(read_table(dist_path, DISTANCES))
     dur_path = durations or (out / "import-published" / "durations.parquet")
     dur = None
     if dur_path.is_file():

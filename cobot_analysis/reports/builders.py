@@ -43,14 +43,19 @@ def _load(inputs: dict) -> dict:
     from cobot_analysis.schema import TRAJECTORIES, read_table
     from cobot_analysis.stats.analyses import STATS
 
+    def read(key, schema):
+        df = read_table(inputs[key], schema)
+        df.attrs = {}  # pandas deep-copies attrs on every operation
+        return df
+
     data = {}
     if "trajectories" in inputs:
-        data["ts"] = pivot(read_table(inputs["trajectories"], TRAJECTORIES), inputs["trajectories"])
+        data["ts"] = pivot(read("trajectories", TRAJECTORIES), inputs["trajectories"])
     if "means" in inputs:
-        data["means"] = pivot(read_table(inputs["means"], MEANS), inputs["means"])
+        data["means"] = pivot(read("means", MEANS), inputs["means"])
     for key, schema in (("distances", DISTANCES), ("stats", STATS), ("reconstruction", RECONSTRUCTION)):
         if key in inputs:
-            data[key] = read_table(inputs[key], schema)
+            data[key] = read(key, schema)
     return data
 
 

@@ -162,7 +162,11 @@ def check_levels(config: StudyConfig, sources: dict) -> None:
             continue
         if a.group and a.levels is not None:
             present = {str(v) for v in df[a.group].dropna().unique()}
-            absent = [lv for lv in a.levels if str(lv) not in present]
+            wanted = a.filter.get(a.group, [])
+            expected = {str(v) for v in (wanted if isinstance(wanted, list) else [wanted])}
+            # a level also named in the filter is declared data that may be absent (e.g. model rows
+            # before a model was compared): its test is skipped with the reason instead
+            absent = [lv for lv in a.levels if str(lv) not in present and str(lv) not in expected]
             if absent:
                 raise InputError(f"analysis {a.id}: group level(s) {absent} not found in column {a.group!r} "
                                  f"(found {sorted(present)})", path=config.path, remedy="fix 'levels'")

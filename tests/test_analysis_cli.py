@@ -1,0 +1,147 @@
+"""The analysis commands end to end through the CLI: average, compare, stats, reconstruct, report;
+bad input gives one line, exit code 2 and no stage directory."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from cobot_analysis.schema import TRAJECTORIES, read_table, write_table
+from cobot_analysis.stats.analyses import STATS
+
+sys.path.insert(0, str(Path(__file__).parent))
+from synthetic_tables import pair_table, walking_table  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _workspace(tmp_path, df) -> Path:
+    ws = tmp_path / "ws"
+    write_table(df, ws / "preprocess" / "trajectories.parquet", TRAJECTORIES)
+    return ws
+
+
+@pytest.fixture(scope="module")
+def pair_ws(tmp_path_factory):
+    """A small synthetic pair study run through every analysis command once."""
+    from cobot_analysis.cli import run
+
+    ws = _workspace(tmp_path_factory.mktemp("pairs"), pair_table(seed=7, n_pairs=6, goals=9, n=20))
+    for args in (["average"], ["compare"], ["stats"], ["reconstruct"], ["report", "pairs", "--to", str(ws.parent / "report")]):
+        assert run(["-q", *args, "--out", str(ws)]) == 0, args
+    return ws
+
+
+def test_pair_study_every_question_has_a_row_and_figures(pair_ws):
+    stats = read_table(pair_ws / "stats" / "stats.parquet", STATS)
+    questions = set(stats["question"])
+    for q in ("Q1.1", "Q1.2", "Q1.3", "Q2.1", "Q2.2", "Q3", "Q4.1", "Q4.2", "Q4.3", "Q4.4"):
+        assert q in questions
+        assert stats.loc[stats["question"].eq(q), "status"].eq("ok").all(), q
+    assert stats.loc[stats["question"].str.startswith("A."), "status"].str.startswith("skipped").all()  # no weight/height
+    assert stats.loc[stats["test"].eq("kruskal"), "effect_name"].eq("epsilon^2").all()
+    report = (pair_ws.parent / "report" / "README.md").read_text()
+    for stem in ("paths_forward", "paths_return", "box_d_xy", "box_symmetry", "box_travel_time", "pies_configuration",
+                 "scatter_d_xy_global"):
+        assert f"({stem}.png)" in report
+        assert (pair_ws.parent / "report" / f"{stem}.png").stat().st_size > 1000
+        assert (pair_ws.parent / "report" / f"{stem}.pdf").is_file()
+    assert "| Q1.1 |" in report and "Subjects reconstructed from the table" in report
+    for stage in ("average", "compare", "stats", "reconstruct"):
+        assert (pair_ws / stage / "results.md").is_file() and (pair_ws / stage / "manifest.json").is_file()
+
+
+def test_means_and_distances_tables(pair_ws):
+    from cobot_analysis.averaging import MEANS
+    from cobot_analysis.compare import DISTANCES
+
+    means = read_table(pair_ws / "average" / "means.parquet", MEANS)
+    first = means[means["sample"].eq(0)]
+    # 6 pairs x 9 goals: each (goal, scenario, end orientation, entity) mean holds its trials
+    fwd = first[first["direction"].eq("forward")]
+    assert fwd.groupby("entity")["n_trials"].sum().eq(6 * 9 * 3).all()
+    d = read_table(pair_ws / "compare" / "distances.parquet", DISTANCES)
+    ind = d[d["comparison"].eq("individual-mean")]
+    assert len(ind) == 6 * 9 * 3 * 2 * 3 and ind["d_xy"].ge(0).all()
+    assert {"symmetry", "scenario-scenario", "scenario-scenario-mean", "symmetry-mean"} <= set(d["comparison"])
+
+
+def test_second_run_is_skipped_and_force_redoes(pair_ws, cli):
+    code, _, err = cli("average", "--out", pair_ws)
+    assert code == 0 and "up to date" in err
+
+
+def test_compare_against_another_table_and_walking_questions(tmp_path, cli):
+    ws = _workspace(tmp_path, walking_table(seed=2, n_subjects=5, n_conditions=8, n_trials=3, subject_effect=0.1))
+    for args in (["average"], ["compare"], ["stats"]):
+        code, _, err = cli(*args, "--out", ws)
+        assert code == 0, err
+    stats = read_table(ws / "stats" / "stats.parquet", STATS).set_index("id")
+    assert stats.loc["W1.1", "significant"]  # planted: subjects differ in variability
+    assert stats.loc["W1.3", "note"].endswith("subsets tried)")
+    assert stats.loc["W2", "status"].startswith("skipped")  # no model rows yet
+    # a "model": the means shifted by 5 cm, compared through --against
+    means = pd.read_parquet(ws / "average" / "means.parquet")
+    model = means.assign(x=means["x"] + 0.05, kind="trial", trial="model:" + means["trial"])
+    model.to_parquet(tmp_path / "model.parquet")
+    code, _, err = cli("compare", "--out", ws, "--against", tmp_path / "model.parquet", "--label", "model")
+    assert code == 0, err
+    d = pd.read_parquet(ws / "compare" / "distances.parquet")
+    assert np.allclose(d.loc[d["comparison"].eq("model"), "d_xy"], 0.05)
+    code, _, err = cli("stats", "--out", ws)
+    assert code == 0, err
+    stats = read_table(ws / "stats" / "stats.parquet", STATS).set_index("id")
+    assert stats.loc["W2", "status"] == "ok" and stats.loc["W3", "status"] == "ok"
+
+
+# ---- bad input ------------------------------------------------------------------------------------
+def _no_stage(ws: Path, stage: str) -> bool:
+    return not (ws / stage).exists() and not list(ws.glob(f".{stage}.*"))
+
+
+def test_missing_and_corrupt_trajectories(tmp_path, cli):
+    code, _, err = cli("average", "--out", tmp_path / "empty")
+    assert code == 2 and "no trajectories.parquet in the workspace" in err and "--trajectories" in err
+    bad = tmp_path / "bad.parquet"
+    bad.write_bytes(b"PAR1 garbage")
+    code, _, err = cli("average", "--out", tmp_path / "ws", "--trajectories", bad)
+    assert code == 2 and "bad.parquet: not a readable Parquet file" in err and _no_stage(tmp_path / "ws", "average")
+
+
+@pytest.mark.parametrize("spoil, message", [
+    (lambda df: df.assign(x=np.where(df.index == 5, np.nan, df["x"])), "have NaN positions"),
+    (lambda df: df[~((df["trial"] == df["trial"].iloc[0]) & (df["sample"] == 3))], "different numbers of samples"),
+])
+def test_bad_trajectories_give_one_line_and_no_output(tmp_path, cli, spoil, message):
+    ws = _workspace(tmp_path, spoil(walking_table(seed=1, n_subjects=2, n_conditions=1, n_trials=2)))
+    code, _, err = cli("average", "--out", ws)
+    assert code == 2 and message in err and "trajectories.parquet" in err
+    assert len(err.strip().splitlines()) == 1 and _no_stage(ws, "average")
+
+
+def test_bad_options_and_config(tmp_path, cli):
+    ws = _workspace(tmp_path, walking_table(seed=1, n_subjects=3, n_conditions=2, n_trials=2))
+    code, _, err = cli("average", "--out", ws, "--by", "condition,colour")
+    assert code == 2 and "--by names unknown column(s) ['colour']" in err and _no_stage(ws, "average")
+    assert cli("average", "--out", ws)[0] == 0 and cli("compare", "--out", ws)[0] == 0
+    cfg = tmp_path / "bad.toml"
+    cfg.write_text('[[analysis]]\nid = "X1"\nsource = "distances"\nvalue = "d_xyz"\ngroup = "subject"\ntest = "kruskal"\nfamily = "f"\n')
+    code, _, err = cli("stats", "--out", ws, "--config", cfg)
+    assert code == 2 and "bad.toml: analysis X1: unknown column(s) ['d_xyz']" in err and _no_stage(ws, "stats")
+    cfg.write_text('[[analysis]]\nid = "X2"\nsource = "distances"\nvalue = "d_xy"\ngroup = "subject"\ntest = "kruskal"\nfamily = "f"\nlevels = ["S01", "S99"]\n')
+    code, _, err = cli("stats", "--out", ws, "--config", cfg)
+    assert code == 2 and "group level(s) ['S99'] not found" in err and _no_stage(ws, "stats")
+    cfg.write_text("[[analysis]\n")
+    code, _, err = cli("stats", "--out", ws, "--config", cfg)
+    assert code == 2 and "not valid TOML" in err
+    code, _, err = cli("reconstruct", "--out", ws)
+    assert code == 2 and "no table trajectories" in err and _no_stage(ws, "reconstruct")
+    code, _, err = cli("report", "lizards", "--out", ws)
+    assert code == 2 and "unknown study 'lizards'" in err
+    (tmp_path / "nope.parquet").write_text("x")
+    code, _, err = cli("compare", "--out", ws, "--force", "--against", tmp_path / "nope.parquet")
+    assert code == 2 and "nope.parquet: not a readable trajectory table" in err
