@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cobot_analysis.localisation.poses import from_yaw, invert, compose, multiply
+from cobot_analysis.localisation.poses import compose, from_yaw, invert
 
 T0 = 1_634_300_000.0  # ROS epoch of the synthetic run (October 2021), s
 GOALS_MAP = np.array([  # x, y, yaw of the 6 commanded goals (map frame); start pose is (0, 0, 0)
