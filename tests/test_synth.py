@@ -11,10 +11,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cobot_analysis.angles import angle_diff
+from cobot_analysis.design import PAIR_GOALS
 from cobot_analysis.io.protocol import PELVIS_MARKERS, SUBJECT_MARKERS, load_protocol
+from cobot_analysis.metrics import d_xy
 from cobot_analysis.schema import read_table
 from cobot_analysis.synth import body as bd
-from cobot_analysis.synth import paths, walking
+from cobot_analysis.synth import pairs, paths, walking
 from cobot_analysis.synth.truth import TRUTH, TRUTH_TRIALS
 
 SMALL = ["N1500", "S4015", "O-0640"]  # 3 conditions: near / far, facing / away from the goal
@@ -145,7 +147,9 @@ def walking_truth_only(tmp_path_factory):
     """5 subjects x 40 conditions x 1 trial, truth only (no C3D): enough for study-level properties."""
     d = tmp_path_factory.mktemp("walk_truth")
     walking.generate(d, seed=2, n_subjects=5, n_trials=1, write_raw=False)
-    return read_table(d / "truth_trials.parquet", TRUTH_TRIALS)
+    tt = read_table(d / "truth_trials.parquet", TRUTH_TRIALS)
+    tt.attrs["directory"] = d
+    return tt
 
 
 def test_walking_study_level_properties(walking_truth_only):
@@ -180,6 +184,36 @@ def test_walking_starts_and_ends_match_the_published_means(walking_truth_only, d
         end_err.append(math.hypot(mean[0, -1] - row.xf, mean[1, -1] - row.yf))
     assert np.mean(start_err) < 0.1 and max(start_err) < 0.25  # 5 subjects, start sd ~0.1 m
     assert max(end_err) < 0.1
+
+
+def _by_arc_length(x, y, n=500):
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(y)))])
+    u = np.linspace(0.0, s[-1], n)
+    return np.interp(u, s, x), np.interp(u, s, y)
+
+
+@pytest.mark.datasets
+def test_walking_paths_resemble_the_published_ones(walking_truth_only, datasets):
+    """Per condition, the synthetic mean path is about as far from the published mean as a published
+    subject is (d_xy ~0.1 m), and synthetic trials spread around their mean like the published ones.
+
+    The published walking-2020 samples are evenly spaced along the path (their spacing varies by
+    < 1 % in mid-path although rows vx, vy show a bell-shaped speed), so paths are compared after
+    resampling by arc length, not by time.
+    """
+    truth = read_table(walking_truth_only.attrs["directory"] / "truth.parquet", TRUTH, columns=["trial", "x", "y", "segment"])
+    truth = truth[truth["segment"] == "walk"]
+    to_mean, ours_spread, published_spread = [], [], []
+    for code, trials in walking_truth_only.groupby("condition")["trial"]:
+        paths_ = np.array([_by_arc_length(g.x.to_numpy(), g.y.to_numpy())
+                           for _, g in truth[truth["trial"].isin(set(trials))].groupby("trial", observed=True)])
+        mean = paths_.mean(axis=0)
+        published = np.loadtxt(datasets / "walking-2020" / f"{code}.dat")
+        to_mean.append(d_xy(mean[0], mean[1], published[0], published[1]))
+        ours_spread += [d_xy(p[0], p[1], mean[0], mean[1]) for p in paths_]
+        published_spread += [d_xy(published[6 * k], published[6 * k + 1], published[0], published[1]) for k in range(1, 11)]
+    assert np.mean(to_mean) < 0.15
+    assert 0.5 < np.mean(ours_spread) / np.mean(published_spread) < 1.5
 
 
 # ---- building blocks ---------------------------------------------------------------------------
@@ -279,9 +313,6 @@ def test_cli_synth_walking_bad_usage_exits_2_without_output(cli, tmp_path, args,
 
 
 # ---- pairs -----------------------------------------------------------------------------------
-from cobot_analysis.design import PAIR_GOALS  # noqa: E402
-from cobot_analysis.metrics import d_xy  # noqa: E402
-from cobot_analysis.synth import pairs  # noqa: E402
 
 PAIR_SMALL = ["d1_p4_jaune", "d3_p7_gris"]  # a half-turn goal and a straight one
 
