@@ -167,8 +167,10 @@ def carry(points: np.ndarray, theta0: float, theta1: float, window: tuple[float,
           scenario: int, eps: float, rate: float) -> Carriage:
     """Lift, move the table along ``points`` turning from ``theta0`` to ``theta1``, set it down.
 
-    The table turns while it travels the fraction ``window`` of the path:
-    ``theta = theta0 + (theta1 - theta0) S((s - a) / (b - a))``. Lift and set-down follow
+    The table turns as it travels (s = travelled fraction of the path), half in proportion to the
+    distance and half within the fraction ``window = (a, b)`` of the path:
+    ``theta = theta0 + (theta1 - theta0) (s + S((s - a) / (b - a))) / 2``, so that the carriers'
+    paths stay smooth (no orbiting around a table that turns on the spot). Lift and set-down follow
     ``H S(t / t_lift)``; horizontal motion starts ``q1`` into the lift and ends ``q2`` into the
     set-down.
     """
@@ -187,7 +189,7 @@ def carry(points: np.ndarray, theta0: float, theta1: float, window: tuple[float,
     frac = np.cumsum(np.concatenate([[0.0], np.hypot(*np.diff(path.xy, axis=0).T)])) / max(path.length, 1e-12)
     progress = hold(frac, m0, n - m0 - n_motion)
     a, b = window
-    theta = theta0 + (theta1 - theta0) * paths.smoothstep((progress - a) / (b - a))
+    theta = theta0 + (theta1 - theta0) * 0.5 * (progress + paths.smoothstep((progress - a) / (b - a)))
     return Carriage(xy, theta, height, progress)
 
 
@@ -239,10 +241,9 @@ def simulate_recording(task: tuple) -> tuple[list[dict], list[dict], dict]:
     chord = end - start
     d = float(np.hypot(*chord))
     heading = math.atan2(chord[1], chord[0])
-    nominal_bulge = 0.04 * d  # same shape for every pair: the goal's typical curved path
-    bulge = nominal_bulge + rng.normal(0, TABLE_PATH_SD * PATH_SD_FACTOR[scenario])
+    bulge = rng.normal(0, TABLE_PATH_SD * PATH_SD_FACTOR[scenario])  # published table paths are nearly straight
     fwd_pts = paths.hermite(start, end, heading, heading, k=1.0, bulge=bulge)
-    window = (rng.uniform(0.05, 0.25), rng.uniform(0.7, 0.95))
+    window = (rng.uniform(0.0, 0.2), rng.uniform(0.8, 1.0))
     eps_f, eps_r = rng.normal(0, DURATION_NOISE_SD, 2)
     handling = Lift.draw(rng)
     fwd = carry(fwd_pts, th_start, th_end, window, handling, scenario, eps_f, rate)
@@ -252,7 +253,7 @@ def simulate_recording(task: tuple) -> tuple[list[dict], list[dict], dict]:
     ret_pts = fwd_pts[::-1] + u * (back - start)
     normal = np.array([chord[1], -chord[0]]) / d  # left normal of the return chord
     ret_pts = ret_pts + rng.normal(0, RETURN_SD) * np.sin(np.pi * u) ** 2 * normal
-    ret_window = (1 - window[1] + rng.normal(0, 0.03), 1 - window[0] + rng.normal(0, 0.03))
+    ret_window = (max(0.0, 1 - window[1] + rng.normal(0, 0.03)), min(1.0, 1 - window[0] + rng.normal(0, 0.03)))
     ret = carry(ret_pts, th_end, th_start + rng.normal(0, 0.02), ret_window, handling.reversed(rng), 3, eps_r, rate)
 
     # -- walking to the table ---------------------------------------------------------------------
