@@ -176,3 +176,37 @@ def test_dask_cluster_gives_the_same_results_as_the_local_pool(tmp_path):
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
         dask, _, _ = run_sweep(trajs, CONFIG, WorkDir(tmp_path / "dask"), scheduler=cluster.scheduler_address)
     pd.testing.assert_frame_equal(dask, local)
+
+
+def test_flagged_orientation_is_not_tracked(tmp_path):
+    df = trajectories_table(n_traj=3)
+    df.loc[df["trial"] == "t1", "quality"] = "implausible_gamma"
+    df.loc[df["trial"] == "t2", "theta"] = np.nan
+    df.loc[df["trial"] == "t2", "quality"] = "orientation_missing"
+    tracked = {mode: [t.track_theta for t in trajectories_from_table(df, SweepConfig(settings=((8, 20),), orientation=mode))]
+               for mode in ("auto", "track", "ignore")}
+    assert tracked == {"auto": [True, False, False], "track": [True, True, False], "ignore": [False, False, False]}
+    trajs = trajectories_from_table(df, SweepConfig(settings=((8, 20),)))
+    metrics, windows = sweep_mod.predict_trajectory(trajs[1], SweepConfig(settings=((8, 20),), predictors=("cv",)))
+    assert np.isnan(metrics["delta_theta"]).all() and metrics["delta_xy"].iloc[0] > 0
+    assert np.isnan(windows["error_theta"]).all()
+
+
+@pytest.mark.datasets
+def test_published_walking_trajectories(cli, tmp_path, datasets):
+    out = tmp_path / "ws"
+    assert cli("-q", "import-published", "walking-2020", datasets / "walking-2020", "--out", out)[0] == 0
+    df = read_table(out / "import-published" / "trajectories.parquet", TRAJECTORIES).query("kind == 'trial'")
+    trajs = trajectories_from_table(df, SweepConfig(settings=((50, 100),)))
+    assert len(trajs) == 400 and all(len(t.poses) == 500 for t in trajs)
+    assert sum(not np.isfinite(t.poses[:, 2]).any() for t in trajs) == 125  # README: 125 blocks without orientation
+    ok = set(df.loc[df["quality"] == "ok", "trial"])
+    assert {t.trial for t in trajs if t.track_theta} == ok  # auto: flagged orientations are not tracked
+    assert all(t.duration_source == "nominal_speed" for t in trajs)  # walking-2020 has no durations
+    code, _, err = cli("-q", "predict", "--out", out, "--kind", "trial", "--every", "40", "--predictors", "cv,ctrv",
+                       "--settings", "50:100", "-j", "1")
+    assert code == 0, err
+    per = pd.read_parquet(out / "predict" / "predictions.parquet").query("predictor == 'cv'")
+    assert len(per) == 10 and (per["n_windows"] == 451).all() and (per["n_skipped"] == 0).all()
+    # centimetre errors over a 50-sample horizon; the final error exceeds the average one
+    assert 0.002 < per["delta_xy"].median() < 0.05 and (per["fde"] > per["ade"]).all()

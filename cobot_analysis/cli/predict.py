@@ -46,6 +46,7 @@ def predict_command(
     entity: Annotated[Optional[list[str]], typer.Option("--entity", help="Only these entities: walker, subject1, subject2, table (repeatable).")] = None,
     kind: Annotated[str, typer.Option("--kind", help="'trial', 'mean' or 'all' trajectories.")] = "all",
     limit: Annotated[Optional[int], typer.Option("--limit", min=1, help="Only the first N trajectories (a quick look).")] = None,
+    every: Annotated[int, typer.Option("--every", min=1, help="Only every K-th trajectory (in study, trial, entity order): a spread-out subset.")] = 1,
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
     force: ForceOpt = False,
@@ -88,6 +89,7 @@ def predict_command(
     if kind != "all":
         df = df[df["kind"] == kind]
     trajs = trajectories_from_table(df, config, path)
+    trajs = trajs[::every]
     if limit:
         trajs = trajs[:limit]
     n0_min = min(n0 for n0, _ in config.settings)
@@ -99,7 +101,7 @@ def predict_command(
     if unpredictable:
         warn(f"predict: {len(unpredictable)} trajectories left out, fewer than N0 = {n0_min} consecutive finite positions: "
              + ", ".join(unpredictable[:5]) + (" ..." if len(unpredictable) > 5 else ""))
-    params = {"config": config.__dict__, "study": study, "entity": entity, "kind": kind, "limit": limit}
+    params = {"config": config.__dict__, "study": study, "entity": entity, "kind": kind, "limit": limit, "every": every}
     work = WorkDir(Path(out) / WORK)
     with Stage(out, STAGE, inputs=[path, *inputs], params=params, force=force) as stage:
         if stage.skipped:

@@ -155,6 +155,10 @@ class OCPredictor(Predictor):
         self.warm_start = bool(warm_start)
         self.ocp = get_ocp(OCPShape(n_intervals=n_oc - 1, tol=tol, solver=solver))
         super().__init__(n0, n_oc, dt)
+        # derivative at t = 0 of the least-squares quadratic c0 + c1 t + c2 t^2 through the first
+        # ``fit`` samples of a window: c1 = d . p (a fixed filter, computed once)
+        t = np.arange(min(self.fit, self.n0)) * self.dt
+        self._derivative = np.linalg.pinv(np.vander(t, 3, increasing=True))[1]
 
     def reset(self) -> None:
         super().reset()
@@ -167,15 +171,15 @@ class OCPredictor(Predictor):
     # -- initial state ------------------------------------------------------------------------------
     def initial_state(self, past: np.ndarray) -> tuple[np.ndarray, bool]:
         """Start state X0 = (x, y, theta, v_forw, v_orth, omega) at node 0, and whether theta was measured."""
-        m = min(self.fit, len(past))
-        t = np.arange(m) * self.dt
+        d = self._derivative
+        m = len(d)
         has_theta = bool(np.isfinite(past[:, 2]).all())
-        vx, vy = (np.polyfit(t, past[:m, j], 2)[1] for j in (0, 1))  # d/dt of c2 t^2 + c1 t + c0 at 0
+        vx, vy = d @ past[:m, 0], d @ past[:m, 1]
         if has_theta:
-            theta, omega = past[0, 2], np.polyfit(t, past[:m, 2], 2)[1]
+            theta, omega = past[0, 2], d @ past[:m, 2]
         else:
             heading = np.unwrap(np.arctan2(np.gradient(past[:m, 1]), np.gradient(past[:m, 0])))
-            theta, omega = heading[0], np.polyfit(t, heading, 2)[1]
+            theta, omega = heading[0], d @ heading
         c, s = np.cos(theta), np.sin(theta)
         return np.array([past[0, 0], past[0, 1], theta, c * vx + s * vy, -s * vx + c * vy, omega]), has_theta
 

@@ -1,0 +1,113 @@
+"""Prediction benchmarks (docs/benchmarks.md, section "Prediction").
+
+    python benchmarks/bench_predict.py windows TRAJECTORIES.parquet [--n 6]
+        OC windows per second on one core (N0 = 50, N_OC = 100: 100-node windows), warm-started
+        (the previous window shifted) and cold, and the baselines, on the first n trial trajectories.
+    python benchmarks/bench_predict.py sweep TRAJECTORIES.parquet --out DIR [--dask] [--limit N]
+        Wall time of `cobot-analysis predict --settings 50:100 --kind trial` from an empty work
+        directory: local pool of 2 processes, or a 2-worker local Dask cluster (--dask).
+
+TRAJECTORIES.parquet: e.g. the output of `cobot-analysis import-published walking-2020 ...`.
+BLAS is limited to one thread per process, as in the pipeline's pool.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import time
+from pathlib import Path
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import numpy as np  # noqa: E402
+
+
+def load(path: Path, n: int):
+    from cobot_analysis.models.sweep import SweepConfig, trajectories_from_table
+    from cobot_analysis.schema import TRAJECTORIES, read_table
+
+    df = read_table(path, TRAJECTORIES)
+    df = df[df["kind"] == "trial"]
+    trials = df["trial"].unique()[:: max(1, len(df["trial"].unique()) // n)][:n]
+    return trajectories_from_table(df[df["trial"].isin(trials)], SweepConfig(settings=((50, 100),)))
+
+
+def bench_windows(path: Path, n: int) -> None:
+    from cobot_analysis.models.predict import OCPredictor, make_predictor
+
+    trajs = load(path, n)
+    OCPredictor(50, 100, trajs[0].dt)  # build the NLP once (cached per process)
+    t0 = time.perf_counter()
+    from cobot_analysis.models.ocp import OCPShape, WalkerOCP
+
+    WalkerOCP(OCPShape(n_intervals=99))
+    build = time.perf_counter() - t0
+    print(f"NLP build (99 intervals): {build:.2f} s")
+    for label, kw in (("oc warm", {}), ("oc cold", {"warm_start": False})):
+        times, iters, failed = [], [], 0
+        for t in trajs:
+            p = OCPredictor(50, 100, t.dt, **kw)
+            p.reset()
+            for pose in t.seen:
+                before = p.last_solution
+                s = time.perf_counter()
+                p.update(pose)
+                if p.last_solution is not before:  # a window was solved
+                    times.append(time.perf_counter() - s)
+                    iters.append(p.last_solution.iterations)
+            failed += p.failed
+        times = np.array(times)
+        print(f"{label}: {len(times)} windows, {1 / times.mean():.0f} windows/s (mean {1e3 * times.mean():.2f} ms, "
+              f"median {1e3 * np.median(times):.2f} ms, p95 {1e3 * np.percentile(times, 95):.2f} ms), "
+              f"iterations median {np.median(iters):.0f}, failed {failed}")
+    for name in ("cv", "ctrv"):
+        s = time.perf_counter()
+        count = sum(make_predictor(name, 50, 100, t.dt).predict_offline(t.seen).shape[0] for t in trajs)
+        print(f"{name}: {count / (time.perf_counter() - s):.0f} windows/s")
+
+
+def bench_sweep(path: Path, out: Path, dask: bool, limit: int | None) -> None:
+    from cobot_analysis.cli import run
+
+    shutil.rmtree(out / ".predict-work", ignore_errors=True)
+    argv = ["-q", "predict", "--out", str(out), "--trajectories", str(path), "--kind", "trial", "--settings", "50:100",
+            "--force", *(["--limit", str(limit)] if limit else [])]
+    if dask:
+        from distributed import LocalCluster
+
+        with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+            s = time.perf_counter()
+            code = run([*argv, "--scheduler", cluster.scheduler_address])
+            wall = time.perf_counter() - s
+    else:
+        s = time.perf_counter()
+        code = run([*argv, "--jobs", "2"])
+        wall = time.perf_counter() - s
+    print(f"sweep (50,100) {'dask 2 workers' if dask else 'local pool -j 2'}: exit {code}, wall {wall:.0f} s")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = ap.add_subparsers(dest="what", required=True)
+    w = sub.add_parser("windows")
+    w.add_argument("trajectories", type=Path)
+    w.add_argument("--n", type=int, default=6)
+    s = sub.add_parser("sweep")
+    s.add_argument("trajectories", type=Path)
+    s.add_argument("--out", type=Path, required=True)
+    s.add_argument("--dask", action="store_true")
+    s.add_argument("--limit", type=int)
+    a = ap.parse_args()
+    print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} cores, load average "
+          f"{', '.join(f'{v:.1f}' for v in os.getloadavg())}")
+    if a.what == "windows":
+        bench_windows(a.trajectories, a.n)
+    else:
+        bench_sweep(a.trajectories, a.out, a.dask, a.limit)
+
+
+if __name__ == "__main__":
+    main()
