@@ -77,6 +77,21 @@ class TrajectorySet:
         return TrajectorySet(self.meta.iloc[idx].reset_index(drop=True), self.x[idx], self.y[idx], self.theta[idx], self.gamma[idx])
 
 
+def plain_dtypes(df: pd.DataFrame) -> pd.DataFrame:
+    """Nullable pandas dtypes -> numpy ones (strings as objects with None, integers as floats with
+    NaN), so that masks never hold <NA> (Parquet files read back with string / Int64 dtypes)."""
+    df = df.copy()
+    for c in df.columns:
+        dt = df[c].dtype
+        if isinstance(dt, pd.StringDtype) or (dt == object and df[c].isna().any()):
+            df[c] = df[c].astype(object).where(df[c].notna(), None)
+        elif isinstance(dt, pd.api.extensions.ExtensionDtype) and pd.api.types.is_numeric_dtype(dt):
+            df[c] = df[c].astype("float64")
+        elif isinstance(dt, pd.BooleanDtype):
+            df[c] = df[c].astype(object).where(df[c].notna(), None)
+    return df
+
+
 def pivot(df: pd.DataFrame, path: str | Path | None = None) -> TrajectorySet:
     """Long table -> ``TrajectorySet``; every trajectory must have the same number of samples."""
     missing = [c for c in (*KEY, "sample", "x", "y") if c not in df.columns]
@@ -94,7 +109,7 @@ def pivot(df: pd.DataFrame, path: str | Path | None = None) -> TrajectorySet:
     if not (df["sample"].to_numpy().reshape(-1, n) == np.arange(n)).all():
         raise InputError("sample indices are not 0..N-1 within each trajectory", path=path, remedy="re-run the stage that wrote it")
     first = np.flatnonzero(df["sample"].to_numpy() == 0)
-    meta = df.loc[first, [c for c in META if c in df.columns]].reset_index(drop=True)
+    meta = plain_dtypes(df.loc[first, [c for c in META if c in df.columns]].reset_index(drop=True))
 
     def arr(col: str) -> np.ndarray:
         if col not in df.columns:
@@ -220,11 +235,15 @@ def compare_sets(trials: TrajectorySet, means: TrajectorySet | None, *, by: list
     parts = []
     if means is not None and len(means):
         parts.append(individual_vs_mean(trials, means, by))
-        if "scenario" in means.meta.columns and means.meta["scenario"].notna().any():
+        scen = pd.to_numeric(means.meta["scenario"], errors="coerce") if "scenario" in means.meta.columns else None
+        if scen is not None and scen.notna().any():  # pooled means (scenario null) are not a scenario
             same = [c for c in ("study", "condition", "direction", "end_orientation", "entity") if c in means.meta.columns]
-            parts.append(any_vs_any(means, same=same, differ=["scenario"], comparison="scenario-scenario-mean"))
-        if "direction" in means.meta.columns and means.meta["direction"].eq("return").any():
-            parts.append(forward_vs_return(means, ["study", "condition", "end_orientation", "entity"]).assign(comparison="symmetry-mean"))
+            parts.append(any_vs_any(means.subset(scen.notna().to_numpy()), same=same, differ=["scenario"],
+                                    comparison="scenario-scenario-mean"))
+        if "direction" in means.meta.columns and means.meta["direction"].eq("return").any() and scen is not None:
+            # forward means of scenario 3 (returns are scenario 3 by design) vs the reversed return means
+            both = means.subset((scen.eq(3) | means.meta["direction"].eq("return")).to_numpy())
+            parts.append(forward_vs_return(both, ["study", "condition", "end_orientation", "entity"]).assign(comparison="symmetry-mean"))
     tr = trials.subset(trials.meta["kind"].eq("trial").to_numpy())
     if len(tr) and "scenario" in tr.meta.columns and tr.meta["scenario"].nunique() > 1:
         same = [c for c in ("study", "pair", "condition", "direction", "end_orientation", "entity") if c in tr.meta.columns]

@@ -90,6 +90,15 @@ def read_wrt_table(directory: str | Path) -> dict:
     return out
 
 
+def relative_pose_table(df: pd.DataFrame) -> dict:
+    """The importer's subject_wrt_table.parquet (entity, direction, sample, x_rel, y_rel, theta_rel)
+    -> same mapping as ``relative_pose``."""
+    out = {}
+    for (ent, direction), g in df.sort_values("sample").groupby(["entity", "direction"]):
+        out[(str(ent), str(direction))] = tuple(g[c].to_numpy(dtype=float) for c in ("x_rel", "y_rel", "theta_rel"))
+    return out
+
+
 def reconstruct(x_t, y_t, th_t, x_rel, y_rel, th_rel):
     """Subject pose from the table pose and the subject pose in the table frame (arrays of N)."""
     c, s = np.cos(th_t), np.sin(th_t)

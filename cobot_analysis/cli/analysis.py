@@ -257,7 +257,7 @@ def stats_command(
 def reconstruct_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     trajectories: TrajOpt = None,
-    wrt_table: Annotated[Optional[Path], typer.Option("--wrt-table", help="Directory with the published subject1_wrt_table.dat and subject2_wrt_table.dat.")] = None,
+    wrt_table: Annotated[Optional[Path], typer.Option("--wrt-table", help="Directory with the published subject1_wrt_table.dat and subject2_wrt_table.dat (default: WS/import-published/subject_wrt_table.parquet when present).")] = None,
     scenario: Annotated[int, typer.Option("--scenario", help="Scenario whose trials give the relative pose and are reconstructed.")] = 3,
     force: ForceOpt = False,
 ) -> None:
@@ -265,15 +265,20 @@ def reconstruct_command(
     import pandas as pd
 
     from cobot_analysis.console import info
-    from cobot_analysis.reconstruct import RECONSTRUCTION, accuracy, read_wrt_table, relative_pose
+    from cobot_analysis.reconstruct import RECONSTRUCTION, accuracy, read_wrt_table, relative_pose, relative_pose_table
     from cobot_analysis.schema import write_table
     from cobot_analysis.workspace import Stage
 
     path, ts = _trajectories(out, trajectories)
-    published = read_wrt_table(wrt_table) if wrt_table else None
     if not ts.meta["entity"].eq("table").any():
         raise InputError("no table trajectories to reconstruct the subjects from", path=path, remedy="use pair-study trajectories")
-    inputs = [path] + ([wrt_table / "subject1_wrt_table.dat", wrt_table / "subject2_wrt_table.dat"] if wrt_table else [])
+    imported = out / "import-published" / "subject_wrt_table.parquet"
+    if wrt_table:
+        published, inputs = read_wrt_table(wrt_table), [path, wrt_table / "subject1_wrt_table.dat", wrt_table / "subject2_wrt_table.dat"]
+    elif imported.is_file():
+        published, inputs = relative_pose_table(_plain(pd.read_parquet(imported))), [path, imported]
+    else:
+        published, inputs = None, [path]
     with Stage(out, "reconstruct", inputs=inputs, params={"scenario": scenario}, force=force) as stage:
         if stage.skipped:
             return

@@ -26,6 +26,7 @@ def report_inputs(out: Path) -> dict[str, Path]:
         "distances": [out / "compare" / "distances.parquet"],
         "stats": [out / "stats" / "stats.parquet"],
         "reconstruction": [out / "reconstruct" / "reconstruction.parquet"],
+        "durations": [out / "import-published" / "durations.parquet"],
     }
     found = {}
     for name, paths in cands.items():
@@ -56,6 +57,8 @@ def _load(inputs: dict) -> dict:
     for key, schema in (("distances", DISTANCES), ("stats", STATS), ("reconstruction", RECONSTRUCTION)):
         if key in inputs:
             data[key] = read(key, schema)
+    if "durations" in inputs:
+        data["durations"] = pd.read_parquet(inputs["durations"])
     return data
 
 
@@ -136,14 +139,14 @@ def _pairs(data: dict, stage, lines: list[str], results: list[str]) -> None:
     ts, means, dist = data.get("ts"), data.get("means"), data.get("distances")
     for direction in ("forward", "return"):
         panels = _path_panels(ts, means, ["condition"], lambda k: str(k[0]),
-                              select=lambda m, d=direction: m["direction"].eq(d).to_numpy())
+                              select=lambda m, d=direction: (m["direction"].eq(d) & m["scenario"].notna()).to_numpy())  # no pooled means
         if panels:
             styles = "; mean per scenario and end orientation: S1 solid, S2 dashed, S3 dotted" if direction == "forward" else ""
             _fig(stage, figures.paths(panels, ncols=5, title=f"{direction} paths: individual (thin), means (bold){styles}"),
                  f"paths_{direction}", f"{direction.capitalize()} paths per goal: individual trials, means and orientation arrows", lines)
     if dist is None:
         return
-    sources = build_sources(ts, dist)
+    sources = build_sources(ts, dist, data.get("durations"))
     dur = sources["durations"]
     if len(dur):
         g = {f"{d[:3]} S{s:g}": v["duration"].to_numpy() for (d, s), v in dur.groupby(["direction", "scenario"])}
@@ -160,7 +163,17 @@ def _pairs(data: dict, stage, lines: list[str], results: list[str]) -> None:
         _fig(stage, figures.scatter_r({e: (v["global_distance"], v["d_xy"]) for e, v in ind.groupby("entity")},
                                       "global distance (m)", "d_xy (m)"), "scatter_d_xy_global",
              "Individual vs mean d_xy against the global distance", lines)
-    sym = dist[dist["comparison"].eq("symmetry")]
+    between = dist[dist["comparison"].eq("scenario-scenario-mean")]
+    if len(between):
+        b = between.assign(sp=[f"S{int(min(a, c))}-S{int(max(a, c))}" for a, c in zip(between["scenario"], between["b_scenario"])])
+        g, colors = {}, []
+        for (ent, sp), v in b.groupby(["entity", "sp"]):
+            g[f"{ent} {sp}"] = v["d_xy"].to_numpy()
+            colors.append(figures.COLORS[ent])
+        _fig(stage, figures.boxplots(g, "d_xy between scenario means (m)", "Mean paths of different scenarios (same end orientation)", colors),
+             "box_scenarios_means", "Distance between the mean paths of two scenarios, per entity (Q1.3 on means)", lines)
+    sym = dist[dist["comparison"].isin(["symmetry", "symmetry-mean"])]
+    sym = sym[sym["comparison"].eq("symmetry")] if sym["comparison"].eq("symmetry").any() else sym
     if len(sym):
         _fig(stage, figures.boxplots({e: v["d_xy"].to_numpy() for e, v in sym.groupby("entity")}, "d_xy forward vs reversed return (m)",
                                      "Forward/return symmetry", [figures.COLORS[e] for e in sorted(sym["entity"].unique())]),

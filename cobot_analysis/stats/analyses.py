@@ -18,7 +18,7 @@ import pandas as pd
 
 from cobot_analysis.schema import Column, TableSchema
 from cobot_analysis.stats import tests as T
-from cobot_analysis.stats.config import Analysis, StudyConfig
+from cobot_analysis.stats.config import Analysis, StudyConfig, match as _match
 from cobot_analysis.stats.subsets import largest_subset
 
 STATS = TableSchema(
@@ -53,15 +53,6 @@ STATS = TableSchema(
     },
 )
 NOT_HOLM = ("describe", "largest_subset")
-
-
-def _match(series: pd.Series, wanted) -> pd.Series:
-    values = wanted if isinstance(wanted, list) else [wanted]
-    if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
-        return pd.to_numeric(series, errors="coerce").isin([float(v) for v in values])
-    if all(isinstance(v, bool) for v in values):
-        return series.isin(values)
-    return series.astype(str).isin([str(v) for v in values])
 
 
 def _label(v) -> str:
@@ -103,10 +94,18 @@ def _run_one(a: Analysis, df: pd.DataFrame, groups: dict, alpha: float) -> dict:
     categorical = a.test in ("fisher", "chisquare", "binomial", "describe")
     if not categorical:
         groups = {k: pd.to_numeric(pd.Series(v), errors="coerce").dropna().to_numpy(float) for k, v in groups.items()}
+    empty = [k for k, v in groups.items() if len(v) == 0]
+    if empty and a.levels is None and len(groups) - len(empty) >= 2:  # e.g. a subject without any orientation
+        groups = {k: v for k, v in groups.items() if len(v)}
+        row["note"] = f"left out (no values): {', '.join(empty)}"
+        row["levels"] = ", ".join(groups)
     sizes = {k: len(v) for k, v in groups.items()}
     row.update(n=int(sum(sizes.values())), n_groups="; ".join(f"{k}: {n}" for k, n in sizes.items()))
     small = [k for k, n in sizes.items() if n < a.minimum]
-    if small or not sizes:
+    if not sum(sizes.values()):
+        row["status"] = "skipped: no data in this subset (the data do not support this question)"
+        return row
+    if small:
         row["status"] = (f"skipped: group(s) {', '.join(small)} have fewer than {a.minimum} values ({row['n_groups']})"
                          if sizes else "skipped: no data in this subset")
         return row
@@ -122,20 +121,27 @@ def _run_one(a: Analysis, df: pd.DataFrame, groups: dict, alpha: float) -> dict:
         row["normality_p"] = float(np.nanmin(ps)) if not all(np.isnan(ps)) else math.nan
         if a.parametric and all(p > alpha for p in ps if not np.isnan(p)) and not all(np.isnan(ps)):
             test = a.parametric
-        row["note"] = f"{a.normality} normality p >= {row['normality_p']:.3g}: {'normal' if test != a.test else 'non-normal'} -> {test}"
+        verdict = "all groups normal" if all(p > alpha for p in ps if not np.isnan(p)) else "not all groups normal"
+        switch = f" -> {test}" if a.parametric else ""
+        row["note"] = "; ".join(x for x in (row["note"], f"{a.normality} normality: smallest p {row['normality_p']:.3g}, "
+                                            f"{verdict}{switch}") if x)
     row["test"] = test
     if test == "describe":
         vals = {k: pd.Series(v) for k, v in groups.items()}
-        if all(pd.api.types.is_numeric_dtype(v) and not pd.api.types.is_bool_dtype(v) for v in vals.values()):
-            row["summary"] = _summary({k: v.to_numpy(float) for k, v in vals.items()})
+        numeric = all(pd.api.types.is_numeric_dtype(v) and not pd.api.types.is_bool_dtype(v) for v in vals.values())
+        if numeric and pd.concat(list(vals.values())).nunique() > 10:  # a measurement: distribution; else counts
+            row["summary"] = _summary({k: v.dropna().to_numpy(float) for k, v in vals.items()})
+            missing = sum(int(v.isna().sum()) for v in vals.values())
+            row["note"] = f"{missing} missing values left out" if missing else row["note"]
         else:
-            row["summary"] = "; ".join(f"{k}: " + ", ".join(f"{c} {n}" for c, n in v.astype(str).value_counts().sort_index().items())
+            row["summary"] = "; ".join(f"{k}: " + ", ".join(f"{_label(c)}: {n}" for c, n in v.value_counts().sort_index().items())
                                        for k, v in vals.items())
         return row
     if test == "largest_subset":
         res = largest_subset(groups, alpha)
         row.update(statistic=res.statistic, p=res.p, levels=", ".join(map(str, res.members)),
-                   note=f"{len(res.members)} of {len(groups)} groups indistinguishable (Kruskal p > {alpha}); {res.method}")
+                   note="; ".join(x for x in (row["note"], f"{len(res.members)} of {len(groups)} groups indistinguishable "
+                                  f"(Kruskal p > {alpha}): {', '.join(map(str, res.members))}; {res.method}") if x))
         return row
     if test in ("fisher", "binomial"):
         flag = {k: pd.Series(v).astype(bool).to_numpy() for k, v in groups.items()}

@@ -153,20 +153,35 @@ def load(path: str | Path) -> StudyConfig:
     return parse(data, path)
 
 
+def match(series, wanted):
+    """Rows whose value is ``wanted`` (or in the list ``wanted``); numbers compare as numbers."""
+    import pandas as pd
+
+    values = wanted if isinstance(wanted, list) else [wanted]
+    if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+        return pd.to_numeric(series, errors="coerce").isin([float(v) for v in values])
+    if all(isinstance(v, bool) for v in values):
+        return series.isin(values)
+    return series.astype(str).isin([str(v) for v in values])
+
+
 def check_levels(config: StudyConfig, sources: dict) -> None:
-    """Second validation step, once the sources exist but before any test: declared levels and
-    filter values must occur in the (non-empty) source."""
+    """Second validation step, once the sources exist but before any test: the declared group
+    levels must occur in the analysis' subset when that subset has data (an empty subset is
+    reported as skipped instead: the data do not support the question)."""
     for a in config.analyses:
         df = sources[a.source]
+        for col, wanted in a.filter.items():
+            df = df[match(df[col], wanted)]
         if df.empty:
             continue
         if a.group and a.levels is not None:
-            present = {str(v) for v in df[a.group].dropna().unique()}
+            present = sorted({str(v) for v in df[a.group].dropna().unique()})
             wanted = a.filter.get(a.group, [])
             expected = {str(v) for v in (wanted if isinstance(wanted, list) else [wanted])}
             # a level also named in the filter is declared data that may be absent (e.g. model rows
             # before a model was compared): its test is skipped with the reason instead
-            absent = [lv for lv in a.levels if str(lv) not in present and str(lv) not in expected]
+            absent = [lv for lv in a.levels if not match(df[a.group], lv).any() and str(lv) not in expected]
             if absent:
                 raise InputError(f"analysis {a.id}: group level(s) {absent} not found in column {a.group!r} "
-                                 f"(found {sorted(present)})", path=config.path, remedy="fix 'levels'")
+                                 f"(found {present})", path=config.path, remedy="fix 'levels'")

@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 
 from cobot_analysis.angles import wrap
-from cobot_analysis.compare import TrajectorySet
+from cobot_analysis.compare import TrajectorySet, plain_dtypes
 from cobot_analysis.design import GLOBAL_DISTANCE_SPLIT
 from cobot_analysis.metrics import optimal_configurations
 
@@ -42,6 +42,7 @@ SOURCE_COLUMNS: dict[str, list[str]] = {
                   "b_end_orientation", "b_repetition", "travel_time", "travelled_distance", "global_distance",
                   "orientation_change", "d_xy", "d_theta", "d_gamma", "carrier", "start_orientation", "distance_class",
                   "scenario_pair"],
+    "pair_durations": ["study", "pair", "direction", "scenario", "duration", "n"],
     "choices": ["study", "pair", "condition", "scenario", "end_orientation", "optimal_s1", "optimal_s2", "optimal_pair",
                 "chance_s1", "chance_s2", "chance_pair"],
     "patterns": ["study", "pair", "condition", "pattern"],
@@ -77,7 +78,7 @@ def trials_source(ts: TrajectorySet) -> pd.DataFrame:
 def durations_source(trials: pd.DataFrame, durations: pd.DataFrame | None) -> pd.DataFrame:
     """Per-trial carriage durations: the published table if given, else the table trajectories."""
     if durations is not None and len(durations):
-        d = durations.rename(columns={"duration_s": "duration"}).copy()
+        d = plain_dtypes(durations.rename(columns={"duration_s": "duration"}))
         return _conform(d, "durations")
     t = trials[trials["entity"].eq("table") & trials["travel_time"].notna()] if len(trials) else trials
     if t.empty:
@@ -85,10 +86,21 @@ def durations_source(trials: pd.DataFrame, durations: pd.DataFrame | None) -> pd
     return _conform(t.rename(columns={"travel_time": "duration"}).reset_index(drop=True), "durations")
 
 
+def pair_durations_source(durations: pd.DataFrame) -> pd.DataFrame:
+    """Pair-level travel times: the mean duration of each pair per direction and scenario (one value
+    per pair, so that pairs with more trials do not weigh more and trials of a pair are not
+    treated as independent)."""
+    if durations.empty:
+        return _empty("pair_durations")
+    d = durations.dropna(subset=["pair", "duration"])
+    out = d.groupby(["study", "pair", "direction", "scenario"], as_index=False).agg(duration=("duration", "mean"), n=("duration", "size"))
+    return _conform(out, "pair_durations")
+
+
 def distances_source(distances: pd.DataFrame | None) -> pd.DataFrame:
     if distances is None or distances.empty:
         return _empty("distances")
-    d = distances.copy()
+    d = plain_dtypes(distances)
     d["carrier"] = d["entity"].map({"subject1": "subject", "subject2": "subject", "table": "table", "walker": "walker"})
     d["start_orientation"] = d["condition"].astype(str).str[0].where(d["study"].astype(str).str.contains("walking"))
     gd = d["global_distance"].astype(float)
@@ -252,9 +264,11 @@ def build_sources(ts: TrajectorySet | None, distances: pd.DataFrame | None, dura
     """Every source of ``SOURCE_COLUMNS`` (empty tables where the data do not support them)."""
     trials = trials_source(ts) if ts is not None else _empty("trials")
     dist = distances_source(distances)
+    dur = durations_source(trials, durations)
     return {
         "trials": trials,
-        "durations": durations_source(trials, durations),
+        "durations": dur,
+        "pair_durations": pair_durations_source(dur),
         "distances": dist,
         "choices": choices_source(trials) if "direction" in trials and trials["direction"].notna().any() else _empty("choices"),
         "patterns": patterns_source(trials) if trials["direction"].notna().any() else _empty("patterns"),
