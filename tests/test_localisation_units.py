@@ -343,3 +343,20 @@ def test_ros1_chunk_scan_equals_rosbags_iteration_on_compressed_bags(tmp_path, m
         for k in specs:
             assert np.array_equal(fast[k].t, plain[k].t) and np.array_equal(fast[k].t, slow[k].t)
             assert np.array_equal(fast[k].xyz, slow[k].xyz) and np.array_equal(fast[k].quat, plain[k].quat)
+
+
+@pytest.mark.parametrize("alignment", ["se3", "yaw"])
+def test_rotated_frames_need_a_rigid_alignment(alignment):
+    """ICP map frame rotated by 0.4 rad about z and shifted: the rigid alignments recover the delay
+    and leave only the noise (orientations rotated with the positions); the mean offset cannot
+    remove a rotation."""
+    truth = _walk(60)
+    icp = _icp_of(truth, 0.52, np.zeros(4), np.array([0.004, 0.004, 0.002, 0.002]), seed=5)
+    r = P.to_matrix(P.from_yaw(0.4))
+    rotated = PoseStream(icp.t, icp.xyz @ r.T + [2.0, -1.0, 0.1], P.multiply(P.from_yaw(0.4), icp.quat))
+    c = compare(truth, rotated, alignment=alignment)
+    assert abs(c.delay.value - 0.52) < 0.005
+    assert c.summary["err_x_mean"] == pytest.approx(0.004 * np.sqrt(2 / np.pi), rel=0.15)
+    assert c.summary["err_yaw_mean"] == pytest.approx(0.002 * np.sqrt(2 / np.pi), rel=0.15)
+    assert abs(c.summary["offset_yaw"] - 0.4) < 1e-3
+    assert compare(truth, rotated, delay=0.52).summary["err_x_mean"] > 0.05

@@ -13,7 +13,8 @@ Notation: ``s_i`` the ICP stamps, ``P(t)`` the motion-capture (truth) pose, ``Q_
    after the mean offset is removed. A grid scan every 20 ms (or the motion-capture period if
    longer) over the search window finds the basin (far narrower than the gait period, so the
    scan cannot miss it); a golden-section search between the grid neighbours of the best grid
-   point refines it to 1e-6 s. Standard error (sandwich, Gauss-Newton):
+   point refines it to 1e-6 s. With a rigid alignment (se3, yaw) the position residual is taken
+   after that alignment at each ``d`` instead of after the mean. Standard error (sandwich, Gauss-Newton):
    ``var d = sum_ia w_a^2 sigma_a^2 g_ia^2 / (sum_ia w_a g_ia^2)^2``, ``g_i = dP/dt (s_i - d)``
    centred, ``sigma_a`` the residual sd of axis a (serially uncorrelated noise assumed).
 3. Structural offset: ``o = mean_i (Q_i - P(s_i - d))`` per axis (circular mean for yaw) and
@@ -109,8 +110,12 @@ def _channels(stream: PoseStream) -> np.ndarray:
 
 # ---- 2. delay ---------------------------------------------------------------------------------
 def estimate_delay(truth: PoseStream, icp: PoseStream, window: tuple[float, float] = (0.0, 1.5),
-                   weights=(1.0, 1.0, 1.0, 1.0), min_samples: int = 20, grid_step: float = 0.02) -> Delay:
-    """Delay of ``icp`` behind ``truth`` (s) minimising ``J(d)`` over ``window`` (module docstring)."""
+                   weights=(1.0, 1.0, 1.0, 1.0), min_samples: int = 20, grid_step: float = 0.02,
+                   rigid: str | None = None) -> Delay:
+    """Delay of ``icp`` behind ``truth`` (s) minimising ``J(d)`` over ``window`` (module docstring).
+
+    ``rigid="se3"`` or ``"yaw"``: the position residual is taken after the rigid alignment of the
+    ICP positions onto the truth at each ``d`` (for frames that differ by a rotation)."""
     lo, hi = window
     w = np.asarray(weights, dtype=float)
     keep = (icp.t - hi >= truth.t[0]) & (icp.t - lo <= truth.t[-1])
@@ -129,9 +134,14 @@ def estimate_delay(truth: PoseStream, icp: PoseStream, window: tuple[float, floa
         return ref[i] + (tq - tref[i])[:, None] * slope[i]
 
     def residuals(d):
-        r = q - truth_at(s - d)
+        p = truth_at(s - d)
+        r = q - p
+        if rigid:
+            rot, t = (umeyama if rigid == "se3" else yaw_alignment)(q[:, :3], p[:, :3])
+            r[:, :3] = q[:, :3] @ rot.T + t - p[:, :3]
+        else:
+            r[:, :3] -= r[:, :3].mean(axis=0)
         r[:, 3] = wrap(r[:, 3])
-        r[:, :3] -= r[:, :3].mean(axis=0)
         r[:, 3] = wrap(r[:, 3] - circular_mean(r[:, 3]))
         return r
 
@@ -262,7 +272,7 @@ def compare(truth: PoseStream, icp: PoseStream, *, delay: float | None = None, w
     from cobot_analysis.errors import InputError
 
     if delay is None:
-        dl = estimate_delay(truth, icp, window, weights, min_samples)
+        dl = estimate_delay(truth, icp, window, weights, min_samples, rigid=alignment if alignment in ("se3", "yaw") else None)
         if not np.isfinite(dl.value):
             raise InputError(f"too few overlapping samples to estimate the delay ({dl.n} ICP samples inside the motion-capture "
                              f"span for a search window of {window[0]}-{window[1]} s; need {min_samples})", path=path,
