@@ -101,17 +101,16 @@ def lowpass(x: np.ndarray, sos: np.ndarray) -> np.ndarray:
     """
     x = np.asarray(x, dtype=float)
     flat = x.reshape(len(x), -1)
+    missing = np.isnan(flat)
+    if not missing.any():  # the usual case: one call for every column
+        return filtfilt(sos, flat, min(_padlen(sos), len(flat) - 1)).reshape(x.shape) if len(flat) > 1 else x.copy()
     out = np.full_like(flat, np.nan)
     pad = _padlen(sos)
-    missing = np.isnan(flat)
-    patterns: dict[bytes, list[int]] = {}
-    for j in range(flat.shape[1]):  # columns (markers x coordinates), never samples
-        patterns.setdefault(np.packbits(missing[:, j]).tobytes(), []).append(j)
-    for cols in patterns.values():
+    groups: dict[bytes, list[int]] = {}
+    for j, key in enumerate(np.packbits(missing, axis=0).T):  # columns, never samples
+        groups.setdefault(key.tobytes(), []).append(j)
+    for cols in groups.values():  # distinct gap patterns: a few per recording
         for a, b in segments(missing[:, cols[0]]):
-            seg = flat[a:b, cols]
-            if b - a < 2:
-                out[a:b, cols] = seg
-            else:
-                out[a:b, cols] = filtfilt(sos, seg, min(pad, b - a - 1))
+            seg = flat[a:b][:, cols]
+            out[a:b, cols] = seg if b - a < 2 else filtfilt(sos, seg, min(pad, b - a - 1))
     return out.reshape(x.shape)

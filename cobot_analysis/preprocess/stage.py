@@ -415,10 +415,12 @@ def run(out: Path, markers_path: Path, trials_path: Path, p: Params, *, force: b
         if stage.skipped:
             return stage.final_dir
         recordings = load_recordings(markers_path, trials_path)
+        import scipy.interpolate  # noqa: F401 - imported once here, inherited by forked workers
+
         for r in recordings:  # bad input is reported before any long work
             _check(r)
             try:
-                filtering.design_cutoff(p.cutoff, r.rate, p.order, p.order_convention)
+                filtering.butter_sos(p.cutoff, r.rate, p.order, p.order_convention)
             except ValueError as exc:
                 raise InputError(f"trial {r.trial}: {exc}", path=trials_path,
                                  remedy="change --cutoff / --order / --order-convention") from exc
