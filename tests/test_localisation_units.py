@@ -274,7 +274,8 @@ _frames = st.text(alphabet="abcdefghij_/0123456789", min_size=0, max_size=12)
 
 @settings(max_examples=25, deadline=None)
 @given(ros1=st.booleans(), msgtype=st.sampled_from(["geometry_msgs/msg/PoseStamped", "nav_msgs/msg/Odometry",
-                                                    "geometry_msgs/msg/TransformStamped"]),
+                                                    "geometry_msgs/msg/TransformStamped",
+                                                    "geometry_msgs/msg/PoseWithCovarianceStamped"]),
        frames=st.lists(st.tuples(_frames, _frames), min_size=1, max_size=4),
        values=st.lists(st.floats(-1e6, 1e6), min_size=8, max_size=8), sec=st.integers(0, 2**31 - 1))
 def test_fixed_layout_decoding_equals_rosbags(ros1, msgtype, frames, values, sec):
@@ -292,6 +293,9 @@ def test_fixed_layout_decoding_equals_rosbags(ros1, msgtype, frames, values, sec
         q = T["geometry_msgs/msg/Quaternion"](x=values[3], y=values[4], z=values[5], w=values[6])
         if msgtype == "geometry_msgs/msg/PoseStamped":
             m = T[msgtype](header=header, pose=T["geometry_msgs/msg/Pose"](position=p, orientation=q))
+        elif msgtype == "geometry_msgs/msg/PoseWithCovarianceStamped":
+            m = T[msgtype](header=header, pose=T["geometry_msgs/msg/PoseWithCovariance"](
+                pose=T["geometry_msgs/msg/Pose"](position=p, orientation=q), covariance=np.full(36, values[7])))
         elif msgtype == "nav_msgs/msg/Odometry":
             z3 = T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
             m = T[msgtype](header=header, child_frame_id=child,

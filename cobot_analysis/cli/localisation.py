@@ -42,7 +42,7 @@ def bag_info_command(
 ) -> None:
     """List the topics of a bag (type, count, rate, time span) and its tf frame pairs.
 
-    Pose topics (PoseStamped, TransformStamped, Odometry) can be passed to `localisation --truth/--icp`
+    Pose topics (PoseStamped, PoseWithCovarianceStamped, TransformStamped, Odometry) can be passed to `localisation --truth/--icp`
     as they are; tf frames as tf:PARENT->CHILD (any two connected frames).
     """
     from rich.table import Table

@@ -5,7 +5,8 @@ Containers are read with rosbags (``AnyReader``); MCAP files whose channels carr
 messages (as written by ``mcap-ros1-support``), which rosbags reads as CDR, go through the mcap
 library and are decoded with the rosbags ROS1 deserialiser. Messages give poses as:
 
-- ``geometry_msgs/PoseStamped`` and ``nav_msgs/Odometry``: ``pose.position`` / ``pose.orientation``;
+- ``geometry_msgs/PoseStamped``: ``pose.position`` / ``pose.orientation``; ``nav_msgs/Odometry``
+  and ``geometry_msgs/PoseWithCovarianceStamped``: ``pose.pose.position`` / ``pose.pose.orientation``;
 - ``geometry_msgs/TransformStamped``: ``transform.translation`` / ``transform.rotation``;
 - ``tf2_msgs/TFMessage`` on ``/tf`` and ``/tf_static``: the pose of ``child`` in ``parent``
   (spec ``tf:PARENT->CHILD``), chained over intermediate frames when it is not a single edge:
@@ -32,7 +33,8 @@ from cobot_analysis.console import warn
 from cobot_analysis.errors import InputError
 from cobot_analysis.localisation.poses import PoseStream, compose, invert, normalise, slerp
 
-POSE_TYPES = ("geometry_msgs/msg/PoseStamped", "nav_msgs/msg/Odometry", "geometry_msgs/msg/TransformStamped")
+POSE_TYPES = ("geometry_msgs/msg/PoseStamped", "nav_msgs/msg/Odometry", "geometry_msgs/msg/TransformStamped",
+              "geometry_msgs/msg/PoseWithCovarianceStamped")
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 TF_TOPICS = ("/tf", "/tf_static")
 SUPPORTED = POSE_TYPES + (TF_TYPE,)
@@ -284,7 +286,7 @@ def _stamp(msg) -> float:
 def _pose_of(msg, msgtype: str):
     if msgtype == "geometry_msgs/msg/TransformStamped":
         p, q = msg.transform.translation, msg.transform.rotation
-    elif msgtype == "nav_msgs/msg/Odometry":
+    elif msgtype in ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseWithCovarianceStamped"):
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
     else:
         p, q = msg.pose.position, msg.pose.orientation
@@ -314,7 +316,7 @@ def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str 
                 mt = src.topics[spec.topic].msgtype
                 if mt not in POSE_TYPES and mt != TF_TYPE:
                     raise InputError(f"topic {spec.topic} has message type {mt.replace('/msg/', '/')}, which holds no pose",
-                                     path=path, remedy="use a PoseStamped, TransformStamped, Odometry topic or tf:PARENT->CHILD")
+                                     path=path, remedy="use a PoseStamped, PoseWithCovarianceStamped, TransformStamped or Odometry topic, or tf:PARENT->CHILD")
                 if mt == TF_TYPE:
                     raise InputError(f"topic {spec.topic} is a tf topic", path=path, remedy="ask for a frame pair: tf:PARENT->CHILD")
                 need.add(spec.topic)
