@@ -88,9 +88,8 @@ def generate_command(
     if model not in MODEL_CHOICES:
         raise InputError(f"unknown model {model!r}", remedy=f"use one of {', '.join(MODEL_CHOICES)}")
     inputs = []
-    for m in models:  # validate weights before any work
-        if m != "clothoid":
-            load_weights(weights, "improved") if weights else None
+    if weights and any(m != "clothoid" for m in models):
+        load_weights(weights, "improved")  # validate before any work
     if weights and Path(weights).is_file():
         inputs.append(Path(weights))
     goal = tuple(goal) if goal is not None else WALKING_GOAL

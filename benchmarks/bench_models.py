@@ -1,0 +1,160 @@
+"""Benchmarks of the walking OC solver and the IOC (docs/benchmarks.md, "Models and IOC").
+
+    python benchmarks/bench_models.py solver            # cold / warm / window / crocoddyl, side by side
+    python benchmarks/bench_models.py ioc --data ../shared/datasets/walking-2020 [--subjects 10]
+
+Prints a Markdown block with the machine, the load average and the date. The IOC part runs the CLI
+(import-published, then fit-ioc) in a temporary workspace.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+GOAL = (0.0, 0.0, math.pi / 2)
+#: 6 start poses of the walking design (global distance 1.6 to 5.5 m, the four orientations)
+STARTS = [(-1.5, -3.4, 0.0), (-4.0, 0.6, math.pi), (-4.0, -3.4, math.pi / 2), (-0.6, -1.5, -math.pi / 2),
+          (-1.5, 0.0, 0.0), (-4.0, -0.9, -math.pi / 2)]
+
+
+def header() -> str:
+    load = os.getloadavg()
+    return (f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}; "
+            f"{datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC; load average at start {load[0]:.1f} / {load[1]:.1f} "
+            f"(1 / 5 min; other jobs shared the 2 cores)")
+
+
+def timed(fn, repeat=5):
+    ts, out = [], None
+    for _ in range(repeat):
+        t = time.perf_counter()
+        out = fn()
+        ts.append(time.perf_counter() - t)
+    return statistics.median(ts), out
+
+
+def bench_solver(n_nodes=(500, 100, 50)) -> str:
+    from cobot_analysis.models import solve_model
+    from cobot_analysis.models.ocp import OCPShape, get_ocp
+    from cobot_analysis.models.presets import PRESETS, weights_vector
+
+    w = weights_vector(PRESETS["walking-2021"])
+    w_near = w * np.r_[1.0, 1.05, 0.95, 1.0, 1.05, 1, 1, 0.95, 1.05, 1.0, 1.0]  # ~5 % change
+    rows = []
+    Ts = {s: solve_model("improved", s, GOAL, w, n_intervals=100).T for s in STARTS}
+    for n in n_nodes:
+        t = time.perf_counter()
+        ocp = get_ocp(OCPShape(n))
+        build = time.perf_counter() - t
+        free = get_ocp(OCPShape(n, free_time=True))
+        cold, warm, cold_free, warm_free, its = [], [], [], [], []
+        for s in STARTS:
+            dt, sol = timed(lambda: ocp.solve(s, GOAL, w, Ts[s], guess="rest"))
+            cold.append(dt)
+            its.append(sol.iterations)
+            warm.append(timed(lambda: ocp.solve(s, GOAL, w_near, Ts[s], guess=sol.primal))[0])
+            dt, fs = timed(lambda: free.solve(s, GOAL, w, Ts[s], guess="rest"), 3)
+            cold_free.append(dt)
+            warm_free.append(timed(lambda: free.solve(s, GOAL, w_near, Ts[s], guess=fs.primal))[0])
+        rows.append(f"| {n} | {build:.2f} | {1e3 * statistics.median(cold):.1f} ({1e3 * min(cold):.0f}-{1e3 * max(cold):.0f}) | "
+                    f"{statistics.median(its):.0f} | {1e3 * statistics.median(warm):.1f} | {1e3 * statistics.median(cold_free):.1f} | "
+                    f"{1e3 * statistics.median(warm_free):.1f} |")
+    out = ["Improved model, walking-2021 weights, 6 start poses, fatrop, medians (ms):", "",
+           "| nodes | build (s) | cold, fixed T* (min-max) | iterations | warm, 5 % weight change | cold, free T | warm, free T |",
+           "|---|---|---|---|---|---|---|", *rows, ""]
+    # receding-horizon window (prediction): 100 nodes, tracking on the first 50, free end, warm from the shifted window
+    ocp = get_ocp(OCPShape(100))
+    wp = np.array([7.9, 4.0, 20.1, 1e-6, 0, 0, 0, 0, 0, 0, 0])
+    ref = solve_model("improved", STARTS[0], GOAL, w, n_intervals=400)
+    dtw = ref.T / 400
+    times, prev = [], "rest"
+    for k in range(0, 300, 5):
+        track = np.c_[ref.X[k:k + 50, :3]]
+        x0 = ref.X[k]
+        t = time.perf_counter()
+        sol = ocp.solve(x0[:3], (50.0, 50.0, 0.0), wp, 100 * dtw, guess=prev, start_velocity=x0[3:], track=track)
+        times.append(time.perf_counter() - t)
+        prev = sol.primal
+    out += [f"Receding-horizon window (100 nodes, tracking on 50, warm from the previous window): median "
+            f"{1e3 * statistics.median(times):.1f} ms, p95 {1e3 * np.percentile(times, 95):.1f} ms, "
+            f"{1 / statistics.median(times):.0f} windows/s per core.", ""]
+    # crocoddyl on the same problems
+    try:
+        from cobot_analysis.models import crocoddyl_backend as cb
+    except ImportError:
+        cb = None
+    if cb is not None and cb.available():
+        ocp = get_ocp(OCPShape(500))
+        ratio, rows = [], []
+        for s in STARTS:
+            tc, sol = timed(lambda: ocp.solve(s, GOAL, w, Ts[s], guess="rest"), 3)
+            tk, res = timed(lambda: cb.solve(s, GOAL, w, Ts[s], n_intervals=500), 1)
+            ratio.append(tk / tc)
+            rows.append(f"| {s[0]:.1f}, {s[1]:.1f}, {s[2]:.2f} | {1e3 * tc:.0f} | {1e3 * tk:.0f} | {sol.cost:.6f} | {res[2]:.6f} | "
+                        f"{1e3 * np.hypot(*(res[0][:, :2] - sol.X[:, :2]).T).max():.3f} |")
+        out += ["Same problems (500 nodes, fixed T*), casadi+fatrop vs crocoddyl FDDP (Python action model), cold from rest:", "",
+                "| start | fatrop (ms) | crocoddyl (ms) | cost fatrop | cost crocoddyl | max path distance (mm) |",
+                "|---|---|---|---|---|---|", *rows, "",
+                f"crocoddyl / fatrop time ratio: median {statistics.median(ratio):.1f}.", ""]
+    return "\n".join(out)
+
+
+def run_cli(args, cwd) -> float:
+    t = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "cobot_analysis", "-q", *args], cwd=cwd, check=True)
+    return time.perf_counter() - t
+
+
+def bench_ioc(data: Path, subjects: int, max_evaluations: int) -> str:
+    import json
+
+    out = []
+    with tempfile.TemporaryDirectory() as tmp:
+        ws = Path(tmp) / "ws"
+        run_cli(["import-published", "walking-2020", str(data), "--out", str(ws)], tmp)
+        for label, start in (("published weights (walking-2021)", "walking-2021"), ("neutral start (all ones)", "ones")):
+            dt = run_cli(["fit-ioc", "--out", str(ws), "--start-weights", start, "--no-compare", "--force",
+                          "--max-evaluations", str(max_evaluations), "-j", "2"], tmp)
+            fitted = json.loads((ws / "fit-ioc" / "weights.json").read_text())["fits"]["all"]
+            out.append(f"| full IOC, 37 means, from {label} | {dt / 60:.1f} min | {fitted['evaluations']} evaluations, "
+                       f"D {fitted['start_objective']:.4f} -> {fitted['objective']:.4f} |")
+        if subjects:
+            dt = run_cli(["fit-ioc", "--out", str(ws), "--per", "subject", "--subjects", str(subjects), "--no-compare", "--force",
+                          "--max-evaluations", str(max_evaluations), "-j", "2"], tmp)
+            fits = json.loads((ws / "fit-ioc" / "weights.json").read_text())["fits"]
+            d = [f["objective"] for f in fits.values()]
+            out.append(f"| {len(fits)} per-subject fits | {dt / 60:.1f} min | D median {statistics.median(d):.4f} |")
+    return "\n".join(["| run | wall time | result |", "|---|---|---|", *out, ""])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("what", choices=["solver", "ioc", "all"])
+    ap.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "datasets" / "walking-2020")
+    ap.add_argument("--subjects", type=int, default=10)
+    ap.add_argument("--max-evaluations", type=int, default=600)
+    a = ap.parse_args()
+    print(header(), "\n")
+    if a.what in ("solver", "all"):
+        print(bench_solver(), flush=True)
+    if a.what in ("ioc", "all"):
+        print(bench_ioc(a.data, a.subjects, a.max_evaluations), flush=True)
+
+
+if __name__ == "__main__":
+    main()
