@@ -212,7 +212,9 @@ def walking_trial(trial="W1", duration=5.0, start=1.0, stop=4.0, length=3.0, hea
 
 
 def pair_recording(trial="P1"):
-    """Table carried 3 m along +x (3-9 s) and back (12-18 s); subjects at its short ends facing it."""
+    """Table carried 3 m along +x (3-9 s) and back (12-18 s); subjects at its short ends facing it.
+
+    Subject 1 first walks 2 m (backwards, facing -x) to its end of the table (0.5-2.5 s)."""
     t = np.arange(0, 20, 1 / RATE)
     s = 3.0 * (_min_jerk(t, 3.2, 8.8) - _min_jerk(t, 12.2, 17.8))
     lift = 0.15 * (_min_jerk(t, 3.0, 3.4) - _min_jerk(t, 8.6, 9.0) + _min_jerk(t, 12.0, 12.4) - _min_jerk(t, 17.6, 18.0))
@@ -220,7 +222,8 @@ def pair_recording(trial="P1"):
     for name, (a, b) in TABLE.items():
         xyz = np.column_stack([s + a, np.full_like(t, b), 0.77 + lift])
         parts += _rows(trial, "table", {name: xyz})
-    parts += _rows(trial, "subject1", pelvis(s + 0.96, 0 * t, np.full_like(t, np.pi)))
+    approach = 2.0 * (1 - _min_jerk(t, 0.5, 2.5))
+    parts += _rows(trial, "subject1", pelvis(s + 0.96 + approach, 0 * t, np.full_like(t, np.pi)))
     parts += _rows(trial, "subject2", pelvis(s - 0.96, 0 * t, np.zeros_like(t)))
     return parts
 
@@ -319,9 +322,13 @@ def test_stage_pair_recording_forward_and_return(tmp_path, cli):
     assert code == 0, err
     traj = read_table(ws / "preprocess" / "trajectories.parquet", TRAJECTORIES)
     per = traj.drop_duplicates(["trial", "entity"]).set_index(["trial", "entity"])
-    assert sorted(per.index) == [("P1_forward", "subject1"), ("P1_forward", "subject2"), ("P1_forward", "table"),
+    assert sorted(per.index) == [("P1_approach", "subject1"),
+                                 ("P1_forward", "subject1"), ("P1_forward", "subject2"), ("P1_forward", "table"),
                                  ("P1_return", "subject1"), ("P1_return", "subject2"), ("P1_return", "table")]
-    # subjects stand still before lifting: no approach walk is found, so no approach trial
+    # subject 2 stands still before the lift: no approach trial; subject 1 walks 2 m backwards
+    app = per.loc[("P1_approach", "subject1")]
+    assert app["direction"] == "approach" and app["travelled_distance"] == pytest.approx(2.0, abs=0.01)
+    assert app["travel_time"] == pytest.approx(2.0, abs=0.3)
     assert per.loc[("P1_forward", "table"), "scenario"] == 1 and per.loc[("P1_return", "table"), "scenario"] == 3
     assert per.loc[("P1_forward", "table"), "direction"] == "forward"
     assert per.loc[("P1_return", "table"), "direction"] == "return"

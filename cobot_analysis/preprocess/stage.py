@@ -9,8 +9,11 @@ Order of operations, per recording:
 4. kinematics (``cobot_analysis.kinematics``): pelvis CoM (rigid-body reconstruction when one
    pelvis marker is missing), theta, velocity; table centre, orientation, height;
 5. segmentation (``segmentation.py``): pair recordings by table height into forward and return
-   carriages (each of the 3 entities cut at the table's onset/offset; the walk-to-table only with
-   ``keep_approach``), walking trials by CoM speed;
+   carriages (each of the 3 entities cut at the table's onset/offset; trial ids
+   ``<recording>_forward`` / ``<recording>_return``; the return is scenario 3 and its
+   ``end_orientation`` is the measured table orientation at its offset), walking trials by CoM
+   speed. With ``keep_approach``, each subject's walk to the table (speed segmentation before the
+   first lift) is kept as ``<recording>_approach`` (direction "approach", subjects only);
 6. per trajectory: gamma (``kinematics.gamma``, ends held below ``gamma_min_speed``), quality
    flags, time normalisation to N samples (``normalisation.py``) -> ``trajectories.parquet``.
 
@@ -312,13 +315,15 @@ def _segments(rec, p, entities, has_table, mk, kinem):
                          f"({', '.join(labels)})", path=rec.source,
                          remedy="check the table markers, or adjust --lift-threshold / --floor-window / --min-duration")
     segs = [(lab, a, b, entities) for lab, (a, b) in zip(labels, found)]
-    if p.keep_approach:
+    if p.keep_approach:  # each subject's walk to the table: speed segmentation before the first lift
         on = found[0][0]
+        approach = []
         for e in subjects:
             speed = np.hypot(*kinem[e]["v"][: on + 1].T)
             bounds = segmentation.walking_bounds(speed, rate, p.speed_threshold, p.min_duration, p.rest_speed)
             if bounds is not None:
-                segs.insert(0, ("approach", bounds[0], bounds[1], [e]))
+                approach.append(("approach", bounds[0], bounds[1], [e]))
+        segs = approach + segs
     return segs
 
 
