@@ -117,11 +117,44 @@ def pivot(df: pd.DataFrame, path: str | Path | None = None) -> TrajectorySet:
         return df[col].to_numpy(dtype=float, copy=True).reshape(-1, n)
 
     ts = TrajectorySet(meta, arr("x"), arr("y"), arr("theta"), arr("gamma"))
+    snap_configurations(ts)
     bad = ~np.isfinite(ts.x).all(axis=1) | ~np.isfinite(ts.y).all(axis=1)
     if bad.any():
         raise InputError(f"{int(bad.sum())} trajectories have NaN positions (e.g. {meta.loc[np.argmax(bad), 'trial']})",
                          path=path, remedy="fill or drop gaps in preprocess; positions must be complete")
     return ts
+
+
+def snap_configurations(ts: TrajectorySet) -> None:
+    """Pair study: set ``end_orientation`` to the design orientation of the configuration at the goal.
+
+    Forward paths: the declared (or measured) end orientation; return paths: the table's orientation
+    at the start of the return, i.e. the configuration the pair left the goal in (the convention of
+    the published data, ``Orientation_Table_Init``). Each is snapped to the nearer of the two
+    orientations of the configuration family (design.CONFIGURATIONS), so that trials group by
+    configuration and not by a measured angle. Rows without a known family are left unchanged.
+    """
+    from cobot_analysis.angles import angle_diff
+    from cobot_analysis.design import CONFIGURATIONS
+
+    m = ts.meta
+    if not {"configuration", "end_orientation", "direction"} <= set(m.columns):
+        return
+    known = m["configuration"].isin(list(CONFIGURATIONS)).to_numpy()
+    if not known.any():
+        return
+    table = np.flatnonzero(m["entity"].eq("table").to_numpy())
+    start = pd.Series(ts.theta[table, 0], index=pd.MultiIndex.from_frame(m.iloc[table][["study", "trial"]]))
+    start = start[~start.index.duplicated()]
+    t0 = start.reindex(pd.MultiIndex.from_frame(m[["study", "trial"]])).to_numpy(dtype=float)
+    ref = np.where(m["direction"].eq("return").to_numpy(), t0, pd.to_numeric(m["end_orientation"], errors="coerce").to_numpy(dtype=float))
+    snapped = m["end_orientation"].to_numpy(dtype=float, copy=True)
+    for fam, options in CONFIGURATIONS.items():
+        rows = np.flatnonzero(known & m["configuration"].eq(fam).to_numpy() & np.isfinite(ref))
+        if len(rows):
+            err = np.abs(angle_diff(ref[rows, None], np.asarray(options)[None, :]))
+            snapped[rows] = np.asarray(options)[np.argmin(err, axis=1)]
+    m["end_orientation"] = snapped
 
 
 def default_groups(meta: pd.DataFrame) -> list[str]:
