@@ -366,7 +366,7 @@ def test_bad_nan_only_trial(tmp_path, cli):
     parts = walking_trial("W1")
     for p in parts:
         p[["x", "y", "z"]] = np.nan
-    _bad(tmp_path, cli, parts, [trials_row("W1")], "is NaN in every frame")
+    _bad(tmp_path, cli, parts, [trials_row("W1")], "trial W1: every pelvis and table marker sample is NaN")
 
 
 def test_bad_empty_trial(tmp_path, cli):
@@ -400,6 +400,35 @@ def test_bad_pair_recording_with_one_carriage(tmp_path, cli):
         if p["entity"].iloc[0] == "table":
             p.loc[p["frame"] > 2200, "z"] = 0.77  # the return is never lifted
     _bad(tmp_path, cli, parts, [trials_row("P1")], "found 1 table carriages")
+
+
+def test_bad_markers_of_a_trial_not_in_trials(tmp_path, cli):
+    _bad(tmp_path, cli, walking_trial("W1") + walking_trial("W9"), [trials_row("W1")], "marker rows of trials ['W9']")
+
+
+@pytest.mark.parametrize("content", [b"PAR1 garbage", None])
+def test_bad_corrupt_or_foreign_markers_file(tmp_path, cli, content):
+    ws = tmp_path / "ws"
+    write_workspace(ws, walking_trial("W1"), [trials_row("W1")])
+    target = ws / "import" / "markers.parquet"
+    if content is None:
+        pd.DataFrame({"a": [1]}).to_parquet(target)  # a Parquet file, but not a markers table
+    else:
+        target.write_bytes(content)
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1")
+    assert code == 2 and "markers.parquet" in err
+    assert ("not a readable Parquet" if content else "is not a markers table") in err
+    assert not (ws / "preprocess").exists()
+
+
+@pytest.mark.parametrize("args, expected", [(["--cutoff", "150"], "Nyquist"),
+                                            (["--order", "3", "--order-convention", "effective"], "even order")])
+def test_bad_filter_parameters_exit_2(tmp_path, cli, args, expected):
+    ws = tmp_path / "ws"
+    write_workspace(ws, walking_trial("W1"), [trials_row("W1")])
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1", *args)
+    assert code == 2 and expected in err and "--cutoff" in err
+    assert not (ws / "preprocess").exists()
 
 
 def test_missing_import_stage(tmp_path, cli):

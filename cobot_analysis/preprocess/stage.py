@@ -99,9 +99,13 @@ def load_recordings(markers_path: Path, trials_path: Path) -> list[Recording]:
     import pyarrow.parquet as pq
 
     trials = read_table(trials_path, TRIALS)
-    meta = table_metadata(markers_path) if markers_path.is_file() else {}
     if not markers_path.is_file():
         raise InputError("file not found", path=markers_path, remedy="run `cobot-analysis import` first or pass --markers")
+    try:
+        meta = table_metadata(markers_path)
+    except Exception as exc:  # pyarrow raises several types for corrupt files
+        raise InputError(f"not a readable Parquet file ({type(exc).__name__})", path=markers_path,
+                         remedy="re-run `cobot-analysis import`") from exc
     if meta.get("table") != MARKERS.name:
         raise InputError(f"is not a markers table (found {meta.get('table')!r})", path=markers_path,
                          remedy="pass the markers.parquet written by `cobot-analysis import`")
@@ -211,6 +215,9 @@ def _check(rec: Recording) -> tuple[list[str], bool]:
     if not subjects:
         raise InputError(f"trial {rec.trial} has no pelvis markers (found entities {entities})", path=rec.source,
                          remedy="map the pelvis labels to LASI RASI LPSI RPSI with the protocol's marker_map and re-import")
+    if all(np.isnan(xyz).all() for xyz in rec.markers.values()):
+        raise InputError(f"trial {rec.trial}: every pelvis and table marker sample is NaN (no data)", path=rec.source,
+                         remedy="check the raw file, or remove the trial from the protocol")
     for e in entities:
         need = TABLE_MARKERS if e == "table" else PELVIS_MARKERS
         missing = [m for m in need if (e, m) not in rec.markers]
