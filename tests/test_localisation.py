@@ -133,3 +133,16 @@ def test_figures_and_manifest(ws, cli):
     assert manifest["stage"] == "localisation" and any(i["path"].endswith("run.mcap") for i in manifest["inputs"])
     code, _, err = cli("localisation", ws / "synth-localisation" / "run.mcap", "--out", out)
     assert code == 0 and "up to date" in err
+
+
+def test_repeated_goals_are_matched_in_command_order(tmp_path):
+    """Two laps over the same goals: each stop goes to its own lap's goal (planted errors differ)."""
+    from cobot_analysis.localisation import synth
+    from cobot_analysis.localisation.analysis import Options, analyse_run
+
+    run = synth.make_run(synth.SynthParams(laps=2, n_goals=2, stop=4.0, speed=0.3, seed=7))
+    bag = synth.write_mcap(run, tmp_path / "laps.mcap")
+    g = analyse_run((str(bag), "laps", "", Options()))["goals"].sort_values("goal")
+    assert len(g) == 4 and g["found"].all()
+    assert np.allclose(g[["dx", "dy", "dyaw"]].to_numpy(), run.stop_errors, atol=0.001)
+    assert (np.diff(g["t_start"].to_numpy()) > 0).all()

@@ -50,7 +50,8 @@ def analyse_run(task: tuple[str, str, str, Options]) -> dict:
     goals_df = None
     goals = np.asarray(o.goals, dtype=float) if o.goals is not None else goals_from_stream(streams["goals"]) if goal_from_bag else None
     if goals is not None:
-        goals_df = goal_accuracy(truth, icp, goals, cmp.alignment, cmp.delay.value, o.rule)
+        goal_times = streams["goals"].t if goal_from_bag else None
+        goals_df = goal_accuracy(truth, icp, goals, cmp.alignment, cmp.delay.value, o.rule, goal_times)
         row.update(goal_summary(goals_df))
         if not goals_df["found"].all():
             warn(f"{path}: {int((~goals_df['found']).sum())} of {len(goals_df)} goals without a matching stop "

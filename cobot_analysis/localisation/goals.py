@@ -7,7 +7,8 @@
   and last ``trim`` seconds (circular mean for yaw), mapped into the goal (ICP map) frame by the
   inverse of the alignment of ``compare``.
 - Stops are matched to goals greedily by increasing planar distance (each goal and each stop used
-  once; pairs farther than ``match_radius`` are not matched). Errors: ``|x_r - x_g|``,
+  once; pairs farther than ``match_radius`` are not matched); when the command times of the goals
+  are known (goal topic), only stops starting between a goal's command and the next count. Errors: ``|x_r - x_g|``,
   ``|y_r - y_g|``, ``||p_r - p_g||``, ``|wrap(yaw_r - yaw_g)|``; a goal is reached within tolerance
   when ``||p_r - p_g|| <= tol_xy`` and ``|wrap(yaw_r - yaw_g)| <= tol_yaw``.
 """
@@ -78,8 +79,10 @@ def read_goals_csv(path: str | os.PathLike) -> np.ndarray:
 
 
 def goal_accuracy(truth: PoseStream, icp: PoseStream, goals: np.ndarray, alignment: Alignment, delay: float,
-                  rule: StopRule = StopRule()) -> pd.DataFrame:
-    """One row per commanded goal: the matched stop, reached pose, errors, ICP pose at the stop."""
+                  rule: StopRule = StopRule(), goal_times=None) -> pd.DataFrame:
+    """One row per commanded goal: the matched stop, reached pose, errors, ICP pose at the stop.
+    With ``goal_times`` (when each goal was commanded) a goal is matched only to a stop that
+    starts between its command and the next one (repeated goal positions stay in order)."""
     stops = detect_stops(truth, rule)
     reached, icp_pose = [], []
     for a, b in stops:
@@ -95,18 +98,17 @@ def goal_accuracy(truth: PoseStream, icp: PoseStream, goals: np.ndarray, alignme
         else:
             icp_pose.append([np.nan] * 3)
     reached, icp_pose = np.asarray(reached).reshape(-1, 3), np.asarray(icp_pose).reshape(-1, 3)
-    # Greedy matching by increasing planar distance.
     match = {}
     if len(stops):
         dist = np.hypot(goals[:, None, 0] - reached[None, :, 0], goals[:, None, 1] - reached[None, :, 1])
-        used = set()
-        for flat in np.argsort(dist, axis=None):
-            g, s = np.unravel_index(flat, dist.shape)
-            if dist[g, s] > rule.match_radius:
-                break
-            if g not in match and s not in used:
-                match[int(g)] = int(s)
-                used.add(int(s))
+        match = _greedy(dist, rule.match_radius)
+        if goal_times is not None and len(goal_times) == len(goals):
+            # Goal k can only be reached between its command and the next one.
+            nxt = np.append(np.asarray(goal_times, dtype=float)[1:], np.inf)
+            inside = (stops[None, :, 0] >= np.asarray(goal_times)[:, None]) & (stops[None, :, 0] < nxt[:, None])
+            timed = _greedy(np.where(inside, dist, np.inf), rule.match_radius)
+            if len(timed) >= len(match):  # unless the goal stamps are on another clock
+                match = timed
     rows = []
     for g, (gx, gy, gyaw) in enumerate(goals):
         row = {"goal": g + 1, "goal_x": gx, "goal_y": gy, "goal_yaw": gyaw, "found": g in match}
@@ -132,6 +134,19 @@ def goal_accuracy(truth: PoseStream, icp: PoseStream, goals: np.ndarray, alignme
     df = pd.DataFrame(rows).reindex(columns=cols)
     df.attrs["n_stops"] = int(len(stops))
     return df
+
+
+def _greedy(dist: np.ndarray, radius: float) -> dict[int, int]:
+    """Goal -> stop pairs by increasing distance, each used once, up to ``radius``."""
+    match, used = {}, set()
+    for flat in np.argsort(dist, axis=None):
+        g, s = (int(v) for v in np.unravel_index(flat, dist.shape))
+        if not dist[g, s] <= radius:
+            break
+        if g not in match and s not in used:
+            match[g] = s
+            used.add(s)
+    return match
 
 
 def goal_summary(df: pd.DataFrame) -> dict:
