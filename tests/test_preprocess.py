@@ -93,6 +93,29 @@ def test_find_gaps_runs():
     assert gaps.fillable(starts, lengths, len(miss), 2).tolist() == [False, True, False]
 
 
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.booleans(), min_size=1, max_size=300), st.integers(1, 30))
+def test_gaps_partition_the_missing_frames_and_filling_keeps_valid_samples(missing, max_frames):
+    missing = np.array(missing)
+    starts, lengths = gaps.find_gaps(missing)
+    rebuilt = np.zeros_like(missing)
+    for s0, k in zip(starts, lengths):
+        assert missing[s0:s0 + k].all() and not rebuilt[s0:s0 + k].any()
+        rebuilt[s0:s0 + k] = True
+    assert (rebuilt == missing).all()
+    n = len(missing)
+    xyz = np.column_stack([np.sin(np.arange(n) / 7.0)] * 3)
+    xyz[missing] = np.nan
+    out, mask, _, _, done = gaps.fill_gaps(xyz, RATE, max_frames / RATE)
+    np.testing.assert_array_equal(out[~missing], xyz[~missing])
+    assert not np.isnan(out[mask]).any() and np.isnan(out[missing & ~mask]).all()
+    expected = np.zeros(n, dtype=bool)
+    if (~missing).sum() >= 4:
+        for s0, k, d in zip(starts, lengths, gaps.fillable(starts, lengths, n, max_frames)):
+            expected[s0:s0 + k] = d
+    assert (mask == expected).all()
+
+
 def test_short_gap_filled_exactly_on_a_cubic_long_and_edge_gaps_kept():
     t = np.arange(400) / RATE
     xyz = np.column_stack([t**3 - 2 * t, 0.5 * t**2, np.full_like(t, 0.9)])

@@ -74,7 +74,9 @@ def fill_gaps(xyz: np.ndarray, rate: float, max_gap: float = MAX_GAP
         near[max(0, s - SPLINE_CONTEXT):s + k + SPLINE_CONTEXT] = True
     frames = np.arange(n)
     valid = ~missing & near
-    if valid.sum() < 4:  # too few points for a spline: leave the gaps open
+    if valid.sum() < 4:  # sparse data around the gaps: use every valid sample
+        valid = ~missing
+    if valid.sum() < 4:  # too few points for a cubic spline: leave the gaps open
         return xyz, np.zeros(n, dtype=bool), starts, lengths, np.zeros_like(do)
     spline = CubicSpline(frames[valid], xyz[valid], axis=0)
     out = xyz.copy()
