@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -308,6 +310,9 @@ def test_stage_walking_trial_end_to_end(tmp_path, cli):
     assert gaps_df[["marker", "start_frame", "n_frames", "filled"]].values.tolist() == [
         ["LASI", 300, 10, True], ["RPSI", 400, 100, False]]
     assert gaps_df["duration"].tolist() == [0.05, 0.5]
+    manifest = json.loads((ws / "preprocess" / "manifest.json").read_text())
+    assert manifest["params"]["order_convention"] == "effective" and manifest["params"]["cutoff"] == 10.0
+    assert manifest["params"]["n_samples"] == 101 and manifest["params"]["max_gap"] == 0.1
     results = (ws / "preprocess" / "results.md").read_text()
     assert "2 recordings -> 2 trials, 2 trajectories" in results
     # unchanged inputs and parameters: skipped

@@ -31,9 +31,9 @@ def preprocess_command(
     order: Annotated[int, typer.Option("--order", min=1, help="Butterworth order (see --order-convention).")] = 4,
     order_convention: Annotated[OrderConvention, typer.Option(
         "--order-convention",
-        help="design: ORDER-th order design run forward-backward (effective 2*ORDER, -6 dB at the cut-off); "
-             "effective: ORDER/2 design run forward-backward, cut-off corrected (Winter) so the result is "
-             "ORDER-th order with -3 dB at the cut-off.")] = OrderConvention.design,
+        help="effective: ORDER/2 design run forward-backward, cut-off corrected (Winter) so the zero-phase "
+             "result is ORDER-th order with -3 dB at the cut-off; design: ORDER-th order design run "
+             "forward-backward (effective order 2*ORDER, -6 dB at the cut-off).")] = OrderConvention.effective,
     samples: Annotated[int, typer.Option("--samples", "-n", min=2, help="Samples per time-normalised trajectory (endpoints included).")] = 500,
     lift_threshold: Annotated[float, typer.Option("--lift-threshold", min=0.0, help="Pair study: table height above the floor level that marks a carriage (m).")] = 0.005,
     floor_window: Annotated[float, typer.Option("--floor-window", min=0.0, help="Pair study: floor level = median table height over this first part of the recording (s).")] = 0.5,

@@ -2,17 +2,20 @@
 
 Order conventions (``convention``), for a requested ``order`` n and cut-off fc:
 
-- ``"design"`` (default): an n-th order Butterworth designed at fc and run forward and backward
-  (``scipy.signal.sosfiltfilt``). The magnitude is squared: ``|H|^2 = 1 / (1 + (w/wc)^(2n))^2``,
-  i.e. an effective order 2n with -6 dB (gain 1/2) at fc. "4th-order zero-phase Butterworth,
-  10 Hz" read this way (MATLAB ``butter(4, ...)`` + ``filtfilt``) is what the CoBot studies
-  describe, so it is the default.
-- ``"effective"``: the forward-backward result has order n and -3 dB at fc (Winter): an
-  (n/2)-th order design run forward and backward, its cut-off raised by the correction
-  ``C = (2^(1/2) - 1)^(1/(2 (n/2)))`` (for n = 4 this is Winter's ``(2^(1/n_passes) - 1)^(1/4)``
-  with n_passes = 2, C = 0.802), applied on the pre-warped frequency:
-  ``tan(pi f_design / fs) = tan(pi fc / fs) / C``, so that the digital gain at fc is exactly
-  ``1/sqrt(2)``. n must be even.
+- ``"effective"`` (default): the forward-backward result has order n and -3 dB at fc. An
+  (n/2)-th order design is run forward and backward, its cut-off raised by Winter's correction
+  ``C = (2^(1/2) - 1)^(1/(2 (n/2)))`` (for n = 4 this is ``(2^(1/n_passes) - 1)^(1/4)`` with
+  n_passes = 2, C = 0.802), applied on the pre-warped frequency
+  ``tan(pi f_design / fs) = tan(pi fc / fs) / C`` so that the digital gain at fc is exactly
+  ``1/sqrt(2)``. n must be even. This is the biomechanics reading of "4th-order zero-phase
+  (zero-lag) Butterworth" (Winter: a 2nd-order filter passed twice is a 4th-order zero-lag
+  filter), hence the default for METHODS.md sec. 2.3.
+- ``"design"``: an n-th order Butterworth designed at fc and run forward and backward
+  (``scipy.signal.sosfiltfilt``; MATLAB ``butter(n, ...)`` + ``filtfilt``). The magnitude is
+  squared, ``|H|^2 = 1 / (1 + (w/wc)^(2n))^2``: an effective order 2n with -6 dB (gain 1/2) at fc.
+
+Either way the pelvis signal (< 5 Hz: gait at ~1.8 Hz) passes unchanged; the conventions differ
+in how much 10-20 Hz noise remains.
 
 NaN samples (long gaps left open) split a signal into continuous segments, each filtered on
 its own; segments shorter than the filter's default padding are filtered with a shorter pad and
@@ -29,7 +32,7 @@ import numpy as np
 CUTOFF = 10.0  # Hz
 ORDER = 4
 CONVENTIONS = ("design", "effective")
-DEFAULT_CONVENTION = "design"
+DEFAULT_CONVENTION = "effective"
 
 
 def design_cutoff(cutoff: float, rate: float, order: int, convention: str = DEFAULT_CONVENTION) -> tuple[int, float]:
