@@ -145,3 +145,44 @@ def test_bad_options_and_config(tmp_path, cli):
     (tmp_path / "nope.parquet").write_text("x")
     code, _, err = cli("compare", "--out", ws, "--force", "--against", tmp_path / "nope.parquet")
     assert code == 2 and "nope.parquet: not a readable trajectory table" in err
+
+
+# ---- published data ---------------------------------------------------------------------------------
+@pytest.mark.datasets
+def test_published_pair_study(datasets, tmp_path, cli):
+    from scipy import stats as sps
+
+    ws = tmp_path / "ws"
+    assert cli("-q", "import-published", "pair-carriage-2022", datasets / "pair-carriage-2022", "--out", ws)[0] == 0
+    for args in (["average"], ["compare"], ["stats"], ["reconstruct"]):
+        code, _, err = cli("-q", *args, "--out", ws)
+        assert code == 0, (args, err)
+    s = read_table(ws / "stats" / "stats.parquet", STATS).set_index("id")
+    assert s.loc["N", "summary"] == "forward: 1: 180, 2: 180, 3: 180; return: 3: 172"  # README counts
+    dur = pd.read_parquet(ws / "import-published" / "durations.parquet")
+    fwd = dur[dur["direction"].eq("forward")]
+    ref = sps.kruskal(*[g["duration"].to_numpy() for _, g in fwd.groupby("scenario")])
+    assert s.loc["Q1.1", "statistic"] == pytest.approx(ref.statistic) and s.loc["Q1.1", "significant"]
+    assert s.loc["Q2.2", "status"] == "ok" and "172 pairs" in s.loc["Q2.2", "note"]
+    for q in ("Q1.2", "Q3", "Q4.2", "Q4.3"):  # per-trial questions: the published data hold means only
+        assert s.loc[s["question"].eq(q), "status"].str.startswith("skipped").all()
+    rec = pd.read_parquet(ws / "reconstruct" / "reconstruction.parquet")
+    assert len(rec) == 2 * (13 + 18) and rec["d_xy"].max() < 0.2  # scenario-3 forward + return means, both subjects
+
+
+@pytest.mark.datasets
+def test_published_walking_study(datasets, tmp_path, cli):
+    ws = tmp_path / "ws"
+    assert cli("-q", "import-published", "walking-2020", datasets / "walking-2020", "--out", ws)[0] == 0
+    for args in (["average"], ["compare"], ["stats"]):
+        code, _, err = cli("-q", *args, "--out", ws)
+        assert code == 0, (args, err)
+    d = pd.read_parquet(ws / "compare" / "distances.parquet")
+    ind = d[d["comparison"].eq("individual-mean")]
+    assert len(ind) == 400 and ind["d_theta"].isna().sum() == 125  # 125 subject blocks without orientation
+    same = d[d["comparison"].eq("mean-published")]
+    assert len(same) == 40 and same["d_xy"].max() < 1e-9  # published x, y = plain mean of the 10 subjects
+    s = read_table(ws / "stats" / "stats.parquet", STATS).set_index("id")
+    assert s.loc["W1.1", "status"] == "ok" and s.loc["W1.1", "n"] == 400
+    assert "left out (no values): S02" in s.loc["W1.2", "note"]  # Subject 2 has no orientation in any file
+    assert "exact (" in s.loc["W1.3", "note"]

@@ -248,7 +248,22 @@ def stats_command(
         ok = table["status"].eq("ok")
         note = (f"{int(ok.sum())} tests run, {int((~ok).sum())} skipped (reason in the table); "
                 f"{int(table['significant'].sum())} significant after Holm within each family.")
-        stage.path("results.md").write_text(md + "\n" + note + "\n")
+        choices = [
+            "Choices behind these numbers:",
+            f"- Trajectories: {len(ts)} from `{path.name}`, {ts.n_samples} time-normalised samples each (as given; "
+            "no further resampling); angle differences wrapped to [-pi, pi] before averaging (d_theta, d_gamma).",
+            f"- Configuration `{Path(config).name}`: each row names its subset, test and grouping. Holm correction "
+            f"(statsmodels) within each family; alpha = {study_cfg.alpha}; descriptive rows (describe, largest subset) "
+            "are outside the families.",
+            "- Trial-level tests treat every trial as independent; `pair-level` rows first average each pair; "
+            "`paired` rows (Wilcoxon) match values by the listed columns (several returns of a pair and goal are averaged); "
+            "`unpaired` rows ignore the pairing.",
+            "- Normality (Shapiro-Wilk for the pair study, Kolmogorov-Smirnov against N(mean, sd) for the walking study) "
+            "only switches to the parametric test where the configuration names one.",
+            "- Largest indistinguishable subset: exact search over all subsets up to 12 groups, greedy backward "
+            "elimination above (the row says which).",
+        ]
+        stage.path("results.md").write_text(md + "\n" + note + "\n\n" + "\n".join(choices) + "\n")
         info(f"stats: {note} -> {stage.final_dir / 'stats.parquet'}")
 
 
