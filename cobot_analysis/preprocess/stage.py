@@ -246,8 +246,8 @@ def _flags(*pairs: tuple[str, bool]) -> str:
 def process_recording(rec: Recording, p: Params) -> dict[str, Any]:
     """Gaps, filter, kinematics, segmentation and normalisation of one recording.
 
-    Returns ``{"gaps": DataFrame rows of GAPS, "trajectories": list of (metadata dict,
-    numeric array (N, len(NUMERIC)))}``.
+    Returns ``{"gaps": [GAPS row tuples], "trajectories": [(metadata dict, numeric array
+    (N, len(NUMERIC)))]}``.
     """
     entities, has_table = _check(rec)
     rate = rec.rate
@@ -298,10 +298,11 @@ def process_recording(rec: Recording, p: Params) -> dict[str, Any]:
             base["end_orientation"] = float(wrap(th))  # measured: the table's orientation at the offset
         for e in ents:
             out.append(_trajectory(base, e, kinem[e], on, off, rate, p))
-    return {"gaps": gap_rows, "trajectories": out, "trial": rec.trial, "n_frames": n_frames}
+    return {"gaps": gap_rows, "trajectories": out}
 
 
-def _segments(rec, p, entities, has_table, mk, kinem):
+def _segments(rec: Recording, p: Params, entities: list[str], has_table: bool, mk: dict, kinem: dict) -> list[tuple]:
+    """``[(direction label or None, onset frame, offset frame, entities), ...]`` of one recording."""
     subjects = [e for e in entities if e != "table"]
     rate = rec.rate
     if not has_table:
