@@ -79,7 +79,9 @@ def test_predict_command_writes_tables_figures_and_results(cli, tmp_path, traj_f
     comp = pd.read_parquet(stage / "prediction_comparison.parquet")
     allcv = comp[(comp["baseline"] == "cv") & (comp["group"] == "all") & (comp["n0"] == 10)].iloc[0]
     assert allcv["n"] == 4 and allcv["oc_wins"] == 1.0 and allcv["median_difference"] < 0
-    assert set(comp["group"]) == {"all", "E", "N", "S", "O"}
+    assert set(comp["group"]) == {"all", "E", "N", "S", "O", "phase 0-33 %", "phase 33-67 %", "phase 67-100 %"}
+    thirds = comp[(comp["baseline"] == "cv") & comp["group"].str.startswith("phase") & (comp["n0"] == 10)]
+    assert (thirds["n"] == 4).all() and (thirds["oc_wins"] == 1.0).all()
     text = (stage / "results.md").read_text()
     assert "## Trajectory prediction" in text and "| 10 | 30 | cv |" in text and "Wilcoxon" in text
     for fig in ("prediction_overlay", "prediction_at_k", "prediction_error_vs_distance"):

@@ -266,6 +266,8 @@ def results_fragment(metrics, summary, comparison, config, example, unpredictabl
                   "| N0 | N_OC | baseline | group | n | OC median (m) | baseline median (m) | median OC - baseline (m) | OC better (trajectories) | OC better (windows) | W | p | r |",
                   "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for _, c in comparison.iterrows():
+            if c["baseline"] != "cv" and c["group"] != "all":
+                continue  # the other baselines: overall only (every group is in prediction_comparison.parquet)
             lines.append(f"| {c['n0']} | {c['n_oc']} | {c['baseline']} | {c['group']} | {c['n']} | {_fmt(c['oc_median'])} | "
                          f"{_fmt(c['baseline_median'])} | {_fmt(c['median_difference'])} | {100 * c['oc_wins']:.0f} % | "
                          f"{100 * c['oc_wins_windows']:.0f} % | {_fmt(c['wilcoxon_w'], 0)} | {_p(c['wilcoxon_p'])} | {_fmt(c['effect_r'], 2)} |")

@@ -414,7 +414,8 @@ PREDICTION_COMPARISON = TableSchema(
         "n0": Column("int", "-", "N0"),
         "n_oc": Column("int", "-", "N_OC"),
         "baseline": Column("string", "", "cv or ctrv"),
-        "group": Column("string", "", "'all', a start orientation (N, E, S, O), 'theta tracked' or 'positions only'"),
+        "group": Column("string", "", "'all', a start orientation (N, E, S, O), 'theta tracked', 'positions only' or "
+                                      "a third of the path ('phase 0-33 %', ...)"),
         "n": Column("int", "-", "paired trajectories"),
         "oc_median": Column("float", "m", "median delta_xy of the OC predictor"),
         "baseline_median": Column("float", "m", "median delta_xy of the baseline"),
@@ -450,40 +451,59 @@ def summary_table(metrics: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def compare_table(metrics: pd.DataFrame, windows: pd.DataFrame) -> pd.DataFrame:
-    """OC vs each baseline on delta_xy (same windows): Wilcoxon signed-rank over trajectories."""
+PHASES = ((0.0, 100 / 3), (100 / 3, 200 / 3), (200 / 3, 100.0))  # start, middle, end of the path (%)
+
+
+def paired_row(oc: pd.Series, base: pd.Series, windows_won: float) -> dict:
+    """Paired comparison of per-trajectory errors (OC vs baseline): medians, share won, Wilcoxon
+    signed-rank test and the matched-pairs rank-biserial correlation r (> 0: OC smaller)."""
     from scipy import stats
 
+    ok = oc.notna() & base.notna()
+    oc, base = oc[ok], base[ok]
+    diff = (oc - base).to_numpy()
+    w = p = r = float("nan")
+    nz = diff[diff != 0]
+    if len(nz):
+        res = stats.wilcoxon(oc, base)
+        w, p = float(res.statistic), float(res.pvalue)
+        ranks = stats.rankdata(np.abs(nz))
+        r = float((ranks[nz < 0].sum() - ranks[nz > 0].sum()) / ranks.sum())
+    return {"n": int(len(diff)), "oc_median": float(oc.median()), "baseline_median": float(base.median()),
+            "median_difference": float(np.median(diff)) if len(diff) else float("nan"),
+            "oc_wins": float((diff < 0).mean()) if len(diff) else float("nan"), "oc_wins_windows": windows_won,
+            "wilcoxon_w": w, "wilcoxon_p": p, "effect_r": r}
+
+
+def compare_table(metrics: pd.DataFrame, windows: pd.DataFrame) -> pd.DataFrame:
+    """OC vs each baseline on delta_xy over the same windows, paired by trajectory (Wilcoxon):
+    all trajectories, per start orientation, theta tracked or not, and per third of the path
+    (there the per-trajectory error is the mean window error over the windows of that third)."""
     if "oc" not in set(metrics["predictor"]):
         return pd.DataFrame(columns=list(PREDICTION_COMPARISON.columns))
-    keys = ["study", "trial", "entity", "n0", "n_oc"]
+    traj_keys = ["study", "trial", "entity"]
+    keys = traj_keys + ["n0", "n_oc"]
     wide = metrics.pivot_table(index=keys, columns="predictor", values="delta_xy").reset_index()
     info = metrics.drop_duplicates(keys).set_index(keys)[["start_orientation", "theta_tracked"]]
     wide = wide.join(info, on=keys)
     used = windows[windows["used"]]
-    wkeys = keys + ["k"]
-    wwide = used.pivot_table(index=wkeys, columns="predictor", values="error_xy", observed=True).reset_index()
+    wwide = used.pivot_table(index=keys + ["k", "phase"], columns="predictor", values="error_xy", observed=True).reset_index()
     rows = []
     for baseline in [p for p in ("cv", "ctrv") if p in wide.columns]:
         for (n0, n_oc), g in wide.groupby(["n0", "n_oc"], sort=True):
+            wg = wwide[(wwide["n0"] == n0) & (wwide["n_oc"] == n_oc)]
             groups = [("all", g)] + [(o, gg) for o, gg in g.groupby("start_orientation", sort=True) if o]
             if g["theta_tracked"].nunique() > 1:
                 groups += [("theta tracked", g[g["theta_tracked"]]), ("positions only", g[~g["theta_tracked"]])]
-            wg = wwide[(wwide["n0"] == n0) & (wwide["n_oc"] == n_oc)]
             for name, gg in groups:
-                pair = gg[["oc", baseline]].dropna()
-                diff = (pair["oc"] - pair[baseline]).to_numpy()
-                w = p = r = float("nan")
-                if len(diff) and np.any(diff != 0):
-                    res = stats.wilcoxon(pair["oc"], pair[baseline])
-                    w, p = float(res.statistic), float(res.pvalue)
-                    ranks = stats.rankdata(np.abs(diff[diff != 0]))
-                    r = float((ranks[diff[diff != 0] < 0].sum() - ranks[diff[diff != 0] > 0].sum()) / ranks.sum())
-                ww = wg if name == "all" else wg.merge(gg[["study", "trial", "entity"]], on=["study", "trial", "entity"])
-                wins_w = float((ww["oc"] < ww[baseline]).mean()) if len(ww) else float("nan")
-                rows.append({"n0": n0, "n_oc": n_oc, "baseline": baseline, "group": name, "n": len(pair),
-                             "oc_median": pair["oc"].median(), "baseline_median": pair[baseline].median(),
-                             "median_difference": float(np.median(diff)) if len(diff) else float("nan"),
-                             "oc_wins": float((diff < 0).mean()) if len(diff) else float("nan"),
-                             "oc_wins_windows": wins_w, "wilcoxon_w": w, "wilcoxon_p": p, "effect_r": r})
+                ww = wg.merge(gg[traj_keys], on=traj_keys)
+                won = float((ww["oc"] < ww[baseline]).mean()) if len(ww) else float("nan")
+                rows.append({"n0": n0, "n_oc": n_oc, "baseline": baseline, "group": name,
+                             **paired_row(gg["oc"], gg[baseline], won)})
+            for lo, hi in PHASES:
+                ww = wg[(wg["phase"] >= lo) & ((wg["phase"] < hi) | (hi == 100.0))]
+                per = ww.groupby(traj_keys, observed=True)[["oc", baseline]].mean()
+                won = float((ww["oc"] < ww[baseline]).mean()) if len(ww) else float("nan")
+                rows.append({"n0": n0, "n_oc": n_oc, "baseline": baseline, "group": f"phase {lo:.0f}-{hi:.0f} %",
+                             **paired_row(per["oc"], per[baseline], won)})
     return pd.DataFrame(rows)
