@@ -186,3 +186,20 @@ def test_published_walking_study(datasets, tmp_path, cli):
     assert s.loc["W1.1", "status"] == "ok" and s.loc["W1.1", "n"] == 400
     assert "left out (no values): S02" in s.loc["W1.2", "note"]  # Subject 2 has no orientation in any file
     assert "exact (" in s.loc["W1.3", "note"]
+
+
+@pytest.mark.slow
+def test_end_to_end_from_the_synthetic_raw_pair_study(tmp_path, cli):
+    """synth pairs -> import -> preprocess -> every analysis command, on a small study."""
+    ws = tmp_path / "ws"
+    steps = (["synth", "pairs", "--pairs", "2", "--goals", "2"], ["import", ws / "synth-pairs" / "protocol.yaml"],
+             ["preprocess"], ["average"], ["compare"], ["stats"], ["reconstruct"])
+    for args in steps:
+        code, _, err = cli("-q", *args, "--out", ws)
+        assert code == 0, (args, err)
+    s = read_table(ws / "stats" / "stats.parquet", STATS).set_index("id")
+    assert s.loc["N", "summary"] == "forward: 1: 4, 2: 4, 3: 4; return: 3: 12"
+    assert s.loc["Q2.1", "status"] == "ok" and s.loc["Q4.1-entity", "status"] == "ok"
+    assert s.loc["A.1[table]", "status"].endswith("(all: 2)")  # weight/height read from synth-pairs/: 2 pairs < 3
+    rec = pd.read_parquet(ws / "reconstruct" / "reconstruction.parquet")
+    assert len(rec) == 2 * 2 * (1 + 3) * 2 and rec["d_xy"].median() < 0.2
