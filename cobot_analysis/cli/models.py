@@ -143,9 +143,9 @@ def fit_ioc_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     means: Annotated[Optional[Path], typer.Option("--means", help="means.parquet (default: OUT/average/, else the kind=mean rows of --trajectories).")] = None,
     trajectories: Annotated[Optional[Path], typer.Option("--trajectories", help="trajectories.parquet (default: OUT/import-published/ or OUT/preprocess/); its trials serve --per subject and the subjects-vs-mean statistics.")] = None,
-    model: Annotated[str, typer.Option("--model", "-m", help="improved (walkers, D = d_xy + 0.5 d_gamma) or table (D = d_xy + 0.5 d_theta).")] = "improved",
+    model: Annotated[str, typer.Option("--model", "-m", help="improved (walkers, D = d_xy + 0.5 d_gamma), table (D = d_xy + 0.5 d_theta) or coupled (two carriers, scenario-3 means, roles swapped on returns).")] = "improved",
     start_weights: Annotated[Optional[str], typer.Option("--start-weights", "-w", help="Preset or weights.json to start from; 'ones' = neutral start (every fitted weight 1).")] = None,
-    fit_names: Annotated[str, typer.Option("--fit", help="Comma-separated weights to fit (the others stay at their start value).")] = "a0,a1,a2,a3,a4,b1,b2,b3",
+    fit_names: Annotated[Optional[str], typer.Option("--fit", help="Comma-separated weights to fit, the others stay at their start value (default: all but b0, which fixes the scale).")] = None,
     optimizer: Annotated[Optional[Optimizer], typer.Option("--optimizer", help="Upper-level derivative-free method.")] = Optimizer.powell,
     max_evaluations: Annotated[int, typer.Option("--max-evaluations", min=1, help="Budget of upper-level evaluations per fit.")] = 2000,
     per: Annotated[Per, typer.Option("--per", help="all: one fit over the means; subject: one fit per subject over its trials.")] = Per.all,
@@ -172,27 +172,29 @@ def fit_ioc_command(
     from cobot_analysis.console import progress
     from cobot_analysis.design import WALKING_GOAL, walking_condition
     from cobot_analysis.errors import InputError
-    from cobot_analysis.models.ioc import IOCSpec, fit, targets_from_table
+    from cobot_analysis.models.ioc import IOCSpec, fit, pair_targets_from_table, targets_from_table
     from cobot_analysis.models.outputs import IOC_DISTANCES
-    from cobot_analysis.models.presets import WALKER_WEIGHTS, load_weights, weights_vector
+    from cobot_analysis.models.presets import load_weights, names_for, weights_vector
     from cobot_analysis.models.report import (COMPARED, compare_models, figure_boxplots, figure_paths, statistics,
                                               subject_distances, summary_table)
     from cobot_analysis.parallel import default_jobs, executor
     from cobot_analysis.schema import Column, TableSchema, write_table
     from cobot_analysis.workspace import Stage, find_input
 
-    if model not in ("improved", "table"):
-        raise InputError(f"fit-ioc fits the improved or table model, not {model!r}", remedy="use --model improved or --model table")
+    if model not in ("improved", "table", "coupled"):
+        raise InputError(f"fit-ioc fits the improved, table or coupled model, not {model!r}", remedy="use --model improved, table or coupled")
+    all_names = names_for(model)
+    fit_names = fit_names or ",".join(n for n in all_names if n not in ("a5", "a6", "b0"))
     names = tuple(n.strip() for n in fit_names.split(",") if n.strip())
-    bad = [n for n in names if n not in WALKER_WEIGHTS]
+    bad = [n for n in names if n not in all_names]
     if bad or not names:
-        raise InputError(f"--fit names {bad or '(none)'} are not weights of the model ({', '.join(WALKER_WEIGHTS)})", remedy="e.g. --fit a1,a2,a4")
+        raise InputError(f"--fit names {bad or '(none)'} are not weights of the model ({', '.join(all_names)})", remedy="e.g. --fit a1,a2,a4")
+    if model == "coupled" and per is Per.subject:
+        raise InputError("--per subject is for the walking study", remedy="fit the coupled model over the pair means (--per all)")
+    w0 = weights_vector(load_weights(None if start_weights == "ones" else start_weights, model), model)
     if start_weights == "ones":
-        w0 = weights_vector(load_weights(None, model))
         for n in names:
-            w0[WALKER_WEIGHTS.index(n)] = 1.0
-    else:
-        w0 = weights_vector(load_weights(start_weights, "improved" if model == "improved" else "table"))
+            w0[all_names.index(n)] = 1.0
     entity = "table" if model == "table" else "walker"
 
     # inputs
@@ -226,7 +228,11 @@ def fit_ioc_command(
         except ValueError:
             return None
 
-    mean_targets = targets_from_table(mean_df, path=mean_src, entity=entity, goal=goal_for(mean_df))
+    if model == "coupled":
+        mean_targets = pair_targets_from_table(mean_df, path=mean_src)
+        compare = False
+    else:
+        mean_targets = targets_from_table(mean_df, path=mean_src, entity=entity, goal=goal_for(mean_df))
     fits: dict[str, list] = {}
     if per is Per.all:
         if not mean_targets:
@@ -268,7 +274,7 @@ def fit_ioc_command(
                                    resume=resume, on_evaluation=on_eval)
                 bar.update(task, total=results[key].evaluations, completed=results[key].evaluations)
         stage.path("weights.json").write_text(json.dumps({
-            "model": model, "weights_order": list(WALKER_WEIGHTS),
+            "model": model, "weights_order": list(all_names),
             "weights": results["all"].weights if "all" in results else None,
             "fits": {k: r.to_json() for k, r in results.items()}}, indent=2, default=float) + "\n")
         for k, r in results.items():  # each fit also as a file usable with --weights

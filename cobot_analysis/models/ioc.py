@@ -36,7 +36,7 @@ import numpy as np
 import pandas as pd
 
 from cobot_analysis.errors import InputError
-from cobot_analysis.models.presets import WALKER_WEIGHTS
+from cobot_analysis.models.presets import names_for
 
 FAILED_D = 10.0  # objective term of a lower level that did not converge (m-equivalent; >> any real D)
 OPTIMIZERS = ("powell", "nelder-mead")
@@ -96,6 +96,47 @@ def targets_from_table(df: pd.DataFrame, *, path=None, entity: str = "walker", g
     return targets
 
 
+@dataclass
+class PairTarget:
+    """A mean path of the two carriers (coupled model): carrier 1 and carrier 2 as ``Target``s."""
+
+    trial: str
+    condition: str
+    carriers: tuple[Target, Target]
+    subject: str = ""
+
+    @property
+    def start(self):
+        return np.array([c.start for c in self.carriers])
+
+    @property
+    def goal(self):
+        return np.array([c.goal for c in self.carriers])
+
+    @property
+    def global_distance(self) -> float:
+        return max(c.global_distance for c in self.carriers)
+
+
+def pair_targets_from_table(df: pd.DataFrame, *, path=None, scenario: int = 3) -> list[PairTarget]:
+    """Coupled-model targets: the scenario-``scenario`` forward and return means of Subject 1 and 2;
+    on returns the roles are swapped (Subject 2 is carrier 1, METHODS.md 5.6)."""
+    need = {"trial", "condition", "entity", "sample", "x", "y", "theta", "direction", "scenario"}
+    missing = sorted(need - set(df.columns))
+    if missing:
+        raise InputError(f"pair trajectory table lacks columns {missing}", path=path, remedy="pass the pair study's trajectories or means")
+    sel = df[(df["scenario"] == scenario) & df["entity"].isin(["subject1", "subject2"])]
+    out = []
+    for trial, g in sel.groupby("trial", sort=True):
+        ts = {t.trial: t for t in targets_from_table(g.assign(trial=g["entity"]), path=path, entity="subject1")
+              + targets_from_table(g.assign(trial=g["entity"]), path=path, entity="subject2")}
+        if set(ts) != {"subject1", "subject2"}:
+            continue
+        order = ("subject2", "subject1") if g["direction"].iloc[0] == "return" else ("subject1", "subject2")
+        out.append(PairTarget(str(trial), str(g["condition"].iloc[0]), (ts[order[0]], ts[order[1]])))
+    return out
+
+
 @dataclass(frozen=True)
 class IOCSpec:
     """What the fit is (hashed into the checkpoint so a resume only continues the same fit)."""
@@ -113,18 +154,20 @@ class IOCSpec:
 
     @property
     def angle(self) -> str:
-        return "theta" if self.model == "table" else "gamma"
+        return "theta" if self.model in ("table", "coupled") else "gamma"
 
     def weights(self, z: np.ndarray) -> np.ndarray:
         """Full 11-vector from the upper-level variables z = log10(fitted weights)."""
         w = np.array(self.start_weights, dtype=float)
+        names = names_for(self.model)
         for name, zi in zip(self.fitted, z):
-            w[WALKER_WEIGHTS.index(name)] = 10.0 ** float(zi)
+            w[names.index(name)] = 10.0 ** float(zi)
         return w
 
     def z0(self) -> np.ndarray:
         w = np.array(self.start_weights, dtype=float)
-        return np.log10(np.maximum([w[WALKER_WEIGHTS.index(n)] for n in self.fitted], 10.0 ** LOG_BOUNDS[0]))
+        names = names_for(self.model)
+        return np.log10(np.maximum([w[names.index(n)] for n in self.fitted], 10.0 ** LOG_BOUNDS[0]))
 
 
 # ---- lower level (runs on workers) -------------------------------------------------------------
@@ -136,10 +179,35 @@ def distances(t: Target, x, y, theta) -> dict[str, float]:
             "d_gamma": float(d_gamma(gamma_from_path(t.x, t.y, t.theta), gamma_from_path(x, y, theta)))}
 
 
+def solve_pair_target(spec: IOCSpec, w: np.ndarray, t: PairTarget, guess):
+    """Coupled lower level: D = d_xy,1 + d_xy,2 + 0.5 (d_theta,1 + d_theta,2)."""
+    from cobot_analysis.models import resample
+    from cobot_analysis.models.coupled import solve_pair
+    from cobot_analysis.models.ocp import OCPSolution
+
+    sol = solve_pair(t.start, t.goal, w, n_intervals=spec.n_intervals, guess=guess)
+    if not sol.success and not isinstance(guess, str):
+        sol = solve_pair(t.start, t.goal, w, n_intervals=spec.n_intervals)
+    if not sol.success:
+        return {"D": FAILED_D, "d_xy": math.nan, "d_theta": math.nan, "d_gamma": math.nan, "T": math.nan, "success": False}, sol
+    d = {"d_xy": 0.0, "d_theta": 0.0, "d_gamma": 0.0}
+    for i, c in enumerate(t.carriers):
+        part = OCPSolution(sol.X[:, 6 * i:6 * i + 6], sol.U[:, 3 * i:3 * i + 3], sol.T, sol.cost, True, "", "", 0, sol.primal)
+        r = resample(part, len(c.x))
+        for k, v in distances(c, r["x"], r["y"], r["theta"]).items():
+            d[k] += v
+    d["D"] = d["d_xy"] + spec.angle_weight * d["d_theta"]
+    d["T"] = sol.T
+    d["success"] = True
+    return d, sol
+
+
 def solve_target(spec: IOCSpec, w: np.ndarray, t: Target, guess):
     """Lower level for one target: (distances dict with D and success, solution)."""
     from cobot_analysis.models import resample, solve_model
 
+    if spec.model == "coupled":
+        return solve_pair_target(spec, w, t, guess)
     model = "table" if spec.model == "table" else "improved"
     kw = {"n_intervals": spec.n_intervals, "duration": "free", "max_iter": spec.max_iter}
     sol = solve_model(model, t.start, t.goal, w, guess=guess, **kw)
@@ -231,7 +299,8 @@ def fit_key(spec: IOCSpec, targets: list[Target]) -> str:
     h = hashlib.sha256(json.dumps(asdict(spec), sort_keys=True).encode())
     for t in targets:
         h.update(t.trial.encode())
-        h.update(np.ascontiguousarray(np.c_[t.x, t.y, t.theta]).tobytes())
+        for c in getattr(t, "carriers", (t,)):
+            h.update(np.ascontiguousarray(np.c_[c.x, c.y, c.theta]).tobytes())
     return h.hexdigest()[:16]
 
 
@@ -330,7 +399,7 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
         raise KeyboardInterrupt("IOC interrupted (test hook); resume with the same checkpoint") from None
     ck.save()
     w_best = spec.weights(np.array(best["z"]))
-    return IOCResult(spec=spec, weights=dict(zip(WALKER_WEIGHTS, map(float, w_best))), objective=float(best["f"]),
+    return IOCResult(spec=spec, weights=dict(zip(names_for(spec.model), map(float, w_best))), objective=float(best["f"]),
                      start_objective=start_objective, evaluations=len(cache), iterations=iteration,
                      failed=sum(not d["success"] for d in best["terms"]), per_target=best["terms"],
                      message=str(res.message))
