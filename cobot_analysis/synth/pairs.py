@@ -26,7 +26,10 @@ Planted effects (module constants, also written per row in ``truth_trials.parque
 - table path variability ``TABLE_PATH_SD`` (x ``PATH_SD_FACTOR[s]``; scenarios 1 and 2 are more
   variable) is smaller than the subjects' (table + ``SUBJECT_REL_SD`` deviation at the table +
   gait sway);
-- the return path is the forward path time-reversed, with a small change (``RETURN_SD``);
+- the return follows the forward path backwards (same geometry, small change ``RETURN_SD``), but
+  its speed profile is front-loaded like every carriage (``CARRY_RAMP_FRACTIONS``): resampled by arc
+  length, forward and reversed return match within a few cm (the table closer than the subjects);
+  time-normalised they differ by about 0.3 m, as the published mean paths do;
 - nothing depends on the pair: every recording draws its behaviour from the same distributions
   (subjects differ only in anthropometry and marker placement), so "no pair effect" holds.
 """
@@ -55,8 +58,14 @@ STAGE = "synth-pairs"
 N_PAIRS = 20
 HANDLE_OFFSET = TABLE_SIZE[0] / 2 + 0.35  # m: pelvis CoM to table centre along the long axis
 LIFT_THRESHOLD = 0.005  # m above the rest height: carriage onset / offset
-CARRY_SPEED = 0.7  # m/s, nominal peak speed of the table
-CARRY_RAMP = 1.5  # s, acceleration / deceleration time of a carriage (at most half its duration)
+CARRY_SPEED = 0.7  # m/s, speed term of the carriage duration law (``carriage_duration``)
+CARRY_RAMP = 1.5  # s, constant term of the carriage duration law
+#: shares of a carriage's horizontal motion spent accelerating and decelerating: the table starts
+#: briskly and is placed slowly on its marks, forward and return alike, as in the published mean
+#: table trajectories (time-normalised). The return path is the forward path reversed, but its
+#: speed profile is not: time-normalised forward / reversed-return distances are about 0.3 m, as
+#: between the published means (0.35 m for the table).
+CARRY_RAMP_FRACTIONS = (0.25, 0.45)
 #: planted: factor on the carriage duration per scenario (the return is scenario 3).
 SCENARIO_TIME_FACTOR = {1: 1.0, 2: 1.0, 3: 0.9}
 DURATION_NOISE_SD = 0.08  # sd of the log-normal duration noise
@@ -172,13 +181,14 @@ def carry(points: np.ndarray, theta0: float, theta1: float, window: tuple[float,
     ``theta = theta0 + (theta1 - theta0) (s + S((s - a) / (b - a))) / 2``, so that the carriers'
     paths stay smooth (no orbiting around a table that turns on the spot). Lift and set-down follow
     ``H S(t / t_lift)``; horizontal motion starts ``q1`` into the lift and ends ``q2`` into the
-    set-down.
+    set-down. The speed profile accelerates over ``CARRY_RAMP_FRACTIONS[0]`` of the motion and
+    decelerates over ``CARRY_RAMP_FRACTIONS[1]``.
     """
     lift_h, t_lift, t_set, q1, q2 = lift.height, lift.t_lift, lift.t_set, lift.q1, lift.q2
     length = float(np.hypot(*np.diff(points, axis=0).T).sum())
     target = carriage_duration(length, t_lift, t_set, scenario, eps)
     motion = max(target - t_lift * q1 - t_set * (1 - q2), 1.0)
-    path = paths.along(points, motion, min(CARRY_RAMP, motion / 2), rate)
+    path = paths.along(points, motion, CARRY_RAMP_FRACTIONS[0] * motion, rate, CARRY_RAMP_FRACTIONS[1] * motion)
     m0 = int(round(t_lift * q1 * rate))
     n_motion = len(path.t)
     s0 = m0 + n_motion - 1 - int(round(t_set * q2 * rate))  # set-down start frame

@@ -37,15 +37,18 @@ def motion_duration(length: float, v_peak: float, t_ramp: float) -> float:
     return 2.0 * np.sqrt(length * t_ramp / v_peak)
 
 
-def arc_fraction(t, duration: float, t_ramp: float):
+def arc_fraction(t, duration: float, t_ramp: float, t_ramp_end: float | None = None):
     """Travelled fraction of the path at times ``t`` (0 at t <= 0, 1 at t >= T).
 
-    Integral of ``S(t / r) S((T - t) / r)`` with ``r = min(t_ramp, T / 2)``, normalised.
+    Integral of ``S(t / r1) S((T - t) / r2)``, normalised, with ``r1 = t_ramp`` and
+    ``r2 = t_ramp_end`` (default ``t_ramp``), scaled down if ``r1 + r2 > T``.
     """
-    r = min(t_ramp, duration / 2.0)
+    r1, r2 = t_ramp, t_ramp if t_ramp_end is None else t_ramp_end
+    scale = min(1.0, duration / (r1 + r2))
+    r1, r2 = r1 * scale, r2 * scale
     t = np.clip(np.asarray(t, dtype=float), 0.0, duration)
     fine = np.linspace(0.0, duration, 2001)
-    v = smoothstep(fine / r) * smoothstep((duration - fine) / r)
+    v = smoothstep(fine / r1) * smoothstep((duration - fine) / r2)
     s = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(fine))])
     return np.interp(t, fine, s / s[-1])
 
@@ -84,8 +87,9 @@ class BasePath:
         return float(self.t[-1])
 
 
-def along(points: np.ndarray, duration: float, t_ramp: float, rate: float) -> BasePath:
-    """Move along the polyline ``points`` in ``duration`` s with the smoothed trapezoidal profile.
+def along(points: np.ndarray, duration: float, t_ramp: float, rate: float, t_ramp_end: float | None = None) -> BasePath:
+    """Move along the polyline ``points`` in ``duration`` s with the smoothed trapezoidal profile
+    (acceleration in ``t_ramp``, deceleration in ``t_ramp_end``, default ``t_ramp``).
 
     ``duration`` is rounded to whole frames; the returned path has ``round(T rate) + 1`` samples.
     """
@@ -95,7 +99,7 @@ def along(points: np.ndarray, duration: float, t_ramp: float, rate: float) -> Ba
     n = max(int(round(duration * rate)), 2)
     duration = n / rate
     t = np.arange(n + 1) / rate
-    s = arc_fraction(t, duration, t_ramp) * length
+    s = arc_fraction(t, duration, t_ramp, t_ramp_end) * length
     xy = np.column_stack([np.interp(s, cum, points[:, 0]), np.interp(s, cum, points[:, 1])])
     tangent = np.gradient(points, cum, axis=0) if length > 0 else np.tile([1.0, 0.0], (len(points), 1))
     head_fine = np.unwrap(np.arctan2(tangent[:, 1], tangent[:, 0]))
