@@ -218,6 +218,19 @@ def test_walking_paths_resemble_the_published_ones(walking_truth_only, datasets)
 
 # ---- building blocks ---------------------------------------------------------------------------
 @settings(max_examples=40, deadline=None)
+@given(duration=st.floats(1.0, 15.0), up=st.floats(0.05, 0.7), down=st.floats(0.05, 0.7))
+def test_asymmetric_profile_is_monotone_and_front_loaded_when_it_accelerates_faster(duration, up, down):
+    t = np.linspace(0.0, duration, 401)
+    s = paths.arc_fraction(t, duration, up * duration, down * duration)
+    assert s[0] == 0.0 and s[-1] == pytest.approx(1.0) and np.all(np.diff(s) >= -1e-12)
+    half = paths.arc_fraction(duration / 2, duration, up * duration, down * duration)
+    if up + 0.05 < down:  # accelerates faster than it decelerates: more than half the way at mid-time
+        assert half > 0.5
+    elif down + 0.05 < up:
+        assert half < 0.5
+
+
+@settings(max_examples=40, deadline=None)
 @given(length=st.floats(0.3, 8.0), v_peak=st.floats(0.5, 1.5), t_ramp=st.floats(0.5, 2.0))
 def test_speed_profile_reaches_the_end_at_rest_with_the_peak_speed(length, v_peak, t_ramp):
     T = paths.motion_duration(length, v_peak, t_ramp)
@@ -442,6 +455,9 @@ def test_planted_effects_are_detectable(pair_truth_only):
     choice = table[(table.segment == "forward") & (table.distance_chosen != table.distance_other).abs().astype(bool)]
     unequal = choice[np.abs(choice.distance_chosen - choice.distance_other) > 1e-6]
     assert stats.binomtest(int(unequal["optimal"].sum()), len(unequal), 0.5).pvalue < 1e-3
+    # long gaps in about P_LONG_GAP of the recordings (72 recordings: binomial bounds)
+    lost = tt[tt.entity != "table"].groupby("trial")["orientation_lost"].any()
+    assert abs(lost.mean() - pairs.P_LONG_GAP) < 3 * math.sqrt(pairs.P_LONG_GAP * (1 - pairs.P_LONG_GAP) / len(lost))
     # no pair effect on travel time (relative to the goal and scenario mean)
     fwd_all = table[table.segment == "forward"].copy()
     fwd_all["rel"] = fwd_all["travel_time"] / fwd_all.groupby(["condition", "scenario"])["travel_time"].transform("mean")
