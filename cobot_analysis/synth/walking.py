@@ -109,8 +109,7 @@ def draw_subject(seed: int, index: int) -> Subject:
                    bd.Body.draw(rng, height), bd.Gait.draw(rng), style)
 
 
-def walk(rng: np.random.Generator, style: Style, start, theta0: float, goal, thetaf: float, rate: float,
-         turn_sign: float | None = None):
+def walk(rng: np.random.Generator, style: Style, start, theta0: float, goal, thetaf: float, rate: float):
     """One walk between two poses -> (BasePath, pelvis theta along it (unwrapped)).
 
     Initial walking direction ``phi0 = c + alpha_start wrap(theta0 - c)`` and final one
@@ -132,7 +131,7 @@ def walk(rng: np.random.Generator, style: Style, start, theta0: float, goal, the
     h0, hf = path.heading[0], path.heading[-1]
     d0 = float(wrap(theta0 - h0))
     if abs(d0) > math.pi - 0.35:  # facing away: turn the subject's preferred way
-        d0 = (turn_sign or style.turn_sign) * abs(d0)
+        d0 = style.turn_sign * abs(d0)
     df = float(wrap(thetaf - hf))
     T = path.duration
     ts = min(max(0.6, style.turn_start * T), 0.5 * T)
