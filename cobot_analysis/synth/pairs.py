@@ -29,7 +29,8 @@ Planted effects (module constants, also written per row in ``truth_trials.parque
 - the return follows the forward path backwards (same geometry, small change ``RETURN_SD``), but
   its speed profile is front-loaded like every carriage (``CARRY_RAMP_FRACTIONS``): resampled by arc
   length, forward and reversed return match within a few cm (the table closer than the subjects);
-  time-normalised they differ by about 0.3 m, as the published mean paths do;
+  time-normalised they differ by about 0.3 m, as the published mean paths do. A return inherits
+  the shape, hence the variability, of its own forward path (scenarios 1 and 2 included);
 - nothing depends on the pair: every recording draws its behaviour from the same distributions
   (subjects differ only in anthropometry and marker placement), so "no pair effect" holds.
 """
