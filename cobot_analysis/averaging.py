@@ -57,14 +57,13 @@ def _group_sums(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
     return np.add.reduceat(np.where(np.isfinite(values), values, 0.0), starts, axis=0)
 
 
-def mean_trajectories(ts: TrajectorySet, by: list[str] | None = None, progress=None) -> pd.DataFrame:
+def mean_trajectories(ts: TrajectorySet, by: list[str] | None = None) -> pd.DataFrame:
     """Mean trajectory of every group of ``ts`` defined by the ``by`` columns -> MEANS long table.
 
     Vectorised over groups, trajectories and samples: trajectories are sorted by group and summed
     block-wise (``np.add.reduceat``). Means: ``sum x / n``; sd with ddof = 1 (0 for a single
     trajectory); circular mean ``atan2(S, C)`` and circular sd ``sqrt(-2 ln R)``, R = |(C, S)| / n_theta,
-    over the trajectories whose orientation is complete. ``progress`` is accepted for API symmetry
-    with other stages (there is no loop to track).
+    over the trajectories whose orientation is complete.
     """
     by = by or default_groups(ts.meta)
     keys = group_keys(ts.meta, by).to_numpy()

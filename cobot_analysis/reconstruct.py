@@ -111,16 +111,18 @@ def _resample(v: np.ndarray, n: int) -> np.ndarray:
     return np.interp(np.linspace(0, 1, n), np.linspace(0, 1, len(v)), v)
 
 
-def accuracy(ts: TrajectorySet, rel: dict, source: str, scenario: int | None = 3) -> pd.DataFrame:
+def accuracy(ts: TrajectorySet, rel: dict, source: str, scenario: int | None = 3, progress=None) -> pd.DataFrame:
     """Reconstruct both subjects from every table trajectory of ``ts`` (scenario ``scenario``, all
-    kinds) and compare with the measured subject trajectory of the same trial -> RECONSTRUCTION rows."""
+    kinds) and compare with the measured subject trajectory of the same trial -> RECONSTRUCTION rows.
+    ``progress`` (e.g. ``console.track``) wraps the loop over table trajectories."""
     m = ts.meta
     sel = m["entity"].eq("table")
     if scenario is not None and "scenario" in m.columns:
         sel &= pd.to_numeric(m["scenario"], errors="coerce").eq(scenario)
     index = pd.Series(np.arange(len(m)), index=pd.MultiIndex.from_frame(m[["study", "trial", "entity"]]))
     rows = []
-    for ti in np.flatnonzero(sel):
+    tables = np.flatnonzero(sel)
+    for ti in progress(tables, f"reconstruct ({source})") if progress else tables:
         t = m.iloc[ti]
         for ent in SUBJECTS:
             key = (t["study"], t["trial"], ent)

@@ -30,7 +30,7 @@ def pair_ws(tmp_path_factory):
     """A small synthetic pair study run through every analysis command once."""
     from cobot_analysis.cli import run
 
-    ws = _workspace(tmp_path_factory.mktemp("pairs"), pair_table(seed=7, n_pairs=6, goals=9, n=20))
+    ws = _workspace(tmp_path_factory.mktemp("pairs"), pair_table(seed=7, n_pairs=5, goals=4, n=20))
     for args in (["average"], ["compare"], ["stats"], ["reconstruct"], ["report", "pairs", "--to", str(ws.parent / "report")]):
         assert run(["-q", *args, "--out", str(ws)]) == 0, args
     return ws
@@ -61,12 +61,12 @@ def test_means_and_distances_tables(pair_ws):
 
     means = read_table(pair_ws / "average" / "means.parquet", MEANS)
     first = means[means["sample"].eq(0)]
-    # 6 pairs x 9 goals: each (goal, scenario, end orientation, entity) mean holds its trials
+    # 5 pairs x 4 goals: each (goal, scenario, end orientation, entity) mean holds its trials
     fwd = first[first["direction"].eq("forward")]
-    assert fwd.groupby("entity")["n_trials"].sum().eq(6 * 9 * 3).all()
+    assert fwd.groupby("entity")["n_trials"].sum().eq(5 * 4 * 3).all()
     d = read_table(pair_ws / "compare" / "distances.parquet", DISTANCES)
     ind = d[d["comparison"].eq("individual-mean")]
-    assert len(ind) == 6 * 9 * 3 * 2 * 3 and ind["d_xy"].ge(0).all()
+    assert len(ind) == 5 * 4 * 3 * 2 * 3 and ind["d_xy"].ge(0).all()
     assert {"symmetry", "scenario-scenario", "scenario-scenario-mean", "symmetry-mean"} <= set(d["comparison"])
 
 
@@ -88,10 +88,12 @@ def test_compare_against_another_table_and_walking_questions(tmp_path, cli):
     means = pd.read_parquet(ws / "average" / "means.parquet")
     model = means.assign(x=means["x"] + 0.05, kind="trial", trial="model:" + means["trial"])
     model.to_parquet(tmp_path / "model.parquet")
-    code, _, err = cli("compare", "--out", ws, "--against", tmp_path / "model.parquet", "--label", "model")
+    code, _, err = cli("compare", "--out", ws, "--against", tmp_path / "model.parquet", "--label", "model",
+                       "--any-vs-any", "condition,entity")
     assert code == 0, err
     d = pd.read_parquet(ws / "compare" / "distances.parquet")
     assert np.allclose(d.loc[d["comparison"].eq("model"), "d_xy"], 0.05)
+    assert d["comparison"].eq("any-any").sum() == 8 * (15 * 14 // 2)  # 8 conditions, 5 subjects x 3 trials each
     code, _, err = cli("stats", "--out", ws)
     assert code == 0, err
     stats = read_table(ws / "stats" / "stats.parquet", STATS).set_index("id")

@@ -171,8 +171,8 @@ def test_small_groups_are_skipped_with_the_reason_and_normality_selects_the_test
 
 
 # ---- planted and null effects ------------------------------------------------------------------------
-def _study_stats(seed, **kw):
-    ts = pivot(pair_table(seed=seed, n_pairs=20, goals=9, n=20, **kw))
+def _study_stats(seed, n_pairs=20, **kw):
+    ts = pivot(pair_table(seed=seed, n_pairs=n_pairs, goals=9, n=20, **kw))
     d = compare_sets(ts, pivot(mean_trajectories(ts)))
     cfg = config.load(ROOT / "pipelines" / "synthetic-pairs.toml")
     out = analyses.run(cfg, build_sources(ts, d))
@@ -198,11 +198,11 @@ def test_no_effect_reported_where_none_was_planted():
     false = {"Q1.1": 0, "Q3": 0, "Q4.2": 0}
     seeds = range(10, 13)
     for seed in seeds:
-        s = _study_stats(seed, speedup=0.0, p_optimal=0.5)
+        s = _study_stats(seed, n_pairs=12, speedup=0.0, p_optimal=0.5)
         false["Q1.1"] += bool(s.loc["Q1.1", "significant"])
         false["Q3"] += any(bool(s.loc[f"Q3[{k}]", "significant"]) for k in (1, 2, 3))
         if seed < 12:
-            s = _study_stats(seed, speedup=0.0, p_optimal=1.0)
+            s = _study_stats(seed, n_pairs=12, speedup=0.0, p_optimal=1.0)
             false["Q4.2"] += any(bool(s.loc[f"Q4.2[{e}]", "significant"]) for e in ("subject1", "subject2", "table"))
     # Holm keeps the family-wise error at 5 %: at most one false alarm per question over the seeds
     assert all(v <= 1 for v in false.values()), false

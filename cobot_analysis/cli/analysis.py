@@ -73,7 +73,7 @@ def average_command(
 
     from cobot_analysis.averaging import MEANS, mean_trajectories
     from cobot_analysis.compare import default_groups
-    from cobot_analysis.console import info, track, warn
+    from cobot_analysis.console import info, warn
     from cobot_analysis.schema import TRAJECTORIES, read_table, write_table
     from cobot_analysis.workspace import Stage
 
@@ -85,7 +85,7 @@ def average_command(
             return
         trials = ts.subset(ts.meta["kind"].eq("trial").to_numpy())
         if len(trials):
-            means = mean_trajectories(trials, groups, progress=track)
+            means = mean_trajectories(trials, groups)
             how = f"recomputed from {len(trials)} trajectories"
         else:
             warn(f"{path}: no per-trial trajectories; the published means are carried over unchanged")
@@ -119,11 +119,12 @@ def compare_command(
     means: Annotated[Optional[Path], typer.Option("--means", help="means.parquet (default: WS/average/means.parquet).")] = None,
     against: Annotated[Optional[Path], typer.Option("--against", help="Another trajectory table (e.g. model-generated paths) to compare with the means of the same group.")] = None,
     label: Annotated[str, typer.Option("--label", help="comparison name of the --against rows (e.g. model).")] = "against",
+    any_any: Annotated[Optional[str], typer.Option("--any-vs-any", help="Also compare every two trials that agree on these comma-separated columns (e.g. condition,entity) -> comparison any-any.")] = None,
     by: ByOpt = None,
     force: ForceOpt = False,
 ) -> None:
     """Distances d_xy, d_theta, d_gamma: individual vs mean, between scenarios, forward vs reversed return,
-    recomputed vs published means, --against vs means -> compare/distances.parquet (one row per pair)."""
+    recomputed vs published means, --against vs means, --any-vs-any -> compare/distances.parquet (one row per pair)."""
     import pandas as pd
 
     from cobot_analysis.averaging import MEANS
@@ -147,16 +148,19 @@ def compare_command(
         except Exception as exc:
             raise InputError(f"not a readable trajectory table ({type(exc).__name__})", path=against, remedy="pass a Parquet trajectory table") from None
         other = pivot(against_df, against)
+    same = _by(any_any, list(ts.meta.columns), path)
     inputs = [path, means_path] + ([against] if against else [])
-    with Stage(out, "compare", inputs=inputs, params={"by": groups, "label": label}, force=force) as stage:
+    with Stage(out, "compare", inputs=inputs, params={"by": groups, "label": label, "any_vs_any": same}, force=force) as stage:
         if stage.skipped:
             return
         trials = ts.subset(ts.meta["kind"].eq("trial").to_numpy())
         parts = [compare_sets(trials, mts, by=groups)]
         published = ts.subset(ts.meta["kind"].eq("mean").to_numpy())
         if len(published) and len(trials):  # our means vs the authors' means of the same condition
-            same = [c for c in groups if c in WALKING_GROUPS or c in ("direction", "scenario", "end_orientation")]
-            parts.append(any_vs_any(mts, same=same, comparison="mean-published", other=published))
+            keys = [c for c in groups if c in WALKING_GROUPS or c in ("direction", "scenario", "end_orientation")]
+            parts.append(any_vs_any(mts, same=keys, comparison="mean-published", other=published))
+        if same:
+            parts.append(any_vs_any(trials, same=["study", *same]))
         if other is not None:
             parts.append(individual_vs_mean(other, mts, [c for c in groups if c in other.meta.columns]).assign(comparison=label))
         d = pd.concat([p for p in parts if len(p)] or parts[:1], ignore_index=True)
@@ -230,7 +234,7 @@ def stats_command(
             raise InputError("durations table lacks a duration column", path=dur_path, remedy="re-run import-published")
     elif durations is not None:
         raise InputError("file not found", path=durations, remedy="check --durations")
-    anthro_dir = anthropometrics or next((d for d in (out / "synth-pairs",) if (d / "pairs.csv").is_file()), None)
+    anthro_dir = anthropometrics or (out / "synth-pairs" if (out / "synth-pairs" / "pairs.csv").is_file() else None)
     anthro = read_anthropometrics(anthro_dir)
     inputs = [p for p in (config, path, dist_path, dur_path if dur is not None else None) if p] + \
         ([anthro_dir / "subjects.csv", anthro_dir / "pairs.csv"] if anthro is not None else [])
@@ -279,7 +283,7 @@ def reconstruct_command(
     """Subjects reconstructed from the table trajectory (METHODS.md sec. 8), d_xy / d_theta vs measured -> reconstruct/reconstruction.parquet."""
     import pandas as pd
 
-    from cobot_analysis.console import info
+    from cobot_analysis.console import info, track
     from cobot_analysis.reconstruct import RECONSTRUCTION, accuracy, read_wrt_table, relative_pose, relative_pose_table
     from cobot_analysis.schema import write_table
     from cobot_analysis.workspace import Stage
@@ -300,12 +304,12 @@ def reconstruct_command(
         parts = []
         from_trials = relative_pose(ts, scenario, "trial")
         if from_trials:
-            parts.append(accuracy(ts, from_trials, "trials", scenario))
+            parts.append(accuracy(ts, from_trials, "trials", scenario, progress=track))
         if published:
-            parts.append(accuracy(ts, published, "published", scenario))
+            parts.append(accuracy(ts, published, "published", scenario, progress=track))
         if not parts:
             from_means = relative_pose(ts, scenario, "mean")
-            parts.append(accuracy(ts, from_means, "means", scenario))
+            parts.append(accuracy(ts, from_means, "means", scenario, progress=track))
         rec = pd.concat(parts, ignore_index=True)
         if rec.empty:
             raise InputError(f"no scenario-{scenario} trajectory has both a table and a subject", path=path,
