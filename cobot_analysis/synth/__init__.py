@@ -10,4 +10,4 @@
 
 #: version of the generators: bump it when a change alters the generated data, so that a workspace
 #: stage made by an older generator is regenerated instead of skipped as up to date.
-GENERATOR_VERSION = 5
+GENERATOR_VERSION = 6

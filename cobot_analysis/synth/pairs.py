@@ -322,8 +322,9 @@ def simulate_recording(task: tuple) -> tuple[list[dict], list[dict], dict]:
     labels += [f"Table:{m}" for m in TABLE_MARKERS]
     pelvis_cols = [k * _N_SUBJECT_MARKERS + SUBJECT_MARKERS.index(m) for k in range(2) for m in PELVIS_MARKERS]
     long = rng.random() < P_LONG_GAP
+    k0, car = spans[int(rng.integers(2))]  # the long gap hides a pelvis marker during one carriage
     missing, gaps = bd.plan_gaps(rng, n, len(labels), long_markers=pelvis_cols if long else (),
-                                 long_window=(k_lift1, n - 1))
+                                 long_window=(k0, k0 + len(car.height)))
     if raw:
         xyz = np.concatenate([bd.subject_markers(t, com, dz, th, speed, subjects[k].body, gaits[k])
                               for k, (_, com, dz, th, speed, _, _) in enumerate(people)]
