@@ -111,8 +111,8 @@ def _walking(data: dict, stage, lines: list[str], results: list[str]) -> None:
         per_subject = pd.Series(missing[tr.index]).groupby(tr["subject"].to_numpy()).sum()
         mean_rows = ts.meta["kind"].eq("mean").to_numpy()
         txt = (f"Trajectories without orientation: {int(missing[tr.index].sum())} of {len(tr)} subject trajectories "
-               f"({', '.join(f'{k}: {int(v)}' for k, v in per_subject.items())}); "
-               f"{int(missing[mean_rows].sum())} of {int(mean_rows.sum())} published means.")
+               f"({', '.join(f'{k}: {int(v)}' for k, v in per_subject.items())})"
+               + (f"; {int(missing[mean_rows].sum())} of {int(mean_rows.sum())} published means." if mean_rows.any() else "."))
         lines += ["## Data", "", txt, ""]
         results += ["## Walking study: data", "", txt, ""]
     if ts is not None or means is not None:

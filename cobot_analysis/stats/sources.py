@@ -7,6 +7,7 @@ column across groups:
 - ``trials``: one row per trajectory (trial level): metadata, travel time, travelled distance.
 - ``durations``: one row per trial: travel time of the carriage (pair study: from durations.parquet
   when the workspace has one, e.g. the published data, else from the table trajectories).
+- ``pair_durations``: the mean duration per pair, direction and scenario (pair-level tests).
 - ``distances``: distances.parquet plus ``carrier`` (subject / table / walker),
   ``start_orientation`` (walking: N E S O) and ``distance_class`` (global distance < 3 m / > 3 m).
 - ``choices``: pair study, one row per forward trial: chosen end orientation and whether it is
