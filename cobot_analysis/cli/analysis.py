@@ -244,8 +244,7 @@ def stats_command(
         sources = build_sources(ts, dist, dur, anthro, study_cfg.alpha)
         cfg.check_levels(study_cfg, sources)
         table = analyses.run(study_cfg, sources, progress=track)
-        if not study_cfg.study:
-            table["study"] = study
+        table["study"] = study  # the data's study (a configuration may serve several, e.g. synthetic-walking)
         write_table(table, stage.path("stats.parquet"), analyses.STATS, config=str(config))
         md = analyses.markdown(table, f"Statistics: {study} ({Path(config).name})", study_cfg.alpha)
         stage.path("stats.md").write_text(md)
