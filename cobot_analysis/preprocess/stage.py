@@ -402,7 +402,11 @@ def summary_markdown(traj: pd.DataFrame, gap_df: pd.DataFrame, p: Params, n_reco
         "## Preprocessing (raw markers -> trajectories)", "",
         f"{n_recordings} recordings -> {per['trial'].nunique()} trials, {len(per)} trajectories of "
         f"{p.n_samples} samples. Filter: Butterworth low-pass order {p.order} ({p.order_convention} convention), "
-        f"{p.cutoff:g} Hz, zero-phase; gaps up to {p.max_gap:g} s filled by cubic spline.", "",
+        f"{p.cutoff:g} Hz, zero-phase; gaps up to {p.max_gap:g} s filled by cubic spline. Segmentation: pair "
+        f"recordings where the table is {p.lift_threshold * 1000:g} mm above its resting height (median of the first "
+        f"{p.floor_window:g} s), walking trials where the CoM speed exceeds {p.speed_threshold:g} m/s for "
+        f"{p.min_duration:g} s (extended to {p.rest_speed:g} m/s). Orientation is reported missing for a trajectory "
+        f"with a long gap on {'any pelvis marker' if p.orientation_markers == 'pelvis' else 'LASI or RASI'}.", "",
         f"Gaps in the pelvis/table markers: {len(gap_df)} ({int(gap_df['filled'].sum())} filled, "
         f"{int((~gap_df['filled']).sum())} left open; {gap_df['n_frames'].sum() if len(gap_df) else 0} frames).", "",
         "| quality flag | trajectories |", "|---|---|",
