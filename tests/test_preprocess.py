@@ -315,6 +315,7 @@ def test_stage_walking_trial_end_to_end(tmp_path, cli):
     assert manifest["params"]["n_samples"] == 101 and manifest["params"]["max_gap"] == 0.1
     results = (ws / "preprocess" / "results.md").read_text()
     assert "2 recordings -> 2 trials, 2 trajectories" in results
+    assert "| walker | LASI | 1 | 1 | 0 | 0 |" in results and "| walker | RPSI | 1 | 0 | 1 | 100 |" in results
     # unchanged inputs and parameters: skipped
     code, _, err = cli("preprocess", "--out", ws, "--jobs", "1", "--samples", "101", "--orientation-markers", "asis")
     assert code == 0 and "up to date" in err

@@ -409,6 +409,10 @@ def summary_markdown(traj: pd.DataFrame, gap_df: pd.DataFrame, p: Params, n_reco
         f"with a long gap on {'any pelvis marker' if p.orientation_markers == 'pelvis' else 'LASI or RASI'}.", "",
         f"Gaps in the pelvis/table markers: {len(gap_df)} ({int(gap_df['filled'].sum())} filled, "
         f"{int((~gap_df['filled']).sum())} left open; {gap_df['n_frames'].sum() if len(gap_df) else 0} frames).", "",
+        "| entity | marker | recordings with gaps | gaps filled | gaps left open | missing frames left |",
+        "|---|---|---|---|---|---|",
+        *[f"| {e} | {m} | {g['trial'].nunique()} | {int(g['filled'].sum())} | {int((~g['filled']).sum())} | "
+          f"{int(g.loc[~g['filled'], 'n_frames'].sum())} |" for (e, m), g in gap_df.groupby(["entity", "marker"])], "",
         "| quality flag | trajectories |", "|---|---|",
         *[f"| {k} | {v} |" for k, v in flags.items()], "",
         "| entity | direction | trajectories | travel time (s), median [IQR] | travelled distance (m), median |",
