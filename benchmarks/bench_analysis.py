@@ -7,7 +7,7 @@
 Runs average, compare, stats, reconstruct and report in a fresh copy of the workspace (so nothing
 is skipped as up to date), in-process through ``cobot_analysis.cli.run`` (the code path of the
 command line, without the interpreter start-up), and prints the wall time of each stage and the
-total as a Markdown table. Also times the vectorised distances against a per-pair Python loop.
+total (wall and process CPU time) as a Markdown table. Also times the vectorised distances against a per-pair Python loop.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ def _fallback_table(path: Path) -> None:
     write_table(pair_table(seed=0, n_pairs=20, goals=9, n=500), path, TRAJECTORIES)
 
 
-def bench_pipeline(workspace: Path | None) -> list[tuple[str, float]]:
+def bench_pipeline(workspace: Path | None) -> list[tuple[str, float, float]]:
     from cobot_analysis.cli import run
 
     tmp = Path(tempfile.mkdtemp(prefix="bench-analysis-"))
@@ -51,9 +51,9 @@ def bench_pipeline(workspace: Path | None) -> list[tuple[str, float]]:
     times = []
     try:
         for args in (["average"], ["compare"], ["stats"], ["reconstruct"], ["report", "pairs", "--to", str(tmp / "report")]):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             code = run(["-q", *args, "--out", str(ws)])
-            times.append((args[0], time.perf_counter() - t0))
+            times.append((args[0], time.perf_counter() - t0, time.process_time() - c0))
             if code != 0:
                 raise SystemExit(f"{args[0]} failed with exit code {code}")
     finally:
@@ -89,10 +89,11 @@ def main() -> None:
     vec, loop = bench_distances()
     print(f"machine: {platform.processor() or platform.machine()}, {len(__import__('os').sched_getaffinity(0))} cores; "
           f"python {platform.python_version()}; date {time.strftime('%Y-%m-%d')}")
-    print("| stage | wall time (s) |\n|---|---|")
-    for name, t in times:
-        print(f"| {name} | {t:.1f} |")
-    print(f"| **total** | **{sum(t for _, t in times):.1f}** |")
+    print(f"load average at the end: {__import__('os').getloadavg()[0]:.1f}")
+    print("| stage | wall time (s) | CPU time (s) |\n|---|---|---|")
+    for name, t, c in times:
+        print(f"| {name} | {t:.1f} | {c:.1f} |")
+    print(f"| **total** | **{sum(t for _, t, _ in times):.1f}** | **{sum(c for _, _, c in times):.1f}** |")
     print(f"\n20000 trajectory pairs x 500 samples (d_xy, d_theta, d_gamma): vectorised {vec:.2f} s, "
           f"per-pair loop {loop:.2f} s (extrapolated from 1000 pairs)")
 

@@ -92,6 +92,61 @@ def plain_dtypes(df: pd.DataFrame) -> pd.DataFrame:
     return df
 
 
+def read_trajectory_set(path: str | Path, tables: tuple[str, ...] = ("trajectories", "means", "generated_trajectories")) -> TrajectorySet:
+    """Read a trajectory table (trajectories, means, generated paths) straight into a ``TrajectorySet``.
+
+    Fast path for files written trajectory by trajectory (samples 0..N-1 in order, the layout every
+    stage writes): the numeric columns are read once and reshaped, and the metadata is read from the
+    sample-0 rows only, single-threaded (pyarrow's thread pool is slower than one thread on a
+    loaded 2-core machine). Any other layout goes through ``pivot``.
+    """
+    import pyarrow.parquet as pq
+
+    from cobot_analysis.schema import SCHEMAS, read_table, table_metadata
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("file not found", path=path, remedy="run the stage that writes it first or check --out")
+    try:
+        name = table_metadata(path).get("table")
+        names = pq.ParquetFile(path).schema_arrow.names
+    except Exception as exc:  # pyarrow raises several types for corrupt files
+        raise InputError(f"not a readable Parquet file ({type(exc).__name__})", path=path, remedy="re-run the stage that wrote it") from None
+    if name not in tables:
+        raise InputError(f"is not a trajectory table (found {name!r})", path=path, remedy=f"pass one of: {', '.join(tables)}")
+    missing = [c for c in SCHEMAS[name].required if c not in names]
+    if missing:
+        raise InputError(f"{name} table lacks columns {missing}", path=path, remedy="re-run the stage that wrote it")
+    num = pq.read_table(path, columns=[c for c in ("sample", *SIGNALS) if c in names], use_threads=False)
+    sample = num["sample"].to_numpy(zero_copy_only=False)
+    n_traj = int((sample == 0).sum())
+    n = len(sample) // n_traj if n_traj else 0
+    if not n or n * n_traj != len(sample) or not (sample.reshape(-1, n) == np.arange(n)).all():
+        df = read_table(path, SCHEMAS[name])
+        df.attrs = {}
+        return pivot(df, path)
+    meta = pq.read_table(path, columns=[c for c in META if c in names], filters=[("sample", "=", 0)], use_threads=False).to_pandas()
+    if meta.duplicated(KEY).any():
+        raise InputError("several trajectories share a (study, trial, entity) key", path=path, remedy="re-run the stage that wrote it")
+
+    def arr(col: str) -> np.ndarray:
+        if col not in names:
+            return np.full((n_traj, n), np.nan)
+        return num[col].to_numpy(zero_copy_only=False).astype(float).reshape(n_traj, n)
+
+    return _finish(plain_dtypes(meta), arr("x"), arr("y"), arr("theta"), arr("gamma"), path)
+
+
+def _finish(meta, x, y, theta, gamma, path) -> TrajectorySet:
+    ts = TrajectorySet(meta, x, y, theta, gamma)
+    snap_configurations(ts)
+    bad = ~np.isfinite(ts.x).all(axis=1) | ~np.isfinite(ts.y).all(axis=1)
+    if bad.any():
+        raise InputError(f"{int(bad.sum())} trajectories have NaN positions (e.g. {meta.loc[np.argmax(bad), 'trial']})",
+                         path=path, remedy="fill or drop gaps in preprocess; positions must be complete")
+    return ts
+
+
 def pivot(df: pd.DataFrame, path: str | Path | None = None) -> TrajectorySet:
     """Long table -> ``TrajectorySet``; every trajectory must have the same number of samples."""
     missing = [c for c in (*KEY, "sample", "x", "y") if c not in df.columns]
@@ -116,13 +171,7 @@ def pivot(df: pd.DataFrame, path: str | Path | None = None) -> TrajectorySet:
             return np.full((len(first), n), np.nan)
         return df[col].to_numpy(dtype=float, copy=True).reshape(-1, n)
 
-    ts = TrajectorySet(meta, arr("x"), arr("y"), arr("theta"), arr("gamma"))
-    snap_configurations(ts)
-    bad = ~np.isfinite(ts.x).all(axis=1) | ~np.isfinite(ts.y).all(axis=1)
-    if bad.any():
-        raise InputError(f"{int(bad.sum())} trajectories have NaN positions (e.g. {meta.loc[np.argmax(bad), 'trial']})",
-                         path=path, remedy="fill or drop gaps in preprocess; positions must be complete")
-    return ts
+    return _finish(meta, arr("x"), arr("y"), arr("theta"), arr("gamma"), path)
 
 
 def snap_configurations(ts: TrajectorySet) -> None:

@@ -27,12 +27,11 @@ PIPELINES = Path(__file__).resolve().parents[2] / "pipelines"
 
 
 def _trajectories(out: Path, path: Optional[Path]):
-    from cobot_analysis.compare import pivot
-    from cobot_analysis.schema import TRAJECTORIES, read_table
+    from cobot_analysis.compare import read_trajectory_set
     from cobot_analysis.workspace import find_input
 
     path = path or find_input(out, "trajectories.parquet", TRAJ_STAGES, "--trajectories")
-    return path, pivot(_plain(read_table(path, TRAJECTORIES)), path)
+    return path, read_trajectory_set(path, ("trajectories",))
 
 
 def _plain(df):
@@ -127,17 +126,16 @@ def compare_command(
     recomputed vs published means, --against vs means, --any-vs-any -> compare/distances.parquet (one row per pair)."""
     import pandas as pd
 
-    from cobot_analysis.averaging import MEANS
-    from cobot_analysis.compare import DISTANCES, WALKING_GROUPS, any_vs_any, compare_sets, default_groups, individual_vs_mean, pivot
+    from cobot_analysis.compare import (DISTANCES, WALKING_GROUPS, any_vs_any, compare_sets, default_groups, individual_vs_mean,
+                                        pivot, read_trajectory_set)
     from cobot_analysis.console import info
-    from cobot_analysis.schema import read_table, write_table
+    from cobot_analysis.schema import table_metadata, write_table
     from cobot_analysis.workspace import Stage, find_input
 
     path, ts = _trajectories(out, trajectories)
     means_path = means or find_input(out, "means.parquet", ["average"], "--means")
-    means_df = read_table(means_path, MEANS)
-    stored = means_df.attrs.get("cobot_analysis", {}).get("grouping")
-    mts = pivot(_plain(means_df), means_path)
+    mts = read_trajectory_set(means_path, ("means",))
+    stored = table_metadata(means_path).get("grouping")
     groups = _by(by, list(ts.meta.columns), path) or stored or default_groups(ts.meta)
     other = None
     if against is not None:

@@ -38,10 +38,9 @@ def report_inputs(out: Path) -> dict[str, Path]:
 
 
 def _load(inputs: dict) -> dict:
-    from cobot_analysis.averaging import MEANS
-    from cobot_analysis.compare import DISTANCES, pivot
+    from cobot_analysis.compare import DISTANCES, read_trajectory_set
     from cobot_analysis.reconstruct import RECONSTRUCTION
-    from cobot_analysis.schema import TRAJECTORIES, read_table
+    from cobot_analysis.schema import read_table
     from cobot_analysis.stats.analyses import STATS
 
     def read(key, schema):
@@ -51,9 +50,9 @@ def _load(inputs: dict) -> dict:
 
     data = {}
     if "trajectories" in inputs:
-        data["ts"] = pivot(read("trajectories", TRAJECTORIES), inputs["trajectories"])
+        data["ts"] = read_trajectory_set(inputs["trajectories"], ("trajectories",))
     if "means" in inputs:
-        data["means"] = pivot(read("means", MEANS), inputs["means"])
+        data["means"] = read_trajectory_set(inputs["means"], ("means",))
     for key, schema in (("distances", DISTANCES), ("stats", STATS), ("reconstruction", RECONSTRUCTION)):
         if key in inputs:
             data[key] = read(key, schema)
