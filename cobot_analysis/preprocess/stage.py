@@ -382,7 +382,7 @@ def assemble(results: list[dict[str, Any]], n_samples: int) -> tuple[pd.DataFram
     meta["end_orientation"] = pd.to_numeric(meta["end_orientation"], errors="coerce").astype(float)
     for c in meta.columns:  # labels: str or None (never NaN, never numbers)
         if c in ("entity", "quality") or TRIAL_COLUMNS[c].dtype == "string":
-            meta[c] = [None if v is None or (isinstance(v, float) and np.isnan(v)) else str(v) for v in meta[c]]
+            meta[c] = [v if isinstance(v, str) else None if v is None or pd.isna(v) else str(v) for v in meta[c]]
     df = meta.iloc[np.repeat(np.arange(len(meta)), n_samples)].reset_index(drop=True)
     for j, c in enumerate(NUMERIC):
         df[c] = numeric[:, j]
