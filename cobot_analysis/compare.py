@@ -102,7 +102,7 @@ def read_trajectory_set(path: str | Path, tables: tuple[str, ...] = ("trajectori
     """
     import pyarrow.parquet as pq
 
-    from cobot_analysis.schema import SCHEMAS, read_table, table_metadata
+    from cobot_analysis.schema import table_metadata
 
     path = Path(path)
     if not path.is_file():
@@ -114,7 +114,7 @@ def read_trajectory_set(path: str | Path, tables: tuple[str, ...] = ("trajectori
         raise InputError(f"not a readable Parquet file ({type(exc).__name__})", path=path, remedy="re-run the stage that wrote it") from None
     if name not in tables:
         raise InputError(f"is not a trajectory table (found {name!r})", path=path, remedy=f"pass one of: {', '.join(tables)}")
-    missing = [c for c in SCHEMAS[name].required if c not in names]
+    missing = [c for c in (*KEY, "kind", "sample", "x", "y") if c not in names]
     if missing:
         raise InputError(f"{name} table lacks columns {missing}", path=path, remedy="re-run the stage that wrote it")
     num = pq.read_table(path, columns=[c for c in ("sample", *SIGNALS) if c in names], use_threads=False)
@@ -122,9 +122,7 @@ def read_trajectory_set(path: str | Path, tables: tuple[str, ...] = ("trajectori
     n_traj = int((sample == 0).sum())
     n = len(sample) // n_traj if n_traj else 0
     if not n or n * n_traj != len(sample) or not (sample.reshape(-1, n) == np.arange(n)).all():
-        df = read_table(path, SCHEMAS[name])
-        df.attrs = {}
-        return pivot(df, path)
+        return pivot(pq.read_table(path, use_threads=False).to_pandas(), path)
     meta = pq.read_table(path, columns=[c for c in META if c in names], filters=[("sample", "=", 0)], use_threads=False).to_pandas()
     if meta.duplicated(KEY).any():
         raise InputError("several trajectories share a (study, trial, entity) key", path=path, remedy="re-run the stage that wrote it")

@@ -145,7 +145,7 @@ def _pairs(data: dict, stage, lines: list[str], results: list[str]) -> None:
                  f"paths_{direction}", f"{direction.capitalize()} paths per goal: individual trials, means and orientation arrows", lines)
     if dist is None:
         return
-    sources = build_sources(ts, dist, data.get("durations"))
+    sources = build_sources(ts, dist, data.get("durations"), only={"durations", "choices", "patterns"})
     dur = sources["durations"]
     if len(dur):
         g = {f"{d[:3]} S{s:g}": v["duration"].to_numpy() for (d, s), v in dur.groupby(["direction", "scenario"])}

@@ -43,7 +43,8 @@ def paths(panels: list[dict], ncols: int = 4, arrows: int = 8, title: str = ""):
         lines = panel.get("lines", [])
         if lines:  # one collection per panel: fast to draw even with thousands of paths
             segs = [np.column_stack([x, y]) for x, y, _ in lines]
-            ax.add_collection(LineCollection(segs, colors=[COLORS.get(e, "k") for _, _, e in lines], linewidths=0.5, alpha=0.35))
+            ax.add_collection(LineCollection(segs, colors=[COLORS.get(e, "k") for _, _, e in lines], linewidths=0.5, alpha=0.35,
+                                             rasterized=True))  # thousands of thin paths: a bitmap inside the PDF
             ax.autoscale_view()
         for x, y, th, ent, *style in panel.get("means", []):
             ls = style[0] if style else "-"

@@ -207,9 +207,12 @@ def kruskal_rows(values: np.ndarray) -> np.ndarray:
         return stats.chi2.sf(h / ties, k - 1)
 
 
-def return_variability_source(ts: TrajectorySet, alpha: float = 0.05) -> pd.DataFrame:
-    """Q4.3: per pair, goal and entity with 3 returns, Kruskal across the returns of the
-    sample-wise distances |p_i - mean_i| to the mean of those returns (vectorised over groups)."""
+def return_variability_source(ts: TrajectorySet, alpha: float = 0.05, n_points: int = 10) -> pd.DataFrame:
+    """Q4.3: per pair, goal and entity with 3 returns, Kruskal across the returns of the distances
+    |p_i - mean_i| to the mean of those returns, at ``n_points`` phases evenly spaced over 5-95 %
+    of the path (vectorised over groups). Neighbouring samples of a path are strongly correlated:
+    testing all N samples as independent values would make almost any difference significant, so
+    a few well-separated phases are used (documented choice, configurable here)."""
     m = ts.meta
     if "direction" not in m.columns:
         return _empty("return_variability")
@@ -222,7 +225,8 @@ def return_variability_source(ts: TrajectorySet, alpha: float = 0.05) -> pd.Data
     idx = sel.index.to_numpy().reshape(-1, 3)
     x, y = ts.x[idx], ts.y[idx]  # (G, 3, N)
     dev = np.hypot(x - x.mean(axis=1, keepdims=True), y - y.mean(axis=1, keepdims=True))
-    p = kruskal_rows(dev)
+    cols = np.round(np.linspace(0.05, 0.95, n_points) * (ts.n_samples - 1)).astype(int)
+    p = kruskal_rows(dev[:, :, cols])
     out = sel.iloc[::3][keys].reset_index(drop=True)
     out["p"], out["significant"] = p, p < alpha
     return _conform(out, "return_variability")
@@ -261,8 +265,21 @@ def pairs_source(distances: pd.DataFrame, anthropometrics: pd.DataFrame | None) 
 
 
 def build_sources(ts: TrajectorySet | None, distances: pd.DataFrame | None, durations: pd.DataFrame | None = None,
-                  anthropometrics: pd.DataFrame | None = None, alpha: float = 0.05) -> dict[str, pd.DataFrame]:
-    """Every source of ``SOURCE_COLUMNS`` (empty tables where the data do not support them)."""
+                  anthropometrics: pd.DataFrame | None = None, alpha: float = 0.05,
+                  only: set[str] | None = None) -> dict[str, pd.DataFrame]:
+    """Every source of ``SOURCE_COLUMNS`` (empty tables where the data do not support them), or
+    only the named ones."""
+    if only is not None:
+        ts_ok = ts is not None
+        trials = trials_source(ts) if ts_ok else _empty("trials")
+        has_dir = trials["direction"].notna().any()
+        make = {"trials": lambda: trials, "durations": lambda: durations_source(trials, durations),
+                "choices": lambda: choices_source(trials) if has_dir else _empty("choices"),
+                "patterns": lambda: patterns_source(trials) if has_dir else _empty("patterns")}
+        unknown = set(only) - set(make)
+        if unknown:
+            raise ValueError(f"build_sources(only=...) supports {sorted(make)}, not {sorted(unknown)}")
+        return {k: make[k]() for k in only}
     trials = trials_source(ts) if ts is not None else _empty("trials")
     dist = distances_source(distances)
     dur = durations_source(trials, durations)
