@@ -213,6 +213,8 @@ def fit_ioc_command(
     mean_df = _read_trajectories(means) if means is not None else _read_trajectories(traj_path)
     mean_src = means if means is not None else traj_path
     mean_df = mean_df[mean_df["kind"] == "mean"] if "kind" in mean_df else mean_df
+    if "scenario" in mean_df and mean_df["scenario"].notna().any():
+        mean_df = mean_df[mean_df["scenario"].notna()]  # pair study: per-scenario means, not the pooled 'all' means
     traj_df = _read_trajectories(traj_path) if traj_path is not None else None
     trial_df = traj_df[traj_df["kind"] == "trial"] if traj_df is not None else None
 
@@ -319,7 +321,11 @@ def fit_ioc_command(
                  f"({'neutral start: fitted weights 1' if start_weights == 'ones' else start_weights or 'model preset'}); "
                  f"lower level: OC with free duration on {intervals} intervals, warm-started from the solution at the best "
                  f"weights so far; objective D = d_xy + 0.5 d_{angle} averaged over the trajectories (orientation required; "
-                 f"goal: {goal.value}). gamma of measured and generated paths from the path (metrics.gamma_from_path).", "",
+                 f"goal: {goal.value})"
+                 + (". gamma of measured and generated paths from the path (metrics.gamma_from_path)." if angle == "gamma" else
+                    "; pair study: per-scenario means (the pooled 'all' means left out).")
+                 + (" Coupled model: scenario-3 forward and return means, Subject 2 as carrier 1 on returns." if model == "coupled" else ""),
+                 "",
                  "| fit | paths | D start | D fitted | evaluations | not converged | " + " | ".join(names) + " |",
                  "|---|---|---|---|---|---|" + "---|" * len(names)]
         for k, r in results.items():
