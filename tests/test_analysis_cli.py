@@ -46,7 +46,7 @@ def test_pair_study_every_question_has_a_row_and_figures(pair_ws):
     assert stats.loc[stats["test"].eq("kruskal"), "effect_name"].eq("epsilon^2").all()
     report = (pair_ws.parent / "report" / "README.md").read_text()
     for stem in ("paths_forward", "paths_return", "box_d_xy", "box_symmetry", "box_travel_time", "pies_configuration",
-                 "scatter_d_xy_global"):
+                 "scatter_d_xy_global", "box_scenarios", "box_d_xy_pair", "scatter_d_xy_turn", "pies_returns"):
         assert f"({stem}.png)" in report
         assert (pair_ws.parent / "report" / f"{stem}.png").stat().st_size > 1000
         assert (pair_ws.parent / "report" / f"{stem}.pdf").is_file()

@@ -145,12 +145,12 @@ def _pairs(data: dict, stage, lines: list[str], results: list[str]) -> None:
                  f"paths_{direction}", f"{direction.capitalize()} paths per goal: individual trials, means and orientation arrows", lines)
     if dist is None:
         return
-    sources = build_sources(ts, dist, data.get("durations"), only={"durations", "choices", "patterns"})
+    sources = build_sources(ts, dist, data.get("durations"), only={"durations", "choices", "patterns", "return_variability"})
     dur = sources["durations"]
     if len(dur):
         g = {f"{d[:3]} S{s:g}": v["duration"].to_numpy() for (d, s), v in dur.groupby(["direction", "scenario"])}
         _fig(stage, figures.boxplots(g, "travel time (s)", "Travel time by direction and scenario"), "box_travel_time",
-             "Travel time by direction and scenario", lines)
+             "Q1.1 / Q2.2: travel time by direction and scenario", lines)
     ind = dist[dist["comparison"].eq("individual-mean") & dist["kind"].eq("trial")]
     if len(ind):
         g, colors = {}, []
@@ -158,25 +158,35 @@ def _pairs(data: dict, stage, lines: list[str], results: list[str]) -> None:
             g[f"{ent[:2] if ent != 'table' else 'T'} {d[:3]} S{s:g}"] = v["d_xy"].to_numpy()
             colors.append(figures.COLORS[ent])
         _fig(stage, figures.boxplots(g, "d_xy individual vs mean (m)", "Variability by entity, direction and scenario", colors),
-             "box_d_xy", "Individual vs mean d_xy by entity, direction and scenario", lines)
+             "box_d_xy", "Q4.1: individual vs mean d_xy by entity, direction and scenario", lines)
         _fig(stage, figures.scatter_r({e: (v["global_distance"], v["d_xy"]) for e, v in ind.groupby("entity")},
                                       "global distance (m)", "d_xy (m)"), "scatter_d_xy_global",
              "Individual vs mean d_xy against the global distance", lines)
-    between = dist[dist["comparison"].eq("scenario-scenario-mean")]
+        pairs = ind[ind["entity"].ne("table")]
+        if pairs["pair"].notna().any():
+            _fig(stage, figures.boxplots({p: v["d_xy"].to_numpy() for p, v in pairs.groupby("pair")}, "d_xy individual vs mean (m)",
+                                         "Subjects' variability per pair"), "box_d_xy_pair",
+                 "Q4.2: individual vs mean d_xy of the subjects, per pair", lines)
+        _fig(stage, figures.scatter_r({e: (v["orientation_change"], v["d_xy"]) for e, v in ind.groupby("entity")},
+                                      "change of orientation |theta_end - theta_start| (rad)", "d_xy (m)"), "scatter_d_xy_turn",
+             "Q4.4: individual vs mean d_xy against the change of orientation", lines)
+    trial_level = dist["comparison"].eq("scenario-scenario").any()
+    between = dist[dist["comparison"].eq("scenario-scenario" if trial_level else "scenario-scenario-mean")]
     if len(between):
         b = between.assign(sp=[f"S{int(min(a, c))}-S{int(max(a, c))}" for a, c in zip(between["scenario"], between["b_scenario"])])
         g, colors = {}, []
         for (ent, sp), v in b.groupby(["entity", "sp"]):
             g[f"{ent} {sp}"] = v["d_xy"].to_numpy()
             colors.append(figures.COLORS[ent])
-        _fig(stage, figures.boxplots(g, "d_xy between scenario means (m)", "Mean paths of different scenarios (same end orientation)", colors),
-             "box_scenarios_means", "Distance between the mean paths of two scenarios, per entity (Q1.3 on means)", lines)
+        what = "forward paths of one pair in two scenarios" if trial_level else "mean paths of two scenarios"
+        _fig(stage, figures.boxplots(g, "d_xy (m)", f"Distance between {what} (same end orientation)", colors),
+             "box_scenarios", f"Q1.3: distance between {what}, per entity and scenario pair", lines)
     sym = dist[dist["comparison"].isin(["symmetry", "symmetry-mean"])]
     sym = sym[sym["comparison"].eq("symmetry")] if sym["comparison"].eq("symmetry").any() else sym
     if len(sym):
         _fig(stage, figures.boxplots({e: v["d_xy"].to_numpy() for e, v in sym.groupby("entity")}, "d_xy forward vs reversed return (m)",
                                      "Forward/return symmetry", [figures.COLORS[e] for e in sorted(sym["entity"].unique())]),
-             "box_symmetry", "Forward vs time-reversed return distance per entity", lines)
+             "box_symmetry", "Q2.1: forward vs time-reversed return distance per entity", lines)
     charts = {}
     if len(sources["patterns"]):
         charts["same configuration"] = sources["patterns"]["pattern"].value_counts().to_dict()
@@ -187,7 +197,13 @@ def _pairs(data: dict, stage, lines: list[str], results: list[str]) -> None:
             charts[name] = {"optimal": int(v.sum()), "not optimal": int((~v).sum())}
     if charts:
         _fig(stage, figures.pies(charts, "End configuration choices"), "pies_configuration",
-             "Configuration patterns across scenarios and optimality of the chosen configuration", lines)
+             "Q1.2 / Q3: configuration patterns across scenarios and optimality of the chosen configuration", lines)
+    rv = sources["return_variability"]
+    if len(rv):
+        counts = {e: {"p < 0.05": int(v["significant"].astype(bool).sum()), "p >= 0.05": int((~v["significant"].astype(bool)).sum())}
+                  for e, v in rv.groupby("entity")}
+        _fig(stage, figures.pies(counts, "Returns from one goal differ within the pair (Kruskal)"), "pies_returns",
+             "Q4.3: share of (pair, goal) whose 3 returns differ (Kruskal p < 0.05), per entity", lines)
 
 
 def build_report(study: str, inputs: dict, stage, out: Path) -> None:

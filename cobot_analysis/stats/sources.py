@@ -275,7 +275,8 @@ def build_sources(ts: TrajectorySet | None, distances: pd.DataFrame | None, dura
         has_dir = trials["direction"].notna().any()
         make = {"trials": lambda: trials, "durations": lambda: durations_source(trials, durations),
                 "choices": lambda: choices_source(trials) if has_dir else _empty("choices"),
-                "patterns": lambda: patterns_source(trials) if has_dir else _empty("patterns")}
+                "patterns": lambda: patterns_source(trials) if has_dir else _empty("patterns"),
+                "return_variability": lambda: return_variability_source(ts, alpha) if ts_ok else _empty("return_variability")}
         unknown = set(only) - set(make)
         if unknown:
             raise ValueError(f"build_sources(only=...) supports {sorted(make)}, not {sorted(unknown)}")
