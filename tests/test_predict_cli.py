@@ -104,6 +104,11 @@ def test_nan_samples_skip_windows_and_are_counted(cli, tmp_path, traj_file):
     assert m.loc[("t0", 8, "cv"), "n_used"] == N - 8 + 1 - 9
     assert m.loc[("t1", 8, "cv"), "n_skipped"] == 0
     assert "20 skipped (NaN positions)" in (out / "predict" / "results.md").read_text()  # 9 + 11 per predictor
+    import shutil
+
+    shutil.rmtree(out / "predict")  # finished results stay in the work directory: nothing is recomputed
+    code, _, err = cli("predict", "--out", out, "--trajectories", path, "--predictors", "cv,ctrv", *FAST)
+    assert code == 0 and "4 trajectories resumed" in err
 
 
 @pytest.mark.parametrize("args, message", [

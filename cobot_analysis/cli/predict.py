@@ -111,7 +111,7 @@ def predict_command(
         info(f"predict: {len(trajs)} trajectories x {len(config.settings)} settings x {len(config.predictors)} predictors")
         metrics, windows, resumed = run_sweep(trajs, config, work, jobs=jobs, scheduler=scheduler)
         if resumed:
-            info(f"predict: {resumed} trajectories resumed from {work.dir}")
+            info(f"predict: {resumed} trajectories resumed from {work.root}")
         skipped = metrics.drop_duplicates(["study", "trial", "entity", "n0", "n_oc"])["n_skipped"].sum()
         if skipped:
             n_traj = metrics.loc[metrics["n_skipped"] > 0, ["study", "trial", "entity"]].drop_duplicates().shape[0]
