@@ -84,15 +84,16 @@ def test_compare_against_another_table_and_walking_questions(tmp_path, cli):
     assert stats.loc["W1.1", "significant"]  # planted: subjects differ in variability
     assert stats.loc["W1.3", "note"].endswith("subsets tried)")
     assert stats.loc["W2", "status"].startswith("skipped")  # no model rows yet
-    # a "model": the means shifted by 5 cm, compared through --against
+    # a "model": each mean shifted by 5, 6, ... 12 cm, compared through --against
     means = pd.read_parquet(ws / "average" / "means.parquet")
-    model = means.assign(x=means["x"] + 0.05, kind="trial", trial="model:" + means["trial"])
+    shift = 0.05 + 0.01 * means.groupby("trial", sort=True).ngroup()
+    model = means.assign(x=means["x"] + shift, kind="model", trial="model:" + means["trial"])
     model.to_parquet(tmp_path / "model.parquet")
     code, _, err = cli("compare", "--out", ws, "--against", tmp_path / "model.parquet", "--label", "model",
                        "--any-vs-any", "condition,entity")
     assert code == 0, err
     d = pd.read_parquet(ws / "compare" / "distances.parquet")
-    assert np.allclose(d.loc[d["comparison"].eq("model"), "d_xy"], 0.05)
+    assert np.allclose(np.sort(d.loc[d["comparison"].eq("model"), "d_xy"]), 0.05 + 0.01 * np.arange(8))
     assert d["comparison"].eq("any-any").sum() == 8 * (15 * 14 // 2)  # 8 conditions, 5 subjects x 3 trials each
     code, _, err = cli("stats", "--out", ws)
     assert code == 0, err

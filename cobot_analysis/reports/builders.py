@@ -124,12 +124,23 @@ def _walking(data: dict, stage, lines: list[str], results: list[str]) -> None:
             for col, unit in (("d_xy", "m"), ("d_gamma", "rad")):
                 g = {s: v[col].dropna().to_numpy() for s, v in ind.groupby("subject")}
                 _fig(stage, figures.boxplots(g, f"{col} individual vs mean ({unit})", f"{col} by subject"),
-                     f"box_{col}_subject", f"Individual vs mean {col} by subject", lines)
+                     f"box_{col}_subject", f"W1.{1 if col == 'd_xy' else 2}: individual vs mean {col} by subject", lines)
             g = {o: v["d_xy"].to_numpy() for o, v in ind.groupby(ind["condition"].astype(str).str[0])}
             _fig(stage, figures.boxplots(g, "d_xy (m)", "d_xy by start orientation"), "box_d_xy_orientation",
-                 "Individual vs mean d_xy by start orientation", lines)
+                 "W1.5: individual vs mean d_xy by start orientation", lines)
             _fig(stage, figures.scatter_r({"walker": (ind["global_distance"], ind["d_xy"])}, "global distance (m)", "d_xy (m)"),
-                 "scatter_d_xy_global", "Individual vs mean d_xy against the global distance", lines)
+                 "scatter_d_xy_global", "W1.6: individual vs mean d_xy against the global distance", lines)
+        model = dist[dist["comparison"].eq("model")]
+        if len(model):  # rows of `compare --against generated.parquet --label model`
+            _fig(stage, figures.boxplots({"subjects vs mean": ind["d_xy"].to_numpy(), "model vs mean": model["d_xy"].to_numpy()},
+                                         "d_xy (m)", "Model error and subject variability"), "box_model",
+                 "W2: model vs mean and subject vs mean d_xy", lines)
+            orient = model["condition"].astype(str).str[0]
+            gd = model["global_distance"].astype(float)
+            groups = {**{f"start {o}": v["d_xy"].to_numpy() for o, v in model.groupby(orient)},
+                      "< 3 m": model.loc[gd < 3, "d_xy"].to_numpy(), "> 3 m": model.loc[gd >= 3, "d_xy"].to_numpy()}
+            _fig(stage, figures.boxplots(groups, "model d_xy (m)", "Model error by start orientation and global distance"),
+                 "box_model_conditions", "W3 / W4: model error by start orientation and by global distance", lines)
 
 
 def _pairs(data: dict, stage, lines: list[str], results: list[str]) -> None:
@@ -148,7 +159,7 @@ def _pairs(data: dict, stage, lines: list[str], results: list[str]) -> None:
     sources = build_sources(ts, dist, data.get("durations"), only={"durations", "choices", "patterns", "return_variability"})
     dur = sources["durations"]
     if len(dur):
-        g = {f"{d[:3]} S{s:g}": v["duration"].to_numpy() for (d, s), v in dur.groupby(["direction", "scenario"])}
+        g = {f"{d} S{s:g}": v["duration"].to_numpy() for (d, s), v in dur.groupby(["direction", "scenario"])}
         _fig(stage, figures.boxplots(g, "travel time (s)", "Travel time by direction and scenario"), "box_travel_time",
              "Q1.1 / Q2.2: travel time by direction and scenario", lines)
     ind = dist[dist["comparison"].eq("individual-mean") & dist["kind"].eq("trial")]

@@ -88,6 +88,11 @@ def _groups(a: Analysis, df: pd.DataFrame) -> dict:
     return {_label(lv): df.loc[_match(df[a.group], lv), a.value].to_numpy() for lv in levels}
 
 
+def test_needs_spread(test: str) -> bool:
+    """Rank and variance tests are undefined when every value is the same."""
+    return test in ("kruskal", "mannwhitneyu", "anova", "ttest", "pearson", "spearman")
+
+
 def _run_one(a: Analysis, df: pd.DataFrame, groups: dict, alpha: float) -> dict:
     """One test on prepared groups -> the STATS fields it determines."""
     row = {"test": a.test, "levels": ", ".join(groups), "status": "ok", "note": "", "normality_p": math.nan}
@@ -115,6 +120,10 @@ def _run_one(a: Analysis, df: pd.DataFrame, groups: dict, alpha: float) -> dict:
         return row
     if not categorical:
         row["summary"] = _summary(groups)
+        allv = np.concatenate(list(groups.values()))
+        if test_needs_spread(a.test) and np.ptp(allv) == 0:
+            row["status"] = f"skipped: all {len(allv)} values are identical ({allv[0]:.3g}); {a.test} is undefined"
+            return row
     test = a.test
     if a.normality and not categorical:
         ps = [T.normality(v, a.normality) for v in groups.values()]

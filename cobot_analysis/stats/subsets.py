@@ -28,6 +28,9 @@ def _kruskal(values: list[np.ndarray]) -> tuple[float, float]:
 
     if len(values) < 2:
         return float("nan"), 1.0
+    allv = np.concatenate(values)
+    if np.ptp(allv) == 0:  # all values identical: nothing distinguishes the groups
+        return 0.0, 1.0
     h, p = stats.kruskal(*values)
     return float(h), float(p)
 
