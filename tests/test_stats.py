@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import stats
 
 from cobot_analysis.averaging import mean_trajectories
@@ -206,3 +208,29 @@ def test_no_effect_reported_where_none_was_planted():
             false["Q4.2"] += any(bool(s.loc[f"Q4.2[{e}]", "significant"]) for e in ("subject1", "subject2", "table"))
     # Holm keeps the family-wise error at 5 %: at most one false alarm per question over the seeds
     assert all(v <= 1 for v in false.values()), false
+
+
+def test_identical_values_are_skipped_not_nan():
+    df = pd.DataFrame({"scenario": [1, 1, 2, 2, 3, 3], "duration": [2.0] * 6})
+    row = analyses.run(config.parse(_cfg()), {"durations": df}).iloc[0]
+    assert row["status"] == "skipped: all 6 values are identical (2); kruskal is undefined" and np.isnan(row["p_holm"])
+    assert largest_subset({"a": [1.0, 1.0], "b": [1.0, 1.0]}).p == 1.0
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.floats(-100, 100), min_size=2, max_size=15), st.lists(st.floats(-100, 100), min_size=2, max_size=15))
+def test_rank_biserial_is_the_mean_sign_of_all_comparisons(a, b):
+    """r = P(a > b) - P(a < b) over all pairs (ties count 0); bounded by [-1, 1]; antisymmetric."""
+    r = T.mannwhitneyu({"a": a, "b": b}).effect_size
+    diff = np.sign(np.subtract.outer(np.array(a), np.array(b)))
+    assert r == pytest.approx(diff.mean(), abs=1e-12)
+    assert -1 <= r <= 1 and T.mannwhitneyu({"b": b, "a": a}).effect_size == pytest.approx(-r, abs=1e-12)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(2, 4), st.integers(3, 12), st.integers(0, 10_000))
+def test_vectorised_kruskal_property(k, n, seed):
+    rng = np.random.default_rng(seed)
+    v = np.round(rng.normal(size=(3, k, n)), 1)  # rounding makes ties common
+    expected = [stats.kruskal(*row).pvalue if np.ptp(row) > 0 else np.nan for row in v]
+    np.testing.assert_allclose(kruskal_rows(v), expected, rtol=1e-9, equal_nan=True)
