@@ -1,19 +1,80 @@
-# Reproduce the reports of each study. DATASETS defaults to ../shared/datasets ($COBOT_DATASETS wins).
+# Reproduce the reports of each study (see README.md).
+#   make walking        published walking-2020: import, means, distances, statistics, models, IOC, prediction, report
+#   make pairs          published pair-carriage-2022 (means) and the per-trial synthetic pair study
+#   make localisation   synthetic robot runs (ROS1, ROS2, MCAP); real runs: make localisation BAGS="a.bag b.bag"
+#   make all            all of them, then docs/results.md and docs/schemas.md
+# DATASETS defaults to ../shared/datasets ($COBOT_DATASETS wins). Workspaces go under OUT.
 PYTHON ?= python
 CLI ?= cobot-analysis
 DATASETS ?= $(or $(COBOT_DATASETS),../shared/datasets)
 OUT ?= cobot-out
+JOBS ?= 2
+BAGS ?=
+LOC_ARGS ?=
+MAP ?= synthetic
 
-.PHONY: install demo test bench
+WALK := $(OUT)/walking-2020
+PAIRS := $(OUT)/pair-carriage-2022
+SPAIRS := $(OUT)/synthetic-pairs
+LOC := $(OUT)/localisation
+
+.PHONY: install demo test bench walking pairs pairs-published pairs-synthetic localisation results schemas all
 
 install:
 	$(PYTHON) -m pip install -e ".[dev]"
 
 demo:
-	$(CLI) demo --out $(OUT)/demo
+	$(CLI) demo --out $(OUT)
 
 test:
 	$(PYTHON) -m pytest
 
 bench:
-	$(PYTHON) -m pytest benchmarks --benchmark-only -q
+	$(PYTHON) benchmarks/bench_foundation.py --jobs $(JOBS)
+	$(PYTHON) benchmarks/bench_analysis.py
+	$(PYTHON) benchmarks/bench_models.py
+	$(PYTHON) benchmarks/bench_predict.py
+	$(PYTHON) benchmarks/bench_localisation.py
+
+walking:
+	$(CLI) import-published walking-2020 $(DATASETS)/walking-2020 --out $(WALK)
+	$(CLI) average --out $(WALK)
+	$(CLI) compare --out $(WALK)
+	$(CLI) fit-ioc --out $(WALK) --jobs $(JOBS)
+	$(CLI) stats --out $(WALK)
+	$(CLI) predict --out $(WALK) --kind trial --jobs $(JOBS)
+	$(CLI) report walking --out $(WALK) --to reports/walking
+
+pairs: pairs-published pairs-synthetic
+
+pairs-published:
+	$(CLI) import-published pair-carriage-2022 $(DATASETS)/pair-carriage-2022 --out $(PAIRS)
+	$(CLI) average --out $(PAIRS)
+	$(CLI) compare --out $(PAIRS)
+	$(CLI) stats --out $(PAIRS)
+	$(CLI) reconstruct --out $(PAIRS) --wrt-table $(DATASETS)/pair-carriage-2022
+	$(CLI) fit-ioc --out $(PAIRS) --model table --jobs $(JOBS)
+	$(CLI) predict --out $(PAIRS) --entity table --jobs $(JOBS)
+	$(CLI) report pairs --out $(PAIRS) --to reports/pairs
+
+pairs-synthetic:
+	$(CLI) synth pairs --out $(SPAIRS) --jobs $(JOBS)
+	$(CLI) import $(SPAIRS)/synth-pairs/protocol.yaml --out $(SPAIRS) --jobs $(JOBS)
+	$(CLI) preprocess --out $(SPAIRS) --jobs $(JOBS)
+	$(CLI) average --out $(SPAIRS)
+	$(CLI) compare --out $(SPAIRS)
+	$(CLI) stats --out $(SPAIRS)
+	$(CLI) reconstruct --out $(SPAIRS)
+	$(CLI) report pairs --out $(SPAIRS) --to reports/synthetic-pairs
+
+localisation:
+	$(CLI) synth localisation --out $(LOC)
+	$(CLI) localisation --out $(LOC) --map $(MAP) $(BAGS) $(LOC_ARGS)
+
+results:
+	$(CLI) results $(wildcard $(WALK) $(PAIRS) $(SPAIRS) $(LOC)) --to docs/results.md
+
+schemas:
+	$(CLI) schemas > docs/schemas.md
+
+all: walking pairs localisation results schemas
