@@ -36,19 +36,25 @@ def demo_steps(out: Path, small: bool, jobs: int | None) -> dict[str, list[list[
     j = ["--jobs", str(jobs)] if jobs else []
     size_w = ["--subjects", "2", "--trials", "1", "--conditions", "8"] if small else []
     size_p = ["--pairs", "2", "--goals", "3"] if small else []
+    analysis = ["average", "compare", "stats"]
     return {
         "walking": [
-            ["synth", "walking", "--out", str(walking), *size_w],
+            ["synth", "walking", "--out", str(walking), *size_w, *j],
             ["import", str(walking / "synth-walking" / "protocol.yaml"), "--out", str(walking), *j],
             ["preprocess", "--out", str(walking), *j],
+            *([cmd, "--out", str(walking)] for cmd in analysis),
+            ["report", "walking", "--out", str(walking), "--to", str(out / "reports" / "walking")],
         ],
         "pairs": [
-            ["synth", "pairs", "--out", str(pairs), *size_p],
+            ["synth", "pairs", "--out", str(pairs), *size_p, *j],
             ["import", str(pairs / "synth-pairs" / "protocol.yaml"), "--out", str(pairs), *j],
             ["preprocess", "--out", str(pairs), *j],
+            *([cmd, "--out", str(pairs)] for cmd in [*analysis, "reconstruct"]),
+            ["report", "pairs", "--out", str(pairs), "--to", str(out / "reports" / "pairs")],
         ],
         "localisation": [
             ["synth", "localisation", "--out", str(loc)],
+            ["localisation", "--out", str(loc), "--map", "synthetic"],
         ],
     }
 
@@ -72,6 +78,13 @@ def demo_command(
     for steps in studies.values():
         run_steps(steps)
     report = out / "report.md"
-    report.write_text(assemble_results([out / s for s in studies], title="cobot-analysis demo report (synthetic studies)"))
+    preface = "\n".join([
+        "Study reports with their figures:",
+        f"- [walking]({Path('reports') / 'walking' / 'README.md'}), [pair carriage]({Path('reports') / 'pairs' / 'README.md'}),",
+        f"  localisation figures in `{Path('localisation') / 'localisation'}`.",
+        "Below: what each stage computed, in the order the stages ran.",
+    ])
+    report.write_text(assemble_results([out / s for s in studies], title="cobot-analysis demo report (synthetic studies)",
+                                       preface=preface))
     info(f"\n[bold green]done[/bold green]: report [bold]{report}[/bold]; Parquet outputs under "
          + ", ".join(f"[bold]{out / s}[/bold]" for s in studies))
