@@ -3,7 +3,7 @@
     python benchmarks/bench_predict.py windows TRAJECTORIES.parquet [--n 6]
         OC windows per second on one core (N0 = 50, N_OC = 100: 100-node windows), warm-started
         (the previous window shifted) and cold, and the baselines, on the first n trial trajectories.
-    python benchmarks/bench_predict.py sweep TRAJECTORIES.parquet --out DIR [--dask] [--limit N]
+    python benchmarks/bench_predict.py sweep TRAJECTORIES.parquet --out DIR [--dask] [--every K] [--limit N]
         Wall time of `cobot-analysis predict --settings 50:100 --kind trial` from an empty work
         directory: local pool of 2 processes, or a 2-worker local Dask cluster (--dask).
 
@@ -69,12 +69,12 @@ def bench_windows(path: Path, n: int) -> None:
         print(f"{name}: {count / (time.perf_counter() - s):.0f} windows/s")
 
 
-def bench_sweep(path: Path, out: Path, dask: bool, limit: int | None) -> None:
+def bench_sweep(path: Path, out: Path, dask: bool, limit: int | None, every: int = 1) -> None:
     from cobot_analysis.cli import run
 
     shutil.rmtree(out / ".predict-work", ignore_errors=True)
     argv = ["-q", "predict", "--out", str(out), "--trajectories", str(path), "--kind", "trial", "--settings", "50:100",
-            "--force", *(["--limit", str(limit)] if limit else [])]
+            "--force", "--every", str(every), *(["--limit", str(limit)] if limit else [])]
     if dask:
         from distributed import LocalCluster
 
@@ -100,13 +100,14 @@ def main() -> None:
     s.add_argument("--out", type=Path, required=True)
     s.add_argument("--dask", action="store_true")
     s.add_argument("--limit", type=int)
+    s.add_argument("--every", type=int, default=1)
     a = ap.parse_args()
     print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} cores, load average "
           f"{', '.join(f'{v:.1f}' for v in os.getloadavg())}")
     if a.what == "windows":
         bench_windows(a.trajectories, a.n)
     else:
-        bench_sweep(a.trajectories, a.out, a.dask, a.limit)
+        bench_sweep(a.trajectories, a.out, a.dask, a.limit, a.every)
 
 
 if __name__ == "__main__":
