@@ -217,3 +217,19 @@ def test_published_walking_trajectories(cli, tmp_path, datasets):
     assert len(per) == 10 and (per["n_windows"] == 451).all() and (per["n_skipped"] == 0).all()
     # centimetre errors over a 50-sample horizon; the final error exceeds the average one
     assert 0.002 < per["delta_xy"].median() < 0.05 and (per["fde"] > per["ade"]).all()
+
+
+def test_fitted_weights_file_is_used_and_recorded(cli, tmp_path, traj_file):
+    weights = tmp_path / "weights.json"
+    weights.write_text(json.dumps({"weights": {"a0": 7.87, "a1": 4.0, "a2": 20.15, "a3": 1e-6, "a4": 10.0,
+                                               "b0": 10.0, "b1": 10.0, "b2": 0.38, "b3": 3.36}}))
+    out = tmp_path / "ws"
+    args = ["--trajectories", traj_file(n_traj=1), "--settings", "8:20", "--predictors", "oc", "-j", "1"]
+    assert cli("-q", "predict", "--out", out, "--weights", weights, *args)[0] == 0
+    by_file = pd.read_parquet(out / "predict" / "predictions.parquet")
+    assert by_file["weights"].iloc[0] == str(weights)
+    manifest = json.loads((out / "predict" / "manifest.json").read_text())
+    assert str(weights.resolve()) in [i["path"] for i in manifest["inputs"]]
+    assert cli("-q", "predict", "--out", tmp_path / "ws2", "--weights", "walking-2021", *args)[0] == 0
+    by_preset = pd.read_parquet(tmp_path / "ws2" / "predict" / "predictions.parquet")
+    assert by_file["delta_xy"].iloc[0] == pytest.approx(by_preset["delta_xy"].iloc[0], rel=1e-9)  # same a0..a3

@@ -134,6 +134,13 @@ class OCPredictor(Predictor):
     Warm start: the previous window's solution shifted by one node (the last node extrapolated
     with its own velocity); cold start (first window, after a skipped or failed window): the
     measured past on the first N0 nodes, then the last measured displacement extrapolated.
+    What the prediction is: the future nodes carry only control costs, so their optimal controls are
+    zero and the predicted path is the walker coasting with the body-frame velocities
+    (v_forw, v_orth, omega) reached at sample k: a circular arc whose curvature is omega / speed.
+    With the walking weights a3 = 1e-6, omega is almost free while the past is tracked, so on
+    jittery orientations (or with g1 = 0) the arc can curl (see docs/results.md for the measured
+    errors against the baselines).
+
     A window whose solve fails (fatrop, then IPOPT) gives no prediction and is counted in ``failed``.
     ``warm_start=False`` solves every window cold (same optimum, for comparison and benchmarks).
     """

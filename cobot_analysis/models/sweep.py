@@ -506,4 +506,4 @@ def compare_table(metrics: pd.DataFrame, windows: pd.DataFrame) -> pd.DataFrame:
                 won = float((ww["oc"] < ww[baseline]).mean()) if len(ww) else float("nan")
                 rows.append({"n0": n0, "n_oc": n_oc, "baseline": baseline, "group": f"phase {lo:.0f}-{hi:.0f} %",
                              **paired_row(per["oc"], per[baseline], won)})
-    return pd.DataFrame(rows)
+    return pd.DataFrame(rows, columns=list(PREDICTION_COMPARISON.columns))
