@@ -158,6 +158,14 @@ def generate(model: str, start: Sequence[float], goal: Sequence[float], weights=
     sol = solve_model(model, start, goal, w, n_intervals=n_intervals, duration=duration, v_nominal=v_nominal,
                       solver=solver, guess=guesses, max_iter=max_iter)
     sol.check(f"{model} model from {tuple(np.round(start, 3))} to {tuple(np.round(goal, 3))}")
+    from cobot_analysis.models.duration import initial_duration
+
+    T0 = initial_duration(start, goal, v_nominal)
+    if min(abs(sol.T / T0 - b) for b in (0.4, 2.0, 2.5)) < 1e-3:
+        from cobot_analysis.console import warn
+
+        warn(f"{trial}: the optimal duration lies at a bound of the search interval (T = {sol.T:.2f} s = "
+             f"{sol.T / T0:.2f} x T0): the weights favour a duration outside [0.4, 2.5] x T0")
     arrays = resample(sol, n_samples, "unicycle" if model == "unicycle" else "walker")
     return _frame(arrays, model=model, weights_label=str(label), entity=entity, trial=trial, condition=condition,
                   study=study, cost=sol.cost)
