@@ -161,9 +161,10 @@ def fit_ioc_command(
 ) -> None:
     """Bi-level inverse optimal control: fit the OC cost weights to mean (or per-subject) trajectories.
 
-    Writes OUT/fit-ioc/weights.json (fitted weights per fit, usable as --weights), distances.parquet
-    (per trajectory and model), history.parquet (upper-level evaluations), figures and results.md.
-    A checkpoint is kept in OUT/.fit-ioc.checkpoint after every upper-level iteration (--resume).
+    Writes OUT/fit-ioc/weights.json (all fits) and weights/<fit>.json (each usable as --weights),
+    distances.parquet (per trajectory and model), fits.csv (objective, evaluations and weights per
+    fit), figures and results.md. The log of upper-level evaluations is checkpointed in
+    OUT/.fit-ioc.checkpoint after every upper-level iteration (--resume continues from it).
     """
     import json
 
