@@ -210,3 +210,12 @@ def test_fit_ioc_coupled_model_on_pair_means_with_roles_swapped_on_returns(tmp_p
     # generating weights come close without being exact
     assert fitted["start_objective"] < 0.1 and fitted["objective"] <= fitted["start_objective"]
     assert len(fitted["weights"]) == 15 and fitted["failed"] == 0
+
+
+def test_nelder_mead_upper_level_also_improves_the_fit(planted_paths):
+    targets = _targets(planted_paths)[:2]
+    spec = IOCSpec(start_weights=tuple(weights_vector(PRESETS["walking-2021"])), fitted=("a4",), optimizer="nelder-mead",
+                   max_evaluations=12)
+    r = fit(spec, targets)
+    assert r.evaluations <= 13 and r.objective < r.start_objective
+    assert r.weights["a4"] != PRESETS["walking-2021"]["a4"] and r.weights["a1"] == PRESETS["walking-2021"]["a1"]
