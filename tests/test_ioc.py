@@ -9,6 +9,8 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from cobot_analysis.design import WALKING_GOAL, walking_condition
 from cobot_analysis.models import generate
@@ -219,3 +221,20 @@ def test_nelder_mead_upper_level_also_improves_the_fit(planted_paths):
     r = fit(spec, targets)
     assert r.evaluations <= 13 and r.objective < r.start_objective
     assert r.weights["a4"] != PRESETS["walking-2021"]["a4"] and r.weights["a1"] == PRESETS["walking-2021"]["a1"]
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(-math.pi, math.pi), st.floats(-5, 5), st.floats(-5, 5),
+       st.lists(st.floats(-0.3, 0.3), min_size=6, max_size=6))
+def test_velocity_commands_are_bounded_and_invariant_to_a_rigid_motion_of_the_world(angle, tx, ty, c):
+    """Robot-frame commands do not change when path and world are rotated and translated together."""
+    from cobot_analysis.models.velocity_commands import velocity_commands
+
+    t = np.linspace(0, 3, 31)
+    x, y, th = c[0] * t + c[1] * t**2, c[2] * t + c[3] * t**2, c[4] * t + c[5] * t**2
+    a = pd.DataFrame({"time": t, "x": x, "y": y, "theta": th})
+    ca_, sa = math.cos(angle), math.sin(angle)
+    b = pd.DataFrame({"time": t, "x": ca_ * x - sa * y + tx, "y": sa * x + ca_ * y + ty, "theta": th + angle})
+    ka, kb = velocity_commands(a, 10.0), velocity_commands(b, 10.0)
+    assert np.allclose(ka[["v_x", "v_y", "omega"]], kb[["v_x", "v_y", "omega"]], atol=1e-9)
+    assert (np.abs(ka[["v_x", "v_y"]]) <= 0.1 + 1e-12).all().all() and (np.abs(ka.omega) <= math.radians(7) + 1e-12).all()
