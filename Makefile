@@ -10,6 +10,8 @@ DATASETS ?= $(or $(COBOT_DATASETS),../shared/datasets)
 OUT ?= cobot-out
 JOBS ?= 2
 BAGS ?=
+IOC_ARGS ?=
+PREDICT_ARGS ?=
 LOC_ARGS ?=
 MAP ?= synthetic
 
@@ -39,10 +41,11 @@ bench:
 walking:
 	$(CLI) import-published walking-2020 $(DATASETS)/walking-2020 --out $(WALK)
 	$(CLI) average --out $(WALK)
-	$(CLI) compare --out $(WALK)
-	$(CLI) fit-ioc --out $(WALK) --jobs $(JOBS)
+	$(CLI) fit-ioc --out $(WALK) --jobs $(JOBS) $(IOC_ARGS)
+	$(CLI) generate --out $(WALK) --study walking-2020 --weights $(WALK)/fit-ioc/weights.json --jobs $(JOBS)
+	$(CLI) compare --out $(WALK) --against $(WALK)/generate/generated.parquet --label model
 	$(CLI) stats --out $(WALK)
-	$(CLI) predict --out $(WALK) --kind trial --jobs $(JOBS)
+	$(CLI) predict --out $(WALK) --kind trial --jobs $(JOBS) $(PREDICT_ARGS)
 	$(CLI) report walking --out $(WALK) --to reports/walking
 
 pairs: pairs-published pairs-synthetic
@@ -53,8 +56,8 @@ pairs-published:
 	$(CLI) compare --out $(PAIRS)
 	$(CLI) stats --out $(PAIRS)
 	$(CLI) reconstruct --out $(PAIRS) --wrt-table $(DATASETS)/pair-carriage-2022
-	$(CLI) fit-ioc --out $(PAIRS) --model table --jobs $(JOBS)
-	$(CLI) predict --out $(PAIRS) --entity table --jobs $(JOBS)
+	$(CLI) fit-ioc --out $(PAIRS) --model table --jobs $(JOBS) $(IOC_ARGS)
+	$(CLI) predict --out $(PAIRS) --entity table --jobs $(JOBS) $(PREDICT_ARGS)
 	$(CLI) report pairs --out $(PAIRS) --to reports/pairs
 
 pairs-synthetic:
