@@ -30,6 +30,8 @@ def assemble_results(workspaces: list[Path], title: str = "Results", preface: st
         if not ws.is_dir():
             raise InputError("workspace not found", path=ws, remedy="run the study first (e.g. make walking)")
         fragments = sorted(ws.glob("*/results.md"), key=_run_order)
+        if fragments:
+            parts += ["---", "", f"**Workspace `{ws}`** ({len(fragments)} stages, in the order they ran)", ""]
         for frag in fragments:
             parts += [frag.read_text().strip(), "", f"<sub>Source: `{frag.parent}` ({_manifest_line(frag.parent)})</sub>", ""]
             found += 1
