@@ -58,9 +58,7 @@ def walking_condition(code: str) -> WalkingCondition:
 
 # ---- pair-carriage-2022 ---------------------------------------------------------------------------
 SCENARIOS = {1: "S1 leader", 2: "S2 leader", 3: "both know the goal"}
-DIRECTIONS = ("forward", "return")
 TABLE_SIZE = (1.22, 0.80, 0.77)  # length (x, long axis), width, height (m)
-TABLE_MASS = 20.7  # kg
 #: approximate goal positions of the table centre in the world frame (README of the dataset).
 GOAL_POSITIONS = {"p4": (-3.07, -2.25), "p5": (-1.53, -2.28), "p6": (-3.0, -4.5), "p7": (0.0, -4.6)}
 #: configuration family -> the two end orientations of the table (rad).
