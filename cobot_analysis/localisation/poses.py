@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
+from scipy.spatial.transform import Rotation
 
 from cobot_analysis.schema import Column, TableSchema
 
@@ -65,103 +66,62 @@ class PoseStream:
         })
 
 
-# ---- quaternions (scalar-last, arrays of shape (..., 4)) -------------------------------------
+# ---- quaternions (scalar-last, arrays of shape (..., 4)), via scipy.spatial.transform ----------
 def normalise(q):
+    """Unit quaternions ``q / |q|`` (a zero quaternion gives NaN; scipy would raise)."""
     q = np.asarray(q, dtype=float)
     return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
 
 def yaw_of(q):
     """ZYX yaw ``atan2(2 (w z + x y), 1 - 2 (y^2 + z^2))`` (rad, wrapped)."""
-    q = np.asarray(q, dtype=float)
-    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return Rotation.from_quat(q).as_euler("ZYX")[..., 0]
 
 
 def from_yaw(yaw, pitch=0.0, roll=0.0):
     """Quaternion of ``Rz(yaw) Ry(pitch) Rx(roll)``."""
-    cy, sy = np.cos(np.asarray(yaw) / 2), np.sin(np.asarray(yaw) / 2)
-    cp, sp = np.cos(np.asarray(pitch) / 2), np.sin(np.asarray(pitch) / 2)
-    cr, sr = np.cos(np.asarray(roll) / 2), np.sin(np.asarray(roll) / 2)
-    q = np.stack(np.broadcast_arrays(sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
-                                     cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy), axis=-1)
-    return q
+    return Rotation.from_euler("ZYX", np.stack(np.broadcast_arrays(yaw, pitch, roll), axis=-1)).as_quat()
 
 
 def multiply(a, b):
-    """Hamilton product ``a b``."""
-    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    ax, ay, az, aw = np.moveaxis(a, -1, 0)
-    bx, by, bz, bw = np.moveaxis(b, -1, 0)
-    return np.stack([aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw,
-                     aw * bw - ax * bx - ay * by - az * bz], axis=-1)
+    """Hamilton product ``a b`` of unit quaternions."""
+    return (Rotation.from_quat(a) * Rotation.from_quat(b)).as_quat()
 
 
 def conjugate(q):
-    q = np.asarray(q, dtype=float)
-    return q * np.array([-1.0, -1.0, -1.0, 1.0])
+    """Inverse of unit quaternions."""
+    return Rotation.from_quat(q).inv().as_quat()
 
 
 def rotate(q, v):
-    """Rotate vectors ``v`` (..., 3) by unit quaternions ``q``: ``v + 2 w (u x v) + 2 u x (u x v)``."""
-    q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
-    u, w = q[..., :3], q[..., 3:4]
-    uv = np.cross(u, v)
-    return v + 2.0 * w * uv + 2.0 * np.cross(u, uv)
+    """Rotate vectors ``v`` (..., 3) by unit quaternions ``q``."""
+    return Rotation.from_quat(q).apply(v)
 
 
 def to_matrix(q):
     """Rotation matrices (..., 3, 3) of unit quaternions."""
-    q = np.asarray(q, dtype=float)
-    x, y, z, w = np.moveaxis(q, -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
+    return Rotation.from_quat(q).as_matrix()
 
 
 def from_matrix(m):
-    """Unit quaternion of one rotation matrix (Shepperd's method)."""
-    m = np.asarray(m, dtype=float)
-    tr = np.trace(m)
-    if tr > 0:
-        s = 2.0 * np.sqrt(tr + 1.0)
-        q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s]
-    else:
-        i = int(np.argmax(np.diag(m)))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * np.sqrt(1.0 + m[i, i] - m[j, j] - m[k, k])
-        q = [0.0, 0.0, 0.0, (m[k, j] - m[j, k]) / s]
-        q[i] = 0.25 * s
-        q[j] = (m[j, i] + m[i, j]) / s
-        q[k] = (m[k, i] + m[i, k]) / s
-    return normalise(np.array(q))
+    """Unit quaternions of rotation matrices (..., 3, 3)."""
+    return Rotation.from_matrix(m).as_quat()
 
 
 def slerp(q0, q1, f):
     """Spherical linear interpolation ``q0 (q0^-1 q1)^f`` along the shorter arc, row-wise."""
-    q0, q1 = normalise(q0), normalise(q1)
-    f = np.asarray(f, dtype=float)[..., None]
-    dot = np.sum(q0 * q1, axis=-1, keepdims=True)
-    q1 = np.where(dot < 0, -q1, q1)
-    dot = np.abs(dot)
-    theta = np.arccos(np.clip(dot, -1.0, 1.0))
-    sin = np.sin(theta)
-    small = sin < 1e-9
-    w0 = np.where(small, 1.0 - f, np.sin((1.0 - f) * theta) / np.where(small, 1.0, sin))
-    w1 = np.where(small, f, np.sin(f * theta) / np.where(small, 1.0, sin))
-    return normalise(w0 * q0 + w1 * q1)
+    r0 = Rotation.from_quat(q0)
+    step = (r0.inv() * Rotation.from_quat(q1)).as_rotvec()  # angle in [0, pi]: the shorter arc
+    return (r0 * Rotation.from_rotvec(np.asarray(f, dtype=float)[..., None] * step)).as_quat()
 
 
 def compose(p_a, q_a, p_b, q_b):
     """Pose product ``T_a T_b``: position ``p_a + R_a p_b``, orientation ``q_a q_b``."""
-    return np.asarray(p_a) + rotate(q_a, p_b), normalise(multiply(q_a, q_b))
+    r_a = Rotation.from_quat(q_a)
+    return np.asarray(p_a) + r_a.apply(p_b), (r_a * Rotation.from_quat(q_b)).as_quat()
 
 
 def invert(p, q):
-    """Inverse pose: ``(-R^T p, q^*)``."""
-    qc = conjugate(q)
-    return -rotate(qc, p), qc
+    """Inverse pose: ``(-R^T p, q^-1)``."""
+    r_inv = Rotation.from_quat(q).inv()
+    return -r_inv.apply(p), r_inv.as_quat()
