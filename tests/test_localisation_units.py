@@ -364,3 +364,15 @@ def test_rotated_frames_need_a_rigid_alignment(alignment):
     assert c.summary["err_yaw_mean"] == pytest.approx(0.002 * np.sqrt(2 / np.pi), rel=0.15)
     assert abs(c.summary["offset_yaw"] - 0.4) < 1e-3
     assert compare(truth, rotated, delay=0.52).summary["err_x_mean"] > 0.05
+
+
+def test_zero_orientation_quaternions_are_dropped_with_a_warning(capsys):
+    """An unset orientation (0, 0, 0, 0) has no rotation: such messages are dropped, not passed on."""
+    from pathlib import Path
+
+    from cobot_analysis.localisation.bags import _stream
+
+    rows = np.array([[0.0, 1, 2, 3, 0, 0, 0, 1], [0.1, 1, 2, 3, 0, 0, 0, 0], [0.2, 1, 2, 3, 0, 0, 1, 0]])
+    stream = _stream(Path("run.bag"), "/icp/pose", rows)
+    assert stream.t.tolist() == [0.0, 0.2]
+    assert "1 message(s) with a zero orientation quaternion dropped" in capsys.readouterr().err

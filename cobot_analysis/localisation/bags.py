@@ -426,6 +426,10 @@ def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "") -> Pose
         bad = int((~np.isfinite(rows)).any(axis=1).sum())
         warn(f"{path}: {name}: {bad} message(s) with NaN/inf dropped")
         rows = rows[np.isfinite(rows).all(axis=1)]
+    zero = np.linalg.norm(rows[:, 4:8], axis=1) < 1e-9
+    if zero.any():  # an unset orientation (all-zero quaternion) has no rotation to compare
+        warn(f"{path}: {name}: {int(zero.sum())} message(s) with a zero orientation quaternion dropped")
+        rows = rows[~zero]
     t = rows[:, 0]
     if np.any(np.diff(t) < 0):
         warn(f"{path}: {name}: stamps are not monotonic; sorted by stamp")
