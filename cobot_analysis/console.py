@@ -47,7 +47,7 @@ def debug(message: str) -> None:
 def warn(message: str) -> None:
     """Warnings are shown unless --quiet; they never stop a stage."""
     if _level >= 1:
-        console.print(f"[yellow]warning:[/yellow] {message}")
+        console.print(f"[yellow]warning:[/yellow] {message}", soft_wrap=True)  # one line, like errors
 
 
 def progress() -> Progress:
