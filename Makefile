@@ -12,6 +12,7 @@ JOBS ?= 2
 BAGS ?=
 IOC_ARGS ?=
 PREDICT_ARGS ?=
+RESULTS_NOTE ?=
 LOC_ARGS ?=
 MAP ?= synthetic
 
@@ -75,7 +76,11 @@ localisation:
 	$(CLI) localisation --out $(LOC) --map $(MAP) $(BAGS) $(LOC_ARGS)
 
 results:
-	$(CLI) results $(wildcard $(WALK) $(PAIRS) $(SPAIRS) $(LOC)) --to docs/results.md
+	$(CLI) results $(wildcard $(WALK) $(PAIRS) $(SPAIRS) $(LOC)) --to docs/results.md \
+	  --preface "What the pipeline computes from the published datasets (walking-2020, pair-carriage-2022), from the \
+	  per-trial synthetic pair study and from the synthetic robot runs: one section per stage, written by the stage \
+	  itself (\`make walking pairs localisation results\`). Each section states its choices and, where METHODS.md or \
+	  the dataset READMEs give them, the published values beside ours. $(RESULTS_NOTE)"
 
 schemas:
 	$(CLI) schemas > docs/schemas.md

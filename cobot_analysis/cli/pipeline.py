@@ -15,6 +15,7 @@ def results_command(
     workspaces: Annotated[list[Path], typer.Argument(help="Workspaces whose stages wrote results.md fragments.")],
     to: Annotated[Path, typer.Option("--to", help="Markdown file to write.")] = Path("docs/results.md"),
     title: Annotated[str, typer.Option(help="Title of the document.")] = "Results",
+    preface: Annotated[str, typer.Option(help="Paragraph under the title (what was run).")] = "",
 ) -> None:
     """Assemble docs/results.md from the results.md fragments of the given workspaces (generated, never typed)."""
     import os
@@ -22,7 +23,7 @@ def results_command(
     from cobot_analysis.console import info
     from cobot_analysis.pipeline import assemble_results
 
-    text = assemble_results(workspaces, title=title)
+    text = assemble_results(workspaces, title=title, preface=" ".join(preface.split()))
     to.parent.mkdir(parents=True, exist_ok=True)
     tmp = to.with_name(f".{to.name}.tmp")
     tmp.write_text(text)
