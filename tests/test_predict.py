@@ -158,3 +158,34 @@ def test_step_by_step_equals_offline_and_warm_equals_cold():
         assert p.skipped == 8  # windows k = 30..37 hold sample 30 in their past
     cold = OCPredictor(8, 20, DT, warm_start=False).predict_offline(poses)
     np.testing.assert_allclose(cold, results["oc"], atol=1e-6, equal_nan=True)
+
+
+def test_window_separates_into_past_solve_and_coast():
+    """The whole N_OC-node window (tracking on the first N0 nodes, free future) has the same optimum
+    as the predictor's N0-node solve followed by the zero-control coast."""
+    from cobot_analysis.models.ocp import OCPShape, get_ocp
+
+    poses = model_path(n=40) + np.random.default_rng(3).normal(0, 0.01, (40, 3))  # noisy: controls are not zero
+    n0, n_oc = 12, 30
+    oc = OCPredictor(n0, n_oc, DT, warm_start=False)
+    past = poses[5:5 + n0]
+    predicted = oc.predict(past)
+    x0, _ = oc.initial_state(past)
+    whole = get_ocp(OCPShape(n_intervals=n_oc - 1)).solve(
+        x0[:3], (x0[0] + 1e3, x0[1] + 1e3, 0.0), oc.weights, (n_oc - 1) * DT, start_velocity=x0[3:], track=past,
+        track_weights=(10.0, 10.0), n_track=n0).check()
+    assert np.abs(whole.U[n0 - 1:]).max() < 1e-5  # the future's optimal controls are zero
+    np.testing.assert_allclose(predicted, whole.X[n0 - 1:, :3], atol=1e-6)
+
+
+def test_coast_is_the_zero_control_step():
+    import casadi as ca
+
+    from cobot_analysis.models.dynamics import coast, step
+
+    X = np.array([0.3, -1.0, 2.0, 1.1, -0.2, 0.7])
+    F = ca.Function("F", [x := ca.SX.sym("x", 6)], [step(x, ca.DM.zeros(3), 0.05)])
+    expected = [X]
+    for _ in range(5):
+        expected.append(np.asarray(F(expected[-1])).ravel())
+    np.testing.assert_allclose(coast(X, 0.05, 5), np.array(expected), atol=1e-12)

@@ -1,4 +1,5 @@
-"""Continuous dynamics of the walking-path models (METHODS.md 5.1 and 5.3), as casadi expressions.
+"""Continuous dynamics of the walking-path models (METHODS.md 5.1 and 5.3), as casadi expressions
+(and the zero-control coast in numpy).
 
 State X = (x, y, theta, v_forw, v_orth, omega), control U = (u1, u2, u3).
 
@@ -63,6 +64,30 @@ def step(X, U, dt, kind: str = "walker"):
         raise ValueError(f"unknown dynamics {kind!r}; expected one of {DYNAMICS}")
     return ca.vertcat(X[0] + dt * dx, X[1] + dt * dy, th + om * dt + U[2] * dt**2 / 2,
                       vf + U[0] * dt, vo + U[1] * dt, om + U[2] * dt)
+
+
+def coast(X, dt: float, n: int, kind: str = "walker"):
+    """``n`` steps of ``step`` with zero control from the state ``X`` (numpy): (n + 1, 6) states.
+
+    With U = 0 the velocities stay constant and ``step`` reduces to
+    theta_{j+1} = theta_j + omega dt,  p_{j+1} = p_j + dt R(theta_j + omega dt / 2) v:
+    the walker coasts along a circular arc (a straight line when omega = 0).
+    """
+    import numpy as np
+
+    X = np.asarray(X, dtype=float)
+    vf, vo, om = X[3], X[4], X[5]
+    if kind == "unicycle":
+        vo = 0.0
+    j = np.arange(n + 1)
+    theta = X[2] + om * dt * j
+    thm = theta[:-1] + om * dt / 2
+    out = np.empty((n + 1, 6))
+    out[:, 0] = X[0] + np.concatenate([[0.0], np.cumsum(dt * (np.cos(thm) * vf - np.sin(thm) * vo))])
+    out[:, 1] = X[1] + np.concatenate([[0.0], np.cumsum(dt * (np.sin(thm) * vf + np.cos(thm) * vo))])
+    out[:, 2] = theta
+    out[:, 3:] = X[3:6]
+    return out
 
 
 def world_velocity(theta, v_forw, v_orth, kind: str = "walker"):

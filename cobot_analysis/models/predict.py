@@ -23,6 +23,7 @@ from collections import deque
 import numpy as np
 
 from cobot_analysis.errors import InputError
+from cobot_analysis.models.dynamics import coast
 
 PREDICTORS = ("oc", "cv", "ctrv")
 
@@ -115,10 +116,18 @@ def make_predictor(name: str, n0: int, n_oc: int, dt: float = 1.0, **options) ->
 class OCPredictor(Predictor):
     """Receding-horizon OC predictor of METHODS.md sec. 7 on the OC solver of ``models.ocp``.
 
-    Window at sample k: the NLP of ``N_OC - 1`` intervals of ``T_OC`` (nodes = samples n+1 .. n+N_OC)
-    with the running cost ``a0 + a1 u1^2 + a2 u2^2 + a3 u3^2``, the tracking cost
+    Window at sample k: ``N_OC - 1`` intervals of ``T_OC`` (nodes = samples n+1 .. n+N_OC) with the
+    running cost ``a0 + a1 u1^2 + a2 u2^2 + a3 u3^2``, the tracking cost
     ``g0 ((cx_i - x_i)^2 + (cy_i - y_i)^2) + g1 (ctheta_i - theta_i)^2`` on the first N0 nodes (the
     measured past) and nothing else: no goal, no terminal cost (a4 = a5 = a6 = b = 0), a free end.
+
+    How it is solved: the future nodes carry no state cost, so whatever the state X_k reached at
+    the last measured node, the future's optimal controls are zero (cost a0 per interval, a
+    constant). The window problem therefore separates exactly into (1) the OC problem over the
+    measured past alone (N0 - 1 intervals, tracking on every node, free end), solved with the shared
+    solver of ``models.ocp``, and (2) the coast of ``dynamics.coast`` from X_k over the H future
+    samples (``step`` with U = 0). Same optimum as the whole window (tests/test_predict.py), with
+    N0 instead of N_OC nodes in the NLP.
     The cost weights a0..a3 come from a preset or a fitted-weights file (``presets.load_weights``;
     the walking-2021 preset is METHODS.md's a = (7.9, 4.0, 20.1, 1e-6) unrounded).
 
@@ -134,8 +143,7 @@ class OCPredictor(Predictor):
     Warm start: the previous window's solution shifted by one node (the last node extrapolated
     with its own velocity); cold start (first window, after a skipped or failed window): the
     measured past on the first N0 nodes, then the last measured displacement extrapolated.
-    What the prediction is: the future nodes carry only control costs, so their optimal controls are
-    zero and the predicted path is the walker coasting with the body-frame velocities
+    What the prediction is, then: the walker coasting with the body-frame velocities
     (v_forw, v_orth, omega) reached at sample k: a circular arc whose curvature is omega / speed.
     With the walking weights a3 = 1e-6, omega is almost free while the past is tracked, so on
     jittery orientations (or with g1 = 0) the arc can curl (see docs/results.md for the measured
@@ -160,7 +168,7 @@ class OCPredictor(Predictor):
         self.track_weights = (float(g0), float(g1))
         self.fit = int(fit)
         self.warm_start = bool(warm_start)
-        self.ocp = get_ocp(OCPShape(n_intervals=n_oc - 1, tol=tol, solver=solver))
+        self.ocp = get_ocp(OCPShape(n_intervals=n0 - 1, tol=tol, solver=solver))  # the measured past (see above)
         super().__init__(n0, n_oc, dt)
         # derivative at t = 0 of the least-squares quadratic c0 + c1 t + c2 t^2 through the first
         # ``fit`` samples of a window: c1 = d . p (a fixed filter, computed once)
@@ -191,12 +199,10 @@ class OCPredictor(Predictor):
         return np.array([past[0, 0], past[0, 1], theta, c * vx + s * vy, -s * vx + c * vy, omega]), has_theta
 
     def _cold_guess(self, past: np.ndarray, x0: np.ndarray) -> np.ndarray:
-        ocp, n = self.ocp, self.n_oc
-        poses = np.empty((n, 3))
-        poses[: self.n0] = past
+        ocp, n = self.ocp, self.n0
+        poses = past.copy()
         if not np.isfinite(past[:, 2]).all():
-            poses[: self.n0, 2] = x0[2]
-        poses[self.n0:] = poses[self.n0 - 1] + np.arange(1, n - self.n0 + 1)[:, None] * (poses[self.n0 - 1] - poses[self.n0 - 2])
+            poses[:, 2] = x0[2]
         w = np.zeros(ocp.n_vars)
         stride = ocp.nx + ocp.nu
         for k in range(n):
@@ -211,12 +217,7 @@ class OCPredictor(Predictor):
         size = len(previous)  # layout x0 u0 x1 u1 ... x_{N-1} u_{N-1} x_N
         w = previous.copy()  # keeps u_{N-1} in place: new u_{N-1} = old u_{N-1}
         w[: size - stride] = previous[stride:]  # new x_j, u_j = old x_{j+1}, u_{j+1}; new x_{N-1} = old x_N
-        last = previous[-ocp.nx:].copy()
-        th, vf, vo = last[2], last[3], last[4]
-        last[0] += self.dt * (np.cos(th) * vf - np.sin(th) * vo)
-        last[1] += self.dt * (np.sin(th) * vf + np.cos(th) * vo)
-        last[2] += self.dt * last[5]
-        w[-ocp.nx:] = last
+        w[-ocp.nx:] = coast(previous[-ocp.nx:], self.dt, 1)[1]  # the last node coasts on by one sample
         return w
 
     # -- one window ---------------------------------------------------------------------------------
@@ -228,7 +229,7 @@ class OCPredictor(Predictor):
         guess = self._cold_guess(past, x0) if self._warm is None else self._shifted(self._warm)
         guess[:6] = x0
         far = (x0[0] + 1e3, x0[1] + 1e3, 0.0)  # the goal enters no cost (zero weights); kept away from psi's singularity
-        sol = self.ocp.solve(x0[:3], far, self.weights, (self.n_oc - 1) * self.dt, guess=guess, start_velocity=x0[3:],
+        sol = self.ocp.solve(x0[:3], far, self.weights, (self.n0 - 1) * self.dt, guess=guess, start_velocity=x0[3:],
                              track=track, track_weights=(self.track_weights[0], self.track_weights[1] if has_theta else 0.0),
                              n_track=self.n0)
         self.last_solution = sol
@@ -236,4 +237,4 @@ class OCPredictor(Predictor):
             self._warm = None
             return None
         self._warm = sol.primal if self.warm_start else None
-        return sol.X[self.n0 - 1:, :3].copy()
+        return coast(sol.X[-1], self.dt, self.horizon)[:, :3]
