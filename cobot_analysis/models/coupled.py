@@ -10,10 +10,19 @@ Two holonomic walkers (12 states, 6 controls), both starting at rest, with
   chi  = 0 if 1.6 < d < 2.1 else exp(min(|d - 2.1|, |d - 1.6|)) - 1   (d = distance between carriers)
   xi_i = 0 if g_i < pi/3 else exp(g_i - pi/3) - 1,  g_i = |bearing of the other carrier seen from i|
 
-psi_i is regularised at the goal as in ``ocp.py``. chi and xi are continuous with a kink at the
-band edges (as published; the interior-point solvers handle it). T is a decision variable (free
-duration), bounded to [0.4, 2.5] x T0. For return paths the roles of the subjects are swapped by
-the caller (Subject 2 is carrier 1).
+psi_i is regularised at the goal as in ``ocp.py``. chi and xi have kinks (at the band edges, and
+where the facing angle g_i crosses pi/3); an optimum that sits on a kink (carriers held exactly at
+1.6 or 2.1 m) stops interior-point solvers from converging (measured: fatrop and IPOPT hit their
+iteration limits on 2 of the first 6 published scenario-3 means). They are therefore written
+exactly, without kinks, with three slack controls per interval (s, t1, t2 >= 0):
+
+  chi = exp(s) - 1,  s >= d - 2.1,  s >= 1.6 - d
+  xi_i = exp(t_i) - 1,  t_i >= beta_i - pi/3,  t_i >= -beta_i - pi/3   (beta_i: signed bearing, g_i = |beta_i|)
+
+exp(.) - 1 increases, so at the optimum s = max(0, d - 2.1, 1.6 - d) and t_i = max(0, g_i - pi/3):
+the published chi and xi (when a9, a10 > 0). T is a decision variable (free duration), bounded to
+[0.4, 2.5] x T0. For return paths the roles of the subjects are swapped by the caller (Subject 2
+is carrier 1).
 """
 
 from __future__ import annotations
@@ -34,15 +43,18 @@ FACING = math.pi / 3
 
 class CoupledOCP(WalkerOCP):
     """Parametric NLP of the two-carrier problem (free duration); ``X`` has 12 columns
-    (carrier 1 then carrier 2), ``U`` 6."""
+    (carrier 1 then carrier 2), ``U`` 6 (the slacks of chi and xi are kept out of the solution)."""
+
+    N_SLACK = 3  # s (chi), t1, t2 (xi)
+    N_PATH = 6  # inequalities per interval, each written as expression >= 0
 
     def __init__(self, shape: OCPShape = OCPShape(free_time=True)):
         import casadi as ca
 
         self.shape = shape
         N = shape.n_intervals
-        ns, nu = 2 * N_STATE, 2 * N_CONTROL
-        nx = ns + 1  # + log T
+        ns, nc = 2 * N_STATE, 2 * N_CONTROL
+        nx, nu = ns + 1, nc + self.N_SLACK  # + log T; + slacks
         self.nx, self.nu, self.N = nx, nu, N
         X0, goal, Tp, W = ca.SX.sym("X0", ns), ca.SX.sym("goal", 6), ca.SX.sym("T"), ca.SX.sym("W", N_COUPLED_WEIGHTS)
         p = ca.vertcat(X0, goal, Tp, W)
@@ -57,42 +69,72 @@ class CoupledOCP(WalkerOCP):
             return ca.atan2(-ca.sin(xi[2]) * dx + ca.cos(xi[2]) * dy, ca.cos(xi[2]) * dx + ca.sin(xi[2]) * dy), dx**2 + dy**2
 
         x1, x2 = xs[:N_STATE], xs[N_STATE:]
+        s, t1, t2 = us[nc], us[nc + 1], us[nc + 2]
         psi1, r1 = bearing(x1, gl[0], gl[1])
         psi2, r2 = bearing(x2, gl[3], gl[4])
         d = ca.sqrt((x1[0] - x2[0])**2 + (x1[1] - x2[1])**2 + 1e-12)
-        chi = ca.if_else(d < BAND[0], ca.exp(BAND[0] - d) - 1, ca.if_else(d > BAND[1], ca.exp(d - BAND[1]) - 1, 0))
-        g1 = ca.fabs(bearing(x1, x2[0], x2[1])[0])
-        g2 = ca.fabs(bearing(x2, x1[0], x1[1])[0])
-        xi = ca.if_else(g1 > FACING, ca.exp(g1 - FACING) - 1, 0) + ca.if_else(g2 > FACING, ca.exp(g2 - FACING) - 1, 0)
+        beta1, beta2 = bearing(x1, x2[0], x2[1])[0], bearing(x2, x1[0], x1[1])[0]
         running = (ws[0] + ws[1] * us[0]**2 + ws[2] * us[1]**2 + ws[3] * us[2]**2 + ws[4] * us[3]**2 + ws[5] * us[4]**2
                    + ws[6] * us[5]**2 + ws[7] * psi1**2 * r1 / (r1 + eps2) + ws[8] * psi2**2 * r2 / (r2 + eps2)
-                   + ws[9] * chi + ws[10] * xi)
+                   + ws[9] * (ca.exp(s) - 1) + ws[10] * (ca.exp(t1) - 1 + ca.exp(t2) - 1))
+        path = ca.vertcat(s - (d - BAND[1]), s - (BAND[0] - d), t1 - (beta1 - FACING), t1 - (-beta1 - FACING),
+                          t2 - (beta2 - FACING), t2 - (-beta2 - FACING))
         terminal = (ws[11] * (r1 + r2) + ws[12] * ((gl[2] - x1[2])**2 + (gl[5] - x2[2])**2)
                     + ws[13] * (x1[3]**2 + x1[4]**2 + x2[3]**2 + x2[4]**2) + ws[14] * (x1[5]**2 + x2[5]**2))
         L = ca.Function("L", [xs, us, ws, gl], [running])
+        G = ca.Function("G", [xs, us], [path])
         Lf = ca.Function("Lf", [xs, ws, gl], [terminal])
         dts = ca.SX.sym("dt")
-        F = ca.Function("F", [xs, us, dts], [ca.vertcat(step(x1, us[:N_CONTROL], dts), step(x2, us[N_CONTROL:], dts))])
+        F = ca.Function("F", [xs, us, dts], [ca.vertcat(step(x1, us[:N_CONTROL], dts), step(x2, us[N_CONTROL:nc], dts))])
 
         Xk = [ca.SX.sym(f"x{k}", nx) for k in range(N + 1)]
         Uk = [ca.SX.sym(f"u{k}", nu) for k in range(N)]
         J = 0
-        g = [Xk[0][:ns] - X0]
+        g, equality = [Xk[0][:ns] - X0], [True] * ns
         for k in range(N):
             dt = ca.exp(Xk[k][ns]) / N
             J += dt * L(Xk[k][:ns], Uk[k], W, goal)
-            g.append(Xk[k + 1] - ca.vertcat(F(Xk[k][:ns], Uk[k], dt), Xk[k][ns]))
+            g += [Xk[k + 1] - ca.vertcat(F(Xk[k][:ns], Uk[k], dt), Xk[k][ns]), G(Xk[k][:ns], Uk[k])]
+            equality += [True] * nx + [False] * self.N_PATH
         J += Lf(Xk[N][:ns], W, goal)
         w = ca.vertcat(*[v for k in range(N) for v in (Xk[k], Uk[k])], Xk[N])
         g = ca.vertcat(*g)
         self._nlp = {"x": w, "p": p, "f": J, "g": g}
         self.n_vars, self.n_cons = w.shape[0], g.shape[0]
+        self._equality = equality
+        self._ubg = np.where(equality, 0.0, np.inf)
         stride = nx + nu
         self._xi = np.array([[k * stride + i for i in range(nx)] for k in range(N + 1)])
-        self._ui = np.array([[k * stride + nx + i for i in range(nu)] for k in range(N)])
+        self._ui = np.array([[k * stride + nx + i for i in range(nc)] for k in range(N)])
+        self._si = np.array([[k * stride + nx + nc + i for i in range(self.N_SLACK)] for k in range(N)])
         self._solvers = {}
         self._lock = threading.Lock()
         self._solver(shape.solver)
+
+    def _solver(self, name: str):
+        """As ``WalkerOCP._solver``, with the path inequalities declared to fatrop."""
+        import casadi as ca
+
+        if name == "fatrop" and name not in self._solvers:
+            opts = {"structure_detection": "auto", "expand": True, "equality": self._equality,
+                    "print_time": False, "show_eval_warnings": False,
+                    "fatrop": {"print_level": 0, "tol": self.shape.tol, "max_iter": self.shape.max_iter}}
+            self._solvers[name] = ca.nlpsol(f"coupled_{name}", name, self._nlp, opts)
+        return super()._solver(name)
+
+    def _run(self, w0, p, lbx, ubx, fallback: bool) -> OCPSolution:
+        """The primary solver, then IPOPT if it failed; path inequalities 0 <= g (dynamics g = 0)."""
+        names = [self.shape.solver] + (["ipopt"] if fallback and self.shape.solver != "ipopt" else [])
+        sol = None
+        for name in names:
+            with self._lock:
+                solver = self._solver(name)
+                res = solver(x0=w0, p=p, lbg=0.0, ubg=self._ubg, lbx=lbx, ubx=ubx)
+                st = solver.stats()
+            sol = self._unpack(np.asarray(res["x"]).ravel(), float(res["f"]), p, name, st)
+            if sol.success:
+                break
+        return sol
 
     def solve(self, start, goal, weights, T, *, guess="rest", fallback: bool = True,
               T_bounds: tuple[float, float] = (0.4, 2.5)) -> OCPSolution:
@@ -106,9 +148,11 @@ class CoupledOCP(WalkerOCP):
                 a = k / self.N if guess == "line" else 0.0
                 s = (1 - a) * start + a * goal
                 w0[self._xi[k, :-1]] = np.r_[s[0], np.zeros(3), s[1], np.zeros(3)]
+            w0[self._si] = 0.1  # slacks: strictly inside their bounds
         else:
             w0 = np.asarray(guess, float).copy()
         lbx, ubx = np.full(self.n_vars, -np.inf), np.full(self.n_vars, np.inf)
+        lbx[self._si] = 0.0
         lbx[self._xi[:, -1]] = math.log(T_bounds[0] * T)
         ubx[self._xi[:, -1]] = math.log(T_bounds[1] * T)
         w0[self._xi[:, -1]] = np.clip(w0[self._xi[:, -1]] if not isinstance(guess, str) else math.log(T),

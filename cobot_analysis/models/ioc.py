@@ -347,6 +347,8 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
         guesses = list(ck.guesses)
     ck.guesses = guesses
     cache = {tuple(e["z"]): e for e in ck.log}
+    # the starting point is the reference evaluation itself (not re-solved from its own warm start)
+    cache.setdefault(tuple(float(v) for v in spec.z0()), {"z": list(map(float, spec.z0())), "f": start_objective, "terms": start_terms})
     new = 0
     best = {"f": math.inf}
 
