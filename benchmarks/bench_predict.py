@@ -1,8 +1,9 @@
 """Prediction benchmarks (docs/benchmarks.md, section "Prediction").
 
     python benchmarks/bench_predict.py windows TRAJECTORIES.parquet [--n 6]
-        OC windows per second on one core (N0 = 50, N_OC = 100: 100-node windows), warm-started
-        (the previous window shifted) and cold, and the baselines, on the first n trial trajectories.
+        OC windows per second on one core (N0 = 50, N_OC = 100: 100-node windows, solved as the
+        50-node measured past plus the zero-control coast, see OCPredictor), warm-started (the previous
+        window shifted) and cold, and the baselines, on n trial trajectories.
     python benchmarks/bench_predict.py sweep TRAJECTORIES.parquet --out DIR [--dask] [--every K] [--limit N]
         Wall time of `cobot-analysis predict --settings 50:100 --kind trial` from an empty work
         directory: local pool of 2 processes, or a 2-worker local Dask cluster (--dask).
@@ -43,9 +44,9 @@ def bench_windows(path: Path, n: int) -> None:
     t0 = time.perf_counter()
     from cobot_analysis.models.ocp import OCPShape, WalkerOCP
 
-    WalkerOCP(OCPShape(n_intervals=99))
+    WalkerOCP(OCPShape(n_intervals=49))
     build = time.perf_counter() - t0
-    print(f"NLP build (99 intervals): {build:.2f} s")
+    print(f"NLP build (49 intervals: the window's measured past): {build:.2f} s")
     for label, kw in (("oc warm", {}), ("oc cold", {"warm_start": False})):
         times, iters, failed = [], [], 0
         for t in trajs:

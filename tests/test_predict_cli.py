@@ -233,3 +233,16 @@ def test_fitted_weights_file_is_used_and_recorded(cli, tmp_path, traj_file):
     assert cli("-q", "predict", "--out", tmp_path / "ws2", "--weights", "walking-2021", *args)[0] == 0
     by_preset = pd.read_parquet(tmp_path / "ws2" / "predict" / "predictions.parquet")
     assert by_file["delta_xy"].iloc[0] == pytest.approx(by_preset["delta_xy"].iloc[0], rel=1e-9)  # same a0..a3
+
+
+def test_settings_sharing_n0_equal_separate_runs():
+    """(8,20) and (8,30) share one pass per predictor (the longer horizon, truncated): the same
+    metrics as computing each setting on its own."""
+    df = trajectories_table(n_traj=1)
+    df["x"] += np.random.default_rng(0).normal(0, 0.002, len(df))  # not a perfect arc
+    traj = trajectories_from_table(df, SweepConfig(settings=((8, 20),)))[0]
+    shared, shared_windows = sweep_mod.predict_trajectory(traj, SweepConfig(settings=((8, 20), (8, 30))))
+    alone = pd.concat([sweep_mod.predict_trajectory(traj, SweepConfig(settings=(s,)))[0] for s in ((8, 20), (8, 30))],
+                      ignore_index=True)
+    pd.testing.assert_frame_equal(shared, alone)
+    assert set(shared_windows["n_oc"]) == {20, 30}

@@ -254,17 +254,30 @@ def predictable_windows(traj: Trajectory, n0: int) -> int:
 
 # ---- one trajectory ---------------------------------------------------------------------------
 def predict_trajectory(traj: Trajectory, config: SweepConfig) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Every setting and predictor on one trajectory: (metrics rows, per-window rows)."""
+    """Every setting and predictor on one trajectory: (metrics rows, per-window rows).
+
+    A prediction depends on the measured past (N0 samples) only, N_OC - N0 being how far it is
+    extrapolated (the OC predictor coasts beyond its past, see ``OCPredictor``). So each predictor
+    runs once per N0, with the longest horizon of the settings sharing that N0, and each setting
+    takes the first N_OC - N0 + 1 samples of those predictions: (50,100) and (50,200) cost one pass.
+    """
     rows, windows = [], []
     n = len(traj.poses)
     has_theta = bool(np.isfinite(traj.poses[:, 2]).any())
+    longest: dict[int, int] = {}
     for n0, n_oc in config.settings:
-        results = {}
+        longest[n0] = max(n_oc, longest.get(n0, 0))
+    runs = {}  # (N0, predictor) -> (predictions over the longest horizon, skipped, failed, options)
+    for n0, n_oc in longest.items():
         for name in config.predictors:
             options = {"weights": config.weights_for(traj.entity), "g0": config.g0, "g1": config.g1} if name == "oc" else {}
             predictor = make_predictor(name, n0, n_oc, traj.dt, **options)
-            predictions = predictor.predict_offline(traj.seen)
-            results[name] = (window_errors(traj.poses, predictions, n0), predictor.skipped, predictor.failed, options)
+            runs[n0, name] = (predictor.predict_offline(traj.seen), predictor.skipped, predictor.failed, options)
+    for n0, n_oc in config.settings:
+        results = {}
+        for name in config.predictors:
+            predictions, skipped, failed, options = runs[n0, name]
+            results[name] = (window_errors(traj.poses, predictions[:, : n_oc - n0 + 1], n0), skipped, failed, options)
         common = np.logical_and.reduce([err.valid for err, *_ in results.values()])
         k = np.arange(n0 - 1, n)
         for name, (err, skipped, failed, options) in results.items():
