@@ -272,6 +272,16 @@ def results_fragment(metrics, summary, comparison, config, example, unpredictabl
                          f"{_fmt(c['baseline_median'])} | {_fmt(c['median_difference'])} | {100 * c['oc_wins']:.0f} % | "
                          f"{100 * c['oc_wins_windows']:.0f} % | {_fmt(c['wilcoxon_w'], 0)} | {_p(c['wilcoxon_p'])} | {_fmt(c['effect_r'], 2)} |")
         lines += ["", "r: matched-pairs rank-biserial correlation, > 0 when the OC predictor has the smaller error."]
+    if "oc" in config.predictors:
+        lines += ["", "What the OC prediction is (the reading of the tables above): beyond the measured past the window "
+                  "carries only control costs, so the predicted path is the walker coasting from its state at sample k "
+                  "with constant body-frame velocities (v_forw, v_orth) and yaw rate omega, an arc of curvature "
+                  "omega / speed (`OCPredictor`). The state at k is a smoothed fit of the past (tracking g0, g1 against "
+                  "the control weights a1-a3) started from the velocity estimated at the window's first sample. Where the "
+                  "orientation is tracked, its gait oscillation and any turn on the spot enter omega (a3 is nearly zero "
+                  "with the walking weights), and the arc curls away from the path: compare the 'theta tracked' and "
+                  "'positions only' rows. The constant-velocity baseline extrapolates the last measured displacement "
+                  "and has no such lag."]
     lines += ["", f"Figures: `prediction_overlay.png` (all predictions of {example.label}), `prediction_at_k.png`, "
               "`prediction_error_vs_distance.png` (per start orientation, min-max bands over trajectories of a condition)."]
     return "\n".join(lines) + "\n"
