@@ -1,6 +1,7 @@
 # Reproduce the reports of each study (see README.md).
 #   make walking        published walking-2020: import, means, distances, statistics, models, IOC, prediction, report
 #   make pairs          published pair-carriage-2022 (means) and the per-trial synthetic pair study
+#                       (prediction on every 10th synthetic table trial: SPREDICT_ARGS= for all 1080)
 #   make localisation   synthetic robot runs (ROS1, ROS2, MCAP); real runs: make localisation BAGS="a.bag b.bag"
 #   make all            all of them, then docs/results.md and docs/schemas.md
 # DATASETS defaults to ../shared/datasets ($COBOT_DATASETS wins). Workspaces go under OUT.
@@ -12,6 +13,7 @@ JOBS ?= 2
 BAGS ?=
 IOC_ARGS ?=
 PREDICT_ARGS ?=
+SPREDICT_ARGS ?= --every 10
 RESULTS_NOTE ?=
 LOC_ARGS ?=
 MAP ?= synthetic
@@ -69,6 +71,7 @@ pairs-synthetic:
 	$(CLI) compare --out $(SPAIRS)
 	$(CLI) stats --out $(SPAIRS)
 	$(CLI) reconstruct --out $(SPAIRS)
+	$(CLI) predict --out $(SPAIRS) --entity table --kind trial --jobs $(JOBS) $(SPREDICT_ARGS)
 	$(CLI) report pairs --out $(SPAIRS) --to reports/synthetic-pairs
 
 localisation:
