@@ -1,0 +1,20 @@
+"""``generate`` runs unchanged on a Dask cluster (``--scheduler``) and gives the local run's paths."""
+
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+
+
+def test_generate_study_on_dask_equals_local_run(cli, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    args = ("generate", "--study", "walking-2020", "--intervals", "20", "--samples", "40")
+    code, _, err = cli(*args, "--out", tmp_path / "local", "--jobs", "2")
+    assert code == 0, err
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        code, _, err = cli(*args, "--out", tmp_path / "dask", "--scheduler", cluster.scheduler_address)
+    assert code == 0, err
+    local = pd.read_parquet(tmp_path / "local" / "generate" / "generated.parquet")
+    dask = pd.read_parquet(tmp_path / "dask" / "generate" / "generated.parquet")
+    assert local["condition"].nunique() == 40  # every start condition of the walking design
+    pd.testing.assert_frame_equal(local, dask)
