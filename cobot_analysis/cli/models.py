@@ -176,8 +176,8 @@ def fit_ioc_command(
     from cobot_analysis.models.ioc import IOCSpec, fit, pair_targets_from_table, targets_from_table
     from cobot_analysis.models.outputs import IOC_DISTANCES
     from cobot_analysis.models.presets import load_weights, names_for, weights_vector
-    from cobot_analysis.models.report import (COMPARED, compare_models, figure_boxplots, figure_paths, statistics,
-                                              subject_distances, summary_table)
+    from cobot_analysis.models.report import (COMPARED, compare_models, duration_flag, figure_boxplots, figure_paths,
+                                              statistics, subject_distances, summary_table)
     from cobot_analysis.parallel import default_jobs, executor
     from cobot_analysis.schema import Column, TableSchema, write_table
     from cobot_analysis.workspace import Stage, find_input
@@ -185,7 +185,8 @@ def fit_ioc_command(
     if model not in ("improved", "table", "coupled"):
         raise InputError(f"fit-ioc fits the improved, table or coupled model, not {model!r}", remedy="use --model improved, table or coupled")
     all_names = names_for(model)
-    fit_names = fit_names or ",".join(n for n in all_names if n not in ("a5", "a6", "b0"))
+    held = ("b0",) if model == "coupled" else ("a5", "a6", "b0")  # a5, a6 of the walker belong to the Mombaur model
+    fit_names = fit_names or ",".join(n for n in all_names if n not in held)
     names = tuple(n.strip() for n in fit_names.split(",") if n.strip())
     bad = [n for n in names if n not in all_names]
     if bad or not names:
@@ -259,9 +260,10 @@ def fit_ioc_command(
     if start_weights and Path(start_weights).is_file():
         inputs.append(Path(start_weights))
     params = {"spec": spec.__dict__, "per": per.value, "subjects": subjects, "goal": goal.value, "compare": compare, "seed": seed}
-    checkpoint_dir = Path(out) / ".fit-ioc.checkpoint"
+    stage_name = "fit-ioc-coupled" if model == "coupled" else "fit-ioc"  # the coupled fit never replaces the table fit
+    checkpoint_dir = Path(out) / f".{stage_name}.checkpoint"
     n_chunks = 4 * (default_jobs() if jobs is None else jobs) if scheduler is None else 8
-    with Stage(out, "fit-ioc", inputs=inputs, params=params, force=force) as stage:
+    with Stage(out, stage_name, inputs=inputs, params=params, force=force) as stage:
         if stage.skipped:
             return
         results = {}
@@ -284,13 +286,21 @@ def fit_ioc_command(
             stage.path(f"weights/{k}.json").write_text(json.dumps({"weights": r.weights}, indent=2) + "\n")
 
         # distances: fitted model per trajectory; full model comparison on the means
+        coupled = None
+        if model == "coupled":  # published and fitted weights, both cold-started, per carrier
+            from cobot_analysis.models.presets import PRESETS
+            from cobot_analysis.models.report import coupled_distances
+
+            coupled = coupled_distances(spec, mean_targets, {
+                "coupled OC (published)": weights_vector(PRESETS["pair-2022"], "coupled"),
+                "coupled OC (fitted)": weights_vector(results["all"].weights, "coupled")}, jobs=jobs, scheduler=scheduler)
         rows = []
         for k, r in results.items():
             for t, d in zip(fits[k], r.per_target):
                 rows.append({"model": "improved OC (fitted)", "fit": k, "trial": t.trial, "condition": t.condition, "subject": t.subject,
                              "orientation": "", "global_distance": t.global_distance, "d_xy": d["d_xy"], "d_theta": d["d_theta"],
                              "d_gamma": d["d_gamma"], "D": d["D"], "converged": d["success"]})
-        dist = pd.DataFrame(rows)
+        dist = pd.DataFrame(rows) if coupled is None else coupled[0]
         angle = spec.angle
         comparison = None
         if compare and "all" in results:
@@ -306,10 +316,16 @@ def fit_ioc_command(
 
         dist["orientation"] = [orientation_of(c) for c in dist["condition"]]
         dist["subject"] = dist["subject"].fillna("")
+        extra = {"converged": Column("bool", "", "the model's OC solve converged")}
+        if coupled is not None:
+            extra = {"direction": Column("string", "", "forward or return"),
+                     "carrier": Column("int", "", "1 or 2; carrier 1 is Subject 1 forward, Subject 2 on returns (subject column)"),
+                     "T": Column("float", "s", "duration of the pair's OC solution (free, within (0.4, 2.5) x T0)"),
+                     "T_at_bound": Column("int", "", "-1 / +1: T on the lower / upper bound, 0 inside"), **extra}
         write_table(dist.drop(columns=["converged"]).assign(converged=dist["converged"].astype(bool)),
                     stage.path("distances.parquet"), TableSchema(
                         name=IOC_DISTANCES.name, version=IOC_DISTANCES.version, description=IOC_DISTANCES.description,
-                        columns={**IOC_DISTANCES.columns, "converged": Column("bool", "", "the model's OC solve converged")}))
+                        columns={**IOC_DISTANCES.columns, **extra}))
         hist = pd.DataFrame([{"fit": k, "objective": r.objective, "start_objective": r.start_objective,
                               "evaluations": r.evaluations, "iterations": r.iterations, "failed": r.failed, **r.weights}
                              for k, r in results.items()])
@@ -333,6 +349,13 @@ def fit_ioc_command(
             lines.append(f"| {k} | {len(fits[k])} | {r.start_objective:.4f} | {r.objective:.4f} | {r.evaluations} | {r.failed} | "
                          + " | ".join(f"{r.weights[n]:.3g}" for n in names) + " |")
         lines.append("")
+        for k, r in results.items():
+            lines += [("" if per is Per.all else f"Fit {k}: ") + duration_flag(r.per_target)
+                      + (f" Optimiser: {r.message.strip()}" if per is Per.all else ""), ""]
+        if coupled is not None:
+            from cobot_analysis.models.report import coupled_section
+
+            lines += coupled_section(results["all"], coupled, mean_targets, stage)
         if comparison is not None:
             lines += ["### Model comparison on the mean trajectories", "", summary_table(comparison, angle),
                       "### Statistics", "", statistics(comparison, list(models)[-1], angle)]

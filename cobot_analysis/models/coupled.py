@@ -165,12 +165,18 @@ def get_coupled_ocp(shape: OCPShape = OCPShape(free_time=True)) -> CoupledOCP:
     return CoupledOCP(shape)
 
 
-def solve_pair(start, goal, weights, *, n_intervals: int = 100, v_nominal: float = 1.0, guess=("rest", "line"),
-               solver: str = "fatrop") -> OCPSolution:
-    """Best converged solution over the initial guesses; T0 = longest carrier distance / v + 1 s."""
+def initial_pair_duration(start, goal, v_nominal: float = 1.0) -> float:
+    """T0 = (longest start-goal distance of the two carriers) / v_nominal + 1 s."""
     start, goal = np.asarray(start, float).reshape(2, 3), np.asarray(goal, float).reshape(2, 3)
-    T0 = max(math.hypot(*(goal[i, :2] - start[i, :2])) for i in range(2)) / v_nominal + 1.0
-    ocp = get_coupled_ocp(OCPShape(n_intervals, free_time=True, solver=solver))
+    return max(math.hypot(*(goal[i, :2] - start[i, :2])) for i in range(2)) / v_nominal + 1.0
+
+
+def solve_pair(start, goal, weights, *, n_intervals: int = 100, v_nominal: float = 1.0, guess=("rest", "line"),
+               solver: str = "fatrop", max_iter: int = 500) -> OCPSolution:
+    """Best converged solution over the initial guesses; T bounded to [0.4, 2.5] x T0 (``initial_pair_duration``)."""
+    start, goal = np.asarray(start, float).reshape(2, 3), np.asarray(goal, float).reshape(2, 3)
+    T0 = initial_pair_duration(start, goal, v_nominal)
+    ocp = get_coupled_ocp(OCPShape(n_intervals, free_time=True, solver=solver, max_iter=max_iter))
     best = None
     for g in [guess] if isinstance(guess, str | np.ndarray) else guess:
         s = ocp.solve(start, goal, weights, T0, guess=g)

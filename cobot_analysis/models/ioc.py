@@ -38,6 +38,7 @@ import pandas as pd
 from cobot_analysis.errors import InputError
 from cobot_analysis.models.presets import names_for
 
+T_BOUNDS = (0.4, 2.5)  # free duration T within these multiples of T0 (ocp.WalkerOCP.solve, coupled.CoupledOCP.solve)
 FAILED_D = 10.0  # objective term of a lower level that did not converge (m-equivalent; >> any real D)
 OPTIMIZERS = ("powell", "nelder-mead")
 LOG_BOUNDS = (-7.0, 3.0)  # log10 of a fitted weight
@@ -104,6 +105,7 @@ class PairTarget:
     condition: str
     carriers: tuple[Target, Target]
     subject: str = ""
+    direction: str = ""  # forward or return
 
     @property
     def start(self):
@@ -132,8 +134,9 @@ def pair_targets_from_table(df: pd.DataFrame, *, path=None, scenario: int = 3) -
               + targets_from_table(g.assign(trial=g["entity"]), path=path, entity="subject2")}
         if set(ts) != {"subject1", "subject2"}:
             continue
-        order = ("subject2", "subject1") if g["direction"].iloc[0] == "return" else ("subject1", "subject2")
-        out.append(PairTarget(str(trial), str(g["condition"].iloc[0]), (ts[order[0]], ts[order[1]])))
+        direction = str(g["direction"].iloc[0])
+        order = ("subject2", "subject1") if direction == "return" else ("subject1", "subject2")
+        out.append(PairTarget(str(trial), str(g["condition"].iloc[0]), (ts[order[0]], ts[order[1]]), direction=direction))
     return out
 
 
@@ -179,32 +182,47 @@ def distances(t: Target, x, y, theta) -> dict[str, float]:
             "d_gamma": float(d_gamma(gamma_from_path(t.x, t.y, t.theta), gamma_from_path(x, y, theta)))}
 
 
+def duration_terms(T: float, T0: float) -> dict:
+    """T, T0 and whether T sits on a bound of ``T_BOUNDS`` x T0 (relative 1e-3): -1 lower, +1 upper, 0 inside."""
+    r = T / T0
+    at = -1 if abs(r / T_BOUNDS[0] - 1) < 1e-3 else (1 if abs(r / T_BOUNDS[1] - 1) < 1e-3 else 0)
+    return {"T": T, "T0": T0, "T_at_bound": at}
+
+
+def _failed() -> dict:
+    return {"D": FAILED_D, "d_xy": math.nan, "d_theta": math.nan, "d_gamma": math.nan, "T": math.nan, "T0": math.nan,
+            "T_at_bound": 0, "success": False}
+
+
 def solve_pair_target(spec: IOCSpec, w: np.ndarray, t: PairTarget, guess):
-    """Coupled lower level: D = d_xy,1 + d_xy,2 + 0.5 (d_theta,1 + d_theta,2)."""
+    """Coupled lower level: D = d_xy,1 + d_xy,2 + 0.5 (d_theta,1 + d_theta,2); the terms of each
+    carrier are kept too (``d_xy_1``, ``d_theta_2``, ...; carrier 1 is Subject 2 on returns)."""
     from cobot_analysis.models import resample
-    from cobot_analysis.models.coupled import solve_pair
+    from cobot_analysis.models.coupled import initial_pair_duration, solve_pair
     from cobot_analysis.models.ocp import OCPSolution
 
-    sol = solve_pair(t.start, t.goal, w, n_intervals=spec.n_intervals, guess=guess)
+    sol = solve_pair(t.start, t.goal, w, n_intervals=spec.n_intervals, guess=guess, max_iter=spec.max_iter)
     if not sol.success and not isinstance(guess, str):
-        sol = solve_pair(t.start, t.goal, w, n_intervals=spec.n_intervals)
+        sol = solve_pair(t.start, t.goal, w, n_intervals=spec.n_intervals, max_iter=spec.max_iter)
     if not sol.success:
-        return {"D": FAILED_D, "d_xy": math.nan, "d_theta": math.nan, "d_gamma": math.nan, "T": math.nan, "success": False}, sol
+        return _failed(), sol
     d = {"d_xy": 0.0, "d_theta": 0.0, "d_gamma": 0.0}
     for i, c in enumerate(t.carriers):
         part = OCPSolution(sol.X[:, 6 * i:6 * i + 6], sol.U[:, 3 * i:3 * i + 3], sol.T, sol.cost, True, "", "", 0, sol.primal)
         r = resample(part, len(c.x))
         for k, v in distances(c, r["x"], r["y"], r["theta"]).items():
             d[k] += v
+            d[f"{k}_{i + 1}"] = v
     d["D"] = d["d_xy"] + spec.angle_weight * d["d_theta"]
-    d["T"] = sol.T
+    d.update(duration_terms(sol.T, initial_pair_duration(t.start, t.goal)))
     d["success"] = True
     return d, sol
 
 
 def solve_target(spec: IOCSpec, w: np.ndarray, t: Target, guess):
-    """Lower level for one target: (distances dict with D and success, solution)."""
+    """Lower level for one target: (distances dict with D, T, T0, T_at_bound and success, solution)."""
     from cobot_analysis.models import resample, solve_model
+    from cobot_analysis.models.duration import initial_duration
 
     if spec.model == "coupled":
         return solve_pair_target(spec, w, t, guess)
@@ -214,11 +232,11 @@ def solve_target(spec: IOCSpec, w: np.ndarray, t: Target, guess):
     if not sol.success and not isinstance(guess, str):
         sol = solve_model(model, t.start, t.goal, w, guess=("rest", "line"), **kw)
     if not sol.success:
-        return {"D": FAILED_D, "d_xy": math.nan, "d_theta": math.nan, "d_gamma": math.nan, "T": math.nan, "success": False}, sol
+        return _failed(), sol
     r = resample(sol, len(t.x))
     d = distances(t, r["x"], r["y"], r["theta"])
     d["D"] = d["d_xy"] + spec.angle_weight * d[f"d_{spec.angle}"]
-    d["T"] = sol.T
+    d.update(duration_terms(sol.T, initial_duration(t.start, t.goal)))
     d["success"] = True
     return d, sol
 

@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 
 from cobot_analysis.design import GLOBAL_DISTANCE_SPLIT
-from cobot_analysis.models.ioc import Target, distances
+from cobot_analysis.models.ioc import FAILED_D, Target, distances
 
 #: models of the comparison: label -> (model, weights). "fitted" is filled in by the caller.
 COMPARED = {
@@ -196,3 +196,157 @@ def figure_boxplots(df: pd.DataFrame, angle: str = "gamma"):
         ax.set_ylabel(f"{metric} ({unit})")
     fig.tight_layout()
     return fig
+
+
+# ---- T at its bound (every model) ----------------------------------------------------------------
+def duration_flag(terms: list[dict]) -> str:
+    """Markdown line: how many converged lower levels put the free duration T on a bound of
+    ``ioc.T_BOUNDS`` x T0 (there the fitted weights ask for a duration the problem does not allow)."""
+    from cobot_analysis.models.ioc import T_BOUNDS
+
+    ok = [d for d in terms if d.get("success")]
+    lo = sum(d.get("T_at_bound", 0) == -1 for d in ok)
+    hi = sum(d.get("T_at_bound", 0) == 1 for d in ok)
+    ratio = [d["T"] / d["T0"] for d in ok if d.get("T0")]
+    span = f"; T / T0 from {min(ratio):.2f} to {max(ratio):.2f}" if ratio else ""
+    head = (f"**Warning: fitted duration T at its bound** ({T_BOUNDS[0]:g}, {T_BOUNDS[1]:g}) x T0 (T0 = start-goal "
+            f"distance / 1 m/s + 1 s)" if lo + hi else f"Fitted duration T inside its bounds ({T_BOUNDS[0]:g}, {T_BOUNDS[1]:g}) x T0")
+    return f"{head}: {lo + hi} of {len(ok)} paths ({lo} at the lower, {hi} at the upper bound){span}."
+
+
+# ---- coupled model (two carriers) ----------------------------------------------------------------
+def coupled_task(task) -> tuple[dict, list[dict] | None]:
+    """Worker task: the coupled model at ``w`` on one pair target, best of a 'rest' and a 'line'
+    guess; returns the distance terms and the resampled paths of both carriers (None if not converged)."""
+    from cobot_analysis.models import resample
+    from cobot_analysis.models.ioc import solve_pair_target
+    from cobot_analysis.models.ocp import OCPSolution
+
+    spec, w, t = task
+    d, sol = solve_pair_target(spec, np.asarray(w, float), t, ("rest", "line"))
+    if not d["success"]:
+        return d, None
+    paths = []
+    for i, c in enumerate(t.carriers):
+        part = OCPSolution(sol.X[:, 6 * i:6 * i + 6], sol.U[:, 3 * i:3 * i + 3], sol.T, sol.cost, True, "", "", 0, sol.primal)
+        paths.append(resample(part, len(c.x)))
+    return d, paths
+
+
+def coupled_distances(spec, targets, weights: dict[str, np.ndarray], *, jobs=None, scheduler=None):
+    """Per-carrier distances of the coupled model at each weight set (label -> 15-vector) to every
+    pair target: (long table, one row per label x target x carrier; paths label -> [per target])."""
+    from cobot_analysis.parallel import map_tasks
+
+    labels = list(weights)
+    tasks = [(spec, tuple(weights[lab]), t) for lab in labels for t in targets]
+    res = map_tasks(coupled_task, tasks, jobs=jobs, scheduler=scheduler, description="coupled model runs")
+    rows, paths = [], {lab: [] for lab in labels}
+    for (_, _, t), lab, (d, p) in zip(tasks, [lab for lab in labels for _ in targets], res):
+        paths[lab].append(p)
+        for i, c in enumerate(t.carriers):
+            k = f"_{i + 1}"
+            dxy, dth, dga = (d.get(f"d_xy{k}", math.nan), d.get(f"d_theta{k}", math.nan), d.get(f"d_gamma{k}", math.nan))
+            rows.append({"model": lab, "fit": "all", "trial": t.trial, "condition": t.condition, "subject": c.trial,
+                         "orientation": "", "global_distance": c.global_distance, "direction": t.direction, "carrier": i + 1,
+                         "d_xy": dxy, "d_theta": dth, "d_gamma": dga, "D": dxy + spec.angle_weight * dth,
+                         "T": d["T"], "T_at_bound": int(d["T_at_bound"]), "converged": bool(d["success"])})
+    return pd.DataFrame(rows), paths
+
+
+def coupled_summary(df: pd.DataFrame) -> str:
+    """Markdown: d_xy and d_theta (mean ± sd over paths) per weight set and carrier, by direction."""
+    lines = []
+    for metric, unit in (("d_xy", "m"), ("d_theta", "rad")):
+        lines += [f"**{metric}** of each carrier ({unit}, mean ± sd over the mean paths; carrier 1 = Subject 1 forward, "
+                  "Subject 2 on returns)", "", "| weights | carrier | forward | return | all |", "|---|---|---|---|---|"]
+        for (model, carrier), g in df.groupby(["model", "carrier"], sort=False):
+            cells = [_ms(g.loc[g["direction"] == dr, metric]) for dr in ("forward", "return")] + [_ms(g[metric])]
+            lines.append(f"| {model} | {carrier} | " + " | ".join(cells) + " |")
+        lines.append("")
+    failed = df.loc[~df["converged"].astype(bool)]
+    if len(failed):
+        lines += [f"Not converged (left out of the means): {failed['trial'].nunique()} of {df['trial'].nunique()} paths "
+                  f"({', '.join(sorted(set(failed['model'])))}).", ""]
+    return "\n".join(lines)
+
+
+def weights_table(names: tuple[str, ...], columns: dict[str, dict[str, float]], fitted: tuple[str, ...]) -> str:
+    """Markdown: one row per weight, one column per weight set; fitted weights marked."""
+    lines = ["| weight | fitted | " + " | ".join(columns) + " |", "|---|---|" + "---|" * len(columns)]
+    for n in names:
+        lines.append(f"| {n} | {'yes' if n in fitted else 'held'} | " + " | ".join(f"{w[n]:.3g}" for w in columns.values()) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def figure_pair_paths(targets, paths: dict[str, list], title: str):
+    """Generated vs mean paths of both carriers (carrier 1 solid, carrier 2 dashed), one panel per
+    target, orientation arrows every 100 samples; measured in black."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = len(targets)
+    cols = min(4, n)
+    rows = math.ceil(n / cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.0 * cols, 3.0 * rows), squeeze=False)
+    palette = {lab: c for lab, c in zip(paths, ("tab:blue", "tab:orange", "tab:green"))}
+    for j, t in enumerate(targets):
+        ax = axes[j // cols][j % cols]
+        series = [("mean", "k", [(c.x, c.y, c.theta) for c in t.carriers])]
+        series += [(lab, palette[lab], [(p["x"], p["y"], p["theta"]) for p in ps[j]]) for lab, ps in paths.items() if ps[j] is not None]
+        for lab, color, carriers in series:
+            for i, (x, y, th) in enumerate(carriers):
+                ax.plot(x, y, color=color, ls="-" if i == 0 else "--", lw=1.1, label=lab if i == 0 else None)
+                k = np.arange(0, len(x), 100)
+                ax.quiver(x[k], y[k], np.cos(th[k]), np.sin(th[k]), color=color, scale=14, width=0.005)
+        ax.set_title(t.trial.replace("_sc3", ""), fontsize=7)
+        ax.set_aspect("equal")
+        ax.tick_params(labelsize=6)
+    for j in range(n, rows * cols):
+        axes[j // cols][j % cols].axis("off")
+    axes[0][0].legend(fontsize=6, loc="best")
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    return fig
+
+
+def coupled_section(result, coupled, targets, stage) -> list[str]:
+    """results.md lines of the coupled fit: paths used, D before / after, weights beside the published
+    ones, per-carrier distances by direction, and the figure ``pair_paths`` (a few goals)."""
+    from cobot_analysis.models.presets import COUPLED_WEIGHTS, PRESETS
+
+    df, paths = coupled
+    spec = result.spec
+    n_dir = {d: sum(t.direction == d for t in targets) for d in ("forward", "return")}
+    D = df.groupby(["model", "trial"], sort=False)["D"].sum(min_count=2).groupby(level=0, sort=False).mean()
+    lines = ["### Coupled model on the scenario-3 means", "",
+             f"Paths: {n_dir['forward']} forward + {n_dir['return']} return scenario-3 mean paths of the two carriers "
+             "(METHODS.md 6: 13 + 18 in the published data), Subject 2 as carrier 1 on returns. "
+             f"D = d_xy,1 + d_xy,2 + 0.5 (d_theta,1 + d_theta,2) per path, averaged: {result.start_objective:.4f} at the start "
+             f"weights, {result.objective:.4f} fitted ({result.evaluations} upper-level evaluations, {result.iterations} "
+             f"iterations); lower levels not converged at the fitted weights: {result.failed} of {len(targets)} "
+             f"(each counted as D = {FAILED_D:g}, never averaged in silently).", "",
+             "Weights (the fit starts from the model preset unless --start-weights says otherwise):", "",
+             weights_table(COUPLED_WEIGHTS, {"published (pair-2022)": PRESETS["pair-2022"],
+                                             "start": dict(zip(COUPLED_WEIGHTS, spec.start_weights)),
+                                             "fitted": result.weights}, spec.fitted),
+             "Both weight sets re-solved from cold guesses (best of 'rest' and 'line'): mean D "
+             + ", ".join(f"{m} {v:.4f}" for m, v in D.items()) + ".", "",
+             coupled_summary(df)]
+    for model, g in df[df["carrier"] == 1].groupby("model", sort=False):
+        ok = g[g["converged"].astype(bool)]
+        lines.append(f"- {model}: T at its bound on {int((ok['T_at_bound'] != 0).sum())} of {len(ok)} paths; "
+                     f"T {ok['T'].min():.2f}-{ok['T'].max():.2f} s.")
+    lines.append("")
+    conditions = list(dict.fromkeys(t.condition for t in targets))
+    picked = [conditions[int(i)] for i in np.unique(np.linspace(0, len(conditions) - 1, min(4, len(conditions))).round())]
+    idx = [next(i for i, t in enumerate(targets) if t.condition == c and t.direction == d)
+           for c in picked for d in ("forward", "return") if any(t.condition == c and t.direction == d for t in targets)]
+    stage.savefig(figure_pair_paths([targets[i] for i in idx], {lab: [ps[i] for i in idx] for lab, ps in paths.items()},
+                                    "scenario-3 means (black; carrier 1 solid, carrier 2 dashed) vs coupled OC"), "pair_paths")
+    lines += ["![generated vs mean paths of both carriers](pair_paths.png)", "",
+              f"*Mean and generated paths of both carriers for {len(picked)} goals, forward and return* "
+              "([PDF](pair_paths.pdf))", ""]
+    return lines
