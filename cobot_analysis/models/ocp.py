@@ -27,14 +27,32 @@ heading terms (theta is unwrapped; pass the goal heading on the branch you mean)
 Solver: fatrop (structure-exploiting interior point; variables ordered stage by stage,
 ``structure_detection='auto'``) with IPOPT (exact Hessian) on the same NLP as fallback; a solve
 that neither converges is returned with ``success=False`` and callers must not use it silently.
+
+Evaluation (``_compiled_library``): the problem is written once, per stage (``_stage_functions``:
+stage cost c_k(z_k), step F(z_k), terminal cost c_N(x_N), z_k = (x_k, u_k)), and the functions
+fatrop calls are assembled from ``map`` of the stage functions and of their exact derivatives:
+
+    grad f = [grad c_0; ...; grad c_N],   jac g = [I 0 ...; -dF/dz_0  I ...; ...],
+    hess L = blockdiag_k(hess_z (sigma c_k - lambda_{k+1}' F(z_k)), sigma hess c_N),
+
+then generated as C (a loop over the stages, not the unrolled NLP), compiled once per machine
+with the system C compiler and cached on disk (``cache_dir()``, keyed by a hash of the C source).
+Without a compiler, or with ``COBOT_ANALYSIS_OCP_COMPILE=0``, the same NLP is expanded into
+casadi's SX virtual machine (about 2x slower per solve, identical results).
 """
 
 from __future__ import annotations
 
+import hashlib
 import math
+import os
+import shutil
+import subprocess
+import tempfile
 import threading
 from dataclasses import dataclass, field
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
@@ -85,58 +103,13 @@ class WalkerOCP:
     """Parametric NLP for one walker; build once per ``OCPShape`` (see ``get_ocp``), solve many times."""
 
     def __init__(self, shape: OCPShape = OCPShape()):
-        import casadi as ca
-
         self.shape = shape
         N, free = shape.n_intervals, shape.free_time
         nx, nu = N_STATE + (1 if free else 0), N_CONTROL
         self.nx, self.nu, self.N = nx, nu, N
-
-        X0 = ca.SX.sym("X0", N_STATE)
-        goal = ca.SX.sym("goal", 3)
-        Tp = ca.SX.sym("T")
-        W = ca.SX.sym("W", N_WEIGHTS)
-        G = ca.SX.sym("g", 2)
-        ref = ca.SX.sym("ref", 3, N + 1)
-        mask = ca.SX.sym("mask", N + 1)
-        self.n_params = N_STATE + 3 + 1 + N_WEIGHTS + 2 + 4 * (N + 1)
-        p = ca.vertcat(X0, goal, Tp, W, G, ca.vec(ref), mask)
-
-        # Per-stage functions (one expression graph each, called N times).
-        xs, us, dts = ca.SX.sym("x", N_STATE), ca.SX.sym("u", nu), ca.SX.sym("dt")
-        ws, gs, gl, rs = ca.SX.sym("w", N_WEIGHTS), ca.SX.sym("gw", 2), ca.SX.sym("goal", 3), ca.SX.sym("r", 3)
-        dxg, dyg = gl[0] - xs[0], gl[1] - xs[1]
-        r2 = dxg**2 + dyg**2
-        ex = ca.cos(xs[2]) * dxg + ca.sin(xs[2]) * dyg
-        ey = -ca.sin(xs[2]) * dxg + ca.cos(xs[2]) * dyg
-        psi = ca.atan2(ey, ex)
-        dth = gl[2] - xs[2]
-        running = (ws[0] + ws[1] * us[0]**2 + ws[2] * us[1]**2 + ws[3] * us[2]**2
-                   + ws[4] * psi**2 * r2 / (r2 + shape.psi_eps**2) + ws[5] * r2 + ws[6] * dth**2)
-        L = ca.Function("L", [xs, us, ws, gl], [running])
-        track = gs[0] * ((rs[0] - xs[0])**2 + (rs[1] - xs[1])**2) + gs[1] * (rs[2] - xs[2])**2
-        Ltr = ca.Function("Ltr", [xs, gs, rs], [track])
-        terminal = ws[7] * r2 + ws[8] * dth**2 + ws[9] * (xs[3]**2 + xs[4]**2) + ws[10] * xs[5]**2
-        Lf = ca.Function("Lf", [xs, ws, gl], [terminal])
-        F = ca.Function("F", [xs, us, dts], [step(xs, us, dts, shape.dynamics)])
-
-        Xk = [ca.SX.sym(f"x{k}", nx) for k in range(N + 1)]
-        Uk = [ca.SX.sym(f"u{k}", nu) for k in range(N)]
-        J = 0
-        g = [Xk[0][:N_STATE] - X0]
-        for k in range(N):
-            T = ca.exp(Xk[k][N_STATE]) if free else Tp
-            dt = T / N
-            J += dt * (L(Xk[k][:N_STATE], Uk[k], W, goal) + mask[k] * Ltr(Xk[k][:N_STATE], G, ref[:, k]))
-            nxt = F(Xk[k][:N_STATE], Uk[k], dt)
-            g.append(Xk[k + 1] - (ca.vertcat(nxt, Xk[k][N_STATE]) if free else nxt))
-        T_end = ca.exp(Xk[N][N_STATE]) if free else Tp
-        J += T_end / N * mask[N] * Ltr(Xk[N][:N_STATE], G, ref[:, N]) + Lf(Xk[N][:N_STATE], W, goal)
-        w = ca.vertcat(*[v for k in range(N) for v in (Xk[k], Uk[k])], Xk[N])
-        g = ca.vertcat(*g)
-        self._nlp = {"x": w, "p": p, "f": J, "g": g}
+        self.n_params = N_STATE + _N_COMMON + 4 * (N + 1)
         self._T_index = N_STATE + 3
-        self.n_vars, self.n_cons = w.shape[0], g.shape[0]
+        self.n_vars, self.n_cons = N * (nx + nu) + nx, N_STATE + N * nx
         # index of state k / control k in the primal vector
         stride = nx + nu
         self._xi = np.array([[k * stride + i for i in range(nx)] for k in range(N + 1)])
@@ -145,21 +118,99 @@ class WalkerOCP:
         self._lock = threading.Lock()  # a casadi solver object must not run two solves at once
         self._solver(shape.solver)  # build the primary solver now
 
+    # -- the NLP ---------------------------------------------------------------------------------
+    def _nlp_functions(self) -> dict[str, object]:
+        """The functions fatrop calls (names and signatures of casadi's ``nlpsol`` oracle), built
+        from ``map`` of the stage functions over the N intervals (see the module docstring).
+
+        Variables w = [z_0; ...; z_{N-1}; x_N], z_k = (x_k, u_k); constraints
+        g = [x_0 - X0; x_1 - F(z_0); ...; x_N - F(z_{N-1})]; parameters as ``parameters``.
+        """
+        import casadi as ca
+
+        N, nx, nu = self.N, self.nx, self.nu
+        nz = nx + nu
+        st = _stage_functions(self.shape)
+        mapped = lambda f, bcast, red=(): f.map(f.name() + "_map", "serial", N, list(bcast), list(red))  # noqa: E731
+        Mc, MF, Mgc = mapped(st["c"], [1], [0]), mapped(st["F"], [1]), mapped(st["grad_c"], [1])
+        MJ, MH = mapped(st["jac_F"], [1]), mapped(st["hess_L"], [1, 4])
+
+        w, p = ca.MX.sym("x", self.n_vars), ca.MX.sym("p", self.n_params)
+        lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", self.n_cons)
+        X0, Pc = p[:N_STATE], p[N_STATE:N_STATE + _N_COMMON]
+        o = N_STATE + _N_COMMON
+        ref, mask = ca.reshape(p[o:o + 3 * (N + 1)], 3, N + 1), p[o + 3 * (N + 1):]
+        Z, xN = ca.reshape(w[:N * nz], nz, N), w[N * nz:]
+        Xs = Z[:nx, :]
+        Xnext = ca.horzcat(Xs[:, 1:], xN)
+        rk, mk, rN, mN = ref[:, :N], mask[:N].T, ref[:, N], mask[N]
+
+        f = Mc(Z, Pc, rk, mk) + st["c_N"](xN, Pc, rN, mN)
+        g = ca.vertcat(Xs[:N_STATE, 0] - X0, ca.vec(Xnext - MF(Z, Pc)))
+        grad_f = ca.vertcat(ca.vec(Mgc(Z, Pc, rk, mk)), st["grad_c_N"](xN, Pc, rN, mN))
+        # Jacobian of g: nonzeros listed stage by stage, then permuted to casadi's column-major order
+        Fk, JF = MJ(Z, Pc)
+        jr, jc = st["jac_F_sp"].get_triplet()
+        rows = [*range(N_STATE)] + [N_STATE + k * nx + i for k in range(N) for i in jr] + \
+               [N_STATE + k * nx + i for k in range(N) for i in range(nx)]
+        cols = [*range(N_STATE)] + [k * nz + j for k in range(N) for j in jc] + \
+               [(k + 1) * nz + i for k in range(N) for i in range(nx)]
+        Asp = ca.Sparsity.triplet(self.n_cons, self.n_vars, rows, cols)
+        order = np.lexsort((np.asarray(rows), np.asarray(cols)))
+        values = ca.vertcat(ca.DM.ones(N_STATE), -ca.vec(JF), ca.DM.ones(N * nx))
+        jac_g = ca.MX(Asp, values[order.tolist()])
+        # Hessian of the Lagrangian sigma f + lambda' g: block diagonal (column-major = stage order)
+        Lam = ca.reshape(lam_g[N_STATE:], nx, N)  # multiplier of x_{k+1} - F(z_k)
+        gL, HL = MH(Z, Pc, rk, mk, lam_f, Lam)
+        lam_x = ca.horzcat(ca.vertcat(lam_g[:N_STATE], ca.MX.zeros(nx - N_STATE)), Lam[:, :N - 1])
+        gLN, HLN = st["hess_L_N"](xN, Pc, rN, mN, lam_f)
+        grad_L = ca.vertcat(ca.vec(gL + ca.vertcat(lam_x, ca.MX.zeros(nu, N))), gLN + Lam[:, N - 1])
+        Hb, HbN = st["hess_L_sp"], st["hess_L_N_sp"]
+        Hsp = ca.diagcat(*([ca.DM(Hb, 1)] * N + [ca.DM(HbN, 1)])).sparsity()
+        hess_L = ca.MX(Hsp, ca.vertcat(ca.vec(HL), HLN))
+
+        xp, xpl = ["x", "p"], ["x", "p", "lam_f", "lam_g"]
+        return {
+            "nlp": ca.Function("nlp", [w, p], [f, g], xp, ["f", "g"]),
+            "nlp_f": ca.Function("nlp_f", [w, p], [f], xp, ["f"]),
+            "nlp_g": ca.Function("nlp_g", [w, p], [g], xp, ["g"]),
+            "nlp_grad_f": ca.Function("nlp_grad_f", [w, p], [grad_f], xp, ["grad_f_x"]),
+            "nlp_jac_g": ca.Function("nlp_jac_g", [w, p], [g, jac_g], xp, ["g", "jac_g_x"]),
+            "nlp_hess_l": ca.Function("nlp_hess_l", [w, p, lam_f, lam_g], [grad_L, hess_L], xpl,
+                                      ["grad_gamma_x", "hess_gamma_x_x"]),
+            # multipliers of p (casadi builds nlpsol with it even when they are not computed)
+            "nlp_grad": ca.Function("nlp_grad", [w, p, lam_f, lam_g], [f, g, grad_L, ca.gradient(lam_f * f + ca.dot(lam_g, g), p)],
+                                    xpl, ["f", "g", "grad_gamma_x", "grad_gamma_p"]),
+        }
+
+    def _sx_nlp(self):
+        """The NLP expanded into casadi SX (IPOPT, and fatrop without a C compiler)."""
+        if getattr(self, "_nlp", None) is None:
+            self._nlp = self._nlp_functions()["nlp"].expand()
+        return self._nlp
+
     # -- solvers ---------------------------------------------------------------------------------
     def _solver(self, name: str):
         import casadi as ca
 
         if name not in self._solvers:
             if name == "fatrop":
-                opts = {"structure_detection": "auto", "expand": True, "equality": [True] * self.n_cons,
+                opts = {"structure_detection": "auto", "equality": [True] * self.n_cons,
                         "print_time": False, "show_eval_warnings": False,
                         "fatrop": {"print_level": 0, "tol": self.shape.tol, "max_iter": self.shape.max_iter}}
+                library = _compiled_library(self)
+                if library is not None:
+                    # multipliers of p, x and g are not used: skip computing them after each solve
+                    opts.update(calc_lam_p=False, calc_lam_x=False)
+                    self._solvers[name] = ca.nlpsol(f"walker_{name}", name, str(library), opts)
+                else:
+                    self._solvers[name] = ca.nlpsol(f"walker_{name}", name, self._sx_nlp(), {**opts, "expand": True})
             elif name == "ipopt":
                 opts = {"expand": True, "print_time": False, "show_eval_warnings": False,
                         "ipopt": {"print_level": 0, "sb": "yes", "tol": self.shape.tol, "max_iter": 2 * self.shape.max_iter}}
+                self._solvers[name] = ca.nlpsol(f"walker_{name}", name, self._sx_nlp(), opts)
             else:
                 raise ValueError(f"unknown solver {name!r}; expected one of {SOLVERS}")
-            self._solvers[name] = ca.nlpsol(f"walker_{name}", name, self._nlp, opts)
         return self._solvers[name]
 
     # -- parameters and guesses ------------------------------------------------------------------
@@ -241,6 +292,105 @@ class WalkerOCP:
         return OCPSolution(X=X[:, :ns].copy(), U=U.copy(), T=T, cost=f, success=ok,
                            status=str(st.get("return_status", st.get("unified_return_status", "?"))), solver=name,
                            iterations=int(st.get("iter_count", -1)), primal=w.copy())
+
+
+_N_COMMON = 3 + 1 + N_WEIGHTS + 2  # goal, T, a0..b3, tracking weights: the parameters every stage sees
+
+
+def _stage_functions(shape: OCPShape) -> dict[str, object]:
+    """Cost and dynamics of one interval and of the last node, with their exact derivatives
+    (casadi SX). z = (x, u); P = (goal, T, weights, tracking weights); r, m = tracking reference
+    and mask of the node; sigma, lam = multipliers of the cost and of x_{k+1} - F(z)."""
+    import casadi as ca
+
+    N, free = shape.n_intervals, shape.free_time
+    nx = N_STATE + (1 if free else 0)
+    z, xN = ca.SX.sym("z", nx + N_CONTROL), ca.SX.sym("xN", nx)
+    gl, Tp, ws, gs = ca.SX.sym("goal", 3), ca.SX.sym("T"), ca.SX.sym("w", N_WEIGHTS), ca.SX.sym("gw", 2)
+    P = ca.vertcat(gl, Tp, ws, gs)
+    r, m = ca.SX.sym("r", 3), ca.SX.sym("m")
+    sigma, lam = ca.SX.sym("sigma"), ca.SX.sym("lam", nx)
+
+    def terms(x):
+        dxg, dyg = gl[0] - x[0], gl[1] - x[1]
+        r2 = dxg**2 + dyg**2
+        ex = ca.cos(x[2]) * dxg + ca.sin(x[2]) * dyg
+        ey = -ca.sin(x[2]) * dxg + ca.cos(x[2]) * dyg
+        psi = ca.atan2(ey, ex)
+        track = gs[0] * ((r[0] - x[0])**2 + (r[1] - x[1])**2) + gs[1] * (r[2] - x[2])**2
+        dt = (ca.exp(x[N_STATE]) if free else Tp) / N
+        return r2, psi, gl[2] - x[2], track, dt
+
+    x, u = z[:nx], z[nx:]
+    r2, psi, dth, track, dt = terms(x)
+    running = (ws[0] + ws[1] * u[0]**2 + ws[2] * u[1]**2 + ws[3] * u[2]**2
+               + ws[4] * psi**2 * r2 / (r2 + shape.psi_eps**2) + ws[5] * r2 + ws[6] * dth**2)
+    c = dt * (running + m * track)
+    F = step(x[:N_STATE], u, dt, shape.dynamics)
+    if free:
+        F = ca.vertcat(F, x[N_STATE])  # log T is carried along
+    r2, _, dth, track, dt = terms(xN)
+    c_N = dt * m * track + ws[7] * r2 + ws[8] * dth**2 + ws[9] * (xN[3]**2 + xN[4]**2) + ws[10] * xN[5]**2
+    H, gL = ca.hessian(sigma * c - ca.dot(lam, F), z)
+    HN, gLN = ca.hessian(sigma * c_N, xN)
+    J = ca.jacobian(F, z)
+    # derivative matrices are returned as their structural nonzeros (column-major), patterns apart
+    return {
+        "jac_F_sp": J.sparsity(), "hess_L_sp": H.sparsity(), "hess_L_N_sp": HN.sparsity(),
+        "c": ca.Function("c", [z, P, r, m], [c]),
+        "F": ca.Function("F", [z, P], [F]),
+        "grad_c": ca.Function("grad_c", [z, P, r, m], [ca.gradient(c, z)]),
+        "jac_F": ca.Function("jac_F", [z, P], [F, J.nz[:]]),
+        "hess_L": ca.Function("hess_L", [z, P, r, m, sigma, lam], [gL, H.nz[:]]),
+        "c_N": ca.Function("c_N", [xN, P, r, m], [c_N]),
+        "grad_c_N": ca.Function("grad_c_N", [xN, P, r, m], [ca.gradient(c_N, xN)]),
+        "hess_L_N": ca.Function("hess_L_N", [xN, P, r, m, sigma], [gLN, HN.nz[:]]),
+    }
+
+
+def cache_dir() -> Path:
+    """Where compiled NLP libraries are kept: ``$COBOT_ANALYSIS_CACHE`` or ``~/.cache/cobot-analysis``."""
+    default = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "cobot-analysis"
+    return Path(os.environ.get("COBOT_ANALYSIS_CACHE", default)) / "ocp"
+
+
+_CFLAGS = ("-O2", "-fPIC", "-shared")
+_compile_failed: set[str] = set()  # compilers that failed once in this process: not retried
+
+
+def _compiled_library(ocp: WalkerOCP) -> Path | None:
+    """Path of the shared library with ``ocp``'s NLP functions, compiled on first use and cached
+    (file name = hash of the C source, compiler and flags). None when compilation is disabled
+    (``COBOT_ANALYSIS_OCP_COMPILE=0``), no C compiler is found, or it failed."""
+    import casadi as ca
+
+    if os.environ.get("COBOT_ANALYSIS_OCP_COMPILE", "1") == "0":
+        return None
+    cc = shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
+    if cc is None or cc in _compile_failed:
+        return None
+    gen = ca.CodeGenerator("walker_ocp.c", {"with_header": False})
+    for f in ocp._nlp_functions().values():
+        gen.add(f)
+    source = gen.dump()
+    key = hashlib.sha256("\n".join([source, cc, *_CFLAGS, ca.__version__]).encode()).hexdigest()[:24]
+    target = cache_dir() / f"walker_ocp_{key}.so"
+    if target.exists():
+        return target
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
+        c_file, so_file = Path(tmp) / "walker_ocp.c", Path(tmp) / "walker_ocp.so"
+        c_file.write_text(source)
+        run = subprocess.run([cc, *_CFLAGS, str(c_file), "-o", str(so_file), "-lm"], capture_output=True, text=True)
+        if run.returncode != 0:
+            from cobot_analysis.console import warn
+
+            _compile_failed.add(cc)
+            warn(f"compiling the OC solver's functions with {cc} failed; using casadi's virtual machine "
+                 f"(about 2x slower): {run.stderr.strip().splitlines()[-1] if run.stderr.strip() else run.returncode}")
+            return None
+        os.replace(so_file, target)  # atomic: concurrent builders of the same key write the same file
+    return target
 
 
 @lru_cache(maxsize=16)
