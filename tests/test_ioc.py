@@ -207,7 +207,7 @@ def test_fit_ioc_coupled_model_on_pair_means_with_roles_swapped_on_returns(tmp_p
     code, _, err = cli("fit-ioc", "--out", tmp_path / "ws", "--model", "coupled", "--means", src, "--intervals", "20",
                        "--fit", "a0", "--max-evaluations", "1", "-j", "1")
     assert code == 0, err
-    fitted = json.loads((tmp_path / "ws" / "fit-ioc" / "weights.json").read_text())["fits"]["all"]
+    fitted = json.loads((tmp_path / "ws" / "fit-ioc-coupled" / "weights.json").read_text())["fits"]["all"]
     # the goals are the measured end poses (soft terminal cost: not the generating goals), so the
     # generating weights come close without being exact
     assert fitted["start_objective"] < 0.1 and fitted["objective"] <= fitted["start_objective"]
