@@ -13,6 +13,7 @@ JOBS ?= 2
 BAGS ?=
 IOC_ARGS ?=
 PREDICT_ARGS ?=
+COUPLED_IOC_ARGS ?= --max-evaluations 600
 SPREDICT_ARGS ?= --every 10
 RESULTS_NOTE ?=
 LOC_ARGS ?=
@@ -60,6 +61,7 @@ pairs-published:
 	$(CLI) stats --out $(PAIRS)
 	$(CLI) reconstruct --out $(PAIRS) --wrt-table $(DATASETS)/pair-carriage-2022
 	$(CLI) fit-ioc --out $(PAIRS) --model table --jobs $(JOBS) $(IOC_ARGS)
+	$(CLI) fit-ioc --out $(PAIRS) --model coupled --jobs $(JOBS) $(COUPLED_IOC_ARGS)
 	$(CLI) predict --out $(PAIRS) --entity table --jobs $(JOBS) $(PREDICT_ARGS)
 	$(CLI) report pairs --out $(PAIRS) --to reports/pairs
 

@@ -8,6 +8,7 @@ docs/results.md). Sections whose data are absent say so instead of failing.
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +28,7 @@ def report_inputs(out: Path) -> dict[str, Path]:
         "stats": [out / "stats" / "stats.parquet"],
         "reconstruction": [out / "reconstruct" / "reconstruction.parquet"],
         "durations": [out / "import-published" / "durations.parquet"],
+        "coupled_ioc": [out / "fit-ioc-coupled" / "results.md"],  # fragment included as is (a changed fit redoes the report)
     }
     found = {}
     for name, paths in cands.items():
@@ -225,10 +227,13 @@ def build_report(study: str, inputs: dict, stage, out: Path) -> None:
              f"files: {', '.join(f'`{p.parent.name}/{p.name}`' for p in inputs.values())}.", ""]
     results: list[str] = []
     (_walking if study == "walking" else _pairs)(data, stage, lines, results)
-    for name in ("average", "compare", "reconstruct"):
+    for name in ("average", "compare", "reconstruct", "fit-ioc-coupled"):
         frag = Path(out) / name / "results.md"
         if frag.is_file():
             lines += [frag.read_text(), ""]
+            for fig in [*frag.parent.glob("*.png"), *frag.parent.glob("*.pdf")]:  # the fragment's figure links
+                if not stage.path(fig.name).exists():
+                    shutil.copy2(fig, stage.path(fig.name))
     _stats_section(data, lines)
     stage.path("README.md").write_text("\n".join(lines) + "\n")
     stage.path("results.md").write_text("\n".join(results) + "\n" if results else f"## {title}: report\n\nSee reports/{study}/README.md.\n")
