@@ -190,3 +190,70 @@ def test_coupled_carriers_start_at_rest_and_mirror_problems_give_mirrored_paths(
     assert np.abs(angle_diff(a.X[:, [2, 8]], math.pi - b.X[:, [2, 8]])).max() < 1e-3
     ends = np.hypot(a.X[-1, [0, 6]] - goal[:, 0], a.X[-1, [1, 7]] - goal[:, 1])
     assert ends.max() < 0.2  # m, soft terminal cost with the published weights
+
+
+# -- the compiled NLP functions (ocp._nlp_functions, ocp._compiled_library) ------------------------
+
+@pytest.mark.parametrize("shape", [OCPShape(7), OCPShape(6, "unicycle", free_time=True)])
+def test_hand_assembled_derivatives_equal_casadi_ad_of_the_nlp(shape, monkeypatch):
+    """f, g, grad f, jac g and the Lagrangian's gradient and Hessian that fatrop gets (assembled
+    from per-stage derivatives) equal casadi's AD of the whole NLP, values and sparsity."""
+    import casadi as ca
+
+    monkeypatch.setenv("COBOT_ANALYSIS_OCP_COMPILE", "0")
+    ocp = WalkerOCP(shape)
+    fs = ocp._nlp_functions()
+    nlp = fs["nlp"].expand()
+    x, p = ca.SX.sym("x", ocp.n_vars), ca.SX.sym("p", ocp.n_params)
+    lf, lg = ca.SX.sym("lf"), ca.SX.sym("lg", ocp.n_cons)
+    f, g = nlp(x, p)
+    H, gL = ca.hessian(lf * f + ca.dot(lg, g), x)
+    ref = ca.Function("ref", [x, p, lf, lg], [f, g, ca.gradient(f, x), ca.jacobian(g, x), gL, H])
+    rng = np.random.default_rng(1)
+    for _ in range(3):
+        xv, pv, lfv, lgv = rng.normal(size=ocp.n_vars), rng.normal(size=ocp.n_params), rng.uniform(0.5, 2), rng.normal(size=ocp.n_cons)
+        pv[6 + 3] = rng.uniform(1, 4)  # T > 0
+        want = ref(xv, pv, lfv, lgv)
+        got = [*fs["nlp"](xv, pv), fs["nlp_grad_f"](xv, pv), fs["nlp_jac_g"](xv, pv)[1], *fs["nlp_hess_l"](xv, pv, lfv, lgv)]
+        for a, b in zip(got, want):
+            assert a.sparsity() == b.sparsity()
+            assert np.allclose(np.asarray(ca.densify(a)), np.asarray(ca.densify(b)), rtol=1e-12, atol=1e-12)
+        assert np.array_equal(np.asarray(fs["nlp_jac_g"](xv, pv)[0]), np.asarray(want[1]))
+
+
+def test_compiled_and_virtual_machine_solvers_give_the_same_solution(tmp_path, monkeypatch):
+    monkeypatch.setenv("COBOT_ANALYSIS_CACHE", str(tmp_path))
+    compiled = WalkerOCP(OCPShape(40, free_time=True))
+    assert len(list((tmp_path / "ocp").glob("walker_ocp_*.so"))) == 1
+    monkeypatch.setenv("COBOT_ANALYSIS_OCP_COMPILE", "0")
+    vm = WalkerOCP(OCPShape(40, free_time=True))
+    for start in [(-1.5, -3.4, 0.0), (-0.6, -1.5, -math.pi / 2)]:
+        a, b = compiled.solve(start, GOAL, PUBLISHED, 3.0), vm.solve(start, GOAL, PUBLISHED, 3.0)
+        assert a.success and b.success and a.solver == b.solver == "fatrop"
+        assert a.iterations == b.iterations
+        assert a.cost == pytest.approx(b.cost, rel=1e-10) and a.T == pytest.approx(b.T, rel=1e-8)
+        assert np.abs(a.X - b.X).max() < 1e-7
+
+
+def test_compiled_library_is_reused_and_a_failing_compiler_falls_back(tmp_path, monkeypatch):
+    monkeypatch.setenv("COBOT_ANALYSIS_CACHE", str(tmp_path))
+    WalkerOCP(OCPShape(8))
+    (lib,) = (tmp_path / "ocp").glob("walker_ocp_*.so")
+    built = lib.stat().st_mtime_ns
+    again = WalkerOCP(OCPShape(8))  # same problem: the cached library is loaded, not rebuilt
+    assert lib.stat().st_mtime_ns == built and len(list((tmp_path / "ocp").iterdir())) == 1
+    monkeypatch.setenv("CC", "false")  # a "compiler" that always fails
+    fallback = WalkerOCP(OCPShape(8))
+    assert len(list((tmp_path / "ocp").iterdir())) == 1  # nothing half-written left behind
+    a, b = again.solve((-1.0, -1.0, 0.0), GOAL, PUBLISHED, 2.0), fallback.solve((-1.0, -1.0, 0.0), GOAL, PUBLISHED, 2.0)
+    assert a.success and b.success and a.cost == pytest.approx(b.cost, rel=1e-10)
+
+
+def test_guesses_rest_and_line():
+    ocp = get_ocp(OCPShape(100, free_time=True))
+    rest = ocp.guess((-1.0, -2.0, 0.5), GOAL, 3.0, "rest", start_velocity=(0.5, 0.0, 0.1))
+    line = ocp.guess((-1.0, -2.0, 0.5), GOAL, 3.0, "line")
+    assert np.all(rest[ocp._xi[:, :6]] == [-1.0, -2.0, 0.5, 0.5, 0.0, 0.1]) and np.all(rest[ocp._ui] == 0)
+    assert line[ocp._xi[0, :3]] == pytest.approx([-1.0, -2.0, 0.5]) and line[ocp._xi[-1, :3]] == pytest.approx(GOAL)
+    assert line[ocp._xi[50, :3]] == pytest.approx([-0.5, -1.0, (0.5 + math.pi / 2) / 2])
+    assert np.all(line[ocp._xi[:, 3:6]] == 0) and np.all(rest[ocp._xi[:, 6]] == math.log(3.0))

@@ -200,8 +200,8 @@ class WalkerOCP:
                         "fatrop": {"print_level": 0, "tol": self.shape.tol, "max_iter": self.shape.max_iter}}
                 library = _compiled_library(self)
                 if library is not None:
-                    # multipliers of p, x and g are not used: skip computing them after each solve
-                    opts.update(calc_lam_p=False, calc_lam_x=False)
+                    # only x and f are used: skip computing the multipliers and g after each solve
+                    opts.update(calc_lam_p=False, calc_lam_x=False, calc_f=False, calc_g=False)
                     self._solvers[name] = ca.nlpsol(f"walker_{name}", name, str(library), opts)
                 else:
                     self._solvers[name] = ca.nlpsol(f"walker_{name}", name, self._sx_nlp(), {**opts, "expand": True})
@@ -235,14 +235,14 @@ class WalkerOCP:
         """Initial guess: ``rest`` (every node at the start state, zero controls) or ``line``
         (poses interpolated linearly from start to goal, at rest)."""
         w = np.zeros(self.n_vars)
-        s = np.concatenate([np.asarray(start, float)[:3], np.asarray(start_velocity, float)])
-        for k in range(self.N + 1):
-            if kind == "line":
-                a = k / self.N
-                s = np.concatenate([(1 - a) * np.asarray(start, float)[:3] + a * np.asarray(goal, float), np.zeros(3)])
-            w[self._xi[k, :N_STATE]] = s
-            if self.shape.free_time:
-                w[self._xi[k, N_STATE]] = math.log(T)
+        start, goal = np.asarray(start, float)[:3], np.asarray(goal, float)
+        if kind == "line":
+            a = np.arange(self.N + 1)[:, None] / self.N
+            w[self._xi[:, :3]] = (1 - a) * start + a * goal
+        else:
+            w[self._xi[:, :N_STATE]] = np.concatenate([start, np.asarray(start_velocity, float)])
+        if self.shape.free_time:
+            w[self._xi[:, N_STATE]] = math.log(T)
         return w
 
     # -- solve -----------------------------------------------------------------------------------
