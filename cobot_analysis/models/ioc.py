@@ -313,8 +313,11 @@ class Checkpoint:
         os.replace(tmp, self.path)
 
 
+CHECKPOINT_FORMAT = 2  # 2: the logged terms carry T, T0 and T_at_bound (older logs are not resumed)
+
+
 def fit_key(spec: IOCSpec, targets: list[Target]) -> str:
-    h = hashlib.sha256(json.dumps(asdict(spec), sort_keys=True).encode())
+    h = hashlib.sha256(json.dumps({**asdict(spec), "format": CHECKPOINT_FORMAT}, sort_keys=True).encode())
     for t in targets:
         h.update(t.trial.encode())
         for c in getattr(t, "carriers", (t,)):
