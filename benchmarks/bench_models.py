@@ -1,6 +1,6 @@
 """Benchmarks of the walking OC solver and the IOC (docs/benchmarks.md, "Models and IOC").
 
-    python benchmarks/bench_models.py solver            # cold / warm / window / crocoddyl, side by side
+    python benchmarks/bench_models.py solver            # compiled vs VM; cold / warm / window / crocoddyl
     python benchmarks/bench_models.py ioc --data ../shared/datasets/walking-2020 [--subjects 10]
 
 Prints a Markdown block with the machine, the load average and the date. The IOC part runs the CLI
@@ -116,6 +116,61 @@ def bench_solver(n_nodes=(500, 100, 50)) -> str:
     return "\n".join(out)
 
 
+def bench_backends(n: int = 500) -> str:
+    """Compiled NLP functions vs casadi's SX virtual machine (``ocp.py``), same 6 problems, and where
+    the time of a compiled solve goes (fatrop's own timers; "casadi + Python" is the rest)."""
+    from cobot_analysis.models import solve_model
+    from cobot_analysis.models.ocp import OCPShape, WalkerOCP
+    from cobot_analysis.models.presets import PRESETS, weights_vector
+
+    w = weights_vector(PRESETS["walking-2021"])
+    w_near = w * np.r_[1.0, 1.05, 0.95, 1.0, 1.05, 1, 1, 0.95, 1.05, 1.0, 1.0]
+    Ts = {s: solve_model("improved", s, GOAL, w, n_intervals=100).T for s in STARTS}
+    rows, parts = [], {}
+    saved = {k: os.environ.get(k) for k in ("COBOT_ANALYSIS_OCP_COMPILE", "COBOT_ANALYSIS_CACHE")}
+    with tempfile.TemporaryDirectory() as cache:
+        for label, flag in (("SX virtual machine (before)", "0"), ("compiled stage functions, first build (compiles)", "1"),
+                            ("compiled stage functions", "1")):
+            os.environ["COBOT_ANALYSIS_OCP_COMPILE"], os.environ["COBOT_ANALYSIS_CACHE"] = flag, cache
+            t = time.perf_counter()
+            ocp = WalkerOCP(OCPShape(n))
+            build = time.perf_counter() - t
+            if "first" in label:
+                rows.append(f"| {label} | {build:.2f} | | | | |")
+                continue
+            cold, warm, zero, its = [], [], [], []
+            for s in STARTS:
+                dt, sol = timed(lambda: ocp.solve(s, GOAL, w, Ts[s], guess="rest"))
+                cold.append(dt)
+                its.append(sol.iterations)
+                if flag == "1":
+                    st = ocp._solver("fatrop").stats()["fatrop"]
+                    for k in ("time_total", "compute_sd_time", "initialization_time", "eval_hess_time", "eval_jac_time",
+                              "eval_grad_time", "eval_obj_time", "eval_cv_time"):
+                        parts.setdefault(k, []).append(st[k] / st["time_total"])
+                warm.append(timed(lambda: ocp.solve(s, GOAL, w_near, Ts[s], guess=sol.primal))[0])
+                zero.append(timed(lambda: ocp.solve(s, GOAL, w, Ts[s], guess=sol.primal))[0])
+            rows.append(f"| {label} | {build:.2f} | {1e3 * statistics.median(cold):.1f} ({1e3 * min(cold):.0f}-{1e3 * max(cold):.0f}) | "
+                        f"{statistics.median(its):.0f} | {1e3 * statistics.median(warm):.1f} | {1e3 * statistics.median(zero):.1f} |")
+    for k, v in saved.items():
+        if v is None:
+            os.environ.pop(k, None)
+        else:
+            os.environ[k] = v
+    share = {k: 100 * statistics.median(v) for k, v in parts.items()}
+    evals = sum(share[k] for k in ("eval_hess_time", "eval_jac_time", "eval_grad_time", "eval_obj_time", "eval_cv_time"))
+    return "\n".join([
+        f"{n} nodes, improved model, walking-2021 weights, 6 start poses, fatrop, medians of CPU time per solve (ms); "
+        "'at the solution' = a solve started at its own solution (0 iterations: the fixed cost of a call):", "",
+        "| NLP functions | build (s) | cold, fixed T* (min-max) | iterations | warm, 5 % weight change | at the solution |",
+        "|---|---|---|---|---|---|", *rows, "",
+        f"Where fatrop's time goes in a compiled cold solve (fatrop's own timers, median share over the 6 starts): "
+        f"search directions (Riccati factorisations and solves, blasfeo) {share['compute_sd_time']:.0f} %, "
+        f"initialisation (least-squares multiplier estimate: one more factorisation) {share['initialization_time']:.0f} %, "
+        f"function evaluations incl. copying them into fatrop's blocks {evals:.0f} %, "
+        f"rest (line search, residuals) {100 - share['compute_sd_time'] - share['initialization_time'] - evals:.0f} %.", ""])
+
+
 def run_cli(args, cwd) -> tuple[float, float]:
     """Wall time and CPU time (the command and its worker processes) of one CLI run."""
     import resource
@@ -162,6 +217,7 @@ def main() -> None:
     a = ap.parse_args()
     print(header(), "\n")
     if a.what in ("solver", "all"):
+        print(bench_backends(), flush=True)
         print(bench_solver(), flush=True)
     if a.what in ("ioc", "all"):
         print(bench_ioc(a.data, a.subjects, a.max_evaluations, a.subject_evaluations), flush=True)
