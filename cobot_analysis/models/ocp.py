@@ -275,13 +275,17 @@ class WalkerOCP:
         sol = None
         for name in names:
             with self._lock:
-                solver = self._solver(name)
-                res = solver(x0=w0, p=p, lbg=0.0, ubg=0.0, lbx=lbx, ubx=ubx)
-                st = solver.stats()
-            sol = self._unpack(np.asarray(res["x"]).ravel(), float(res["f"]), p, name, st)
+                w, f, st = self._call(name)(w0, p, lbx, ubx)
+            sol = self._unpack(w, f, p, name, st)
             if sol.success:
                 break
         return sol
+
+    def _call(self, name: str) -> "_BufferedCall":
+        calls = self.__dict__.setdefault("_calls", {})
+        if name not in calls:
+            calls[name] = _BufferedCall(self._solver(name), self.n_vars, self.n_params, self.n_cons)
+        return calls[name]
 
     def _unpack(self, w, f, p, name, st) -> OCPSolution:
         X = w[self._xi]
@@ -292,6 +296,30 @@ class WalkerOCP:
         return OCPSolution(X=X[:, :ns].copy(), U=U.copy(), T=T, cost=f, success=ok,
                            status=str(st.get("return_status", st.get("unified_return_status", "?"))), solver=name,
                            iterations=int(st.get("iter_count", -1)), primal=w.copy())
+
+
+class _BufferedCall:
+    """Calls an ``nlpsol`` solver with lbg = ubg = 0 through casadi's ``FunctionBuffer``: inputs and
+    outputs are numpy arrays casadi reads and writes in place (no conversion to and from DM, which
+    costs about 1 ms per call at 500 nodes). Not thread-safe: callers hold ``WalkerOCP._lock``."""
+
+    def __init__(self, solver, n_vars: int, n_params: int, n_cons: int):
+        self.buffer, self.run = solver.buffer()
+        self.x0, self.p = np.zeros(n_vars), np.zeros(n_params)
+        self.lbx, self.ubx = np.full(n_vars, -np.inf), np.full(n_vars, np.inf)
+        args = (self.x0, self.p, self.lbx, self.ubx, np.zeros(n_cons), np.zeros(n_cons), np.zeros(n_vars), np.zeros(n_cons))
+        self._args = args  # x0, p, lbx, ubx, lbg, ubg, lam_x0, lam_g0: kept alive while casadi points to them
+        for i, a in enumerate(args):
+            self.buffer.set_arg(i, memoryview(a))
+        self.x, self.f = np.zeros(n_vars), np.zeros(1)
+        self.buffer.set_res(0, memoryview(self.x))
+        self.buffer.set_res(1, memoryview(self.f))  # g and the multipliers are not requested
+
+    def __call__(self, w0, p, lbx, ubx) -> tuple[np.ndarray, float, dict]:
+        """Solve from ``w0``; returns the primal solution, the cost and the solver's stats."""
+        self.x0[:], self.p[:], self.lbx[:], self.ubx[:] = w0, p, lbx, ubx
+        self.run()
+        return self.x.copy(), float(self.f[0]), self.buffer.stats()
 
 
 _N_COMMON = 3 + 1 + N_WEIGHTS + 2  # goal, T, a0..b3, tracking weights: the parameters every stage sees
