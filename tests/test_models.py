@@ -245,8 +245,14 @@ def test_compiled_library_is_reused_and_a_failing_compiler_falls_back(tmp_path, 
     monkeypatch.setenv("CC", "false")  # a "compiler" that always fails
     fallback = WalkerOCP(OCPShape(8))
     assert len(list((tmp_path / "ocp").iterdir())) == 1  # nothing half-written left behind
-    a, b = again.solve((-1.0, -1.0, 0.0), GOAL, PUBLISHED, 2.0), fallback.solve((-1.0, -1.0, 0.0), GOAL, PUBLISHED, 2.0)
-    assert a.success and b.success and a.cost == pytest.approx(b.cost, rel=1e-10)
+    monkeypatch.setenv("CC", "cc")
+    (tmp_path / "file").write_text("")
+    monkeypatch.setenv("COBOT_ANALYSIS_CACHE", str(tmp_path / "file"))  # cache not creatable
+    unwritable = WalkerOCP(OCPShape(8))
+    for ocp in (fallback, unwritable):
+        assert getattr(ocp, "_nlp", None) is not None and getattr(again, "_nlp", None) is None  # SX NLP built: VM in use
+        a, b = again.solve((-1.0, -1.0, 0.0), GOAL, PUBLISHED, 2.0), ocp.solve((-1.0, -1.0, 0.0), GOAL, PUBLISHED, 2.0)
+        assert a.success and b.success and a.cost == pytest.approx(b.cost, rel=1e-10)
 
 
 def test_guesses_rest_and_line():

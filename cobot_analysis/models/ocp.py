@@ -383,7 +383,7 @@ def cache_dir() -> Path:
 
 
 _CFLAGS = ("-O2", "-fPIC", "-shared")
-_compile_failed: set[str] = set()  # compilers that failed once in this process: not retried
+_compile_failed: set[tuple[str, Path]] = set()  # (compiler, cache) pairs that failed in this process: not retried
 
 
 def _compiled_library(ocp: WalkerOCP) -> Path | None:
@@ -395,7 +395,7 @@ def _compiled_library(ocp: WalkerOCP) -> Path | None:
     if os.environ.get("COBOT_ANALYSIS_OCP_COMPILE", "1") == "0":
         return None
     cc = shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
-    if cc is None or cc in _compile_failed:
+    if cc is None or (cc, cache_dir()) in _compile_failed:
         return None
     gen = ca.CodeGenerator("walker_ocp.c", {"with_header": False})
     for f in ocp._nlp_functions().values():
@@ -405,19 +405,22 @@ def _compiled_library(ocp: WalkerOCP) -> Path | None:
     target = cache_dir() / f"walker_ocp_{key}.so"
     if target.exists():
         return target
-    target.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
-        c_file, so_file = Path(tmp) / "walker_ocp.c", Path(tmp) / "walker_ocp.so"
-        c_file.write_text(source)
-        run = subprocess.run([cc, *_CFLAGS, str(c_file), "-o", str(so_file), "-lm"], capture_output=True, text=True)
-        if run.returncode != 0:
-            from cobot_analysis.console import warn
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
+            c_file, so_file = Path(tmp) / "walker_ocp.c", Path(tmp) / "walker_ocp.so"
+            c_file.write_text(source)
+            run = subprocess.run([cc, *_CFLAGS, str(c_file), "-o", str(so_file), "-lm"], capture_output=True, text=True)
+            if run.returncode != 0:
+                raise OSError(run.stderr.strip().splitlines()[-1] if run.stderr.strip() else f"exit code {run.returncode}")
+            os.replace(so_file, target)  # atomic: concurrent builders of the same key write the same file
+    except OSError as e:
+        from cobot_analysis.console import warn
 
-            _compile_failed.add(cc)
-            warn(f"compiling the OC solver's functions with {cc} failed; using casadi's virtual machine "
-                 f"(about 2x slower): {run.stderr.strip().splitlines()[-1] if run.stderr.strip() else run.returncode}")
-            return None
-        os.replace(so_file, target)  # atomic: concurrent builders of the same key write the same file
+        _compile_failed.add((cc, cache_dir()))
+        warn(f"compiling the OC solver's functions with {cc} into {target.parent} failed ({e}); "
+             "using casadi's virtual machine (about 2x slower)")
+        return None
     return target
 
 
