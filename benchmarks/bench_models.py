@@ -144,7 +144,7 @@ def bench_backends(n: int = 500) -> str:
                 cold.append(dt)
                 its.append(sol.iterations)
                 if flag == "1":
-                    st = ocp._solver("fatrop").stats()["fatrop"]
+                    st = ocp._call("fatrop").buffer.stats()["fatrop"]
                     for k in ("time_total", "compute_sd_time", "initialization_time", "eval_hess_time", "eval_jac_time",
                               "eval_grad_time", "eval_obj_time", "eval_cv_time"):
                         parts.setdefault(k, []).append(st[k] / st["time_total"])
