@@ -116,9 +116,10 @@ def bench_solver(n_nodes=(500, 100, 50)) -> str:
     return "\n".join(out)
 
 
-def bench_backends(n: int = 500) -> str:
-    """Compiled NLP functions vs casadi's SX virtual machine (``ocp.py``), same 6 problems, and where
-    the time of a compiled solve goes (fatrop's own timers; "casadi + Python" is the rest)."""
+def bench_backends(n: int = 500, repeat: int = 9) -> str:
+    """Compiled NLP functions vs casadi's SX virtual machine (``ocp.py``) on the same 6 problems,
+    measured interleaved (each repeat runs both backends back to back, so both see the same load),
+    and where the time of a compiled solve goes (fatrop's own timers)."""
     from cobot_analysis.models import solve_model
     from cobot_analysis.models.ocp import OCPShape, WalkerOCP, get_ocp
     from cobot_analysis.models.presets import PRESETS, weights_vector
@@ -126,50 +127,66 @@ def bench_backends(n: int = 500) -> str:
     w = weights_vector(PRESETS["walking-2021"])
     w_near = w * np.r_[1.0, 1.05, 0.95, 1.0, 1.05, 1, 1, 0.95, 1.05, 1.0, 1.0]
     Ts = {s: solve_model("improved", s, GOAL, w, n_intervals=100).T for s in STARTS}
-    rows, parts = [], {}
     saved = {k: os.environ.get(k) for k in ("COBOT_ANALYSIS_OCP_COMPILE", "COBOT_ANALYSIS_CACHE")}
+    ocps, build = {}, {}
     with tempfile.TemporaryDirectory() as cache:
-        for label, flag in (("SX virtual machine (before)", "0"), ("compiled stage functions, first build (compiles)", "1"),
-                            ("compiled stage functions", "1")):
+        for label, flag in (("vm", "0"), ("first", "1"), ("cc", "1")):  # "first" compiles, "cc" loads the cached library
             os.environ["COBOT_ANALYSIS_OCP_COMPILE"], os.environ["COBOT_ANALYSIS_CACHE"] = flag, cache
-            get_ocp.cache_clear()  # guess="coarse" solves on get_ocp's 50-interval problem: same backend
+            get_ocp.cache_clear()  # guess="coarse" solves on get_ocp's 50-interval problem: compiled too
             t = time.perf_counter()
-            ocp = WalkerOCP(OCPShape(n))
-            build = time.perf_counter() - t
-            if "first" in label:
-                rows.append(f"| {label} | {build:.2f} | | | | | |")
-                continue
-            cold, warm, zero, its, coarse, same = [], [], [], [], [], 0
-            for s in STARTS:
-                dt, sol = timed(lambda: ocp.solve(s, GOAL, w, Ts[s], guess="rest"))
-                cold.append(dt)
-                its.append(sol.iterations)
-                if flag == "1":
-                    st = ocp._call("fatrop").buffer.stats()["fatrop"]
-                    for k in ("time_total", "compute_sd_time", "initialization_time", "eval_hess_time", "eval_jac_time",
-                              "eval_grad_time", "eval_obj_time", "eval_cv_time"):
-                        parts.setdefault(k, []).append(st[k] / st["time_total"])
-                warm.append(timed(lambda: ocp.solve(s, GOAL, w_near, Ts[s], guess=sol.primal))[0])
-                zero.append(timed(lambda: ocp.solve(s, GOAL, w, Ts[s], guess=sol.primal))[0])
-                dt, cs = timed(lambda: ocp.solve(s, GOAL, w, Ts[s], guess="coarse"))
-                coarse.append(dt)
-                same += abs(cs.cost - sol.cost) < 1e-6 * sol.cost
-            rows.append(f"| {label} | {build:.2f} | {1e3 * statistics.median(cold):.1f} ({1e3 * min(cold):.0f}-{1e3 * max(cold):.0f}) | "
-                        f"{statistics.median(its):.0f} | {1e3 * statistics.median(warm):.1f} | {1e3 * statistics.median(zero):.1f} | "
-                        f"{1e3 * statistics.median(coarse):.1f} ({same} of {len(STARTS)}) |")
+            ocps[label] = WalkerOCP(OCPShape(n))
+            build[label] = time.perf_counter() - t
+        del ocps["first"]
+        cases = {("vm", "cold"), ("vm", "warm"), ("vm", "zero"), ("cc", "cold"), ("cc", "warm"), ("cc", "zero"), ("cc", "coarse")}
+        times = {c: [] for c in cases}  # per case: per start, the list of repeats
+        its, parts, same = {"vm": [], "cc": []}, {}, 0
+        for s in STARTS:
+            for c in cases:
+                times[c].append([])
+            for r in range(repeat):
+                for b, ocp in ocps.items():
+                    t = time.process_time()
+                    sol = ocp.solve(s, GOAL, w, Ts[s], guess="rest")
+                    times[b, "cold"][-1].append(time.process_time() - t)
+                    if b == "cc" and r == 0:
+                        st = ocp._call("fatrop").buffer.stats()["fatrop"]
+                        for k in ("compute_sd_time", "initialization_time", "eval_hess_time", "eval_jac_time",
+                                  "eval_grad_time", "eval_obj_time", "eval_cv_time"):
+                            parts.setdefault(k, []).append(st[k] / st["time_total"])
+                    if r == 0:
+                        its[b].append(sol.iterations)
+                    for case, kw in (("warm", dict(weights=w_near, guess=sol.primal)), ("zero", dict(weights=w, guess=sol.primal)),
+                                     ("coarse", dict(weights=w, guess="coarse"))):
+                        if (b, case) in cases:
+                            t = time.process_time()
+                            other = ocp.solve(s, GOAL, T=Ts[s], **kw)
+                            times[b, case][-1].append(time.process_time() - t)
+                            same += case == "coarse" and r == 0 and abs(other.cost - sol.cost) < 1e-6 * sol.cost
     get_ocp.cache_clear()
     for k, v in saved.items():
         if v is None:
             os.environ.pop(k, None)
         else:
             os.environ[k] = v
+
+    def cell(b, case):  # median over starts of the per-start median / minimum over the repeats
+        if (b, case) not in times:
+            return ""
+        return (f"{1e3 * statistics.median(statistics.median(x) for x in times[b, case]):.1f} / "
+                f"{1e3 * statistics.median(min(x) for x in times[b, case]):.1f}")
+
+    rows = [f"| SX virtual machine (as before; same call path) | {build['vm']:.2f} | {cell('vm', 'cold')} | {statistics.median(its['vm']):.0f} | "
+            f"{cell('vm', 'warm')} | {cell('vm', 'zero')} | |",
+            f"| compiled stage functions | {build['cc']:.2f} ({build['first']:.2f} with the compilation) | {cell('cc', 'cold')} | "
+            f"{statistics.median(its['cc']):.0f} | {cell('cc', 'warm')} | {cell('cc', 'zero')} | {cell('cc', 'coarse')} |"]
     share = {k: 100 * statistics.median(v) for k, v in parts.items()}
     evals = sum(share[k] for k in ("eval_hess_time", "eval_jac_time", "eval_grad_time", "eval_obj_time", "eval_cv_time"))
     return "\n".join([
-        f"{n} nodes, improved model, walking-2021 weights, 6 start poses, fatrop, medians of CPU time per solve (ms); "
-        "'at the solution' = a solve started at its own solution (0 iterations: the fixed cost of a call):", "",
-        "| NLP functions | build (s) | cold, fixed T* (min-max) | iterations | warm, 5 % weight change | at the solution | "
-        "cold, guess='coarse' (starts at the rest-guess optimum) |",
+        f"{n} nodes, improved model, walking-2021 weights, 6 start poses, fatrop, CPU time per solve (ms): median over the starts "
+        f"of the per-start median / minimum over {repeat} repeats (the minimum is what a less loaded core gives). "
+        "'at the solution' = a solve started at its own solution (0 iterations: the fixed cost of a call); "
+        f"guess='coarse' reached the rest-guess optimum on {same} of {len(STARTS)} starts:", "",
+        "| NLP functions | build (s) | cold, fixed T* | iterations | warm, 5 % weight change | at the solution | cold, guess='coarse' |",
         "|---|---|---|---|---|---|---|", *rows, "",
         f"Where fatrop's time goes in a compiled cold solve (fatrop's own timers, median share over the 6 starts): "
         f"search directions (Riccati factorisations and solves, blasfeo) {share['compute_sd_time']:.0f} %, "
