@@ -152,6 +152,7 @@ def fit_ioc_command(
     subjects: Annotated[Optional[int], typer.Option("--subjects", min=1, help="With --per subject: fit only the first N subjects.")] = None,
     goal: Annotated[GoalChoice, typer.Option("--goal", help="Goal of each OC problem: design (walking goal 0 0 pi/2), end (last measured pose), auto (design for walking conditions).")] = GoalChoice.auto,
     intervals: Annotated[int, typer.Option("--intervals", min=10, help="Intervals of the OC grid (50: 2-12 mm from a 500-interval solve).")] = 50,
+    v_nominal: Annotated[float, typer.Option("--v-nominal", min=0.05, help="Nominal speed (m/s) of T0 = distance / v + 1 s; the free duration T is bounded to (0.4, 2.5) x T0.")] = 1.0,
     compare: Annotated[bool, typer.Option("--compare/--no-compare", help="Compare unicycle, clothoid, Mombaur, published and fitted models.")] = True,
     resume: Annotated[bool, typer.Option("--resume", help="Continue from the checkpoint of an interrupted run with the same inputs and options.")] = False,
     seed: SeedOpt = 0,
@@ -255,7 +256,7 @@ def fit_ioc_command(
             raise InputError("no subject trajectory with orientation", path=traj_path, remedy="check the input table")
 
     spec = IOCSpec(model=model, start_weights=tuple(map(float, w0)), fitted=names, optimizer=optimizer.value,
-                   max_evaluations=max_evaluations, n_intervals=intervals)
+                   max_evaluations=max_evaluations, n_intervals=intervals, v_nominal=v_nominal)
     inputs = [p for p in (means, traj_path) if p is not None]
     if start_weights and Path(start_weights).is_file():
         inputs.append(Path(start_weights))
@@ -350,12 +351,17 @@ def fit_ioc_command(
                          + " | ".join(f"{r.weights[n]:.3g}" for n in names) + " |")
         lines.append("")
         for k, r in results.items():
-            lines += [("" if per is Per.all else f"Fit {k}: ") + duration_flag(r.per_target)
+            lines += [("" if per is Per.all else f"Fit {k}: ") + duration_flag(r.per_target, v_nominal)
                       + (f" Optimiser: {r.message.strip()}" if per is Per.all else ""), ""]
         if coupled is not None:
             from cobot_analysis.models.report import coupled_section
 
-            lines += coupled_section(results["all"], coupled, mean_targets, stage)
+            durations = None
+            try:
+                durations = pd.read_parquet(find_input(out, "durations.parquet", ["import-published"], "--means"))
+            except InputError:
+                pass  # no published durations (e.g. a synthetic pair study): the section says so
+            lines += coupled_section(results["all"], coupled, mean_targets, stage, durations)
         if comparison is not None:
             lines += ["### Model comparison on the mean trajectories", "", summary_table(comparison, angle),
                       "### Statistics", "", statistics(comparison, list(models)[-1], angle)]

@@ -154,6 +154,7 @@ class IOCSpec:
     n_intervals: int = 50  # 50 vs 500 intervals: 2-12 mm apart (d_xy) on the published weights
     angle_weight: float = 0.5
     max_iter: int = 200  # lower-level iteration limit (a solve that hits it is retried cold, then failed)
+    v_nominal: float = 1.0  # m/s: T0 = distance / v_nominal + 1 s, the free T is bounded to T_BOUNDS x T0
 
     @property
     def angle(self) -> str:
@@ -201,9 +202,10 @@ def solve_pair_target(spec: IOCSpec, w: np.ndarray, t: PairTarget, guess):
     from cobot_analysis.models.coupled import initial_pair_duration, solve_pair
     from cobot_analysis.models.ocp import OCPSolution
 
-    sol = solve_pair(t.start, t.goal, w, n_intervals=spec.n_intervals, guess=guess, max_iter=spec.max_iter)
+    kw = {"n_intervals": spec.n_intervals, "max_iter": spec.max_iter, "v_nominal": spec.v_nominal}
+    sol = solve_pair(t.start, t.goal, w, guess=guess, **kw)
     if not sol.success and not isinstance(guess, str):
-        sol = solve_pair(t.start, t.goal, w, n_intervals=spec.n_intervals, max_iter=spec.max_iter)
+        sol = solve_pair(t.start, t.goal, w, **kw)
     if not sol.success:
         return _failed(), sol
     d = {"d_xy": 0.0, "d_theta": 0.0, "d_gamma": 0.0}
@@ -214,7 +216,7 @@ def solve_pair_target(spec: IOCSpec, w: np.ndarray, t: PairTarget, guess):
             d[k] += v
             d[f"{k}_{i + 1}"] = v
     d["D"] = d["d_xy"] + spec.angle_weight * d["d_theta"]
-    d.update(duration_terms(sol.T, initial_pair_duration(t.start, t.goal)))
+    d.update(duration_terms(sol.T, initial_pair_duration(t.start, t.goal, spec.v_nominal)))
     d["success"] = True
     return d, sol
 
@@ -227,7 +229,7 @@ def solve_target(spec: IOCSpec, w: np.ndarray, t: Target, guess):
     if spec.model == "coupled":
         return solve_pair_target(spec, w, t, guess)
     model = "table" if spec.model == "table" else "improved"
-    kw = {"n_intervals": spec.n_intervals, "duration": "free", "max_iter": spec.max_iter}
+    kw = {"n_intervals": spec.n_intervals, "duration": "free", "max_iter": spec.max_iter, "v_nominal": spec.v_nominal}
     sol = solve_model(model, t.start, t.goal, w, guess=guess, **kw)
     if not sol.success and not isinstance(guess, str):
         sol = solve_model(model, t.start, t.goal, w, guess=("rest", "line"), **kw)
@@ -236,7 +238,7 @@ def solve_target(spec: IOCSpec, w: np.ndarray, t: Target, guess):
     r = resample(sol, len(t.x))
     d = distances(t, r["x"], r["y"], r["theta"])
     d["D"] = d["d_xy"] + spec.angle_weight * d[f"d_{spec.angle}"]
-    d.update(duration_terms(sol.T, initial_duration(t.start, t.goal)))
+    d.update(duration_terms(sol.T, initial_duration(t.start, t.goal, spec.v_nominal)))
     d["success"] = True
     return d, sol
 

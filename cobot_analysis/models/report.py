@@ -199,7 +199,7 @@ def figure_boxplots(df: pd.DataFrame, angle: str = "gamma"):
 
 
 # ---- T at its bound (every model) ----------------------------------------------------------------
-def duration_flag(terms: list[dict]) -> str:
+def duration_flag(terms: list[dict], v_nominal: float = 1.0) -> str:
     """Markdown line: how many converged lower levels put the free duration T on a bound of
     ``ioc.T_BOUNDS`` x T0 (there the fitted weights ask for a duration the problem does not allow)."""
     from cobot_analysis.models.ioc import T_BOUNDS
@@ -210,7 +210,7 @@ def duration_flag(terms: list[dict]) -> str:
     ratio = [d["T"] / d["T0"] for d in ok if d.get("T0")]
     span = f"; T / T0 from {min(ratio):.2f} to {max(ratio):.2f}" if ratio else ""
     head = (f"**Warning: fitted duration T at its bound** ({T_BOUNDS[0]:g}, {T_BOUNDS[1]:g}) x T0 (T0 = start-goal "
-            f"distance / 1 m/s + 1 s)" if lo + hi else f"Fitted duration T inside its bounds ({T_BOUNDS[0]:g}, {T_BOUNDS[1]:g}) x T0")
+            f"distance / {v_nominal:g} m/s + 1 s)" if lo + hi else f"Fitted duration T inside its bounds ({T_BOUNDS[0]:g}, {T_BOUNDS[1]:g}) x T0")
     return f"{head}: {lo + hi} of {len(ok)} paths ({lo} at the lower, {hi} at the upper bound){span}."
 
 
@@ -312,9 +312,10 @@ def figure_pair_paths(targets, paths: dict[str, list], title: str):
     return fig
 
 
-def coupled_section(result, coupled, targets, stage) -> list[str]:
+def coupled_section(result, coupled, targets, stage, durations: pd.DataFrame | None = None) -> list[str]:
     """results.md lines of the coupled fit: paths used, D before / after, weights beside the published
-    ones, per-carrier distances by direction, and the figure ``pair_paths`` (a few goals)."""
+    ones, per-carrier distances by direction, model durations T beside the measured scenario-3 trial
+    durations (``durations``: the published durations table, optional), and the figure ``pair_paths``."""
     from cobot_analysis.models.presets import COUPLED_WEIGHTS, PRESETS
 
     df, paths = coupled
@@ -335,11 +336,7 @@ def coupled_section(result, coupled, targets, stage) -> list[str]:
              "Both weight sets re-solved from cold guesses (best of 'rest' and 'line'): mean D "
              + ", ".join(f"{m} {v:.4f}" for m, v in D.items()) + ".", "",
              coupled_summary(df)]
-    for model, g in df[df["carrier"] == 1].groupby("model", sort=False):
-        ok = g[g["converged"].astype(bool)]
-        lines.append(f"- {model}: T at its bound on {int((ok['T_at_bound'] != 0).sum())} of {len(ok)} paths; "
-                     f"T {ok['T'].min():.2f}-{ok['T'].max():.2f} s.")
-    lines.append("")
+    lines += duration_lines(df, targets, durations, spec.v_nominal)
     conditions = list(dict.fromkeys(t.condition for t in targets))
     picked = [conditions[int(i)] for i in np.unique(np.linspace(0, len(conditions) - 1, min(4, len(conditions))).round())]
     idx = [next(i for i, t in enumerate(targets) if t.condition == c and t.direction == d)
@@ -350,3 +347,43 @@ def coupled_section(result, coupled, targets, stage) -> list[str]:
               f"*Mean and generated paths of both carriers for {len(picked)} goals, forward and return* "
               "([PDF](pair_paths.pdf))", ""]
     return lines
+
+
+def duration_lines(df: pd.DataFrame, targets, durations: pd.DataFrame | None, v_nominal: float) -> list[str]:
+    """Markdown: duration T of the pair's OC solutions per weight set and direction, how many sit on a
+    bound of ``T_BOUNDS`` x T0, and the measured scenario-3 durations (mean over the pairs' trials of
+    the same goal, configuration and direction) in units of T0."""
+    from cobot_analysis.models.coupled import initial_pair_duration
+    from cobot_analysis.models.ioc import T_BOUNDS
+
+    T0 = {t.trial: initial_pair_duration(t.start, t.goal, v_nominal) for t in targets}
+    lines = [f"Duration T of the pair (free, bounded to ({T_BOUNDS[0]:g}, {T_BOUNDS[1]:g}) x T0, T0 = longest carrier "
+             f"distance / {v_nominal:g} m/s + 1 s; s, mean ± sd over the mean paths):", "",
+             "| | forward | return | on a bound |", "|---|---|---|---|"]
+    for model, g in df[df["carrier"] == 1].groupby("model", sort=False):
+        ok = g[g["converged"].astype(bool)]
+        cells = [_ms(ok.loc[ok["direction"] == dr, "T"], 2) for dr in ("forward", "return")]
+        lines.append(f"| {model} | {cells[0]} | {cells[1]} | {int((ok['T_at_bound'] != 0).sum())} of {len(ok)} |")
+    if durations is not None and {"scenario", "condition", "direction", "duration"} <= set(durations.columns):
+        sc3 = durations[durations["scenario"] == 3]
+        rows = []
+        for t in targets:
+            m = sc3[(sc3["condition"] == t.condition) & (sc3["direction"] == t.direction)]["duration"].dropna()
+            if len(m):
+                rows.append({"direction": t.direction, "T": m.mean(), "ratio": m.mean() / T0[t.trial]})
+        meas = pd.DataFrame(rows)
+        if len(meas):
+            cells = [_ms(meas.loc[meas["direction"] == dr, "T"], 2) for dr in ("forward", "return")]
+            over = int((meas["ratio"] > T_BOUNDS[1]).sum())
+            lines += [f"| measured (durations.parquet, scenario 3, mean over trials per goal and direction) | {cells[0]} | "
+                      f"{cells[1]} | {over} of {len(meas)} above {T_BOUNDS[1]:g} x T0 |", "",
+                      f"Measured duration / T0 from {meas['ratio'].min():.2f} to {meas['ratio'].max():.2f}."]
+            for model, g in df[(df["carrier"] == 1) & df["converged"].astype(bool)].groupby("model", sort=False):
+                k = int((g["T_at_bound"] != 0).sum())
+                if k:
+                    lines[-1] += (f" {model}: {k} of {len(g)} durations on a bound, {g['T'].mean() / meas['T'].mean():.1f} x "
+                                  "the measured ones on average. D compares time-normalised paths and does not see the "
+                                  "duration: these weights describe the shape of the paths, not their timing.")
+    else:
+        lines += ["", "No published trial durations in this workspace (import-published/durations.parquet)."]
+    return lines + [""]
