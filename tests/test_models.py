@@ -211,7 +211,8 @@ def test_hand_assembled_derivatives_equal_casadi_ad_of_the_nlp(shape, monkeypatc
     ref = ca.Function("ref", [x, p, lf, lg], [f, g, ca.gradient(f, x), ca.jacobian(g, x), gL, H])
     rng = np.random.default_rng(1)
     for _ in range(3):
-        xv, pv, lfv, lgv = rng.normal(size=ocp.n_vars), rng.normal(size=ocp.n_params), rng.uniform(0.5, 2), rng.normal(size=ocp.n_cons)
+        xv, pv = rng.normal(size=ocp.n_vars), rng.normal(size=ocp.n_params)
+        lfv, lgv = rng.uniform(0.5, 2), rng.normal(size=ocp.n_cons)
         pv[6 + 3] = rng.uniform(1, 4)  # T > 0
         want = ref(xv, pv, lfv, lgv)
         got = [*fs["nlp"](xv, pv), fs["nlp_grad_f"](xv, pv), fs["nlp_jac_g"](xv, pv)[1], *fs["nlp_hess_l"](xv, pv, lfv, lgv)]

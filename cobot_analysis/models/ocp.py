@@ -38,7 +38,7 @@ fatrop calls are assembled from ``map`` of the stage functions and of their exac
 then generated as C (a loop over the stages, not the unrolled NLP), compiled once per machine
 with the system C compiler and cached on disk (``cache_dir()``, keyed by a hash of the C source).
 Without a compiler, or with ``COBOT_ANALYSIS_OCP_COMPILE=0``, the same NLP is expanded into
-casadi's SX virtual machine (about 2x slower per solve, identical results).
+casadi's SX virtual machine (about 2x slower per solve, the same iterates).
 """
 
 from __future__ import annotations
@@ -151,6 +151,7 @@ class WalkerOCP:
         grad_f = ca.vertcat(ca.vec(Mgc(Z, Pc, rk, mk)), st["grad_c_N"](xN, Pc, rN, mN))
         # Jacobian of g: nonzeros listed stage by stage, then permuted to casadi's column-major order
         Fk, JF = MJ(Z, Pc)
+        g_again = ca.vertcat(Xs[:N_STATE, 0] - X0, ca.vec(Xnext - Fk))  # g from the same stage calls
         jr, jc = st["jac_F_sp"].get_triplet()
         rows = [*range(N_STATE)] + [N_STATE + k * nx + i for k in range(N) for i in jr] + \
                [N_STATE + k * nx + i for k in range(N) for i in range(nx)]
@@ -176,11 +177,12 @@ class WalkerOCP:
             "nlp_f": ca.Function("nlp_f", [w, p], [f], xp, ["f"]),
             "nlp_g": ca.Function("nlp_g", [w, p], [g], xp, ["g"]),
             "nlp_grad_f": ca.Function("nlp_grad_f", [w, p], [grad_f], xp, ["grad_f_x"]),
-            "nlp_jac_g": ca.Function("nlp_jac_g", [w, p], [g, jac_g], xp, ["g", "jac_g_x"]),
+            "nlp_jac_g": ca.Function("nlp_jac_g", [w, p], [g_again, jac_g], xp, ["g", "jac_g_x"]),
             "nlp_hess_l": ca.Function("nlp_hess_l", [w, p, lam_f, lam_g], [grad_L, hess_L], xpl,
                                       ["grad_gamma_x", "hess_gamma_x_x"]),
             # multipliers of p (casadi builds nlpsol with it even when they are not computed)
-            "nlp_grad": ca.Function("nlp_grad", [w, p, lam_f, lam_g], [f, g, grad_L, ca.gradient(lam_f * f + ca.dot(lam_g, g), p)],
+            "nlp_grad": ca.Function("nlp_grad", [w, p, lam_f, lam_g],
+                                    [f, g, grad_L, ca.gradient(lam_f * f + ca.dot(lam_g, g), p)],
                                     xpl, ["f", "g", "grad_gamma_x", "grad_gamma_p"]),
         }
 
