@@ -164,8 +164,10 @@ def fit_ioc_command(
 
     Writes OUT/fit-ioc/weights.json (all fits) and weights/<fit>.json (each usable as --weights),
     distances.parquet (per trajectory and model), fits.csv (objective, evaluations and weights per
-    fit), figures and results.md. The log of upper-level evaluations is checkpointed in
-    OUT/.fit-ioc.checkpoint after every upper-level iteration (--resume continues from it).
+    fit), figures and results.md. The coupled model writes the same into OUT/fit-ioc-coupled/ (the
+    table or walker fit in OUT/fit-ioc/ stays), with the distances of each carrier. The log of
+    upper-level evaluations is checkpointed in OUT/.fit-ioc.checkpoint (.fit-ioc-coupled.checkpoint)
+    after every upper-level iteration (--resume continues from it).
     """
     import json
 
