@@ -135,3 +135,13 @@ def test_coupled_fit_has_its_own_stage_and_every_report_flags_T_at_its_bound(tmp
     fwd = dist[dist.direction == "forward"].sort_values(["model", "condition", "carrier"])["d_xy"].to_numpy()
     rev = dist[dist.direction == "return"].sort_values(["model", "condition", "carrier"])["d_xy"].to_numpy()
     assert np.allclose(fwd, rev, atol=1e-9)  # same problem after the swap
+
+
+def test_coupled_fit_refuses_means_without_both_carriers(tmp_path, cli):
+    df = _pair_means(_planted(W)[:1])
+    src = write_table(df[df.entity != "subject2"], tmp_path / "one_carrier.parquet", TRAJECTORIES)
+    out = tmp_path / "ws"
+    code, _, err = cli("fit-ioc", "--out", out, "--model", "coupled", "--means", src, "--max-evaluations", "1", "-j", "1")
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "one_carrier.parquet: no scenario-3 mean path with both carriers" in err
+    assert not (out / "fit-ioc-coupled").exists() and not list(out.glob(".fit-ioc-coupled*"))  # no stage, no checkpoint

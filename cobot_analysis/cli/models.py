@@ -243,6 +243,9 @@ def fit_ioc_command(
     fits: dict[str, list] = {}
     if per is Per.all:
         if not mean_targets:
+            if model == "coupled":
+                raise InputError("no scenario-3 mean path with both carriers (subject1 and subject2, with orientation)",
+                                 path=mean_src, remedy="pass the pair study's means (run average on the pair workspace)")
             raise InputError(f"no mean {entity} trajectory with orientation", path=mean_src, remedy="check the input (run average first?)")
         fits["all"] = mean_targets
     else:
