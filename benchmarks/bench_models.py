@@ -223,7 +223,7 @@ def bench_ioc(data: Path, subjects: int, max_evaluations: int, subject_evaluatio
         if subjects:
             dt, cpu = run_cli(["fit-ioc", "--out", str(ws), "--per", "subject", "--subjects", str(subjects), "--no-compare", "--force",
                                "--max-evaluations", str(subject_evaluations), "-j", "2"], tmp)
-            fits = json.loads((ws / "fit-ioc" / "weights.json").read_text())["fits"]
+            fits = json.loads((ws / "fit-ioc-subjects" / "weights.json").read_text())["fits"]
             d = [f["objective"] for f in fits.values()]
             ev = [f["evaluations"] for f in fits.values()]
             out.append(f"| {len(fits)} per-subject fits (budget {subject_evaluations} evaluations each) | {dt / 60:.1f} min | {cpu / 60:.1f} min | "

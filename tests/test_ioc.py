@@ -110,11 +110,13 @@ def test_fit_ioc_command_end_to_end_and_per_subject(planted_paths, tmp_path, cli
     code, _, err = cli("generate", "--out", out, "--weights", out / "fit-ioc" / "weights" / "all.json", "--start", "-1.5", "-3.4", "0")
     assert code == 0, err
     # per subject
-    code, _, err = cli("fit-ioc", "--out", tmp_path / "ws2", "--trajectories", src, "--per", "subject", "--fit", "a4",
-                       "--max-evaluations", "6", "--no-compare", "-j", "1")
+    # per subject, started from the fit over the means, in its own stage next to it
+    code, _, err = cli("fit-ioc", "--out", out, "--trajectories", src, "--per", "subject", "--fit", "a4",
+                       "--start-weights", out / "fit-ioc" / "weights.json", "--max-evaluations", "6", "--no-compare", "-j", "1")
     assert code == 0, err
-    fits = json.loads((tmp_path / "ws2" / "fit-ioc" / "weights.json").read_text())["fits"]
+    fits = json.loads((out / "fit-ioc-subjects" / "weights.json").read_text())["fits"]
     assert sorted(fits) == ["S1", "S2"]
+    assert json.loads((out / "fit-ioc" / "weights.json").read_text())["fits"].keys() == {"all"}
 
 
 def test_fit_ioc_on_dask_equals_local_run(planted_paths, tmp_path, cli):

@@ -165,9 +165,10 @@ def fit_ioc_command(
     Writes OUT/fit-ioc/weights.json (all fits) and weights/<fit>.json (each usable as --weights),
     distances.parquet (per trajectory and model), fits.csv (objective, evaluations and weights per
     fit), figures and results.md. The coupled model writes the same into OUT/fit-ioc-coupled/ (the
-    table or walker fit in OUT/fit-ioc/ stays), with the distances of each carrier. The log of
-    upper-level evaluations is checkpointed in OUT/.fit-ioc.checkpoint (.fit-ioc-coupled.checkpoint)
-    after every upper-level iteration (--resume continues from it).
+    table or walker fit in OUT/fit-ioc/ stays), with the distances of each carrier; --per subject
+    writes OUT/fit-ioc-subjects/ (start them from the fit over the means with
+    --start-weights OUT/fit-ioc/weights.json). The log of upper-level evaluations is checkpointed in
+    OUT/.<stage>.checkpoint after every upper-level iteration (--resume continues from it).
     """
     import json
 
@@ -266,7 +267,8 @@ def fit_ioc_command(
     if start_weights and Path(start_weights).is_file():
         inputs.append(Path(start_weights))
     params = {"spec": spec.__dict__, "per": per.value, "subjects": subjects, "goal": goal.value, "compare": compare, "seed": seed}
-    stage_name = "fit-ioc-coupled" if model == "coupled" else "fit-ioc"  # the coupled fit never replaces the table fit
+    # own stages: the coupled fit never replaces the table fit, nor per-subject fits the fit over the means
+    stage_name = "fit-ioc-coupled" if model == "coupled" else "fit-ioc-subjects" if per is Per.subject else "fit-ioc"
     checkpoint_dir = Path(out) / f".{stage_name}.checkpoint"
     n_chunks = 4 * (default_jobs() if jobs is None else jobs) if scheduler is None else 8
     with Stage(out, stage_name, inputs=inputs, params=params, force=force) as stage:
