@@ -1,5 +1,6 @@
 # Reproduce the reports of each study (see README.md).
 #   make walking        published walking-2020: import, means, distances, statistics, models, IOC, prediction, report
+#   make walking-subjects  per-subject IOC fits on walking-2020 (after walking)
 #   make pairs          published pair-carriage-2022 (means) and the per-trial synthetic pair study
 #                       (prediction on every 10th synthetic table trial: SPREDICT_ARGS= for all 1080)
 #   make localisation   synthetic robot runs (ROS1, ROS2, MCAP); real runs: make localisation BAGS="a.bag b.bag"
@@ -13,6 +14,7 @@ JOBS ?= 2
 BAGS ?=
 IOC_ARGS ?=
 PREDICT_ARGS ?=
+SUBJECT_IOC_ARGS ?= --subjects 10 --max-evaluations 600
 COUPLED_IOC_ARGS ?= --max-evaluations 600
 SPREDICT_ARGS ?= --every 10
 RESULTS_NOTE ?=
@@ -24,7 +26,7 @@ PAIRS := $(OUT)/pair-carriage-2022
 SPAIRS := $(OUT)/synthetic-pairs
 LOC := $(OUT)/localisation
 
-.PHONY: install demo test bench walking pairs pairs-published pairs-synthetic localisation results schemas all
+.PHONY: install demo test bench walking walking-subjects pairs pairs-published pairs-synthetic localisation results schemas all
 
 install:
 	$(PYTHON) -m pip install -e ".[dev]"
@@ -51,6 +53,10 @@ walking:
 	$(CLI) stats --out $(WALK)
 	$(CLI) predict --out $(WALK) --kind trial --jobs $(JOBS) $(PREDICT_ARGS)
 	$(CLI) report walking --out $(WALK) --to reports/walking
+
+# per-subject IOC (after walking): one fit per subject over its trials, started from the fit over the means
+walking-subjects:
+	$(CLI) fit-ioc --out $(WALK) --per subject --start-weights $(WALK)/fit-ioc/weights.json --no-compare --jobs $(JOBS) $(SUBJECT_IOC_ARGS)
 
 pairs: pairs-published pairs-synthetic
 
@@ -90,4 +96,4 @@ results:
 schemas:
 	$(CLI) schemas > docs/schemas.md
 
-all: walking pairs localisation results schemas
+all: walking walking-subjects pairs localisation results schemas
