@@ -1,7 +1,7 @@
 """Prediction benchmarks (docs/benchmarks.md, section "Prediction").
 
     python benchmarks/bench_predict.py windows TRAJECTORIES.parquet [--n 6]
-        OC windows per second on one core (N0 = 50, N_OC = 100: 100-node windows, solved as the
+        OC windows per second of CPU time on one core (N0 = 50, N_OC = 100: 100-node windows, solved as the
         50-node measured past plus the zero-control coast, see OCPredictor), warm-started (the previous
         window shifted) and cold, and the baselines, on n trial trajectories.
     python benchmarks/bench_predict.py sweep TRAJECTORIES.parquet --out DIR [--dask] [--every K] [--limit N]
@@ -54,10 +54,10 @@ def bench_windows(path: Path, n: int) -> None:
             p.reset()
             for pose in t.seen:
                 before = p.last_solution
-                s = time.perf_counter()
+                s = time.process_time()
                 p.update(pose)
                 if p.last_solution is not before:  # a window was solved
-                    times.append(time.perf_counter() - s)
+                    times.append(time.process_time() - s)
                     iters.append(p.last_solution.iterations)
             failed += p.failed
         times = np.array(times)
@@ -65,9 +65,9 @@ def bench_windows(path: Path, n: int) -> None:
               f"median {1e3 * np.median(times):.2f} ms, p95 {1e3 * np.percentile(times, 95):.2f} ms), "
               f"iterations median {np.median(iters):.0f}, failed {failed}")
     for name in ("cv", "ctrv"):
-        s = time.perf_counter()
+        s = time.process_time()
         count = sum(make_predictor(name, 50, 100, t.dt).predict_offline(t.seen).shape[0] for t in trajs)
-        print(f"{name}: {count / (time.perf_counter() - s):.0f} windows/s")
+        print(f"{name}: {count / (time.process_time() - s):.0f} windows/s")
 
 
 def bench_sweep(path: Path, out: Path, dask: bool, limit: int | None, every: int = 1) -> None:
