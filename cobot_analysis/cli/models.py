@@ -145,7 +145,7 @@ def fit_ioc_command(
     trajectories: Annotated[Optional[Path], typer.Option("--trajectories", help="trajectories.parquet (default: OUT/import-published/ or OUT/preprocess/); its trials serve --per subject and the subjects-vs-mean statistics.")] = None,
     model: Annotated[str, typer.Option("--model", "-m", help="improved (walkers, D = d_xy + 0.5 d_gamma), table (D = d_xy + 0.5 d_theta) or coupled (two carriers, scenario-3 means, roles swapped on returns).")] = "improved",
     start_weights: Annotated[Optional[str], typer.Option("--start-weights", "-w", help="Preset or weights.json to start from; 'ones' = neutral start (every fitted weight 1).")] = None,
-    fit_names: Annotated[Optional[str], typer.Option("--fit", help="Comma-separated weights to fit, the others stay at their start value (default: all but b0, which fixes the scale).")] = None,
+    fit_names: Annotated[Optional[str], typer.Option("--fit", help="Comma-separated weights to fit, the others stay at their start value (default: all but b0, which fixes the scale; coupled: also a0, the time cost).")] = None,
     optimizer: Annotated[Optional[Optimizer], typer.Option("--optimizer", help="Upper-level derivative-free method.")] = Optimizer.powell,
     max_evaluations: Annotated[int, typer.Option("--max-evaluations", min=1, help="Budget of upper-level evaluations per fit.")] = 2000,
     per: Annotated[Per, typer.Option("--per", help="all: one fit over the means; subject: one fit per subject over its trials.")] = Per.all,
@@ -189,7 +189,9 @@ def fit_ioc_command(
     if model not in ("improved", "table", "coupled"):
         raise InputError(f"fit-ioc fits the improved, table or coupled model, not {model!r}", remedy="use --model improved, table or coupled")
     all_names = names_for(model)
-    held = ("b0",) if model == "coupled" else ("a5", "a6", "b0")  # a5, a6 of the walker belong to the Mombaur model
+    # b0 fixes the scale; a5, a6 of the walker belong to the Mombaur model; the coupled time cost a0 is
+    # not identifiable from time-normalised paths (fitted, it goes to ~0 and every T to its bound)
+    held = ("a0", "b0") if model == "coupled" else ("a5", "a6", "b0")
     fit_names = fit_names or ",".join(n for n in all_names if n not in held)
     names = tuple(n.strip() for n in fit_names.split(",") if n.strip())
     bad = [n for n in names if n not in all_names]
