@@ -16,7 +16,8 @@ from cobot_analysis.workspace import git_commit
 
 
 def assemble_results(workspaces: list[Path], title: str = "Results", preface: str = "") -> str:
-    """Concatenate the ``<stage>/results.md`` fragments of each workspace, in stage-run order."""
+    """Concatenate the ``<stage>/results.md`` fragments of each workspace, in pipeline order
+    (``STAGE_ORDER``; other stages after them, in the order they ran)."""
     parts = [
         f"# {title}",
         "",
@@ -31,7 +32,7 @@ def assemble_results(workspaces: list[Path], title: str = "Results", preface: st
             raise InputError("workspace not found", path=ws, remedy="run the study first (e.g. make walking)")
         fragments = sorted(ws.glob("*/results.md"), key=_run_order)
         if fragments:
-            parts += ["---", "", f"**Workspace `{ws}`** ({len(fragments)} stages, in the order they ran)", ""]
+            parts += ["---", "", f"**Workspace `{ws}`** ({len(fragments)} stages, in pipeline order)", ""]
         for frag in fragments:
             parts += [frag.read_text().strip(), "", f"<sub>Source: `{frag.parent}` ({_manifest_line(frag.parent)})</sub>", ""]
             found += 1
@@ -41,9 +42,17 @@ def assemble_results(workspaces: list[Path], title: str = "Results", preface: st
     return "\n".join(parts).rstrip() + "\n"
 
 
-def _run_order(fragment: Path) -> float:
-    manifest = fragment.parent / "manifest.json"
-    return manifest.stat().st_mtime if manifest.exists() else fragment.stat().st_mtime
+#: the stages in the order data flows through them (io -> preprocess -> ... -> reports)
+STAGE_ORDER = ("synth-walking", "synth-pairs", "synth-localisation", "import-published", "import", "preprocess", "average",
+               "compare", "stats", "reconstruct", "fit-ioc", "fit-ioc-subjects", "fit-ioc-coupled", "generate", "predict",
+               "localisation", "report")
+
+
+def _run_order(fragment: Path) -> tuple[int, float]:
+    stage = fragment.parent
+    manifest = stage / "manifest.json"
+    rank = STAGE_ORDER.index(stage.name) if stage.name in STAGE_ORDER else len(STAGE_ORDER)
+    return rank, (manifest.stat().st_mtime if manifest.exists() else fragment.stat().st_mtime)
 
 
 def _manifest_line(stage_dir: Path) -> str:

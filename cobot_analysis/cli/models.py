@@ -342,7 +342,7 @@ def fit_ioc_command(
         hist.to_csv(stage.path("fits.csv"), index=False)
 
         # report
-        lines = [f"## Inverse optimal control ({model} model)", "",
+        lines = [f"## Inverse optimal control ({model} model{', one fit per subject' if per is Per.subject else ''})", "",
                  f"Bi-level IOC (METHODS.md sec. 6): upper level {optimizer.value} over log10 of ({', '.join(names)}), "
                  f"bounds 1e-7..1e3, the other weights held at their start value "
                  f"({'neutral start: fitted weights 1' if start_weights == 'ones' else start_weights or 'model preset'}); "
