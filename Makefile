@@ -14,6 +14,7 @@ JOBS ?= 2
 BAGS ?=
 IOC_ARGS ?=
 PREDICT_ARGS ?=
+PREDICT_FITTED_ARGS ?= --settings 50:100
 SUBJECT_IOC_ARGS ?= --subjects 10 --max-evaluations 600
 COUPLED_IOC_ARGS ?= --max-evaluations 600
 SPREDICT_ARGS ?= --every 10
@@ -52,6 +53,7 @@ walking:
 	$(CLI) compare --out $(WALK) --against $(WALK)/generate/generated.parquet --label model
 	$(CLI) stats --out $(WALK)
 	$(CLI) predict --out $(WALK) --kind trial --jobs $(JOBS) $(PREDICT_ARGS)
+	$(CLI) predict --out $(WALK) --kind trial --weights $(WALK)/fit-ioc/weights.json --stage-name predict-fitted --jobs $(JOBS) $(PREDICT_FITTED_ARGS)
 	$(CLI) report walking --out $(WALK) --to reports/walking
 
 # per-subject IOC (after walking): one fit per subject over its trials, started from the fit over the means

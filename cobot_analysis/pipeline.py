@@ -44,7 +44,7 @@ def assemble_results(workspaces: list[Path], title: str = "Results", preface: st
 
 #: the stages in the order data flows through them (io -> preprocess -> ... -> reports)
 STAGE_ORDER = ("synth-walking", "synth-pairs", "synth-localisation", "import-published", "import", "preprocess", "average",
-               "compare", "stats", "reconstruct", "fit-ioc", "fit-ioc-subjects", "fit-ioc-coupled", "generate", "predict",
+               "compare", "stats", "reconstruct", "fit-ioc", "fit-ioc-subjects", "fit-ioc-coupled", "generate", "predict", "predict-fitted",
                "localisation", "report")
 
 

@@ -246,3 +246,21 @@ def test_settings_sharing_n0_equal_separate_runs():
                       ignore_index=True)
     pd.testing.assert_frame_equal(shared, alone)
     assert set(shared_windows["n_oc"]) == {20, 30}
+
+
+def test_second_sweep_with_other_weights_sits_beside_the_first(cli, tmp_path, traj_file):
+    weights = tmp_path / "weights.json"
+    weights.write_text(json.dumps({"weights": {"a0": 1.0, "a1": 0.2, "a2": 0.5, "a3": 1e-6, "a4": 0.0,
+                                               "b0": 10.0, "b1": 10.0, "b2": 0.3, "b3": 1.0}}))
+    out = tmp_path / "ws"
+    args = ["--trajectories", traj_file(n_traj=1), "--settings", "8:20", "-j", "1"]
+    assert cli("-q", "predict", "--out", out, *args)[0] == 0
+    assert cli("-q", "predict", "--out", out, "--weights", weights, "--stage-name", "predict-fitted", *args)[0] == 0
+    first = pd.read_parquet(out / "predict" / "predictions.parquet").set_index("predictor")
+    second = pd.read_parquet(out / "predict-fitted" / "predictions.parquet").set_index("predictor")
+    assert first.loc["cv", "delta_xy"] == second.loc["cv", "delta_xy"]  # baselines do not use weights
+    assert first.loc["oc", "delta_xy"] != pytest.approx(second.loc["oc", "delta_xy"], rel=1e-6)  # lighter control costs
+    assert (out / "predict-fitted" / "results.md").read_text().startswith(
+        "## Trajectory prediction (METHODS.md sec. 7), stage predict-fitted")
+    code, _, err = cli("-q", "predict", "--out", out, "--stage-name", "../elsewhere", *args)
+    assert code == 2 and "not a predict stage name" in err

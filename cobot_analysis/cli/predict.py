@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Annotated, Optional
 
@@ -47,6 +48,7 @@ def predict_command(
     kind: Annotated[str, typer.Option("--kind", help="'trial', 'mean' or 'all' trajectories.")] = "all",
     limit: Annotated[Optional[int], typer.Option("--limit", min=1, help="Only the first N trajectories (a quick look).")] = None,
     every: Annotated[int, typer.Option("--every", min=1, help="Only every K-th trajectory (in study, trial, entity order): a spread-out subset.")] = 1,
+    stage_name: Annotated[str, typer.Option("--stage-name", help="Stage directory in OUT: another name keeps a second sweep (e.g. with fitted weights) beside the first.")] = STAGE,
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
     force: ForceOpt = False,
@@ -69,6 +71,9 @@ def predict_command(
                                              trajectories_from_table)
     from cobot_analysis.schema import TRAJECTORIES, read_table, write_table
     from cobot_analysis.workspace import Stage, find_input
+
+    if not re.fullmatch(r"predict[-_A-Za-z0-9]*", stage_name):
+        raise InputError(f"--stage-name {stage_name!r} is not a predict stage name", remedy="use predict or predict-<label>, e.g. predict-fitted")
 
     config = SweepConfig(settings=parse_settings(settings), predictors=tuple(p.strip() for p in predictors.split(",") if p.strip()),
                          weights=weights, g0=g0, g1=g1, t_oc=t_oc, nominal_speed=nominal_speed, orientation=orientation)
@@ -102,8 +107,8 @@ def predict_command(
         warn(f"predict: {len(unpredictable)} trajectories left out, fewer than N0 = {n0_min} consecutive finite positions: "
              + ", ".join(unpredictable[:5]) + (" ..." if len(unpredictable) > 5 else ""))
     params = {"config": config.__dict__, "study": study, "entity": entity, "kind": kind, "limit": limit, "every": every}
-    work = WorkDir(Path(out) / WORK)
-    with Stage(out, STAGE, inputs=[path, *inputs], params=params, force=force) as stage:
+    work = WorkDir(Path(out) / WORK)  # shared by every sweep: its results are keyed by trajectory, setting and options
+    with Stage(out, stage_name, inputs=[path, *inputs], params=params, force=force) as stage:
         if stage.skipped:
             return
         if force:
@@ -128,7 +133,7 @@ def predict_command(
         write_table(comparison, stage.path("prediction_comparison.parquet"), PREDICTION_COMPARISON, **meta)
         example = example_trajectory(metrics, trajs, config)
         figures(stage, metrics, example, config)
-        stage.path("results.md").write_text(results_fragment(metrics, summary, comparison, config, example, unpredictable))
+        stage.path("results.md").write_text(results_fragment(metrics, summary, comparison, config, example, unpredictable, stage_name))
     info(f"[green]predict[/green]: {stage.final_dir}")
 
 
@@ -223,7 +228,7 @@ def _p(v) -> str:
     return "n/a" if math.isnan(v) else ("< 0.001" if v < 1e-3 else f"{v:.3f}")
 
 
-def results_fragment(metrics, summary, comparison, config, example, unpredictable=()) -> str:
+def results_fragment(metrics, summary, comparison, config, example, unpredictable=(), stage_name: str = STAGE) -> str:
     """Markdown fragment of the stage (assembled into docs/results.md)."""
     import numpy as np
 
@@ -233,7 +238,7 @@ def results_fragment(metrics, summary, comparison, config, example, unpredictabl
     untracked = int((traj["orientation"] & ~traj["theta_tracked"]).sum())
     assumed = traj[traj["duration_source"] == "nominal_speed"]
     lines = [
-        "## Trajectory prediction (METHODS.md sec. 7)", "",
+        "## Trajectory prediction (METHODS.md sec. 7)" + ("" if stage_name == STAGE else f", stage {stage_name}"), "",
         f"{len(traj)} trajectories: {studies}; entities " + ", ".join(f"{e} ({n})" for e, n in traj.groupby("entity").size().items()) + ".",
         f"Predictors: {', '.join(config.predictors)}; settings (N0, N_OC): {', '.join(f'({a}, {b})' for a, b in config.settings)}; "
         f"OC weights {config.weights or 'walking-2021 (walkers) / table-2022 (tables)'}, g0 = {config.g0}, g1 = {config.g1}.",
