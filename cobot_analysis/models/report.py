@@ -149,21 +149,39 @@ def statistics(df: pd.DataFrame, model: str, angle: str = "gamma", alpha: float 
     return "\n".join(out) + "\n"
 
 
-def figure_paths(targets: list[Target], generated: dict[str, list[pd.DataFrame]], title: str):
-    """Generated vs measured paths per trajectory, with orientation arrows every 50 samples."""
+def _panel_grid(n: int, max_cols: int, size: float):
+    """A figure with ``n`` square panels (inches ``size``), at most ``max_cols`` per row."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    n = len(targets)
-    cols = min(8, n)
+    cols = min(max_cols, n)
     rows = math.ceil(n / cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(2.2 * cols, 2.2 * rows), squeeze=False)
+    return plt.subplots(rows, cols, figsize=(size * cols, size * rows), squeeze=False)
+
+
+def _finish_grid(fig, axes, n: int, title: str, fontsize: float):
+    """Equal axes on the ``n`` used panels, the others hidden, one legend, the title."""
+    for j, ax in enumerate(axes.flat):
+        if j < n:
+            ax.set_aspect("equal")
+            ax.tick_params(labelsize=fontsize)
+        else:
+            ax.axis("off")
+    axes[0][0].legend(fontsize=fontsize, loc="best")
+    fig.suptitle(title, fontsize=9)
+    return fig
+
+
+def figure_paths(targets: list[Target], generated: dict[str, list[pd.DataFrame]], title: str):
+    """Generated vs measured paths per trajectory, with orientation arrows every 50 samples."""
+    n = len(targets)
+    fig, axes = _panel_grid(n, max_cols=8, size=2.2)
     colors = {"measured": "k"}
     palette = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple"]
     for i, t in enumerate(targets):
-        ax = axes[i // cols][i % cols]
+        ax = axes.flat[i]
         series = [("measured", t.x, t.y, t.theta)] + [(lab, g[i]["x"].to_numpy(), g[i]["y"].to_numpy(), g[i]["theta"].to_numpy())
                                                      for lab, g in generated.items() if g[i] is not None]
         for j, (lab, x, y, th) in enumerate(series):
@@ -172,13 +190,7 @@ def figure_paths(targets: list[Target], generated: dict[str, list[pd.DataFrame]]
             k = np.arange(0, len(x), 50)
             ax.quiver(x[k], y[k], np.cos(th[k]), np.sin(th[k]), color=c, scale=18, width=0.006)
         ax.set_title(t.condition or t.trial, fontsize=7)
-        ax.set_aspect("equal")
-        ax.tick_params(labelsize=5)
-    for j in range(n, rows * cols):
-        axes[j // cols][j % cols].axis("off")
-    axes[0][0].legend(fontsize=5, loc="best")
-    fig.suptitle(title, fontsize=9)
-    return fig
+    return _finish_grid(fig, axes, n, title, fontsize=5)
 
 
 def figure_boxplots(df: pd.DataFrame, angle: str = "gamma"):
@@ -282,18 +294,11 @@ def weights_table(names: tuple[str, ...], columns: dict[str, dict[str, float]], 
 def figure_pair_paths(targets, paths: dict[str, list], title: str):
     """Generated vs mean paths of both carriers (carrier 1 solid, carrier 2 dashed), one panel per
     target, orientation arrows every 100 samples; measured in black."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     n = len(targets)
-    cols = min(4, n)
-    rows = math.ceil(n / cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(3.0 * cols, 3.0 * rows), squeeze=False)
+    fig, axes = _panel_grid(n, max_cols=4, size=3.0)
     palette = {lab: c for lab, c in zip(paths, ("tab:blue", "tab:orange", "tab:green"))}
     for j, t in enumerate(targets):
-        ax = axes[j // cols][j % cols]
+        ax = axes.flat[j]
         series = [("mean", "k", [(c.x, c.y, c.theta) for c in t.carriers])]
         series += [(lab, palette[lab], [(p["x"], p["y"], p["theta"]) for p in ps[j]]) for lab, ps in paths.items() if ps[j] is not None]
         for lab, color, carriers in series:
@@ -302,12 +307,7 @@ def figure_pair_paths(targets, paths: dict[str, list], title: str):
                 k = np.arange(0, len(x), 100)
                 ax.quiver(x[k], y[k], np.cos(th[k]), np.sin(th[k]), color=color, scale=14, width=0.005)
         ax.set_title(t.trial.replace("_sc3", ""), fontsize=7)
-        ax.set_aspect("equal")
-        ax.tick_params(labelsize=6)
-    for j in range(n, rows * cols):
-        axes[j // cols][j % cols].axis("off")
-    axes[0][0].legend(fontsize=6, loc="best")
-    fig.suptitle(title, fontsize=9)
+    fig = _finish_grid(fig, axes, n, title, fontsize=6)
     fig.tight_layout()
     return fig
 
