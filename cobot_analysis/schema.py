@@ -1,10 +1,15 @@
 """Parquet tables of the pipeline: documented columns, units, and file metadata.
 
 Every table a stage writes is declared as a ``TableSchema``; ``write_table`` checks the columns,
-stores the schema (name, version, per-column unit and description) and any stage metadata (e.g.
-sampling rate, source units) in the Parquet key-value metadata under ``cobot_analysis``, and
-writes atomically (temporary file, then rename). ``read_table`` checks a file is the table it
-claims to be and returns the DataFrame with its metadata in ``df.attrs["cobot_analysis"]``.
+gives every declared column its declared Arrow type (``ARROW_TYPES``: strings as large_string,
+categoricals as dictionary<int32, string>, int64, float64, bool; nullable, so a column that
+is null in one table is never written as Arrow's Null type and two tables of the same kind always
+concatenate), stores each column's unit and description as Arrow field metadata
+(``unit``, ``description``), stores the schema (name, version, per-column unit and description) and
+any stage metadata (e.g. sampling rate, source units) as JSON in the Parquet key-value metadata under
+``cobot_analysis``, and writes atomically (temporary file, then rename). ``read_table`` checks a
+file is the table it claims to be and returns the DataFrame with its metadata in
+``df.attrs["cobot_analysis"]``.
 
 Angles are in radians, lengths in metres, times in seconds, unless a column says otherwise.
 ``docs/schemas.md`` is generated from the declarations (``cobot-analysis schemas``).
@@ -142,7 +147,7 @@ def write_table(df: pd.DataFrame, path: str | os.PathLike, schema: TableSchema, 
     missing = [c for c in schema.required if c not in df.columns]
     if missing:
         raise ValueError(f"table {schema.name} lacks required columns {missing}")
-    table = pa.Table.from_pandas(df, preserve_index=False)
+    table = conform(pa.Table.from_pandas(df, preserve_index=False), schema)
     meta = dict(table.schema.metadata or {})
     meta[METADATA_KEY] = json.dumps({**schema.metadata(), **metadata}, default=str).encode()
     table = table.replace_schema_metadata(meta)
@@ -155,6 +160,70 @@ def write_table(df: pd.DataFrame, path: str | os.PathLike, schema: TableSchema, 
     finally:
         tmp.unlink(missing_ok=True)
     return path
+
+
+#: Arrow type of each declared dtype (every Arrow type is nullable).
+ARROW_TYPES = {"string": "large_string", "int": "int64", "float": "float64", "bool": "bool_"}
+
+
+def arrow_type(column: Column, current=None):
+    """The Arrow type ``column`` is written with; a dictionary-encoded (categorical) string column
+    stays dictionary-encoded, as dictionary<int32, string> (what Parquet reads back)."""
+    import pyarrow as pa
+
+    if column.dtype == "string" and current is not None and pa.types.is_dictionary(current):
+        return pa.dictionary(pa.int32(), pa.string())
+    return getattr(pa, ARROW_TYPES[column.dtype])()
+
+
+def field_metadata(column: Column) -> dict[bytes, bytes]:
+    """Arrow field metadata of a declared column: its unit and description."""
+    return {b"unit": column.unit.encode(), b"description": column.description.encode()}
+
+
+def conform(table, schema: TableSchema):
+    """Cast the declared columns of ``table`` (pyarrow) to their declared types, with field
+    metadata; an undeclared column keeps its type (large_string if it is all null)."""
+    import pyarrow as pa
+
+    fields, arrays = [], []
+    for name, array in zip(table.column_names, table.columns):
+        spec = schema.columns.get(name)
+        if spec is None:
+            target, meta = (pa.large_string() if pa.types.is_null(array.type) else array.type), None
+        else:
+            target, meta = arrow_type(spec, array.type), field_metadata(spec)
+        if array.type != target:
+            try:
+                array = array.cast(target)
+            except (pa.ArrowInvalid, pa.ArrowNotImplementedError) as exc:
+                raise ValueError(f"table {schema.name}: column {name!r} ({array.type}) is not a {spec.dtype if spec else target} "
+                                 f"column ({exc})") from exc
+        fields.append(pa.field(name, target, nullable=True, metadata=meta))
+        arrays.append(array)
+    return pa.Table.from_arrays(arrays, schema=pa.schema(fields, metadata=_pandas_metadata(table.schema.metadata, schema)))
+
+
+#: pandas dtype recorded for a declared column that pandas held in another dtype (or all null).
+_PANDAS_DTYPE = {"string": ("object", "str"), "int": ("int64", "Int64"), "float": ("float64", "float64"),
+                 "bool": ("bool", "object")}
+
+
+def _pandas_metadata(meta: dict | None, schema: TableSchema) -> dict | None:
+    """Update pyarrow's ``pandas`` metadata to the declared types, so that pandas reads a declared
+    int column as int64 (no nulls, written as int64) or nullable Int64 (otherwise), never float."""
+    if not meta or b"pandas" not in meta:
+        return meta
+    doc = json.loads(meta[b"pandas"])
+    for entry in doc.get("columns", []):
+        spec = schema.columns.get(entry.get("name"))
+        if spec is None or entry.get("pandas_type") == "categorical":
+            continue
+        if spec.dtype == "int" and entry.get("numpy_type") in ("int8", "int16", "int32", "int64"):
+            entry["pandas_type"], entry["numpy_type"] = "int64", "int64"
+        elif spec.dtype == "int" or entry.get("pandas_type") == "empty":
+            entry["pandas_type"], entry["numpy_type"] = _PANDAS_DTYPE[spec.dtype]
+    return {**meta, b"pandas": json.dumps(doc).encode()}
 
 
 def table_metadata(path: str | os.PathLike) -> dict[str, Any]:
@@ -190,7 +259,19 @@ def read_table(path: str | os.PathLike, schema: TableSchema, columns: list[str] 
 
 def schemas_markdown() -> str:
     """Markdown documentation of every declared table (docs/schemas.md)."""
-    lines = ["# Parquet tables", "", "Generated by `cobot-analysis schemas`; units are stored in each file's metadata.", ""]
+    lines = ["# Parquet tables", "", "Generated by `cobot-analysis schemas`.", "",
+             "Every file carries its units and descriptions twice: per column, as Arrow field metadata "
+             "(keys `unit` and `description`; pyarrow `pq.read_schema(path).field('x').metadata`, R arrow, "
+             "arrow-rs/DataFusion and viewers that decode the Arrow schema), and for the whole table as JSON "
+             "in the Parquet key-value metadata under `cobot_analysis` (table name, schema version, per-column "
+             "unit and description, and the stage's parameters; polars `pl.read_parquet_metadata(path)`, duckdb "
+             "`SELECT * FROM parquet_kv_metadata('file.parquet')`, pandas `cobot_analysis.schema.read_table(...)."
+             "attrs`). polars and duckdb do not show Arrow field metadata.", "",
+             "Types: string columns are `large_string` (categorical labels: `dictionary<int32, string>`), int "
+             "columns `int64`, float columns `float64` (double), bool columns `bool`; every column is nullable and "
+             "keeps its declared type when all its values are null, so any two tables of the same kind "
+             "concatenate (polars `concat`, duckdb `read_parquet([...])`, `pandas.concat`). pandas reads an int "
+             "column holding nulls as the nullable `Int64`.", ""]
     for schema in sorted(SCHEMAS.values(), key=lambda s: s.name):
         lines += [f"## `{schema.name}` (version {schema.version})", "", schema.description, "",
                   "| column | type | unit | description |", "|---|---|---|---|"]

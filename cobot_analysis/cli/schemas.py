@@ -13,10 +13,14 @@ from cobot_analysis.cli.app import PANEL_REPORT, app
 
 @app.command("schemas", rich_help_panel=PANEL_REPORT)
 def schemas_command() -> None:
-    """Print the columns, units and descriptions of every Parquet table, as Markdown."""
+    """Print the columns, types, units and descriptions of every Parquet table, as Markdown.
+
+    Each file also carries them: units and descriptions as Arrow field metadata per column and as
+    JSON under the 'cobot_analysis' key of the Parquet metadata (docs/schemas.md).
+    """
     # Import every module so that all TableSchema declarations are registered.
     for mod in pkgutil.walk_packages(cobot_analysis.__path__, "cobot_analysis."):
-        if not mod.name.startswith("cobot_analysis.cli"):
+        if not mod.name.startswith("cobot_analysis.cli") and not mod.name.endswith("__main__"):
             importlib.import_module(mod.name)
     from cobot_analysis.schema import schemas_markdown
 
