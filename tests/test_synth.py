@@ -573,3 +573,32 @@ def test_pair_mean_paths_resemble_the_published_means(pair_truth_only, datasets)
     assert all(len(v) >= 15 for v in found.values())
     assert np.median(found["table"]) < 0.2
     assert np.median(found["subject1"]) < 0.3 and np.median(found["subject2"]) < 0.3
+
+
+# ---- protocols -----------------------------------------------------------------------------------
+@pytest.mark.parametrize("study", ["walking", "pairs"])
+def test_protocols_explain_every_key_and_import(study, small_walking, small_pairs, tmp_path, cli):
+    import yaml
+
+    from cobot_analysis.schema import MARKERS
+
+    proto = small_walking if study == "walking" else small_pairs
+    text = proto.read_text()
+    doc = yaml.safe_load(text)
+    keys = ["study", "rate", "entities", "marker_map", "subjects", "trials"]
+    if study == "pairs":
+        keys.insert(5, "pairs")
+    assert list(doc) == keys and doc["marker_map"] == {}
+    assert doc["entities"] == ({} if study == "walking" else {"S1": "subject1", "S2": "subject2", "Table": "table"})
+    lines = text.splitlines()
+    assert lines[0].startswith("# Protocol of a synthetic") and "docs/protocol.md" in " ".join(lines[:2])
+    for key in keys:  # each key is preceded by its comment
+        i = next(n for n, line in enumerate(lines) if line.startswith(f"{key}:"))
+        assert lines[i - 1].startswith("# "), key
+    assert "LASI" in text.split("marker_map:")[0].split("entities:")[1]  # the marker_map comment names the canonical labels
+    code, _, err = cli("-q", "import", proto, "--out", tmp_path)
+    assert code == 0, err
+    markers = read_table(tmp_path / "import" / "markers.parquet", MARKERS)
+    expected = {"walker"} if study == "walking" else {"subject1", "subject2", "table"}
+    assert set(markers["entity"]) == expected
+    assert set(markers["marker"]) == set(SUBJECT_MARKERS) | (set() if study == "walking" else {"TAB1", "TAB2", "TAB3"})

@@ -49,8 +49,9 @@ def walking_command(
 ) -> None:
     """Synthetic single-walking study (10 subjects x 40 start conditions x 3 trials by default).
 
-    Writes OUT/synth-walking/: protocol.yaml, trials.csv, subjects.csv, raw/*.c3d (200 Hz, mm,
-    14 markers), truth.parquet (true CoM and pelvis orientation per frame), truth_trials.parquet.
+    Writes OUT/synth-walking/: protocol.yaml (each key explained in a comment; docs/protocol.md),
+    trials.csv, subjects.csv, raw/*.c3d (200 Hz, mm, 14 markers), truth.parquet (true CoM and
+    pelvis orientation per frame), truth_trials.parquet.
     """
     from cobot_analysis.design import WALKING_CONDITIONS
     from cobot_analysis.synth import GENERATOR_VERSION, walking
@@ -81,8 +82,9 @@ def pairs_command(
     """Synthetic pair-carriage study (20 pairs x 9 goals x 3 scenarios = 540 recordings by default).
 
     Each recording holds walk-to-table, forward carriage, pause and return carriage. Writes
-    OUT/synth-pairs/: protocol.yaml, trials.csv, subjects.csv, pairs.csv, raw/*.c3d (200 Hz, mm,
-    S1:/S2:/Table: labels), truth.parquet, truth_trials.parquet (with the planted effects).
+    OUT/synth-pairs/: protocol.yaml (each key explained in a comment; docs/protocol.md), trials.csv,
+    subjects.csv, pairs.csv, raw/*.c3d (200 Hz, mm, S1:/S2:/Table: labels), truth.parquet,
+    truth_trials.parquet (with the planted effects).
     """
     from cobot_analysis.design import PAIR_GOALS, SCENARIOS
     from cobot_analysis.synth import GENERATOR_VERSION

@@ -2,9 +2,9 @@
 
 ``generate(directory)`` writes one C3D per pair x goal x scenario recording (20 x 9 x 3 = 540 by
 default; 200 Hz, mm; labels ``S1:LASI`` ... ``S2:...`` (14 markers each) and ``Table:TAB1..TAB3``),
-``protocol.yaml`` with ``trials.csv`` (trial, file, pair, condition = goal stem, scenario,
-configuration = family, end_orientation = chosen end angle, repetition), ``subjects.csv``,
-``pairs.csv`` and the ground truth (``synth.truth``). World frame of the dataset: the table starts
+``protocol.yaml`` (commented, ``synth.protocol``) with ``trials.csv`` (trial, file, pair,
+condition = goal stem, scenario, configuration = family, end_orientation = chosen end angle,
+repetition), ``subjects.csv``, ``pairs.csv`` and the ground truth (``synth.truth``). World frame of the dataset: the table starts
 at (0, 0) heading pi/2 (d1, d2) or pi (d3); goals at ``design.GOAL_POSITIONS``.
 
 A recording: both subjects stand 0.5-1 s at 1-2 m from their ends of the table, walk to it
@@ -47,10 +47,11 @@ import pandas as pd
 
 from cobot_analysis.angles import wrap
 from cobot_analysis.design import PAIR_GOALS, SCENARIOS, TABLE_SIZE
-from cobot_analysis.io.protocol import PELVIS_MARKERS, SUBJECT_MARKERS, TABLE_MARKERS, save_protocol
+from cobot_analysis.io.protocol import PELVIS_MARKERS, SUBJECT_MARKERS, TABLE_MARKERS
 from cobot_analysis.synth import body as bd
 from cobot_analysis.synth import paths
 from cobot_analysis.synth.c3d import write_c3d
+from cobot_analysis.synth.protocol import write_protocol
 from cobot_analysis.synth.truth import TRUTH, TRUTH_TRIALS
 from cobot_analysis.synth.walking import draw_style, hold, truth_frame, walk
 
@@ -82,6 +83,29 @@ _SUBJECT_KEY, _RECORDING_KEY, _NOISE_KEY = 4, 3, 5
 _ENTITIES = ("subject1", "subject2", "table")
 _PREFIX = {"subject1": "S1", "subject2": "S2", "table": "Table"}
 _N_SUBJECT_MARKERS = len(SUBJECT_MARKERS)
+PROTOCOL_HEADER = ("Protocol of a synthetic pair-carriage study, written by `cobot-analysis synth pairs`. Import it "
+                   "with `cobot-analysis import protocol.yaml`; every key is documented in docs/protocol.md.")
+PROTOCOL_NOTES = {
+    "study": "Study name, copied into the 'study' column of every output.",
+    "rate": "Sampling rate (Hz), used only for a raw file that states none (these C3D files state 200 Hz).",
+    "entities": ("Label prefix in the raw files -> entity (walker, subject1, subject2 or table). Each file holds "
+                 "two people and a table: 'S1:LASI' is a marker of Subject 1 (who holds the same end of the table "
+                 "in every trial), 'S2:LASI' one of Subject 2, 'Table:TAB1' a corner of the table. Labels that "
+                 "carry the subjects' names instead (e.g. 'Daphnee:LASI') list every name here with its role."),
+    "marker_map": ("Lab label -> canonical label: pelvis LASI RASI LPSI RPSI (required for each person), feet LHEE "
+                   "LTOE LMT5 / RHEE RTOE RMT5, head LFHD RFHD LBHD RBHD, table corners TAB1 TAB2 TAB3 (required; "
+                   "TAB1 -> TAB2 along a long side, TAB1 -> TAB3 along a short side). These files use the "
+                   "canonical names after the prefix, so the map is empty; a lab with other names maps them here, "
+                   "e.g. 'ASISr: RASI', 'Corner1: TAB1'."),
+    "subjects": "Subjects (CSV beside this file): id, sex, weight (kg), height (m).",
+    "pairs": "Pairs (CSV beside this file): id, subject1, subject2 (ids of the subjects table).",
+    "trials": ("One row per recording (CSV beside this file): trial (unique id), file (path relative to this "
+               "file), pair, condition (goal stem: start, goal position and configuration family, e.g. "
+               "d1_p4_gris), scenario of the forward carriage (1: only Subject 1 knows the goal, 2: only "
+               "Subject 2, 3: both; the return is always 3), configuration (family of the two end "
+               "orientations: gris 0 or pi, jaune +-pi/2), end_orientation (rad, the table's orientation at the "
+               "goal), repetition. Each recording holds a forward and a return carriage."),
+}
 
 
 @dataclass(frozen=True)
@@ -427,8 +451,8 @@ def generate(directory, seed: int = 0, n_pairs: int = N_PAIRS, goals: Sequence[s
                           "subject2": [subjects[2 * i + 1].id for i in range(n_pairs)]})
     trials = pd.DataFrame([r[2] for r in results])
     (directory / "results.md").write_text(summary(trials_truth))
-    return save_protocol(directory / "protocol.yaml", STUDY, trials, subjects=subj, pairs=pairs, rate=bd.RATE,
-                         entities={"S1": "subject1", "S2": "subject2", "Table": "table"})
+    return write_protocol(directory / "protocol.yaml", STUDY, trials, subjects=subj, pairs=pairs, rate=bd.RATE,
+                          entities={_PREFIX[e]: e for e in _ENTITIES}, header=PROTOCOL_HEADER, notes=PROTOCOL_NOTES)
 
 
 def summary(trials_truth: pd.DataFrame) -> str:

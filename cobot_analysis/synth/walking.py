@@ -2,8 +2,8 @@
 
 ``generate(directory)`` writes, for n subjects x start conditions x repetitions, one C3D file per
 trial (200 Hz, mm, the 14 markers of ``io.protocol.SUBJECT_MARKERS``, labels without prefix),
-``protocol.yaml`` with ``trials.csv`` (trial, file, subject, condition, repetition) and
-``subjects.csv`` (id, sex, weight, height), and the ground truth ``truth.parquet`` /
+``protocol.yaml`` (commented, ``synth.protocol``) with ``trials.csv`` (trial, file, subject,
+condition, repetition) and ``subjects.csv`` (id, sex, weight, height), and the ground truth ``truth.parquet`` /
 ``truth_trials.parquet`` (``synth.truth``). Coordinates are in the goal frame of the study: goal
 pose (0, 0, pi/2), start near ``walking_condition(code).start``.
 
@@ -31,10 +31,11 @@ import pandas as pd
 
 from cobot_analysis.angles import wrap
 from cobot_analysis.design import WALKING_CONDITIONS, WALKING_GOAL, walking_condition
-from cobot_analysis.io.protocol import PELVIS_MARKERS, SUBJECT_MARKERS, save_protocol
+from cobot_analysis.io.protocol import PELVIS_MARKERS, SUBJECT_MARKERS
 from cobot_analysis.synth import body as bd
 from cobot_analysis.synth import paths
 from cobot_analysis.synth.c3d import write_c3d
+from cobot_analysis.synth.protocol import write_protocol
 from cobot_analysis.synth.truth import TRUTH, TRUTH_TRIALS
 
 STUDY = "synthetic-walking"
@@ -50,6 +51,25 @@ P_LONG_GAP = 0.28
 START_SHIFT = (0.0, 0.145)
 START_BEHIND = 0.12
 _PELVIS_COLS = tuple(SUBJECT_MARKERS.index(m) for m in PELVIS_MARKERS)
+PROTOCOL_HEADER = ("Protocol of a synthetic walking study, written by `cobot-analysis synth walking`. Import it with "
+                   "`cobot-analysis import protocol.yaml`; every key is documented in docs/protocol.md.")
+PROTOCOL_NOTES = {
+    "study": "Study name, copied into the 'study' column of every output.",
+    "rate": "Sampling rate (Hz), used only for a raw file that states none (these C3D files state 200 Hz).",
+    "entities": ("Label prefix in the raw files -> entity (walker, subject1, subject2 or table). The labels of this "
+                 "study have no prefix (LASI, RASI, ...), so every marker belongs to the walker and nothing needs "
+                 "declaring. A single-person file whose labels carry the subject's name (Vicon: 'S01:LASI') needs "
+                 "nothing either: an undeclared prefix is dropped. A file holding several people or a table "
+                 "declares its prefixes, e.g. 'S1: subject1'."),
+    "marker_map": ("Lab label -> canonical label: pelvis LASI RASI LPSI RPSI (required), feet LHEE LTOE LMT5 / RHEE "
+                   "RTOE RMT5, head LFHD RFHD LBHD RBHD, table corners TAB1 TAB2 TAB3. These files use the canonical "
+                   "labels, so the map is empty; a lab that names the iliac spines otherwise maps them here, e.g. "
+                   "'L_ASIS: LASI' (or, for one prefixed label only, 'S01:L_ASIS: LASI')."),
+    "subjects": "Subjects (CSV beside this file): id, sex, weight (kg), height (m).",
+    "trials": ("One row per raw file (CSV beside this file): trial (unique id), file (path relative to this file), "
+               "subject (an id of the subjects table), condition (start condition code: orientation letter N E S O "
+               "and start grid position, e.g. E4015), repetition."),
+}
 _SUBJECT_KEY, _TRIAL_KEY, _NOISE_KEY = 1, 2, 6  # first words of the SeedSequence entropy, per use
 
 
@@ -258,7 +278,8 @@ def generate(directory, seed: int = 0, n_subjects: int = N_SUBJECTS, n_trials: i
                            "condition": [r[1]["condition"] for r in results],
                            "repetition": [t[4] for t in tasks]})
     (directory / "results.md").write_text(summary(trials_truth))
-    return save_protocol(directory / "protocol.yaml", STUDY, trials, subjects=subj, rate=bd.RATE)
+    return write_protocol(directory / "protocol.yaml", STUDY, trials, subjects=subj, rate=bd.RATE,
+                          header=PROTOCOL_HEADER, notes=PROTOCOL_NOTES)
 
 
 def summary(trials_truth: pd.DataFrame) -> str:
