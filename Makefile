@@ -92,7 +92,7 @@ results:
 	$(CLI) results $(wildcard $(WALK) $(PAIRS) $(SPAIRS) $(LOC)) --to docs/results.md \
 	  --preface "What the pipeline computes from the published datasets (walking-2020, pair-carriage-2022), from the \
 	  per-trial synthetic pair study and from the synthetic robot runs: one section per stage, written by the stage \
-	  itself (\`make walking pairs localisation results\`). Each section states its choices and, where METHODS.md or \
+	  itself (\`make walking pairs localisation results\`). Each section states its choices and, where docs/methods.md or \
 	  the dataset READMEs give them, the published values beside ours. $(RESULTS_NOTE)"
 
 schemas:

@@ -1,4 +1,4 @@
-"""Coupled-model IOC on the published scenario-3 means (METHODS.md 5.6, 6): time of one coupled
+"""Coupled-model IOC on the published scenario-3 means (docs/methods.md 5.6, 6): time of one coupled
 OC solve (cold: best of 'rest' and 'line'; warm: re-solve after a 10 % change of every weight) and
 of one upper-level evaluation (31 lower levels, warm-started, on a local pool of --jobs processes).
 

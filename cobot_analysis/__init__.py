@@ -1,7 +1,7 @@
 """cobot-analysis: reproducible analysis of the CoBot motion-capture studies.
 
 Data flows one way: io -> preprocess -> kinematics -> metrics / stats / models -> reports.
-The scientific reference for every method and name is METHODS.md (see docs/).
+The scientific reference for every method and name is docs/methods.md (see docs/).
 """
 
 from importlib.metadata import PackageNotFoundError, version

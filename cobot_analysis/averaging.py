@@ -1,4 +1,4 @@
-"""Mean trajectories per condition (METHODS.md sec. 2.9) with their sample-wise spread.
+"""Mean trajectories per condition (docs/methods.md sec. 2.9) with their sample-wise spread.
 
 Positions: arithmetic mean over the trajectories of a group, sample by sample. Angles (theta,
 gamma): circular mean ``atan2(sum sin a, sum cos a)``; theta is then unwrapped along the path so

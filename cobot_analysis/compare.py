@@ -2,7 +2,7 @@
 
 Long trajectory tables (one row per trajectory x sample) are pivoted once into arrays
 ``(n_trajectories, N)`` (``TrajectorySet``); the pairs to compare are found with table joins on
-the metadata and all their distances (METHODS.md sec. 3: d_xy, d_theta, d_gamma) are computed in a
+the metadata and all their distances (docs/methods.md sec. 3: d_xy, d_theta, d_gamma) are computed in a
 few vectorised calls of ``metrics.pair_distances`` (no Python loop over pairs or samples).
 The result is ``distances.parquet``: one row per compared pair with the grouping columns of the
 first trajectory ("a") and the identity of the second ("b_*").
@@ -33,7 +33,7 @@ B_COLUMNS = ["trial", "kind", "subject", "pair", "scenario", "direction", "end_o
 DISTANCES = TableSchema(
     name="distances",
     version=1,
-    description=("Distances between two time-normalised trajectories (METHODS.md sec. 3), one row per "
+    description=("Distances between two time-normalised trajectories (docs/methods.md sec. 3), one row per "
                  "compared pair: grouping columns of trajectory a, identity of trajectory b (b_*)."),
     columns={
         "comparison": Column("string", "", "individual-mean, any-any, symmetry (forward vs reversed return), against, ..."),

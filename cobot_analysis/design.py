@@ -1,4 +1,4 @@
-"""Designs of the CoBot studies (METHODS.md sec. 1): conditions, start poses, goals, scenarios.
+"""Designs of the CoBot studies (docs/methods.md sec. 1): conditions, start poses, goals, scenarios.
 
 Shared by the synthetic generator, the published-data importers, the statistics and the models so
 that every part of the pipeline names conditions the same way.
@@ -19,7 +19,7 @@ POSITION_CODES = ("1500", "4000", "-0615", "0615", "1515", "4015", "-0640", "064
 WALKING_CONDITIONS = tuple(f"{o}{p}" for p in POSITION_CODES for o in "NESO")
 #: goal pose in the goal frame.
 WALKING_GOAL = (0.0, 0.0, math.pi / 2)
-GLOBAL_DISTANCE_SPLIT = 3.0  # m: "< 3 m" vs "> 3 m" groups of METHODS.md sec. 4
+GLOBAL_DISTANCE_SPLIT = 3.0  # m: "< 3 m" vs "> 3 m" groups of docs/methods.md sec. 4
 
 _CODE = re.compile(r"^([NESO])(-?)(\d)(\d)(\d)(\d)$")
 

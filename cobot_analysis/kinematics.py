@@ -1,4 +1,4 @@
-"""Kinematics from filtered marker positions (METHODS.md sec. 2.4-2.7), vectorised over frames.
+"""Kinematics from filtered marker positions (docs/methods.md sec. 2.4-2.7), vectorised over frames.
 
 Marker arrays have shape ``(..., T, 3)`` (x, y, z in metres, laboratory frame, z vertical); NaN
 marks a sample that is missing after gap filling (a long gap). Every function propagates NaN

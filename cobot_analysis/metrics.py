@@ -1,4 +1,4 @@
-"""Distances between time-normalised trajectories (METHODS.md sec. 3), vectorised.
+"""Distances between time-normalised trajectories (docs/methods.md sec. 3), vectorised.
 
 Every function takes arrays whose last axis is the sample axis (N samples), so a batch of
 trajectory pairs of shape ``(..., N)`` is compared in one call without a Python loop.
@@ -24,7 +24,7 @@ def d_theta(theta1, theta2):
 def d_gamma(gamma1, gamma2):
     """Local angular distance ``d_gamma = (1/(N-1)) sum_{i<N} |wrap(gamma1_i - gamma2_i)|`` (rad).
 
-    The last sample is left out (METHODS.md sec. 3): gamma of a generated path is defined from the
+    The last sample is left out (docs/methods.md sec. 3): gamma of a generated path is defined from the
     step i -> i+1 (see ``gamma_from_path``).
     """
     return np.mean(np.abs(angle_diff(np.asarray(gamma1)[..., :-1], np.asarray(gamma2)[..., :-1])), axis=-1)
@@ -48,7 +48,7 @@ def pair_distances(a: dict, b: dict, ia, ib) -> dict[str, np.ndarray]:
 
     ``a`` and ``b`` map "x", "y", "theta", "gamma" to arrays (n_traj, N); ``ia``/``ib`` are index
     arrays of equal length. Angular distances are NaN where either trajectory lacks orientation
-    at some sample (METHODS.md sec. 2.9: such trials leave only the orientation comparison).
+    at some sample (docs/methods.md sec. 2.9: such trials leave only the orientation comparison).
     Work is done in blocks so that memory stays bounded for tens of thousands of pairs.
     """
     ia, ib = np.asarray(ia, dtype=int), np.asarray(ib, dtype=int)
@@ -70,7 +70,7 @@ def reverse_time(values):
 
 
 def symmetry(x_fwd, y_fwd, theta_fwd, x_ret, y_ret, theta_ret):
-    """Forward/return symmetry (METHODS.md sec. 3): d_xy and d_theta between the forward path and
+    """Forward/return symmetry (docs/methods.md sec. 3): d_xy and d_theta between the forward path and
     the time-reversed return path. Returns ``(d_xy, d_theta)``.
 
     Orientation is compared as is: a carrier who walks the return facing the same way as on the
@@ -81,7 +81,7 @@ def symmetry(x_fwd, y_fwd, theta_fwd, x_ret, y_ret, theta_ret):
 
 
 def travelled_distance(x, y):
-    """Straight-line distance from start to end position ``D = |p_{N-1} - p_0|`` (m, METHODS.md sec. 3)."""
+    """Straight-line distance from start to end position ``D = |p_{N-1} - p_0|`` (m, docs/methods.md sec. 3)."""
     x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
     return np.hypot(x[..., -1] - x[..., 0], y[..., -1] - y[..., 0])
 
@@ -92,12 +92,12 @@ def path_length(x, y):
 
 
 def travel_time(onset, offset):
-    """Travel time = carriage offset - onset (s, METHODS.md sec. 3)."""
+    """Travel time = carriage offset - onset (s, docs/methods.md sec. 3)."""
     return np.asarray(offset, dtype=float) - np.asarray(onset, dtype=float)
 
 
 def optimal_configurations(d_by_config: dict, tol: float = 0.05) -> set:
-    """Configurations that minimise a distance among the configurations of a goal (METHODS.md sec. 3).
+    """Configurations that minimise a distance among the configurations of a goal (docs/methods.md sec. 3).
 
     ``d_by_config`` maps a configuration (e.g. an end orientation) to its travelled distance
     (D1, D2 or D1 + D2). Configurations within ``tol`` metres of the minimum all count as optimal

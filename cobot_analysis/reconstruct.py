@@ -1,4 +1,4 @@
-"""Subjects from the table (METHODS.md sec. 8).
+"""Subjects from the table (docs/methods.md sec. 8).
 
 The mean pose of a subject in the table frame, per normalised sample i and direction:
 ``x_rel = cos(th_T) dx + sin(th_T) dy``, ``y_rel = -sin(th_T) dx + cos(th_T) dy`` with
@@ -27,7 +27,7 @@ SUBJECTS = ("subject1", "subject2")
 RECONSTRUCTION = TableSchema(
     name="reconstruction",
     version=1,
-    description="Subjects reconstructed from the table trajectory (METHODS.md sec. 8): accuracy per trajectory.",
+    description="Subjects reconstructed from the table trajectory (docs/methods.md sec. 8): accuracy per trajectory.",
     columns={
         "study": Column("string", "", "study"),
         "trial": Column("string", "", "trial (or mean) whose table trajectory was used"),

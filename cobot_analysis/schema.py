@@ -63,7 +63,7 @@ class TableSchema:
 
 
 # ---------------------------------------------------------------------------------------------
-# Shared vocabulary of trial metadata (METHODS.md sec. 1). Columns that do not apply are null.
+# Shared vocabulary of trial metadata (docs/methods.md sec. 1). Columns that do not apply are null.
 TRIAL_COLUMNS: dict[str, Column] = {
     "study": Column("string", "", "study name, e.g. walking-2020, pair-carriage-2022, synthetic-walking"),
     "trial": Column("string", "", "trial identifier, unique within the study"),
@@ -132,7 +132,7 @@ TRAJECTORIES = TableSchema(
         "vx": Column("float", "m/s", "CoM velocity", required=False),
         "vy": Column("float", "m/s", "CoM velocity", required=False),
         "travel_time": Column("float", "s", "duration of the trajectory (onset to offset); NaN if unknown"),
-        "travelled_distance": Column("float", "m", "straight-line distance start -> end position (METHODS.md sec. 3)"),
+        "travelled_distance": Column("float", "m", "straight-line distance start -> end position (docs/methods.md sec. 3)"),
         "quality": Column("string", "", "'ok' or ';'-separated flags, e.g. orientation_missing;long_gap"),
     },
 )

@@ -1,4 +1,4 @@
-"""Inverse optimal control (METHODS.md sec. 6) and the model commands: recovery of planted weights,
+"""Inverse optimal control (docs/methods.md sec. 6) and the model commands: recovery of planted weights,
 exact resume, Dask = local, bad input through the CLI."""
 
 from __future__ import annotations

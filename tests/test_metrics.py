@@ -1,4 +1,4 @@
-"""Distances, derived quantities and comparisons (METHODS.md sec. 3): analytic cases and invariants."""
+"""Distances, derived quantities and comparisons (docs/methods.md sec. 3): analytic cases and invariants."""
 
 from __future__ import annotations
 

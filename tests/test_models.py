@@ -1,4 +1,4 @@
-"""Walking-path models and the OC solver (METHODS.md sec. 5): analytic cases, invariances, solver agreement."""
+"""Walking-path models and the OC solver (docs/methods.md sec. 5): analytic cases, invariances, solver agreement."""
 
 from __future__ import annotations
 

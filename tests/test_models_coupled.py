@@ -1,4 +1,4 @@
-"""Coupled OC model of two carriers and its IOC (METHODS.md 5.6, 6): recovery of planted paths,
+"""Coupled OC model of two carriers and its IOC (docs/methods.md 5.6, 6): recovery of planted paths,
 the kink-free barriers, the fit's own stage (the table fit is not clobbered), the T-at-bound flag."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Prediction (METHODS.md sec. 7): metrics by hand, baselines exact where they must be, the OC
+"""Prediction (docs/methods.md sec. 7): metrics by hand, baselines exact where they must be, the OC
 predictor on its own model, step-by-step == offline, warm == cold starts."""
 
 from __future__ import annotations

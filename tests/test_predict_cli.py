@@ -261,6 +261,6 @@ def test_second_sweep_with_other_weights_sits_beside_the_first(cli, tmp_path, tr
     assert first.loc["cv", "delta_xy"] == second.loc["cv", "delta_xy"]  # baselines do not use weights
     assert first.loc["oc", "delta_xy"] != pytest.approx(second.loc["oc", "delta_xy"], rel=1e-6)  # lighter control costs
     assert (out / "predict-fitted" / "results.md").read_text().startswith(
-        "## Trajectory prediction (METHODS.md sec. 7), stage predict-fitted")
+        "## Trajectory prediction (docs/methods.md sec. 7), stage predict-fitted")
     code, _, err = cli("-q", "predict", "--out", out, "--stage-name", "../elsewhere", *args)
     assert code == 2 and "not a predict stage name" in err

@@ -1,4 +1,4 @@
-"""Reconstruction of the subjects from the table (METHODS.md sec. 8)."""
+"""Reconstruction of the subjects from the table (docs/methods.md sec. 8)."""
 
 from __future__ import annotations
 

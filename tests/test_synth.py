@@ -394,7 +394,7 @@ def test_carriage_geometry_goal_reached_subjects_face_each_other(pair_truth):
         s1, s2 = (g[g.entity == e].reset_index(drop=True) for e in ("subject1", "subject2"))
         carry = np.isin(s1["segment"].to_numpy(), ["forward", "return"])
         dist = np.hypot(s2.x - s1.x, s2.y - s1.y)[carry]
-        assert dist.min() > 1.6 and dist.max() < 2.1  # METHODS 5.6: 1.6 < d < 2.1 m
+        assert dist.min() > 1.6 and dist.max() < 2.1  # docs/methods.md 5.6: 1.6 < d < 2.1 m
         bearing = np.arctan2(s2.y - s1.y, s2.x - s1.x)[carry]
         assert np.median(np.abs(angle_diff(s1.theta[carry], bearing))) < 0.4  # Subject 1 faces Subject 2
         assert np.median(np.abs(angle_diff(s2.theta[carry], bearing + np.pi))) < 0.4

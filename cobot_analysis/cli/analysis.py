@@ -1,4 +1,4 @@
-"""``average``, ``compare``, ``stats``, ``reconstruct`` and ``report``: the analyses of METHODS.md
+"""``average``, ``compare``, ``stats``, ``reconstruct`` and ``report``: the analyses of docs/methods.md
 sec. 3, 4 and 8 on a workspace's trajectories.
 
 Typical sequence (published walking data imported into WS):
@@ -166,7 +166,7 @@ def compare_command(
         summary = d.groupby(["comparison", "entity"])[["d_xy", "d_theta", "d_gamma"]].agg(["mean", "std", "count"])
         lines = ["## Distances between trajectories", "",
                  "d_xy (m), d_theta (rad, differences wrapped to [-pi, pi]), d_gamma (rad, N-1 samples) "
-                 "(METHODS.md sec. 3); symmetry = forward vs time-reversed return; angular distances only where "
+                 "(docs/methods.md sec. 3); symmetry = forward vs time-reversed return; angular distances only where "
                  "both trajectories have orientation.", "",
                  "| comparison | entity | n | d_xy mean +- sd | d_theta mean +- sd | d_gamma mean +- sd |", "|---|---|---|---|---|---|"]
         for (comp, ent), r in summary.iterrows():
@@ -277,7 +277,7 @@ def reconstruct_command(
     scenario: Annotated[int, typer.Option("--scenario", help="Scenario whose trials give the relative pose and are reconstructed.")] = 3,
     force: ForceOpt = False,
 ) -> None:
-    """Subjects reconstructed from the table trajectory (METHODS.md sec. 8), d_xy / d_theta vs measured -> reconstruct/reconstruction.parquet."""
+    """Subjects reconstructed from the table trajectory (docs/methods.md sec. 8), d_xy / d_theta vs measured -> reconstruct/reconstruction.parquet."""
     import pandas as pd
 
     from cobot_analysis.console import info, track
@@ -316,7 +316,7 @@ def reconstruct_command(
         lines = ["## Subjects reconstructed from the table", "",
                  f"Relative pose: mean subject pose in the table frame over scenario-{scenario} trajectories "
                  "(or the published subject*_wrt_table.dat); reconstructed trajectories compared with the measured ones "
-                 "(METHODS.md sec. 8).", "",
+                 "(docs/methods.md sec. 8).", "",
                  "| relative pose | trajectories | direction | subject | n | d_xy (m) mean +- sd | d_theta (rad) mean +- sd |",
                  "|---|---|---|---|---|---|---|"]
         for (src, kind, direction, ent), r in s.iterrows():

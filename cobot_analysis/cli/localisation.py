@@ -1,4 +1,4 @@
-"""``cobot-analysis localisation``, ``bag-info`` and ``synth localisation`` (METHODS.md sec. 9)."""
+"""``cobot-analysis localisation``, ``bag-info`` and ``synth localisation`` (docs/methods.md sec. 9)."""
 
 from __future__ import annotations
 
@@ -127,7 +127,7 @@ def localisation_command(
     delay: Annotated[Optional[float], typer.Option(help="Use this delay (s) instead of estimating it.")] = None,
     delay_window: Annotated[str, typer.Option(help="Delay search window MIN,MAX (s).")] = "0,1.5",
     delay_weights: Annotated[str, typer.Option(help="Weights of x,y,z,yaw in the delay cost (yaw in m/rad; 0 drops an axis).")] = "1,1,1,1",
-    alignment: Annotated[str, typer.Option(help="Offset removal: mean (METHODS.md), se3 (Umeyama), yaw (4 DoF), none.")] = "mean",
+    alignment: Annotated[str, typer.Option(help="Offset removal: mean (docs/methods.md), se3 (Umeyama), yaw (4 DoF), none.")] = "mean",
     association: Annotated[str, typer.Option(help="interpolate (truth at the ICP stamps) or nearest (nearest stamp, as evo).")] = "interpolate",
     max_gap: Annotated[float, typer.Option(help="Longest truth gap to interpolate across (s).")] = 0.05,
     max_diff: Annotated[float, typer.Option(help="Nearest association: largest stamp difference (s).")] = 0.01,

@@ -1,4 +1,4 @@
-"""``generate``, ``fit-ioc`` and ``velocity-commands``: walking-path models (METHODS.md sec. 5, 6, 10)."""
+"""``generate``, ``fit-ioc`` and ``velocity-commands``: walking-path models (docs/methods.md sec. 5, 6, 10)."""
 
 from __future__ import annotations
 
@@ -343,7 +343,7 @@ def fit_ioc_command(
 
         # report
         lines = [f"## Inverse optimal control ({model} model{', one fit per subject' if per is Per.subject else ''})", "",
-                 f"Bi-level IOC (METHODS.md sec. 6): upper level {optimizer.value} over log10 of ({', '.join(names)}), "
+                 f"Bi-level IOC (docs/methods.md sec. 6): upper level {optimizer.value} over log10 of ({', '.join(names)}), "
                  f"bounds 1e-7..1e3, the other weights held at their start value "
                  f"({'neutral start: fitted weights 1' if start_weights == 'ones' else start_weights or 'model preset'}); "
                  f"lower level: OC with free duration on {intervals} intervals, warm-started from the solution at the best "
@@ -404,7 +404,7 @@ def velocity_commands_command(
     fmt: Annotated[Format, typer.Option("--format", help="Output format.")] = Format.csv,
     force: ForceOpt = False,
 ) -> None:
-    """Export velocity commands for a walking robot following a generated path (METHODS.md sec. 10).
+    """Export velocity commands for a walking robot following a generated path (docs/methods.md sec. 10).
 
     v = (p_sim(t+1) - p_real(t)) f in the robot frame, open loop (p_real = p_sim), saturated at
     --v-max (x, y) and --omega-max (yaw). Writes OUT/velocity-commands/commands.csv (or .parquet).

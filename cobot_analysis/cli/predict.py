@@ -1,5 +1,5 @@
 """``cobot-analysis predict``: receding-horizon trajectory prediction assessed on every trajectory
-(METHODS.md sec. 7): the sweep, its tables, figures and results fragment."""
+(docs/methods.md sec. 7): the sweep, its tables, figures and results fragment."""
 
 from __future__ import annotations
 
@@ -55,7 +55,7 @@ def predict_command(
 ) -> None:
     """Predict every trajectory at every sample from its recent past and assess the predictions.
 
-    For each trajectory x (N0, N_OC) setting x predictor: delta_xy, delta_theta, d_pred (METHODS.md
+    For each trajectory x (N0, N_OC) setting x predictor: delta_xy, delta_theta, d_pred (docs/methods.md
     sec. 7), ADE/FDE; a summary per setting (mean +- sd, Pearson r with the global distance), the
     OC predictor vs the baselines on the same windows (Wilcoxon), figures and results.md.
     Resumable: an interrupted run continues where it stopped, and a run that adds a setting
@@ -238,7 +238,7 @@ def results_fragment(metrics, summary, comparison, config, example, unpredictabl
     untracked = int((traj["orientation"] & ~traj["theta_tracked"]).sum())
     assumed = traj[traj["duration_source"] == "nominal_speed"]
     lines = [
-        "## Trajectory prediction (METHODS.md sec. 7)" + ("" if stage_name == STAGE else f", stage {stage_name}"), "",
+        "## Trajectory prediction (docs/methods.md sec. 7)" + ("" if stage_name == STAGE else f", stage {stage_name}"), "",
         f"{len(traj)} trajectories: {studies}; entities " + ", ".join(f"{e} ({n})" for e, n in traj.groupby("entity").size().items()) + ".",
         f"Predictors: {', '.join(config.predictors)}; settings (N0, N_OC): {', '.join(f'({a}, {b})' for a, b in config.settings)}; "
         f"OC weights {config.weights or 'walking-2021 (walkers) / table-2022 (tables)'}, g0 = {config.g0}, g1 = {config.g1}.",

@@ -1,4 +1,4 @@
-"""``cobot-analysis preprocess``: raw markers -> time-normalised trajectories (METHODS.md sec. 2)."""
+"""``cobot-analysis preprocess``: raw markers -> time-normalised trajectories (docs/methods.md sec. 2)."""
 
 from __future__ import annotations
 

@@ -31,7 +31,7 @@ Trial id: ``<goal>_<direction>_<sc1|sc2|sc3|all>_<end|init><degrees>``, e.g.
 whose final (forward) or initial (return) table orientation is more than
 ``END_ORIENTATION_TOLERANCE`` from its configuration key modulo 2 pi is flagged
 ``plain_angle_mean`` on its three entities. Also written: ``durations.parquet`` (DURATIONS) and
-``subject_wrt_table.parquet`` (SUBJECT_WRT_TABLE, the input of the reconstruction, METHODS.md
+``subject_wrt_table.parquet`` (SUBJECT_WRT_TABLE, the input of the reconstruction, docs/methods.md
 sec. 8).
 """
 
@@ -90,7 +90,7 @@ DURATIONS = TableSchema(
 SUBJECT_WRT_TABLE = TableSchema(
     name="subject_wrt_table",
     version=1,
-    description="Pair study: mean pose of each subject in the table frame, scenario 3, per normalised sample (METHODS.md sec. 8).",
+    description="Pair study: mean pose of each subject in the table frame, scenario 3, per normalised sample (docs/methods.md sec. 8).",
     columns={
         "entity": Column("string", "", "subject1 or subject2"),
         "direction": Column("string", "", "forward or return"),
@@ -495,7 +495,7 @@ def pair_results_markdown(facts: dict[str, Any]) -> str:
         f"| return trials in the means (nb) | {f['return_all']} of 540 | 522 of 540 |",
         f"| mean paths per entity: forward sc1 / sc2 / sc3 / All data, return | {f['n_means']['forward_sc1']} / "
         f"{f['n_means']['forward_sc2']} / {f['n_means']['forward_sc3']} / {f['n_means']['forward_all']}, {f['n_means']['return']} | "
-        "sc3: 13, return: 18 (METHODS.md sec. 6) |",
+        "sc3: 13, return: 18 (docs/methods.md sec. 6) |",
         f"| pairs in the durations tables | {f['durations_pairs']} | 20 |",
         f"| forward durations, scenarios 1 / 2 / 3 | {dur_fwd.get(1, 0)} / {dur_fwd.get(2, 0)} / {dur_fwd.get(3, 0)} | 180 / 180 / 180 |",
         f"| return durations | {f['durations_return']} of 180 | 172 of 180 |",

@@ -1,5 +1,5 @@
 """ICP pose against motion capture: time base, delay, structural offset, errors, drift
-(METHODS.md sec. 9, steps 1-4).
+(docs/methods.md sec. 9, steps 1-4).
 
 Notation: ``s_i`` the ICP stamps, ``P(t)`` the motion-capture (truth) pose, ``Q_i`` the ICP pose,
 ``d`` the delay (the ICP pose at ``s_i`` describes the robot at ``s_i - d``).
@@ -18,7 +18,7 @@ Notation: ``s_i`` the ICP stamps, ``P(t)`` the motion-capture (truth) pose, ``Q_
    ``var d = sum_ia w_a^2 sigma_a^2 g_ia^2 / (sum_ia w_a g_ia^2)^2``, ``g_i = dP/dt (s_i - d)``
    centred, ``sigma_a`` the residual sd of axis a (serially uncorrelated noise assumed).
 3. Structural offset: ``o = mean_i (Q_i - P(s_i - d))`` per axis (circular mean for yaw) and
-   ``Q_i - o`` (METHODS.md), or a rigid alignment of the ICP positions onto the truth: Umeyama
+   ``Q_i - o`` (docs/methods.md), or a rigid alignment of the ICP positions onto the truth: Umeyama
    SE(3) (``"se3"``) or a rotation about z plus a translation (``"yaw"``, 4 DoF).
 4. Errors: ``e_i = Q'_i - P(s_i - d)`` per axis; mean +- sd of ``|e|``, RMSE, max; the 3-D
    position error ``||e_xyz||`` (RMSE, mean, max as evo's APE on the translation part); drift:
@@ -268,7 +268,7 @@ def compare(truth: PoseStream, icp: PoseStream, *, delay: float | None = None, w
             weights=(1.0, 1.0, 1.0, 1.0), alignment: str = "mean", association: str = "interpolate",
             max_gap: float = 0.05, max_diff: float = 0.01, distance_window: float = 2.0,
             min_samples: int = 20, path=None) -> Comparison:
-    """Steps 1-4 of METHODS.md sec. 9 on one run (``delay`` given or estimated)."""
+    """Steps 1-4 of docs/methods.md sec. 9 on one run (``delay`` given or estimated)."""
     from cobot_analysis.errors import InputError
 
     if delay is None:

@@ -1,4 +1,4 @@
-"""Goal accuracy (METHODS.md sec. 9, step 5): stops of the robot, matched to the commanded goals.
+"""Goal accuracy (docs/methods.md sec. 9, step 5): stops of the robot, matched to the commanded goals.
 
 - Speed of the truth: centred differences over ``window`` seconds,
   ``v(t) = ||p_xy(t + w/2) - p_xy(t - w/2)|| / w`` and ``omega(t)`` likewise on the unwrapped yaw.

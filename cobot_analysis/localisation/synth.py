@@ -7,7 +7,7 @@ scaled by the walking speed. Everything is generated in the map frame (the frame
 localisation and of the commanded goals):
 
 - motion capture (ground truth, ``/mocap/pose``, 200 Hz): ``p_mocap(t) = p_map(t) - offset_xyz``,
-  ``yaw_mocap = yaw_map - offset_yaw`` (the structural offset of METHODS.md sec. 9, per axis), plus
+  ``yaw_mocap = yaw_map - offset_yaw`` (the structural offset of docs/methods.md sec. 9, per axis), plus
   a small measurement noise;
 - ICP (``/icp/pose`` PoseStamped, ``/icp/odom`` Odometry, ``/icp/transform`` TransformStamped and
   the tf chain map -> odom -> base_link, 10 Hz): ``p_icp(t) = p_map(t - delay) + noise``;

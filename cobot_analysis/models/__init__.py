@@ -1,4 +1,4 @@
-"""Walking-path models (METHODS.md sec. 5): one API for all of them.
+"""Walking-path models (docs/methods.md sec. 5): one API for all of them.
 
     from cobot_analysis.models import generate
     df = generate("improved", start=(-1.5, -3.4, 0.0), goal=(0.0, 0.0, math.pi / 2), weights="walking-2021")

@@ -1,4 +1,4 @@
-"""Baseline predictors of METHODS.md sec. 7, with the ``Predictor`` interface of ``predict``.
+"""Baseline predictors of docs/methods.md sec. 7, with the ``Predictor`` interface of ``predict``.
 
 Both extrapolate the last measured displacement over the horizon ``H = N_OC - N0`` (prediction
 ``P_j`` for the sample ``k + j``, ``j = 0..H``, with ``P_0 = C_k``):

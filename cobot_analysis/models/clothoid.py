@@ -1,4 +1,4 @@
-"""Clothoid path model (METHODS.md 5.2): one G1 clothoid arc between start and goal poses.
+"""Clothoid path model (docs/methods.md 5.2): one G1 clothoid arc between start and goal poses.
 
 theta(s) = theta0 + k0 s + k1 s^2 / 2, fitted with the G1 Hermite interpolation of Bertolazzi &
 Frego (2015) (``pyclothoids``), sampled at N points equally spaced in arc length. The walker

@@ -1,4 +1,4 @@
-"""Coupled OC model of two carriers (METHODS.md 5.6), solved like the single walker (``ocp.py``).
+"""Coupled OC model of two carriers (docs/methods.md 5.6), solved like the single walker (``ocp.py``).
 
 Two holonomic walkers (12 states, 6 controls), both starting at rest, with
 

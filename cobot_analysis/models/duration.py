@@ -1,4 +1,4 @@
-"""Duration T of the walking OC problems (METHODS.md 5.4 and 5.5).
+"""Duration T of the walking OC problems (docs/methods.md 5.4 and 5.5).
 
 - ``initial_duration``: T0 = d / v_nominal + t_rest (d = start-goal distance). The optimal T of
   the improved model came out at 0.56-0.77 x (d / 1 m/s + 1 s) in the reference runs, so the

@@ -1,4 +1,4 @@
-"""Continuous dynamics of the walking-path models (METHODS.md 5.1 and 5.3), as casadi expressions
+"""Continuous dynamics of the walking-path models (docs/methods.md 5.1 and 5.3), as casadi expressions
 (and the zero-control coast in numpy).
 
 State X = (x, y, theta, v_forw, v_orth, omega), control U = (u1, u2, u3).

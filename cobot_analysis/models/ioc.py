@@ -1,4 +1,4 @@
-"""Bi-level inverse optimal control (METHODS.md sec. 6): fit the cost weights of an OC model to
+"""Bi-level inverse optimal control (docs/methods.md sec. 6): fit the cost weights of an OC model to
 measured (mean) trajectories.
 
 Upper level: ``min_w (1/N_traj) sum_n D_n(w)`` over the log10 of the fitted weights, derivative-
@@ -76,7 +76,7 @@ class Target:
 
 def targets_from_table(df: pd.DataFrame, *, path=None, entity: str = "walker", goal=None) -> list[Target]:
     """Targets from a long trajectories/means table (one per trial x entity); rows without
-    orientation are left out (METHODS.md sec. 6). NaN in positions is refused. ``goal``: the goal
+    orientation are left out (docs/methods.md sec. 6). NaN in positions is refused. ``goal``: the goal
     pose of every target (e.g. the walking study's (0, 0, pi/2)), None for the last measured pose."""
     need = {"trial", "condition", "entity", "sample", "x", "y", "theta"}
     missing = sorted(need - set(df.columns))
@@ -122,7 +122,7 @@ class PairTarget:
 
 def pair_targets_from_table(df: pd.DataFrame, *, path=None, scenario: int = 3) -> list[PairTarget]:
     """Coupled-model targets: the scenario-``scenario`` forward and return means of Subject 1 and 2;
-    on returns the roles are swapped (Subject 2 is carrier 1, METHODS.md 5.6)."""
+    on returns the roles are swapped (Subject 2 is carrier 1, docs/methods.md 5.6)."""
     need = {"trial", "condition", "entity", "sample", "x", "y", "theta", "direction", "scenario"}
     missing = sorted(need - set(df.columns))
     if missing:

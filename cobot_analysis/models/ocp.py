@@ -1,4 +1,4 @@
-"""The single-walker optimal-control problem as one parametric casadi NLP (METHODS.md 5.3-5.5, 7).
+"""The single-walker optimal-control problem as one parametric casadi NLP (docs/methods.md 5.3-5.5, 7).
 
 Built once per problem *shape* (number of intervals, dynamics, free or fixed duration) and reused
 for every solve: the start state, the goal, the duration, the weights and an optional tracking
@@ -12,7 +12,7 @@ Cost (multiple shooting, N intervals of dt = T / N, ``dynamics.step``, controls 
       + b0 r_N^2 + b1 (thf - theta_N)^2 + b2 (v_forw_N^2 + v_orth_N^2) + b3 omega_N^2
 
 with r = distance to the goal and psi = atan2 of the goal direction in the walker frame (the
-bearing of METHODS.md 5.3, wrapped to (-pi, pi]). psi is undefined at the goal: the factor
+bearing of docs/methods.md 5.3, wrapped to (-pi, pi]). psi is undefined at the goal: the factor
 r^2 / (r^2 + eps^2) (eps = 5 cm by default) leaves the term unchanged away from the goal
 (>= 0.99 beyond 0.5 m) and keeps its gradient bounded at it. Headings are not wrapped in the
 heading terms (theta is unwrapped; pass the goal heading on the branch you mean).

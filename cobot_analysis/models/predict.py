@@ -1,4 +1,4 @@
-"""Trajectory prediction (METHODS.md sec. 7): the ``Predictor`` interface and the receding-horizon
+"""Trajectory prediction (docs/methods.md sec. 7): the ``Predictor`` interface and the receding-horizon
 optimal-control predictor.
 
 A predictor sees the measured poses ``C_k = (cx, cy, ctheta)``, one every ``T_OC`` seconds, and at
@@ -114,7 +114,7 @@ def make_predictor(name: str, n0: int, n_oc: int, dt: float = 1.0, **options) ->
 
 
 class OCPredictor(Predictor):
-    """Receding-horizon OC predictor of METHODS.md sec. 7 on the OC solver of ``models.ocp``.
+    """Receding-horizon OC predictor of docs/methods.md sec. 7 on the OC solver of ``models.ocp``.
 
     Window at sample k: ``N_OC - 1`` intervals of ``T_OC`` (nodes = samples n+1 .. n+N_OC) with the
     running cost ``a0 + a1 u1^2 + a2 u2^2 + a3 u3^2``, the tracking cost
@@ -129,7 +129,7 @@ class OCPredictor(Predictor):
     samples (``step`` with U = 0). Same optimum as the whole window (tests/test_predict.py), with
     N0 instead of N_OC nodes in the NLP.
     The cost weights a0..a3 come from a preset or a fitted-weights file (``presets.load_weights``;
-    the walking-2021 preset is METHODS.md's a = (7.9, 4.0, 20.1, 1e-6) unrounded).
+    the walking-2021 preset is docs/methods.md's a = (7.9, 4.0, 20.1, 1e-6) unrounded).
 
     Initial state (node 0 = the measured pose C_{n+1}; "at rest" is not assumed): the velocities are
     the derivative at node 0 of a least-squares quadratic through the first ``fit`` measured poses

@@ -1,7 +1,7 @@
-"""Errors of receding-horizon predictions against the recorded trajectory (METHODS.md sec. 7).
+"""Errors of receding-horizon predictions against the recorded trajectory (docs/methods.md sec. 7).
 
 Predictions of one trajectory are an array ``P`` of shape ``(W, H + 1, 3)``: window ``w`` is the
-prediction made at sample ``k = N0 - 1 + w`` (0-based; METHODS.md counts from 1) for the samples
+prediction made at sample ``k = N0 - 1 + w`` (0-based; docs/methods.md counts from 1) for the samples
 ``k .. k + H`` with ``H = N_OC - N0``; a skipped window is all NaN. Columns are (x, y, theta).
 
 With ``N_k = min(k + H, N - 1) - k + 1`` the recorded samples a window can be compared with:
@@ -70,7 +70,7 @@ def window_errors(poses: np.ndarray, predictions: np.ndarray, n0: int) -> Window
 
 @dataclass(frozen=True)
 class PredictionMetrics:
-    """METHODS.md sec. 7 metrics of one trajectory and the window counts behind them."""
+    """docs/methods.md sec. 7 metrics of one trajectory and the window counts behind them."""
 
     delta_xy: float
     delta_theta: float

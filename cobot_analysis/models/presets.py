@@ -1,4 +1,4 @@
-"""Cost-weight presets of the walking-path models (METHODS.md sec. 5) and fitted-weights files.
+"""Cost-weight presets of the walking-path models (docs/methods.md sec. 5) and fitted-weights files.
 
 Single-walker weights are one vector ``(a0, a1, a2, a3, a4, a5, a6, b0, b1, b2, b3)``:
 running cost ``a0 + a1 u1^2 + a2 u2^2 + a3 u3^2 + a4 psi^2 + a5 r^2 + a6 (thf - theta)^2``
@@ -20,7 +20,7 @@ WALKER_WEIGHTS = ("a0", "a1", "a2", "a3", "a4", "a5", "a6", "b0", "b1", "b2", "b
 COUPLED_WEIGHTS = tuple(f"a{i}" for i in range(11)) + ("b0", "b1", "b2", "b3")
 
 PRESETS: dict[str, dict[str, float]] = {
-    # Mombaur & Laumond 2010 (a0..a4) with the position / heading weights a5, a6 of METHODS.md 5.4.
+    # Mombaur & Laumond 2010 (a0..a4) with the position / heading weights a5, a6 of docs/methods.md 5.4.
     "mombaur-2010": dict(zip(WALKER_WEIGHTS, (1.0, 1.2, 0.7, 1.7, 5.2, 5.0, 8.0, 0.0, 0.0, 0.0, 0.0))),
     # Improved OC, IOC on the walking means (CMBBE 2021).
     "walking-2021": dict(zip(WALKER_WEIGHTS, (7.87, 4.00, 20.15, 1.00e-6, 10.00, 0.0, 0.0, 10.00, 10.00, 0.38, 3.36))),

@@ -1,5 +1,5 @@
 """Comparison of the walking-path models against measured trajectories, and the fit report
-(METHODS.md sec. 4-6): distances per model and trajectory, summary tables overall / by start
+(docs/methods.md sec. 4-6): distances per model and trajectory, summary tables overall / by start
 orientation / by global distance, statistics of model error vs subject-to-mean distances, figures.
 """
 
@@ -71,7 +71,7 @@ def compare_models(targets: list[Target], models: dict, *, n_intervals: int = 10
 
 
 def subject_distances(trials: list[Target], means: list[Target], angle: str = "gamma") -> pd.DataFrame:
-    """Distance of each subject trajectory to the mean of its condition (METHODS.md sec. 4)."""
+    """Distance of each subject trajectory to the mean of its condition (docs/methods.md sec. 4)."""
     by_condition = {m.condition: m for m in means}
     rows = []
     for t in trials:
@@ -117,7 +117,7 @@ def summary_table(df: pd.DataFrame, angle: str = "gamma") -> str:
 def statistics(df: pd.DataFrame, model: str, angle: str = "gamma", alpha: float = 0.05) -> str:
     """Model error vs subject-to-mean distances (Mann-Whitney), across models (Kruskal), and the
     effect of start orientation (4 groups) and global distance (2 groups) on the model's error
-    (KS normality, then ANOVA if normal else Kruskal / Mann-Whitney) (METHODS.md sec. 4)."""
+    (KS normality, then ANOVA if normal else Kruskal / Mann-Whitney) (docs/methods.md sec. 4)."""
     from cobot_analysis.stats import tests
 
     def line(name, r) -> str:
@@ -324,7 +324,7 @@ def coupled_section(result, coupled, targets, stage, durations: pd.DataFrame | N
     D = df.groupby(["model", "trial"], sort=False)["D"].sum(min_count=2).groupby(level=0, sort=False).mean()
     lines = ["### Coupled model on the scenario-3 means", "",
              f"Paths: {n_dir['forward']} forward + {n_dir['return']} return scenario-3 mean paths of the two carriers "
-             "(METHODS.md 6: 13 + 18 in the published data), Subject 2 as carrier 1 on returns. "
+             "(docs/methods.md 6: 13 + 18 in the published data), Subject 2 as carrier 1 on returns. "
              f"D = d_xy,1 + d_xy,2 + 0.5 (d_theta,1 + d_theta,2) per path, averaged: {result.start_objective:.4f} at the start "
              f"weights, {result.objective:.4f} fitted ({result.evaluations} upper-level evaluations, {result.iterations} "
              f"iterations); lower levels not converged at the fitted weights: {result.failed} of {len(targets)} "

@@ -1,4 +1,4 @@
-"""The prediction sweep: trajectories x (N0, N_OC) settings x predictors (METHODS.md sec. 7).
+"""The prediction sweep: trajectories x (N0, N_OC) settings x predictors (docs/methods.md sec. 7).
 
 Each trajectory is one task (all settings and predictors), run on a local process pool or a Dask
 cluster through ``parallel.map_tasks``. Finished results are saved at once, per trajectory and
@@ -56,7 +56,7 @@ _ID = {
 PREDICTIONS = TableSchema(
     name="predictions",
     version=1,
-    description="Prediction metrics (METHODS.md sec. 7) per trajectory x (N0, N_OC) setting x predictor, over the "
+    description="Prediction metrics (docs/methods.md sec. 7) per trajectory x (N0, N_OC) setting x predictor, over the "
                 "windows every predictor predicted.",
     columns={
         **_ID,

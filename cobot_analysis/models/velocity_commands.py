@@ -1,4 +1,4 @@
-"""Velocity commands for a walking robot from a generated path (METHODS.md sec. 10).
+"""Velocity commands for a walking robot from a generated path (docs/methods.md sec. 10).
 
 With the generated path sampled at rate f (p_sim) and the robot's current pose p_real:
 

@@ -1,4 +1,4 @@
-"""Preprocessing of raw markers (METHODS.md sec. 2): gaps, filtering, segmentation, normalisation.
+"""Preprocessing of raw markers (docs/methods.md sec. 2): gaps, filtering, segmentation, normalisation.
 
 - ``gaps``: gap report and cubic-spline filling of short gaps (flagged);
 - ``filtering``: zero-phase Butterworth low-pass, design/effective order conventions;

@@ -1,4 +1,4 @@
-"""Zero-phase low-pass Butterworth filter (METHODS.md sec. 2.3), applied per continuous segment.
+"""Zero-phase low-pass Butterworth filter (docs/methods.md sec. 2.3), applied per continuous segment.
 
 Order conventions (``convention``), for a requested ``order`` n and cut-off fc:
 
@@ -9,7 +9,7 @@ Order conventions (``convention``), for a requested ``order`` n and cut-off fc:
   ``tan(pi f_design / fs) = tan(pi fc / fs) / C`` so that the digital gain at fc is exactly
   ``1/sqrt(2)``. n must be even. This is the biomechanics reading of "4th-order zero-phase
   (zero-lag) Butterworth" (Winter: a 2nd-order filter passed twice is a 4th-order zero-lag
-  filter), hence the default for METHODS.md sec. 2.3.
+  filter), hence the default for docs/methods.md sec. 2.3.
 - ``"design"``: an n-th order Butterworth designed at fc and run forward and backward
   (``scipy.signal.sosfiltfilt``; MATLAB ``butter(n, ...)`` + ``filtfilt``). The magnitude is
   squared, ``|H|^2 = 1 / (1 + (w/wc)^(2n))^2``: an effective order 2n with -6 dB (gain 1/2) at fc.

@@ -1,4 +1,4 @@
-"""Gaps in marker trajectories: report them, fill the short ones (METHODS.md sec. 2.2).
+"""Gaps in marker trajectories: report them, fill the short ones (docs/methods.md sec. 2.2).
 
 A gap is a maximal run of frames where a marker is missing (NaN or flagged occluded). Gaps of at
 most ``max_gap`` seconds (default 0.1 s) that have valid samples on both sides are filled by a

@@ -1,4 +1,4 @@
-"""Time normalisation (METHODS.md sec. 2.8): resample a trajectory over 0..100 % of its duration.
+"""Time normalisation (docs/methods.md sec. 2.8): resample a trajectory over 0..100 % of its duration.
 
 Endpoint convention: both ends are included. Sample ``j`` (0..N-1) lies at phase
 ``100 j / (N - 1)`` %, i.e. at time ``t_on + j (t_off - t_on) / (N - 1)``; sample 0 is the onset and

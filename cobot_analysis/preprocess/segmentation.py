@@ -1,4 +1,4 @@
-"""Segmentation of recordings into trajectories (METHODS.md sec. 1.2 and 3).
+"""Segmentation of recordings into trajectories (docs/methods.md sec. 1.2 and 3).
 
 Pair-study recordings (walk-to-table, forward carriage, set-down, return carriage) are cut by the
 table height ``h`` (mean z of the visible table corners, ``kinematics.table_height``):

@@ -1,4 +1,4 @@
-"""The preprocess stage: raw markers -> time-normalised trajectories (METHODS.md sec. 2).
+"""The preprocess stage: raw markers -> time-normalised trajectories (docs/methods.md sec. 2).
 
 Order of operations, per recording:
 
@@ -20,7 +20,7 @@ Order of operations, per recording:
 Orientation with a long pelvis-marker gap: by default (``orientation_markers="pelvis"``) a long
 gap on any of the 4 pelvis markers makes the trajectory's orientation missing, as in the walking
 study, where orientation is only reported when the whole pelvis is seen; with ``"asis"`` theta is
-kept whenever LASI and RASI are seen (theta only needs them, METHODS.md sec. 2.5). Position is
+kept whenever LASI and RASI are seen (theta only needs them, docs/methods.md sec. 2.5). Position is
 always kept: the CoM is rebuilt rigidly from the 3 visible pelvis markers (exact for a rigid
 pelvis, where dropping a marker from the mean would shift the CoM by about 5 cm).
 
@@ -29,7 +29,7 @@ Quality flags (``quality`` column, ';'-separated, 'ok' when none):
 of one of the entity's markers inside the trajectory), ``com_rigid_fill`` (pelvis centre
 reconstructed from 3 markers somewhere), ``orientation_missing`` (a long gap on a pelvis marker --
 or on TAB1/TAB2 for the table -- somewhere in the trajectory: theta and gamma are NaN for the whole
-trajectory, position is kept, METHODS.md sec. 2.2), ``position_missing`` (some samples of
+trajectory, position is kept, docs/methods.md sec. 2.2), ``position_missing`` (some samples of
 x, y are NaN: two or more pelvis markers missing at once), ``gamma_undefined`` (the speed never
 reaches ``gamma_min_speed``).
 """
@@ -293,7 +293,7 @@ def process_recording(rec: Recording, p: Params) -> dict[str, Any]:
         base.update(kind="trial", n_trials=1, direction=label)
         base["trial"] = f"{rec.trial}_{label}" if label else rec.trial
         if label == "return":
-            base["scenario"] = 3  # the return is scenario 3 by design (METHODS.md sec. 1.2)
+            base["scenario"] = 3  # the return is scenario 3 by design (docs/methods.md sec. 1.2)
             th = kinem["table"]["theta"][off] if "table" in kinem else np.nan
             base["end_orientation"] = float(wrap(th))  # measured: the table's orientation at the offset
         for e in ents:

@@ -2,7 +2,7 @@
 
 - ``paths``: individual paths (thin), the mean (bold) and orientation arrows along the mean.
 - ``boxplots``: distances by group; box = quartiles, line = median, whiskers to the most extreme
-  value within 1.5 IQR, outliers shown (METHODS.md sec. 4).
+  value within 1.5 IQR, outliers shown (docs/methods.md sec. 4).
 - ``pies``: shares of categories (configuration patterns, optimal choices).
 - ``scatter_r``: a distance against the global distance with Pearson r and its p.
 """

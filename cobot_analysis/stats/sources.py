@@ -114,7 +114,7 @@ def distances_source(distances: pd.DataFrame | None) -> pd.DataFrame:
 
 
 def choices_source(trials: pd.DataFrame, tol: float = 0.05) -> pd.DataFrame:
-    """Optimality of each chosen end configuration (METHODS.md sec. 3).
+    """Optimality of each chosen end configuration (docs/methods.md sec. 3).
 
     The distance D_k a configuration would cost Subject k is estimated as the mean travelled
     distance of Subject k over all forward trials of that goal ending in that orientation (all pairs,

@@ -1,4 +1,4 @@
-"""Statistical tests with their effect sizes, as used in METHODS.md sec. 4 (scipy underneath).
+"""Statistical tests with their effect sizes, as used in docs/methods.md sec. 4 (scipy underneath).
 
 Every test returns a ``TestResult`` (statistic, p, n per group, effect size and its name). The
 effect sizes:

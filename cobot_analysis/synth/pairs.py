@@ -1,4 +1,4 @@
-"""Synthetic pair-carriage study (design of pair-carriage-2022, METHODS.md sec. 1.2).
+"""Synthetic pair-carriage study (design of pair-carriage-2022, docs/methods.md sec. 1.2).
 
 ``generate(directory)`` writes one C3D per pair x goal x scenario recording (20 x 9 x 3 = 540 by
 default; 200 Hz, mm; labels ``S1:LASI`` ... ``S2:...`` (14 markers each) and ``Table:TAB1..TAB3``),

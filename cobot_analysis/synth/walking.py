@@ -1,4 +1,4 @@
-"""Synthetic single-walking study (design of walking-2020, METHODS.md sec. 1.1).
+"""Synthetic single-walking study (design of walking-2020, docs/methods.md sec. 1.1).
 
 ``generate(directory)`` writes, for n subjects x start conditions x repetitions, one C3D file per
 trial (200 Hz, mm, the 14 markers of ``io.protocol.SUBJECT_MARKERS``, labels without prefix),
