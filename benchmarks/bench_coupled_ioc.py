@@ -26,9 +26,9 @@ def main() -> None:
     a = ap.parse_args()
 
     from cobot_analysis.averaging import MEANS
-    from cobot_analysis.models.coupled import get_coupled_ocp
+    from cobot_analysis.models.oc.coupled import get_coupled_ocp
     from cobot_analysis.models.ioc import IOCSpec, evaluate_chunk, pair_targets_from_table, solve_target
-    from cobot_analysis.models.ocp import OCPShape
+    from cobot_analysis.models.oc.problem import OCPShape
     from cobot_analysis.models.presets import PRESETS, weights_vector
     from cobot_analysis.parallel import executor
     from cobot_analysis.schema import read_table

@@ -51,8 +51,8 @@ def timed(fn, repeat=5):
 
 
 def bench_solver(n_nodes=(500, 100, 50)) -> str:
-    from cobot_analysis.models import solve_model
-    from cobot_analysis.models.ocp import OCPShape, get_ocp
+    from cobot_analysis.models.oc import solve_model
+    from cobot_analysis.models.oc.problem import OCPShape, get_ocp
     from cobot_analysis.models.presets import PRESETS, weights_vector
 
     w = weights_vector(PRESETS["walking-2021"])
@@ -97,7 +97,7 @@ def bench_solver(n_nodes=(500, 100, 50)) -> str:
             f"{1 / statistics.median(times):.0f} windows/s per core.", ""]
     # crocoddyl on the same problems
     try:
-        from cobot_analysis.models import crocoddyl_backend as cb
+        from cobot_analysis.models.oc import crocoddyl_backend as cb
     except ImportError:
         cb = None
     if cb is not None and cb.available():
@@ -120,8 +120,8 @@ def bench_backends(n: int = 500, repeat: int = 9) -> str:
     """Compiled NLP functions vs casadi's SX virtual machine (``ocp.py``) on the same 6 problems,
     measured interleaved (each repeat runs both backends back to back, so both see the same load),
     and where the time of a compiled solve goes (fatrop's own timers)."""
-    from cobot_analysis.models import solve_model
-    from cobot_analysis.models.ocp import OCPShape, WalkerOCP, get_ocp
+    from cobot_analysis.models.oc import solve_model
+    from cobot_analysis.models.oc.problem import OCPShape, WalkerOCP, get_ocp
     from cobot_analysis.models.presets import PRESETS, weights_vector
 
     w = weights_vector(PRESETS["walking-2021"])

@@ -27,7 +27,7 @@ import numpy as np  # noqa: E402
 
 
 def load(path: Path, n: int):
-    from cobot_analysis.models.sweep import SweepConfig, trajectories_from_table
+    from cobot_analysis.models.prediction.sweep import SweepConfig, trajectories_from_table
     from cobot_analysis.schema import TRAJECTORIES, read_table
 
     df = read_table(path, TRAJECTORIES)
@@ -37,12 +37,12 @@ def load(path: Path, n: int):
 
 
 def bench_windows(path: Path, n: int) -> None:
-    from cobot_analysis.models.predict import OCPredictor, make_predictor
+    from cobot_analysis.models.prediction.predictor import OCPredictor, make_predictor
 
     trajs = load(path, n)
     OCPredictor(50, 100, trajs[0].dt)  # build the NLP once (cached per process)
     t0 = time.perf_counter()
-    from cobot_analysis.models.ocp import OCPShape, WalkerOCP
+    from cobot_analysis.models.oc.problem import OCPShape, WalkerOCP
 
     WalkerOCP(OCPShape(n_intervals=49))
     build = time.perf_counter() - t0

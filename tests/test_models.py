@@ -12,8 +12,8 @@ from cobot_analysis.angles import angle_diff
 from cobot_analysis.errors import InputError, SolverError
 from cobot_analysis.metrics import d_xy
 from cobot_analysis.models import generate, resample, solve_model
-from cobot_analysis.models.duration import initial_duration, search_duration
-from cobot_analysis.models.ocp import OCPShape, WalkerOCP, get_ocp
+from cobot_analysis.models.oc.duration import initial_duration, search_duration
+from cobot_analysis.models.oc.problem import OCPShape, WalkerOCP, get_ocp
 from cobot_analysis.models.presets import PRESETS, load_weights, weights_vector
 from cobot_analysis.schema import TRAJECTORIES
 
@@ -175,7 +175,7 @@ def test_coupled_carriers_start_at_rest_and_mirror_problems_give_mirrored_paths(
     """Pair-study-like start (table at the origin heading pi/2, carriers 0.9 m ahead and behind,
     facing it) to a goal 3.7 m away, and its mirror image x -> -x (theta -> pi - theta)."""
     from cobot_analysis.angles import angle_diff
-    from cobot_analysis.models.coupled import solve_pair
+    from cobot_analysis.models.oc.coupled import solve_pair
 
     w = weights_vector(PRESETS["pair-2022"], "coupled")
     start = np.array([(0.0, 0.9, -math.pi / 2), (0.0, -0.9, math.pi / 2)])

@@ -10,9 +10,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from cobot_analysis.models import resample
+from cobot_analysis.models.oc import resample
 from cobot_analysis.models.ioc import IOCSpec, PairTarget, Target, duration_terms, fit
-from cobot_analysis.models.ocp import OCPSolution
+from cobot_analysis.models.oc.problem import OCPSolution
 from cobot_analysis.models.presets import PRESETS, weights_vector
 from cobot_analysis.schema import TRAJECTORIES, write_table
 
@@ -33,7 +33,7 @@ def _carriers(sol, n=N):
 
 
 def _planted(weights, intervals=20):
-    from cobot_analysis.models.coupled import solve_pair
+    from cobot_analysis.models.oc.coupled import solve_pair
 
     return [solve_pair(START, g, weights, n_intervals=intervals).check() for g in GOALS]
 
@@ -58,8 +58,8 @@ def test_coupled_fit_recovers_planted_paths():
 
 def test_barriers_are_the_published_chi_and_xi_at_the_optimum():
     """The slacks s, t1, t2 equal max(0, d - 2.1, 1.6 - d) and max(0, |bearing| - pi/3) at every interval."""
-    from cobot_analysis.models.coupled import BAND, FACING, get_coupled_ocp
-    from cobot_analysis.models.ocp import OCPShape
+    from cobot_analysis.models.oc.coupled import BAND, FACING, get_coupled_ocp
+    from cobot_analysis.models.oc.problem import OCPShape
 
     ocp = get_coupled_ocp(OCPShape(20, free_time=True))
     w = W.copy()

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from cobot_analysis.models import crocoddyl_backend, solve_model
-from cobot_analysis.models.ocp import OCPShape, get_ocp
+from cobot_analysis.models.oc import crocoddyl_backend, solve_model
+from cobot_analysis.models.oc.problem import OCPShape, get_ocp
 from cobot_analysis.models.presets import PRESETS, weights_vector
 
 pytestmark = pytest.mark.skipif(not crocoddyl_backend.available(),

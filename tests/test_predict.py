@@ -9,8 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cobot_analysis.errors import InputError
-from cobot_analysis.models.predict import OCPredictor, make_predictor
-from cobot_analysis.models.predict_metrics import summarise, truth_windows, window_errors
+from cobot_analysis.models.prediction.predictor import OCPredictor, make_predictor
+from cobot_analysis.models.prediction.metrics import summarise, truth_windows, window_errors
 
 
 # ---- metrics ----------------------------------------------------------------------------------
@@ -163,7 +163,7 @@ def test_step_by_step_equals_offline_and_warm_equals_cold():
 def test_window_separates_into_past_solve_and_coast():
     """The whole N_OC-node window (tracking on the first N0 nodes, free future) has the same optimum
     as the predictor's N0-node solve followed by the zero-control coast."""
-    from cobot_analysis.models.ocp import OCPShape, get_ocp
+    from cobot_analysis.models.oc.problem import OCPShape, get_ocp
 
     poses = model_path(n=40) + np.random.default_rng(3).normal(0, 0.01, (40, 3))  # noisy: controls are not zero
     n0, n_oc = 12, 30

@@ -9,8 +9,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from cobot_analysis.models import sweep as sweep_mod
-from cobot_analysis.models.sweep import SweepConfig, WorkDir, run_sweep, trajectories_from_table
+from cobot_analysis.models.prediction import sweep as sweep_mod
+from cobot_analysis.models.prediction.sweep import SweepConfig, WorkDir, run_sweep, trajectories_from_table
 from cobot_analysis.schema import TRAJECTORIES, read_table, write_table
 
 N = 60

@@ -66,7 +66,7 @@ def predict_command(
     from cobot_analysis.console import info, warn
     from cobot_analysis.errors import InputError
     from cobot_analysis.models.presets import load_weights
-    from cobot_analysis.models.sweep import (PREDICTION_COMPARISON, PREDICTION_SUMMARY, PREDICTION_WINDOWS, PREDICTIONS,
+    from cobot_analysis.models.prediction.sweep import (PREDICTION_COMPARISON, PREDICTION_SUMMARY, PREDICTION_WINDOWS, PREDICTIONS,
                                              SweepConfig, WorkDir, compare_table, predictable_windows, run_sweep, summary_table,
                                              trajectories_from_table)
     from cobot_analysis.schema import TRAJECTORIES, read_table, write_table
@@ -162,7 +162,7 @@ def figures(stage, metrics, traj, config) -> None:
     import numpy as np
     from matplotlib.collections import LineCollection
 
-    from cobot_analysis.models.predict import make_predictor
+    from cobot_analysis.models.prediction.predictor import make_predictor
 
     n0, n_oc = figure_setting(config)
     preds = {}

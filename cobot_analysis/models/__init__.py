@@ -22,12 +22,12 @@ import numpy as np
 import pandas as pd
 
 from cobot_analysis.errors import InputError
+from cobot_analysis.models.oc import OC_MODELS, resample, solve_model
 from cobot_analysis.models.presets import DEFAULT_PRESET, PRESETS, load_weights, weights_vector
 
 MODELS = ("unicycle", "clothoid", "mombaur", "improved", "table")
-OC_MODELS = ("unicycle", "mombaur", "improved", "table")
 
-__all__ = ["MODELS", "PRESETS", "generate", "solve_model", "resample", "check_endpoints"]
+__all__ = ["MODELS", "OC_MODELS", "PRESETS", "generate", "check_endpoints"]
 
 
 def check_endpoints(start, goal, *, path=None, min_distance: float = 0.01) -> None:
@@ -40,70 +40,6 @@ def check_endpoints(start, goal, *, path=None, min_distance: float = 0.01) -> No
     if math.hypot(goal[0] - start[0], goal[1] - start[1]) < min_distance:
         raise InputError(f"start equals goal (closer than {min_distance * 100:.0f} cm)", path=path,
                          remedy="give a goal at least 1 cm away from the start")
-
-
-#: duration method of each OC model when none is given (see duration.py).
-DEFAULT_DURATION = {"unicycle": "free", "mombaur": "grid", "improved": "free", "table": "free"}
-
-
-def solve_model(model: str, start, goal, weights, *, n_intervals: int = 100, duration: str | None = None,
-                v_nominal: float = 1.0, solver: str = "fatrop", guess="rest", T=None, max_iter: int = 500):
-    """Solve the OC model for one start/goal; returns an ``ocp.OCPSolution`` (check ``success``).
-
-    ``weights``: the 11-vector (a0..a6, b0..b3); ``guess``: "rest", "line", a previous primal vector
-    (warm start) or a sequence of those (the best converged solution is kept).
-    """
-    from cobot_analysis.models.duration import grid_duration, initial_duration, search_duration
-    from cobot_analysis.models.ocp import OCPShape, get_ocp
-
-    if model not in OC_MODELS:
-        raise ValueError(f"{model!r} is not an OC model ({', '.join(OC_MODELS)})")
-    dyn = "unicycle" if model == "unicycle" else "walker"
-    duration = duration or DEFAULT_DURATION[model]
-    T0 = initial_duration(start, goal, v_nominal) if T is None else T
-    guesses = [guess] if isinstance(guess, str | np.ndarray) else list(guess)
-    best = None
-    for g in guesses:
-        if duration == "free":
-            sol = get_ocp(OCPShape(n_intervals, dyn, free_time=True, solver=solver, max_iter=max_iter)).solve(start, goal, weights, T0, guess=g)
-        else:
-            ocp = get_ocp(OCPShape(n_intervals, dyn, free_time=False, solver=solver, max_iter=max_iter))
-            if duration == "search":
-                sol = search_duration(ocp, start, goal, weights, T0, guess=g)
-            elif duration == "grid":
-                sol = grid_duration(ocp, start, goal, weights, T0, guess=g)
-            elif duration == "fixed":
-                sol = ocp.solve(start, goal, weights, T0, guess=g)
-            else:
-                raise ValueError(f"unknown duration method {duration!r}")
-        if best is None or (sol.success and (not best.success or sol.cost < best.cost)):
-            best = sol
-    return best
-
-
-def resample(sol, n_samples: int = 500, kind: str = "walker") -> dict[str, np.ndarray]:
-    """Resample an OC solution to ``n_samples`` equally spaced in time (cubic Hermite on x, y, theta)."""
-    from scipy.interpolate import CubicHermiteSpline
-
-    from cobot_analysis.models.dynamics import world_velocity
-
-    X, U = sol.X, sol.U
-    t = sol.t
-    tt = np.linspace(0.0, sol.T, n_samples)
-    vx, vy = world_velocity(X[:, 2], X[:, 3], X[:, 4], kind)
-    out = {"time": tt,
-           "x": CubicHermiteSpline(t, X[:, 0], vx)(tt),
-           "y": CubicHermiteSpline(t, X[:, 1], vy)(tt),
-           "theta": CubicHermiteSpline(t, X[:, 2], X[:, 5])(tt)}
-    for i, name in enumerate(("v_forw", "v_orth", "omega")):
-        out[name] = np.interp(tt, t, X[:, 3 + i])
-    if kind == "unicycle":
-        out["v_orth"] = np.zeros(n_samples)
-    out["vx"], out["vy"] = world_velocity(out["theta"], out["v_forw"], out["v_orth"], kind)
-    idx = np.minimum(np.searchsorted(t, tt, side="right") - 1, U.shape[0] - 1)  # zero-order hold
-    for i, name in enumerate(("u1", "u2", "u3")):
-        out[name] = U[idx, i]
-    return out
 
 
 def _frame(arrays: dict[str, np.ndarray], *, model: str, weights_label: str, entity: str, trial: str,
@@ -158,7 +94,7 @@ def generate(model: str, start: Sequence[float], goal: Sequence[float], weights=
     sol = solve_model(model, start, goal, w, n_intervals=n_intervals, duration=duration, v_nominal=v_nominal,
                       solver=solver, guess=guesses, max_iter=max_iter)
     sol.check(f"{model} model from {tuple(np.round(start, 3))} to {tuple(np.round(goal, 3))}")
-    from cobot_analysis.models.duration import initial_duration
+    from cobot_analysis.models.oc.duration import initial_duration
 
     T0 = initial_duration(start, goal, v_nominal)
     if min(abs(sol.T / T0 - b) for b in (0.4, 2.0, 2.5)) < 1e-3:

@@ -230,9 +230,9 @@ def duration_flag(terms: list[dict], v_nominal: float = 1.0) -> str:
 def coupled_task(task) -> tuple[dict, list[dict] | None]:
     """Worker task: the coupled model at ``w`` on one pair target, best of a 'rest' and a 'line'
     guess; returns the distance terms and the resampled paths of both carriers (None if not converged)."""
-    from cobot_analysis.models import resample
+    from cobot_analysis.models.oc import resample
     from cobot_analysis.models.ioc import solve_pair_target
-    from cobot_analysis.models.ocp import OCPSolution
+    from cobot_analysis.models.oc.problem import OCPSolution
 
     spec, w, t = task
     d, sol = solve_pair_target(spec, np.asarray(w, float), t, ("rest", "line"))
@@ -355,7 +355,7 @@ def duration_lines(df: pd.DataFrame, targets, durations: pd.DataFrame | None, v_
     """Markdown: duration T of the pair's OC solutions per weight set and direction, how many sit on a
     bound of ``T_BOUNDS`` x T0, and the measured scenario-3 durations (mean over the pairs' trials of
     the same goal, configuration and direction) in units of T0."""
-    from cobot_analysis.models.coupled import initial_pair_duration
+    from cobot_analysis.models.oc.coupled import initial_pair_duration
     from cobot_analysis.models.ioc import T_BOUNDS
 
     T0 = {t.trial: initial_pair_duration(t.start, t.goal, v_nominal) for t in targets}

@@ -102,7 +102,7 @@ def check_setting(n0: int, n_oc: int, min_past: int = 3) -> None:
 
 def make_predictor(name: str, n0: int, n_oc: int, dt: float = 1.0, **options) -> Predictor:
     """A predictor by name: ``oc`` (options: weights, g0, g1, ...), ``cv`` or ``ctrv``."""
-    from cobot_analysis.models.baselines import ConstantTurnRateVelocity, ConstantVelocity
+    from cobot_analysis.models.prediction.baselines import ConstantTurnRateVelocity, ConstantVelocity
 
     if name == "cv":
         return ConstantVelocity(n0, n_oc, dt)
@@ -114,7 +114,7 @@ def make_predictor(name: str, n0: int, n_oc: int, dt: float = 1.0, **options) ->
 
 
 class OCPredictor(Predictor):
-    """Receding-horizon OC predictor of docs/methods.md sec. 7 on the OC solver of ``models.ocp``.
+    """Receding-horizon OC predictor of docs/methods.md sec. 7 on the OC solver of ``models.oc.problem``.
 
     Window at sample k: ``N_OC - 1`` intervals of ``T_OC`` (nodes = samples n+1 .. n+N_OC) with the
     running cost ``a0 + a1 u1^2 + a2 u2^2 + a3 u3^2``, the tracking cost
@@ -125,7 +125,7 @@ class OCPredictor(Predictor):
     the last measured node, the future's optimal controls are zero (cost a0 per interval, a
     constant). The window problem therefore separates exactly into (1) the OC problem over the
     measured past alone (N0 - 1 intervals, tracking on every node, free end), solved with the shared
-    solver of ``models.ocp``, and (2) the coast of ``dynamics.coast`` from X_k over the H future
+    solver of ``models.oc.problem``, and (2) the coast of ``dynamics.coast`` from X_k over the H future
     samples (``step`` with U = 0). Same optimum as the whole window (tests/test_predict.py), with
     N0 instead of N_OC nodes in the NLP.
     The cost weights a0..a3 come from a preset or a fitted-weights file (``presets.load_weights``;
@@ -159,7 +159,7 @@ class OCPredictor(Predictor):
     def __init__(self, n0: int, n_oc: int, dt: float = 1.0, *, weights: str | dict | None = "walking-2021",
                  g0: float = 10.0, g1: float = 10.0, fit: int = 5, tol: float = 1e-8, solver: str = "fatrop",
                  warm_start: bool = True):
-        from cobot_analysis.models.ocp import OCPShape, get_ocp
+        from cobot_analysis.models.oc.problem import OCPShape, get_ocp
         from cobot_analysis.models.presets import load_weights
 
         w = load_weights(weights, "improved")

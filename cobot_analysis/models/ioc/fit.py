@@ -33,111 +33,15 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from cobot_analysis.errors import InputError
+from cobot_analysis.models.ioc.targets import PairTarget, Target
 from cobot_analysis.models.presets import names_for
 
 T_BOUNDS = (0.4, 2.5)  # free duration T within these multiples of T0 (ocp.WalkerOCP.solve, coupled.CoupledOCP.solve)
 FAILED_D = 10.0  # objective term of a lower level that did not converge (m-equivalent; >> any real D)
 OPTIMIZERS = ("powell", "nelder-mead")
 LOG_BOUNDS = (-7.0, 3.0)  # log10 of a fitted weight
-
-
-@dataclass
-class Target:
-    """One measured trajectory the model is fitted to."""
-
-    trial: str
-    condition: str
-    subject: str
-    x: np.ndarray
-    y: np.ndarray
-    theta: np.ndarray
-    goal_pose: tuple[float, float, float] | None = None  # None: the last measured pose
-
-    @property
-    def start(self) -> tuple[float, float, float]:
-        return (float(self.x[0]), float(self.y[0]), float(self.theta[0]))
-
-    @property
-    def goal(self) -> tuple[float, float, float]:
-        """The goal pose of the OC problem; its heading on the branch of the last measured theta."""
-        if self.goal_pose is None:
-            return (float(self.x[-1]), float(self.y[-1]), float(self.theta[-1]))
-        gx, gy, gth = self.goal_pose
-        k = round((self.theta[-1] - gth) / (2 * math.pi))
-        return (float(gx), float(gy), float(gth + 2 * math.pi * k))
-
-    @property
-    def global_distance(self) -> float:
-        return math.hypot(self.x[-1] - self.x[0], self.y[-1] - self.y[0])
-
-
-def targets_from_table(df: pd.DataFrame, *, path=None, entity: str = "walker", goal=None) -> list[Target]:
-    """Targets from a long trajectories/means table (one per trial x entity); rows without
-    orientation are left out (docs/methods.md sec. 6). NaN in positions is refused. ``goal``: the goal
-    pose of every target (e.g. the walking study's (0, 0, pi/2)), None for the last measured pose."""
-    need = {"trial", "condition", "entity", "sample", "x", "y", "theta"}
-    missing = sorted(need - set(df.columns))
-    if missing:
-        raise InputError(f"trajectory table lacks columns {missing}", path=path, remedy="pass a trajectories.parquet or means.parquet")
-    df = df[df["entity"] == entity]
-    targets = []
-    for trial, g in df.groupby("trial", sort=True):
-        g = g.sort_values("sample")
-        x, y, th = (g[c].to_numpy(float) for c in ("x", "y", "theta"))
-        if np.isnan(th).all():
-            continue  # no orientation: left out
-        if not (np.isfinite(x).all() and np.isfinite(y).all() and np.isfinite(th).all()):
-            raise InputError(f"trajectory {trial!r} has NaN samples", path=path,
-                             remedy="fill or drop the gaps in preprocessing (or re-run average) before fitting")
-        subject = g["subject"].iloc[0] if "subject" in g and isinstance(g["subject"].iloc[0], str) else ""
-        targets.append(Target(str(trial), str(g["condition"].iloc[0]), subject, x, y, th, goal))
-    return targets
-
-
-@dataclass
-class PairTarget:
-    """A mean path of the two carriers (coupled model): carrier 1 and carrier 2 as ``Target``s."""
-
-    trial: str
-    condition: str
-    carriers: tuple[Target, Target]
-    subject: str = ""
-    direction: str = ""  # forward or return
-
-    @property
-    def start(self):
-        return np.array([c.start for c in self.carriers])
-
-    @property
-    def goal(self):
-        return np.array([c.goal for c in self.carriers])
-
-    @property
-    def global_distance(self) -> float:
-        return max(c.global_distance for c in self.carriers)
-
-
-def pair_targets_from_table(df: pd.DataFrame, *, path=None, scenario: int = 3) -> list[PairTarget]:
-    """Coupled-model targets: the scenario-``scenario`` forward and return means of Subject 1 and 2;
-    on returns the roles are swapped (Subject 2 is carrier 1, docs/methods.md 5.6)."""
-    need = {"trial", "condition", "entity", "sample", "x", "y", "theta", "direction", "scenario"}
-    missing = sorted(need - set(df.columns))
-    if missing:
-        raise InputError(f"pair trajectory table lacks columns {missing}", path=path, remedy="pass the pair study's trajectories or means")
-    sel = df[(df["scenario"] == scenario) & df["entity"].isin(["subject1", "subject2"])]
-    out = []
-    for trial, g in sel.groupby("trial", sort=True):
-        ts = {t.trial: t for t in targets_from_table(g.assign(trial=g["entity"]), path=path, entity="subject1")
-              + targets_from_table(g.assign(trial=g["entity"]), path=path, entity="subject2")}
-        if set(ts) != {"subject1", "subject2"}:
-            continue
-        direction = str(g["direction"].iloc[0])
-        order = ("subject2", "subject1") if direction == "return" else ("subject1", "subject2")
-        out.append(PairTarget(str(trial), str(g["condition"].iloc[0]), (ts[order[0]], ts[order[1]]), direction=direction))
-    return out
 
 
 @dataclass(frozen=True)
@@ -198,9 +102,9 @@ def _failed() -> dict:
 def solve_pair_target(spec: IOCSpec, w: np.ndarray, t: PairTarget, guess):
     """Coupled lower level: D = d_xy,1 + d_xy,2 + 0.5 (d_theta,1 + d_theta,2); the terms of each
     carrier are kept too (``d_xy_1``, ``d_theta_2``, ...; carrier 1 is Subject 2 on returns)."""
-    from cobot_analysis.models import resample
-    from cobot_analysis.models.coupled import initial_pair_duration, solve_pair
-    from cobot_analysis.models.ocp import OCPSolution
+    from cobot_analysis.models.oc import resample
+    from cobot_analysis.models.oc.coupled import initial_pair_duration, solve_pair
+    from cobot_analysis.models.oc.problem import OCPSolution
 
     kw = {"n_intervals": spec.n_intervals, "max_iter": spec.max_iter, "v_nominal": spec.v_nominal}
     sol = solve_pair(t.start, t.goal, w, guess=guess, **kw)
@@ -223,8 +127,8 @@ def solve_pair_target(spec: IOCSpec, w: np.ndarray, t: PairTarget, guess):
 
 def solve_target(spec: IOCSpec, w: np.ndarray, t: Target, guess):
     """Lower level for one target: (distances dict with D, T, T0, T_at_bound and success, solution)."""
-    from cobot_analysis.models import resample, solve_model
-    from cobot_analysis.models.duration import initial_duration
+    from cobot_analysis.models.oc import resample, solve_model
+    from cobot_analysis.models.oc.duration import initial_duration
 
     if spec.model == "coupled":
         return solve_pair_target(spec, w, t, guess)

@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from cobot_analysis.models.ocp import OCPSolution, WalkerOCP
+from cobot_analysis.models.oc.problem import OCPSolution, WalkerOCP
 
 DURATION_METHODS = ("free", "search", "grid")
 

@@ -37,8 +37,8 @@ import numpy as np
 import pandas as pd
 
 from cobot_analysis.errors import InputError
-from cobot_analysis.models.predict import PREDICTORS, check_setting, make_predictor
-from cobot_analysis.models.predict_metrics import summarise, window_errors
+from cobot_analysis.models.prediction.metrics import summarise, window_errors
+from cobot_analysis.models.prediction.predictor import PREDICTORS, check_setting, make_predictor
 from cobot_analysis.schema import Column, TableSchema
 
 DEFAULT_SETTINGS = ((25, 100), (50, 100), (75, 100), (50, 200))
@@ -318,10 +318,12 @@ def sweep_task(item: tuple[Trajectory, SweepConfig, "WorkDir | None"]) -> tuple[
 def code_digest() -> str:
     """Hash of the modules that determine a prediction (a change invalidates the work directory)."""
     from cobot_analysis import __version__
-    from cobot_analysis.models import baselines, dynamics, ocp, predict, predict_metrics, presets
+    from cobot_analysis.models import dynamics, presets
+    from cobot_analysis.models.oc import problem
+    from cobot_analysis.models.prediction import baselines, metrics, predictor
 
     h = hashlib.sha256(__version__.encode())
-    for mod in (baselines, dynamics, ocp, predict, predict_metrics, presets):
+    for mod in (baselines, dynamics, problem, predictor, metrics, presets):
         h.update(Path(mod.__file__).read_bytes())
     return h.hexdigest()[:12]
 

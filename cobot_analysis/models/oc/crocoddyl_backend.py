@@ -15,7 +15,7 @@ from functools import lru_cache
 import numpy as np
 
 from cobot_analysis.models.dynamics import N_CONTROL, N_STATE, step
-from cobot_analysis.models.ocp import N_WEIGHTS
+from cobot_analysis.models.oc.problem import N_WEIGHTS
 
 
 def available() -> bool:

@@ -34,7 +34,7 @@ from functools import lru_cache
 import numpy as np
 
 from cobot_analysis.models.dynamics import N_CONTROL, N_STATE, step
-from cobot_analysis.models.ocp import OCPShape, OCPSolution, WalkerOCP
+from cobot_analysis.models.oc.problem import OCPShape, OCPSolution, WalkerOCP
 
 N_COUPLED_WEIGHTS = 15  # a0..a10, b0..b3 (presets.COUPLED_WEIGHTS)
 BAND = (1.6, 2.1)  # m, comfortable distance between the carriers
