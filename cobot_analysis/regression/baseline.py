@@ -12,7 +12,8 @@ optional ``unit`` fit a metric applies:
     abs = 1e-12
     reason = "deterministic: only floating-point rounding of other library versions may move them"
 
-``exact = true`` instead of ``rel``/``abs`` demands equality; text and flags always compare exactly.
+``exact = true`` instead of ``rel``/``abs`` demands equality. Text and flags (test names, skip
+reasons, significance) always compare exactly and need no rule; every number needs one.
 """
 
 from __future__ import annotations

@@ -137,11 +137,12 @@ def _groups(df, keys: list[str], fmt: dict[str, str] | None = None):
     if not keys:
         yield (), df
         return
+    import pandas as pd
+
     fmt = fmt or {}
     for key, g in df.groupby(keys, dropna=False, sort=True):
         key = key if isinstance(key, tuple) else (key,)
-        parts = tuple("-" if v is None or (isinstance(v, float) and math.isnan(v)) else fmt.get(k, "{}").format(_part(v))
-                      for k, v in zip(keys, key))
+        parts = tuple("-" if pd.isna(v) else fmt.get(k, "{}").format(_part(v)) for k, v in zip(keys, key))
         yield parts, g
 
 
