@@ -5,6 +5,8 @@
 #                       (prediction on every 10th synthetic table trial: SPREDICT_ARGS= for all 1080)
 #   make localisation   synthetic robot runs (ROS1, ROS2, MCAP); real runs: make localisation BAGS="a.bag b.bag"
 #   make all            all of them, then docs/results.md and docs/schemas.md
+#   make regression     metric regression: each study's key numbers vs tests/baselines (run by .ci/run)
+#   make regression-update  rewrite the baselines after an intended change, printing every changed value
 # DATASETS defaults to ../shared/datasets ($COBOT_DATASETS wins). Workspaces go under OUT.
 PYTHON ?= python
 CLI ?= cobot-analysis
@@ -20,6 +22,7 @@ COUPLED_IOC_ARGS ?= --max-evaluations 600
 SPREDICT_ARGS ?= --every 10
 RESULTS_NOTE ?=
 LOC_ARGS ?=
+STUDIES ?=
 MAP ?= synthetic
 
 WALK := $(OUT)/walking-2020
@@ -27,7 +30,7 @@ PAIRS := $(OUT)/pair-carriage-2022
 SPAIRS := $(OUT)/synthetic-pairs
 LOC := $(OUT)/localisation
 
-.PHONY: install demo test bench walking walking-subjects pairs pairs-published pairs-synthetic localisation results schemas all
+.PHONY: install demo test regression regression-update bench walking walking-subjects pairs pairs-published pairs-synthetic localisation results schemas all
 
 install:
 	$(PYTHON) -m pip install -e ".[dev]"
@@ -37,6 +40,13 @@ demo:
 
 test:
 	$(PYTHON) -m pytest
+
+# STUDIES="walking-2020 localisation" restricts both to some studies (tests/regression.py -h)
+regression:
+	$(PYTHON) tests/regression.py --jobs $(JOBS) $(STUDIES)
+
+regression-update:
+	$(PYTHON) tests/regression.py --update --jobs $(JOBS) $(STUDIES)
 
 bench:
 	$(PYTHON) benchmarks/bench_foundation.py --jobs $(JOBS)

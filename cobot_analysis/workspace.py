@@ -153,6 +153,7 @@ class Stage:
         if exc_type is not None:
             shutil.rmtree(self.dir, ignore_errors=True)
             return False
+        self._write_metrics()
         self._write_manifest()
         trash = self.out / f".{self.name}.old.{os.getpid()}"
         if self.final_dir.exists():
@@ -180,6 +181,12 @@ class Stage:
             paths.append(p)
         plt.close(fig)
         return paths
+
+    def _write_metrics(self) -> None:
+        """``metrics.json``: the stage's headline numbers, for ``cobot-analysis metrics check``."""
+        from cobot_analysis.regression.extract import write_stage_metrics
+
+        write_stage_metrics(self.name, self.dir, self.params)
 
     def _write_manifest(self) -> None:
         outputs = [

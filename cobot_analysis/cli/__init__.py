@@ -20,7 +20,7 @@ from cobot_analysis.errors import InputError, SolverError
 
 # Every module of this package registers its commands on import; pipeline order first, so that
 # --help lists the panels as the data flows (data, processing, analysis, models, localisation).
-_ORDER = ["synth", "importing", "published", "preprocess", "analysis", "models", "predict", "localisation"]
+_ORDER = ["synth", "importing", "published", "preprocess", "analysis", "models", "predict", "localisation", "metrics"]
 for _name in sorted((m.name for m in pkgutil.iter_modules(__path__) if m.name != "app"),
                     key=lambda n: (_ORDER.index(n) if n in _ORDER else len(_ORDER), n)):
     importlib.import_module(f"{__name__}.{_name}")
