@@ -47,7 +47,8 @@ DEFAULT_OUT = Path("cobot-out")
 MANIFEST = "manifest.json"
 LOCK = ".lock"  # in a running stage's temporary directory, locked by its process
 PREVIOUS = ".previous"  # the replaced output, moved into the new one while it is committed
-STALE_AFTER = 60.0  # s: an unlocked-looking temporary directory without a lock file older than this is abandoned
+STALE_AFTER = 60.0  # s: a temporary directory without a lock file (older versions) older than this is abandoned
+COMMAND: list[str] = []  # the command line being run (set by cli.run; sys.argv otherwise), for the manifests
 _VERSIONED = ("numpy", "scipy", "pandas", "pyarrow", "casadi", "ezc3d", "rosbags", "statsmodels", "dask", "matplotlib")
 
 
@@ -296,7 +297,7 @@ class Stage:
         ]
         manifest = {
             "stage": self.name,
-            "command": sys.argv,
+            "command": COMMAND or sys.argv,
             "started": self._started,
             "duration_s": round(time.perf_counter() - self._t0, 3),
             "inputs": self._inputs,

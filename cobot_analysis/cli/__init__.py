@@ -34,8 +34,14 @@ def _error(message: str) -> None:
 
 
 def run(argv: list[str] | None = None) -> int:
-    with signals():
-        return _run(argv)
+    from cobot_analysis import workspace
+
+    workspace.COMMAND[:] = ["cobot-analysis", *(sys.argv[1:] if argv is None else argv)]
+    try:
+        with signals():
+            return _run(argv)
+    finally:
+        workspace.COMMAND.clear()
 
 
 def _run(argv: list[str] | None) -> int:
