@@ -40,7 +40,7 @@ from cobot_analysis.interrupt import deferred, keep, seen
 
 try:
     import fcntl
-except ImportError:  # not POSIX: leftovers are recognised by their age only
+except ImportError:  # not POSIX: leftovers are left alone
     fcntl = None
 
 DEFAULT_OUT = Path("cobot-out")
@@ -144,11 +144,11 @@ def _abandoned(d: Path) -> bool:
     except OSError:
         return False
     try:
-        if fcntl is None:
-            return time.time() - d.stat().st_mtime > STALE_AFTER
+        if fcntl is None:  # cannot tell: left alone
+            return False
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         return True
-    except OSError:  # locked: its process is running
+    except OSError:  # locked: its process is running (or no locks on this file system)
         return False
     finally:
         os.close(fd)
@@ -243,8 +243,11 @@ class Stage:
             except FileExistsError:
                 continue
             self._lock = os.open(d / LOCK, os.O_CREAT | os.O_RDWR, 0o666)
-            if fcntl is not None:
-                fcntl.flock(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            try:
+                if fcntl is not None:
+                    fcntl.flock(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:  # no locks on this file system: the directory is never taken for a leftover
+                pass
             return d
 
     def _unlock(self) -> None:
