@@ -242,7 +242,11 @@ class Stage:
                 d.mkdir()
             except FileExistsError:
                 continue
-            self._lock = os.open(d / LOCK, os.O_CREAT | os.O_RDWR, 0o666)
+            try:
+                self._lock = os.open(d / LOCK, os.O_CREAT | os.O_RDWR, 0o666)
+            except OSError:
+                d.rmdir()
+                raise
             try:
                 if fcntl is not None:
                     fcntl.flock(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)

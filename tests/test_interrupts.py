@@ -140,3 +140,19 @@ def test_a_signal_inside_a_deferred_section_is_raised_at_its_end():
             time.sleep(0.05)  # the handler runs here, and must not raise yet
             done.append(True)
     assert done == [True] and err.value.exit_code == 143
+
+
+def test_the_message_names_the_stages_completed_before_the_interrupt(tmp_path):
+    from cobot_analysis.interrupt import outcome
+    from cobot_analysis.workspace import Stage
+
+    with signals():
+        assert outcome() == "nothing written"
+        with Stage(tmp_path, "first") as stage:
+            stage.path("a.txt").write_text("1\n")
+        with pytest.raises(Interrupted), Stage(tmp_path, "second"):
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(1.0)  # interrupted here
+        assert outcome() == f"kept: {tmp_path / 'first'}"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["first"]
+    assert sorted(p.name for p in (tmp_path / "first").iterdir()) == ["a.txt", "manifest.json"]
