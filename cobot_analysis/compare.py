@@ -266,6 +266,35 @@ def individual_vs_mean(trials: TrajectorySet, means: TrajectorySet, by: list[str
     return _rows("individual-mean", trials, means, np.flatnonzero(ok), ib[ok].astype(int))
 
 
+def against_vs_mean(other: TrajectorySet, means: TrajectorySet, by: list[str], label: str, path=None) -> pd.DataFrame:
+    """``compare --against``: each trajectory of ``other`` against the mean of its group (the ``by``
+    columns it has). A table none of whose trajectories matches a mean is an ``InputError`` naming
+    the values that differ; a partial match is warned about with the count."""
+    from cobot_analysis.console import warn
+
+    cols = [c for c in by if c in other.meta.columns]
+    if not cols:
+        raise InputError(f"has none of the grouping columns of the means ({', '.join(by)})", path=path,
+                         remedy="give the table those columns (as generate and the trajectory tables have)")
+    hit = group_keys(other.meta, cols).isin(set(group_keys(means.meta, cols)))
+    if hit.all():
+        return individual_vs_mean(other, means, cols).assign(comparison=label)
+    differ = []
+    for c in cols:
+        theirs = {str(v) for v in other.meta.loc[~hit.to_numpy(), c].dropna()}
+        ours = {str(v) for v in means.meta[c].dropna()}
+        if theirs - ours:
+            differ.append(f"{c} {', '.join(sorted(theirs - ours)[:3])} (means: {', '.join(sorted(ours)[:3])}"
+                          f"{', ...' if len(ours) > 3 else ''})")
+    why = "; ".join(differ) or f"no mean has their combination of {', '.join(cols)}"
+    if not hit.any():
+        raise InputError(f"none of its {len(other)} trajectories matches a mean on {', '.join(cols)}: {why}", path=path,
+                         remedy="compare with the means of the same study and grouping (--by, --means), or fix those columns")
+    warn(f"{path}: {int((~hit).sum())} of its {len(other)} trajectories match no mean on {', '.join(cols)} and are not "
+         f"compared: {why}")
+    return individual_vs_mean(other, means, cols).assign(comparison=label)
+
+
 def any_vs_any(ts: TrajectorySet, same: list[str], differ: list[str] = (), comparison: str = "any-any",
                other: TrajectorySet | None = None) -> pd.DataFrame:
     """Every pair (a, b) that agrees on the ``same`` columns and differs on each ``differ`` column.

@@ -7,6 +7,10 @@ Both are driven through the ``concurrent.futures.Executor`` interface (Dask's
 
 ``jobs=1`` runs in-process (no pickling), which is also what tests and debuggers want.
 Task functions must be importable top-level functions and their arguments picklable.
+
+Interrupts (``cobot_analysis.interrupt``): an in-process task runs through ``interruptible``; on
+any exception, Ctrl-C or SIGTERM leaving ``executor()``, the local workers are stopped at once
+(SIGTERM, then SIGKILL after ``STOP_GRACE`` s) and a Dask executor cancels its futures.
 """
 
 from __future__ import annotations
@@ -18,18 +22,22 @@ from contextlib import contextmanager
 from typing import Any, TypeVar
 
 from cobot_analysis.console import progress
+from cobot_analysis.interrupt import Interrupted, blocked, deferred, interruptible, seen, worker_init
 
 T = TypeVar("T")
 R = TypeVar("R")
+STOP_GRACE = 1.0  # s between SIGTERM and SIGKILL of a worker that is still alive
 
 
 class _InlineExecutor(Executor):
-    """Runs each task at submission, in this process."""
+    """Runs each task at submission, in this process (interruptible)."""
 
     def submit(self, fn, /, *args, **kwargs):  # type: ignore[override]
         future: Future = Future()
         try:
-            future.set_result(fn(*args, **kwargs))
+            future.set_result(interruptible(fn, *args, **kwargs))
+        except Interrupted:
+            raise  # not delivered through the future: the remaining tasks are not started
         except BaseException as exc:  # noqa: BLE001 - delivered through the future
             future.set_exception(exc)
         return future
@@ -46,7 +54,13 @@ def executor(jobs: int | None = None, scheduler: str | None = None) -> Iterator[
         from distributed import Client
 
         with Client(scheduler) as client:
-            yield client.get_executor()
+            ex = client.get_executor()
+            try:
+                yield ex
+            except BaseException as exc:
+                seen(exc)
+                ex.shutdown(wait=False)  # cancels the futures on the cluster
+                raise
         return
     jobs = default_jobs() if jobs is None else jobs
     if jobs <= 1:
@@ -55,8 +69,33 @@ def executor(jobs: int | None = None, scheduler: str | None = None) -> Iterator[
     # BLAS threads would oversubscribe the cores: one per worker process.
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")
-    with ProcessPoolExecutor(max_workers=jobs) as pool:
+    pool = ProcessPoolExecutor(max_workers=jobs, initializer=worker_init)
+    try:
+        with blocked():  # an interrupt during a fork would be lost in an at-fork hook
+            pool.submit(os.getpid)  # starts the workers (all of them: fork context)
         yield pool
+    except BaseException as exc:
+        seen(exc)
+        stop(pool)
+        raise
+    pool.shutdown(wait=True)
+
+
+def stop(pool: ProcessPoolExecutor) -> None:
+    """Stop a local pool now: pending tasks cancelled, workers terminated (killed if they linger)."""
+    with deferred():
+        workers = list((getattr(pool, "_processes", None) or {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)
+        for w in workers:
+            w.terminate()
+        for w in workers:
+            w.join(STOP_GRACE)
+            if w.is_alive():
+                w.kill()
+                w.join(STOP_GRACE)
+        results = getattr(pool, "_result_queue", None)
+        if results is not None:  # a worker killed while sending left half a message: EOF ends the wait for the rest
+            results._writer.close()
 
 
 def map_tasks(fn: Callable[..., R], items: Sequence[Any], *, jobs: int | None = None, scheduler: str | None = None,
@@ -65,7 +104,7 @@ def map_tasks(fn: Callable[..., R], items: Sequence[Any], *, jobs: int | None = 
     """``[fn(item) for item in items]`` in parallel, in order, with a progress bar.
 
     ``status(result)`` may return a short text shown beside the bar (e.g. the current objective).
-    An exception in any task is re-raised here after the others are cancelled.
+    An exception in any task is re-raised here; the executor then stops the other tasks.
     """
     results: list[Any] = [None] * len(items)
 
@@ -73,14 +112,9 @@ def map_tasks(fn: Callable[..., R], items: Sequence[Any], *, jobs: int | None = 
         futures = {ex.submit(fn, item): i for i, item in enumerate(items)}
         with progress() as bar:
             task = bar.add_task(description, total=len(items), status="")
-            try:
-                for fut in as_completed(futures):
-                    results[futures[fut]] = fut.result()
-                    bar.update(task, advance=1, status=status(results[futures[fut]]) if status else "")
-            except BaseException:
-                for f in futures:
-                    f.cancel()
-                raise
+            for fut in as_completed(futures):
+                results[futures[fut]] = fut.result()
+                bar.update(task, advance=1, status=status(results[futures[fut]]) if status else "")
 
     if pool is not None:
         run(pool)

@@ -6,6 +6,11 @@ replaces ``DIR/<stage>`` only when the stage succeeds, so a failed run leaves no
 their content hashes, the parameters, package versions, the git commit and the timing. A stage
 whose inputs, parameters and package version are unchanged is skipped unless ``force``.
 
+Interrupted or killed runs: the temporary directory ``.<stage>.<random>.tmp`` holds a lock file
+that its process keeps locked (``flock``); an interrupt (Ctrl-C, SIGTERM) removes it, and the next
+run of the stage removes those a killed process left (their lock is free). Directories are created
+with the user's umask.
+
     with Stage(out, "preprocess", inputs=[markers], params=params, force=force) as stage:
         if stage.skipped:
             return stage.final_dir
@@ -18,10 +23,10 @@ import hashlib
 import json
 import os
 import platform
+import secrets
 import shutil
 import subprocess
 import sys
-import tempfile
 import time
 from collections.abc import Iterable
 from datetime import datetime, timezone
@@ -30,9 +35,20 @@ from typing import Any
 
 from cobot_analysis import __version__
 from cobot_analysis.console import info
+from cobot_analysis.errors import InputError
+from cobot_analysis.interrupt import deferred, keep, seen
+
+try:
+    import fcntl
+except ImportError:  # not POSIX: leftovers are left alone
+    fcntl = None
 
 DEFAULT_OUT = Path("cobot-out")
 MANIFEST = "manifest.json"
+LOCK = ".lock"  # in a running stage's temporary directory, locked by its process
+PREVIOUS = ".previous"  # the replaced output, moved into the new one while it is committed
+STALE_AFTER = 60.0  # s: a temporary directory without a lock file (older versions) older than this is abandoned
+COMMAND: list[str] = []  # the command line being run (set by cli.run; sys.argv otherwise), for the manifests
 _VERSIONED = ("numpy", "scipy", "pandas", "pyarrow", "casadi", "ezc3d", "rosbags", "statsmodels", "dask", "matplotlib")
 
 
@@ -45,13 +61,29 @@ def file_sha256(path: Path, chunk: int = 1 << 20) -> str:
 
 
 def describe_inputs(paths: Iterable[str | os.PathLike]) -> list[dict[str, Any]]:
-    """Content hashes of input files; a directory counts as all the files under it."""
+    """Content hashes of input files; a directory counts as all the files under it. A missing or
+    unreadable input raises ``InputError`` (naming the command that wrote it, when known)."""
     described = []
     for p in sorted({Path(p).resolve() for p in paths}):
-        files = sorted(f for f in p.rglob("*") if f.is_file()) if p.is_dir() else [p]
-        for f in files:
-            described.append({"path": str(f), "sha256": file_sha256(f), "bytes": f.stat().st_size})
+        if not p.exists():
+            raise InputError("input file not found", path=p, remedy=_rerun_remedy(p))
+        try:
+            files = sorted(f for f in p.rglob("*") if f.is_file()) if p.is_dir() else [p]
+            for f in files:
+                described.append({"path": str(f), "sha256": file_sha256(f), "bytes": f.stat().st_size})
+        except OSError as exc:
+            raise InputError(f"cannot read the input ({exc.strerror or type(exc).__name__})", path=exc.filename or p,
+                             remedy="check its permissions, or re-create it") from None
     return described
+
+
+def _rerun_remedy(path: Path) -> str:
+    """How to re-create a missing stage output: the command recorded in its stage's manifest."""
+    try:
+        command = json.loads((path.parent / MANIFEST).read_text())["command"]
+        return f"re-run the command that wrote it: `{' '.join(['cobot-analysis', *command[1:]])}`"
+    except (OSError, ValueError, KeyError, TypeError):
+        return "check the path, or re-run the stage that writes it"
 
 
 def package_versions() -> dict[str, str]:
@@ -84,15 +116,42 @@ def find_input(out: str | os.PathLike, filename: str, stages: Iterable[str], opt
 
     Raises ``InputError`` naming the stages to run (or the option to pass) when none exists.
     """
-    from cobot_analysis.errors import InputError
-
     stages = list(stages)
+    check_workspace(out)
     for stage in stages:
         candidate = Path(out) / stage / filename
         if candidate.is_file():
             return candidate
     raise InputError(f"no {filename} in the workspace (looked in {', '.join(stages)})", path=out,
                      remedy=f"run `cobot-analysis {stages[0]}` first with the same --out, or pass {option}")
+
+
+def check_workspace(out: str | os.PathLike) -> None:
+    """``out`` must be a directory, or not exist yet."""
+    if Path(out).exists() and not Path(out).is_dir():
+        raise InputError("is not a directory", path=out, remedy="pass a workspace directory (new or existing) with --out")
+
+
+def _abandoned(d: Path) -> bool:
+    """A temporary stage directory whose run is over: its lock is free, or (no lock file) it is old."""
+    try:
+        fd = os.open(d / LOCK, os.O_RDWR)
+    except FileNotFoundError:
+        try:
+            return time.time() - d.stat().st_mtime > STALE_AFTER
+        except OSError:
+            return False
+    except OSError:
+        return False
+    try:
+        if fcntl is None:  # cannot tell: left alone
+            return False
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        return True
+    except OSError:  # locked: its process is running (or no locks on this file system)
+        return False
+    finally:
+        os.close(fd)
 
 
 def _canonical(params: dict[str, Any]) -> Any:
@@ -115,6 +174,7 @@ class Stage:
         self._inputs: list[dict[str, Any]] = []
         self._t0 = 0.0
         self._started = ""
+        self._lock: int | None = None
 
     # -- skip logic -----------------------------------------------------------------------------
     def _previous_manifest(self) -> dict[str, Any] | None:
@@ -136,6 +196,10 @@ class Stage:
 
     # -- context --------------------------------------------------------------------------------
     def __enter__(self) -> "Stage":
+        check_workspace(self.out)
+        if self.final_dir.exists() and not self.final_dir.is_dir():
+            raise InputError("exists and is not a stage directory", path=self.final_dir,
+                             remedy=f"move or delete it (stage {self.name} writes the directory {self.final_dir}), or pass another --out")
         self._t0 = time.perf_counter()
         self._started = datetime.now(timezone.utc).isoformat(timespec="seconds")
         self._inputs = describe_inputs(self.input_paths)
@@ -143,25 +207,77 @@ class Stage:
             self.skipped = True
             info(f"[green]{self.name}[/green]: up to date, skipped (use --force to redo): {self.final_dir}")
             return self
-        self.out.mkdir(parents=True, exist_ok=True)
-        self.dir = Path(tempfile.mkdtemp(prefix=f".{self.name}.", suffix=".tmp", dir=self.out))
+        with deferred():
+            try:
+                self.out.mkdir(parents=True, exist_ok=True)
+                self._clean_leftovers()
+                self.dir = self._temporary()
+            except OSError as exc:
+                self._unlock()
+                raise InputError(f"cannot write the workspace ({exc.strerror or type(exc).__name__})", path=exc.filename or self.out,
+                                 remedy="pass a writable directory with --out") from None
         return self
 
     def __exit__(self, exc_type, exc, tb) -> bool:
+        seen(exc)
         if self.skipped:
             return False
-        if exc_type is not None:
-            shutil.rmtree(self.dir, ignore_errors=True)
-            return False
-        self._write_metrics()
-        self._write_manifest()
-        trash = self.out / f".{self.name}.old.{os.getpid()}"
-        if self.final_dir.exists():
-            os.replace(self.final_dir, trash)
-        os.replace(self.dir, self.final_dir)
-        shutil.rmtree(trash, ignore_errors=True)
-        self.dir = self.final_dir
+        try:
+            if exc_type is None:
+                self._write_metrics()
+                self._write_manifest()
+                with deferred():
+                    self._commit()
+        finally:
+            if self.dir != self.final_dir:  # failed or interrupted: nothing of this run is kept
+                with deferred():
+                    shutil.rmtree(self.dir, ignore_errors=True)
+                    self._unlock()
         return False
+
+    def _temporary(self) -> Path:
+        """A new hidden directory beside the stage's, created with the umask and locked by this process."""
+        while True:
+            d = self.out / f".{self.name}.{secrets.token_hex(4)}.tmp"
+            try:
+                d.mkdir()
+            except FileExistsError:
+                continue
+            try:
+                self._lock = os.open(d / LOCK, os.O_CREAT | os.O_RDWR, 0o666)
+            except OSError:
+                d.rmdir()
+                raise
+            try:
+                if fcntl is not None:
+                    fcntl.flock(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:  # no locks on this file system: the directory is never taken for a leftover
+                pass
+            return d
+
+    def _unlock(self) -> None:
+        if self._lock is not None:
+            os.close(self._lock)
+            self._lock = None
+
+    def _clean_leftovers(self) -> None:
+        """Remove what killed runs of this stage left: temporary directories, a replaced output."""
+        shutil.rmtree(self.final_dir / PREVIOUS, ignore_errors=True)
+        for d in sorted(self.out.glob(f".{self.name}.*")):
+            if d.is_dir() and (d.suffix == ".tmp" or d.name.startswith(f".{self.name}.old.")) and _abandoned(d):
+                shutil.rmtree(d, ignore_errors=True)
+                info(f"[green]{self.name}[/green]: removed {d}, left by an interrupted run")
+
+    def _commit(self) -> None:
+        """The temporary directory becomes the stage's (the replaced output is moved into it first)."""
+        if self.final_dir.exists():
+            os.replace(self.final_dir, self.dir / PREVIOUS)
+        os.replace(self.dir, self.final_dir)
+        self.dir = self.final_dir
+        shutil.rmtree(self.final_dir / PREVIOUS, ignore_errors=True)
+        (self.final_dir / LOCK).unlink(missing_ok=True)
+        self._unlock()
+        keep(self.final_dir)
 
     # -- outputs --------------------------------------------------------------------------------
     def path(self, relative: str) -> Path:
@@ -191,11 +307,11 @@ class Stage:
     def _write_manifest(self) -> None:
         outputs = [
             {"path": str(f.relative_to(self.dir)), "sha256": file_sha256(f), "bytes": f.stat().st_size}
-            for f in sorted(self.dir.rglob("*")) if f.is_file()
+            for f in sorted(self.dir.rglob("*")) if f.is_file() and f.name != LOCK
         ]
         manifest = {
             "stage": self.name,
-            "command": sys.argv,
+            "command": COMMAND or sys.argv,
             "started": self._started,
             "duration_s": round(time.perf_counter() - self._t0, 3),
             "inputs": self._inputs,

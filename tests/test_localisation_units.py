@@ -375,4 +375,4 @@ def test_zero_orientation_quaternions_are_dropped_with_a_warning(capsys):
     rows = np.array([[0.0, 1, 2, 3, 0, 0, 0, 1], [0.1, 1, 2, 3, 0, 0, 0, 0], [0.2, 1, 2, 3, 0, 0, 1, 0]])
     stream = _stream(Path("run.bag"), "/icp/pose", rows)
     assert stream.t.tolist() == [0.0, 0.2]
-    assert "1 message(s) with a zero orientation quaternion dropped" in capsys.readouterr().err
+    assert "/icp/pose: 1 of 3 message(s) dropped: 1 with a zero orientation quaternion" in capsys.readouterr().err

@@ -1,12 +1,14 @@
 """Command-line entry point: ``cobot-analysis`` (see ``cobot_analysis.cli.app``).
 
-``run(argv)`` returns the exit code (0 ok, 1 internal error, 2 bad usage or bad input) and is
-what tests call; ``main()`` exits with it.
+``run(argv)`` returns the exit code (0 ok, 1 internal error, 2 bad usage or bad input, 128 + the
+signal number when interrupted: 130 Ctrl-C, 143 SIGTERM) and is what tests call; ``main()`` exits
+with it.
 """
 
 from __future__ import annotations
 
 import importlib
+import os
 import pkgutil
 import sys
 import traceback
@@ -17,6 +19,7 @@ from typer.exceptions import TyperException
 from cobot_analysis.cli.app import app
 from cobot_analysis.console import console, verbosity
 from cobot_analysis.errors import InputError, SolverError
+from cobot_analysis.interrupt import Interrupted, outcome, seen, signals
 
 # Every module of this package registers its commands on import; pipeline order first, so that
 # --help lists the panels as the data flows (data, processing, analysis, models, localisation).
@@ -31,9 +34,24 @@ def _error(message: str) -> None:
 
 
 def run(argv: list[str] | None = None) -> int:
+    from cobot_analysis import workspace
+
+    workspace.COMMAND[:] = ["cobot-analysis", *(sys.argv[1:] if argv is None else argv)]
+    try:
+        with signals():
+            return _run(argv)
+    finally:
+        workspace.COMMAND.clear()
+
+
+def _run(argv: list[str] | None) -> int:
     try:
         rv = app(args=argv, prog_name="cobot-analysis", standalone_mode=False)
         return rv if isinstance(rv, int) else 0
+    except Interrupted as exc:  # stages have removed their temporary output and stopped their workers
+        seen(exc)
+        _error(f"interrupted ({exc}); {outcome()}".replace("[", r"\["))
+        return exc.exit_code
     except (InputError, SolverError) as exc:
         _error(str(exc).replace("[", r"\["))
         return 2
@@ -56,4 +74,9 @@ def run(argv: list[str] | None = None) -> int:
 
 
 def main() -> None:
-    sys.exit(run())
+    code = run()
+    if code >= 128:  # interrupted: exit now, without waiting for what the interrupt abandoned
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    sys.exit(code)

@@ -126,7 +126,7 @@ def compare_command(
     recomputed vs published means, --against vs means, --any-vs-any -> compare/distances.parquet (one row per pair)."""
     import pandas as pd
 
-    from cobot_analysis.compare import (DISTANCES, WALKING_GROUPS, any_vs_any, compare_sets, default_groups, individual_vs_mean,
+    from cobot_analysis.compare import (DISTANCES, WALKING_GROUPS, against_vs_mean, any_vs_any, compare_sets, default_groups,
                                         pivot, read_trajectory_set)
     from cobot_analysis.console import info
     from cobot_analysis.schema import table_metadata, write_table
@@ -160,7 +160,7 @@ def compare_command(
         if same:
             parts.append(any_vs_any(trials, same=["study", *same]))
         if other is not None:
-            parts.append(individual_vs_mean(other, mts, [c for c in groups if c in other.meta.columns]).assign(comparison=label))
+            parts.append(against_vs_mean(other, mts, groups, label, against))
         d = pd.concat([p for p in parts if len(p)] or parts[:1], ignore_index=True)
         write_table(d, stage.path("distances.parquet"), DISTANCES, grouping=groups)
         summary = d.groupby(["comparison", "entity"])[["d_xy", "d_theta", "d_gamma"]].agg(["mean", "std", "count"])
@@ -204,7 +204,7 @@ def stats_command(
 ) -> None:
     """Every statistical question of the study's configuration (tests, effect sizes, Holm) -> stats/stats.parquet and stats.md."""
     from cobot_analysis.compare import DISTANCES
-    from cobot_analysis.console import info, track
+    from cobot_analysis.console import info, track, warn
     from cobot_analysis.schema import read_table, write_table
     from cobot_analysis.stats import analyses
     from cobot_analysis.stats import config as cfg
@@ -217,6 +217,7 @@ def stats_command(
     if study_cfg is None:
         config = default_config(study)
         study_cfg = cfg.load(config)
+    cfg.check_study(study_cfg, study)
     dist_path = distances or find_input(out, "distances.parquet", ["compare"], "--distances")
     dist = _plain(read_table(dist_path, DISTANCES))
     dur_path = durations or (out / "import-published" / "durations.parquet")
@@ -241,6 +242,10 @@ def stats_command(
             return
         sources = build_sources(ts, dist, dur, anthro, study_cfg.alpha)
         cfg.check_levels(study_cfg, sources)
+        unmatched = cfg.filter_problems(study_cfg, sources)
+        if unmatched:  # a typo, or data not there yet (e.g. no model compared): either way, said once
+            warn(f"{config}: {len(unmatched)} filter value(s) match no row, their analyses are skipped (stats.md says "
+                 f"why): {'; '.join(unmatched)}")
         table = analyses.run(study_cfg, sources, progress=track)
         table["study"] = study  # the data's study (a configuration may serve several, e.g. synthetic-walking)
         write_table(table, stage.path("stats.parquet"), analyses.STATS, config=str(config))

@@ -15,9 +15,12 @@ from cobot_analysis import __version__
 from cobot_analysis.console import set_verbosity
 from cobot_analysis.workspace import DEFAULT_OUT
 
+EXIT_CODES = ("Exit codes: 0 success, 1 internal error, 2 bad usage or bad input, 130 interrupted (Ctrl-C), "
+              "143 terminated (SIGTERM). An interrupted stage writes nothing and stops its workers.")
 app = typer.Typer(
     name="cobot-analysis",
     help="Reproducible analysis of motion-capture studies of walking and collaborative carriage (CoBot).",
+    epilog=EXIT_CODES,
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
@@ -58,6 +61,6 @@ def _global(
 ) -> None:
     """Stages read and write Parquet in the workspace (--out); each writes a manifest.json.
 
-    Exit codes: 0 success, 1 internal error, 2 bad usage or bad input.
+    Exit codes: see EXIT_CODES (the epilog of --help).
     """
     set_verbosity(0 if quiet else 2 if verbose else 1)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 from typing import Annotated, Optional
@@ -31,9 +32,18 @@ def _floats(text: str, n: int, option: str) -> tuple[float, ...]:
         values = tuple(float(v) for v in text.split(","))
     except ValueError:
         values = ()
-    if len(values) != n:
+    if len(values) != n or not all(math.isfinite(v) for v in values):
         raise InputError(f"{option} needs {n} comma-separated numbers, got {text!r}", remedy=f"e.g. {option} " + ",".join(["0"] * n))
     return values
+
+
+def _at_least(value: float | None, option: str, low: float = 0.0, strict: bool = True, example: str = "") -> None:
+    """Range check of a number option (before any work): one line naming the option."""
+    if value is None:
+        return
+    if not math.isfinite(value) or value < low or (strict and value == low):
+        raise InputError(f"{option} must be {'>' if strict else '>='} {low:g}, got {value:g}",
+                         remedy=f"e.g. {option} {example}" if example else None)
 
 
 @app.command("bag-info", rich_help_panel=PANEL_LOCALISATION)
@@ -57,19 +67,28 @@ def bag_info_command(
     for r in rows:
         table.add_row(r["topic"], r["type"], str(r["count"]), f"{r['rate']:.2f}" if r["rate"] == r["rate"] else "-",
                       f"{r['start']:.3f}", f"{r['end'] - r['start']:.3f}", "yes" if r["pose"] else "")
-    console.print(table, soft_wrap=True)
+    _print_whole(console, table)
     if edges:
         tf = Table(title="tf frame pairs (use tf:PARENT->CHILD)")
         for col in ("parent", "child", "transforms", "static"):
             tf.add_column(col)
         for e in edges:
             tf.add_row(e["parent"], e["child"], str(e["count"]), "yes" if e["static"] else "")
-        console.print(tf, soft_wrap=True)
+        _print_whole(console, tf)
     # Also plain lines on stdout, for scripts.
     for r in rows:
         typer.echo(f"{r['topic']}\t{r['type']}\t{r['count']}\t{r['rate']:.3f}\t{r['start']:.9f}\t{r['end']:.9f}")
     for e in edges:
         typer.echo(f"tf:{e['parent']}->{e['child']}\t{e['count']}\t{'static' if e['static'] else 'dynamic'}")
+
+
+def _print_whole(console, table) -> None:
+    """A table as wide as its cells need (topic and frame names are never cut), even beyond the terminal."""
+    from rich.console import Console
+    from rich.measure import Measurement
+
+    width = max(console.width, Measurement.get(console, console.options.update_width(10_000), table).maximum)
+    Console(stderr=True, width=width, highlight=False, force_terminal=console.is_terminal or None).print(table)
 
 
 @synth_app.command("localisation")
@@ -125,13 +144,13 @@ def localisation_command(
     label: Annotated[Optional[list[str]], typer.Option(help="Run label, once per bag (default: file stem).")] = None,
     map_label: Annotated[Optional[list[str]], typer.Option("--map", help="Map label, once for all bags or once per bag.")] = None,
     delay: Annotated[Optional[float], typer.Option(help="Use this delay (s) instead of estimating it.")] = None,
-    delay_window: Annotated[str, typer.Option(help="Delay search window MIN,MAX (s).")] = "0,1.5",
+    delay_window: Annotated[str, typer.Option(help="Delay search window MIN,MAX (s; MIN < MAX, MIN may be negative). An estimate on an end of it is warned about.")] = "0,1.5",
     delay_weights: Annotated[str, typer.Option(help="Weights of x,y,z,yaw in the delay cost (yaw in m/rad; 0 drops an axis).")] = "1,1,1,1",
     alignment: Annotated[str, typer.Option(help="Offset removal: mean (docs/methods.md), se3 (Umeyama), yaw (4 DoF), none.")] = "mean",
     association: Annotated[str, typer.Option(help="interpolate (truth at the ICP stamps) or nearest (nearest stamp, as evo).")] = "interpolate",
-    max_gap: Annotated[float, typer.Option(help="Longest truth gap to interpolate across (s).")] = 0.05,
+    max_gap: Annotated[Optional[float], typer.Option(help="Longest truth gap to interpolate across (s); default: twice the median sample spacing of the truth stream, at least 0.05 s.")] = None,
     max_diff: Annotated[float, typer.Option(help="Nearest association: largest stamp difference (s).")] = 0.01,
-    goals: Annotated[Optional[Path], typer.Option(help="Commanded goals CSV (x,y,yaw in the ICP map frame) for every run.")] = None,
+    goals: Annotated[Optional[Path], typer.Option(help="Commanded goals CSV (x,y,yaw in the ICP map frame, levelled to z-up when --up is not z) for every run.")] = None,
     goal_topic: Annotated[str, typer.Option(help="Topic of the commanded goals in the bag (used when --goals is not given).")] = "/goal",
     speed_threshold: Annotated[float, typer.Option(help="Stop: planar speed below this (m/s).")] = 0.02,
     yaw_rate_threshold: Annotated[float, typer.Option(help="Stop: |yaw rate| below this (rad/s).")] = 0.03,
@@ -139,6 +158,7 @@ def localisation_command(
     tol_xy: Annotated[float, typer.Option(help="Controller stop tolerance, position (m).")] = 0.08,
     tol_yaw: Annotated[float, typer.Option(help="Controller stop tolerance, yaw (rad).")] = 0.07,
     distance_window: Annotated[float, typer.Option(help="Moving-average window for the travelled distance (s).")] = 2.0,
+    up: Annotated[str, typer.Option(help="Vertical axis of the frames: auto (detected from the motion, warned when not z), x, y, z, -x, -y, -z, or TRUTH,ICP (e.g. -y,z for a camera-frame truth). Planar quantities (distance, drift, stops, yaw) are computed in the plane normal to it.")] = "auto",
     min_samples: Annotated[int, typer.Option(min=3, help="Fewest associated ICP poses accepted.")] = 20,
     figures: Annotated[bool, typer.Option("--figures/--no-figures", help="Draw the figures (PNG and PDF).")] = True,
 ) -> None:
@@ -164,6 +184,28 @@ def localisation_command(
     for b in bags:
         if not b.exists():
             raise InputError("no such file or directory", path=b, remedy="check the path")
+    from cobot_analysis.localisation import vertical
+
+    window = _floats(delay_window, 2, "--delay-window")
+    if window[0] >= window[1]:
+        raise InputError(f"--delay-window MIN,MAX needs MIN < MAX, got {delay_window!r}", remedy="e.g. --delay-window 0,1.5")
+    weights = _floats(delay_weights, 4, "--delay-weights")
+    if min(weights) < 0 or max(weights) <= 0:
+        raise InputError(f"--delay-weights must be >= 0 with at least one > 0, got {delay_weights!r}", remedy="e.g. --delay-weights 1,1,1,1")
+    if delay is not None and not math.isfinite(delay):
+        raise InputError(f"--delay must be a number of seconds, got {delay}", remedy="e.g. --delay 0.55")
+    _at_least(max_gap, "--max-gap", example="0.2")
+    _at_least(max_diff, "--max-diff", example="0.01")
+    _at_least(distance_window, "--distance-window", example="2")
+    _at_least(speed_threshold, "--speed-threshold", example="0.02")
+    _at_least(yaw_rate_threshold, "--yaw-rate-threshold", example="0.03")
+    _at_least(min_stop, "--min-stop", strict=False, example="3")
+    _at_least(tol_xy, "--tol-xy", strict=False, example="0.08")
+    _at_least(tol_yaw, "--tol-yaw", strict=False, example="0.07")
+    try:
+        up_axes = vertical.parse(up)
+    except ValueError:
+        raise InputError(f"--up must be auto, x, y, z, -x, -y, -z or TRUTH,ICP, got {up!r}", remedy="e.g. --up -y,z") from None
     if time not in ("header", "record"):
         raise InputError(f"--time must be header or record, not {time!r}")
     if alignment not in ("mean", "se3", "yaw", "none"):
@@ -179,9 +221,9 @@ def localisation_command(
     if len(maps) != len(bags):
         raise InputError(f"{len(maps)} --map for {len(bags)} bags", remedy="give one --map for all bags or one per bag")
     goal_rows = tuple(map(tuple, read_goals_csv(goals))) if goals else None
-    opts = Options(truth=truth, icp=icp, time=time, delay=delay, window=_floats(delay_window, 2, "--delay-window"),
-                   weights=_floats(delay_weights, 4, "--delay-weights"), alignment=alignment, association=association,
-                   max_gap=max_gap, max_diff=max_diff, distance_window=distance_window, min_samples=min_samples,
+    opts = Options(truth=truth, icp=icp, time=time, delay=delay, window=window, weights=weights, alignment=alignment,
+                   association=association, max_gap=max_gap, max_diff=max_diff, distance_window=distance_window,
+                   min_samples=min_samples, up=up_axes,
                    goal_topic=goal_topic or None, goals=goal_rows,
                    rule=StopRule(speed_threshold=speed_threshold, yaw_rate_threshold=yaw_rate_threshold,
                                  min_duration=min_stop, tol_xy=tol_xy, tol_yaw=tol_yaw))
@@ -217,8 +259,11 @@ def localisation_command(
         stage.path("results.md").write_text(report.results_markdown(runs, names, tol_xy, tol_yaw))
     for r in results:
         row = r["row"]
-        info(f"[green]{r['run']}[/green]: delay {row['delay']:.3f} ± {row['delay_sd']:.3f} s, RMSE {1000 * row['ape_rmse']:.1f} mm"
-             + (f", goals {row['goals_found']}/{row['goals_commanded']}" if "goals_found" in row else ""))
+        d = (f"{row['delay']:.3f} s (at the edge of the search window: see the warning)" if row["delay_at_edge"]
+             else f"{row['delay']:.3f} s (given)" if row["delay_method"] == "given" else f"{row['delay']:.3f} ± {row['delay_sd']:.3f} s")
+        info(f"[green]{r['run']}[/green]: delay {d}, RMSE {1000 * row['ape_rmse']:.1f} mm"
+             + (f", goals {row['goals_found']}/{row['goals_commanded']}" if "goals_found" in row else "")
+             + (f", {len(row['warnings'].split(' | '))} warning(s) (results.md)" if row["warnings"] else ""))
     info(f"[green]{STAGE}[/green]: {len(results)} run(s) -> {stage.final_dir}")
 
 

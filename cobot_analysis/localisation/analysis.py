@@ -1,4 +1,6 @@
-"""One run end to end: read the streams from the bag, compare, goal accuracy (one task per bag)."""
+"""One run end to end: read the streams from the bag, level them (vertical axis), compare, goal
+accuracy (one task per bag). What a run needs to be read with care (a frame that is not z-up, a
+delay on the edge of its window, dropped messages) is warned about and kept in ``warnings``."""
 
 from __future__ import annotations
 
@@ -8,6 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from cobot_analysis.console import warn
+from cobot_analysis.errors import InputError
+from cobot_analysis.localisation import vertical
 from cobot_analysis.localisation.bags import PoseSpec, read_streams
 from cobot_analysis.localisation.compare import compare
 from cobot_analysis.localisation.goals import StopRule, goal_accuracy, goal_summary, goals_from_stream
@@ -23,7 +27,8 @@ class Options:
     weights: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0)
     alignment: str = "mean"
     association: str = "interpolate"
-    max_gap: float = 0.05
+    max_gap: float | None = None  # None: from the truth's sample spacing (compare.default_max_gap)
+    up: tuple[str | None, str | None] = (None, None)  # vertical axis of truth and ICP; None: detect
     max_diff: float = 0.01
     distance_window: float = 2.0
     min_samples: int = 20
@@ -42,11 +47,29 @@ def analyse_run(task: tuple[str, str, str, Options]) -> dict:
     streams = read_streams(path, specs, o.time, optional=("goals",))
     goal_from_bag = "goals" in streams
     truth, icp = streams["truth"], streams["icp"]
+    for spec, s in ((o.truth, truth), (o.icp, icp)):
+        if len(s) < 2:
+            raise InputError(f"{spec}: {len(s)} pose(s), too few to compare", path=path,
+                             remedy="check the stream with `cobot-analysis bag-info` (for tf: both edges must overlap in time)")
+    notes = [n for s in (truth, icp) for n in s.meta.get("notes", [])]
+    up_truth, up_icp = vertical.find(truth, o.up[0]), vertical.find(icp, o.up[1])
+    for name, v in (("motion-capture", up_truth), ("ICP", up_icp)):
+        text = vertical.warning(name, v)
+        if text:
+            warn(f"{path}: {text}")
+            notes.append(text)
+    truth, icp = vertical.level(truth, up_truth), vertical.level(icp, up_icp)
+    if goal_from_bag:
+        streams["goals"] = vertical.level(streams["goals"], up_icp)  # goals are poses of the ICP map frame
     cmp = compare(truth, icp, delay=o.delay, window=o.window, weights=o.weights, alignment=o.alignment,
                   association=o.association, max_gap=o.max_gap, max_diff=o.max_diff,
                   distance_window=o.distance_window, min_samples=o.min_samples, path=path)
+    edge = cmp.delay.edge_warning()
+    if edge:
+        warn(f"{path}: {edge}")
+        notes.append(edge)
     row = {"run": run, "file": str(path), "map": map_label, "truth": o.truth, "icp": o.icp, "time_base": o.time,
-           **{k: v for k, v in cmp.summary.items()}}
+           "up_truth": up_truth.describe(), "up_icp": up_icp.describe(), **{k: v for k, v in cmp.summary.items()}}
     goals_df = None
     goals = np.asarray(o.goals, dtype=float) if o.goals is not None else goals_from_stream(streams["goals"]) if goal_from_bag else None
     if goals is not None:
@@ -54,9 +77,12 @@ def analyse_run(task: tuple[str, str, str, Options]) -> dict:
         goals_df = goal_accuracy(truth, icp, goals, cmp.alignment, cmp.delay.value, o.rule, goal_times)
         row.update(goal_summary(goals_df))
         if not goals_df["found"].all():
-            warn(f"{path}: {int((~goals_df['found']).sum())} of {len(goals_df)} goals without a matching stop "
-                 f"({goals_df.attrs['n_stops']} stops detected); see --speed-threshold and --min-stop")
+            text = (f"{int((~goals_df['found']).sum())} of {len(goals_df)} goals without a matching stop "
+                    f"({goals_df.attrs['n_stops']} stops detected); see --speed-threshold and --min-stop")
+            warn(f"{path}: {text}")
+            notes.append(text)
         goals_df.insert(0, "run", run)
+    row["warnings"] = " | ".join(notes)
     samples = cmp.samples.copy()
     samples.insert(0, "run", run)
     poses = [truth.to_frame(run, "truth"), icp.to_frame(run, "icp")]

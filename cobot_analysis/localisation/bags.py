@@ -191,7 +191,7 @@ def _mcap_ros1_summary(path: Path, fh):
     """The mcap summary if every channel of the file is ROS1-encoded, else None."""
     from mcap.reader import make_reader
 
-    reader = make_reader(fh)
+    reader = make_reader(fh, validate_crcs=True)
     summary = reader.get_summary()
     if summary is None or not summary.channels:
         return None, None
@@ -216,13 +216,30 @@ def open_bag(path: str | os.PathLike) -> Iterator[_Source]:
     stack = ExitStack()
     try:
         src = _open(path, stack)
-    except Exception as exc:  # noqa: BLE001 - rosbags/mcap raise many types on corrupt input
+    except Exception as exc:  # noqa: BLE001 - rosbags/mcap raise many types on corrupt input (MemoryError too)
         stack.close()
-        raise InputError(f"not a readable ROS bag ({type(exc).__name__}: {exc})".replace("\n", " "), path=path,
-                         remedy="the file may be truncated or corrupt: re-export or reindex it (rosbag reindex) "
-                                "and check it with `cobot-analysis bag-info`") from exc
+        raise InputError(f"not a readable ROS bag ({_cause(exc)})", path=path, remedy=_repair(path)) from None
     with stack:
         yield src
+
+
+def _cause(exc: BaseException) -> str:
+    """One line for an exception of a bag reader (a damaged length field often gives MemoryError)."""
+    text = " ".join(str(exc).split())
+    if isinstance(exc, (MemoryError, OverflowError)):
+        text = "a length field is out of range" + (f": {text}" if text else "")
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+def _repair(path: Path) -> str:
+    """What to do with a damaged container of ``path``'s kind."""
+    if path.suffix == ".bag":
+        how = "reindex it (rosbag reindex) or re-export it"
+    elif path.suffix == ".mcap":
+        how = "recover what is readable (mcap recover IN -o OUT) or re-export it"
+    else:
+        how = "re-export it (ros2 bag convert) or record it again"
+    return f"the file is truncated or damaged: {how}"
 
 
 def _open(path: Path, stack: ExitStack) -> _Source:
@@ -273,8 +290,7 @@ def _checked(src: _Source, topics, raw: bool = False) -> Iterator[tuple[str, str
     except InputError:
         raise
     except Exception as exc:  # noqa: BLE001
-        raise InputError(f"cannot read the messages ({type(exc).__name__}: {exc})".replace("\n", " "), path=src.path,
-                         remedy="the bag may be truncated or corrupt: re-export or reindex it") from exc
+        raise InputError(f"cannot read the messages ({_cause(exc)})", path=src.path, remedy=_repair(src.path)) from None
 
 
 # ---- pose streams -----------------------------------------------------------------------------
@@ -366,8 +382,8 @@ def _decode(src: _Source, raw, msgtype: str):
     try:
         return src.deserialize(raw, msgtype)
     except Exception as exc:  # noqa: BLE001
-        raise InputError(f"cannot decode a {msgtype.replace('/msg/', '/')} message ({type(exc).__name__}: {exc})",
-                         path=src.path, remedy="the bag may be corrupt, or its message definition differs from the standard one") from exc
+        raise InputError(f"cannot decode a {msgtype.replace('/msg/', '/')} message ({_cause(exc)})", path=src.path,
+                         remedy=f"{_repair(src.path)}; or its message definition differs from the standard one") from None
 
 
 # Fixed-layout decoding: pose messages of one topic usually have the same frame names and hence
@@ -420,26 +436,55 @@ def _topic_list_from(data) -> str:
     return ", ".join(sorted(data)) or "none"
 
 
+QUAT_TOL = 0.01  # |norm - 1| of a stored orientation quaternion beyond which the message is damaged
+MAX_SPEED = 10.0  # m/s between consecutive poses: beyond this a pose is a jump (damage, tracking loss, relocalisation)
+
+
 def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "") -> PoseStream:
-    """Sorted, de-duplicated stream from rows ``(t, x, y, z, qx, qy, qz, qw)``."""
-    if not np.all(np.isfinite(rows)):
-        bad = int((~np.isfinite(rows)).any(axis=1).sum())
-        warn(f"{path}: {name}: {bad} message(s) with NaN/inf dropped")
-        rows = rows[np.isfinite(rows).all(axis=1)]
-    zero = np.linalg.norm(rows[:, 4:8], axis=1) < 1e-9
-    if zero.any():  # an unset orientation (all-zero quaternion) has no rotation to compare
-        warn(f"{path}: {name}: {int(zero.sum())} message(s) with a zero orientation quaternion dropped")
-        rows = rows[~zero]
+    """Sorted, de-duplicated stream from rows ``(t, x, y, z, qx, qy, qz, qw)``. Messages with
+    NaN/inf, a zero quaternion (unset orientation) or a quaternion far from unit norm (damaged) are
+    dropped; stamps sorted; jumps faster than ``MAX_SPEED`` reported. Each of these is a warning,
+    kept in ``meta["notes"]``; a stream left without any pose is an ``InputError`` naming why."""
+    notes, n_msgs = [], len(rows)
+
+    def note(text: str) -> None:
+        notes.append(f"{name}: {text}")
+        warn(f"{path}: {name}: {text}")
+
+    drops = []
+    finite = np.isfinite(rows).all(axis=1)
+    norm = np.linalg.norm(np.where(np.isfinite(rows[:, 4:8]), rows[:, 4:8], 0.0), axis=1)
+    zero = finite & (norm < 1e-9)
+    skew = finite & ~zero & (np.abs(norm - 1.0) > QUAT_TOL)
+    for mask, what in ((~finite, "NaN/inf values"), (zero, "a zero orientation quaternion (orientation unset)"),
+                       (skew, f"an orientation quaternion of norm far from 1 ({norm[skew].min() if skew.any() else 0:.3g}.."
+                              f"{norm[skew].max() if skew.any() else 0:.3g}: damaged)")):
+        if mask.any():
+            drops.append(f"{int(mask.sum())} with {what}")
+    keep = finite & ~zero & ~skew
+    if drops:
+        if not keep.any():
+            raise InputError(f"{name}: no usable pose in {n_msgs} message(s) ({'; '.join(drops)})", path=path,
+                             remedy="check the topic with `cobot-analysis bag-info` and the recording (or pick another topic)")
+        note(f"{n_msgs - int(keep.sum())} of {n_msgs} message(s) dropped: {'; '.join(drops)}")
+        rows = rows[keep]
     t = rows[:, 0]
     if np.any(np.diff(t) < 0):
-        warn(f"{path}: {name}: stamps are not monotonic; sorted by stamp")
+        note("stamps are not monotonic; sorted by stamp")
         rows = rows[np.argsort(t, kind="stable")]
         t = rows[:, 0]
     dup = np.concatenate([[False], np.diff(t) == 0])
     if dup.any():
-        warn(f"{path}: {name}: {int(dup.sum())} message(s) with a repeated stamp dropped")
+        note(f"{int(dup.sum())} message(s) with a repeated stamp dropped")
         rows = rows[~dup]
-    return PoseStream(rows[:, 0].copy(), rows[:, 1:4].copy(), normalise(rows[:, 4:8]), name=name, frame_id=frame_id)
+    if len(rows) > 1:
+        step = np.linalg.norm(np.diff(rows[:, 1:4], axis=0), axis=1) / np.diff(rows[:, 0])
+        fast = step > MAX_SPEED
+        if fast.any():
+            note(f"{int(fast.sum())} jump(s) between consecutive poses faster than {MAX_SPEED:g} m/s (up to {step.max():.3g} m/s): "
+                 "a damaged bag, lost tracking or a relocalisation; check the poses (poses.parquet)")
+    return PoseStream(rows[:, 0].copy(), rows[:, 1:4].copy(), normalise(rows[:, 4:8]), name=name, frame_id=frame_id,
+                      meta={"notes": notes})
 
 
 def _chain(path: Path, spec: PoseSpec, tf: dict, static: dict) -> PoseStream:
@@ -482,6 +527,7 @@ def _chain(path: Path, spec: PoseSpec, tf: dict, static: dict) -> PoseStream:
     if not dynamic:
         raise InputError(f"tf:{spec.parent}->{spec.child} is static (only /tf_static edges)", path=path,
                          remedy="pick a frame pair that moves, e.g. map->base_link")
+    notes = [n for s in dynamic.values() for n in s.meta.get("notes", [])]
     base = min(dynamic.values(), key=len)
     t = base.t
     valid = np.ones(len(t), bool)
@@ -501,7 +547,7 @@ def _chain(path: Path, spec: PoseSpec, tf: dict, static: dict) -> PoseStream:
         if not forward:
             ep, eq = invert(ep, eq)
         p, q = compose(p, q, ep, eq)
-    return PoseStream(t, p, normalise(q), name=str(spec), frame_id=spec.parent)
+    return PoseStream(t, p, normalise(q), name=str(spec), frame_id=spec.parent, meta={"notes": notes})
 
 
 def _interpolate(s: PoseStream, t: np.ndarray):

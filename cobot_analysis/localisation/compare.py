@@ -6,8 +6,11 @@ Notation: ``s_i`` the ICP stamps, ``P(t)`` the motion-capture (truth) pose, ``Q_
 
 1. Time base: the truth is interpolated at ``s_i - d`` (positions linearly, orientation by
    quaternion slerp; yaw unwrapped), only where its bracketing samples are at most ``max_gap``
-   apart. ``association="nearest"`` instead takes the truth sample nearest to ``s_i - d`` within
-   ``max_diff`` (the nearest-stamp matching of evo).
+   apart (default ``default_max_gap``: twice the median sample spacing of the truth, at least
+   0.05 s, so that one missing sample is bridged at any rate). ``association="nearest"`` instead
+   takes the truth sample nearest to ``s_i - d`` within ``max_diff`` (the nearest-stamp matching
+   of evo). Too few associated poses is an error that names its cause (no common time span, or
+   truth gaps longer than ``max_gap``, or no truth sample within ``max_diff``).
 2. Delay: ``d* = argmin_d J(d)``, ``J(d) = sum_i sum_a w_a (r_ia(d) - mean_i r_ia(d))^2`` with
    ``r_i(d) = Q_i - P(s_i - d)`` on the axes (x, y, z, yaw) - i.e. the difference that remains
    after the mean offset is removed. A grid scan every 20 ms (or the motion-capture period if
@@ -16,7 +19,9 @@ Notation: ``s_i`` the ICP stamps, ``P(t)`` the motion-capture (truth) pose, ``Q_
    point refines it to 1e-6 s. With a rigid alignment (se3, yaw) the position residual is taken
    after that alignment at each ``d`` instead of after the mean. Standard error (sandwich, Gauss-Newton):
    ``var d = sum_ia w_a^2 sigma_a^2 g_ia^2 / (sum_ia w_a g_ia^2)^2``, ``g_i = dP/dt (s_i - d)``
-   centred, ``sigma_a`` the residual sd of axis a (serially uncorrelated noise assumed).
+   centred, ``sigma_a`` the residual sd of axis a (serially uncorrelated noise assumed). A minimum
+   on the first or last grid point of the window is no minimum of ``J``: ``at_edge`` is set, the
+   standard error is NaN, and the run carries a warning to widen the window.
 3. Structural offset: ``o = mean_i (Q_i - P(s_i - d))`` per axis (circular mean for yaw) and
    ``Q_i - o`` (docs/methods.md), or a rigid alignment of the ICP positions onto the truth: Umeyama
    SE(3) (``"se3"``) or a rotation about z plus a translation (``"yaw"``, 4 DoF).
@@ -34,6 +39,7 @@ import numpy as np
 import pandas as pd
 
 from cobot_analysis.angles import angle_diff, circular_mean, wrap
+from cobot_analysis.errors import InputError
 from cobot_analysis.localisation.poses import PoseStream, from_matrix, from_yaw, multiply, normalise, slerp, yaw_of
 
 AXES = ("x", "y", "z", "yaw")
@@ -46,6 +52,21 @@ class Delay:
     method: str
     grid: np.ndarray = field(default_factory=lambda: np.empty((0, 2)))  # (delay, J) of the scan
     n: int = 0
+    window: tuple[float, float] = (float("nan"), float("nan"))
+    at_edge: bool = False  # the minimum of the scan is on an end of the window
+
+    def edge_warning(self) -> str | None:
+        """Advice when the estimate is on an end of its search window (module doc, step 2)."""
+        if not self.at_edge:
+            return None
+        lo, hi = self.window
+        width = hi - lo
+        upper = self.value > (lo + hi) / 2
+        wider = f"{lo:g},{hi + width:g}" if upper else f"{lo - width:g},{hi:g}"
+        return (f"the delay estimate {self.value:.3f} s is at the {'upper' if upper else 'lower'} end of its search window "
+                f"{lo:g}..{hi:g} s, so it is not a minimum of the cost: widen the window (e.g. --delay-window {wider}) and "
+                "check that the estimate moves inside it; if it follows the edge, the two streams do not match "
+                "(check --truth, --icp and --time) or give the delay with --delay")
 
 
 @dataclass
@@ -121,7 +142,7 @@ def estimate_delay(truth: PoseStream, icp: PoseStream, window: tuple[float, floa
     keep = (icp.t - hi >= truth.t[0]) & (icp.t - lo <= truth.t[-1])
     s = icp.t[keep]
     if len(s) < min_samples:
-        return Delay(float("nan"), float("nan"), "not enough overlap", n=len(s))
+        return Delay(float("nan"), float("nan"), "not enough overlap", n=len(s), window=(lo, hi))
     q = _channels(icp)[keep]
     ref = _channels(truth)
     tref = truth.t
@@ -164,7 +185,7 @@ def estimate_delay(truth: PoseStream, icp: PoseStream, window: tuple[float, floa
     sd = float(np.sqrt(np.sum(w * w * sigma2 * g * g)) / denom) if denom > 0 else float("inf")
     at_edge = k in (0, len(grid) - 1)
     method = "least squares: grid scan + golden section" + (" (minimum at the window edge)" if at_edge else "")
-    return Delay(d, sd, method, np.column_stack([grid, costs]), int(len(s)))
+    return Delay(d, float("nan") if at_edge else sd, method, np.column_stack([grid, costs]), int(len(s)), (lo, hi), at_edge)
 
 
 def golden_section(f, a: float, b: float, tol: float) -> float:
@@ -264,19 +285,56 @@ def summarise(err: np.ndarray, distance: np.ndarray) -> dict:
     return out
 
 
+def default_max_gap(truth: PoseStream) -> float:
+    """Longest truth gap interpolated across by default: twice the median sample spacing, >= 0.05 s."""
+    return max(0.05, 2.0 * float(np.median(np.diff(truth.t)))) if len(truth) > 1 else 0.05
+
+
+def _spans(truth: PoseStream, icp: PoseStream, delay: float | None) -> str:
+    shift = f" - delay {delay:.3f} s" if delay else ""
+    return (f"motion capture {truth.t[0]:.3f}..{truth.t[-1]:.3f} s, ICP{shift} "
+            f"{icp.t[0] - (delay or 0.0):.3f}..{icp.t[-1] - (delay or 0.0):.3f} s")
+
+
+def _too_few(truth: PoseStream, icp: PoseStream, tq, valid, d: Delay, association: str, max_gap: float, max_diff: float,
+             min_samples: int, path) -> InputError:
+    """The error for too few associated poses, naming its cause (module doc, step 1)."""
+    inside = (tq >= truth.t[0]) & (tq <= truth.t[-1])
+    n, n_in = int(valid.sum()), int(inside.sum())
+    spacing = np.diff(truth.t)
+    sp = f"median {np.median(spacing):.3g} s, longest gap {spacing.max():.3g} s" if len(spacing) else "a single sample"
+    given = d.method == "given"
+    if n_in < min_samples:
+        return InputError(f"too few overlapping samples: {n_in} ICP poses fall inside the motion-capture time span "
+                          f"(need {min_samples}; {_spans(truth, icp, d.value)})", path=path,
+                          remedy="check that both topics cover the same time (bag-info), the --time option (header stamps "
+                                 "or record time)" + (" and --delay" if given else ""))
+    if association == "nearest":
+        return InputError(f"too few associated samples: {n} of the {n_in} ICP poses inside the motion capture have a truth "
+                          f"sample within --max-diff {max_diff:g} s (truth sample spacing: {sp}; need {min_samples})",
+                          path=path, remedy=f"raise --max-diff (half the truth spacing, {np.median(spacing) / 2:.3g} s, "
+                                            "or more) or use --association interpolate")
+    return InputError(f"too few associated samples: {n_in - n} of the {n_in} ICP poses inside the motion capture fall in "
+                      f"truth gaps longer than --max-gap {max_gap:g} s (truth sample spacing: {sp}; need {min_samples})",
+                      path=path, remedy=f"raise --max-gap (e.g. --max-gap {2 * np.median(spacing):.3g}) if interpolating "
+                                        "across such gaps is acceptable")
+
+
 def compare(truth: PoseStream, icp: PoseStream, *, delay: float | None = None, window=(0.0, 1.5),
             weights=(1.0, 1.0, 1.0, 1.0), alignment: str = "mean", association: str = "interpolate",
-            max_gap: float = 0.05, max_diff: float = 0.01, distance_window: float = 2.0,
+            max_gap: float | None = None, max_diff: float = 0.01, distance_window: float = 2.0,
             min_samples: int = 20, path=None) -> Comparison:
-    """Steps 1-4 of docs/methods.md sec. 9 on one run (``delay`` given or estimated)."""
-    from cobot_analysis.errors import InputError
-
+    """Steps 1-4 of docs/methods.md sec. 9 on one run (``delay`` given or estimated; ``max_gap``
+    None: ``default_max_gap``)."""
+    max_gap = default_max_gap(truth) if max_gap is None else float(max_gap)
     if delay is None:
         dl = estimate_delay(truth, icp, window, weights, min_samples, rigid=alignment if alignment in ("se3", "yaw") else None)
         if not np.isfinite(dl.value):
-            raise InputError(f"too few overlapping samples to estimate the delay ({dl.n} ICP samples inside the motion-capture "
-                             f"span for a search window of {window[0]}-{window[1]} s; need {min_samples})", path=path,
-                             remedy="check that both topics cover the same time (bag-info), or the --time option")
+            raise InputError(f"too few overlapping samples to estimate the delay ({dl.n} ICP poses inside the motion-capture "
+                             f"span for a search window of {window[0]:g}..{window[1]:g} s, need {min_samples}; "
+                             f"{_spans(truth, icp, None)})", path=path,
+                             remedy="check that both topics cover the same time (bag-info) and the --time option (header "
+                                    "stamps or record time); a delay outside the window needs a wider --delay-window")
     else:
         dl = Delay(float(delay), 0.0, "given")
     tq = icp.t - dl.value
@@ -288,8 +346,7 @@ def compare(truth: PoseStream, icp: PoseStream, *, delay: float | None = None, w
         t_xyz, t_quat, valid = interpolate(truth, tq, max_gap)
     n = int(valid.sum())
     if n < min_samples:
-        raise InputError(f"too few overlapping samples: {n} ICP poses fall inside the motion capture (need {min_samples})",
-                         path=path, remedy="check that both topics cover the same time (bag-info), the --time option and --delay")
+        raise _too_few(truth, icp, tq, valid, dl, association, max_gap, max_diff, min_samples, path)
     t_xyz, t_quat = t_xyz[valid], t_quat[valid]
     i_xyz, i_quat = icp.xyz[valid], icp.quat[valid]
     t_yaw = np.unwrap(yaw_of(t_quat))
@@ -300,8 +357,8 @@ def compare(truth: PoseStream, icp: PoseStream, *, delay: float | None = None, w
     err = np.column_stack([c_xyz - t_xyz, angle_diff(c_yaw, t_yaw)])
     dist = np.interp(tq[valid], truth.t, travelled_distance(truth, distance_window))
     summary = summarise(err, dist)
-    summary.update({"delay": dl.value, "delay_sd": dl.sd, "delay_method": dl.method, "alignment": al.method,
-                    "association": association, "distance": float(travelled_distance(truth, distance_window)[-1]),
+    summary.update({"delay": dl.value, "delay_sd": dl.sd, "delay_method": dl.method, "delay_at_edge": dl.at_edge,
+                    "alignment": al.method, "association": association, "max_gap": max_gap, "distance": float(travelled_distance(truth, distance_window)[-1]),
                     **{f"offset_{a}": float(v) for a, v in zip(AXES, al.offset)},
                     "duration": float(truth.t[-1] - truth.t[0]), "n_truth": int(len(truth)), "n_icp": int(len(icp))})
     samples = pd.DataFrame({

@@ -37,14 +37,19 @@ RUNS = TableSchema(
         "truth": Column("string", "", "truth stream (topic or tf:PARENT->CHILD)"),
         "icp": Column("string", "", "ICP stream (topic or tf:PARENT->CHILD)"),
         "time_base": Column("string", "", "'header' stamps or bag 'record' time"),
+        "up_truth": Column("string", "", "vertical axis of the truth frame and how it was found (given, detected, assumed); "
+                                         "poses, errors and offsets are in the frame levelled to it (z up)"),
+        "up_icp": Column("string", "", "vertical axis of the ICP frame, likewise"),
         "duration": Column("float", "s", "motion-capture span"),
         "n_truth": Column("int", "-", "motion-capture poses"),
         "n_icp": Column("int", "-", "ICP poses"),
         "n": Column("int", "-", "ICP poses associated with the truth (the samples of the errors)"),
         "distance": Column("float", "m", "travelled distance (planar path length of the smoothed truth)"),
         "delay": Column("float", "s", "delay of the ICP behind the truth (estimated or given)"),
-        "delay_sd": Column("float", "s", "standard error of the delay (0 when given)"),
+        "delay_sd": Column("float", "s", "standard error of the delay (0 when given, NaN at the window edge)"),
         "delay_method": Column("string", "", "how the delay was obtained"),
+        "delay_at_edge": Column("bool", "", "the delay estimate is on an end of its search window (no minimum; sd NaN)"),
+        "max_gap": Column("float", "s", "longest truth gap interpolated across (--max-gap, default twice the truth's median sample spacing, at least 0.05 s)"),
         "alignment": Column("string", "", "offset removal: mean (per-axis mean difference), se3 (Umeyama), yaw (4 DoF), none"),
         "association": Column("string", "", "interpolate (truth at the ICP stamps) or nearest (nearest stamp)"),
         "offset_x": Column("float", "m", "structural offset, ICP minus truth (mean method); se3/yaw: translation of the rigid transform truth -> ICP frame"),
@@ -61,6 +66,8 @@ RUNS = TableSchema(
         "drift": Column("float", "m/m", "slope of the planar position error against the travelled distance"),
         "drift_sd": Column("float", "m/m", "standard error of the slope"),
         "drift_intercept": Column("float", "m", "intercept of that line"),
+        "warnings": Column("string", "", "what to read with care, ' | '-separated (frame not z-up, delay at the window edge, "
+                                         "dropped messages, ...); empty when none"),
         "goals_commanded": Column("int", "-", "commanded goals", required=False),
         "goals_found": Column("int", "-", "goals matched to a detected stop", required=False),
         "goals_within_tolerance": Column("int", "-", "goals reached within the stop tolerances", required=False),
@@ -220,6 +227,14 @@ def _pm(mean, sd, scale=1.0, digits=1):
     return f"{mean * scale:.{digits}f} ± {sd * scale:.{digits}f}" if np.isfinite(sd) else f"{mean * scale:.{digits}f}"
 
 
+def _delay_cell(r) -> str:
+    if r["delay_method"] == "given":
+        return f"{r['delay']:.3f} (given)"
+    if r["delay_at_edge"]:
+        return f"{r['delay']:.3f} (at the window edge: see the warnings)"
+    return _pm(r["delay"], r["delay_sd"], 1, 3)
+
+
 _ASSOC = {"interpolate": "interpolated there (linear, slerp)", "nearest": "nearest sample within --max-diff"}
 
 
@@ -240,7 +255,7 @@ def results_markdown(runs: pd.DataFrame, figures: list[str], tol_xy: float, tol_
     for _, r in runs.iterrows():
         lines.append(
             f"| {r['run']} | {r['map'] or '-'} | {r['distance']:.2f} | "
-            f"{f'{r.delay:.3f} (given)' if r['delay_method'] == 'given' else _pm(r['delay'], r['delay_sd'], 1, 3)} | "
+            f"{_delay_cell(r)} | "
             f"{1000 * r['offset_x']:.1f}, {1000 * r['offset_y']:.1f}, {1000 * r['offset_z']:.1f} | {r['offset_yaw']:.4f} | "
             f"{_pm(r['err_x_mean'], r['err_x_sd'], 1000)} | {_pm(r['err_y_mean'], r['err_y_sd'], 1000)} | "
             f"{_pm(r['err_z_mean'], r['err_z_sd'], 1000)} | {_pm(r['err_yaw_mean'], r['err_yaw_sd'], 1, 4)} | "
@@ -257,6 +272,14 @@ def results_markdown(runs: pd.DataFrame, figures: list[str], tol_xy: float, tol_
                 f"| {r['run']} | {int(r['goals_found'])}/{int(r['goals_commanded'])} | {int(r['goals_within_tolerance'])} | "
                 f"{_pm(r['goal_err_x_mean'], r['goal_err_x_sd'], 1000)} | {_pm(r['goal_err_y_mean'], r['goal_err_y_sd'], 1000)} | "
                 f"{_pm(r['goal_err_xy_mean'], r['goal_err_xy_sd'], 1000)} | {_pm(r['goal_err_yaw_mean'], r['goal_err_yaw_sd'], 1, 4)} |")
+    warned = runs[runs["warnings"].astype(str).str.len() > 0]
+    if len(warned):
+        lines += ["", "Warnings:", ""] + [f"- {r['run']}: {w}" for _, r in warned.iterrows() for w in str(r["warnings"]).split(" | ")]
+    levelled = runs[~runs["up_truth"].str.startswith("z ") | ~runs["up_icp"].str.startswith("z ")]
+    if len(levelled):
+        lines += ["", "Frames not z-up (positions, errors and offsets in the frame levelled to the vertical axis, "
+                      "docs/methods.md sec. 9): " + ", ".join(f"{r['run']} (truth {r['up_truth']}, ICP {r['up_icp']})"
+                                                           for _, r in levelled.iterrows()) + "."]
     if figures:
         lines += ["", "Figures: " + ", ".join(f"`{f}`" for f in figures) + "."]
     return "\n".join(lines) + "\n"

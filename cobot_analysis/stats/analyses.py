@@ -18,7 +18,7 @@ import pandas as pd
 
 from cobot_analysis.schema import Column, TableSchema
 from cobot_analysis.stats import tests as T
-from cobot_analysis.stats.config import Analysis, StudyConfig, match as _match
+from cobot_analysis.stats.config import Analysis, StudyConfig, match as _match, values_text
 from cobot_analysis.stats.subsets import largest_subset
 
 STATS = TableSchema(
@@ -200,20 +200,34 @@ def _run_one(a: Analysis, df: pd.DataFrame, groups: dict, alpha: float) -> dict:
     return row
 
 
+def _filtered(a: Analysis, df: pd.DataFrame) -> tuple[pd.DataFrame, str]:
+    """The rows of ``a``'s subset, and why it is empty when it is: the filter value that matched
+    no row (with the values there are), or an empty source."""
+    if df.empty:
+        return df, f"no data in this subset: the source {a.source} is empty (the data do not support this question)"
+    for col, wanted in a.filter.items():
+        hit = _match(df[col], wanted)
+        if not hit.any():
+            present = df[col].dropna()
+            there = f"values of {col} there: {values_text(present)}" if len(present) else f"{col} is empty there"
+            return df[hit], f"no row with {col} = {wanted!r} ({there})"
+        df = df[hit]
+    return df, ""
+
+
 def run_analysis(a: Analysis, df: pd.DataFrame, alpha: float) -> list[dict]:
     """All rows of one declared analysis (one per ``per`` level and, if pairwise, per pair of levels)."""
-    for col, wanted in a.filter.items():
-        df = df[_match(df[col], wanted)]
+    df, empty = _filtered(a, df)
     subset = ", ".join(f"{c} = {v}" for c, v in a.filter.items()) or "all rows"
     base = {"question": a.id, "description": a.description, "family": a.family, "source": a.source,
             "value": a.value, "group": a.group or "", "alternative": a.alternative}
     per_levels = list(df.groupby(a.per, dropna=True, sort=True)) if a.per and len(df) else [((), df)]
-    if a.per and not len(df):
+    if empty or (a.per and not len(df)):
         per_levels = []
     rows = []
     if not per_levels:
         rows.append({**base, "id": a.id, "subset": subset, "test": a.test, "n": 0, "n_groups": "",
-                     "status": "skipped: no data in this subset (the data do not support this question)"})
+                     "status": f"skipped: {empty or 'no data in this subset (the data do not support this question)'}"})
     for key, part in per_levels:
         key = key if isinstance(key, tuple) else (key,)
         tag = ", ".join(f"{c} = {_label(v)}" for c, v in zip(a.per, key))

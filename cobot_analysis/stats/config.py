@@ -21,8 +21,9 @@ less, greater: "group 1 < group 2" for less), ``normality`` (shapiro | ks) with 
 ``expected`` (chisquare: level -> share), ``chance`` (fisher / binomial: a column holding each
 row's chance of success, or a number), ``min_size`` (override the test's minimum group size).
 
-The whole file is validated before anything is computed: unknown keys, sources, columns or tests
-raise ``InputError`` with one line naming the question.
+The whole file is validated before anything is computed: a file that is not UTF-8 TOML, values of
+the wrong type, unknown keys, sources, columns or tests raise ``InputError`` with one line naming
+the question; so does a configuration of another study than the data's (``check_study``).
 """
 
 from __future__ import annotations
@@ -39,6 +40,41 @@ from cobot_analysis.stats.tests import MIN_SIZE, N_GROUPS, TESTS
 ALTERNATIVES = ("two-sided", "less", "greater")
 KEYS = {"id", "description", "source", "filter", "value", "group", "test", "family", "per", "pairwise", "levels",
         "alternative", "normality", "parametric", "paired_by", "versus", "expected", "chance", "min_size"}
+_TEXT, _NUMBER, _SCALAR = (str,), (int, float), (str, int, float, bool)
+#: what each key may hold: a type tuple, or "names" (a string or a list of strings), "scalars" (a value or a list).
+TYPES: dict[str, object] = {
+    "id": _TEXT + _NUMBER, "description": _TEXT, "source": _TEXT, "value": _TEXT, "group": _TEXT, "test": _TEXT,
+    "family": _TEXT + _NUMBER, "per": "names", "pairwise": (bool,), "levels": (list,), "alternative": _TEXT,
+    "normality": _TEXT, "parametric": _TEXT, "paired_by": "names", "versus": _TEXT, "expected": (dict,),
+    "chance": _TEXT + _NUMBER, "min_size": (int,), "filter": (dict,),
+}
+
+
+def _kind(v) -> str:
+    return {bool: "true/false", int: "a number", float: "a number", str: "a string", list: "a list",
+            dict: "a table"}.get(type(v), type(v).__name__)
+
+
+def _type_error(key: str, value) -> str | None:
+    """Why ``value`` cannot be the value of ``key`` (None when it can)."""
+    want = TYPES[key]
+    if want == "names":
+        ok = isinstance(value, str) or (isinstance(value, list) and all(isinstance(v, str) for v in value))
+        return None if ok else f"{key} must be a column name or a list of them, not {_kind(value)} {value!r}"
+    if isinstance(value, bool) and bool not in want:  # TOML true is not a number here
+        return f"{key} must be {' or '.join(sorted({_kind(t()) for t in want}))}, not {value!r}"
+    if not isinstance(value, want):
+        return f"{key} must be {' or '.join(sorted({_kind(t()) for t in want}))}, not {_kind(value)} {value!r}"
+    if key == "filter":
+        for col, v in value.items():
+            values = v if isinstance(v, list) else [v]
+            if not values or not all(isinstance(x, _SCALAR) for x in values):
+                return f"filter {col} must be a value or a list of values, not {v!r}"
+    if key == "expected" and not all(isinstance(v, _NUMBER) and not isinstance(v, bool) for v in value.values()):
+        return f"expected must map each category to a number, not {value!r}"
+    if key == "min_size" and value < 1:
+        return f"min_size must be >= 1, not {value}"
+    return None
 
 
 @dataclass
@@ -89,17 +125,28 @@ def parse(data: dict, path: Path | None = None) -> StudyConfig:
     def fail(msg: str, remedy: str = "fix the stats configuration") -> InputError:
         return InputError(msg, path=path, remedy=remedy)
 
-    if "analysis" not in data or not isinstance(data["analysis"], list):
+    if "analysis" not in data or not isinstance(data["analysis"], list) or not data["analysis"]:
         raise fail("no [[analysis]] entries", "declare at least one [[analysis]] table")
-    alpha = float(data.get("alpha", 0.05))
+    alpha = data.get("alpha", 0.05)
+    if isinstance(alpha, bool) or not isinstance(alpha, (int, float)):
+        raise fail(f"alpha must be a number, not {_kind(alpha)} {alpha!r}", "e.g. alpha = 0.05")
     if not 0 < alpha < 1:
-        raise fail(f"alpha must be in (0, 1), got {alpha}")
+        raise fail(f"alpha must be in (0, 1), got {alpha}", "e.g. alpha = 0.05")
+    if not isinstance(data.get("study", ""), str):
+        raise fail(f"study must be a string, not {data['study']!r}", 'e.g. study = "walking-2020"')
+    alpha = float(alpha)
     out, seen = [], set()
     for n, raw in enumerate(data["analysis"], 1):
+        if not isinstance(raw, dict):
+            raise fail(f"analysis #{n} is not a table", "declare each analysis as an [[analysis]] table")
         qid = str(raw.get("id", f"#{n}"))
         unknown = set(raw) - KEYS
         if unknown:
             raise fail(f"analysis {qid}: unknown key(s) {sorted(unknown)}", f"use only {sorted(KEYS)}")
+        for key, value in raw.items():
+            problem = _type_error(key, value)
+            if problem:
+                raise fail(f"analysis {qid}: {problem}")
         for key in ("id", "source", "value", "test", "family"):
             if key not in raw:
                 raise fail(f"analysis {qid}: missing key {key!r}")
@@ -145,12 +192,50 @@ def load(path: str | Path) -> StudyConfig:
     """Read and validate ``pipelines/<study>.toml``."""
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_bytes().decode("utf-8"))
     except FileNotFoundError:
         raise InputError("stats configuration not found", path=path, remedy="pass --config pipelines/<study>.toml") from None
+    except OSError as exc:
+        raise InputError(f"cannot read the stats configuration ({exc.strerror or type(exc).__name__})", path=path,
+                         remedy="pass a TOML file, e.g. --config pipelines/walking-2020.toml") from None
+    except UnicodeDecodeError:
+        raise InputError("not a text file (a stats configuration is UTF-8 TOML)", path=path,
+                         remedy="pass a TOML file, e.g. --config pipelines/walking-2020.toml") from None
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"not valid TOML ({exc})", path=path, remedy="fix the syntax") from None
     return parse(data, path)
+
+
+def _family(study: str) -> str:
+    return "walking" if "walking" in study else "pairs" if "pair" in study else study
+
+
+def check_study(config: StudyConfig, study: str) -> None:
+    """The data must be of the configuration's study, or of the same kind of study (walking, pair
+    carriage: e.g. synthetic-walking data with walking-2020.toml). A configuration without ``study``
+    is not checked."""
+    if config.study and config.study != study and _family(config.study) != _family(study):
+        raise InputError(f"configuration for study {config.study!r}, but the trajectories are of study {study!r}",
+                         path=config.path, remedy="pass the configuration of the data's study (pipelines/<study>.toml), "
+                                                  "or omit --config to use it")
+
+
+def filter_problems(config: StudyConfig, sources: dict) -> list[str]:
+    """Filter values that match no row of their whole source column (a typo, or data not there yet),
+    with the values that exist: one text per analysis and column."""
+    out = []
+    for a in config.analyses:
+        df = sources[a.source]
+        for col, wanted in a.filter.items():
+            present = df[col].dropna()
+            if len(present) and not match(df[col], wanted).any():
+                out.append(f"{a.id}: {col} = {wanted!r} (values of {a.source}.{col}: {values_text(present)})")
+    return out
+
+
+def values_text(series, limit: int = 12) -> str:
+    vals = sorted({str(int(v)) if isinstance(v, float) and v.is_integer() else str(v) for v in series})
+    return ", ".join(vals[:limit]) + (f", ... ({len(vals)} values)" if len(vals) > limit else "")
 
 
 def match(series, wanted):

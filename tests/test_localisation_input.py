@@ -1,0 +1,222 @@
+"""What real lab recordings do to `localisation` / `bag-info`: frames that are not z-up, a delay on
+the edge of its window, truth streams sampled more coarsely than 20 Hz, bad option values, damaged
+bags. Each gives the right numbers with a warning, or one error line (exit code 2, no output)."""
+
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from cobot_analysis.localisation import synth
+from cobot_analysis.localisation.report import RUNS
+from cobot_analysis.schema import read_table
+
+SHORT = synth.SynthParams(n_goals=2, stop=3.0, speed=0.3)  # a 2-goal run of about 30 s
+# Level frame (x forward, y left, z up) -> camera optical frame (x right, y down, z forward).
+CAMERA = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+POSE_TOPICS = ("/mocap/pose", "/icp/pose", "/goal")
+
+
+def _one_line(err: str) -> str:
+    lines = [ln for ln in err.strip().splitlines() if ln.startswith("error:")]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+def _fails(cli, out, *args, match):
+    code, _, err = cli("localisation", *args, "--out", out, "--no-figures")
+    line = _one_line(err)
+    assert code == 2 and all(m in line for m in match), line
+    assert not out.exists() or not list(out.iterdir())
+    return line
+
+
+def _runs(out):
+    return read_table(out / "localisation" / "localisation.parquet", RUNS).set_index("run")
+
+
+def _pose_edit(fn):
+    """A ``write_ros1`` edit replacing ``(xyz, quat) -> fn(topic, xyz, quat)`` on the PoseStamped topics."""
+    def edit(msgs, store):
+        T = store.types
+        out = []
+        for ts, topic, msgtype, m in msgs:
+            if topic in POSE_TOPICS:
+                p, q = m.pose.position, m.pose.orientation
+                xyz, quat = fn(topic, np.array([p.x, p.y, p.z]), np.array([q.x, q.y, q.z, q.w]))
+                m = T[msgtype](header=m.header, pose=T["geometry_msgs/msg/Pose"](
+                    position=T["geometry_msgs/msg/Point"](x=float(xyz[0]), y=float(xyz[1]), z=float(xyz[2])),
+                    orientation=T["geometry_msgs/msg/Quaternion"](x=float(quat[0]), y=float(quat[1]), z=float(quat[2]),
+                                                                  w=float(quat[3]))))
+            out.append((ts, topic, msgtype, m))
+        return out
+    return edit
+
+
+@pytest.fixture(scope="module")
+def short(tmp_path_factory):
+    d = tmp_path_factory.mktemp("bags")
+    run = synth.make_run(SHORT)
+    synth.write_ros1(run, d / "level.bag")
+    synth.write_mcap(run, d / "level.mcap")
+    return d, run
+
+
+@pytest.fixture(scope="module")
+def level(short, tmp_path_factory):
+    """The z-up run analysed once (the reference of the rotated ones)."""
+    from cobot_analysis.cli import run as cli_run
+
+    out = tmp_path_factory.mktemp("level")
+    assert cli_run(["-q", "localisation", str(short[0] / "level.bag"), "--out", str(out), "--no-figures"]) == 0
+    return _runs(out).iloc[0]
+
+
+# ---- 1. vertical axis --------------------------------------------------------------------------------
+def test_camera_frame_run_is_levelled_with_a_warning(cli, tmp_path, short, level):
+    d, run = short
+    rot = Rotation.from_matrix(CAMERA)
+    bag = synth.write_ros1(run, tmp_path / "camera.bag", edit=_pose_edit(
+        lambda topic, xyz, q: (CAMERA @ xyz, (rot * Rotation.from_quat(q) * rot.inv()).as_quat())))
+    code, _, err = cli("localisation", bag, "--out", tmp_path / "auto", "--no-figures")
+    assert code == 0, err
+    flat = " ".join(err.split())
+    assert "the motion-capture frame is not z-up: its vertical axis is y (detected" in flat
+    assert "the ICP frame is not z-up: its vertical axis is y (detected" in flat
+    auto = _runs(tmp_path / "auto").iloc[0]
+    assert auto["up_truth"] == "y (detected)" and auto["up_icp"] == "y (detected)"
+    # +y is the axis, -y the true up: the levelled frame is the level one turned upside down (about x)
+    for col in ("distance", "drift", "delay", "ape_rmse", "err_x_mean", "err_y_mean", "err_yaw_mean", "goal_err_xy_mean", "offset_x"):
+        assert auto[col] == pytest.approx(level[col], rel=1e-6, abs=1e-9), col
+    for col in ("offset_y", "offset_z", "offset_yaw"):
+        assert auto[col] == pytest.approx(-level[col], abs=1e-9), col
+    assert auto["distance"] == pytest.approx(run.distance, rel=0.05)
+    md = (tmp_path / "auto" / "localisation" / "results.md").read_text()
+    assert "Warnings:" in md and "camera: the motion-capture frame is not z-up" in md and "Frames not z-up" in md
+    # the sign given: the very numbers of the level run
+    code, _, err = cli("-q", "localisation", bag, "--out", tmp_path / "given", "--no-figures", "--up", "-y")
+    assert code == 0, err
+    given = _runs(tmp_path / "given").iloc[0]
+    assert given["up_truth"] == "-y (given)"
+    for col in ("distance", "drift", "delay", "offset_x", "offset_y", "offset_z", "offset_yaw", "err_yaw_mean", "goal_err_xy_mean"):
+        assert given[col] == pytest.approx(level[col], rel=1e-6, abs=1e-9), col
+
+
+def test_straight_run_in_a_camera_frame_is_not_guessed_silently(cli, tmp_path):
+    from cobot_analysis.localisation.poses import PoseStream, from_yaw
+    from cobot_analysis.localisation.vertical import find, warning
+
+    t = np.arange(0, 20, 0.005)
+    level = np.column_stack([0.3 * t, 0.03 * np.sin(t * 3.5), 1.0 + 0.008 * np.sin(t * 7)])  # straight, sway, bob
+    stream = PoseStream(t, level @ CAMERA.T, from_yaw(np.zeros_like(t)))
+    v = find(stream)
+    assert (v.axis, v.how) == ("z", "assumed")
+    assert "cannot tell the vertical axis of the ICP frame from the motion" in warning("ICP", v)
+    assert warning("ICP", find(PoseStream(t, level, stream.quat))) is None  # z-up: nothing to say
+
+
+# ---- 2. delay on the edge of its window --------------------------------------------------------------
+def test_delay_at_the_window_edge_is_warned_with_the_window_to_try(cli, tmp_path, short):
+    bag = short[0] / "level.bag"
+    code, _, err = cli("localisation", bag, "--out", tmp_path / "narrow", "--no-figures", "--delay-window", "0,0.3")
+    assert code == 0, err
+    flat = " ".join(err.split())
+    assert ("the delay estimate 0.300 s is at the upper end of its search window 0..0.3 s, so it is not a minimum of "
+            "the cost: widen the window (e.g. --delay-window 0,0.6)") in flat
+    assert "delay 0.300 s (at the edge of the search window: see the warning)" in flat
+    r = _runs(tmp_path / "narrow").iloc[0]
+    assert r["delay_at_edge"] and np.isnan(r["delay_sd"])
+    md = (tmp_path / "narrow" / "localisation" / "results.md").read_text()
+    assert "0.300 (at the window edge: see the warnings)" in md and "--delay-window 0,0.6" in md
+    code, _, err = cli("localisation", bag, "--out", tmp_path / "wide", "--no-figures", "--delay-window", "0,0.6")
+    assert code == 0 and "warning" not in err
+    r = _runs(tmp_path / "wide").iloc[0]
+    assert not r["delay_at_edge"] and abs(r["delay"] - SHORT.delay) < 0.01 and 0 < r["delay_sd"] < 0.01
+
+
+# ---- 3. truth sampled every 60 ms ------------------------------------------------------------------------
+def test_max_gap_follows_the_truth_sample_spacing(cli, tmp_path):
+    run = synth.make_run(synth.SynthParams(n_goals=2, stop=3.0, speed=0.3, mocap_rate=1 / 0.06))
+    bag = synth.write_ros1(run, tmp_path / "slow.bag")
+    code, _, err = cli("-q", "localisation", bag, "--out", tmp_path / "ws", "--no-figures")
+    assert code == 0, err
+    r = _runs(tmp_path / "ws").iloc[0]
+    assert r["max_gap"] == pytest.approx(0.12, rel=1e-6) and r["n"] == r["n_icp"]
+    assert abs(r["delay"] - 0.55) < 0.01
+    line = _fails(cli, tmp_path / "ws2", bag, "--max-gap", "0.05",
+                  match=["slow.bag: too few associated samples:", "ICP poses inside the motion capture fall in truth gaps "
+                         "longer than --max-gap 0.05 s (truth sample spacing: median 0.06 s", "raise --max-gap (e.g. --max-gap 0.12)"])
+    assert "cover the same time" not in line
+
+
+# ---- 4. option values ----------------------------------------------------------------------------------
+@pytest.mark.parametrize("args, message", [
+    (["--delay-window", "2,1"], "--delay-window MIN,MAX needs MIN < MAX, got '2,1'; e.g. --delay-window 0,1.5"),
+    (["--max-gap", "-1"], "--max-gap must be > 0, got -1"),
+    (["--tol-xy", "-1"], "--tol-xy must be >= 0, got -1"),
+    (["--min-stop", "-5"], "--min-stop must be >= 0, got -5"),
+    (["--max-diff", "0"], "--max-diff must be > 0, got 0"),
+    (["--delay-weights", "0,0,0,0"], "--delay-weights must be >= 0 with at least one > 0"),
+    (["--up", "w"], "--up must be auto, x, y, z, -x, -y, -z or TRUTH,ICP, got 'w'"),
+])
+def test_option_values_are_checked_before_any_work(cli, tmp_path, short, args, message):
+    line = _fails(cli, tmp_path / "ws", short[0] / "level.bag", *args, match=[message])
+    assert line.startswith("error: --")
+
+
+# ---- 10. damaged bags ---------------------------------------------------------------------------------
+@pytest.mark.parametrize("name", ["level.bag", "level.mcap"])
+def test_overwritten_block_is_one_line(cli, tmp_path, short, name):
+    data = bytearray((short[0] / name).read_bytes())
+    mid = len(data) // 3
+    data[mid:mid + 4096] = np.random.default_rng(3).integers(0, 256, 4096, dtype=np.uint8).tobytes()
+    bad = tmp_path / name
+    bad.write_bytes(bytes(data))
+    line = _fails(cli, tmp_path / "ws", bad, match=[str(bad), "truncated or damaged"])
+    assert ("rosbag reindex" if name.endswith(".bag") else "mcap recover") in line
+    code, _, err = cli("bag-info", bad)
+    assert code == 2 and str(bad) in _one_line(err)
+
+
+@pytest.mark.parametrize("name", ["level.bag", "level.mcap"])
+def test_overwritten_quaternion_is_dropped_with_a_warning(cli, tmp_path, short, name):
+    d, run = short
+    data = bytearray((d / name).read_bytes())
+    target = struct.pack("<4d", *run.mocap_quat[1000])
+    at = data.find(target)
+    assert at > 0 and data.find(target, at + 1) < 0
+    data[at:at + 8] = struct.pack("<d", 0.5)  # qx: the quaternion is no longer a rotation
+    bad = tmp_path / name
+    bad.write_bytes(bytes(data))
+    code, _, err = cli("localisation", bad, "--out", tmp_path / "ws", "--no-figures")
+    assert code == 0, err
+    n = len(run.t_mocap)
+    assert f"/mocap/pose: 1 of {n} message(s) dropped: 1 with an orientation quaternion of norm far from 1" in " ".join(err.split())
+    r = _runs(tmp_path / "ws").iloc[0]
+    assert r["n_truth"] == n - 1 and "norm far from 1" in r["warnings"]
+
+
+def test_nan_and_zero_poses_name_the_topic_and_the_cause(cli, tmp_path):
+    run = synth.make_run(SHORT)
+    n_truth, n_icp = len(run.t_mocap), len(run.t_icp)
+    run.mocap_xyz = np.full_like(run.mocap_xyz, np.nan)
+    bag = synth.write_ros1(run, tmp_path / "nan.bag")
+    _fails(cli, tmp_path / "ws", bag, match=[f"nan.bag: /mocap/pose: no usable pose in {n_truth} message(s) "
+                                             f"({n_truth} with NaN/inf values)"])
+    zero = synth.write_ros1(synth.make_run(SHORT), tmp_path / "zero.bag", edit=_pose_edit(
+        lambda topic, xyz, q: (xyz, np.zeros(4) if topic == "/icp/pose" else q)))
+    _fails(cli, tmp_path / "ws", zero, match=[f"zero.bag: /icp/pose: no usable pose in {n_icp} message(s) ({n_icp} with a "
+                                              "zero orientation quaternion (orientation unset))"])
+
+
+def test_bag_info_prints_long_topic_names_whole(cli, tmp_path):
+    long = "/robot/localization/lidar_icp_node_with_a_really_long_name/pose_in_map_frame_estimated"
+    bag = synth.write_ros1(synth.make_run(SHORT), tmp_path / "long.bag",
+                           edit=lambda msgs, store: [(t, long if tp == "/icp/pose" else tp, mt, m) for t, tp, mt, m in msgs])
+    code, out, err = cli("bag-info", bag)
+    assert code == 0
+    assert any(long in line for line in err.splitlines())  # the table, wider than 80 columns
+    assert f"{long}\tgeometry_msgs/PoseStamped" in out
