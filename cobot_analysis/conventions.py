@@ -40,8 +40,8 @@ class Comparison:
     """How a path is compared with a measured one (docs/methods.md sec. 3, 11)."""
 
     resample: str  # "time": pointwise on time-normalised samples | "arclength": splprep (s = 0) resampling first
+    both_resampled: bool  # with "arclength": the measured path is resampled too (the authors' final scripts)
     angle_difference: str  # "wrapped": |wrap(a - b)| | "each": |wrap(a) - wrap(b)| (each angle wrapped on its own)
-    walker_ioc_angle: str  # angular term of the single-walker IOC objective: "gamma" | "theta"
     sd_ddof: int  # 1: sample sd | 0: population sd (numpy.std)
 
 
@@ -87,7 +87,7 @@ PUBLISHED = Convention(
         "table": OCRule("euler", "nelder-mead", dt=0.1, psi="raw", heading="wrap-once", psi_eps=1e-3),
         "mombaur": OCRule("euler", "last-node", dt=0.01, psi="raw", heading="fmod-pi", psi_eps=1e-3),
     },
-    comparison=Comparison(resample="arclength", angle_difference="each", walker_ioc_angle="theta", sd_ddof=0),
+    comparison=Comparison(resample="arclength", both_resampled=True, angle_difference="each", sd_ddof=0),
     prediction=PredictionRule(node_dt=0.1, start="rest", warm_start=False, table_weights="table-prediction-2022"),
 )
 
@@ -103,7 +103,7 @@ CONTINUOUS = Convention(
         "mombaur": OCRule("midpoint", "grid"),
         "coupled": OCRule("midpoint", "free"),
     },
-    comparison=Comparison(resample="time", angle_difference="wrapped", walker_ioc_angle="gamma", sd_ddof=1),
+    comparison=Comparison(resample="time", both_resampled=False, angle_difference="wrapped", sd_ddof=1),
     prediction=PredictionRule(node_dt=None, start="estimated", warm_start=True, table_weights="table-2022"),
 )
 

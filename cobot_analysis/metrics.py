@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cobot_analysis.angles import angle_diff
+from cobot_analysis.angles import angle_diff, wrap
 
 
 def d_xy(x1, y1, x2, y2):
@@ -40,6 +40,81 @@ def gamma_from_path(x, y, theta):
     heading = np.arctan2(np.diff(y, axis=-1), np.diff(x, axis=-1))
     g = angle_diff(heading, theta[..., :-1])
     return np.concatenate([g, g[..., -1:]], axis=-1)
+
+
+# ---- one generated or measured path against a measured one, under a convention ---------------------
+def resample_arclength(x, y, n: int):
+    """The authors' path resampling (docs/methods.md sec. 11): the points ``i`` with
+    ``|x_{i+1} - x_i| + |y_{i+1} - y_i| > 0`` are kept (which drops repeated points and always the
+    last one), an interpolating parametric cubic spline (scipy ``splprep``, s = 0, chord-length
+    parameter u in [0, 1]) is fitted through them and evaluated at ``n`` equally spaced u."""
+    from scipy.interpolate import splev, splprep
+
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    keep = np.flatnonzero(np.abs(np.diff(x)) + np.abs(np.diff(y)) > 0)
+    if len(keep) < 4:
+        raise ValueError(f"a path needs at least 4 distinct points to be resampled by arc length (has {len(keep)})")
+    tck, _ = splprep([x[keep], y[keep]], s=0)
+    xr, yr = splev(np.linspace(0.0, 1.0, n), tck)
+    return np.asarray(xr), np.asarray(yr)
+
+
+def resample_time(values, n: int, *, authors: bool = False):
+    """``values`` (one per node, equally spaced in time) at ``n`` samples equally spaced in time
+    (linear interpolation). ``authors``: their mapping, sample i at node time i / n of the path
+    (np.interp(arange(n), linspace(0, n, len(values)), values)), which stops 1/n short of the end."""
+    values = np.asarray(values, dtype=float)
+    if len(values) == n and not authors:
+        return values
+    src = np.linspace(0.0, n if authors else n - 1, len(values))
+    return np.interp(np.arange(n), src, values)
+
+
+def angle_distance(theta1, theta2, difference: str = "wrapped"):
+    """Mean absolute angle difference (rad) over the last axis: ``wrapped`` |wrap(a - b)| (sec. 3),
+    or ``each`` |wrap(a) - wrap(b)| (the authors' scripts wrap each angle on its own, so a pair
+    across +-pi counts nearly 2 pi)."""
+    a, b = np.asarray(theta1, dtype=float), np.asarray(theta2, dtype=float)
+    if difference == "each":
+        return np.mean(np.abs(wrap(a) - wrap(b)), axis=-1)
+    return np.mean(np.abs(angle_diff(a, b)), axis=-1)
+
+
+def path_distances(measured, other, comparison, *, measured_gamma=None, resample_measured: bool | None = None) -> dict[str, float]:
+    """d_xy, d_theta, d_gamma of ``other`` = (x, y, theta) against ``measured`` = (x, y, theta)
+    (N samples) under a ``conventions.Comparison``:
+
+    - ``time``: ``other`` on the measured samples by time (linear in normalised time if its length
+      differs), then the pointwise distances of sec. 3;
+    - ``arclength``: ``other``'s path resampled by arc length to N points (``resample_arclength``;
+      the measured one too when ``comparison.both_resampled``, or ``resample_measured`` says so),
+      its theta by time (``resample_time(authors=True)``); angles compared with
+      ``comparison.angle_difference``.
+
+    gamma: ``measured_gamma`` when given (e.g. the published data's own), else from the measured
+    path, and from the (resampled) path for ``other`` (``gamma_from_path``); d_gamma over the first
+    N - 1 samples. NaN where a theta is NaN.
+    """
+    mx, my, mth = (np.asarray(v, dtype=float) for v in measured)
+    ox, oy, oth = (np.asarray(v, dtype=float) for v in other)
+    n = len(mx)
+    mg = gamma_from_path(mx, my, mth) if measured_gamma is None else np.asarray(measured_gamma, dtype=float)
+    if comparison.resample == "arclength":
+        if comparison.both_resampled if resample_measured is None else resample_measured:
+            mx, my = resample_arclength(mx, my, n)
+        ox, oy = resample_arclength(ox, oy, n)
+        oth = resample_time(oth, n, authors=True)
+    else:
+        ox, oy, oth = (resample_time(v, n) for v in (ox, oy, oth))
+    with np.errstate(invalid="ignore"):
+        return {"d_xy": float(d_xy(mx, my, ox, oy)),
+                "d_theta": float(angle_distance(mth, oth, comparison.angle_difference)),
+                "d_gamma": float(np.mean(np.abs(_gamma_difference(mg, gamma_from_path(ox, oy, oth),
+                                                                  comparison.angle_difference))[:-1]))}
+
+
+def _gamma_difference(g1, g2, difference: str):
+    return wrap(g1) - wrap(g2) if difference == "each" else angle_diff(g1, g2)
 
 
 # ---- distances over many pairs at once ------------------------------------------------------------

@@ -43,7 +43,7 @@ def check_endpoints(start, goal, *, path=None, min_distance: float = 0.01) -> No
 
 
 def _frame(arrays: dict[str, np.ndarray], *, model: str, weights_label: str, entity: str, trial: str,
-           condition: str, study: str, cost: float) -> pd.DataFrame:
+           condition: str, study: str, cost: float, convention: str) -> pd.DataFrame:
     from cobot_analysis.metrics import gamma_from_path
 
     n = len(arrays["x"])
@@ -60,21 +60,31 @@ def _frame(arrays: dict[str, np.ndarray], *, model: str, weights_label: str, ent
     df["weights"] = weights_label
     df["cost"] = cost
     df["converged"] = True
+    df["convention"] = convention
     return df
 
 
 def generate(model: str, start: Sequence[float], goal: Sequence[float], weights=None, n_samples: int = 500, *,
-             n_intervals: int = 100, duration: str | None = None, v_nominal: float = 1.0, solver: str = "fatrop",
-             guesses=("rest", "line"), trial: str | None = None, condition: str = "", study: str = "model",
-             entity: str | None = None, max_iter: int = 500) -> pd.DataFrame:
+             convention="continuous", n_intervals: int = 100, duration: str | None = None, v_nominal: float = 1.0,
+             solver: str = "fatrop", guesses=("rest", "line"), trial: str | None = None, condition: str = "",
+             study: str = "model", entity: str | None = None, max_iter: int = 500) -> pd.DataFrame:
     """A trajectory of ``model`` from ``start`` to ``goal`` (poses (x, y, theta), goal heading on the
     branch wanted) with the columns of measured trajectories; see the module docstring.
 
     ``weights``: preset name, fitted-weights file, mapping, or None (the model's default preset).
-    Raises ``SolverError`` when the OC problem does not converge (never a silent result).
+    ``convention`` (docs/methods.md sec. 11): ``continuous``, the OC solution resampled to
+    ``n_samples`` in time; ``published``, the solution's nodes (one per step of the authors' node
+    step; ``n_samples`` is ignored for OC models). Raises ``SolverError`` when the OC problem does
+    not converge (never a silent result).
     """
+    from cobot_analysis import conventions
+    from cobot_analysis.models.oc import node_arrays
+
     if model not in MODELS:
         raise InputError(f"unknown model {model!r}", remedy=f"use one of {', '.join(MODELS)}")
+    conv = conventions.get(convention)
+    if model != "clothoid":
+        conv.oc_rule(model)
     check_endpoints(start, goal)
     entity = entity or ("table" if model == "table" else "walker")
     trial = trial or f"{model}"
@@ -88,20 +98,24 @@ def generate(model: str, start: Sequence[float], goal: Sequence[float], weights=
                   "v_orth": zeros, "omega": np.gradient(theta, s / v_nominal) if T > 0 else zeros,
                   "vx": v_nominal * np.cos(theta), "vy": v_nominal * np.sin(theta), "u1": zeros, "u2": zeros, "u3": zeros}
         return _frame(arrays, model=model, weights_label="", entity=entity, trial=trial, condition=condition,
-                      study=study, cost=float("nan"))
+                      study=study, cost=float("nan"), convention=conv.name)
     label = weights if isinstance(weights, str) else (DEFAULT_PRESET[model] if weights is None else "custom")
     w = weights_vector(load_weights(weights if weights is not None else DEFAULT_PRESET[model], "improved"))
-    sol = solve_model(model, start, goal, w, n_intervals=n_intervals, duration=duration, v_nominal=v_nominal,
-                      solver=solver, guess=guesses, max_iter=max_iter)
+    sol = solve_model(model, start, goal, w, convention=conv, n_intervals=n_intervals, duration=duration,
+                      v_nominal=v_nominal, solver=solver, guess=guesses, max_iter=max_iter)
     sol.check(f"{model} model from {tuple(np.round(start, 3))} to {tuple(np.round(goal, 3))}")
-    from cobot_analysis.models.oc.duration import initial_duration
+    kind = "unicycle" if model == "unicycle" else "walker"
+    if conv.name == "published":
+        arrays = node_arrays(sol, kind)
+    else:
+        from cobot_analysis.models.oc.duration import initial_duration
 
-    T0 = initial_duration(start, goal, v_nominal)
-    if min(abs(sol.T / T0 - b) for b in (0.4, 2.0, 2.5)) < 1e-3:
-        from cobot_analysis.console import warn
+        T0 = initial_duration(start, goal, v_nominal)
+        if min(abs(sol.T / T0 - b) for b in (0.4, 2.0, 2.5)) < 1e-3:
+            from cobot_analysis.console import warn
 
-        warn(f"{trial}: the optimal duration lies at a bound of the search interval (T = {sol.T:.2f} s = "
-             f"{sol.T / T0:.2f} x T0): the weights favour a duration outside [0.4, 2.5] x T0")
-    arrays = resample(sol, n_samples, "unicycle" if model == "unicycle" else "walker")
+            warn(f"{trial}: the optimal duration lies at a bound of the search interval (T = {sol.T:.2f} s = "
+                 f"{sol.T / T0:.2f} x T0): the weights favour a duration outside [0.4, 2.5] x T0")
+        arrays = resample(sol, n_samples, kind)
     return _frame(arrays, model=model, weights_label=str(label), entity=entity, trial=trial, condition=condition,
-                  study=study, cost=sol.cost)
+                  study=study, cost=sol.cost, convention=conv.name)

@@ -10,8 +10,11 @@ Unicycle (5.1) as an OC model on the same state: x' = v cos(theta), y' = v sin(t
 theta' = omega with v = v_forw; v_orth does not move the walker (it stays 0 at the optimum since
 u2 is only penalised).
 
-Discretisation (``step``): piecewise-constant controls; velocities and heading integrated exactly,
-positions by the midpoint rule.
+Discretisation (``step``), piecewise-constant controls, one of two schemes (docs/methods.md sec. 11):
+- ``midpoint`` (continuous convention): velocities and heading integrated exactly, positions by the
+  midpoint rule;
+- ``euler`` (published convention, the authors' action models): explicit Euler,
+  ``X_{k+1} = X_k + dt f(X_k, U_k)``.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ N_CONTROL = 3
 STATE_NAMES = ("x", "y", "theta", "v_forw", "v_orth", "omega")
 CONTROL_NAMES = ("u1", "u2", "u3")
 DYNAMICS = ("walker", "unicycle")
+SCHEMES = ("midpoint", "euler")
 
 
 def rhs(X, U, kind: str = "walker"):
@@ -39,22 +43,30 @@ def rhs(X, U, kind: str = "walker"):
     return ca.vertcat(dx, dy, om, U[0], U[1], U[2])
 
 
-def step(X, U, dt, kind: str = "walker"):
-    """Exact-in-time step of length ``dt`` with constant control ``U`` for the velocities and the
-    heading (they are polynomials in t), midpoint rule for the position:
+def step(X, U, dt, kind: str = "walker", scheme: str = "midpoint"):
+    """One step of length ``dt`` with constant control ``U`` (casadi).
+
+    ``midpoint``: exact in time for the velocities and the heading (polynomials in t), midpoint rule
+    for the position:
 
         v(t + dt) = v + u dt,  theta(t + dt) = theta + omega dt + u3 dt^2 / 2,
         p(t + dt) = p + dt R(theta_m) v_m,  theta_m = theta + omega dt / 2 + u3 dt^2 / 8,  v_m = v + u dt / 2.
 
     Second order in dt for the position (error about dt^3 omega^2 |v| / 24 per step: < 1 mm over a
-    100-interval walk), one sine/cosine pair per step instead of RK4's four: the NLP's Hessian is
-    about 6x cheaper to evaluate.
+    100-interval walk), one sine/cosine pair per step instead of RK4's four.
+
+    ``euler``: ``p + dt R(theta) v``, ``theta + omega dt``, ``v + u dt`` (first order).
     """
     import casadi as ca
 
+    if scheme not in SCHEMES:
+        raise ValueError(f"unknown scheme {scheme!r}; expected one of {SCHEMES}")
     th, vf, vo, om = X[2], X[3], X[4], X[5]
-    thm = th + om * dt / 2 + U[2] * dt**2 / 8
-    vfm, vom = vf + U[0] * dt / 2, vo + U[1] * dt / 2
+    if scheme == "euler":
+        thm, vfm, vom, th_next = th, vf, vo, th + om * dt
+    else:
+        thm = th + om * dt / 2 + U[2] * dt**2 / 8
+        vfm, vom, th_next = vf + U[0] * dt / 2, vo + U[1] * dt / 2, th + om * dt + U[2] * dt**2 / 2
     c, s = ca.cos(thm), ca.sin(thm)
     if kind == "walker":
         dx, dy = c * vfm - s * vom, s * vfm + c * vom
@@ -62,16 +74,15 @@ def step(X, U, dt, kind: str = "walker"):
         dx, dy = c * vfm, s * vfm
     else:
         raise ValueError(f"unknown dynamics {kind!r}; expected one of {DYNAMICS}")
-    return ca.vertcat(X[0] + dt * dx, X[1] + dt * dy, th + om * dt + U[2] * dt**2 / 2,
-                      vf + U[0] * dt, vo + U[1] * dt, om + U[2] * dt)
+    return ca.vertcat(X[0] + dt * dx, X[1] + dt * dy, th_next, vf + U[0] * dt, vo + U[1] * dt, om + U[2] * dt)
 
 
-def coast(X, dt: float, n: int, kind: str = "walker"):
+def coast(X, dt: float, n: int, kind: str = "walker", scheme: str = "midpoint"):
     """``n`` steps of ``step`` with zero control from the state ``X`` (numpy): (n + 1, 6) states.
 
     With U = 0 the velocities stay constant and ``step`` reduces to
-    theta_{j+1} = theta_j + omega dt,  p_{j+1} = p_j + dt R(theta_j + omega dt / 2) v:
-    the walker coasts along a circular arc (a straight line when omega = 0).
+    theta_{j+1} = theta_j + omega dt,  p_{j+1} = p_j + dt R(theta_m) v with theta_m = theta_j + omega dt / 2
+    (midpoint) or theta_j (euler): the walker coasts along a circular arc (a straight line when omega = 0).
     """
     import numpy as np
 
@@ -81,7 +92,7 @@ def coast(X, dt: float, n: int, kind: str = "walker"):
         vo = 0.0
     j = np.arange(n + 1)
     theta = X[2] + om * dt * j
-    thm = theta[:-1] + om * dt / 2
+    thm = theta[:-1] + (om * dt / 2 if scheme == "midpoint" else 0.0)
     out = np.empty((n + 1, 6))
     out[:, 0] = X[0] + np.concatenate([[0.0], np.cumsum(dt * (np.cos(thm) * vf - np.sin(thm) * vo))])
     out[:, 1] = X[1] + np.concatenate([[0.0], np.cumsum(dt * (np.sin(thm) * vf + np.cos(thm) * vo))])

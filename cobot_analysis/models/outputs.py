@@ -15,6 +15,7 @@ MODEL_COLUMNS = {
     "u3": Column("float", "rad/s^2", "angular acceleration (control)"),
     "cost": Column("float", "-", "optimal cost J of the OC problem (NaN for the clothoid)"),
     "converged": Column("bool", "", "the solver reported convergence (always true in written tables)"),
+    "convention": Column("string", "", "published or continuous (docs/methods.md sec. 11)"),
 }
 
 GENERATED = TableSchema(

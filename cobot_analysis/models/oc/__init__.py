@@ -2,8 +2,9 @@
 parametric NLP (``problem``), the duration rules (``duration``), the coupled two-walker problem
 (``coupled``) and the crocoddyl cross-check backend (``crocoddyl_backend``).
 
-``solve_model`` solves one start/goal with a model's duration rule; ``resample`` puts a solution on
-N samples equally spaced in time.
+``solve_model`` solves one start/goal with a model's duration rule under a convention
+(``cobot_analysis.conventions``); ``resample`` puts a solution on N samples equally spaced in time
+(continuous convention), ``node_arrays`` gives it at its nodes (published convention).
 """
 
 from __future__ import annotations
@@ -12,24 +13,32 @@ import numpy as np
 
 OC_MODELS = ("unicycle", "mombaur", "improved", "table")
 
-#: duration method of each OC model when none is given (see duration.py).
-DEFAULT_DURATION = {"unicycle": "free", "mombaur": "grid", "improved": "free", "table": "free"}
+def solve_model(model: str, start, goal, weights, *, convention="continuous", n_intervals: int = 100,
+                duration: str | None = None, v_nominal: float = 1.0, solver: str = "fatrop", guess="rest", T=None,
+                max_iter: int = 500, warm: bool = False):
+    """Solve the OC model for one start/goal under a convention (``conventions.get``); returns an
+    ``problem.OCPSolution`` (check ``success``).
 
-
-def solve_model(model: str, start, goal, weights, *, n_intervals: int = 100, duration: str | None = None,
-                v_nominal: float = 1.0, solver: str = "fatrop", guess="rest", T=None, max_iter: int = 500):
-    """Solve the OC model for one start/goal; returns an ``ocp.OCPSolution`` (check ``success``).
-
-    ``weights``: the 11-vector (a0..a6, b0..b3); ``guess``: "rest", "line", a previous primal vector
-    (warm start) or a sequence of those (the best converged solution is kept).
+    ``weights``: the 11-vector (a0..a6, b0..b3). Continuous convention: ``n_intervals`` intervals,
+    ``duration`` (default the convention's rule: free, grid for the Mombaur form, or "search" /
+    "fixed" at ``T``), ``guess``: "rest", "line", a previous primal vector (warm start) or a sequence of
+    those (the best converged solution is kept). Published convention: the authors' node step and
+    duration rule (``duration.nelder_mead_duration`` / ``last_node_duration``), every horizon from
+    rest unless ``warm`` (then from the nearest horizon solved, see ``duration.HorizonSolver``); the
+    solution has one node per step.
     """
+    from cobot_analysis import conventions
     from cobot_analysis.models.oc.duration import grid_duration, initial_duration, search_duration
     from cobot_analysis.models.oc.problem import OCPShape, get_ocp
 
     if model not in OC_MODELS:
         raise ValueError(f"{model!r} is not an OC model ({', '.join(OC_MODELS)})")
+    conv = conventions.get(convention)
+    rule = conv.oc_rule(model)
     dyn = "unicycle" if model == "unicycle" else "walker"
-    duration = duration or DEFAULT_DURATION[model]
+    if rule.scheme == "euler":
+        return _solve_published(rule, dyn, start, goal, weights, solver=solver, max_iter=max_iter, warm=warm)
+    duration = duration or rule.duration
     T0 = initial_duration(start, goal, v_nominal) if T is None else T
     guesses = [guess] if isinstance(guess, str | np.ndarray) else list(guess)
     best = None
@@ -49,6 +58,26 @@ def solve_model(model: str, start, goal, weights, *, n_intervals: int = 100, dur
         if best is None or (sol.success and (not best.success or sol.cost < best.cost)):
             best = sol
     return best
+
+
+def _solve_published(rule, dyn: str, start, goal, weights, *, solver: str, max_iter: int, warm: bool):
+    """The published convention: the start moved to the origin at rest, the goal with it, the
+    authors' duration rule on the explicit-Euler problem; the solution moved back."""
+    from dataclasses import replace
+
+    from cobot_analysis.models.oc.duration import HorizonSolver, last_node_duration, nelder_mead_duration
+    from cobot_analysis.models.oc.problem import OCPShape
+
+    x0, y0 = float(start[0]), float(start[1])
+    shape = OCPShape(16, dyn, scheme="euler", psi=rule.psi, heading=rule.heading, psi_eps=rule.psi_eps,
+                     terminal_running=rule.duration == "last-node", solver=solver, max_iter=max_iter)
+    solve = HorizonSolver(shape, (0.0, 0.0, float(start[2])), (goal[0] - x0, goal[1] - y0, goal[2]),
+                          np.asarray(weights, float), rule.dt, warm=warm)
+    sol = nelder_mead_duration(solve) if rule.duration == "nelder-mead" else last_node_duration(solve, rule.psi_eps)
+    X = sol.X.copy()
+    X[:, 0] += x0
+    X[:, 1] += y0
+    return replace(sol, X=X)
 
 
 def resample(sol, n_samples: int = 500, kind: str = "walker") -> dict[str, np.ndarray]:
@@ -73,4 +102,19 @@ def resample(sol, n_samples: int = 500, kind: str = "walker") -> dict[str, np.nd
     idx = np.minimum(np.searchsorted(t, tt, side="right") - 1, U.shape[0] - 1)  # zero-order hold
     for i, name in enumerate(("u1", "u2", "u3")):
         out[name] = U[idx, i]
+    return out
+
+
+def node_arrays(sol, kind: str = "walker") -> dict[str, np.ndarray]:
+    """The solution at its nodes (published convention: the path is the node sequence), with the
+    columns of ``resample``; controls zero-order hold, the last one repeated."""
+    from cobot_analysis.models.dynamics import world_velocity
+
+    X, U = sol.X, sol.U
+    out = {"time": sol.t, "x": X[:, 0], "y": X[:, 1], "theta": X[:, 2], "v_forw": X[:, 3],
+           "v_orth": X[:, 4] if kind != "unicycle" else np.zeros(len(X)), "omega": X[:, 5]}
+    out["vx"], out["vy"] = world_velocity(out["theta"], out["v_forw"], out["v_orth"], kind)
+    Uh = np.vstack([U, U[-1:]])
+    for i, name in enumerate(("u1", "u2", "u3")):
+        out[name] = Uh[:, i]
     return out

@@ -122,7 +122,7 @@ class CoupledOCP(WalkerOCP):
             self._solvers[name] = ca.nlpsol(f"coupled_{name}", name, self._nlp, opts)
         return super()._solver(name)
 
-    def _run(self, w0, p, lbx, ubx, fallback: bool) -> OCPSolution:
+    def _run(self, w0, p, lbx, ubx, fallback: bool, n_active: int | None = None) -> OCPSolution:
         """The primary solver, then IPOPT if it failed; path inequalities 0 <= g (dynamics g = 0)."""
         names = [self.shape.solver] + (["ipopt"] if fallback and self.shape.solver != "ipopt" else [])
         sol = None
@@ -131,7 +131,7 @@ class CoupledOCP(WalkerOCP):
                 solver = self._solver(name)
                 res = solver(x0=w0, p=p, lbg=0.0, ubg=self._ubg, lbx=lbx, ubx=ubx)
                 st = solver.stats()
-            sol = self._unpack(np.asarray(res["x"]).ravel(), float(res["f"]), p, name, st)
+            sol = self._unpack(np.asarray(res["x"]).ravel(), float(res["f"]), p, name, st, self.N)
             if sol.success:
                 break
         return sol

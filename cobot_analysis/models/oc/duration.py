@@ -12,6 +12,17 @@
   terminal constraints, which the unconstrained adaptation replaces by the grid's lower end T0).
 - ``free``: T as a decision variable of the NLP (``OCPShape(free_time=True)``): the same optimum
   as the search, in one solve.
+
+The published convention's rules (docs/methods.md sec. 11), on the explicit-Euler problem with a
+fixed node step and a variable horizon of T intervals (``horizon_solver``):
+- ``nelder_mead_duration`` (improved and table models): scipy Nelder-Mead (xatol 0.01, fatol 0.001)
+  on f(T) = J*(T) / T, T cast to an integer, started at T_guess = int(2/3 * 100 d); f = 10 J / T
+  when the solver stopped unconverged before 50 iterations, 1e4 after, 1e8 outside 0 < T < 200 d.
+- ``last_node_duration`` (Mombaur form): T on the grid 250, 255, ..., 495; the first T is kept,
+  then a T replaces it when |phi_r(X_T, U_{T-1})| (the running cost at the last node) is smaller
+  and the solver needed fewer than 80 iterations.
+Every T is solved from rest on the start pose (the authors' DDP started at rest), or, with
+``warm=True``, from the solution at the nearest T already solved, stretched in time.
 """
 
 from __future__ import annotations
@@ -23,6 +34,8 @@ import numpy as np
 from cobot_analysis.models.oc.problem import OCPSolution, WalkerOCP
 
 DURATION_METHODS = ("free", "search", "grid")
+NODES_PER_METRE = 100  # the authors' T_guess = int(2/3 * 100 d) and bound 0 < T < 2 * 100 d (nodes, d in m)
+HORIZON_GRID = tuple(range(250, 500, 5))  # the authors' Mombaur-form horizons (nodes of 0.01 s)
 
 
 def initial_duration(start, goal, v_nominal: float = 1.0, t_rest: float = 1.0) -> float:
@@ -74,3 +87,100 @@ def grid_duration(ocp: WalkerOCP, start, goal, weights, T0: float, *, step: floa
             if best is None or s.cost < best.cost:
                 best = s
     return best if best is not None else s
+
+
+# ---- the published convention: integer horizons on the explicit-Euler problem ---------------------------
+def capacity(T: int) -> int:
+    """Intervals of the NLP that solves horizon ``T``: the smallest 16 * 1.5^k >= T (few shapes to
+    compile, at most a third of the intervals frozen)."""
+    n = 16
+    while n < T:
+        n = int(math.ceil(n * 1.5))
+    return n
+
+
+def stretched(ocp: WalkerOCP, sol: OCPSolution, T: int) -> np.ndarray:
+    """A guess of horizon ``T`` on ``ocp`` from a solution of another horizon: poses interpolated in
+    normalised time, velocities scaled by T_sol / T, controls by (T_sol / T)^2, frozen nodes at rest
+    on the last pose."""
+    n_sol = sol.U.shape[0]
+    r = n_sol / T
+    w = np.zeros(ocp.n_vars)
+    s_new, s_old = np.linspace(0.0, 1.0, T + 1), np.linspace(0.0, 1.0, n_sol + 1)
+    X = np.column_stack([np.interp(s_new, s_old, sol.X[:, i]) for i in range(6)])
+    X[:, 3:] *= r
+    w[ocp._xi[:T + 1, :6]] = X
+    w[ocp._xi[T + 1:, :3]] = X[-1, :3]
+    m_new, m_old = (s_new[:-1] + s_new[1:]) / 2, (s_old[:-1] + s_old[1:]) / 2
+    w[ocp._ui[:T]] = np.column_stack([np.interp(m_new, m_old, sol.U[:, i]) for i in range(3)]) * r**2
+    return w
+
+
+class HorizonSolver:
+    """Solves the published problem for integer horizons T (intervals of ``dt``), each on the NLP of
+    ``capacity(T)`` intervals, from rest or warm; keeps every solution (``solved``)."""
+
+    def __init__(self, shape, start, goal, weights, dt: float, *, warm: bool = False):
+        from dataclasses import replace
+
+        self.shape, self.start, self.goal, self.w, self.dt, self.warm = shape, start, goal, weights, dt, warm
+        self._replace = replace
+        self.solved: dict[int, OCPSolution] = {}
+
+    def __call__(self, T: int) -> OCPSolution:
+        from cobot_analysis.models.oc.problem import get_ocp
+
+        if T not in self.solved:
+            ocp = get_ocp(self._replace(self.shape, n_intervals=capacity(T)))
+            guess = "rest"
+            if self.warm and self.solved:
+                near = min(self.solved, key=lambda t: (abs(t - T), -self.solved[t].success))
+                if self.solved[near].success:
+                    guess = stretched(ocp, self.solved[near], T)
+            self.solved[T] = ocp.solve(self.start, self.goal, self.w, self.dt, guess=guess, n_active=T)
+        return self.solved[T]
+
+
+def nelder_mead_duration(solve: HorizonSolver) -> OCPSolution:
+    """The improved model's published duration rule (module docstring); returns the solution at
+    the chosen T (check ``success``)."""
+    from scipy.optimize import minimize
+
+    d = math.hypot(solve.goal[0] - solve.start[0], solve.goal[1] - solve.start[1])
+    T_guess = int(d * NODES_PER_METRE * 2 / 3)
+
+    def f(z: np.ndarray) -> float:
+        T = int(z[0])
+        if not 0 < T < 2 * d * NODES_PER_METRE:
+            return 1e8
+        s = solve(T)
+        if s.success:
+            return s.cost / T
+        return s.cost / T * 10 if 0 <= s.iterations < 50 else 1e4
+
+    res = minimize(f, np.array([float(max(T_guess, 1))]), method="Nelder-Mead", options={"xatol": 0.01, "fatol": 0.001})
+    return solve(max(int(res.x[0]), 1))
+
+
+def last_node_cost(sol: OCPSolution, goal, weights, psi_eps: float) -> float:
+    """|phi_r(X_T, U_{T-1})|: the Mombaur-form running cost at the last node with the last control
+    (raw psi, fmod-pi heading error), the authors' selection criterion."""
+    x, u, w = sol.X[-1], sol.U[-1], np.asarray(weights, float)
+    dxg, dyg = goal[0] - x[0], goal[1] - x[1]
+    r2 = dxg**2 + dyg**2
+    psi = math.atan2(dyg, dxg) - x[2]
+    e = math.fmod(goal[2], math.pi) - math.fmod(x[2], math.pi)
+    e = e - 2 * math.pi if e > math.pi else (e + 2 * math.pi if e < -math.pi else e)
+    return abs(w[0] + w[1] * u[0]**2 + w[2] * u[1]**2 + w[3] * u[2]**2 + w[4] * psi**2 * r2 / (r2 + psi_eps**2)
+               + w[5] * r2 + w[6] * e**2)
+
+
+def last_node_duration(solve: HorizonSolver, psi_eps: float, grid=HORIZON_GRID) -> OCPSolution:
+    """The Mombaur form's published duration rule (module docstring)."""
+    best, best_cost = None, -1.0
+    for T in grid:
+        s = solve(T)
+        cost = last_node_cost(s, solve.goal, solve.w, psi_eps)
+        if best_cost < 0 or (best_cost > cost and s.iterations < 80):
+            best, best_cost = s, cost
+    return best

@@ -4,18 +4,33 @@ Built once per problem *shape* (number of intervals, dynamics, free or fixed dur
 for every solve: the start state, the goal, the duration, the weights and an optional tracking
 reference are NLP parameters, so a new start/goal/weights costs a solve, not a rebuild.
 
-Cost (multiple shooting, N intervals of dt = T / N, ``dynamics.step``, controls piecewise constant):
+Cost (multiple shooting, N intervals, ``dynamics.step``, controls piecewise constant), in one of
+two schemes (``OCPShape.scheme``, docs/methods.md sec. 11):
 
-    J = sum_{k<N} dt [a0 + a1 u1^2 + a2 u2^2 + a3 u3^2 + a4 psi_k^2 r_k^2 / (r_k^2 + eps^2)
-                      + a5 r_k^2 + a6 (thf - theta_k)^2]
-      + sum_{k<=N} dt m_k [g0 ((cx_k - x_k)^2 + (cy_k - y_k)^2) + g1 (ctheta_k - theta_k)^2]
-      + b0 r_N^2 + b1 (thf - theta_N)^2 + b2 (v_forw_N^2 + v_orth_N^2) + b3 omega_N^2
+    J = sum_{k<N} s [a0 + a1 u1^2 + a2 u2^2 + a3 u3^2 + a4 psi_k^2 r_k^2 / (r_k^2 + eps^2)
+                     + a5 r_k^2 + a6 e(thf, theta_k)^2]
+      + sum_{k<=N} s m_k [g0 ((cx_k - x_k)^2 + (cy_k - y_k)^2) + g1 (ctheta_k - theta_k)^2]
+      + b0 r_N^2 + b1 e(thf, theta_N)^2 + b2 (v_forw_N^2 + v_orth_N^2) + b3 omega_N^2  [+ phi_r(X_N, 0)]
 
-with r = distance to the goal and psi = atan2 of the goal direction in the walker frame (the
-bearing of docs/methods.md 5.3, wrapped to (-pi, pi]). psi is undefined at the goal: the factor
-r^2 / (r^2 + eps^2) (eps = 5 cm by default) leaves the term unchanged away from the goal
-(>= 0.99 beyond 0.5 m) and keeps its gradient bounded at it. Headings are not wrapped in the
-heading terms (theta is unwrapped; pass the goal heading on the branch you mean).
+- ``midpoint`` (continuous convention): the exact-in-time step, dt = T / N and s = dt (integrated
+  running cost);
+- ``euler`` (published convention): explicit Euler with the fixed node step dt = T (the parameter
+  is the step), s = 1 (running cost summed per node, as the authors' crocoddyl action models).
+  ``terminal_running`` adds the running cost at X_N with zero control to the terminal cost (the
+  authors' Mombaur-form problem used its running model as terminal model).
+
+r = distance to the goal. psi (``OCPShape.psi``): ``wrapped``, atan2 of the goal direction in the
+walker frame, in (-pi, pi] (docs/methods.md sec. 5.3); ``raw``, atan2(yf - y, xf - x) - theta as
+computed, theta unwrapped (the authors' form). psi is undefined at the goal: the factor
+r^2 / (r^2 + eps^2) leaves the term unchanged away from the goal (>= 0.99 beyond 10 eps) and keeps
+its gradient bounded at it. The heading error e (``OCPShape.heading``): ``raw`` thf - theta (pass
+the goal heading on the branch you mean); ``wrap-once`` thf - theta moved by 2 pi once if outside
+[-pi, pi]; ``fmod-pi`` fmod(thf, pi) - fmod(theta, pi) moved likewise (the authors' Mombaur form).
+
+Variable horizon: an interval k whose active flag a_k (a parameter) is 0 is frozen,
+X_{k+1} = X_k, and costs |u_k|^2 (so u_k = 0). With the frozen intervals after the active ones,
+one NLP of N intervals solves every horizon T <= N with the optimum of the T-interval NLP (the
+authors' duration rules try many integer horizons, see ``duration.py``).
 
 - Mombaur model (5.4): a5, a6 > 0, b = 0.  Improved model (5.5): a5 = a6 = 0, b > 0.
 - Prediction (7): m_k = 1 on the measured nodes (the first N0), 0 after; b = 0 and a4 = 0 give
@@ -72,6 +87,10 @@ class OCPShape:
     dynamics: str = "walker"  # "walker" (holonomic) or "unicycle"
     free_time: bool = False
     psi_eps: float = 0.05  # m, regularisation of psi at the goal
+    scheme: str = "midpoint"  # "midpoint" (dt = T / N, integrated costs) or "euler" (dt = T per node, summed costs)
+    psi: str = "wrapped"  # "wrapped" (body-frame bearing) or "raw" (atan2 - theta)
+    heading: str = "raw"  # heading error of the a6 and b1 terms: "raw", "wrap-once" or "fmod-pi"
+    terminal_running: bool = False  # the terminal cost also holds the running cost at X_N with zero control
     solver: str = "fatrop"  # first solver tried; IPOPT is the fallback
     tol: float = 1e-8
     max_iter: int = 500
@@ -108,7 +127,7 @@ class WalkerOCP:
         N, free = shape.n_intervals, shape.free_time
         nx, nu = N_STATE + (1 if free else 0), N_CONTROL
         self.nx, self.nu, self.N = nx, nu, N
-        self.n_params = N_STATE + _N_COMMON + 4 * (N + 1)
+        self.n_params = N_STATE + _N_COMMON + 4 * (N + 1) + N
         self._T_index = N_STATE + 3
         self.n_vars, self.n_cons = N * (nx + nu) + nx, N_STATE + N * nx
         # index of state k / control k in the primal vector
@@ -134,23 +153,24 @@ class WalkerOCP:
         st = _stage_functions(self.shape)
         mapped = lambda f, bcast, red=(): f.map(f.name() + "_map", "serial", N, list(bcast), list(red))  # noqa: E731
         Mc, MF, Mgc = mapped(st["c"], [1], [0]), mapped(st["F"], [1]), mapped(st["grad_c"], [1])
-        MJ, MH = mapped(st["jac_F"], [1]), mapped(st["hess_L"], [1, 4])
+        MJ, MH = mapped(st["jac_F"], [1]), mapped(st["hess_L"], [1, 5])
 
         w, p = ca.MX.sym("x", self.n_vars), ca.MX.sym("p", self.n_params)
         lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", self.n_cons)
         X0, Pc = p[:N_STATE], p[N_STATE:N_STATE + _N_COMMON]
         o = N_STATE + _N_COMMON
-        ref, mask = ca.reshape(p[o:o + 3 * (N + 1)], 3, N + 1), p[o + 3 * (N + 1):]
+        ref, mask = ca.reshape(p[o:o + 3 * (N + 1)], 3, N + 1), p[o + 3 * (N + 1):o + 4 * (N + 1)]
+        ak = p[o + 4 * (N + 1):].T  # active flags of the N intervals
         Z, xN = ca.reshape(w[:N * nz], nz, N), w[N * nz:]
         Xs = Z[:nx, :]
         Xnext = ca.horzcat(Xs[:, 1:], xN)
         rk, mk, rN, mN = ref[:, :N], mask[:N].T, ref[:, N], mask[N]
 
-        f = Mc(Z, Pc, rk, mk) + st["c_N"](xN, Pc, rN, mN)
-        g = ca.vertcat(Xs[:N_STATE, 0] - X0, ca.vec(Xnext - MF(Z, Pc)))
-        grad_f = ca.vertcat(ca.vec(Mgc(Z, Pc, rk, mk)), st["grad_c_N"](xN, Pc, rN, mN))
+        f = Mc(Z, Pc, rk, mk, ak) + st["c_N"](xN, Pc, rN, mN)
+        g = ca.vertcat(Xs[:N_STATE, 0] - X0, ca.vec(Xnext - MF(Z, Pc, ak)))
+        grad_f = ca.vertcat(ca.vec(Mgc(Z, Pc, rk, mk, ak)), st["grad_c_N"](xN, Pc, rN, mN))
         # Jacobian of g: nonzeros listed stage by stage, then permuted to casadi's column-major order
-        Fk, JF = MJ(Z, Pc)
+        Fk, JF = MJ(Z, Pc, ak)
         g_again = ca.vertcat(Xs[:N_STATE, 0] - X0, ca.vec(Xnext - Fk))  # g from the same stage calls
         jr, jc = st["jac_F_sp"].get_triplet()
         rows = [*range(N_STATE)] + [N_STATE + k * nx + i for k in range(N) for i in jr] + \
@@ -163,7 +183,7 @@ class WalkerOCP:
         jac_g = ca.MX(Asp, values[order.tolist()])
         # Hessian of the Lagrangian sigma f + lambda' g: block diagonal (column-major = stage order)
         Lam = ca.reshape(lam_g[N_STATE:], nx, N)  # multiplier of x_{k+1} - F(z_k)
-        gL, HL = MH(Z, Pc, rk, mk, lam_f, Lam)
+        gL, HL = MH(Z, Pc, rk, mk, ak, lam_f, Lam)
         lam_x = ca.horzcat(ca.vertcat(lam_g[:N_STATE], ca.MX.zeros(nx - N_STATE)), Lam[:, :N - 1])
         gLN, HLN = st["hess_L_N"](xN, Pc, rN, mN, lam_f)
         grad_L = ca.vertcat(ca.vec(gL + ca.vertcat(lam_x, ca.MX.zeros(nu, N))), gLN + Lam[:, N - 1])
@@ -218,9 +238,13 @@ class WalkerOCP:
 
     # -- parameters and guesses ------------------------------------------------------------------
     def parameters(self, start, goal, weights, T, *, start_velocity=(0.0, 0.0, 0.0), track=None,
-                   track_weights=(10.0, 10.0), n_track: int | None = None) -> np.ndarray:
-        """The NLP parameter vector. ``track``: (M, 3) measured poses for nodes 0..M-1 (M <= N+1)."""
+                   track_weights=(10.0, 10.0), n_track: int | None = None, n_active: int | None = None) -> np.ndarray:
+        """The NLP parameter vector. ``track``: (M, 3) measured poses for nodes 0..M-1 (M <= N+1);
+        ``n_active``: intervals of the horizon (the others frozen; default all N)."""
         N = self.N
+        n_active = N if n_active is None else int(n_active)
+        if not 1 <= n_active <= N:
+            raise ValueError(f"n_active must be in 1..{N}, got {n_active}")
         weights = np.asarray(weights, dtype=float)
         if weights.shape != (N_WEIGHTS,):
             raise ValueError(f"expected {N_WEIGHTS} weights (a0..a6, b0..b3), got {weights.shape}")
@@ -232,7 +256,8 @@ class WalkerOCP:
             ref[:m] = track[:m]
             mask[:m] = 1.0
         return np.concatenate([np.asarray(start, float)[:3], np.asarray(start_velocity, float), np.asarray(goal, float),
-                               [float(T)], weights, np.asarray(track_weights, float), ref.ravel(), mask])
+                               [float(T)], weights, np.asarray(track_weights, float), ref.ravel(), mask,
+                               np.arange(N) < n_active])
 
     def guess(self, start, goal, T, kind: str = "rest", start_velocity=(0.0, 0.0, 0.0)) -> np.ndarray:
         """Initial guess: ``rest`` (every node at the start state, zero controls) or ``line``
@@ -268,8 +293,10 @@ class WalkerOCP:
     # -- solve -----------------------------------------------------------------------------------
     def solve(self, start, goal, weights, T, *, guess: np.ndarray | str = "rest", start_velocity=(0.0, 0.0, 0.0),
               track=None, track_weights=(10.0, 10.0), n_track=None, fallback: bool = True,
-              T_bounds: tuple[float, float] = (0.4, 2.5)) -> OCPSolution:
-        """Solve for one start/goal/weights/duration (``T`` is the initial guess when ``free_time``).
+              T_bounds: tuple[float, float] = (0.4, 2.5), n_active: int | None = None) -> OCPSolution:
+        """Solve for one start/goal/weights/duration (``T`` is the initial guess when ``free_time``;
+        the node step with the euler scheme); ``n_active``: horizon in intervals (default N), the
+        returned solution holds its n_active + 1 nodes only.
 
         With ``free_time``, T is bounded to ``T_bounds`` x T: without a lower bound a start facing
         away from the goal has a degenerate local minimum at T -> 0 (stand still, pay the terminal cost).
@@ -282,7 +309,7 @@ class WalkerOCP:
         If the primary solver fails and ``fallback``, IPOPT is tried from the same guess.
         """
         p = self.parameters(start, goal, weights, T, start_velocity=start_velocity, track=track,
-                            track_weights=track_weights, n_track=n_track)
+                            track_weights=track_weights, n_track=n_track, n_active=n_active)
         if isinstance(guess, str) and guess == "coarse":
             if track is not None:
                 raise ValueError("guess='coarse' is for problems without a tracking reference")
@@ -298,16 +325,16 @@ class WalkerOCP:
             ubx[self._xi[:, N_STATE]] = math.log(T_bounds[1] * T)
             w0 = w0.copy()
             w0[self._xi[:, N_STATE]] = np.clip(w0[self._xi[:, N_STATE]], lbx[self._xi[0, N_STATE]], ubx[self._xi[0, N_STATE]])
-        return self._run(w0, p, lbx, ubx, fallback)
+        return self._run(w0, p, lbx, ubx, fallback, self.N if n_active is None else int(n_active))
 
-    def _run(self, w0, p, lbx, ubx, fallback: bool) -> OCPSolution:
+    def _run(self, w0, p, lbx, ubx, fallback: bool, n_active: int) -> OCPSolution:
         """The primary solver, then IPOPT on the same NLP if it failed and ``fallback``."""
         names = [self.shape.solver] + (["ipopt"] if fallback and self.shape.solver != "ipopt" else [])
         sol = None
         for name in names:
             with self._lock:
                 w, f, st = self._call(name)(w0, p, lbx, ubx)
-            sol = self._unpack(w, f, p, name, st)
+            sol = self._unpack(w, f, p, name, st, n_active)
             if sol.success:
                 break
         return sol
@@ -318,11 +345,15 @@ class WalkerOCP:
             calls[name] = _BufferedCall(self._solver(name), self.n_vars, self.n_params, self.n_cons)
         return calls[name]
 
-    def _unpack(self, w, f, p, name, st) -> OCPSolution:
-        X = w[self._xi]
-        U = w[self._ui]
+    def _unpack(self, w, f, p, name, st, n_active: int) -> OCPSolution:
+        X = w[self._xi[:n_active + 1]]
+        U = w[self._ui[:n_active]]
         ns = self.nx - (1 if self.shape.free_time else 0)
         T = float(np.exp(X[0, ns])) if self.shape.free_time else float(p[self._T_index])
+        if self.shape.scheme == "euler":
+            T *= n_active  # the parameter is the node step
+        elif n_active < self.N:
+            T *= n_active / self.N
         ok = bool(st.get("success", False)) and bool(np.isfinite(f)) and bool(np.all(np.isfinite(w)))
         return OCPSolution(X=X[:, :ns].copy(), U=U.copy(), T=T, cost=f, success=ok,
                            status=str(st.get("return_status", st.get("unified_return_status", "?"))), solver=name,
@@ -359,7 +390,8 @@ _N_COMMON = 3 + 1 + N_WEIGHTS + 2  # goal, T, a0..b3, tracking weights: the para
 def _stage_functions(shape: OCPShape) -> dict[str, object]:
     """Cost and dynamics of one interval and of the last node, with their exact derivatives
     (casadi SX). z = (x, u); P = (goal, T, weights, tracking weights); r, m = tracking reference
-    and mask of the node; sigma, lam = multipliers of the cost and of x_{k+1} - F(z)."""
+    and mask of the node; a = active flag of the interval; sigma, lam = multipliers of the cost and
+    of x_{k+1} - F(z)."""
     import casadi as ca
 
     N, free = shape.n_intervals, shape.free_time
@@ -367,40 +399,58 @@ def _stage_functions(shape: OCPShape) -> dict[str, object]:
     z, xN = ca.SX.sym("z", nx + N_CONTROL), ca.SX.sym("xN", nx)
     gl, Tp, ws, gs = ca.SX.sym("goal", 3), ca.SX.sym("T"), ca.SX.sym("w", N_WEIGHTS), ca.SX.sym("gw", 2)
     P = ca.vertcat(gl, Tp, ws, gs)
-    r, m = ca.SX.sym("r", 3), ca.SX.sym("m")
+    r, m, a = ca.SX.sym("r", 3), ca.SX.sym("m"), ca.SX.sym("a")
     sigma, lam = ca.SX.sym("sigma"), ca.SX.sym("lam", nx)
+    euler = shape.scheme == "euler"
+    if euler and free:
+        raise ValueError("the euler scheme has a fixed node step: no free duration")
+
+    def heading_error(th):
+        e = gl[2] - th
+        if shape.heading == "fmod-pi":
+            e = ca.fmod(gl[2], ca.pi) - ca.fmod(th, ca.pi)
+        elif shape.heading != "wrap-once":
+            return e
+        return ca.if_else(e > ca.pi, e - 2 * ca.pi, ca.if_else(e < -ca.pi, e + 2 * ca.pi, e))
 
     def terms(x):
         dxg, dyg = gl[0] - x[0], gl[1] - x[1]
         r2 = dxg**2 + dyg**2
-        ex = ca.cos(x[2]) * dxg + ca.sin(x[2]) * dyg
-        ey = -ca.sin(x[2]) * dxg + ca.cos(x[2]) * dyg
-        psi = ca.atan2(ey, ex)
+        if shape.psi == "raw":
+            psi = ca.atan2(dyg, dxg) - x[2]
+        else:
+            psi = ca.atan2(-ca.sin(x[2]) * dxg + ca.cos(x[2]) * dyg, ca.cos(x[2]) * dxg + ca.sin(x[2]) * dyg)
         track = gs[0] * ((r[0] - x[0])**2 + (r[1] - x[1])**2) + gs[1] * (r[2] - x[2])**2
-        dt = (ca.exp(x[N_STATE]) if free else Tp) / N
-        return r2, psi, gl[2] - x[2], track, dt
+        dt = Tp if euler else (ca.exp(x[N_STATE]) if free else Tp) / N
+        return r2, psi, heading_error(x[2]), track, dt
+
+    def running(x, u):
+        r2, psi, dth, _, _ = terms(x)
+        return (ws[0] + ws[1] * u[0]**2 + ws[2] * u[1]**2 + ws[3] * u[2]**2
+                + ws[4] * psi**2 * r2 / (r2 + shape.psi_eps**2) + ws[5] * r2 + ws[6] * dth**2)
 
     x, u = z[:nx], z[nx:]
-    r2, psi, dth, track, dt = terms(x)
-    running = (ws[0] + ws[1] * u[0]**2 + ws[2] * u[1]**2 + ws[3] * u[2]**2
-               + ws[4] * psi**2 * r2 / (r2 + shape.psi_eps**2) + ws[5] * r2 + ws[6] * dth**2)
-    c = dt * (running + m * track)
-    F = step(x[:N_STATE], u, dt, shape.dynamics)
+    _, _, _, track, dt = terms(x)
+    scale = 1 if euler else dt  # summed per node (euler) or integrated (midpoint)
+    c = scale * (a * running(x, u) + m * track) + (1 - a) * ca.sumsqr(u)
+    F = x[:N_STATE] + a * (step(x[:N_STATE], u, dt, shape.dynamics, shape.scheme) - x[:N_STATE])
     if free:
         F = ca.vertcat(F, x[N_STATE])  # log T is carried along
     r2, _, dth, track, dt = terms(xN)
-    c_N = dt * m * track + ws[7] * r2 + ws[8] * dth**2 + ws[9] * (xN[3]**2 + xN[4]**2) + ws[10] * xN[5]**2
+    c_N = (1 if euler else dt) * m * track + ws[7] * r2 + ws[8] * dth**2 + ws[9] * (xN[3]**2 + xN[4]**2) + ws[10] * xN[5]**2
+    if shape.terminal_running:
+        c_N = c_N + running(xN, ca.DM.zeros(N_CONTROL))
     H, gL = ca.hessian(sigma * c - ca.dot(lam, F), z)
     HN, gLN = ca.hessian(sigma * c_N, xN)
     J = ca.jacobian(F, z)
     # derivative matrices are returned as their structural nonzeros (column-major), patterns apart
     return {
         "jac_F_sp": J.sparsity(), "hess_L_sp": H.sparsity(), "hess_L_N_sp": HN.sparsity(),
-        "c": ca.Function("c", [z, P, r, m], [c]),
-        "F": ca.Function("F", [z, P], [F]),
-        "grad_c": ca.Function("grad_c", [z, P, r, m], [ca.gradient(c, z)]),
-        "jac_F": ca.Function("jac_F", [z, P], [F, J.nz[:]]),
-        "hess_L": ca.Function("hess_L", [z, P, r, m, sigma, lam], [gL, H.nz[:]]),
+        "c": ca.Function("c", [z, P, r, m, a], [c]),
+        "F": ca.Function("F", [z, P, a], [F]),
+        "grad_c": ca.Function("grad_c", [z, P, r, m, a], [ca.gradient(c, z)]),
+        "jac_F": ca.Function("jac_F", [z, P, a], [F, J.nz[:]]),
+        "hess_L": ca.Function("hess_L", [z, P, r, m, a, sigma, lam], [gL, H.nz[:]]),
         "c_N": ca.Function("c_N", [xN, P, r, m], [c_N]),
         "grad_c_N": ca.Function("grad_c_N", [xN, P, r, m], [ca.gradient(c_N, xN)]),
         "hess_L_N": ca.Function("hess_L_N", [xN, P, r, m, sigma], [gLN, HN.nz[:]]),
