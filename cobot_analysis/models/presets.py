@@ -26,6 +26,11 @@ PRESETS: dict[str, dict[str, float]] = {
     "walking-2021": dict(zip(WALKER_WEIGHTS, (7.87, 4.00, 20.15, 1.00e-6, 10.00, 0.0, 0.0, 10.00, 10.00, 0.38, 3.36))),
     # Improved OC fitted to table trajectories (Humanoids 2022).
     "table-2022": dict(zip(WALKER_WEIGHTS, (3.01e-3, 6.03, 5.99, 8.63e-2, 1.00e-7, 0.0, 0.0, 9.98, 7.99, 14.99, 0.42))),
+    # Running weights a0..a3 of the table predictor in the authors' code (estimation_table.py of
+    # imaroger/table_trajectories_during_collaborative_carriage), which differ from table-2022: used by the
+    # published convention's table prediction (docs/methods.md sec. 7, 11).
+    "table-prediction-2022": dict(zip(WALKER_WEIGHTS, (3.71803398, 5.80814113, 6.06995099, 1.42647176e-1, 0.0, 0.0, 0.0,
+                                                      0.0, 0.0, 0.0, 0.0))),
     # Coupled OC of two carriers (Sci. Rep. 2022).
     "pair-2022": dict(zip(COUPLED_WEIGHTS, (3.85, 2.29, 10.37, 0.10, 2.7, 8.99, 3.00, 10.42, 1.81e-6, 0.50, 0.03,
                                             19.77, 30.24, 8.77, 9.15))),
