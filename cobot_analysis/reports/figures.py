@@ -322,11 +322,16 @@ def _data_artists(ax) -> list:
     return out + [p for p in ax.patches if p.get_visible()] + [i for i in ax.images if i.get_visible()]
 
 
-def _numeric(labels) -> bool:
-    texts = [t.get_text().replace("\u2212", "-").strip() for t in labels]
-    texts = [t for t in texts if t]
+def _numeric(axis) -> bool:
+    """Whether an axis shows a numeric scale (numbers as ticks, log scale included), as opposed to
+    text ticks naming categories (e.g. one box per group)."""
+    from matplotlib.ticker import LogFormatter, ScalarFormatter
+
+    if isinstance(axis.get_major_formatter(), ScalarFormatter | LogFormatter):
+        return True
+    texts = [re.sub(r"\$[^$]*\$", "", t.get_text()).replace("\u2212", "-").strip() for t in axis.get_ticklabels()]
     try:
-        [float(t) for t in texts]
+        [float(t) for t in texts if t]
     except ValueError:
         return False
     return True
@@ -369,9 +374,10 @@ def check_figure(fig) -> list[str]:
         where = f"axes {i} ({ax.get_title() or ax.get_title('left') or 'untitled'!r})"
         categorical = False
         for which in ("x", "y"):
-            ticks = ax.get_xticklabels() if which == "x" else ax.get_yticklabels()
+            axis = ax.xaxis if which == "x" else ax.yaxis
+            ticks = axis.get_ticklabels()
             label = _axis_label(ax, which)
-            numeric = _numeric(ticks)
+            numeric = _numeric(axis)
             categorical |= not numeric
             if not label.strip():
                 problems.append(f"{where}: no {which} label")
