@@ -83,9 +83,35 @@ def path_grid(cells: list[tuple[int, int]], size: float):
     return fig, axes
 
 
+def square_groups(used, keys) -> list[float]:
+    """``square_limits`` over the panels of each group (same key: one window size and scale);
+    returns the window side of each panel."""
+    groups = {}
+    for i, k in enumerate(keys):
+        groups.setdefault(k, []).append(i)
+    sides = [0.0] * len(used)
+    for members in groups.values():
+        side = square_limits([used[i] for i in members])
+        for i in members:
+            sides[i] = side
+    return sides
+
+
+def panel_titles(used, cells, titles, col_titles=None, fontsize: float = 8) -> None:
+    """Title of each used panel; the top panel of each column also carries ``col_titles[column]``."""
+    top = {}
+    for i, (r, c) in sorted(enumerate(cells[:len(used)]), key=lambda t: t[1]):
+        top.setdefault(c, i)
+    for i, (ax, title) in enumerate(zip(used, titles)):
+        header = col_titles[cells[i][1]] if col_titles and top[cells[i][1]] == i else ""
+        ax.set_title("\n".join(t for t in (header, title) if t), fontsize=fontsize)
+
+
 def square_limits(axes_list, margin: float = 0.06) -> float:
     """Give the panels one square window around all their data (equal aspect, one scale for the
     group); returns its side (m)."""
+    from matplotlib.ticker import MaxNLocator
+
     lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
     for ax in axes_list:
         ax.relim()
@@ -100,6 +126,8 @@ def square_limits(axes_list, margin: float = 0.06) -> float:
         ax.set_xlim(mid[0] - side / 2, mid[0] + side / 2)
         ax.set_ylim(mid[1] - side / 2, mid[1] + side / 2)
         ax.set_aspect("equal", adjustable="box")
+        for axis in (ax.xaxis, ax.yaxis):
+            axis.set_major_locator(MaxNLocator(4, steps=[1, 2, 5, 10]))  # tick labels that do not collide
     return side
 
 
@@ -132,7 +160,8 @@ def arrow_handler():
 def figure_legend(fig, axes_list, ncols: int = 3, title: str | None = None, group=None, order=None):
     """One legend for the figure, above the panels, with every labelled artist once; ``title`` (the
     figure's title) above its entries (a suptitle would collide with it). ``group(label)``: entries
-    with the same key share a legend column (e.g. one column per entity); ``order(label)``: sort key of
+    with the same key share a legend column (e.g. one column per entity; integer keys sorted, others
+    in order of appearance); ``order(label)``: sort key of
     the entries (default: order of appearance)."""
     from matplotlib.lines import Line2D
     from matplotlib.quiver import Quiver
@@ -151,7 +180,8 @@ def figure_legend(fig, axes_list, ncols: int = 3, title: str | None = None, grou
         cols = {}
         for h, lab in zip(handles, labels):
             cols.setdefault(group(lab), []).append((h, lab))
-        cols = dict(sorted(cols.items()))
+        if all(isinstance(k, int) for k in cols):
+            cols = dict(sorted(cols.items()))
         rows = max(len(v) for v in cols.values())
         blank = Line2D([], [], alpha=0)
         handles = [h for v in cols.values() for h, _ in v + [(blank, "")] * (rows - len(v))]
@@ -171,7 +201,6 @@ def paths(panels: list[dict], ncols: int = 4, arrows: int = 8, title: str = "", 
     for each mean (default names['means']), "<entity>: <names['arrows']>" for its arrows (7 % of the
     panel side), and the start of the means; the entity is left out when the figure shows only one."""
     from matplotlib.collections import LineCollection
-    from matplotlib.ticker import MaxNLocator
 
     names = {"lines": "individual trajectories", "means": "mean", "arrows": "orientation θ of the mean", **(names or {})}
     cells = [tuple(p["cell"]) if p.get("cell") is not None else divmod(i, ncols) for i, p in enumerate(panels)] or [(0, 0)]
@@ -182,9 +211,7 @@ def paths(panels: list[dict], ncols: int = 4, arrows: int = 8, title: str = "", 
         return what if len(entities) <= 1 else f"{NAMES.get(ent, ent)}: {what}"
 
     used = [axes[r][c] for r, c in cells[:len(panels)]]
-    top = {}  # column -> index of its top panel (carries the column header)
-    for i, (r, c) in sorted(enumerate(cells[:len(panels)]), key=lambda t: t[1]):
-        top.setdefault(c, i)
+    panel_titles(used, cells, [p.get("title", "") for p in panels], col_titles)
     for i, (ax, panel) in enumerate(zip(used, panels)):
         by_entity = {}
         for x, y, ent, *_ in panel.get("lines", []):
@@ -197,26 +224,19 @@ def paths(panels: list[dict], ncols: int = 4, arrows: int = 8, title: str = "", 
             name = style[1] if len(style) > 1 and style[1] else names["means"]
             ax.plot(x, y, color=COLORS.get(ent, "k"), lw=1.8, ls=ls, zorder=3, label=who(ent, name))
             ax.plot(x[:1], y[:1], "o", color="k", ms=4, mfc="white", mec="k", zorder=5, label="start of a mean path")
-        header = col_titles[cells[i][1]] if col_titles and top[cells[i][1]] == i else ""
-        ax.set_title("\n".join(t for t in (header, panel.get("title", "")) if t), fontsize=8)
-    groups = {}
-    for i, (r, _) in enumerate(cells[:len(panels)]):  # panels sharing one scale, and their arrow length
-        groups.setdefault(r if share == "row" else (0 if share else -1 - i), []).append(i)
-    for key, group in groups.items():
-        length = 0.07 * square_limits([used[i] for i in group])
-        for i in group:
-            ax, panel = used[i], panels[i]
-            if share == "row" and cells[i][1] != min(cells[j][1] for j in group):
-                ax.tick_params(labelleft=False)  # same y scale as the first panel of the row
-            missing = 0
-            for x, y, th, ent, *_ in panel.get("means", []):
-                if th is None or orientation_arrows(ax, x, y, th, arrows, length, COLORS.get(ent, "k"), who(ent, names["arrows"])) is None:
-                    missing += 1
-            if missing:
-                ax.text(0.03, 0.03, "no orientation: no arrows" if missing == len(panel["means"]) else f"{missing} mean(s) without orientation",
-                        transform=ax.transAxes, fontsize=7, color="0.3")
-            ax.xaxis.set_major_locator(MaxNLocator(4, steps=[1, 2, 5, 10]))
-            ax.yaxis.set_major_locator(MaxNLocator(4, steps=[1, 2, 5, 10]))
+    keys = [r if share == "row" else (0 if share else -1 - i) for i, (r, _) in enumerate(cells[:len(panels)])]
+    sides = square_groups(used, keys)
+    for i, (ax, panel) in enumerate(zip(used, panels)):
+        length = 0.07 * sides[i]
+        if share == "row" and cells[i][1] != min(c for (r, c) in cells[:len(panels)] if r == cells[i][0]):
+            ax.tick_params(labelleft=False)  # same y scale as the first panel of the row
+        missing = 0
+        for x, y, th, ent, *_ in panel.get("means", []):
+            if th is None or orientation_arrows(ax, x, y, th, arrows, length, COLORS.get(ent, "k"), who(ent, names["arrows"])) is None:
+                missing += 1
+        if missing:
+            ax.text(0.03, 0.03, "no orientation: no arrows" if missing == len(panel["means"]) else f"{missing} mean(s) without orientation",
+                    transform=ax.transAxes, fontsize=7, color="0.3")
     fig.supxlabel("x (m)")
     fig.supylabel("y (m)")
     prefixes = {f"{NAMES.get(e, e)}: ": k for k, e in enumerate(sorted(entities, key=lambda e: list(NAMES).index(e) if e in NAMES else 9))}
