@@ -123,100 +123,143 @@ GOALS = TableSchema(
 
 
 # ---- figures -----------------------------------------------------------------------------------
+# The motion capture is drawn as a black line above the ICP samples (small orange dots), so that
+# both stay visible; runs get one panel each (identical runs would hide each other in one).
+TRUTH_STYLE = {"color": "k", "lw": 0.8, "zorder": 3}
+ICP_STYLE = {"color": "tab:orange", "marker": ".", "ls": "none", "ms": 3.5, "alpha": 0.6, "zorder": 2}
+
+
 def _plt():
-    import matplotlib
+    from cobot_analysis.reports.figures import _plt as plt
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    return plt()
 
-    return plt
+
+def _scale(a: str) -> tuple[float, str]:
+    """Display factor and unit of an error on axis ``a`` (positions in mm, yaw in rad)."""
+    return (1.0, "rad") if a == "yaw" else (1000.0, "mm")
 
 
 def figure_paths(results: list[dict]):
-    """Both paths in the plane (goal / ICP map frame) with the commanded goals."""
+    """Both paths in the plane (goal / ICP map frame) with the commanded goals, one panel per run."""
+    from cobot_analysis.reports.figures import arrow_handler, square_limits
+    from matplotlib.quiver import Quiver
+
     plt = _plt()
     n = len(results)
-    fig, axes = plt.subplots(1, n, figsize=(5 * n, 5), squeeze=False)
+    fig, axes = plt.subplots(1, n, figsize=(4.6 * n, 5), squeeze=False, layout="constrained")
     for ax, r in zip(axes[0], results):
         s = r["samples"]
         al = r["comparison"].alignment
         truth_xy, _ = al.to_icp_frame(np.column_stack([s["truth_x"], s["truth_y"], s["truth_z"]]), s["truth_yaw"].to_numpy())
-        ax.plot(truth_xy[:, 0], truth_xy[:, 1], "-", lw=1.2, label="motion capture (in the map frame)")
-        ax.plot(s["icp_x"], s["icp_y"], ".", ms=1.5, label="ICP")
+        ax.plot(s["icp_x"], s["icp_y"], label="ICP (raw, map frame)", **ICP_STYLE)
+        ax.plot(truth_xy[:, 0], truth_xy[:, 1], label="motion capture (moved into the map frame)", **TRUTH_STYLE)
+        side = square_limits([ax])
         g = r.get("goals")
         if g is not None and len(g):
-            ax.quiver(g["goal_x"], g["goal_y"], np.cos(g["goal_yaw"]), np.sin(g["goal_yaw"]), color="k", scale=15, width=0.005,
-                      label="commanded goals")
+            L = 0.08 * side
+            ax.quiver(g["goal_x"], g["goal_y"], L * np.cos(g["goal_yaw"]), L * np.sin(g["goal_yaw"]), color="tab:blue",
+                      angles="xy", scale_units="xy", scale=1, units="inches", width=0.02, zorder=4, label="commanded goals (pose)")
             for _, row in g.iterrows():
-                ax.annotate(str(row["goal"]), (row["goal_x"], row["goal_y"]), xytext=(4, 4), textcoords="offset points", fontsize=8)
-        ax.set_aspect("equal")
-        ax.set_title(f"{r['run']} ({r['row']['map']})" if r["row"]["map"] else r["run"])
+                ax.annotate(str(row["goal"]), (row["goal_x"], row["goal_y"]), xytext=(4, 4), textcoords="offset points", fontsize=8,
+                            color="tab:blue")
+        ax.set_title(f"{r['run']} ({r['row']['map']} map)" if r["row"]["map"] else r["run"])
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
-        ax.legend(fontsize=7, loc="best")
-    fig.tight_layout()
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside upper center", ncols=len(labels), frameon=False, markerscale=4,
+               handler_map={Quiver: arrow_handler()})
     return fig
 
 
 def figure_timeseries(r: dict):
-    """Per-axis time series of the truth and the ICP after delay and offset removal."""
+    """Per-axis time series of the truth (line) and the ICP (dots) after delay and offset removal."""
     plt = _plt()
     s = r["samples"]
     t = s["t_truth"] - s["t_truth"].iloc[0]
-    fig, axes = plt.subplots(4, 1, figsize=(9, 8), sharex=True)
+    fig, axes = plt.subplots(4, 1, figsize=(9, 8.5), sharex=True, layout="constrained")
     for ax, a in zip(axes, ("x", "y", "z", "yaw")):
-        ax.plot(t, s[f"truth_{a}"], "-", lw=1.0, label="motion capture")
-        ax.plot(t, s[f"aligned_{a}"], ".", ms=1.5, label="ICP (delay and offset removed)")
+        ax.plot(t, s[f"aligned_{a}"], label="ICP, delay and offset removed (one dot per pose)", **ICP_STYLE)
+        ax.plot(t, s[f"truth_{a}"], label="motion capture at the ICP stamps minus the delay", **TRUTH_STYLE)
         ax.set_ylabel(f"{a} ({_AXIS_UNIT[a]})")
-    axes[0].legend(fontsize=7)
     axes[-1].set_xlabel("time (s)")
-    axes[0].set_title(f"{r['run']}: delay {r['row']['delay']:.3f} s, alignment {r['row']['alignment']}")
-    fig.tight_layout()
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside upper center", ncols=2, frameon=False, markerscale=4,
+               title=f"{r['run']}: delay {r['row']['delay']:.3f} s, alignment {r['row']['alignment']}",
+               title_fontproperties={"size": 10})
     return fig
 
 
 def figure_error_time(results: list[dict]):
+    """Position and yaw error over time, one row per run (same scales), with the RMSE."""
     plt = _plt()
-    fig, axes = plt.subplots(2, 1, figsize=(9, 5), sharex=True)
-    for r in results:
+    n = len(results)
+    fig, axes = plt.subplots(n, 2, figsize=(11, 1.9 * n + 0.8), sharex=True, sharey="col", squeeze=False, layout="constrained")
+    for (ax_p, ax_y), r in zip(axes, results):
         s = r["samples"]
         t = s["t_truth"] - s["t_truth"].iloc[0]
-        axes[0].plot(t, 1000 * s["err_xyz"], lw=0.8, label=r["run"])
-        axes[1].plot(t, s["err_yaw"], lw=0.8, label=r["run"])
-    axes[0].set_ylabel("position error (mm)")
-    axes[1].set_ylabel("yaw error (rad)")
-    axes[1].set_xlabel("time (s)")
-    axes[0].legend(fontsize=7)
-    fig.tight_layout()
+        e, y = 1000 * s["err_xyz"].to_numpy(), s["err_yaw"].to_numpy()
+        ax_p.plot(t, e, lw=0.7, color="tab:blue", label="3-D position error")
+        ax_p.axhline(np.sqrt(np.nanmean(e ** 2)), color="k", ls="--", lw=1, label="RMSE of the run")
+        ax_y.plot(t, y, lw=0.7, color="tab:purple", label="yaw error (aligned ICP - motion capture)")
+        ax_y.axhline(np.sqrt(np.nanmean(y ** 2)), color="k", ls=":", lw=1, label="± yaw RMSE of the run")
+        ax_y.axhline(-np.sqrt(np.nanmean(y ** 2)), color="k", ls=":", lw=1)
+        ax_p.set_ylabel("position error (mm)")
+        ax_y.set_ylabel("yaw error (rad)")
+        ax_p.set_title(f"{r['run']}: 3-D position error, RMSE {np.sqrt(np.nanmean(e ** 2)):.1f} mm", fontsize=9)
+        ax_y.set_title(f"{r['run']}: yaw error, RMSE {np.sqrt(np.nanmean(y ** 2)):.4f} rad", fontsize=9)
+    for ax in axes[-1]:
+        ax.set_xlabel("time (s)")
+    handles, labels = [], []
+    for ax in axes[0]:
+        h, lab = ax.get_legend_handles_labels()
+        handles, labels = handles + h, labels + lab
+    fig.legend(handles, labels, loc="outside upper center", ncols=4, frameon=False)
     return fig
 
 
 def figure_error_distribution(results: list[dict]):
+    """Histograms of the signed errors per axis, one row per run (same bins per axis)."""
     plt = _plt()
-    fig, axes = plt.subplots(1, 4, figsize=(14, 3.2))
-    for ax, a in zip(axes, ("x", "y", "z", "yaw")):
-        for r in results:
-            e = r["samples"][f"err_{a}"].to_numpy() * (1000 if a != "yaw" else 1)
-            ax.hist(e, bins=40, histtype="step", label=r["run"])
-        ax.set_xlabel(f"error {a} ({'mm' if a != 'yaw' else 'rad'})")
-    axes[0].set_ylabel("samples")
-    axes[0].legend(fontsize=7)
-    fig.tight_layout()
+    n = len(results)
+    axes_names = ("x", "y", "z", "yaw")
+    fig, axes = plt.subplots(n, 4, figsize=(13, 2.1 * n + 0.6), sharex="col", squeeze=False, layout="constrained")
+    for j, a in enumerate(axes_names):
+        k, unit = _scale(a)
+        values = [r["samples"][f"err_{a}"].to_numpy() * k for r in results]
+        finite = np.concatenate([v[np.isfinite(v)] for v in values]) if values else np.zeros(0)
+        bins = np.histogram_bin_edges(finite, bins=40) if len(finite) else 10
+        for i, (r, v) in enumerate(zip(results, values)):
+            ax = axes[i][j]
+            v = v[np.isfinite(v)]
+            ax.hist(v, bins=bins, color="tab:blue", alpha=0.75)
+            d = 4 if a == "yaw" else 1
+            sd = np.std(v, ddof=1) if len(v) > 1 else np.nan
+            ax.set_title(f"{r['run']}: {a}, mean {np.mean(v):.{d}f}, sd {sd:.{d}f} {unit} (n = {len(v)})", fontsize=8)
+            if i == n - 1:
+                ax.set_xlabel(f"error {a}, aligned ICP - motion capture ({unit})")
+            ax.set_ylabel("ICP poses (count)")
     return fig
 
 
 def figure_delay(results: list[dict]):
+    """The delay cost J(d) / min J, one panel per run, with the estimated delay."""
     plt = _plt()
-    fig, ax = plt.subplots(figsize=(6, 3.5))
-    for r in results:
+    n = len(results)
+    fig, axes = plt.subplots(1, n, figsize=(4.2 * n, 3.4), sharey=True, squeeze=False, layout="constrained")
+    for ax, r in zip(axes[0], results):
         grid = r["comparison"].delay.grid
         if len(grid):
-            ax.plot(grid[:, 0], grid[:, 1] / grid[:, 1].min(), lw=1.0, label=r["run"])
-    ax.set_xlabel("delay (s)")
-    ax.set_ylabel("J(d) / min J")
-    ax.set_yscale("log")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
+            ax.plot(grid[:, 0], grid[:, 1] / grid[:, 1].min(), lw=1.2, color="tab:blue", marker=".", ms=3,
+                    label="J(d) / min J on the search grid")
+        ax.axvline(r["row"]["delay"], color="k", ls="--", lw=1, label="delay used")
+        given = " (given)" if r["row"]["delay_method"] == "given" else ""
+        ax.set_title(f"{r['run']}: delay {r['row']['delay']:.3f} s{given}", fontsize=9)
+        ax.set_xlabel("delay d (s)")
+        ax.set_yscale("log")
+    axes[0][0].set_ylabel("cost J(d) / min J (-)")
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside upper center", ncols=2, frameon=False)
     return fig
 
 

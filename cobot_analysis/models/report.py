@@ -149,64 +149,88 @@ def statistics(df: pd.DataFrame, model: str, angle: str = "gamma", alpha: float 
     return "\n".join(out) + "\n"
 
 
-def _panel_grid(n: int, max_cols: int, size: float):
-    """A figure with ``n`` square panels (inches ``size``), at most ``max_cols`` per row."""
-    import matplotlib
+def _panel_grid(n: int, max_cols: int, size: float, cells: list[tuple[int, int]] | None = None):
+    """A figure with ``n`` square panels (inches ``size``), at most ``max_cols`` per row, or one per
+    (row, column) of ``cells``; returns (fig, 2-D array of axes), the unused axes hidden."""
+    from cobot_analysis.reports.figures import path_grid
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    cols = min(max_cols, n)
-    rows = math.ceil(n / cols)
-    return plt.subplots(rows, cols, figsize=(size * cols, size * rows), squeeze=False)
+    cols = max(1, min(max_cols, n))
+    return path_grid(cells or [divmod(i, cols) for i in range(max(n, 1))], size)
 
 
-def _finish_grid(fig, axes, n: int, title: str, fontsize: float):
-    """Equal axes on the ``n`` used panels, the others hidden, one legend, the title."""
-    for j, ax in enumerate(axes.flat):
-        if j < n:
-            ax.set_aspect("equal")
-            ax.tick_params(labelsize=fontsize)
-        else:
-            ax.axis("off")
-    axes[0][0].legend(fontsize=fontsize, loc="best")
-    fig.suptitle(title, fontsize=9)
+def _finish_grid(fig, axes, n: int, title: str, fontsize: float, cells: list[tuple[int, int]] | None = None,
+                 group=None):
+    """The ``n`` used panels (first ``n`` in reading order, or ``cells``): ticks at ``fontsize``, axis
+    labels in metres, one figure legend under the title (columns grouped by ``group(label)``).
+    Windows and scales are set before (``figures.square_groups``), arrows sized to them."""
+    from cobot_analysis.reports.figures import figure_legend
+
+    cells = cells or [divmod(j, axes.shape[1]) for j in range(n)]
+    used = [axes[r][c] for r, c in cells[:n]]
+    for ax in used:
+        ax.tick_params(labelsize=fontsize)
+    fig.supxlabel("x (m)")
+    fig.supylabel("y (m)")
+    figure_legend(fig, used, ncols=3, title=title, group=group)
     return fig
 
 
-def figure_paths(targets: list[Target], generated: dict[str, list[pd.DataFrame]], title: str):
-    """Generated vs measured paths per trajectory, with orientation arrows every 50 samples."""
+def figure_paths(targets: list[Target], generated: dict[str, list[pd.DataFrame]], title: str, *,
+                 labels: dict[str, str] | None = None):
+    """Generated vs measured paths, one panel per trajectory (walking conditions: start position x
+    start orientation grid, one scale per row), 8 orientation arrows along each path. ``labels``:
+    legend name of each generated set (default "model, <key> weights" for published / fitted / start)."""
+    from cobot_analysis.reports import figures as F
+
     n = len(targets)
-    fig, axes = _panel_grid(n, max_cols=8, size=2.2)
-    colors = {"measured": "k"}
+    conds = [t.condition for t in targets]
+    grid = F.walking_grid(conds) if len(set(conds)) == n else None  # one panel per walking condition
+    cells = [grid[c] for c in conds] if grid else None
+    fig, axes = _panel_grid(n, max_cols=8, size=2.4 if grid else 2.2, cells=cells)
+    cells = cells or [divmod(i, axes.shape[1]) for i in range(n)]
+    used = [axes[r][c] for r, c in cells[:n]]
+    names = {"measured": "measured", **{lab: (labels or {}).get(lab, f"model, {lab} weights" if lab in ("published", "fitted", "start") else lab)
+                                         for lab in generated}}
     palette = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple"]
+    colors = {"measured": "k", **{lab: palette[k % len(palette)] for k, lab in enumerate(generated)}}
+    series = []
     for i, t in enumerate(targets):
-        ax = axes.flat[i]
-        series = [("measured", t.x, t.y, t.theta)] + [(lab, g[i]["x"].to_numpy(), g[i]["y"].to_numpy(), g[i]["theta"].to_numpy())
-                                                     for lab, g in generated.items() if g[i] is not None]
-        for j, (lab, x, y, th) in enumerate(series):
-            c = colors.get(lab, palette[(j - 1) % len(palette)])
-            ax.plot(x, y, color=c, lw=1.2 if lab == "measured" else 0.9, label=lab)
-            k = np.arange(0, len(x), 50)
-            ax.quiver(x[k], y[k], np.cos(th[k]), np.sin(th[k]), color=c, scale=18, width=0.006)
-        ax.set_title(t.condition or t.trial, fontsize=7)
-    return _finish_grid(fig, axes, n, title, fontsize=5)
+        s = [("measured", t.x, t.y, t.theta)] + [(lab, g[i]["x"].to_numpy(), g[i]["y"].to_numpy(), g[i]["theta"].to_numpy())
+                                                for lab, g in generated.items() if g[i] is not None]
+        for lab, x, y, _ in s:
+            used[i].plot(x, y, color=colors[lab], lw=1.4 if lab == "measured" else 1.0, zorder=3 if lab == "measured" else 2,
+                         label=names[lab])
+        failed = [names[lab] for lab, g in generated.items() if g[i] is None]
+        if failed:
+            used[i].text(0.03, 0.03, "no solution: " + ", ".join(failed), transform=used[i].transAxes, fontsize=6, color="0.3")
+        series.append(s)
+    sides = F.square_groups(used, [c[0] if grid else -1 - i for i, c in enumerate(cells)])
+    for ax, s, side in zip(used, series, sides):
+        for lab, x, y, th in s:
+            F.orientation_arrows(ax, x, y, th, 8, 0.07 * side, colors[lab], f"{names[lab]}: orientation θ")
+    cols = [o for o in F.WALKING_COLUMNS if any(c[0] == o for c in conds)] if grid else []
+    unique = len(set(conds)) == n and all(conds)
+    F.panel_titles(used, cells, [F.walking_title(c) if grid else (c if unique else t.trial) for c, t in zip(conds, targets)],
+                   [F.WALKING_COLUMNS[o] for o in cols] if grid else None, fontsize=7)
+    return _finish_grid(fig, axes, n, title, fontsize=6, cells=cells, group=lambda lab: lab.split(": ")[0])
 
 
 def figure_boxplots(df: pd.DataFrame, angle: str = "gamma"):
-    """Box plots (median, quartiles, whiskers 1.5 IQR, outliers) of d_xy and d_angle per model."""
-    import matplotlib
+    """Box plots (median, quartiles, whiskers to 1.5 IQR, outliers) of d_xy and d_angle per model,
+    the number of trajectories under each box."""
+    from cobot_analysis.reports.figures import _plt
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = _plt()
     models = list(dict.fromkeys(df["model"]))
-    fig, axes = plt.subplots(1, 2, figsize=(11, 3.8))
+    fig, axes = plt.subplots(1, 2, figsize=(max(8.0, 2.2 * len(models) + 2), 4.2), layout="constrained")
     for ax, metric, unit in zip(axes, ("d_xy", f"d_{angle}"), ("m", "rad")):
-        ax.boxplot([df.loc[df["model"] == m, metric].dropna() for m in models], whis=1.5, showfliers=True)
-        ax.set_xticks(range(1, len(models) + 1), models, rotation=30, ha="right", fontsize=7)
-        ax.set_ylabel(f"{metric} ({unit})")
-    fig.tight_layout()
+        values = [df.loc[df["model"] == m, metric].dropna().to_numpy(float) for m in models]
+        ax.boxplot(values, whis=1.5, showfliers=True, widths=0.6, medianprops={"color": "k", "lw": 1.5},
+                   flierprops={"marker": "o", "ms": 3, "mfc": "none", "alpha": 0.7})
+        ax.set_xticks(range(1, len(models) + 1), [f"{m.replace(' (', chr(10) + '(')}\n(n = {len(v)})" for m, v in zip(models, values)],
+                      fontsize=7)
+        ax.set_xlabel("model")
+        ax.set_ylabel(f"{metric} to the measured path ({unit})")
     return fig
 
 
@@ -293,23 +317,36 @@ def weights_table(names: tuple[str, ...], columns: dict[str, dict[str, float]], 
 
 def figure_pair_paths(targets, paths: dict[str, list], title: str):
     """Generated vs mean paths of both carriers (carrier 1 solid, carrier 2 dashed), one panel per
-    target, orientation arrows every 100 samples; measured in black."""
+    target (its own scale), 6 orientation arrows along each path; measured in black."""
+    from cobot_analysis.reports import figures as F
+
     n = len(targets)
     fig, axes = _panel_grid(n, max_cols=4, size=3.0)
-    palette = {lab: c for lab, c in zip(paths, ("tab:blue", "tab:orange", "tab:green"))}
+    cells = [divmod(j, axes.shape[1]) for j in range(n)]
+    used = [axes[r][c] for r, c in cells]
+    palette = {lab: c for lab, c in zip(paths, ("tab:blue", "tab:orange", "tab:green", "tab:red"))}
+    names = {"mean": "measured mean", **{lab: f"model, {lab} weights" if lab in ("published", "fitted", "start") else lab for lab in paths}}
+    drawn = []
     for j, t in enumerate(targets):
-        ax = axes.flat[j]
         series = [("mean", "k", [(c.x, c.y, c.theta) for c in t.carriers])]
-        series += [(lab, palette[lab], [(p["x"], p["y"], p["theta"]) for p in ps[j]]) for lab, ps in paths.items() if ps[j] is not None]
+        series += [(lab, palette[lab], [(np.asarray(p["x"]), np.asarray(p["y"]), np.asarray(p["theta"])) for p in ps[j]])
+                   for lab, ps in paths.items() if ps[j] is not None]
         for lab, color, carriers in series:
-            for i, (x, y, th) in enumerate(carriers):
-                ax.plot(x, y, color=color, ls="-" if i == 0 else "--", lw=1.1, label=lab if i == 0 else None)
-                k = np.arange(0, len(x), 100)
-                ax.quiver(x[k], y[k], np.cos(th[k]), np.sin(th[k]), color=color, scale=14, width=0.005)
-        ax.set_title(t.trial.replace("_sc3", ""), fontsize=7)
-    fig = _finish_grid(fig, axes, n, title, fontsize=6)
-    fig.tight_layout()
-    return fig
+            for i, (x, y, _) in enumerate(carriers):
+                used[j].plot(x, y, color=color, ls="-" if i == 0 else "--", lw=1.3 if lab == "mean" else 1.0,
+                             zorder=3 if lab == "mean" else 2, label=f"{names[lab]}: carrier {i + 1}")
+        failed = [names[lab] for lab, ps in paths.items() if ps[j] is None]
+        if failed:
+            used[j].text(0.03, 0.03, "not converged: " + ", ".join(failed), transform=used[j].transAxes, fontsize=6, color="0.3")
+        drawn.append(series)
+    sides = F.square_groups(used, range(n))
+    for ax, series, side in zip(used, drawn, sides):
+        for lab, color, carriers in series:
+            for x, y, th in carriers:
+                F.orientation_arrows(ax, x, y, th, 6, 0.07 * side, color, f"{names[lab]}: orientation θ")
+    F.panel_titles(used, cells, [t.trial.replace("_sc3", "") for t in targets], fontsize=7)
+    return _finish_grid(fig, axes, n, title + "\ncarrier 1 = Subject 1 on forward paths, Subject 2 on returns", fontsize=6,
+                        cells=cells, group=lambda lab: lab.split(": ")[0])
 
 
 def coupled_section(result, coupled, targets, stage, durations: pd.DataFrame | None = None) -> list[str]:
