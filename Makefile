@@ -1,5 +1,6 @@
 # Reproduce the reports of each study (see README.md).
-#   make walking        published walking-2020: import, means, distances, statistics, models, IOC, prediction, report
+#   make walking        published walking-2020: import, means, distances, statistics, models, IOC, prediction, report;
+#                       the model stages under both conventions (continuous -> STAGE/, published -> STAGE-published/)
 #   make walking-subjects  per-subject IOC fits on walking-2020 (after walking)
 #   make pairs          published pair-carriage-2022 (means) and the per-trial synthetic pair study
 #                       (prediction on every 10th synthetic table trial: SPREDICT_ARGS= for all 1080)
@@ -15,7 +16,9 @@ OUT ?= cobot-out
 JOBS ?= 2
 BAGS ?=
 IOC_ARGS ?=
+PUBLISHED_IOC_ARGS ?=
 PREDICT_ARGS ?=
+PUBLISHED_PREDICT_ARGS ?=
 PREDICT_FITTED_ARGS ?= --settings 50:100
 SUBJECT_IOC_ARGS ?= --subjects 10 --max-evaluations 600
 COUPLED_IOC_ARGS ?= --max-evaluations 600
@@ -59,10 +62,14 @@ walking:
 	$(CLI) import-published walking-2020 $(DATASETS)/walking-2020 --out $(WALK)
 	$(CLI) average --out $(WALK)
 	$(CLI) fit-ioc --out $(WALK) --jobs $(JOBS) $(IOC_ARGS)
+	$(CLI) fit-ioc --out $(WALK) --convention published --jobs $(JOBS) $(PUBLISHED_IOC_ARGS)
 	$(CLI) generate --out $(WALK) --study walking-2020 --weights $(WALK)/fit-ioc/weights.json --jobs $(JOBS)
+	$(CLI) generate --out $(WALK) --study walking-2020 --convention published --jobs $(JOBS)
 	$(CLI) compare --out $(WALK) --against $(WALK)/generate/generated.parquet --label model
+	$(CLI) compare --out $(WALK) --against $(WALK)/generate-published/generated.parquet --label model --convention published
 	$(CLI) stats --out $(WALK)
-	$(CLI) predict --out $(WALK) --kind trial --jobs $(JOBS) $(PREDICT_ARGS)
+	$(CLI) predict --out $(WALK) --kind trial --convention continuous --jobs $(JOBS) $(PREDICT_ARGS)
+	$(CLI) predict --out $(WALK) --kind trial --convention published --jobs $(JOBS) $(PUBLISHED_PREDICT_ARGS)
 	$(CLI) predict --out $(WALK) --kind trial --weights $(WALK)/fit-ioc/weights.json --stage-name predict-fitted --jobs $(JOBS) $(PREDICT_FITTED_ARGS)
 	$(CLI) report walking --out $(WALK) --to reports/walking
 
@@ -76,11 +83,14 @@ pairs-published:
 	$(CLI) import-published pair-carriage-2022 $(DATASETS)/pair-carriage-2022 --out $(PAIRS)
 	$(CLI) average --out $(PAIRS)
 	$(CLI) compare --out $(PAIRS)
+	$(CLI) compare --out $(PAIRS) --convention published
 	$(CLI) stats --out $(PAIRS)
 	$(CLI) reconstruct --out $(PAIRS) --wrt-table $(DATASETS)/pair-carriage-2022
 	$(CLI) fit-ioc --out $(PAIRS) --model table --jobs $(JOBS) $(IOC_ARGS)
+	$(CLI) fit-ioc --out $(PAIRS) --model table --convention published --jobs $(JOBS) $(PUBLISHED_IOC_ARGS)
 	$(CLI) fit-ioc --out $(PAIRS) --model coupled --jobs $(JOBS) $(COUPLED_IOC_ARGS)
-	$(CLI) predict --out $(PAIRS) --entity table --jobs $(JOBS) $(PREDICT_ARGS)
+	$(CLI) predict --out $(PAIRS) --entity table --convention continuous --jobs $(JOBS) $(PREDICT_ARGS)
+	$(CLI) predict --out $(PAIRS) --entity table --convention published --jobs $(JOBS) $(PUBLISHED_PREDICT_ARGS)
 	$(CLI) report pairs --out $(PAIRS) --to reports/pairs
 
 pairs-synthetic:

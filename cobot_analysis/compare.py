@@ -47,6 +47,8 @@ DISTANCES = TableSchema(
         "d_xy": Column("float", "m", "linear distance (1/N) sum |p_a - p_b|"),
         "d_theta": Column("float", "rad", "angular distance (1/N) sum |wrap(theta_a - theta_b)|; NaN if an orientation is missing"),
         "d_gamma": Column("float", "rad", "local angular distance over N-1 samples; NaN if missing"),
+        "convention": Column("string", "", "published or continuous: how the paths were compared (docs/methods.md sec. 11)",
+                             required=False),
     },
 )
 
@@ -60,6 +62,7 @@ class TrajectorySet:
     y: np.ndarray
     theta: np.ndarray
     gamma: np.ndarray
+    angle_difference: str = "wrapped"  # how this set's angles are compared (metrics.angle_distance)
 
     @property
     def arrays(self) -> dict[str, np.ndarray]:
@@ -74,7 +77,20 @@ class TrajectorySet:
 
     def subset(self, mask) -> "TrajectorySet":
         idx = np.flatnonzero(np.asarray(mask))
-        return TrajectorySet(self.meta.iloc[idx].reset_index(drop=True), self.x[idx], self.y[idx], self.theta[idx], self.gamma[idx])
+        return TrajectorySet(self.meta.iloc[idx].reset_index(drop=True), self.x[idx], self.y[idx], self.theta[idx], self.gamma[idx],
+                             self.angle_difference)
+
+    def compared_as(self, comparison) -> "TrajectorySet":
+        """The set as a ``conventions.Comparison`` compares it: with ``arclength`` (and both paths
+        resampled) every path resampled by arc length to its N samples (``metrics.resample_arclength``;
+        angles stay on the time samples), angles compared with ``comparison.angle_difference``."""
+        from cobot_analysis.metrics import resample_arclength
+
+        x, y = self.x, self.y
+        if comparison.resample == "arclength" and comparison.both_resampled and len(self):
+            xy = [resample_arclength(xi, yi, self.n_samples) for xi, yi in zip(self.x, self.y)]
+            x, y = np.array([v[0] for v in xy]), np.array([v[1] for v in xy])
+        return TrajectorySet(self.meta, x, y, self.theta, self.gamma, comparison.angle_difference)
 
 
 def plain_dtypes(df: pd.DataFrame) -> pd.DataFrame:
@@ -246,7 +262,7 @@ def _rows(comparison: str, a: TrajectorySet, b: TrajectorySet, ia, ib) -> pd.Dat
     out["orientation_change"] = np.abs(a.theta[ia, -1] - a.theta[ia, 0]) if len(ia) else np.zeros(0)
     for c in B_COLUMNS:
         out[f"b_{c}"] = b.meta[c].to_numpy()[ib] if c in b.meta.columns else None
-    out = pd.concat([out, pd.DataFrame(pair_distances(a.arrays, b.arrays, ia, ib))], axis=1)
+    out = pd.concat([out, pd.DataFrame(pair_distances(a.arrays, b.arrays, ia, ib, a.angle_difference))], axis=1)
     return out
 
 
@@ -364,3 +380,45 @@ def compare_sets(trials: TrajectorySet, means: TrajectorySet | None, *, by: list
     if not parts:
         return _rows("individual-mean", trials, trials, [], [])
     return pd.concat(parts, ignore_index=True)
+
+
+def against_set(path: Path, n_samples: int, convention) -> TrajectorySet:
+    """``compare --against`` table as a set on ``n_samples`` samples, under ``convention``: its
+    ``convention`` (column or metadata, when it has one) must be the one asked for; each trajectory is
+    put on ``n_samples`` samples as the convention compares a model path with a measured one
+    (arc length, or time; ``metrics.path_distances``)."""
+    import pyarrow.parquet as pq
+
+    from cobot_analysis import conventions
+    from cobot_analysis.metrics import gamma_from_path, resample_arclength, resample_time
+    from cobot_analysis.schema import table_metadata
+
+    try:
+        df = pq.read_table(path).to_pandas()
+        stored = table_metadata(path).get("convention")
+    except Exception as exc:  # pyarrow raises several types for corrupt files
+        raise InputError(f"not a readable trajectory table ({type(exc).__name__})", path=path, remedy="pass a Parquet trajectory table") from None
+    found = {str(path): stored or (str(df["convention"].iloc[0]) if "convention" in df and len(df) else None),
+             "--convention": convention.name}
+    conventions.check_same(found, "the --against table and this comparison")
+    missing = [c for c in (*KEY, "sample", "x", "y") if c not in df.columns]
+    if missing:
+        raise InputError(f"trajectory table lacks columns {missing}", path=path, remedy="pass a trajectories.parquet or generated.parquet")
+    rows = []
+    for _, g in df.sort_values([*KEY, "sample"]).groupby(KEY, sort=False, observed=True):
+        x, y = g["x"].to_numpy(float), g["y"].to_numpy(float)
+        th = g["theta"].to_numpy(float) if "theta" in g else np.full(len(g), np.nan)
+        if convention.comparison.resample == "arclength":
+            try:
+                x, y = resample_arclength(x, y, n_samples)
+            except ValueError as exc:
+                raise InputError(f"trajectory {g['trial'].iloc[0]!r}: {exc}", path=path, remedy="leave it out of the table") from None
+            th = resample_time(th, n_samples, authors=True)
+        else:
+            x, y, th = (resample_time(v, n_samples) for v in (x, y, th))
+        first = g.iloc[[0]].assign(sample=0)
+        rows.append(pd.concat([first] * n_samples, ignore_index=True).assign(
+            sample=np.arange(n_samples), x=x, y=y, theta=th, gamma=gamma_from_path(x, y, th)))
+    if not rows:
+        raise InputError("trajectory table is empty", path=path, remedy="pass the table generate wrote")
+    return pivot(pd.concat(rows, ignore_index=True), path)

@@ -42,6 +42,7 @@ class Comparison:
     resample: str  # "time": pointwise on time-normalised samples | "arclength": splprep (s = 0) resampling first
     both_resampled: bool  # with "arclength": the measured path is resampled too (the authors' final scripts)
     angle_difference: str  # "wrapped": |wrap(a - b)| | "each": |wrap(a) - wrap(b)| (each angle wrapped on its own)
+    measured_gamma: str  # gamma of a measured path: "data" (as recorded, when the data hold it) | "path" (from x, y, theta)
     sd_ddof: int  # 1: sample sd | 0: population sd (numpy.std)
 
 
@@ -87,7 +88,7 @@ PUBLISHED = Convention(
         "table": OCRule("euler", "nelder-mead", dt=0.1, psi="raw", heading="wrap-once", psi_eps=1e-3),
         "mombaur": OCRule("euler", "last-node", dt=0.01, psi="raw", heading="fmod-pi", psi_eps=1e-3),
     },
-    comparison=Comparison(resample="arclength", both_resampled=True, angle_difference="each", sd_ddof=0),
+    comparison=Comparison(resample="arclength", both_resampled=True, angle_difference="each", measured_gamma="data", sd_ddof=0),
     prediction=PredictionRule(node_dt=0.1, start="rest", warm_start=False, table_weights="table-prediction-2022"),
 )
 
@@ -103,7 +104,7 @@ CONTINUOUS = Convention(
         "mombaur": OCRule("midpoint", "grid"),
         "coupled": OCRule("midpoint", "free"),
     },
-    comparison=Comparison(resample="time", both_resampled=False, angle_difference="wrapped", sd_ddof=1),
+    comparison=Comparison(resample="time", both_resampled=False, angle_difference="wrapped", measured_gamma="path", sd_ddof=1),
     prediction=PredictionRule(node_dt=None, start="estimated", warm_start=True, table_weights="table-2022"),
 )
 
@@ -117,6 +118,11 @@ def get(name: str | Convention, option: str = "--convention") -> Convention:
     if name not in CONVENTIONS:
         raise InputError(f"{option} {name!r} is not a convention", remedy=f"use one of {', '.join(NAMES)}")
     return CONVENTIONS[name]
+
+
+def stage_name(base: str, convention: Convention) -> str:
+    """The stage directory of ``base`` under ``convention``: ``base`` (continuous) or ``base-published``."""
+    return base if convention.name == "continuous" else f"{base}-{convention.name}"
 
 
 def check_same(found: dict[str, str | None], what: str = "these inputs") -> str | None:

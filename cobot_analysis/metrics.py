@@ -118,11 +118,12 @@ def _gamma_difference(g1, g2, difference: str):
 
 
 # ---- distances over many pairs at once ------------------------------------------------------------
-def pair_distances(a: dict, b: dict, ia, ib) -> dict[str, np.ndarray]:
+def pair_distances(a: dict, b: dict, ia, ib, angle_difference: str = "wrapped") -> dict[str, np.ndarray]:
     """d_xy, d_theta, d_gamma between trajectories ``a[k][ia[j]]`` and ``b[k][ib[j]]`` for every j.
 
     ``a`` and ``b`` map "x", "y", "theta", "gamma" to arrays (n_traj, N); ``ia``/``ib`` are index
-    arrays of equal length. Angular distances are NaN where either trajectory lacks orientation
+    arrays of equal length; ``angle_difference`` as in ``angle_distance`` ("wrapped" or "each").
+    Angular distances are NaN where either trajectory lacks orientation
     at some sample (docs/methods.md sec. 2.9: such trials leave only the orientation comparison).
     Work is done in blocks so that memory stays bounded for tens of thousands of pairs.
     """
@@ -132,10 +133,13 @@ def pair_distances(a: dict, b: dict, ia, ib) -> dict[str, np.ndarray]:
     for s in range(0, len(ia), block):
         i, j = ia[s:s + block], ib[s:s + block]
         out["d_xy"][s:s + block] = d_xy(a["x"][i], a["y"][i], b["x"][j], b["y"][j])
-        for key, fn in (("theta", d_theta), ("gamma", d_gamma)):
+        for key in ("theta", "gamma"):
             if key in a and key in b:
+                ai, bj = a[key][i], b[key][j]
+                if key == "gamma":  # N - 1 samples (sec. 3)
+                    ai, bj = ai[..., :-1], bj[..., :-1]
                 with np.errstate(invalid="ignore"):
-                    out[f"d_{key}"][s:s + block] = fn(a[key][i], b[key][j])
+                    out[f"d_{key}"][s:s + block] = angle_distance(ai, bj, angle_difference)
     return out
 
 

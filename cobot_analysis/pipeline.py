@@ -12,6 +12,7 @@ from pathlib import Path
 
 from cobot_analysis import __version__
 from cobot_analysis.errors import InputError
+from cobot_analysis.reports import reproduction
 from cobot_analysis.workspace import git_commit
 
 
@@ -25,6 +26,7 @@ def assemble_results(workspaces: list[Path], title: str = "Results", preface: st
         f"{datetime.now(timezone.utc):%Y-%m-%d}; do not edit by hand: re-run the command that wrote it.",
         "",
         *([preface.strip(), ""] if preface else []),
+        *reproduction.section(workspaces),
     ]
     found = 0
     for ws in workspaces:
@@ -44,8 +46,9 @@ def assemble_results(workspaces: list[Path], title: str = "Results", preface: st
 
 #: the stages in the order data flows through them (io -> preprocess -> ... -> reports)
 STAGE_ORDER = ("synth-walking", "synth-pairs", "synth-localisation", "import-published", "import", "preprocess", "average",
-               "compare", "stats", "reconstruct", "fit-ioc", "fit-ioc-subjects", "fit-ioc-coupled", "generate", "predict", "predict-fitted",
-               "localisation", "report")
+               "compare", "compare-published", "stats", "reconstruct", "fit-ioc", "fit-ioc-published", "fit-ioc-subjects",
+               "fit-ioc-subjects-published", "fit-ioc-coupled", "generate", "generate-published", "predict", "predict-published",
+               "predict-fitted", "predict-fitted-published", "localisation", "report")
 
 
 def _run_order(fragment: Path) -> tuple[int, float]:

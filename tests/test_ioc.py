@@ -117,7 +117,7 @@ def test_fit_ioc_command_end_to_end_and_per_subject(planted_paths, tmp_path, cli
     fits = json.loads((out / "fit-ioc-subjects" / "weights.json").read_text())["fits"]
     assert sorted(fits) == ["S1", "S2"]
     assert json.loads((out / "fit-ioc" / "weights.json").read_text())["fits"].keys() == {"all"}
-    assert "## Inverse optimal control (improved model, one fit per subject)" in (out / "fit-ioc-subjects" / "results.md").read_text()
+    assert "## Inverse optimal control (improved model, one fit per subject, continuous convention)" in (out / "fit-ioc-subjects" / "results.md").read_text()
 
 
 def test_fit_ioc_on_dask_equals_local_run(planted_paths, tmp_path, cli):

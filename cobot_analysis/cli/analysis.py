@@ -17,7 +17,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from cobot_analysis.cli.app import PANEL_ANALYSIS, PANEL_REPORT, DEFAULT_OUT_PATH, ForceOpt, OutOpt, app
+from cobot_analysis.cli.app import PANEL_ANALYSIS, PANEL_REPORT, DEFAULT_OUT_PATH, ConventionOpt, ForceOpt, OutOpt, app
 from cobot_analysis.errors import InputError
 
 TRAJ_STAGES = ["preprocess", "import-published"]
@@ -120,37 +120,41 @@ def compare_command(
     label: Annotated[str, typer.Option("--label", help="comparison name of the --against rows (e.g. model).")] = "against",
     any_any: Annotated[Optional[str], typer.Option("--any-vs-any", help="Also compare every two trials that agree on these comma-separated columns (e.g. condition,entity) -> comparison any-any.")] = None,
     by: ByOpt = None,
+    convention: ConventionOpt = None,
     force: ForceOpt = False,
 ) -> None:
     """Distances d_xy, d_theta, d_gamma: individual vs mean, between scenarios, forward vs reversed return,
-    recomputed vs published means, --against vs means, --any-vs-any -> compare/distances.parquet (one row per pair)."""
+    recomputed vs published means, --against vs means, --any-vs-any -> compare/distances.parquet (one row per pair).
+
+    --convention continuous (default: the pointwise distances of docs/methods.md sec. 3 on time-normalised
+    samples) or published (both paths resampled by arc length first, angles wrapped one by one, population
+    sd: the authors' scripts; writes compare-published/). An --against table made under the other
+    convention is refused."""
     import pandas as pd
 
-    from cobot_analysis.compare import (DISTANCES, WALKING_GROUPS, against_vs_mean, any_vs_any, compare_sets, default_groups,
-                                        pivot, read_trajectory_set)
+    from cobot_analysis import conventions
+    from cobot_analysis.compare import (DISTANCES, WALKING_GROUPS, against_set, against_vs_mean, any_vs_any, compare_sets,
+                                        default_groups, read_trajectory_set)
     from cobot_analysis.console import info
     from cobot_analysis.schema import table_metadata, write_table
     from cobot_analysis.workspace import Stage, find_input
 
+    conv = conventions.get(convention or "continuous")
     path, ts = _trajectories(out, trajectories)
     means_path = means or find_input(out, "means.parquet", ["average"], "--means")
     mts = read_trajectory_set(means_path, ("means",))
     stored = table_metadata(means_path).get("grouping")
     groups = _by(by, list(ts.meta.columns), path) or stored or default_groups(ts.meta)
-    other = None
-    if against is not None:
-        import pyarrow.parquet as pq
-
-        try:
-            against_df = pq.read_table(against).to_pandas()
-        except Exception as exc:
-            raise InputError(f"not a readable trajectory table ({type(exc).__name__})", path=against, remedy="pass a Parquet trajectory table") from None
-        other = pivot(against_df, against)
+    other = against_set(against, mts.n_samples, conv) if against is not None else None
     same = _by(any_any, list(ts.meta.columns), path)
     inputs = [path, means_path] + ([against] if against else [])
-    with Stage(out, "compare", inputs=inputs, params={"by": groups, "label": label, "any_vs_any": same}, force=force) as stage:
+    params = {"by": groups, "label": label, "any_vs_any": same, "convention": conv.name}
+    with Stage(out, conventions.stage_name("compare", conv), inputs=inputs, params=params, force=force) as stage:
         if stage.skipped:
             return
+        ts, mts = ts.compared_as(conv.comparison), mts.compared_as(conv.comparison)
+        if other is not None:
+            other.angle_difference = conv.comparison.angle_difference
         trials = ts.subset(ts.meta["kind"].eq("trial").to_numpy())
         parts = [compare_sets(trials, mts, by=groups)]
         published = ts.subset(ts.meta["kind"].eq("mean").to_numpy())
@@ -162,19 +166,26 @@ def compare_command(
         if other is not None:
             parts.append(against_vs_mean(other, mts, groups, label, against))
         d = pd.concat([p for p in parts if len(p)] or parts[:1], ignore_index=True)
-        write_table(d, stage.path("distances.parquet"), DISTANCES, grouping=groups)
-        summary = d.groupby(["comparison", "entity"])[["d_xy", "d_theta", "d_gamma"]].agg(["mean", "std", "count"])
-        lines = ["## Distances between trajectories", "",
-                 "d_xy (m), d_theta (rad, differences wrapped to [-pi, pi]), d_gamma (rad, N-1 samples) "
-                 "(docs/methods.md sec. 3); symmetry = forward vs time-reversed return; angular distances only where "
-                 "both trajectories have orientation.", "",
+        d["convention"] = conv.name
+        write_table(d, stage.path("distances.parquet"), DISTANCES, grouping=groups, convention=conv.name)
+        ddof = conv.comparison.sd_ddof
+        summary = d.groupby(["comparison", "entity"])[["d_xy", "d_theta", "d_gamma"]].agg(
+            ["mean", lambda v: v.std(ddof=ddof), "count"]).rename(columns={"<lambda_0>": "std"})
+        how = ("pointwise on the time-normalised samples, angle differences wrapped to [-pi, pi], sample sd"
+               if conv.name == "continuous" else
+               "after resampling both paths by arc length (scipy splprep, s = 0), each angle wrapped to [-pi, pi] on "
+               "its own, population sd (the authors' scripts)")
+        lines = [f"## Distances between trajectories ({conv.name} convention)", "",
+                 f"d_xy (m), d_theta (rad), d_gamma (rad, N-1 samples) (docs/methods.md sec. 3, 11), {how}; "
+                 "symmetry = forward vs time-reversed return; angular distances only where both trajectories have "
+                 "orientation.", "",
                  "| comparison | entity | n | d_xy mean +- sd | d_theta mean +- sd | d_gamma mean +- sd |", "|---|---|---|---|---|---|"]
         for (comp, ent), r in summary.iterrows():
             fmt = [f"{r[(k, 'mean')]:.3f} +- {r[(k, 'std')]:.3f} (n={int(r[(k, 'count')])})" if r[(k, "count")] else "n/a"
                    for k in ("d_xy", "d_theta", "d_gamma")]
             lines.append(f"| {comp} | {ent} | {int(r[('d_xy', 'count')])} | " + " | ".join(fmt) + " |")
         stage.path("results.md").write_text("\n".join(lines) + "\n")
-        info(f"compare: {len(d)} compared pairs -> {stage.final_dir / 'distances.parquet'}")
+        info(f"compare ({conv.name}): {len(d)} compared pairs -> {stage.final_dir / 'distances.parquet'}")
 
 
 # ---- stats --------------------------------------------------------------------------------------

@@ -44,6 +44,9 @@ ForceOpt = Annotated[bool, typer.Option("--force", help="Redo the stage even if 
 JobsOpt = Annotated[Optional[int], typer.Option("--jobs", "-j", min=1, help="Local worker processes (default: all cores).")]
 SchedulerOpt = Annotated[Optional[str], typer.Option("--scheduler", help="Dask scheduler ADDRESS (e.g. tcp://host:8786); default: local process pool.")]
 SeedOpt = Annotated[int, typer.Option("--seed", help="Random seed (results are deterministic for a given seed).")]
+ConventionOpt = Annotated[Optional[str], typer.Option(
+    "--convention", help="published (the authors' discrete conventions, reproduces the papers) or continuous (ours); "
+                         "docs/methods.md sec. 11. Outputs of the published convention go to STAGE-published/.")]
 DEFAULT_OUT_PATH = DEFAULT_OUT
 
 

@@ -8,7 +8,8 @@ from typing import Annotated, Optional
 
 import typer
 
-from cobot_analysis.cli.app import PANEL_MODELS, DEFAULT_OUT_PATH, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, SeedOpt, app
+from cobot_analysis.cli.app import (PANEL_MODELS, DEFAULT_OUT_PATH, ConventionOpt, ForceOpt, JobsOpt, OutOpt, SchedulerOpt,
+                                   SeedOpt, app)
 
 MODEL_CHOICES = ("unicycle", "clothoid", "mombaur", "improved", "table", "all")
 
@@ -62,6 +63,8 @@ def generate_command(
     duration: Annotated[Optional[Duration], typer.Option("--duration", help="Duration T: free (decision variable), search (1-D Brent), grid (Mombaur); default per model.")] = None,
     v_nominal: Annotated[float, typer.Option("--v-nominal", min=0.01, help="Nominal speed for the initial duration d / v + 1 s (m/s); clothoid speed.")] = 1.0,
     max_iter: Annotated[int, typer.Option("--max-iter", min=1, help="Iteration limit of the OC solver (a solve that hits it is an error).")] = 500,
+    means: Annotated[Optional[Path], typer.Option("--means", help="With --study and --convention published: the mean trajectories whose measured starts and ends the authors used, one path per condition they hold (default: the kind=mean rows of OUT/import-published/).")] = None,
+    convention: ConventionOpt = None,
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
     force: ForceOpt = False,
@@ -70,16 +73,23 @@ def generate_command(
 
     Writes OUT/generate/generated.parquet (the columns of measured trajectories plus the model's
     velocities, controls and cost) and results.md. A solve that does not converge is an error.
+
+    --convention (docs/methods.md sec. 11): default, the convention the weights were made under: published
+    for the presets (the papers' weights only mean what they mean under it) and the convention recorded in a
+    weights.json of fit-ioc; continuous otherwise. published: the authors' node step and duration rule, the
+    path as the solution's nodes (--samples, --intervals and --duration do not apply), --study starts and
+    ends from the measured means as the authors took them; writes OUT/generate-published/.
     """
     import math
 
     import pandas as pd
 
+    from cobot_analysis import conventions
     from cobot_analysis.design import WALKING_CONDITIONS, WALKING_GOAL, walking_condition
     from cobot_analysis.errors import InputError
     from cobot_analysis.models import MODELS, check_endpoints
     from cobot_analysis.models.outputs import GENERATED
-    from cobot_analysis.models.presets import load_weights
+    from cobot_analysis.models.presets import load_weights, weights_convention
     from cobot_analysis.parallel import map_tasks
     from cobot_analysis.schema import write_table
     from cobot_analysis.workspace import Stage
@@ -92,37 +102,81 @@ def generate_command(
         load_weights(weights, "improved")  # validate before any work
     if weights and Path(weights).is_file():
         inputs.append(Path(weights))
+    oc_models = [m for m in models if m != "clothoid"]
+    conv = conventions.get(convention or (weights_convention(weights) if oc_models else None) or "continuous")
+    for m in oc_models:
+        conv.oc_rule(m)
+    if conv.name == "published" and duration is not None:
+        raise InputError("--duration does not apply to the published convention (it has the authors' duration rule)",
+                         remedy="leave --duration out, or use --convention continuous")
     goal = tuple(goal) if goal is not None else WALKING_GOAL
     if study is not None:
         if study != "walking-2020":
             raise InputError(f"unknown study {study!r}", remedy="use --study walking-2020 or give --start")
-        cases = [(c, walking_condition(c).start) for c in WALKING_CONDITIONS]
+        if conv.name == "published":
+            cases = _published_walking_cases(out, means)
+            inputs.append(cases.pop())
+        else:
+            cases = [(c, walking_condition(c).start, goal) for c in WALKING_CONDITIONS]
     elif start is not None:
-        cases = [("", tuple(start))]
+        cases = [("", tuple(start), goal)]
     else:
         raise InputError("nothing to generate", remedy="give --start X Y THETA or --study walking-2020")
-    for _, s in cases:
-        check_endpoints(s, goal)
+    for _, s, g in cases:
+        check_endpoints(s, g)
     kw = {"n_samples": samples, "n_intervals": intervals, "duration": duration.value if duration else None,
-          "v_nominal": v_nominal, "max_iter": max_iter}
-    params = {"models": models, "weights": weights, "goal": goal, "cases": cases, **kw}
-    with Stage(out, "generate", inputs=inputs, params=params, force=force) as stage:
+          "v_nominal": v_nominal, "max_iter": max_iter, "convention": conv.name}
+    params = {"models": models, "weights": weights, "cases": cases, **kw}
+    with Stage(out, conventions.stage_name("generate", conv), inputs=inputs, params=params, force=force) as stage:
         if stage.skipped:
             return
-        tasks = [(m, s, goal, weights if m != "clothoid" else None,
+        tasks = [(m, s, g, weights if m != "clothoid" else None,
                   {**kw, "trial": f"{m}_{c}" if c else m, "condition": c, "study": study or "model"})
-                 for m in models for c, s in cases]
+                 for m in models for c, s, g in cases]
         frames = map_tasks(_generate_task, tasks, jobs=jobs, scheduler=scheduler, description="generate")
         df = pd.concat(frames, ignore_index=True)
-        write_table(df, stage.path("generated.parquet"), GENERATED, n_samples=samples, n_intervals=intervals)
+        write_table(df, stage.path("generated.parquet"), GENERATED, n_samples=samples, n_intervals=intervals,
+                    convention=conv.name)
         ends = df.groupby("trial").tail(1)
-        lines = ["## Generated trajectories", "",
-                 f"Models {', '.join(models)}; weights {weights or 'model presets'}; goal {tuple(round(g, 3) for g in goal)}; "
-                 f"OC grid {intervals} intervals resampled to {samples} samples.", "",
+        grid = (f"OC grid {intervals} intervals resampled to {samples} samples" if conv.name == "continuous" else
+                "the authors' node step and duration rule, paths at their nodes")
+        goals = sorted({tuple(round(v, 3) for v in g) for _, _, g in cases})
+        lines = [f"## Generated trajectories ({conv.name} convention)", "",
+                 f"Models {', '.join(models)}; weights {weights or 'model presets'}; "
+                 f"goal{'s' if len(goals) > 1 else ''} {goals[0] if len(goals) == 1 else f'of the {len(goals)} measured means'}; "
+                 f"{grid} (docs/methods.md sec. 11: {conv.summary}).", "",
                  "| trial | T (s) | cost | end error (m) |", "|---|---|---|---|"]
+        goal_of = {f"{m}_{c}" if c else m: g for m in models for c, _, g in cases}
         for _, r in ends.iterrows():
-            lines.append(f"| {r.trial} | {r.travel_time:.2f} | {r.cost:.3f} | {math.hypot(r.x - goal[0], r.y - goal[1]):.3f} |")
+            g = goal_of[r.trial]
+            lines.append(f"| {r.trial} | {r.travel_time:.2f} | {r.cost:.3f} | {math.hypot(r.x - g[0], r.y - g[1]):.3f} |")
         stage.path("results.md").write_text("\n".join(lines) + "\n")
+        from cobot_analysis.console import info
+
+        info(f"generate ({conv.name}): {df['trial'].nunique()} trajectories -> {stage.final_dir / 'generated.parquet'}")
+
+
+def _published_walking_cases(out: Path, means: Path | None) -> list:
+    """The 40 walking conditions with the authors' start and goal poses (``ioc.targets.published_endpoints``),
+    from the measured means; the last item is the means file read."""
+    from cobot_analysis.design import WALKING_CONDITIONS
+    from cobot_analysis.errors import InputError
+    from cobot_analysis.models.ioc.targets import published_endpoints
+    from cobot_analysis.workspace import find_input
+
+    path = means or find_input(out, "trajectories.parquet", ["import-published"], "--means")
+    df = _read_trajectories(path)
+    df = df[(df["kind"] == "mean") & (df["entity"] == "walker")] if "kind" in df else df
+    cases = []
+    for c in WALKING_CONDITIONS:  # the conditions the means have
+        g = df[df["condition"] == c].sort_values("sample")
+        if len(g):
+            start, goal = published_endpoints(c, g["x"].to_numpy(float), g["y"].to_numpy(float))
+            cases.append((c, start, goal))
+    if not cases:
+        raise InputError("no mean trajectory of a walking-study condition", path=path,
+                         remedy="pass the walking-2020 means (import-published walking-2020, or average) with --means")
+    return cases + [Path(path)]
 
 
 # ---- fit-ioc -----------------------------------------------------------------------------------
@@ -155,6 +209,7 @@ def fit_ioc_command(
     v_nominal: Annotated[float, typer.Option("--v-nominal", min=0.05, help="Nominal speed (m/s) of T0 = distance / v + 1 s; the free duration T is bounded to (0.4, 2.5) x T0.")] = 1.0,
     compare: Annotated[bool, typer.Option("--compare/--no-compare", help="Compare unicycle, clothoid, Mombaur, published and fitted models.")] = True,
     resume: Annotated[bool, typer.Option("--resume", help="Continue from the checkpoint of an interrupted run with the same inputs and options.")] = False,
+    convention: ConventionOpt = None,
     seed: SeedOpt = 0,
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
@@ -180,14 +235,18 @@ def fit_ioc_command(
     from cobot_analysis.models.ioc import IOCSpec, fit, pair_targets_from_table, targets_from_table
     from cobot_analysis.models.outputs import IOC_DISTANCES
     from cobot_analysis.models.presets import load_weights, names_for, weights_vector
-    from cobot_analysis.models.report import (COMPARED, compare_models, duration_flag, figure_boxplots, figure_paths,
+    from cobot_analysis.models.report import (compare_models, compared_models, duration_flag, figure_boxplots, figure_paths,
                                               statistics, subject_distances, summary_table)
     from cobot_analysis.parallel import default_jobs, executor
     from cobot_analysis.schema import Column, TableSchema, write_table
     from cobot_analysis.workspace import Stage, find_input
 
+    from cobot_analysis import conventions
+
     if model not in ("improved", "table", "coupled"):
         raise InputError(f"fit-ioc fits the improved, table or coupled model, not {model!r}", remedy="use --model improved, table or coupled")
+    conv = conventions.get(convention or "continuous")
+    conv.oc_rule(model)
     all_names = names_for(model)
     # b0 fixes the scale; a5, a6 of the walker belong to the Mombaur model; the coupled time cost a0 is
     # not identifiable from time-normalised paths (fitted, it goes to ~0 and every T to its bound)
@@ -212,6 +271,8 @@ def fit_ioc_command(
             traj_path = find_input(out, "trajectories.parquet", ["import-published", "preprocess"], "--trajectories")
         except InputError:
             traj_path = None
+    if means is None and conv.name == "published" and traj_path is not None and traj_path.parent.name == "import-published":
+        means = traj_path  # the published convention compares with the authors' own mean block
     if means is None:
         try:
             means = find_input(out, "means.parquet", ["average"], "--means")
@@ -242,7 +303,7 @@ def fit_ioc_command(
         mean_targets = pair_targets_from_table(mean_df, path=mean_src)
         compare = False
     else:
-        mean_targets = targets_from_table(mean_df, path=mean_src, entity=entity, goal=goal_for(mean_df))
+        mean_targets = targets_from_table(mean_df, path=mean_src, entity=entity, goal=goal_for(mean_df), convention=conv)
     fits: dict[str, list] = {}
     if per is Per.all:
         if not mean_targets:
@@ -255,7 +316,7 @@ def fit_ioc_command(
         if trial_df is None or trial_df.empty:
             raise InputError("--per subject needs subject trials", path=traj_path or out, remedy="pass --trajectories with kind=trial rows")
         for subject, g in sorted(trial_df.groupby("subject")):
-            ts = targets_from_table(g, path=traj_path, entity=entity, goal=goal_for(g))
+            ts = targets_from_table(g, path=traj_path, entity=entity, goal=goal_for(g), convention=conv)
             if ts:
                 fits[str(subject)] = ts
         if subjects:
@@ -264,13 +325,16 @@ def fit_ioc_command(
             raise InputError("no subject trajectory with orientation", path=traj_path, remedy="check the input table")
 
     spec = IOCSpec(model=model, start_weights=tuple(map(float, w0)), fitted=names, optimizer=optimizer.value,
-                   max_evaluations=max_evaluations, n_intervals=intervals, v_nominal=v_nominal)
+                   max_evaluations=max_evaluations, n_intervals=intervals, v_nominal=v_nominal, convention=conv.name,
+                   # published: the iteration budget of the authors' DDP (crocoddyl's default maxiter)
+                   **({"max_iter": 100} if conv.name == "published" else {}))
     inputs = [p for p in (means, traj_path) if p is not None]
     if start_weights and Path(start_weights).is_file():
         inputs.append(Path(start_weights))
     params = {"spec": spec.__dict__, "per": per.value, "subjects": subjects, "goal": goal.value, "compare": compare, "seed": seed}
     # own stages: the coupled fit never replaces the table fit, nor per-subject fits the fit over the means
-    stage_name = "fit-ioc-coupled" if model == "coupled" else "fit-ioc-subjects" if per is Per.subject else "fit-ioc"
+    stage_name = conventions.stage_name(
+        "fit-ioc-coupled" if model == "coupled" else "fit-ioc-subjects" if per is Per.subject else "fit-ioc", conv)
     checkpoint_dir = Path(out) / f".{stage_name}.checkpoint"
     n_chunks = 4 * (default_jobs() if jobs is None else jobs) if scheduler is None else 8
     with Stage(out, stage_name, inputs=inputs, params=params, force=force) as stage:
@@ -289,11 +353,11 @@ def fit_ioc_command(
                                    resume=resume, on_evaluation=on_eval)
                 bar.update(task, total=results[key].evaluations, completed=results[key].evaluations)
         stage.path("weights.json").write_text(json.dumps({
-            "model": model, "weights_order": list(all_names),
+            "model": model, "convention": conv.name, "weights_order": list(all_names),
             "weights": results["all"].weights if "all" in results else None,
             "fits": {k: r.to_json() for k, r in results.items()}}, indent=2, default=float) + "\n")
         for k, r in results.items():  # each fit also as a file usable with --weights
-            stage.path(f"weights/{k}.json").write_text(json.dumps({"weights": r.weights}, indent=2) + "\n")
+            stage.path(f"weights/{k}.json").write_text(json.dumps({"convention": conv.name, "weights": r.weights}, indent=2) + "\n")
 
         # distances: fitted model per trajectory; full model comparison on the means
         coupled = None
@@ -314,19 +378,25 @@ def fit_ioc_command(
         angle = spec.angle
         comparison = None
         if compare and "all" in results:
-            models = dict(COMPARED) if model == "improved" else {"table OC (published)": ("table", "table-2022")}
+            models = compared_models(conv) if model == "improved" else {"table OC (published)": ("table", "table-2022")}
             models["improved OC (fitted)" if model == "improved" else "table OC (fitted)"] = (
                 "improved" if model == "improved" else "table", results["all"].weights)
-            comparison = compare_models(mean_targets, models, n_intervals=intervals, angle=angle, jobs=jobs, scheduler=scheduler)
+            # every mean, those without orientation too (their d_xy; the authors compared all 40 walking means)
+            compared = targets_from_table(mean_df, path=mean_src, entity=entity, goal=goal_for(mean_df), convention=conv,
+                                          unoriented=True)
+            comparison = compare_models(compared, models, n_intervals=intervals, angle=angle, jobs=jobs, scheduler=scheduler,
+                                        convention=conv.name)
             if trial_df is not None and not trial_df.empty and model == "improved":
                 trials = targets_from_table(trial_df, path=traj_path, entity=entity)
-                comparison = pd.concat([comparison, subject_distances(trials, mean_targets, angle)], ignore_index=True)
+                comparison = pd.concat([comparison, subject_distances(trials, mean_targets, angle, conv.name)], ignore_index=True)
             dist = pd.concat([dist[dist["fit"] != "all"], comparison], ignore_index=True)
         from cobot_analysis.models.report import orientation_of
 
         dist["orientation"] = [orientation_of(c) for c in dist["condition"]]
         dist["subject"] = dist["subject"].fillna("")
-        extra = {"converged": Column("bool", "", "the model's OC solve converged")}
+        dist["convention"] = conv.name
+        extra = {"converged": Column("bool", "", "the model's OC solve converged"),
+                 "convention": Column("string", "", "published or continuous (docs/methods.md sec. 11)")}
         if coupled is not None:
             extra = {"direction": Column("string", "", "forward or return"),
                      "carrier": Column("int", "", "1 or 2; carrier 1 is Subject 1 forward, Subject 2 on returns (subject column)"),
@@ -335,22 +405,32 @@ def fit_ioc_command(
         write_table(dist.drop(columns=["converged"]).assign(converged=dist["converged"].astype(bool)),
                     stage.path("distances.parquet"), TableSchema(
                         name=IOC_DISTANCES.name, version=IOC_DISTANCES.version, description=IOC_DISTANCES.description,
-                        columns={**IOC_DISTANCES.columns, **extra}))
+                        columns={**IOC_DISTANCES.columns, **extra}), convention=conv.name)
         hist = pd.DataFrame([{"fit": k, "objective": r.objective, "start_objective": r.start_objective,
                               "evaluations": r.evaluations, "iterations": r.iterations, "failed": r.failed, **r.weights}
                              for k, r in results.items()])
         hist.to_csv(stage.path("fits.csv"), index=False)
 
         # report
-        lines = [f"## Inverse optimal control ({model} model{', one fit per subject' if per is Per.subject else ''})", "",
+        if conv.name == "published":
+            lower = ("lower level: the published convention (docs/methods.md sec. 11): explicit Euler at the authors' node "
+                     "step, costs summed per node, the authors' start and goal poses; each path's horizon chosen by the authors' "
+                     "duration rule (Nelder-Mead on J/T) at the start weights and held during the fit, then the rule run again "
+                     "at the fitted weights (the D fitted below); distances after arc-length resampling of both paths, the "
+                     f"authors' mean block ({mean_src})")
+        else:
+            lower = (f"lower level: OC with free duration on {intervals} intervals (continuous convention, docs/methods.md "
+                     "sec. 11), warm-started from the solution at the best weights so far")
+        lines = [f"## Inverse optimal control ({model} model{', one fit per subject' if per is Per.subject else ''}, "
+                 f"{conv.name} convention)", "",
                  f"Bi-level IOC (docs/methods.md sec. 6): upper level {optimizer.value} over log10 of ({', '.join(names)}), "
                  f"bounds 1e-7..1e3, the other weights held at their start value "
                  f"({'neutral start: fitted weights 1' if start_weights == 'ones' else start_weights or 'model preset'}); "
-                 f"lower level: OC with free duration on {intervals} intervals, warm-started from the solution at the best "
-                 f"weights so far; objective D = d_xy + 0.5 d_{angle} averaged over the trajectories (orientation required; "
-                 f"goal: {goal.value})"
-                 + (". gamma of measured and generated paths from the path (metrics.gamma_from_path)." if angle == "gamma" else
-                    "; pair study: per-scenario means (the pooled 'all' means left out).")
+                 f"{lower}; objective D = d_xy + 0.5 d_{angle} averaged over the trajectories (orientation required; "
+                 f"goal: {goal.value if conv.name == 'continuous' else 'the authors'})"
+                 + ((". gamma of the measured path: " + ("recorded in the data" if conv.comparison.measured_gamma == "data" else
+                                                           "from the path (metrics.gamma_from_path)") + "; of the model's path: from the path.")
+                    if angle == "gamma" else "; pair study: per-scenario means (the pooled 'all' means left out).")
                  + (" Coupled model: scenario-3 forward and return means, Subject 2 as carrier 1 on returns." if model == "coupled" else ""),
                  "",
                  "| fit | paths | D start | D fitted | evaluations | not converged | " + " | ".join(names) + " |",
@@ -360,8 +440,12 @@ def fit_ioc_command(
                          + " | ".join(f"{r.weights[n]:.3g}" for n in names) + " |")
         lines.append("")
         for k, r in results.items():
-            lines += [("" if per is Per.all else f"Fit {k}: ") + duration_flag(r.per_target, v_nominal)
+            lines += [("" if per is Per.all else f"Fit {k}: ") + duration_flag(r.per_target, v_nominal, conv.name)
                       + (f" Optimiser: {r.message.strip()}" if per is Per.all else ""), ""]
+            if r.held_objective is not None:
+                lines += [f"{'' if per is Per.all else f'Fit {k}: '}with the horizons held, D = {r.held_objective:.4f} at the "
+                          f"fitted weights; the duration rule run again there moves the horizon of {r.horizons_changed} of "
+                          f"{len(fits[k])} paths (D = {r.objective:.4f}).", ""]
         if coupled is not None:
             from cobot_analysis.models.report import coupled_section
 
@@ -372,7 +456,8 @@ def fit_ioc_command(
                 pass  # no published durations (e.g. a synthetic pair study): the section says so
             lines += coupled_section(results["all"], coupled, mean_targets, stage, durations)
         if comparison is not None:
-            lines += ["### Model comparison on the mean trajectories", "", summary_table(comparison, angle),
+            lines += [f"### Model comparison on the mean trajectories ({conv.name} convention)", "",
+                      summary_table(comparison, angle, ddof=conv.comparison.sd_ddof),
                       "### Statistics", "", statistics(comparison, list(models)[-1], angle)]
             stage.savefig(figure_boxplots(comparison, angle), "distances_boxplot")
             lines += ["![distances per model](distances_boxplot.png)", ""]
@@ -384,7 +469,7 @@ def fit_ioc_command(
                 for lab, w in (("published", "walking-2021" if model == "improved" else "table-2022"), ("fitted", fitted_w)):
                     try:
                         gen[lab].append(generate("table" if model == "table" else "improved", t.start, t.goal, weights=w,
-                                                 n_samples=len(t.x), n_intervals=intervals))
+                                                 n_samples=len(t.x), n_intervals=intervals, convention=conv))
                     except Exception:  # noqa: BLE001 - a failed model run is left out of the figure
                         gen[lab].append(None)
             stage.savefig(figure_paths(mean_targets, gen, "mean (black) vs improved OC: published, fitted"), "paths")
@@ -417,7 +502,7 @@ def velocity_commands_command(
     from cobot_analysis.schema import read_table, write_table
     from cobot_analysis.workspace import Stage, find_input
 
-    path = generated if generated is not None else find_input(out, "generated.parquet", ["generate"], "--generated")
+    path = generated if generated is not None else find_input(out, "generated.parquet", ["generate", "generate-published"], "--generated")
     df = read_table(path, GENERATED)
     trials = list(dict.fromkeys(df["trial"]))
     if trial is None:

@@ -41,18 +41,36 @@ DEMO_SIZES = {
 }
 
 
+DEMO_IOC_EVALUATIONS = 6  # upper-level evaluations of the demo's IOC, per convention
+DEMO_PREDICT_EVERY = 60  # the demo predicts every 60th walking trial (20 of the 1200)
+
+
 def demo_steps(out: Path, size: str, jobs: int | None) -> dict[str, list[list[str]]]:
     """The stage commands of the demo, per study workspace (what a user would type)."""
     walking, pairs, loc = out / "walking", out / "pairs", out / "localisation"
     j = ["--jobs", str(jobs)] if jobs else []
     size_w, size_p = DEMO_SIZES[size]
     analysis = ["average", "compare", "stats"]
+    means = str(walking / "average" / "means.parquet")
+    models = []  # the walking-path models on the synthetic means, under both conventions (docs/methods.md sec. 11)
+    for conv in ("continuous", "published"):
+        models += [
+            ["generate", "--out", str(walking), "--study", "walking-2020", "--weights", "walking-2021", "--convention", conv,
+             *(["--means", means] if conv == "published" else []), *j],
+            # a short IOC: DEMO_IOC_EVALUATIONS upper-level evaluations (a full fit: make walking)
+            ["fit-ioc", "--out", str(walking), "--convention", conv, "--max-evaluations", str(DEMO_IOC_EVALUATIONS),
+             "--no-compare", *j],
+            # a short prediction: every DEMO_PREDICT_EVERY-th trial, (N0, N_OC) = (50, 100)
+            ["predict", "--out", str(walking), "--kind", "trial", "--convention", conv, "--settings", "50:100",
+             "--every", str(DEMO_PREDICT_EVERY), *j],
+        ]
     return {
         "walking": [
             ["synth", "walking", "--out", str(walking), *size_w, *j],
             ["import", str(walking / "synth-walking" / "protocol.yaml"), "--out", str(walking), *j],
             ["preprocess", "--out", str(walking), *j],
             *([cmd, "--out", str(walking)] for cmd in analysis),
+            *models,
             ["report", "walking", "--out", str(walking), "--to", str(out / "reports" / "walking")],
         ],
         "pairs": [

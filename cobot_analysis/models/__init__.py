@@ -102,7 +102,7 @@ def generate(model: str, start: Sequence[float], goal: Sequence[float], weights=
     label = weights if isinstance(weights, str) else (DEFAULT_PRESET[model] if weights is None else "custom")
     w = weights_vector(load_weights(weights if weights is not None else DEFAULT_PRESET[model], "improved"))
     sol = solve_model(model, start, goal, w, convention=conv, n_intervals=n_intervals, duration=duration,
-                      v_nominal=v_nominal, solver=solver, guess=guesses, max_iter=max_iter)
+                      v_nominal=v_nominal, solver=solver, guess=guesses, max_iter=max_iter, warm=True)
     sol.check(f"{model} model from {tuple(np.round(start, 3))} to {tuple(np.round(goal, 3))}")
     kind = "unicycle" if model == "unicycle" else "walker"
     if conv.name == "published":

@@ -94,3 +94,18 @@ def load_weights(spec: str | Path | dict | None, model: str = "improved") -> dic
     if not all(np.isfinite(v) and v >= 0 for v in values.values()):
         raise InputError("weights must be finite and non-negative", path=path, remedy="fix the weights file")
     return values
+
+
+def weights_convention(spec: str | Path | dict | None, model: str = "improved") -> str | None:
+    """The convention weights were made under (docs/methods.md sec. 11): ``published`` for the presets
+    (the papers' weights) and for the model default (None), the ``convention`` of a fitted-weights
+    file, None when unknown (a mapping, or a file without one)."""
+    if spec is None or str(spec) in PRESETS:
+        return "published"
+    if isinstance(spec, dict):
+        return None
+    try:
+        data = json.loads(Path(spec).read_text())
+    except (OSError, ValueError):
+        return None
+    return data.get("convention") if isinstance(data, dict) else None

@@ -22,6 +22,11 @@ COMPARED = {
 }
 
 
+def compared_models(convention) -> dict:
+    """The models of the comparison that ``convention`` has (the published one has no unicycle)."""
+    return {k: v for k, v in COMPARED.items() if v[0] == "clothoid" or v[0] in convention.oc}
+
+
 def orientation_of(condition: str) -> str:
     """Start orientation letter of a walking condition code ('' if not a walking code)."""
     from cobot_analysis.design import walking_condition
@@ -37,14 +42,15 @@ def compare_task(task) -> list[dict]:
     from cobot_analysis.models import generate
     from cobot_analysis.models.presets import weights_vector
 
-    target, models, n_intervals, angle_weight, angle = task
+    target, models, n_intervals, angle_weight, angle, convention = task
     rows = []
     for label, (model, weights) in models.items():
         w = weights if isinstance(weights, str | None) else dict(zip(
             ("a0", "a1", "a2", "a3", "a4", "a5", "a6", "b0", "b1", "b2", "b3"), weights_vector(weights)))
         try:
-            df = generate(model, target.start, target.goal, weights=w, n_samples=len(target.x), n_intervals=n_intervals)
-            d = distances(target, df["x"].to_numpy(), df["y"].to_numpy(), df["theta"].to_numpy())
+            df = generate(model, target.start, target.goal, weights=w, n_samples=len(target.x), n_intervals=n_intervals,
+                          convention=convention)
+            d = distances(target, df["x"].to_numpy(), df["y"].to_numpy(), df["theta"].to_numpy(), convention)
             ok = True
         except Exception as exc:  # noqa: BLE001 - a failed model is a flagged row, not a crash
             from cobot_analysis.errors import SolverError
@@ -59,39 +65,44 @@ def compare_task(task) -> list[dict]:
 
 
 def compare_models(targets: list[Target], models: dict, *, n_intervals: int = 100, angle: str = "gamma",
-                   angle_weight: float = 0.5, jobs=None, scheduler=None, fit: str = "all") -> pd.DataFrame:
-    """Distances of every model in ``models`` (label -> (model, weights)) to every target."""
+                   angle_weight: float = 0.5, jobs=None, scheduler=None, fit: str = "all",
+                   convention: str = "continuous") -> pd.DataFrame:
+    """Distances of every model in ``models`` (label -> (model, weights)) to every target, each model
+    generated and compared under ``convention``."""
     from cobot_analysis.parallel import map_tasks
 
-    tasks = [(t, models, n_intervals, angle_weight, angle) for t in targets]
+    tasks = [(t, models, n_intervals, angle_weight, angle, convention) for t in targets]
     rows = map_tasks(compare_task, tasks, jobs=jobs, scheduler=scheduler, description="model comparison")
     df = pd.DataFrame([r for rs in rows for r in rs])
     df.insert(1, "fit", fit)
     return df
 
 
-def subject_distances(trials: list[Target], means: list[Target], angle: str = "gamma") -> pd.DataFrame:
-    """Distance of each subject trajectory to the mean of its condition (docs/methods.md sec. 4)."""
+def subject_distances(trials: list[Target], means: list[Target], angle: str = "gamma",
+                      convention: str = "continuous") -> pd.DataFrame:
+    """Distance of each subject trajectory to the mean of its condition (docs/methods.md sec. 4), under
+    ``convention`` (published: both paths resampled by arc length)."""
     by_condition = {m.condition: m for m in means}
     rows = []
     for t in trials:
         m = by_condition.get(t.condition)
         if m is None or len(m.x) != len(t.x):
             continue
-        d = distances(m, t.x, t.y, t.theta)
+        d = distances(m, t.x, t.y, t.theta, convention)
         rows.append({"model": "subjects vs mean", "fit": "", "trial": t.trial, "condition": t.condition, "subject": t.subject,
                      "orientation": orientation_of(t.condition), "global_distance": m.global_distance, **d,
                      "D": d["d_xy"] + 0.5 * d[f"d_{angle}"], "converged": True})
     return pd.DataFrame(rows)
 
 
-def _ms(v: pd.Series, digits: int = 3) -> str:
+def _ms(v: pd.Series, digits: int = 3, ddof: int = 1) -> str:
     v = v.dropna()
-    return f"{v.mean():.{digits}f} ± {v.std(ddof=1):.{digits}f}" if len(v) > 1 else (f"{v.mean():.{digits}f}" if len(v) else "–")
+    return f"{v.mean():.{digits}f} ± {v.std(ddof=ddof):.{digits}f}" if len(v) > 1 else (f"{v.mean():.{digits}f}" if len(v) else "–")
 
 
-def summary_table(df: pd.DataFrame, angle: str = "gamma") -> str:
-    """Markdown: d_xy and d_<angle> (mean ± sd) per model, overall / by orientation / by global distance."""
+def summary_table(df: pd.DataFrame, angle: str = "gamma", ddof: int = 1) -> str:
+    """Markdown: d_xy and d_<angle> (mean ± sd, ``ddof`` of the sd) per model, overall / by orientation
+    / by global distance."""
     df = df.copy()
     df["distance group"] = np.where(df["global_distance"] < GLOBAL_DISTANCE_SPLIT, f"< {GLOBAL_DISTANCE_SPLIT:g} m",
                                     f"> {GLOBAL_DISTANCE_SPLIT:g} m")
@@ -103,7 +114,7 @@ def summary_table(df: pd.DataFrame, angle: str = "gamma") -> str:
         lines += [f"**{metric}** ({unit}, mean ± sd over trajectories)", "",
                   "| model | n | " + " | ".join(c for c, _ in cols) + " |", "|---|---|" + "---|" * len(cols)]
         for model, g in df.groupby("model", sort=False):
-            cells = [_ms(g[metric] if sel is None else g.loc[g[sel[0]] == sel[1], metric]) for _, sel in cols]
+            cells = [_ms(g[metric] if sel is None else g.loc[g[sel[0]] == sel[1], metric], ddof=ddof) for _, sel in cols]
             lines.append(f"| {model} | {g[metric].notna().sum()} | " + " | ".join(cells) + " |")
         lines.append("")
     failed = df.loc[~df["converged"].astype(bool)]
@@ -235,15 +246,21 @@ def figure_boxplots(df: pd.DataFrame, angle: str = "gamma"):
 
 
 # ---- T at its bound (every model) ----------------------------------------------------------------
-def duration_flag(terms: list[dict], v_nominal: float = 1.0) -> str:
-    """Markdown line: how many converged lower levels put the free duration T on a bound of
-    ``ioc.T_BOUNDS`` x T0 (there the fitted weights ask for a duration the problem does not allow)."""
+def duration_flag(terms: list[dict], v_nominal: float = 1.0, convention: str = "continuous") -> str:
+    """Markdown line: how many converged lower levels put the duration T on a bound: of ``ioc.T_BOUNDS``
+    x T0 (continuous; there the fitted weights ask for a duration the problem does not allow), or of the
+    authors' duration search, T < 200 d steps (published; J / T decreases with T, so the rule ends there)."""
     from cobot_analysis.models.ioc import T_BOUNDS
 
     ok = [d for d in terms if d.get("success")]
     lo = sum(d.get("T_at_bound", 0) == -1 for d in ok)
     hi = sum(d.get("T_at_bound", 0) == 1 for d in ok)
     ratio = [d["T"] / d["T0"] for d in ok if d.get("T0")]
+    if convention == "published":
+        span = f"; T from {min(d['T'] for d in ok):.1f} to {max(d['T'] for d in ok):.1f} s" if ok else ""
+        return (f"Duration: the authors' rule (Nelder-Mead on J / T from int(2/3 100 d) steps, T < 200 d steps) ends on its "
+                f"upper bound for {hi} of {len(ok)} paths{span}: J / T = a0 + (J - a0 T) / T keeps decreasing with T, so the "
+                "rule takes the longest horizon it allows (20 s per metre of start-goal distance).")
     span = f"; T / T0 from {min(ratio):.2f} to {max(ratio):.2f}" if ratio else ""
     head = (f"**Warning: fitted duration T at its bound** ({T_BOUNDS[0]:g}, {T_BOUNDS[1]:g}) x T0 (T0 = start-goal "
             f"distance / {v_nominal:g} m/s + 1 s)" if lo + hi else f"Fitted duration T inside its bounds ({T_BOUNDS[0]:g}, {T_BOUNDS[1]:g}) x T0")

@@ -83,6 +83,7 @@ class Collector:
 
     def __init__(self, stage: str, convention: str | None):
         self.stage, self.convention = stage, convention
+        self.prefix = base_stage(stage)  # a stage and its -published twin name their metrics alike (@convention apart)
         self.study: str | None = None
         self.items: list[Metric] = []
 
@@ -91,7 +92,7 @@ class Collector:
         if v is None:
             return
         parts = name if isinstance(name, tuple) else (name,)
-        full = ".".join([self.stage, *(_part(p) for p in parts if p is not None and p != "")])
+        full = ".".join([self.prefix, *(_part(p) for p in parts if p is not None and p != "")])
         self.items.append(Metric(full, v, unit, self.stage, self.convention))
 
     def count(self, name: str | tuple, value: Any) -> None:
@@ -417,15 +418,24 @@ STAGE_METRICS: dict[str, Callable[[Path, Collector, dict], None]] = {
 }
 
 
+def base_stage(stage: str) -> str:
+    """The stage without its convention suffix (``fit-ioc-published`` -> ``fit-ioc``, docs/methods.md sec. 11)."""
+    return stage[: -len("-published")] if stage.endswith("-published") else stage
+
+
 def extractor(stage: str) -> Callable | None:
-    """The metric function of a stage (``predict-<label>`` stages share ``predict``'s)."""
+    """The metric function of a stage (``predict-<label>`` stages share ``predict``'s; a ``-published``
+    stage its base stage's)."""
+    stage = base_stage(stage)
     if stage in STAGE_METRICS:
         return STAGE_METRICS[stage]
     return STAGE_METRICS["predict"] if re.fullmatch(r"predict[-_A-Za-z0-9]+", stage) else None
 
 
 def is_model_stage(stage: str) -> bool:
-    return stage in MODEL_STAGES or stage.startswith("predict")
+    """Stages that run under a convention (docs/methods.md sec. 11): the models, predict and compare."""
+    stage = base_stage(stage)
+    return stage in MODEL_STAGES or stage.startswith("predict") or stage == "compare"
 
 
 def _find_key(obj: Any, key: str) -> Any:

@@ -59,6 +59,8 @@ class IOCSpec:
     angle_weight: float = 0.5
     max_iter: int = 200  # lower-level iteration limit (a solve that hits it is retried cold, then failed)
     v_nominal: float = 1.0  # m/s: T0 = distance / v_nominal + 1 s, the free T is bounded to T_BOUNDS x T0
+    convention: str = "continuous"  # docs/methods.md sec. 11 (published: the authors' discretisation, durations, distances)
+    hold_duration: bool = True  # published: each target keeps the horizon the duration rule chose at the start weights
 
     @property
     def angle(self) -> str:
@@ -79,12 +81,15 @@ class IOCSpec:
 
 
 # ---- lower level (runs on workers) -------------------------------------------------------------
-def distances(t: Target, x, y, theta) -> dict[str, float]:
-    """d_xy, d_theta, d_gamma of a generated path (x, y, theta) against target ``t`` (same N)."""
-    from cobot_analysis.metrics import d_gamma, d_theta, d_xy, gamma_from_path
+def distances(t: Target, x, y, theta, convention="continuous") -> dict[str, float]:
+    """d_xy, d_theta, d_gamma of a path (x, y, theta) against target ``t`` under a convention
+    (``metrics.path_distances``; the target's recorded gamma when the convention takes it)."""
+    from cobot_analysis import conventions
+    from cobot_analysis.metrics import path_distances
 
-    return {"d_xy": float(d_xy(t.x, t.y, x, y)), "d_theta": float(d_theta(t.theta, theta)),
-            "d_gamma": float(d_gamma(gamma_from_path(t.x, t.y, t.theta), gamma_from_path(x, y, theta)))}
+    comparison = conventions.get(convention).comparison
+    gamma = t.gamma if comparison.measured_gamma == "data" else None
+    return path_distances((t.x, t.y, t.theta), (x, y, theta), comparison, measured_gamma=gamma)
 
 
 def duration_terms(T: float, T0: float) -> dict:
@@ -92,6 +97,17 @@ def duration_terms(T: float, T0: float) -> dict:
     r = T / T0
     at = -1 if abs(r / T_BOUNDS[0] - 1) < 1e-3 else (1 if abs(r / T_BOUNDS[1] - 1) < 1e-3 else 0)
     return {"T": T, "T0": T0, "T_at_bound": at}
+
+
+def published_duration_terms(sol, start, goal, dt: float) -> dict:
+    """T, the authors' starting guess T0 = int(2/3 * 100 d) steps (as a duration), and whether T is on
+    the upper bound of their search (the largest integer below 200 d steps: +1) (docs/methods.md sec. 11)."""
+    from cobot_analysis.models.oc.duration import NODES_PER_METRE
+
+    d = math.hypot(goal[0] - start[0], goal[1] - start[1])
+    n = sol.U.shape[0]
+    top = math.ceil(2 * d * NODES_PER_METRE) - 1
+    return {"T": n * dt, "T0": int(d * NODES_PER_METRE * 2 / 3) * dt, "T_at_bound": 1 if n >= top else 0}
 
 
 def _failed() -> dict:
@@ -126,13 +142,31 @@ def solve_pair_target(spec: IOCSpec, w: np.ndarray, t: PairTarget, guess):
 
 
 def solve_target(spec: IOCSpec, w: np.ndarray, t: Target, guess):
-    """Lower level for one target: (distances dict with D, T, T0, T_at_bound and success, solution)."""
+    """Lower level for one target: (distances dict with D, T, T0, T_at_bound and success, solution).
+
+    ``guess``: continuous convention, a primal vector or a cold guess name; published convention,
+    the solution at other weights (seeds every horizon of the duration rule) or None."""
     from cobot_analysis.models.oc import resample, solve_model
     from cobot_analysis.models.oc.duration import initial_duration
 
     if spec.model == "coupled":
         return solve_pair_target(spec, w, t, guess)
     model = "table" if spec.model == "table" else "improved"
+    if spec.convention == "published":
+        from cobot_analysis.conventions import PUBLISHED
+
+        seed = guess if hasattr(guess, "X") else None
+        horizon = seed.U.shape[0] if seed is not None and spec.hold_duration else None
+        # no IPOPT fallback on these long horizons (minutes per solve): a failed lower level counts FAILED_D
+        sol = solve_model(model, t.start, t.goal, w, convention=PUBLISHED, max_iter=spec.max_iter, warm=True, seed=seed,
+                          horizon=horizon, fallback=False)
+        if not sol.success:
+            return _failed(), sol
+        d = distances(t, sol.X[:, 0], sol.X[:, 1], sol.X[:, 2], PUBLISHED)
+        d["D"] = d["d_xy"] + spec.angle_weight * d[f"d_{spec.angle}"]
+        d.update(published_duration_terms(sol, t.start, t.goal, PUBLISHED.oc_rule(model).dt))
+        d["success"] = True
+        return d, sol
     kw = {"n_intervals": spec.n_intervals, "duration": "free", "max_iter": spec.max_iter, "v_nominal": spec.v_nominal}
     sol = solve_model(model, t.start, t.goal, w, guess=guess, **kw)
     if not sol.success and not isinstance(guess, str):
@@ -147,24 +181,30 @@ def solve_target(spec: IOCSpec, w: np.ndarray, t: Target, guess):
     return d, sol
 
 
-def evaluate_chunk(task) -> list[tuple[dict, np.ndarray | None]]:
+def _warm_start(spec: IOCSpec, sol):
+    """What a later evaluation starts from: the primal vector (continuous) or the solution (published)."""
+    return sol if spec.convention == "published" else sol.primal
+
+
+def evaluate_chunk(task) -> list[tuple[dict, object]]:
     """Worker task: lower levels of a chunk of targets for one weight vector (top-level, picklable);
-    returns (distances, primal solution or None) per target."""
+    returns (distances, warm start or None) per target."""
     spec, w, targets, guesses = task
     out = []
     for t, g in zip(targets, guesses):
         d, sol = solve_target(spec, w, t, g)
-        out.append((d, sol.primal if d["success"] else None))
+        out.append((d, _warm_start(spec, sol) if d["success"] else None))
     return out
 
 
-def reference_chunk(task) -> list[tuple[dict, np.ndarray]]:
-    """Worker task: the reference solutions at the starting weights (best of two cold guesses)."""
+def reference_chunk(task) -> list[tuple[dict, object]]:
+    """Worker task: the reference solutions at the starting weights (best of two cold guesses;
+    published: the authors' rule from rest)."""
     spec, w, targets = task
     out = []
     for t in targets:
-        d, sol = solve_target(spec, w, t, ("rest", "line"))
-        out.append((d, sol.primal if sol.success else None))
+        d, sol = solve_target(spec, w, t, None if spec.convention == "published" else ("rest", "line"))
+        out.append((d, _warm_start(spec, sol) if sol.success else None))
     return out
 
 
@@ -180,6 +220,8 @@ class IOCResult:
     failed: int  # lower levels that did not converge at the fitted weights
     per_target: list[dict] = field(default_factory=list)
     message: str = ""
+    held_objective: float | None = None  # published, held horizons: D the optimiser saw at the fitted weights
+    horizons_changed: int | None = None  # targets whose horizon the duration rule moves at the fitted weights
 
     def to_json(self) -> dict:
         d = asdict(self)
@@ -214,7 +256,8 @@ class Checkpoint:
             return
         self.path.parent.mkdir(parents=True, exist_ok=True)
         tmp = self.path.with_name(f".{self.path.name}.tmp")
-        guesses = [g.tolist() if isinstance(g, np.ndarray) else g for g in (self.guesses or [])]
+        # primal vectors (continuous) are kept; solutions (published) are not: a resume re-seeds from the reference
+        guesses = [g.tolist() if isinstance(g, np.ndarray) else g if isinstance(g, str) else None for g in (self.guesses or [])]
         tmp.write_text(json.dumps({"key": self.key, "iterations": self.iterations, "log": self.log, "guesses": guesses}))
         os.replace(tmp, self.path)
 
@@ -265,13 +308,13 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
     start_terms: list = [None] * len(targets)
     for p, res in zip(parts, ref):
         for i, (d, primal) in zip(p, res):
-            guesses[i] = primal if primal is not None else "rest"
+            guesses[i] = primal if primal is not None else ("rest" if spec.convention != "published" else None)
             start_terms[i] = d
     start_objective = float(np.mean([d["D"] for d in start_terms]))
 
     ck = Checkpoint(checkpoint, fit_key(spec, targets))
-    if resume and ck.load():
-        guesses = list(ck.guesses)
+    if resume and ck.load():  # the checkpoint's warm starts, the reference solutions where it holds none
+        guesses = [g if g is not None else r for g, r in zip(ck.guesses, guesses)]
     ck.guesses = guesses
     cache = {tuple(e["z"]): e for e in ck.log}
     # the starting point is the reference evaluation itself (not re-solved from its own warm start)
@@ -328,7 +371,20 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
         raise KeyboardInterrupt("IOC interrupted (test hook); resume with the same checkpoint") from None
     ck.save()
     w_best = spec.weights(np.array(best["z"]))
-    return IOCResult(spec=spec, weights=dict(zip(names_for(spec.model), map(float, w_best))), objective=float(best["f"]),
+    terms, objective, held, changed = best["terms"], float(best["f"]), None, None
+    if spec.convention == "published" and spec.hold_duration:
+        # the fit held each target's horizon: the duration rule runs again at the fitted weights
+        from dataclasses import replace
+
+        free = replace(spec, hold_duration=False)
+        rerun = run(evaluate_chunk, [(free, w_best, [targets[i] for i in p], [guesses[i] for i in p]) for p in parts])
+        new: list = [None] * len(targets)
+        for p, r in zip(parts, rerun):
+            for i, (d, _) in zip(p, r):
+                new[i] = d
+        changed = sum(1 for a, b in zip(terms, new) if a["success"] and b["success"] and abs(a["T"] - b["T"]) > 1e-9)
+        held, terms, objective = objective, new, float(np.mean([d["D"] for d in new]))
+    return IOCResult(spec=spec, weights=dict(zip(names_for(spec.model), map(float, w_best))), objective=objective,
                      start_objective=start_objective, evaluations=len(cache), iterations=iteration,
-                     failed=sum(not d["success"] for d in best["terms"]), per_target=best["terms"],
-                     message=str(res.message))
+                     failed=sum(not d["success"] for d in terms), per_target=terms, message=str(res.message),
+                     held_objective=held, horizons_changed=changed)

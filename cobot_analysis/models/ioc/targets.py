@@ -1,6 +1,11 @@
 """The measured trajectories an inverse-OC fit is made against (docs/methods.md sec. 6): one
 walker (``Target``) or the two carriers of a pair (``PairTarget``), read from a trajectories or
 means table.
+
+Start and goal of each OC problem: the first and last measured poses (the goal heading given or
+the last measured one). Under the published convention, a walking-study target takes the authors'
+endpoints (docs/methods.md sec. 11): start and end positions truncated to the millimetre, the start
+heading of the condition letter (N, E, S, O = pi/2, 0, -pi/2, pi) and the goal heading pi/2.
 """
 
 from __future__ import annotations
@@ -25,9 +30,13 @@ class Target:
     y: np.ndarray
     theta: np.ndarray
     goal_pose: tuple[float, float, float] | None = None  # None: the last measured pose
+    start_pose: tuple[float, float, float] | None = None  # None: the first measured pose
+    gamma: np.ndarray | None = None  # the measured local orientation when the data hold it (else from the path)
 
     @property
     def start(self) -> tuple[float, float, float]:
+        if self.start_pose is not None:
+            return tuple(float(v) for v in self.start_pose)
         return (float(self.x[0]), float(self.y[0]), float(self.theta[0]))
 
     @property
@@ -36,7 +45,7 @@ class Target:
         if self.goal_pose is None:
             return (float(self.x[-1]), float(self.y[-1]), float(self.theta[-1]))
         gx, gy, gth = self.goal_pose
-        k = round((self.theta[-1] - gth) / (2 * math.pi))
+        k = round((self.theta[-1] - gth) / (2 * math.pi)) if np.isfinite(self.theta[-1]) else 0
         return (float(gx), float(gy), float(gth + 2 * math.pi * k))
 
     @property
@@ -44,10 +53,29 @@ class Target:
         return math.hypot(self.x[-1] - self.x[0], self.y[-1] - self.y[0])
 
 
-def targets_from_table(df: pd.DataFrame, *, path=None, entity: str = "walker", goal=None) -> list[Target]:
+def published_endpoints(condition: str, x: np.ndarray, y: np.ndarray):
+    """The authors' start and goal poses of a walking condition (module docstring), or None when
+    ``condition`` is not a walking-study code."""
+    from cobot_analysis.design import WALKING_GOAL, walking_condition
+
+    try:
+        theta0 = walking_condition(condition).theta0
+    except ValueError:
+        return None
+    mm = lambda v: math.floor(float(v) * 1000) / 1000  # noqa: E731
+    return (mm(x[0]), mm(y[0]), theta0), (mm(x[-1]), mm(y[-1]), WALKING_GOAL[2])
+
+
+def targets_from_table(df: pd.DataFrame, *, path=None, entity: str = "walker", goal=None,
+                       convention="continuous", unoriented: bool = False) -> list[Target]:
     """Targets from a long trajectories/means table (one per trial x entity); rows without
-    orientation are left out (docs/methods.md sec. 6). NaN in positions is refused. ``goal``: the goal
-    pose of every target (e.g. the walking study's (0, 0, pi/2)), None for the last measured pose."""
+    orientation are left out (docs/methods.md sec. 6) unless ``unoriented`` (model comparisons: d_xy
+    only, the start heading of the walking condition). NaN in positions is refused. ``goal``: the
+    goal pose of every target (e.g. the walking study's (0, 0, pi/2)), None for the last measured
+    pose; under the published convention walking conditions take ``published_endpoints`` instead."""
+    from cobot_analysis import conventions
+
+    published = conventions.get(convention).name == "published"
     need = {"trial", "condition", "entity", "sample", "x", "y", "theta"}
     missing = sorted(need - set(df.columns))
     if missing:
@@ -57,13 +85,21 @@ def targets_from_table(df: pd.DataFrame, *, path=None, entity: str = "walker", g
     for trial, g in df.groupby("trial", sort=True):
         g = g.sort_values("sample")
         x, y, th = (g[c].to_numpy(float) for c in ("x", "y", "theta"))
-        if np.isnan(th).all():
+        condition = str(g["condition"].iloc[0])
+        oriented = not np.isnan(th).all()
+        if not oriented and not (unoriented and published_endpoints(condition, x, y)):
             continue  # no orientation: left out
-        if not (np.isfinite(x).all() and np.isfinite(y).all() and np.isfinite(th).all()):
+        if not (np.isfinite(x).all() and np.isfinite(y).all() and (np.isfinite(th).all() or not oriented)):
             raise InputError(f"trajectory {trial!r} has NaN samples", path=path,
                              remedy="fill or drop the gaps in preprocessing (or re-run average) before fitting")
         subject = g["subject"].iloc[0] if "subject" in g and isinstance(g["subject"].iloc[0], str) else ""
-        targets.append(Target(str(trial), str(g["condition"].iloc[0]), subject, x, y, th, goal))
+        gamma = g["gamma"].to_numpy(float) if "gamma" in g and np.isfinite(g["gamma"]).all() else None
+        ends = published_endpoints(condition, x, y) if published or not oriented else None
+        start_pose, goal_pose = ends if ends else (None, goal)
+        if not oriented and not published:  # measured start and end, the condition's start heading
+            start_pose = (float(x[0]), float(y[0]), ends[0][2])
+            goal_pose = goal if goal is not None else (float(x[-1]), float(y[-1]), ends[1][2])
+        targets.append(Target(str(trial), condition, subject, x, y, th, goal_pose, start_pose, gamma))
     return targets
 
 

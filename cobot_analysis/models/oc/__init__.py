@@ -15,7 +15,7 @@ OC_MODELS = ("unicycle", "mombaur", "improved", "table")
 
 def solve_model(model: str, start, goal, weights, *, convention="continuous", n_intervals: int = 100,
                 duration: str | None = None, v_nominal: float = 1.0, solver: str = "fatrop", guess="rest", T=None,
-                max_iter: int = 500, warm: bool = False):
+                max_iter: int = 500, warm: bool = False, seed=None, horizon: int | None = None, fallback: bool = True):
     """Solve the OC model for one start/goal under a convention (``conventions.get``); returns an
     ``problem.OCPSolution`` (check ``success``).
 
@@ -24,8 +24,10 @@ def solve_model(model: str, start, goal, weights, *, convention="continuous", n_
     "fixed" at ``T``), ``guess``: "rest", "line", a previous primal vector (warm start) or a sequence of
     those (the best converged solution is kept). Published convention: the authors' node step and
     duration rule (``duration.nelder_mead_duration`` / ``last_node_duration``), every horizon from
-    rest unless ``warm`` (then from the nearest horizon solved, see ``duration.HorizonSolver``); the
-    solution has one node per step.
+    rest unless ``warm`` (then from the nearest horizon solved) or ``seed`` (a solution of other
+    weights, see ``duration.HorizonSolver``); ``horizon``: solve that number of steps only, instead of
+    the duration rule (the IOC holds the rule's horizon between evaluations); ``fallback``: IPOPT when
+    fatrop fails. The solution has one node per step.
     """
     from cobot_analysis import conventions
     from cobot_analysis.models.oc.duration import grid_duration, initial_duration, search_duration
@@ -37,7 +39,8 @@ def solve_model(model: str, start, goal, weights, *, convention="continuous", n_
     rule = conv.oc_rule(model)
     dyn = "unicycle" if model == "unicycle" else "walker"
     if rule.scheme == "euler":
-        return _solve_published(rule, dyn, start, goal, weights, solver=solver, max_iter=max_iter, warm=warm)
+        return _solve_published(rule, dyn, start, goal, weights, solver=solver, max_iter=max_iter, warm=warm, seed=seed,
+                                horizon=horizon, fallback=fallback)
     duration = duration or rule.duration
     T0 = initial_duration(start, goal, v_nominal) if T is None else T
     guesses = [guess] if isinstance(guess, str | np.ndarray) else list(guess)
@@ -60,7 +63,8 @@ def solve_model(model: str, start, goal, weights, *, convention="continuous", n_
     return best
 
 
-def _solve_published(rule, dyn: str, start, goal, weights, *, solver: str, max_iter: int, warm: bool):
+def _solve_published(rule, dyn: str, start, goal, weights, *, solver: str, max_iter: int, warm: bool, seed=None,
+                     horizon: int | None = None, fallback: bool = True):
     """The published convention: the start moved to the origin at rest, the goal with it, the
     authors' duration rule on the explicit-Euler problem; the solution moved back."""
     from dataclasses import replace
@@ -71,9 +75,18 @@ def _solve_published(rule, dyn: str, start, goal, weights, *, solver: str, max_i
     x0, y0 = float(start[0]), float(start[1])
     shape = OCPShape(16, dyn, scheme="euler", psi=rule.psi, heading=rule.heading, psi_eps=rule.psi_eps,
                      terminal_running=rule.duration == "last-node", solver=solver, max_iter=max_iter)
+    if seed is not None:  # in the origin frame
+        X = seed.X.copy()
+        X[:, :2] -= X[0, :2]
+        seed = replace(seed, X=X)
     solve = HorizonSolver(shape, (0.0, 0.0, float(start[2])), (goal[0] - x0, goal[1] - y0, goal[2]),
-                          np.asarray(weights, float), rule.dt, warm=warm)
-    sol = nelder_mead_duration(solve) if rule.duration == "nelder-mead" else last_node_duration(solve, rule.psi_eps)
+                          np.asarray(weights, float), rule.dt, warm=warm, seed=seed, fallback=fallback)
+    if horizon is not None:
+        sol = solve(int(horizon))
+    elif rule.duration == "nelder-mead":
+        sol = nelder_mead_duration(solve)
+    else:
+        sol = last_node_duration(solve, rule.psi_eps)
     X = sol.X.copy()
     X[:, 0] += x0
     X[:, 1] += y0

@@ -118,12 +118,17 @@ def stretched(ocp: WalkerOCP, sol: OCPSolution, T: int) -> np.ndarray:
 
 class HorizonSolver:
     """Solves the published problem for integer horizons T (intervals of ``dt``), each on the NLP of
-    ``capacity(T)`` intervals, from rest or warm; keeps every solution (``solved``)."""
+    ``capacity(T)`` intervals, from rest, or (``warm``) from the nearest horizon already solved, or
+    from ``seed`` (a solution of the same start and goal with other weights, in an IOC), stretched
+    in time; keeps every solution (``solved``)."""
 
-    def __init__(self, shape, start, goal, weights, dt: float, *, warm: bool = False):
+    def __init__(self, shape, start, goal, weights, dt: float, *, warm: bool = False, seed: OCPSolution | None = None,
+                 fallback: bool = True):
         from dataclasses import replace
 
         self.shape, self.start, self.goal, self.w, self.dt, self.warm = shape, start, goal, weights, dt, warm
+        self.seed = seed if seed is not None and seed.success else None
+        self.fallback = fallback  # IPOPT when fatrop fails (see problem.WalkerOCP.solve)
         self._replace = replace
         self.solved: dict[int, OCPSolution] = {}
 
@@ -133,11 +138,13 @@ class HorizonSolver:
         if T not in self.solved:
             ocp = get_ocp(self._replace(self.shape, n_intervals=capacity(T)))
             guess = "rest"
-            if self.warm and self.solved:
-                near = min(self.solved, key=lambda t: (abs(t - T), -self.solved[t].success))
-                if self.solved[near].success:
-                    guess = stretched(ocp, self.solved[near], T)
-            self.solved[T] = ocp.solve(self.start, self.goal, self.w, self.dt, guess=guess, n_active=T)
+            ok = {t: s for t, s in self.solved.items() if s.success} if self.warm else {}
+            if self.seed is not None:
+                ok.setdefault(-1, self.seed)  # a solution of other weights (IOC), stretched to T
+            if ok:
+                near = min(ok, key=lambda t: abs((ok[t].U.shape[0] if t < 0 else t) - T))
+                guess = stretched(ocp, ok[near], T)
+            self.solved[T] = ocp.solve(self.start, self.goal, self.w, self.dt, guess=guess, n_active=T, fallback=self.fallback)
         return self.solved[T]
 
 

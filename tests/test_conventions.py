@@ -1,0 +1,175 @@
+"""The two conventions of the model stages (docs/methods.md sec. 11): the object, the published OC
+problem on analytic cases, the arc-length comparison, and the CLI's refusals."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from cobot_analysis import conventions
+from cobot_analysis.errors import InputError
+from cobot_analysis.metrics import path_distances, resample_arclength, resample_time
+
+WALKING_2021 = np.array([7.87, 4.00, 20.15, 1.00e-6, 10.00, 0, 0, 10.0, 10.0, 0.38, 3.36])
+
+
+def test_unknown_convention_names_the_option_and_the_values():
+    with pytest.raises(InputError) as e:
+        conventions.get("publised")
+    assert "--convention 'publised'" in str(e.value) and "published, continuous" in str(e.value)
+
+
+def test_published_convention_refuses_the_models_it_does_not_have():
+    for model in ("unicycle", "coupled"):
+        with pytest.raises(InputError, match="--convention continuous"):
+            conventions.PUBLISHED.oc_rule(model)
+    assert conventions.PUBLISHED.oc_rule("improved").dt == 0.1
+    assert conventions.PUBLISHED.oc_rule("mombaur").dt == 0.01
+
+
+def test_stage_names_and_mixing():
+    assert conventions.stage_name("fit-ioc", conventions.CONTINUOUS) == "fit-ioc"
+    assert conventions.stage_name("fit-ioc", conventions.PUBLISHED) == "fit-ioc-published"
+    assert conventions.check_same({"a": "published", "b": None}) == "published"
+    with pytest.raises(InputError, match="mix outputs of two conventions"):
+        conventions.check_same({"a": "published", "b": "continuous"})
+
+
+# ---- the comparison ---------------------------------------------------------------------------------
+def test_arclength_resampling_removes_the_time_law_of_a_straight_walk():
+    """A straight 3 m walk sampled with an accelerating time law: pointwise it is far from the uniform
+    one (d_xy = 3 mean|t^2 - t| = 0.5 m), after arc-length resampling it is the same path (the
+    authors' dropped last point leaves one step: < 1 cm)."""
+    t = np.linspace(0.0, 1.0, 500)
+    uniform = (3 * t, np.zeros(500), np.zeros(500))
+    accelerating = (3 * t**2, np.zeros(500), np.zeros(500))
+    cont = path_distances(uniform, accelerating, conventions.CONTINUOUS.comparison)
+    pub = path_distances(uniform, accelerating, conventions.PUBLISHED.comparison)
+    assert cont["d_xy"] == pytest.approx(np.mean(np.abs(3 * t**2 - 3 * t)), rel=1e-9)
+    assert cont["d_xy"] == pytest.approx(0.5, abs=2e-3)
+    assert pub["d_xy"] < 0.01
+    xr, yr = resample_arclength(3 * t**2, np.zeros(500), 500)
+    steps = np.diff(xr)
+    assert steps.std() / steps.mean() < 1e-3  # equally spaced along the path
+
+
+def test_each_angle_wrapped_on_its_own_counts_the_wrap_around():
+    a, b = np.full(10, math.pi - 0.05), np.full(10, -math.pi + 0.05)
+    wrapped = conventions.Comparison("time", False, "wrapped", "path", 1)
+    each = conventions.Comparison("time", False, "each", "path", 1)
+    path = (np.linspace(0, 1, 10), np.zeros(10))
+    assert path_distances((*path, a), (*path, b), wrapped)["d_theta"] == pytest.approx(0.1)
+    assert path_distances((*path, a), (*path, b), each)["d_theta"] == pytest.approx(2 * math.pi - 0.1)
+
+
+def test_authors_time_mapping_stops_short_of_the_last_node():
+    v = np.arange(11.0)  # 11 nodes
+    assert resample_time(v, 5)[-1] == 10.0
+    assert resample_time(v, 5, authors=True)[-1] == pytest.approx(8.0)  # sample 4 at node time 4/5
+
+
+# ---- the published OC problem -------------------------------------------------------------------------
+def test_euler_step_is_the_authors_action_model():
+    import casadi as ca
+
+    from cobot_analysis.models.dynamics import step
+
+    x = np.array([0.3, -0.2, 0.7, 1.1, -0.4, 0.25])
+    u = np.array([0.5, -0.3, 0.2])
+    dt = 0.1
+    got = np.array(ca.DM(step(ca.DM(x), ca.DM(u), dt, scheme="euler"))).ravel()
+    c, s = math.cos(x[2]), math.sin(x[2])
+    want = [x[0] + (c * x[3] - s * x[4]) * dt, x[1] + (s * x[3] + c * x[4]) * dt, x[2] + x[5] * dt,
+            x[3] + u[0] * dt, x[4] + u[1] * dt, x[5] + u[2] * dt]
+    assert got == pytest.approx(want, abs=1e-15)
+
+
+def test_variable_horizon_equals_the_fixed_horizon_problem():
+    """Frozen intervals after the active ones leave the optimum of the shorter problem unchanged."""
+    from cobot_analysis.models.oc.problem import OCPShape, get_ocp
+
+    shape = dict(scheme="euler", psi="raw", heading="wrap-once", psi_eps=1e-3)
+    start, goal = (0.0, 0.0, math.pi / 2), (-0.6, 1.2, math.pi / 2)
+    exact = get_ocp(OCPShape(30, **shape)).solve(start, goal, WALKING_2021, 0.1)
+    padded = get_ocp(OCPShape(48, **shape)).solve(start, goal, WALKING_2021, 0.1, n_active=30)
+    assert exact.success and padded.success
+    assert padded.X.shape == (31, 6) and padded.T == pytest.approx(3.0)
+    assert padded.cost == pytest.approx(exact.cost, rel=1e-8)
+    assert np.abs(padded.X - exact.X).max() < 1e-6
+
+
+def test_published_duration_rule_ends_on_its_upper_bound():
+    """J / T = a0 + (J - a0 T) / T decreases with T, so the authors' Nelder-Mead takes the largest
+    horizon it allows: the last integer below 200 d steps."""
+    from cobot_analysis.models.oc import solve_model
+
+    start, goal = (0.0, 0.0, math.pi / 2), (0.3, 1.0, math.pi / 2)
+    d = math.hypot(0.3, 1.0)
+    sol = solve_model("improved", start, goal, WALKING_2021, convention="published", warm=True)
+    assert sol.success
+    assert sol.U.shape[0] == math.ceil(200 * d) - 1
+    assert sol.T == pytest.approx(0.1 * sol.U.shape[0])
+    assert np.hypot(sol.X[-1, 0] - goal[0], sol.X[-1, 1] - goal[1]) < 0.01
+
+
+def test_straight_walk_both_conventions_walk_the_straight_line():
+    """Start facing the goal straight ahead: both conventions walk along the line (within 1 mm, heading
+    within 1e-3 rad). What differs is the time law (the published rule takes 20 s per metre) and where
+    the walker stops: the published weights under the continuous convention, whose running cost is
+    integrated (dt times lighter against the terminal cost), stop short of the goal."""
+    from cobot_analysis.models import generate
+
+    start, goal = (0.0, 0.0, 0.0), (3.0, 0.0, 0.0)
+    pub = generate("improved", start, goal, weights="walking-2021", convention="published")
+    cont = generate("improved", start, goal, weights="walking-2021", convention="continuous")
+    for df in (pub, cont):
+        assert np.abs(df["y"]).max() < 1e-3 and np.abs(df["theta"]).max() < 1e-3
+        assert (np.diff(df["x"]) >= -1e-9).all()  # forward along x
+    assert pub["travel_time"].iloc[0] == pytest.approx(59.9)
+    assert cont["travel_time"].iloc[0] < 10
+    assert abs(pub["x"].iloc[-1] - 3.0) < 0.01
+    assert 0.1 < 3.0 - cont["x"].iloc[-1] < 0.5
+    assert set(pub["convention"]) == {"published"} and set(cont["convention"]) == {"continuous"}
+
+
+# ---- the CLI ---------------------------------------------------------------------------------------------
+def test_cli_refuses_a_bad_convention_before_any_work(cli, tmp_path):
+    code, _, err = cli("generate", "--out", tmp_path, "--start", "-1", "-2", "0", "--convention", "both")
+    assert code == 2 and "--convention 'both' is not a convention" in err and err.count("\n") == 1
+    assert not any(tmp_path.iterdir())
+
+
+def test_cli_refuses_what_a_convention_cannot_honour(cli, tmp_path):
+    code, _, err = cli("generate", "--out", tmp_path, "--model", "unicycle", "--start", "-1", "-2", "0",
+                       "--convention", "published")
+    assert code == 2 and "no unicycle model" in err
+    code, _, err = cli("generate", "--out", tmp_path, "--start", "-1", "-2", "0", "--convention", "published",
+                       "--duration", "grid")
+    assert code == 2 and "--duration does not apply" in err
+    assert not any(tmp_path.iterdir())
+
+
+def test_cli_generate_names_its_convention_and_its_stage(cli, tmp_path):
+    from cobot_analysis.schema import table_metadata
+
+    code, _, err = cli("generate", "--out", tmp_path, "--start", "-0.5", "-1", "1.2")  # preset weights: published
+    assert code == 0, err
+    path = tmp_path / "generate-published" / "generated.parquet"
+    assert table_metadata(path)["convention"] == "published"
+    assert "(published convention)" in (tmp_path / "generate-published" / "results.md").read_text()
+    code, _, err = cli("generate", "--out", tmp_path, "--start", "-0.5", "-1", "1.2", "--convention", "continuous")
+    assert code == 0, err
+    assert table_metadata(tmp_path / "generate" / "generated.parquet")["convention"] == "continuous"
+
+
+def test_cli_compare_refuses_to_mix_conventions(cli, tmp_path, datasets):
+    out = tmp_path / "w"
+    assert cli("import-published", "walking-2020", datasets / "walking-2020", "--out", out)[0] == 0
+    assert cli("average", "--out", out)[0] == 0
+    code, _, err = cli("generate", "--out", out, "--start", "-0.5", "-1", "1.2")
+    assert code == 0, err
+    code, _, err = cli("compare", "--out", out, "--against", out / "generate-published" / "generated.parquet")
+    assert code == 2 and "mix outputs of two conventions" in err
+    assert not (out / "compare").exists()
