@@ -155,11 +155,13 @@ def solve_target(spec: IOCSpec, w: np.ndarray, t: Target, guess):
     if spec.convention == "published":
         from cobot_analysis.conventions import PUBLISHED
 
-        seed = guess if hasattr(guess, "X") else None
-        horizon = seed.U.shape[0] if seed is not None and spec.hold_duration else None
-        # no IPOPT fallback on these long horizons (minutes per solve): a failed lower level counts FAILED_D
-        sol = solve_model(model, t.start, t.goal, w, convention=PUBLISHED, max_iter=spec.max_iter, warm=True, seed=seed,
-                          horizon=horizon, fallback=False)
+        seed = guess if hasattr(guess, "X") and spec.hold_duration else None
+        if seed is not None:  # the held horizon, warm from the best weights' solution; the authors' DDP budget,
+            # no IPOPT fallback on these long horizons (minutes per solve): a failed lower level counts FAILED_D
+            sol = solve_model(model, t.start, t.goal, w, convention=PUBLISHED, max_iter=spec.max_iter, seed=seed,
+                              horizon=seed.U.shape[0], fallback=False)
+        else:  # the duration rule, as generate runs it
+            sol = solve_model(model, t.start, t.goal, w, convention=PUBLISHED, warm=True)
         if not sol.success:
             return _failed(), sol
         d = distances(t, sol.X[:, 0], sol.X[:, 1], sol.X[:, 2], PUBLISHED)

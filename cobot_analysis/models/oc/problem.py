@@ -385,6 +385,7 @@ class _BufferedCall:
 
 
 _N_COMMON = 3 + 1 + N_WEIGHTS + 2  # goal, T, a0..b3, tracking weights: the parameters every stage sees
+_R2_GOAL = 1e-16  # m^2: closer to the goal than 1e-8 m, the bearing term psi^2 is 0 (undefined there)
 
 
 def _stage_functions(shape: OCPShape) -> dict[str, object]:
@@ -426,13 +427,16 @@ def _stage_functions(shape: OCPShape) -> dict[str, object]:
 
     def running(x, u):
         r2, psi, dth, _, _ = terms(x)
+        # psi and its derivatives are undefined at the goal (0/0): the term is 0 there, exactly (if_else
+        # selects, it does not multiply, so no NaN reaches the solver; fatrop 1.1.8 never returns from a NaN)
+        bearing = ca.if_else(r2 > _R2_GOAL, psi**2 * r2 / (r2 + shape.psi_eps**2), 0)
         return (ws[0] + ws[1] * u[0]**2 + ws[2] * u[1]**2 + ws[3] * u[2]**2
-                + ws[4] * psi**2 * r2 / (r2 + shape.psi_eps**2) + ws[5] * r2 + ws[6] * dth**2)
+                + ws[4] * bearing + ws[5] * r2 + ws[6] * dth**2)
 
     x, u = z[:nx], z[nx:]
     _, _, _, track, dt = terms(x)
     scale = 1 if euler else dt  # summed per node (euler) or integrated (midpoint)
-    c = scale * (a * running(x, u) + m * track) + (1 - a) * ca.sumsqr(u)
+    c = scale * (ca.if_else(a > 0.5, running(x, u), 0) + m * track) + (1 - a) * ca.sumsqr(u)
     F = x[:N_STATE] + a * (step(x[:N_STATE], u, dt, shape.dynamics, shape.scheme) - x[:N_STATE])
     if free:
         F = ca.vertcat(F, x[N_STATE])  # log T is carried along
