@@ -46,7 +46,7 @@ def traj_file(tmp_path):
     return make
 
 
-FAST = ["--settings", "8:20,10:30", "-j", "1"]
+FAST = ["--settings", "8:20,10:30", "-j", "1", "--convention", "continuous"]
 
 
 def test_predict_command_writes_tables_figures_and_results(cli, tmp_path, traj_file):
@@ -213,7 +213,7 @@ def test_published_walking_trajectories(cli, tmp_path, datasets):
     code, _, err = cli("-q", "predict", "--out", out, "--kind", "trial", "--every", "40", "--predictors", "cv,ctrv",
                        "--settings", "50:100", "-j", "1")
     assert code == 0, err
-    per = pd.read_parquet(out / "predict" / "predictions.parquet").query("predictor == 'cv'")
+    per = pd.read_parquet(out / "predict-published" / "predictions.parquet").query("predictor == 'cv'")  # preset: published
     assert len(per) == 10 and (per["n_windows"] == 451).all() and (per["n_skipped"] == 0).all()
     # centimetre errors over a 50-sample horizon; the final error exceeds the average one
     assert 0.002 < per["delta_xy"].median() < 0.05 and (per["fde"] > per["ade"]).all()
@@ -230,7 +230,7 @@ def test_fitted_weights_file_is_used_and_recorded(cli, tmp_path, traj_file):
     assert by_file["weights"].iloc[0] == str(weights)
     manifest = json.loads((out / "predict" / "manifest.json").read_text())
     assert str(weights.resolve()) in [i["path"] for i in manifest["inputs"]]
-    assert cli("-q", "predict", "--out", tmp_path / "ws2", "--weights", "walking-2021", *args)[0] == 0
+    assert cli("-q", "predict", "--out", tmp_path / "ws2", "--weights", "walking-2021", "--convention", "continuous", *args)[0] == 0
     by_preset = pd.read_parquet(tmp_path / "ws2" / "predict" / "predictions.parquet")
     assert by_file["delta_xy"].iloc[0] == pytest.approx(by_preset["delta_xy"].iloc[0], rel=1e-9)  # same a0..a3
 
@@ -254,7 +254,7 @@ def test_second_sweep_with_other_weights_sits_beside_the_first(cli, tmp_path, tr
                                                "b0": 10.0, "b1": 10.0, "b2": 0.3, "b3": 1.0}}))
     out = tmp_path / "ws"
     args = ["--trajectories", traj_file(n_traj=1), "--settings", "8:20", "-j", "1"]
-    assert cli("-q", "predict", "--out", out, *args)[0] == 0
+    assert cli("-q", "predict", "--out", out, "--convention", "continuous", *args)[0] == 0
     assert cli("-q", "predict", "--out", out, "--weights", weights, "--stage-name", "predict-fitted", *args)[0] == 0
     first = pd.read_parquet(out / "predict" / "predictions.parquet").set_index("predictor")
     second = pd.read_parquet(out / "predict-fitted" / "predictions.parquet").set_index("predictor")
