@@ -193,7 +193,7 @@ class OCPredictor(Predictor):
         self.step = float(rule.node_dt) if rule.node_dt is not None else self.dt  # seconds per node
         # derivative at t = 0 of the least-squares quadratic c0 + c1 t + c2 t^2 through the first
         # ``fit`` samples of a window: c1 = d . p (a fixed filter, computed once)
-        t = np.arange(min(self.fit, self.n0)) * self.dt
+        t = np.arange(min(self.fit, self.n0)) * self.step
         self._derivative = np.linalg.pinv(np.vander(t, 3, increasing=True))[1]
 
     def reset(self) -> None:

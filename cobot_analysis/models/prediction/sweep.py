@@ -357,7 +357,8 @@ class WorkDir:
         self._code = code_digest()
 
     def key(self, traj: Trajectory, config: SweepConfig, setting: tuple[int, int]) -> str:
-        params = {**config.params(), "settings": list(setting), "code": self._code, "trajectory": traj.digest()}
+        # the whole convention, not its name: a convention changed in any element gets other keys
+        params = {**asdict(config), "settings": list(setting), "code": self._code, "trajectory": traj.digest()}
         return hashlib.sha256(json.dumps(params, sort_keys=True).encode()).hexdigest()[:24]
 
     def _paths(self, key: str) -> tuple[Path, Path]:
