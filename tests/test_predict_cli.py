@@ -264,3 +264,104 @@ def test_second_sweep_with_other_weights_sits_beside_the_first(cli, tmp_path, tr
         "## Trajectory prediction (docs/methods.md sec. 7), stage predict-fitted")
     code, _, err = cli("-q", "predict", "--out", out, "--stage-name", "../elsewhere", *args)
     assert code == 2 and "not a predict stage name" in err
+
+
+# ---- conventions (docs/methods.md sec. 11) -----------------------------------------------------
+def test_unknown_convention_exits_2_before_any_work(cli, tmp_path, traj_file):
+    out = tmp_path / "ws"
+    code, _, err = cli("predict", "--out", out, "--trajectories", traj_file(), "--settings", "8:20", "--convention", "authors")
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "--convention 'authors' is not a convention" in err and "published, continuous" in err
+    assert not out.exists() or not any(out.iterdir())
+    bad = tmp_path / "weights.json"
+    bad.write_text(json.dumps({"convention": "authors", "weights": {"a0": 1.0}}))
+    code, _, err = cli("predict", "--out", out, "--trajectories", traj_file(), "--settings", "8:20", "--weights", bad)
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "weights.json" in err and "'authors' is not a convention" in err and "--convention" in err
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_default_convention_is_that_of_the_weights(cli, tmp_path, traj_file):
+    """Presets are published weights: predict-published; a fit-ioc weights.json names its own
+    convention; a weights file that does not: continuous."""
+    path = traj_file(n_traj=1)
+    args = ["--trajectories", path, "--settings", "8:20", "--predictors", "oc", "-j", "1"]
+    w = {"a0": 7.87, "a1": 4.0, "a2": 20.15, "a3": 1e-6}
+    files = {}
+    for name, data in {"plain": {"weights": w}, "published": {"convention": "published", "weights": w},
+                       "continuous": {"convention": "continuous", "weights": w}}.items():
+        files[name] = tmp_path / f"{name}.json"
+        files[name].write_text(json.dumps(data))
+    runs = {"preset": ([], "predict-published"), "plain": (["--weights", files["plain"]], "predict"),
+            "published": (["--weights", files["published"]], "predict-published"),
+            "continuous": (["--weights", files["continuous"]], "predict")}
+    values = {}
+    for label, (extra, stage) in runs.items():
+        out = tmp_path / label
+        code, _, err = cli("-q", "predict", "--out", out, *args, *extra)
+        assert code == 0, err
+        assert [p.name for p in out.iterdir() if not p.name.startswith(".")] == [stage]
+        m = pd.read_parquet(out / stage / "predictions.parquet")
+        assert set(m["convention"]) == {"continuous" if stage == "predict" else "published"}
+        values[label] = m["delta_xy"].iloc[0]
+    assert values["preset"] == values["published"] and values["plain"] == values["continuous"]  # same a0..a3
+    assert values["preset"] > 2 * values["plain"]  # the rest start lags on a walk at constant speed
+    code, _, err = cli("predict", "--out", tmp_path / "plain", *args, "--weights", files["published"], "--convention", "continuous")
+    assert code == 0 and "published-convention weights" in err  # said, then done as asked
+
+
+def test_both_conventions_sit_side_by_side_and_name_themselves(cli, tmp_path, traj_file):
+    out = tmp_path / "ws"
+    args = ["--trajectories", traj_file(), "--settings", "8:20", "--stage-name", "predict-arcs", "-j", "1"]
+    assert cli("-q", "predict", "--out", out, "--convention", "published", *args)[0] == 0
+    assert "### OC vs CV vs CTRV under both conventions" not in (out / "predict-arcs-published" / "results.md").read_text()
+    assert cli("-q", "predict", "--out", out, "--convention", "continuous", *args)[0] == 0
+    tables = {}
+    for conv, stage in (("published", "predict-arcs-published"), ("continuous", "predict-arcs")):
+        d = out / stage
+        manifest = json.loads((d / "manifest.json").read_text())
+        assert manifest["params"]["convention"] == conv and manifest["params"]["config"]["convention"] == conv
+        for name, schema in (("predictions", sweep_mod.PREDICTIONS), ("prediction_windows", sweep_mod.PREDICTION_WINDOWS),
+                             ("prediction_summary", sweep_mod.PREDICTION_SUMMARY),
+                             ("prediction_comparison", sweep_mod.PREDICTION_COMPARISON)):
+            df = read_table(d / f"{name}.parquet", schema)
+            assert df.attrs["cobot_analysis"]["convention"] == conv and set(df["convention"]) == {conv}
+            tables[conv, name] = df
+        text = (d / "results.md").read_text()
+        assert f"Convention: **{conv}**" in text
+    m, s = tables["published", "predictions"], tables["published", "prediction_summary"]
+    assert (m["t_oc"] == 0.1).all() and (tables["continuous", "predictions"]["t_oc"] < 0.1).all()
+    assert (m.loc[m["predictor"] == "oc", "weights"] == "walking-2021").all()
+    for conv, ddof in (("published", 0), ("continuous", 1)):  # population sd under published, sample sd otherwise
+        mm, ss = tables[conv, "predictions"], tables[conv, "prediction_summary"]
+        row = ss[(ss["predictor"] == "cv") & (ss["metric"] == "delta_xy")].iloc[0]
+        assert row["sd"] == pytest.approx(np.std(mm.loc[mm["predictor"] == "cv", "delta_xy"], ddof=ddof), rel=1e-12)
+    cv = {c: tables[c, "predictions"].query("predictor == 'cv'")["delta_xy"].to_numpy() for c in ("published", "continuous")}
+    np.testing.assert_array_equal(cv["published"], cv["continuous"])  # the baselines do not depend on the convention
+    text = (out / "predict-arcs" / "results.md").read_text()
+    assert "### OC vs CV vs CTRV under both conventions" in text and "From this stage and `predict-arcs-published`." in text
+    oc = {c: tables[c, "predictions"].query("predictor == 'oc'")["delta_xy"] for c in ("published", "continuous")}
+    row = [line for line in text.splitlines() if line.startswith("| 8 | 20 | oc |")][-1]  # the last table: both conventions
+    assert f"{oc['published'].mean():.3f} +- {np.std(oc['published']):.3f}" in row
+    assert f"{oc['continuous'].mean():.3f} +- {oc['continuous'].std():.3f}" in row
+
+
+@pytest.mark.datasets
+def test_published_walking_trajectories_under_both_conventions(cli, tmp_path, datasets):
+    """Five walking-2020 trials (every 80th) at (50, 100): the OC predictor loses to constant
+    velocity under both conventions; starting each window from rest at 0.1 s per node (published)
+    halves its error against the continuous convention on these walks."""
+    out = tmp_path / "ws"
+    assert cli("-q", "import-published", "walking-2020", datasets / "walking-2020", "--out", out)[0] == 0
+    m = {}
+    for conv, stage in (("published", "predict-published"), ("continuous", "predict")):
+        code, _, err = cli("-q", "predict", "--out", out, "--kind", "trial", "--every", "80", "--predictors", "oc,cv",
+                           "--settings", "50:100", "--convention", conv, "-j", "1")
+        assert code == 0, err
+        m[conv] = pd.read_parquet(out / stage / "predictions.parquet").set_index(["trial", "predictor"])["delta_xy"].unstack()
+        assert len(m[conv]) == 5
+        assert (m[conv]["oc"] > m[conv]["cv"]).all()
+    assert (m["published"]["oc"] < 0.7 * m["continuous"]["oc"]).all()
+    assert m["published"]["oc"].mean() == pytest.approx(0.0895, rel=0.02)  # 2026-11-22; tolerance of an OC solve
+    assert m["continuous"]["oc"].mean() == pytest.approx(0.1767, rel=0.02)
+    np.testing.assert_array_equal(m["published"]["cv"], m["continuous"]["cv"])
