@@ -365,3 +365,22 @@ def test_published_walking_trajectories_under_both_conventions(cli, tmp_path, da
     assert m["published"]["oc"].mean() == pytest.approx(0.0895, rel=0.02)  # 2026-11-22; tolerance of an OC solve
     assert m["continuous"]["oc"].mean() == pytest.approx(0.1767, rel=0.02)
     np.testing.assert_array_equal(m["published"]["cv"], m["continuous"]["cv"])
+
+
+def test_paper_rows_put_ours_beside_the_paper():
+    from cobot_analysis.conventions import CONTINUOUS, PUBLISHED
+    from cobot_analysis.models.prediction.report import paper_rows
+
+    oc, cv = [0.05, 0.07, 0.12], [0.02, 0.01, 0.03]
+    rows = [{"study": "walking-2020", "entity": "walker", "kind": "trial", "n0": 50, "n_oc": 100, "predictor": p,
+             "delta_xy": v, "delta_theta": np.nan, "d_pred": 0.3} for p, vals in (("oc", oc), ("cv", cv)) for v in vals]
+    metrics = pd.DataFrame(rows)
+    lines = paper_rows(metrics, PUBLISHED)
+    row = next(line for line in lines if line.startswith("| walking-2020 walker | delta_xy"))
+    assert f"| 0.08 +- 0.02 | {np.mean(oc):.3f} +- {np.std(oc):.3f} | {np.mean(cv):.3f} +- {np.std(cv):.3f} | 3 |" in row
+    assert any("the OC predictor loses to constant velocity (0.080 vs 0.020 m)" in line for line in lines)
+    assert any(line.startswith("- walking-2020: d_pred is the time") for line in lines)
+    row = next(line for line in paper_rows(metrics, CONTINUOUS) if line.startswith("| walking-2020 walker | delta_xy"))
+    assert f"{np.std(oc, ddof=1):.3f}" in row
+    assert paper_rows(metrics.assign(study="synthetic-walking"), PUBLISHED) == []  # no paper for it
+    assert paper_rows(metrics.assign(n0=25), PUBLISHED) == []  # the papers' setting only
