@@ -211,27 +211,25 @@ class OCPredictor(Predictor):
         d = self._derivative
         m = len(d)
         has_theta = bool(np.isfinite(past[:, 2]).all())
-        vx, vy = d @ past[:m, 0], d @ past[:m, 1]
         if has_theta:
-            theta, omega = past[0, 2], d @ past[:m, 2]
+            theta, angles = past[0, 2], past[:m, 2]
         else:
-            heading = np.unwrap(np.arctan2(np.gradient(past[:m, 1]), np.gradient(past[:m, 0])))
-            theta, omega = heading[0], d @ heading
+            angles = np.unwrap(np.arctan2(np.gradient(past[:m, 1]), np.gradient(past[:m, 0])))  # direction of travel
+            theta = angles[0]
         if self.rest_start:
             return np.array([past[0, 0], past[0, 1], theta, 0.0, 0.0, 0.0]), has_theta
+        vx, vy, omega = d @ past[:m, 0], d @ past[:m, 1], d @ angles
         c, s = np.cos(theta), np.sin(theta)
         return np.array([past[0, 0], past[0, 1], theta, c * vx + s * vy, -s * vx + c * vy, omega]), has_theta
 
     def _cold_guess(self, past: np.ndarray, x0: np.ndarray) -> np.ndarray:
-        ocp, n = self.ocp, self.n0
+        """The measured past (theta = x0's where it is missing) at x0's velocities, zero controls."""
         poses = past.copy()
         if not np.isfinite(past[:, 2]).all():
             poses[:, 2] = x0[2]
-        w = np.zeros(ocp.n_vars)
-        stride = ocp.nx + ocp.nu
-        for k in range(n):
-            w[k * stride: k * stride + 3] = poses[k]
-            w[k * stride + 3: k * stride + 6] = x0[3:6]
+        w = np.zeros(self.ocp.n_vars)
+        w[self.ocp._xi[:, :3]] = poses  # node k of the N0 - 1 intervals = measured sample k
+        w[self.ocp._xi[:, 3:6]] = x0[3:6]
         return w
 
     def _shifted(self, previous: np.ndarray) -> np.ndarray:
