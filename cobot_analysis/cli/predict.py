@@ -234,7 +234,9 @@ def figures(stage, metrics, traj, config) -> None:
         ax.set_xlabel("x (m)")
     axes[0, 0].set_ylabel("y (m)")
     axes[0, 0].legend(loc="best", fontsize=7)
-    fig.suptitle(f"{traj.label}, N0 = {n0}, N_OC = {n_oc}, T_OC = {traj.dt * 1000:.1f} ms")
+    conv = config.convention
+    step = f"OC nodes of {conv.prediction.node_dt:g} s" if conv.prediction.node_dt else f"T_OC = {traj.dt * 1000:.1f} ms"
+    fig.suptitle(f"{traj.label}, N0 = {n0}, N_OC = {n_oc}, {step}, {conv.name} convention")
     stage.savefig(fig, "prediction_overlay")
 
     ks = np.linspace(n0 - 1, len(xy) - 1 - (n_oc - n0) // 2, 6).astype(int)
@@ -248,7 +250,7 @@ def figures(stage, metrics, traj, config) -> None:
         ax.set_title(f"k = {k} ({100 * k / (len(xy) - 1):.0f} %)")
         ax.set_aspect("equal")
     axes[0, 0].legend(fontsize=7)
-    fig.suptitle(f"Prediction at k: {traj.label}, N0 = {n0}, N_OC = {n_oc}")
+    fig.suptitle(f"Prediction at k: {traj.label}, N0 = {n0}, N_OC = {n_oc}, {conv.name} convention")
     stage.savefig(fig, "prediction_at_k")
 
     m = metrics[(metrics["n0"] == n0) & (metrics["n_oc"] == n_oc)]
@@ -264,7 +266,7 @@ def figures(stage, metrics, traj, config) -> None:
         ax.set_xlabel("global distance (m)")
     axes[0, 0].set_ylabel("delta_xy (m): mean, min-max band")
     axes[0, 0].legend(title="start orientation", fontsize=7)
-    fig.suptitle(f"Prediction error vs global distance, N0 = {n0}, N_OC = {n_oc}")
+    fig.suptitle(f"Prediction error vs global distance, N0 = {n0}, N_OC = {n_oc}, {conv.name} convention")
     stage.savefig(fig, "prediction_error_vs_distance")
 
 
