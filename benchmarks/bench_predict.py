@@ -1,12 +1,13 @@
 """Prediction benchmarks (docs/benchmarks.md, section "Prediction").
 
-    python benchmarks/bench_predict.py windows TRAJECTORIES.parquet [--n 6]
+    python benchmarks/bench_predict.py windows TRAJECTORIES.parquet [--n 6] [--convention NAME]
         OC windows per second of CPU time on one core (N0 = 50, N_OC = 100: 100-node windows, solved as the
-        50-node measured past plus the zero-control coast, see OCPredictor), warm-started (the previous
-        window shifted) and cold, and the baselines, on n trial trajectories.
-    python benchmarks/bench_predict.py sweep TRAJECTORIES.parquet --out DIR [--dask] [--every K] [--limit N]
-        Wall time of `cobot-analysis predict --settings 50:100 --kind trial` from an empty work
-        directory: local pool of 2 processes, or a 2-worker local Dask cluster (--dask).
+        50-node measured past plus the zero-control coast, see OCPredictor), and the baselines, on n trial
+        trajectories. Continuous convention (default): warm-started (the previous window shifted) and
+        cold; published: cold from rest, 0.1 s Euler nodes (the convention's own rule).
+    python benchmarks/bench_predict.py sweep TRAJECTORIES.parquet --out DIR [--convention NAME] [--dask] [--every K] [--limit N]
+        Wall time of `cobot-analysis predict --settings 50:100 --kind trial --convention NAME` from an
+        empty work directory: local pool of 2 processes, or a 2-worker local Dask cluster (--dask).
 
 TRAJECTORIES.parquet: e.g. the output of `cobot-analysis import-published walking-2020 ...`.
 BLAS is limited to one thread per process, as in the pipeline's pool.
@@ -36,21 +37,22 @@ def load(path: Path, n: int):
     return trajectories_from_table(df[df["trial"].isin(trials)], SweepConfig(settings=((50, 100),)))
 
 
-def bench_windows(path: Path, n: int) -> None:
+def bench_windows(path: Path, n: int, convention: str) -> None:
     from cobot_analysis.models.prediction.predictor import OCPredictor, make_predictor
 
     trajs = load(path, n)
-    OCPredictor(50, 100, trajs[0].dt)  # build the NLP once (cached per process)
+    first = OCPredictor(50, 100, trajs[0].dt, convention=convention)  # build the NLP once (cached per process)
     t0 = time.perf_counter()
-    from cobot_analysis.models.oc.problem import OCPShape, WalkerOCP
+    from cobot_analysis.models.oc.problem import WalkerOCP
 
-    WalkerOCP(OCPShape(n_intervals=49))
+    WalkerOCP(first.ocp.shape)
     build = time.perf_counter() - t0
-    print(f"NLP build (49 intervals: the window's measured past): {build:.2f} s")
-    for label, kw in (("oc warm", {}), ("oc cold", {"warm_start": False})):
+    print(f"{convention} convention; NLP build (49 intervals, {first.scheme}: the window's measured past): {build:.2f} s")
+    runs = (("oc warm", {"warm_start": True}), ("oc cold", {"warm_start": False})) if first.warm_start else (("oc cold from rest", {}),)
+    for label, kw in runs:
         times, iters, failed = [], [], 0
         for t in trajs:
-            p = OCPredictor(50, 100, t.dt, **kw)
+            p = OCPredictor(50, 100, t.dt, convention=convention, **kw)
             p.reset()
             for pose in t.seen:
                 before = p.last_solution
@@ -70,12 +72,12 @@ def bench_windows(path: Path, n: int) -> None:
         print(f"{name}: {count / (time.process_time() - s):.0f} windows/s")
 
 
-def bench_sweep(path: Path, out: Path, dask: bool, limit: int | None, every: int = 1) -> None:
+def bench_sweep(path: Path, out: Path, dask: bool, limit: int | None, every: int = 1, convention: str = "continuous") -> None:
     from cobot_analysis.cli import run
 
     shutil.rmtree(out / ".predict-work", ignore_errors=True)
     argv = ["-q", "predict", "--out", str(out), "--trajectories", str(path), "--kind", "trial", "--settings", "50:100",
-            "--force", "--every", str(every), *(["--limit", str(limit)] if limit else [])]
+            "--convention", convention, "--force", "--every", str(every), *(["--limit", str(limit)] if limit else [])]
     if dask:
         from distributed import LocalCluster
 
@@ -87,7 +89,9 @@ def bench_sweep(path: Path, out: Path, dask: bool, limit: int | None, every: int
         s = time.perf_counter()
         code = run([*argv, "--jobs", "2"])
         wall = time.perf_counter() - s
-    print(f"sweep (50,100) {'dask 2 workers' if dask else 'local pool -j 2'}: exit {code}, wall {wall:.0f} s")
+    cpu = sum(os.times()[:4])  # this process and its finished children (the pool's workers)
+    print(f"sweep (50,100), {convention} convention, {'dask 2 workers' if dask else 'local pool -j 2'}: exit {code}, "
+          f"wall {wall:.0f} s, CPU {cpu:.0f} s, load average after {os.getloadavg()[0]:.1f}")
 
 
 def main() -> None:
@@ -96,19 +100,21 @@ def main() -> None:
     w = sub.add_parser("windows")
     w.add_argument("trajectories", type=Path)
     w.add_argument("--n", type=int, default=6)
+    w.add_argument("--convention", choices=("continuous", "published"), default="continuous")
     s = sub.add_parser("sweep")
     s.add_argument("trajectories", type=Path)
     s.add_argument("--out", type=Path, required=True)
     s.add_argument("--dask", action="store_true")
     s.add_argument("--limit", type=int)
     s.add_argument("--every", type=int, default=1)
+    s.add_argument("--convention", choices=("continuous", "published"), default="continuous")
     a = ap.parse_args()
     print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} cores, load average "
           f"{', '.join(f'{v:.1f}' for v in os.getloadavg())}")
     if a.what == "windows":
-        bench_windows(a.trajectories, a.n)
+        bench_windows(a.trajectories, a.n, a.convention)
     else:
-        bench_sweep(a.trajectories, a.out, a.dask, a.limit, a.every)
+        bench_sweep(a.trajectories, a.out, a.dask, a.limit, a.every, a.convention)
 
 
 if __name__ == "__main__":

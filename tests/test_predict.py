@@ -160,22 +160,86 @@ def test_step_by_step_equals_offline_and_warm_equals_cold():
     np.testing.assert_allclose(cold, results["oc"], atol=1e-6, equal_nan=True)
 
 
-def test_window_separates_into_past_solve_and_coast():
+@pytest.mark.parametrize("convention", ["continuous", "published"])
+def test_window_separates_into_past_solve_and_coast(convention):
     """The whole N_OC-node window (tracking on the first N0 nodes, free future) has the same optimum
-    as the predictor's N0-node solve followed by the zero-control coast."""
+    as the predictor's N0-node solve followed by the zero-control coast, under both conventions
+    (published: Euler steps of 0.1 s, the window from rest at its first pose made the origin)."""
     from cobot_analysis.models.oc.problem import OCPShape, get_ocp
 
     poses = model_path(n=40) + np.random.default_rng(3).normal(0, 0.01, (40, 3))  # noisy: controls are not zero
     n0, n_oc = 12, 30
-    oc = OCPredictor(n0, n_oc, DT, warm_start=False)
+    oc = OCPredictor(n0, n_oc, DT, convention=convention)
     past = poses[5:5 + n0]
     predicted = oc.predict(past)
     x0, _ = oc.initial_state(past)
-    whole = get_ocp(OCPShape(n_intervals=n_oc - 1)).solve(
-        x0[:3], (x0[0] + 1e3, x0[1] + 1e3, 0.0), oc.weights, (n_oc - 1) * DT, start_velocity=x0[3:], track=past,
+    origin = np.r_[x0[:2], 0.0] if convention == "published" else np.zeros(3)
+    shape, T = ((OCPShape(n_intervals=n_oc - 1, scheme="euler"), 0.1) if convention == "published"
+                else (OCPShape(n_intervals=n_oc - 1), (n_oc - 1) * DT))
+    whole = get_ocp(shape).solve(
+        x0[:3] - origin, (x0[0] + 1e3, x0[1] + 1e3, 0.0), oc.weights, T, start_velocity=x0[3:], track=past - origin,
         track_weights=(10.0, 10.0), n_track=n0).check()
     assert np.abs(whole.U[n0 - 1:]).max() < 1e-5  # the future's optimal controls are zero
-    np.testing.assert_allclose(predicted, whole.X[n0 - 1:, :3], atol=1e-6)
+    assert np.abs(whole.U[: n0 - 1]).max() > 1e-2  # and the past's are not
+    np.testing.assert_allclose(predicted, whole.X[n0 - 1:, :3] + origin, atol=1e-6)
+
+
+# ---- the published convention -----------------------------------------------------------------
+def straight_walk_by_hand(n0: int, n_oc: int, s: float, a0: float, a1: float, g0: float, dt: float = 0.1):
+    """The published window on x_i = s i (theta = 0) solved by hand: from rest, Euler steps of dt,
+    x_{k+1} = x_k + dt v_k, v_{k+1} = v_k + dt u_k, so x = M u with M[k, m] = dt^2 (k - 1 - m) for
+    m <= k - 2; the cost (N0 - 1) a0 + a1 |u|^2 + g0 |c - M u|^2 is least at
+    u* = (a1 I + g0 M'M)^-1 g0 M'c. Returns (prediction x_{k+j}, j = 0..H, cost)."""
+    k, m = np.meshgrid(np.arange(n0), np.arange(n0 - 1), indexing="ij")
+    M = np.where(m <= k - 2, dt**2 * (k - 1 - m), 0.0)
+    c = s * np.arange(n0)
+    u = np.linalg.solve(a1 * np.eye(n0 - 1) + g0 * M.T @ M, g0 * M.T @ c)
+    x_last, v_last = (M @ u)[-1], dt * u.sum()
+    cost = (n0 - 1) * a0 + a1 * u @ u + g0 * np.sum((c - M @ u) ** 2)
+    return x_last + v_last * dt * np.arange(n_oc - n0 + 1), cost
+
+
+def test_published_predictor_on_a_straight_walk_matches_the_hand_solution():
+    """A straight walk at 0.02 m per sample: the published window starts at rest, so its last node
+    lags the walk and its speed falls short of 0.2 m/s; the prediction is the hand-solved LQ problem
+    (``straight_walk_by_hand``) whatever the real sample period. The continuous predictor, started
+    at the estimated velocity, is exact on it."""
+    n0, n_oc, s = 10, 30, 0.02
+    poses = np.c_[1.0 + s * np.arange(60), np.full(60, -2.0), np.zeros(60)]
+    w = OCPredictor(n0, n_oc, convention="published").weights
+    expected, cost = straight_walk_by_hand(n0, n_oc, s, a0=w[0], a1=w[1], g0=10.0)
+    for dt in (0.004, 0.5):  # one node of 0.1 s per sample, whatever the sampling period
+        oc = OCPredictor(n0, n_oc, dt, convention="published")
+        P = oc.predict_offline(poses)
+        assert oc.failed == 0 and oc.last_solution.cost == pytest.approx(cost, rel=1e-6)
+        np.testing.assert_allclose(P[:, :, 0] - (poses[: len(P), 0, None]), np.broadcast_to(expected, P[:, :, 0].shape), atol=1e-6)
+        np.testing.assert_allclose(P[:, :, 1:], np.broadcast_to([-2.0, 0.0], P[:, :, 1:].shape), atol=1e-9)
+    # what the rest start costs: over 0.9 s of nodes, reaching 0.2 m/s costs more control (a1 = 4)
+    # than lagging costs tracking (g0 = 10): the last node is 0.156 m behind the 0.18 m walked and
+    # coasts at 0.038 m/s; the error grows along the horizon
+    lag = s * (n0 - 1) - expected[0]
+    speed = (expected[1] - expected[0]) / 0.1
+    assert 0.8 * 0.18 < lag < 0.18 and speed < 0.25 * s / 0.1
+    m = summarise(window_errors(poses, P, n0))
+    truth = s * (n0 - 1 + np.arange(n_oc - n0 + 1))
+    assert m.fde == pytest.approx(truth[-1] - expected[-1], rel=1e-6)
+    assert m.fde == pytest.approx(lag + (n_oc - n0) * (s - 0.1 * speed), rel=1e-6)
+    cont = summarise(window_errors(poses, OCPredictor(n0, n_oc, 0.1).predict_offline(poses), n0))
+    assert cont.delta_xy < 1e-6 and m.delta_xy > 1e3 * cont.delta_xy
+    # with N0 = 50 nodes (5 s) the fit has caught up: a walk of 3.7 m over 500 samples, lag < 5 mm
+    expected, _ = straight_walk_by_hand(50, 100, 0.0075, a0=w[0], a1=w[1], g0=10.0)
+    assert abs(0.0075 * 49 - expected[0]) < 0.005 and (expected[1] - expected[0]) / 0.1 == pytest.approx(0.075, rel=0.05)
+
+
+def test_published_predictor_solves_cold_from_rest():
+    oc = OCPredictor(10, 30, DT, convention="published")
+    assert (oc.warm_start, oc.rest_start, oc.step, oc.scheme) == (False, True, 0.1, "euler")
+    x0, has_theta = oc.initial_state(model_path()[:10])
+    assert has_theta and np.array_equal(x0[3:], np.zeros(3)) and x0[2] == pytest.approx(0.3)
+    cont = OCPredictor(10, 30, DT)
+    assert (cont.warm_start, cont.rest_start, cont.step, cont.scheme) == (True, False, DT, "midpoint")
+    with pytest.raises(InputError, match="--convention 'authors' is not a convention"):
+        OCPredictor(10, 30, DT, convention="authors")
 
 
 def test_coast_is_the_zero_control_step():

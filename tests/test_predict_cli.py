@@ -46,7 +46,7 @@ def traj_file(tmp_path):
     return make
 
 
-FAST = ["--settings", "8:20,10:30", "-j", "1"]
+FAST = ["--settings", "8:20,10:30", "-j", "1", "--convention", "continuous"]
 
 
 def test_predict_command_writes_tables_figures_and_results(cli, tmp_path, traj_file):
@@ -213,7 +213,7 @@ def test_published_walking_trajectories(cli, tmp_path, datasets):
     code, _, err = cli("-q", "predict", "--out", out, "--kind", "trial", "--every", "40", "--predictors", "cv,ctrv",
                        "--settings", "50:100", "-j", "1")
     assert code == 0, err
-    per = pd.read_parquet(out / "predict" / "predictions.parquet").query("predictor == 'cv'")
+    per = pd.read_parquet(out / "predict-published" / "predictions.parquet").query("predictor == 'cv'")  # preset: published
     assert len(per) == 10 and (per["n_windows"] == 451).all() and (per["n_skipped"] == 0).all()
     # centimetre errors over a 50-sample horizon; the final error exceeds the average one
     assert 0.002 < per["delta_xy"].median() < 0.05 and (per["fde"] > per["ade"]).all()
@@ -230,7 +230,7 @@ def test_fitted_weights_file_is_used_and_recorded(cli, tmp_path, traj_file):
     assert by_file["weights"].iloc[0] == str(weights)
     manifest = json.loads((out / "predict" / "manifest.json").read_text())
     assert str(weights.resolve()) in [i["path"] for i in manifest["inputs"]]
-    assert cli("-q", "predict", "--out", tmp_path / "ws2", "--weights", "walking-2021", *args)[0] == 0
+    assert cli("-q", "predict", "--out", tmp_path / "ws2", "--weights", "walking-2021", "--convention", "continuous", *args)[0] == 0
     by_preset = pd.read_parquet(tmp_path / "ws2" / "predict" / "predictions.parquet")
     assert by_file["delta_xy"].iloc[0] == pytest.approx(by_preset["delta_xy"].iloc[0], rel=1e-9)  # same a0..a3
 
@@ -254,7 +254,7 @@ def test_second_sweep_with_other_weights_sits_beside_the_first(cli, tmp_path, tr
                                                "b0": 10.0, "b1": 10.0, "b2": 0.3, "b3": 1.0}}))
     out = tmp_path / "ws"
     args = ["--trajectories", traj_file(n_traj=1), "--settings", "8:20", "-j", "1"]
-    assert cli("-q", "predict", "--out", out, *args)[0] == 0
+    assert cli("-q", "predict", "--out", out, "--convention", "continuous", *args)[0] == 0
     assert cli("-q", "predict", "--out", out, "--weights", weights, "--stage-name", "predict-fitted", *args)[0] == 0
     first = pd.read_parquet(out / "predict" / "predictions.parquet").set_index("predictor")
     second = pd.read_parquet(out / "predict-fitted" / "predictions.parquet").set_index("predictor")
@@ -264,3 +264,123 @@ def test_second_sweep_with_other_weights_sits_beside_the_first(cli, tmp_path, tr
         "## Trajectory prediction (docs/methods.md sec. 7), stage predict-fitted")
     code, _, err = cli("-q", "predict", "--out", out, "--stage-name", "../elsewhere", *args)
     assert code == 2 and "not a predict stage name" in err
+
+
+# ---- conventions (docs/methods.md sec. 11) -----------------------------------------------------
+def test_unknown_convention_exits_2_before_any_work(cli, tmp_path, traj_file):
+    out = tmp_path / "ws"
+    code, _, err = cli("predict", "--out", out, "--trajectories", traj_file(), "--settings", "8:20", "--convention", "authors")
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "--convention 'authors' is not a convention" in err and "published, continuous" in err
+    assert not out.exists() or not any(out.iterdir())
+    bad = tmp_path / "weights.json"
+    bad.write_text(json.dumps({"convention": "authors", "weights": {"a0": 1.0}}))
+    code, _, err = cli("predict", "--out", out, "--trajectories", traj_file(), "--settings", "8:20", "--weights", bad)
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "weights.json" in err and "'authors' is not a convention" in err and "--convention" in err
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_default_convention_is_that_of_the_weights(cli, tmp_path, traj_file):
+    """Presets are published weights: predict-published; a fit-ioc weights.json names its own
+    convention; a weights file that does not: continuous."""
+    path = traj_file(n_traj=1)
+    args = ["--trajectories", path, "--settings", "8:20", "--predictors", "oc", "-j", "1"]
+    w = {"a0": 7.87, "a1": 4.0, "a2": 20.15, "a3": 1e-6}
+    files = {}
+    for name, data in {"plain": {"weights": w}, "published": {"convention": "published", "weights": w},
+                       "continuous": {"convention": "continuous", "weights": w}}.items():
+        files[name] = tmp_path / f"{name}.json"
+        files[name].write_text(json.dumps(data))
+    runs = {"preset": ([], "predict-published"), "plain": (["--weights", files["plain"]], "predict"),
+            "published": (["--weights", files["published"]], "predict-published"),
+            "continuous": (["--weights", files["continuous"]], "predict")}
+    values = {}
+    for label, (extra, stage) in runs.items():
+        out = tmp_path / label
+        code, _, err = cli("-q", "predict", "--out", out, *args, *extra)
+        assert code == 0, err
+        assert [p.name for p in out.iterdir() if not p.name.startswith(".")] == [stage]
+        m = pd.read_parquet(out / stage / "predictions.parquet")
+        assert set(m["convention"]) == {"continuous" if stage == "predict" else "published"}
+        values[label] = m["delta_xy"].iloc[0]
+    assert values["preset"] == values["published"] and values["plain"] == values["continuous"]  # same a0..a3
+    assert values["preset"] > 2 * values["plain"]  # the rest start lags on a walk at constant speed
+    code, _, err = cli("predict", "--out", tmp_path / "plain", *args, "--weights", files["published"], "--convention", "continuous")
+    assert code == 0 and "published-convention weights" in err  # said, then done as asked
+
+
+def test_both_conventions_sit_side_by_side_and_name_themselves(cli, tmp_path, traj_file):
+    out = tmp_path / "ws"
+    args = ["--trajectories", traj_file(), "--settings", "8:20", "--stage-name", "predict-arcs", "-j", "1"]
+    assert cli("-q", "predict", "--out", out, "--convention", "published", *args)[0] == 0
+    assert "### OC vs CV vs CTRV under both conventions" not in (out / "predict-arcs-published" / "results.md").read_text()
+    assert cli("-q", "predict", "--out", out, "--convention", "continuous", *args)[0] == 0
+    tables = {}
+    for conv, stage in (("published", "predict-arcs-published"), ("continuous", "predict-arcs")):
+        d = out / stage
+        manifest = json.loads((d / "manifest.json").read_text())
+        assert manifest["params"]["convention"] == conv and manifest["params"]["config"]["convention"] == conv
+        for name, schema in (("predictions", sweep_mod.PREDICTIONS), ("prediction_windows", sweep_mod.PREDICTION_WINDOWS),
+                             ("prediction_summary", sweep_mod.PREDICTION_SUMMARY),
+                             ("prediction_comparison", sweep_mod.PREDICTION_COMPARISON)):
+            df = read_table(d / f"{name}.parquet", schema)
+            assert df.attrs["cobot_analysis"]["convention"] == conv and set(df["convention"]) == {conv}
+            tables[conv, name] = df
+        text = (d / "results.md").read_text()
+        assert f"Convention: **{conv}**" in text
+    m, s = tables["published", "predictions"], tables["published", "prediction_summary"]
+    assert (m["t_oc"] == 0.1).all() and (tables["continuous", "predictions"]["t_oc"] < 0.1).all()
+    assert (m.loc[m["predictor"] == "oc", "weights"] == "walking-2021").all()
+    for conv, ddof in (("published", 0), ("continuous", 1)):  # population sd under published, sample sd otherwise
+        mm, ss = tables[conv, "predictions"], tables[conv, "prediction_summary"]
+        row = ss[(ss["predictor"] == "cv") & (ss["metric"] == "delta_xy")].iloc[0]
+        assert row["sd"] == pytest.approx(np.std(mm.loc[mm["predictor"] == "cv", "delta_xy"], ddof=ddof), rel=1e-12)
+    cv = {c: tables[c, "predictions"].query("predictor == 'cv'")["delta_xy"].to_numpy() for c in ("published", "continuous")}
+    np.testing.assert_array_equal(cv["published"], cv["continuous"])  # the baselines do not depend on the convention
+    text = (out / "predict-arcs" / "results.md").read_text()
+    assert "### OC vs CV vs CTRV under both conventions" in text and "From this stage and `predict-arcs-published`." in text
+    oc = {c: tables[c, "predictions"].query("predictor == 'oc'")["delta_xy"] for c in ("published", "continuous")}
+    row = [line for line in text.splitlines() if line.startswith("| 8 | 20 | oc |")][-1]  # the last table: both conventions
+    assert f"{oc['published'].mean():.3f} +- {np.std(oc['published']):.3f}" in row
+    assert f"{oc['continuous'].mean():.3f} +- {oc['continuous'].std():.3f}" in row
+
+
+@pytest.mark.datasets
+def test_published_walking_trajectories_under_both_conventions(cli, tmp_path, datasets):
+    """Five walking-2020 trials (every 80th) at (50, 100): the OC predictor loses to constant
+    velocity under both conventions; starting each window from rest at 0.1 s per node (published)
+    halves its error against the continuous convention on these walks."""
+    out = tmp_path / "ws"
+    assert cli("-q", "import-published", "walking-2020", datasets / "walking-2020", "--out", out)[0] == 0
+    m = {}
+    for conv, stage in (("published", "predict-published"), ("continuous", "predict")):
+        code, _, err = cli("-q", "predict", "--out", out, "--kind", "trial", "--every", "80", "--predictors", "oc,cv",
+                           "--settings", "50:100", "--convention", conv, "-j", "1")
+        assert code == 0, err
+        m[conv] = pd.read_parquet(out / stage / "predictions.parquet").set_index(["trial", "predictor"])["delta_xy"].unstack()
+        assert len(m[conv]) == 5
+        assert (m[conv]["oc"] > m[conv]["cv"]).all()
+    assert (m["published"]["oc"] < 0.7 * m["continuous"]["oc"]).all()
+    assert m["published"]["oc"].mean() == pytest.approx(0.0895, rel=0.02)  # 2026-11-22; tolerance of an OC solve
+    assert m["continuous"]["oc"].mean() == pytest.approx(0.1767, rel=0.02)
+    np.testing.assert_array_equal(m["published"]["cv"], m["continuous"]["cv"])
+
+
+def test_paper_rows_put_ours_beside_the_paper():
+    from cobot_analysis.conventions import CONTINUOUS, PUBLISHED
+    from cobot_analysis.models.prediction.report import paper_rows
+
+    oc, cv = [0.05, 0.07, 0.12], [0.02, 0.01, 0.03]
+    rows = [{"study": "walking-2020", "entity": "walker", "kind": "trial", "n0": 50, "n_oc": 100, "predictor": p,
+             "delta_xy": v, "delta_theta": np.nan, "d_pred": 0.3} for p, vals in (("oc", oc), ("cv", cv)) for v in vals]
+    metrics = pd.DataFrame(rows)
+    lines = paper_rows(metrics, PUBLISHED)
+    row = next(line for line in lines if line.startswith("| walking-2020 walker | delta_xy"))
+    assert f"| 0.08 +- 0.02 | {np.mean(oc):.3f} +- {np.std(oc):.3f} | {np.mean(cv):.3f} +- {np.std(cv):.3f} | 3 |" in row
+    assert any("the OC predictor loses to constant velocity (0.080 vs 0.020 m)" in line for line in lines)
+    assert any(line.startswith("- walking-2020: d_pred is the time") for line in lines)
+    row = next(line for line in paper_rows(metrics, CONTINUOUS) if line.startswith("| walking-2020 walker | delta_xy"))
+    assert f"{np.std(oc, ddof=1):.3f}" in row
+    assert paper_rows(metrics.assign(study="synthetic-walking"), PUBLISHED) == []  # no paper for it
+    assert paper_rows(metrics.assign(n0=25), PUBLISHED) == []  # the papers' setting only

@@ -13,6 +13,36 @@ from cobot_analysis.cli.app import PANEL_MODELS, DEFAULT_OUT_PATH, ForceOpt, Job
 
 STAGE = "predict"
 WORK = ".predict-work"
+PUBLISHED_SUFFIX = "-published"
+
+
+def weights_convention(weights: str | None) -> str:
+    """The convention of ``--weights`` (docs/methods.md sec. 11): ``published`` for a preset (the
+    published weights), the ``"convention"`` key of a fit-ioc weights.json, else ``continuous``."""
+    import json
+
+    from cobot_analysis.conventions import NAMES
+    from cobot_analysis.errors import InputError
+    from cobot_analysis.models.presets import PRESETS
+
+    if weights is None or weights in PRESETS or not Path(weights).is_file():
+        return "published"  # a preset (or a missing file, refused later by load_weights)
+    try:
+        data = json.loads(Path(weights).read_text())
+    except ValueError:
+        return "continuous"  # not JSON: load_weights names the file
+    name = data.get("convention") if isinstance(data, dict) else None
+    if name is None:
+        return "continuous"
+    if name not in NAMES:
+        raise InputError(f"its \"convention\" {name!r} is not a convention", path=Path(weights),
+                         remedy=f"write one of {', '.join(NAMES)} or pass --convention")
+    return name
+
+
+def stage_dir_name(stage_name: str, convention: str) -> str:
+    """The stage directory: ``NAME`` (continuous) or ``NAME-published``, so both sit in one workspace."""
+    return stage_name + (PUBLISHED_SUFFIX if convention == "published" else "")
 
 
 def parse_settings(text: str) -> tuple[tuple[int, int], ...]:
@@ -37,7 +67,8 @@ def predict_command(
     trajectories: Annotated[Optional[Path], typer.Option("--trajectories", help="trajectories.parquet (default: from preprocess or import-published in OUT).")] = None,
     settings: Annotated[str, typer.Option("--settings", help="(N0, N_OC) pairs in samples, as N0:N_OC,...")] = "25:100,50:100,75:100,50:200",
     predictors: Annotated[str, typer.Option("--predictors", help="Comma-separated: oc (receding-horizon OC), cv (constant velocity), ctrv (constant turn rate and velocity).")] = "oc,cv,ctrv",
-    weights: Annotated[Optional[str], typer.Option("--weights", help="OC cost weights a0..a3: a preset (walking-2021, table-2022, ...) or a fitted weights.json. Default: walking-2021, table-2022 for tables.")] = None,
+    weights: Annotated[Optional[str], typer.Option("--weights", help="OC cost weights a0..a3: a preset (walking-2021, table-2022, ...) or a fitted weights.json. Default: walking-2021, and for tables the convention's table preset (published: table-prediction-2022, the authors' predictor; continuous: table-2022).")] = None,
+    convention: Annotated[Optional[str], typer.Option("--convention", help="published (the authors' code: one node of 0.1 s per sample, every window from rest, explicit Euler, costs summed per node, cold solves, population sd) or continuous (the real sample period, the start velocity estimated, warm starts, sample sd); docs/methods.md sec. 11. Default: the convention of the weights: published for a preset, the \"convention\" key of a fit-ioc weights.json, else continuous. Stage directory: STAGE-NAME (continuous) or STAGE-NAME-published.")] = None,
     g0: Annotated[float, typer.Option("--g0", min=0.0, help="Weight of the position tracking of the measured past.")] = 10.0,
     g1: Annotated[float, typer.Option("--g1", min=0.0, help="Weight of the orientation tracking (0 where theta is missing).")] = 10.0,
     t_oc: Annotated[Optional[float], typer.Option("--t-oc", help="Sampling period T_OC (s): resample each trajectory to it. Default: the trajectory's own sample period.")] = None,
@@ -48,7 +79,7 @@ def predict_command(
     kind: Annotated[str, typer.Option("--kind", help="'trial', 'mean' or 'all' trajectories.")] = "all",
     limit: Annotated[Optional[int], typer.Option("--limit", min=1, help="Only the first N trajectories (a quick look).")] = None,
     every: Annotated[int, typer.Option("--every", min=1, help="Only every K-th trajectory (in study, trial, entity order): a spread-out subset.")] = 1,
-    stage_name: Annotated[str, typer.Option("--stage-name", help="Stage directory in OUT: another name keeps a second sweep (e.g. with fitted weights) beside the first.")] = STAGE,
+    stage_name: Annotated[str, typer.Option("--stage-name", help="Stage directory in OUT (NAME-published under the published convention): another name keeps a second sweep (e.g. with fitted weights) beside the first.")] = STAGE,
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
     force: ForceOpt = False,
@@ -63,6 +94,7 @@ def predict_command(
     --force clears them).
     """
 
+    from cobot_analysis import conventions
     from cobot_analysis.console import info, warn
     from cobot_analysis.errors import InputError
     from cobot_analysis.models.presets import load_weights
@@ -72,11 +104,17 @@ def predict_command(
     from cobot_analysis.schema import TRAJECTORIES, read_table, write_table
     from cobot_analysis.workspace import Stage, find_input
 
+    of_weights = weights_convention(weights)
+    conv = conventions.get(convention if convention is not None else of_weights)
     if not re.fullmatch(r"predict[-_A-Za-z0-9]*", stage_name):
         raise InputError(f"--stage-name {stage_name!r} is not a predict stage name", remedy="use predict or predict-<label>, e.g. predict-fitted")
+    if convention is not None and weights and Path(weights).is_file() and conv.name != of_weights:
+        warn(f"predict: the weights {weights} are {of_weights}-convention weights, predicting under --convention {conv.name}")
+    directory = stage_dir_name(stage_name, conv.name)
 
     config = SweepConfig(settings=parse_settings(settings), predictors=tuple(p.strip() for p in predictors.split(",") if p.strip()),
-                         weights=weights, g0=g0, g1=g1, t_oc=t_oc, nominal_speed=nominal_speed, orientation=orientation)
+                         weights=weights, g0=g0, g1=g1, t_oc=t_oc, nominal_speed=nominal_speed, orientation=orientation,
+                         convention=conv)
     if kind not in ("trial", "mean", "all"):
         raise InputError(f"unknown --kind {kind!r}", remedy="use trial, mean or all")
     inputs = []
@@ -106,14 +144,16 @@ def predict_command(
     if unpredictable:
         warn(f"predict: {len(unpredictable)} trajectories left out, fewer than N0 = {n0_min} consecutive finite positions: "
              + ", ".join(unpredictable[:5]) + (" ..." if len(unpredictable) > 5 else ""))
-    params = {"config": config.__dict__, "study": study, "entity": entity, "kind": kind, "limit": limit, "every": every}
+    params = {"convention": conv.name, "config": config.params(), "study": study, "entity": entity, "kind": kind,
+              "limit": limit, "every": every}
     work = WorkDir(Path(out) / WORK)  # shared by every sweep: its results are keyed by trajectory, setting and options
-    with Stage(out, stage_name, inputs=[path, *inputs], params=params, force=force) as stage:
+    with Stage(out, directory, inputs=[path, *inputs], params=params, force=force) as stage:
         if stage.skipped:
             return
         if force:
             work.clear()  # --force recomputes everything
-        info(f"predict: {len(trajs)} trajectories x {len(config.settings)} settings x {len(config.predictors)} predictors")
+        info(f"predict ({conv.name} convention): {len(trajs)} trajectories x {len(config.settings)} settings x "
+             f"{len(config.predictors)} predictors")
         metrics, windows, resumed = run_sweep(trajs, config, work, jobs=jobs, scheduler=scheduler)
         if resumed:
             info(f"predict: {resumed} trajectories resumed from {work.root}")
@@ -124,17 +164,29 @@ def predict_command(
         failed = metrics.loc[metrics["predictor"] == "oc", "n_failed"].sum() if "oc" in config.predictors else 0
         if failed:
             warn(f"predict: {failed} OC windows failed to converge (left out of every predictor's metrics)")
-        summary = summary_table(metrics)
-        comparison = compare_table(metrics, windows)
-        meta = {"weights": weights or "walking-2021 (walkers) / table-2022 (tables)", "g0": g0, "g1": g1}
+        summary = summary_table(metrics, conv)
+        comparison = compare_table(metrics, windows, conv)
+        meta = {"weights": weights or f"walking-2021 (walkers) / {conv.prediction.table_weights} (tables)", "g0": g0, "g1": g1,
+                "convention": conv.name}
         write_table(metrics, stage.path("predictions.parquet"), PREDICTIONS, **meta)
         write_table(windows, stage.path("prediction_windows.parquet"), PREDICTION_WINDOWS, **meta)
         write_table(summary, stage.path("prediction_summary.parquet"), PREDICTION_SUMMARY, **meta)
         write_table(comparison, stage.path("prediction_comparison.parquet"), PREDICTION_COMPARISON, **meta)
         example = example_trajectory(metrics, trajs, config)
         figures(stage, metrics, example, config)
-        stage.path("results.md").write_text(results_fragment(metrics, summary, comparison, config, example, unpredictable, stage_name))
-    info(f"[green]predict[/green]: {stage.final_dir}")
+        text = results_fragment(metrics, summary, comparison, config, example, unpredictable, directory)
+        other = Path(out) / stage_dir_name(stage_name, next(n for n in conventions.NAMES if n != conv.name))
+        if (other / "prediction_summary.parquet").is_file() and (other / "prediction_comparison.parquet").is_file():
+            from cobot_analysis.models.prediction.report import conventions_markdown, conventions_table
+
+            try:
+                both = conventions_table([stage.dir, other])
+            except InputError as exc:  # e.g. written by an older version: this stage is still complete
+                warn(f"predict: no table of both conventions ({exc})")
+            else:
+                text += "\n" + "\n".join(conventions_markdown(both) + [f"", f"From this stage and `{other.name}`."]) + "\n"
+        stage.path("results.md").write_text(text)
+    info(f"[green]predict[/green] ({conv.name} convention): {stage.final_dir}")
 
 
 # ---- figures and report -----------------------------------------------------------------------
@@ -168,7 +220,7 @@ def figures(stage, metrics, traj, config) -> None:
     preds = {}
     for name in config.predictors:
         options = {"weights": config.weights_for(traj.entity), "g0": config.g0, "g1": config.g1} if name == "oc" else {}
-        preds[name] = make_predictor(name, n0, n_oc, traj.dt, **options).predict_offline(traj.seen)
+        preds[name] = make_predictor(name, n0, n_oc, traj.dt, convention=config.convention, **options).predict_offline(traj.seen)
     xy = traj.poses[:, :2]
     colours = {"oc": "tab:blue", "cv": "tab:orange", "ctrv": "tab:green"}
 
@@ -182,7 +234,9 @@ def figures(stage, metrics, traj, config) -> None:
         ax.set_xlabel("x (m)")
     axes[0, 0].set_ylabel("y (m)")
     axes[0, 0].legend(loc="best", fontsize=7)
-    fig.suptitle(f"{traj.label}, N0 = {n0}, N_OC = {n_oc}, T_OC = {traj.dt * 1000:.1f} ms")
+    conv = config.convention
+    step = f"OC nodes of {conv.prediction.node_dt:g} s" if conv.prediction.node_dt else f"T_OC = {traj.dt * 1000:.1f} ms"
+    fig.suptitle(f"{traj.label}, N0 = {n0}, N_OC = {n_oc}, {step}, {conv.name} convention")
     stage.savefig(fig, "prediction_overlay")
 
     ks = np.linspace(n0 - 1, len(xy) - 1 - (n_oc - n0) // 2, 6).astype(int)
@@ -196,7 +250,7 @@ def figures(stage, metrics, traj, config) -> None:
         ax.set_title(f"k = {k} ({100 * k / (len(xy) - 1):.0f} %)")
         ax.set_aspect("equal")
     axes[0, 0].legend(fontsize=7)
-    fig.suptitle(f"Prediction at k: {traj.label}, N0 = {n0}, N_OC = {n_oc}")
+    fig.suptitle(f"Prediction at k: {traj.label}, N0 = {n0}, N_OC = {n_oc}, {conv.name} convention")
     stage.savefig(fig, "prediction_at_k")
 
     m = metrics[(metrics["n0"] == n0) & (metrics["n_oc"] == n_oc)]
@@ -212,7 +266,7 @@ def figures(stage, metrics, traj, config) -> None:
         ax.set_xlabel("global distance (m)")
     axes[0, 0].set_ylabel("delta_xy (m): mean, min-max band")
     axes[0, 0].legend(title="start orientation", fontsize=7)
-    fig.suptitle(f"Prediction error vs global distance, N0 = {n0}, N_OC = {n_oc}")
+    fig.suptitle(f"Prediction error vs global distance, N0 = {n0}, N_OC = {n_oc}, {conv.name} convention")
     stage.savefig(fig, "prediction_error_vs_distance")
 
 
@@ -237,13 +291,18 @@ def results_fragment(metrics, summary, comparison, config, example, unpredictabl
     no_theta = int((~traj["orientation"]).sum())
     untracked = int((traj["orientation"] & ~traj["theta_tracked"]).sum())
     assumed = traj[traj["duration_source"] == "nominal_speed"]
+    conv = config.convention
+    period = traj["sample_period"]
+    sampled = (f"{'resampled every %g s' % config.t_oc if config.t_oc else 'the sample period of each trajectory'}, "
+               f"median {1000 * period.median():.1f} ms (range {1000 * period.min():.1f}-{1000 * period.max():.1f} ms)")
     lines = [
         "## Trajectory prediction (docs/methods.md sec. 7)" + ("" if stage_name == STAGE else f", stage {stage_name}"), "",
+        f"Convention: **{conv.name}** (docs/methods.md sec. 11): {conv.summary}.",
         f"{len(traj)} trajectories: {studies}; entities " + ", ".join(f"{e} ({n})" for e, n in traj.groupby("entity").size().items()) + ".",
         f"Predictors: {', '.join(config.predictors)}; settings (N0, N_OC): {', '.join(f'({a}, {b})' for a, b in config.settings)}; "
-        f"OC weights {config.weights or 'walking-2021 (walkers) / table-2022 (tables)'}, g0 = {config.g0}, g1 = {config.g1}.",
-        f"T_OC: {'resampled every %g s' % config.t_oc if config.t_oc else 'the sample period of each trajectory'}, "
-        f"median {1000 * traj['t_oc'].median():.1f} ms (range {1000 * traj['t_oc'].min():.1f}-{1000 * traj['t_oc'].max():.1f} ms). "
+        f"OC weights {config.weights or f'walking-2021 (walkers) / {conv.prediction.table_weights} (tables)'}, g0 = {config.g0}, g1 = {config.g1}.",
+        (f"T_OC: {sampled}. " if conv.prediction.node_dt is None else
+         f"OC nodes: one of {conv.prediction.node_dt:g} s per sample whatever the sample period ({sampled}). ")
         + (f"{len(assumed)} trajectories have no recorded duration: assumed duration = path length / {config.nominal_speed:g} m/s "
            f"(median {assumed['duration'].median():.2f} s). " if len(assumed) else "Durations: recorded travel times. ")
         + (f"{no_theta} trajectories have no orientation" if no_theta else "")
@@ -278,11 +337,17 @@ def results_fragment(metrics, summary, comparison, config, example, unpredictabl
                          f"{100 * c['oc_wins_windows']:.0f} % | {_fmt(c['wilcoxon_w'], 0)} | {_p(c['wilcoxon_p'])} | {_fmt(c['effect_r'], 2)} |")
         lines += ["", "r: matched-pairs rank-biserial correlation, > 0 when the OC predictor has the smaller error."]
     if "oc" in config.predictors:
-        lines += ["", "What the OC prediction is (the reading of the tables above): beyond the measured past the window "
+        from cobot_analysis.models.prediction.report import paper_rows
+
+        paper = paper_rows(metrics, conv)
+        start = ("started from rest at the window's first sample (published convention)" if conv.prediction.start == "rest"
+                 else "started from the velocity estimated at the window's first sample")
+        lines += ([""] + paper if paper else []) + [
+                  "", "What the OC prediction is (the reading of the tables above): beyond the measured past the window "
                   "carries only control costs, so the predicted path is the walker coasting from its state at sample k "
                   "with constant body-frame velocities (v_forw, v_orth) and yaw rate omega, an arc of curvature "
                   "omega / speed (`OCPredictor`). The state at k is a smoothed fit of the past (tracking g0, g1 against "
-                  "the control weights a1-a3) started from the velocity estimated at the window's first sample. Where the "
+                  f"the control weights a1-a3) {start}. Where the "
                   "orientation is tracked, its gait oscillation and any turn on the spot enter omega (a3 is nearly zero "
                   "with the walking weights), and the arc curls away from the path: compare the 'theta tracked' and "
                   "'positions only' rows. The constant-velocity baseline extrapolates the last measured displacement "

@@ -100,8 +100,9 @@ def check_setting(n0: int, n_oc: int, min_past: int = 3) -> None:
                          remedy=f"use N0 >= {min_past}")
 
 
-def make_predictor(name: str, n0: int, n_oc: int, dt: float = 1.0, **options) -> Predictor:
-    """A predictor by name: ``oc`` (options: weights, g0, g1, ...), ``cv`` or ``ctrv``."""
+def make_predictor(name: str, n0: int, n_oc: int, dt: float = 1.0, *, convention="continuous", **options) -> Predictor:
+    """A predictor by name: ``oc`` (options: weights, g0, g1, ...; ``convention``, docs/methods.md
+    sec. 11), ``cv`` or ``ctrv`` (one step per sample: the same under both conventions)."""
     from cobot_analysis.models.prediction.baselines import ConstantTurnRateVelocity, ConstantVelocity
 
     if name == "cv":
@@ -109,7 +110,7 @@ def make_predictor(name: str, n0: int, n_oc: int, dt: float = 1.0, **options) ->
     if name == "ctrv":
         return ConstantTurnRateVelocity(n0, n_oc, dt)
     if name == "oc":
-        return OCPredictor(n0, n_oc, dt, **options)
+        return OCPredictor(n0, n_oc, dt, convention=convention, **options)
     raise InputError(f"unknown predictor {name!r}", remedy=f"use one of {', '.join(PREDICTORS)}")
 
 
@@ -131,7 +132,19 @@ class OCPredictor(Predictor):
     The cost weights a0..a3 come from a preset or a fitted-weights file (``presets.load_weights``;
     the walking-2021 preset is docs/methods.md's a = (7.9, 4.0, 20.1, 1e-6) unrounded).
 
-    Initial state (node 0 = the measured pose C_{n+1}; "at rest" is not assumed): the velocities are
+    The convention (``conventions.Convention.prediction``, docs/methods.md sec. 11) fixes the node
+    step, the start and the warm start; the step scheme is that of the convention's improved model:
+
+    - ``continuous``: node step = the sample period ``dt``, exact-in-time step (``midpoint``),
+      integrated costs, start velocity estimated (below), warm starts;
+    - ``published`` (the authors' code): node step 0.1 s whatever ``dt``, explicit Euler, costs
+      summed per node, every window from rest at its first measured pose made the origin,
+      ``X_0 = (0, 0, ctheta_{n+1}, 0, 0, 0)``, tracking ``(cx_i - cx_{n+1}, cy_i - cy_{n+1}, ctheta_i)``,
+      cold solves, the Euler coast ``x_{j+1} = x_j + 0.1 R(theta_j) v``, ``theta_{j+1} = theta_j + 0.1 omega``.
+
+    Under both the window separates (same argument: no state cost on the future).
+
+    Initial state, continuous (node 0 = the measured pose C_{n+1}; "at rest" is not assumed): the velocities are
     the derivative at node 0 of a least-squares quadratic through the first ``fit`` measured poses
     (x, y, unwrapped theta) of the window, rotated into the walker frame:
     ``v_forw = cos(th) x' + sin(th) y'``, ``v_orth = -sin(th) x' + cos(th) y'``, ``omega = theta'``.
@@ -158,21 +171,29 @@ class OCPredictor(Predictor):
 
     def __init__(self, n0: int, n_oc: int, dt: float = 1.0, *, weights: str | dict | None = "walking-2021",
                  g0: float = 10.0, g1: float = 10.0, fit: int = 5, tol: float = 1e-8, solver: str = "fatrop",
-                 warm_start: bool = True):
+                 convention="continuous", warm_start: bool | None = None):
+        from cobot_analysis import conventions
         from cobot_analysis.models.oc.problem import OCPShape, get_ocp
         from cobot_analysis.models.presets import load_weights
 
+        conv = conventions.get(convention)
+        rule = conv.prediction
+        self.convention = conv
+        self.rest_start = rule.start == "rest"
+        self.scheme = conv.oc_rule("improved").scheme
         w = load_weights(weights, "improved")
         # running control cost only: no bearing, goal or heading terms, no terminal cost (free end)
         self.weights = np.array([w["a0"], w["a1"], w["a2"], w["a3"]] + [0.0] * 7)
         self.track_weights = (float(g0), float(g1))
         self.fit = int(fit)
-        self.warm_start = bool(warm_start)
-        self.ocp = get_ocp(OCPShape(n_intervals=n0 - 1, tol=tol, solver=solver))  # the measured past (see above)
+        self.warm_start = rule.warm_start if warm_start is None else bool(warm_start)
+        # the measured past (see above)
+        self.ocp = get_ocp(OCPShape(n_intervals=n0 - 1, tol=tol, solver=solver, scheme=self.scheme))
         super().__init__(n0, n_oc, dt)
+        self.step = float(rule.node_dt) if rule.node_dt is not None else self.dt  # seconds per node
         # derivative at t = 0 of the least-squares quadratic c0 + c1 t + c2 t^2 through the first
         # ``fit`` samples of a window: c1 = d . p (a fixed filter, computed once)
-        t = np.arange(min(self.fit, self.n0)) * self.dt
+        t = np.arange(min(self.fit, self.n0)) * self.step
         self._derivative = np.linalg.pinv(np.vander(t, 3, increasing=True))[1]
 
     def reset(self) -> None:
@@ -185,29 +206,30 @@ class OCPredictor(Predictor):
 
     # -- initial state ------------------------------------------------------------------------------
     def initial_state(self, past: np.ndarray) -> tuple[np.ndarray, bool]:
-        """Start state X0 = (x, y, theta, v_forw, v_orth, omega) at node 0, and whether theta was measured."""
+        """Start state X0 = (x, y, theta, v_forw, v_orth, omega) at node 0, and whether theta was
+        measured; at rest under the published convention (``rest_start``)."""
         d = self._derivative
         m = len(d)
         has_theta = bool(np.isfinite(past[:, 2]).all())
-        vx, vy = d @ past[:m, 0], d @ past[:m, 1]
         if has_theta:
-            theta, omega = past[0, 2], d @ past[:m, 2]
+            theta, angles = past[0, 2], past[:m, 2]
         else:
-            heading = np.unwrap(np.arctan2(np.gradient(past[:m, 1]), np.gradient(past[:m, 0])))
-            theta, omega = heading[0], d @ heading
+            angles = np.unwrap(np.arctan2(np.gradient(past[:m, 1]), np.gradient(past[:m, 0])))  # direction of travel
+            theta = angles[0]
+        if self.rest_start:
+            return np.array([past[0, 0], past[0, 1], theta, 0.0, 0.0, 0.0]), has_theta
+        vx, vy, omega = d @ past[:m, 0], d @ past[:m, 1], d @ angles
         c, s = np.cos(theta), np.sin(theta)
         return np.array([past[0, 0], past[0, 1], theta, c * vx + s * vy, -s * vx + c * vy, omega]), has_theta
 
     def _cold_guess(self, past: np.ndarray, x0: np.ndarray) -> np.ndarray:
-        ocp, n = self.ocp, self.n0
+        """The measured past (theta = x0's where it is missing) at x0's velocities, zero controls."""
         poses = past.copy()
         if not np.isfinite(past[:, 2]).all():
             poses[:, 2] = x0[2]
-        w = np.zeros(ocp.n_vars)
-        stride = ocp.nx + ocp.nu
-        for k in range(n):
-            w[k * stride: k * stride + 3] = poses[k]
-            w[k * stride + 3: k * stride + 6] = x0[3:6]
+        w = np.zeros(self.ocp.n_vars)
+        w[self.ocp._xi[:, :3]] = poses  # node k of the N0 - 1 intervals = measured sample k
+        w[self.ocp._xi[:, 3:6]] = x0[3:6]
         return w
 
     def _shifted(self, previous: np.ndarray) -> np.ndarray:
@@ -217,19 +239,23 @@ class OCPredictor(Predictor):
         size = len(previous)  # layout x0 u0 x1 u1 ... x_{N-1} u_{N-1} x_N
         w = previous.copy()  # keeps u_{N-1} in place: new u_{N-1} = old u_{N-1}
         w[: size - stride] = previous[stride:]  # new x_j, u_j = old x_{j+1}, u_{j+1}; new x_{N-1} = old x_N
-        w[-ocp.nx:] = coast(previous[-ocp.nx:], self.dt, 1)[1]  # the last node coasts on by one sample
+        w[-ocp.nx:] = coast(previous[-ocp.nx:], self.step, 1, scheme=self.scheme)[1]  # the last node coasts on by one node
         return w
 
     # -- one window ---------------------------------------------------------------------------------
     def predict(self, past: np.ndarray) -> np.ndarray | None:
         x0, has_theta = self.initial_state(past)
+        origin = np.array([x0[0], x0[1], 0.0]) if self.rest_start else np.zeros(3)  # published: first pose at the origin
+        past = past - origin
+        x0 = x0 - np.r_[origin, 0.0, 0.0, 0.0]
         track = past.copy()
         if not has_theta:
             track[:, 2] = 0.0
         guess = self._cold_guess(past, x0) if self._warm is None else self._shifted(self._warm)
         guess[:6] = x0
         far = (x0[0] + 1e3, x0[1] + 1e3, 0.0)  # the goal enters no cost (zero weights); kept away from psi's singularity
-        sol = self.ocp.solve(x0[:3], far, self.weights, (self.n0 - 1) * self.dt, guess=guess, start_velocity=x0[3:],
+        T = self.step if self.scheme == "euler" else (self.n0 - 1) * self.step  # euler: the parameter is the node step
+        sol = self.ocp.solve(x0[:3], far, self.weights, T, guess=guess, start_velocity=x0[3:],
                              track=track, track_weights=(self.track_weights[0], self.track_weights[1] if has_theta else 0.0),
                              n_track=self.n0)
         self.last_solution = sol
@@ -237,4 +263,4 @@ class OCPredictor(Predictor):
             self._warm = None
             return None
         self._warm = sol.primal if self.warm_start else None
-        return coast(sol.X[-1], self.dt, self.horizon)[:, :3]
+        return coast(sol.X[-1], self.step, self.horizon, scheme=self.scheme)[:, :3] + origin

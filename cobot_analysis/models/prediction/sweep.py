@@ -6,7 +6,12 @@ setting, in a work directory (``WS/.predict-work/``, see ``WorkDir``), so an int
 resumes where it stopped and a sweep that adds a setting computes only that setting; the stage
 merges them into its tables at the end.
 
-Sampling period. N0 and N_OC count samples; one OC node per sample, ``T_OC`` = the sample period.
+Convention (``SweepConfig.convention``, docs/methods.md sec. 11): how the OC predictor is set up
+(``OCPredictor``), the default table weights (``PredictionRule.table_weights``) and the sd of the
+summaries (``Comparison.sd_ddof``); every output table carries its name.
+
+Sampling period. N0 and N_OC count samples; one OC node per sample, ``T_OC`` = the sample period
+(continuous convention; the published one makes every sample a node of 0.1 s).
 The trajectories are time-normalised (N samples over the movement), so ``T_OC = D / (N - 1)`` with
 the duration ``D`` = the trial's travel time when known, else an assumed duration
 ``D = path length / nominal speed`` (default 1.0 m/s; the published walking-2020 data hold no
@@ -36,6 +41,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from cobot_analysis.conventions import CONTINUOUS, Convention
 from cobot_analysis.errors import InputError
 from cobot_analysis.models.prediction.metrics import summarise, window_errors
 from cobot_analysis.models.prediction.predictor import PREDICTORS, check_setting, make_predictor
@@ -49,13 +55,14 @@ ORIENTATION_MODES = ("auto", "track", "ignore")
 ORIENTATION_FLAGS = ("orientation_missing", "implausible_gamma")
 
 _ID = {
+    "convention": Column("string", "", "published or continuous (docs/methods.md sec. 11)"),
     "study": Column("string", "", "study name"),
     "trial": Column("string", "", "trial identifier"),
     "entity": Column("string", "", "walker, subject1, subject2 or table"),
 }
 PREDICTIONS = TableSchema(
     name="predictions",
-    version=1,
+    version=2,
     description="Prediction metrics (docs/methods.md sec. 7) per trajectory x (N0, N_OC) setting x predictor, over the "
                 "windows every predictor predicted.",
     columns={
@@ -69,7 +76,8 @@ PREDICTIONS = TableSchema(
         "n_oc": Column("int", "-", "N_OC: samples of the OC window (past + future)"),
         "predictor": Column("string", "", "oc (receding-horizon OC), cv (constant velocity), ctrv (constant turn rate and velocity)"),
         "weights": Column("string", "", "OC cost weights (preset or file); empty for baselines"),
-        "t_oc": Column("float", "s", "sampling period T_OC of the prediction"),
+        "t_oc": Column("float", "s", "seconds per OC node: the sample period (continuous) or 0.1 s (published)"),
+        "sample_period": Column("float", "s", "sample period of the (resampled) trajectory: duration / (N - 1) or --t-oc"),
         "duration": Column("float", "s", "trajectory duration used for T_OC"),
         "duration_source": Column("string", "", "'travel_time' (measured) or 'nominal_speed' (path length / nominal speed)"),
         "orientation": Column("bool", "", "the trajectory has a measured orientation"),
@@ -89,7 +97,7 @@ PREDICTIONS = TableSchema(
 )
 PREDICTION_WINDOWS = TableSchema(
     name="prediction_windows",
-    version=1,
+    version=2,
     description="Per-window prediction errors: one row per trajectory x setting x predictor x window k.",
     columns={
         **_ID,
@@ -120,6 +128,7 @@ class SweepConfig:
     t_oc: float | None = None
     nominal_speed: float = NOMINAL_SPEED
     orientation: str = "auto"  # track theta: "auto" (unless flagged), "track" (wherever present), "ignore"
+    convention: Convention = CONTINUOUS  # docs/methods.md sec. 11
 
     def __post_init__(self) -> None:
         for n0, n_oc in self.settings:
@@ -135,7 +144,12 @@ class SweepConfig:
             raise InputError(f"nominal speed must be positive (got {self.nominal_speed})", remedy="pass a positive --nominal-speed")
 
     def weights_for(self, entity: str) -> str:
-        return self.weights or ("table-2022" if entity in TABLE_ENTITIES else "walking-2021")
+        """``weights``, else walking-2021 for walkers and the convention's table preset for tables."""
+        return self.weights or (self.convention.prediction.table_weights if entity in TABLE_ENTITIES else "walking-2021")
+
+    def params(self) -> dict:
+        """The configuration as JSON-ready parameters, the convention by its name."""
+        return {**asdict(self), "convention": self.convention.name}
 
 
 @dataclass
@@ -267,11 +281,13 @@ def predict_trajectory(traj: Trajectory, config: SweepConfig) -> tuple[pd.DataFr
     longest: dict[int, int] = {}
     for n0, n_oc in config.settings:
         longest[n0] = max(n_oc, longest.get(n0, 0))
+    conv = config.convention
+    node_dt = conv.prediction.node_dt or traj.dt  # seconds per OC node
     runs = {}  # (N0, predictor) -> (predictions over the longest horizon, skipped, failed, options)
     for n0, n_oc in longest.items():
         for name in config.predictors:
             options = {"weights": config.weights_for(traj.entity), "g0": config.g0, "g1": config.g1} if name == "oc" else {}
-            predictor = make_predictor(name, n0, n_oc, traj.dt, **options)
+            predictor = make_predictor(name, n0, n_oc, traj.dt, convention=conv, **options)
             runs[n0, name] = (predictor.predict_offline(traj.seen), predictor.skipped, predictor.failed, options)
     for n0, n_oc in config.settings:
         results = {}
@@ -282,15 +298,15 @@ def predict_trajectory(traj: Trajectory, config: SweepConfig) -> tuple[pd.DataFr
         k = np.arange(n0 - 1, n)
         for name, (err, skipped, failed, options) in results.items():
             m = summarise(err, common)
-            rows.append({"study": traj.study, "trial": traj.trial, "entity": traj.entity, **traj.meta,
+            rows.append({"convention": conv.name, "study": traj.study, "trial": traj.trial, "entity": traj.entity, **traj.meta,
                          "n0": n0, "n_oc": n_oc, "predictor": name, "weights": options.get("weights", ""),
-                         "t_oc": traj.dt, "duration": traj.duration, "duration_source": traj.duration_source,
+                         "t_oc": node_dt, "sample_period": traj.dt, "duration": traj.duration, "duration_source": traj.duration_source,
                          "orientation": has_theta, "theta_tracked": traj.track_theta, "n_samples": n, "n_windows": m.n_windows, "n_used": m.n_used,
                          "n_skipped": skipped, "n_failed": failed, "n_full": m.n_full, "delta_xy": m.delta_xy,
                          "delta_theta": m.delta_theta if traj.track_theta else float("nan"), "d_pred": m.d_pred,
                          "ade": m.ade, "fde": m.fde})
             windows.append(pd.DataFrame({
-                "study": traj.study, "trial": traj.trial, "entity": traj.entity, "n0": n0, "n_oc": n_oc,
+                "convention": conv.name, "study": traj.study, "trial": traj.trial, "entity": traj.entity, "n0": n0, "n_oc": n_oc,
                 "predictor": name, "k": k, "phase": 100.0 * k / (n - 1), "used": common,
                 "error_xy": err.error_xy, "error_theta": err.error_theta if traj.track_theta else np.nan, "reach": err.reach,
                 "ade": err.ade, "fde": err.fde}))
@@ -341,6 +357,7 @@ class WorkDir:
         self._code = code_digest()
 
     def key(self, traj: Trajectory, config: SweepConfig, setting: tuple[int, int]) -> str:
+        # the whole convention, not its name: a convention changed in any element gets other keys
         params = {**asdict(config), "settings": list(setting), "code": self._code, "trajectory": traj.digest()}
         return hashlib.sha256(json.dumps(params, sort_keys=True).encode()).hexdigest()[:24]
 
@@ -394,7 +411,7 @@ def run_sweep(trajectories: list[Trajectory], config: SweepConfig, work: WorkDir
     parts = [work.load(t, config) for t in trajectories]
     metrics = pd.concat([p[0] for p in parts], ignore_index=True)
     windows = pd.concat([p[1] for p in parts], ignore_index=True)
-    for col in ("study", "trial", "entity", "predictor"):
+    for col in ("convention", "study", "trial", "entity", "predictor"):
         windows[col] = windows[col].astype("category")
     return metrics, windows, len(trajectories) - len(todo)
 
@@ -404,10 +421,11 @@ METRICS = ("delta_xy", "delta_theta", "d_pred", "ade", "fde")
 
 PREDICTION_SUMMARY = TableSchema(
     name="prediction_summary",
-    version=1,
+    version=2,
     description="Per setting and predictor: mean and sd over trajectories of each metric, and its Pearson "
                 "correlation with the global distance.",
     columns={
+        "convention": _ID["convention"],
         "n0": Column("int", "-", "N0"),
         "n_oc": Column("int", "-", "N_OC"),
         "predictor": Column("string", "", "oc, cv or ctrv"),
@@ -415,17 +433,19 @@ PREDICTION_SUMMARY = TableSchema(
         "unit": Column("string", "", "m or rad"),
         "n": Column("int", "-", "trajectories with a value"),
         "mean": Column("float", "", "mean over trajectories (unit in column unit)"),
-        "sd": Column("float", "", "sample standard deviation over trajectories"),
+        "sd": Column("float", "", "standard deviation over trajectories: sample (ddof 1, continuous) or population "
+                                  "(ddof 0, published)"),
         "pearson_r": Column("float", "-", "Pearson r of the metric with the global distance"),
         "pearson_p": Column("float", "-", "two-sided p of the Pearson correlation"),
     },
 )
 PREDICTION_COMPARISON = TableSchema(
     name="prediction_comparison",
-    version=1,
+    version=2,
     description="OC predictor vs a baseline on the same windows: paired Wilcoxon signed-rank test over trajectories "
                 "of delta_xy, overall and per start orientation.",
     columns={
+        "convention": _ID["convention"],
         "n0": Column("int", "-", "N0"),
         "n_oc": Column("int", "-", "N_OC"),
         "baseline": Column("string", "", "cv or ctrv"),
@@ -448,10 +468,12 @@ def units(metric: str) -> str:
     return "rad" if metric == "delta_theta" else "m"
 
 
-def summary_table(metrics: pd.DataFrame) -> pd.DataFrame:
-    """Mean +- sd over trajectories per setting, predictor and metric; Pearson r with the global distance."""
+def summary_table(metrics: pd.DataFrame, convention: Convention = CONTINUOUS) -> pd.DataFrame:
+    """Mean +- sd over trajectories per setting, predictor and metric (sd with the convention's
+    ``sd_ddof``: sqrt(sum (v - mean)^2 / (n - ddof))); Pearson r with the global distance."""
     from scipy import stats
 
+    ddof = convention.comparison.sd_ddof
     rows = []
     for (n0, n_oc, pred), g in metrics.groupby(["n0", "n_oc", "predictor"], sort=True):
         for metric in METRICS:
@@ -460,8 +482,8 @@ def summary_table(metrics: pd.DataFrame) -> pd.DataFrame:
             if len(ok) > 2 and ok[metric].std() > 0 and ok["global_distance"].std() > 0:
                 r, p = stats.pearsonr(ok[metric], ok["global_distance"])
             v = g[metric].dropna()
-            rows.append({"n0": n0, "n_oc": n_oc, "predictor": pred, "metric": metric, "unit": units(metric),
-                         "n": len(v), "mean": v.mean() if len(v) else np.nan, "sd": v.std() if len(v) > 1 else np.nan,
+            rows.append({"convention": convention.name, "n0": n0, "n_oc": n_oc, "predictor": pred, "metric": metric, "unit": units(metric),
+                         "n": len(v), "mean": v.mean() if len(v) else np.nan, "sd": v.std(ddof=ddof) if len(v) > ddof else np.nan,
                          "pearson_r": float(r), "pearson_p": float(p)})
     return pd.DataFrame(rows)
 
@@ -490,7 +512,7 @@ def paired_row(oc: pd.Series, base: pd.Series, windows_won: float) -> dict:
             "wilcoxon_w": w, "wilcoxon_p": p, "effect_r": r}
 
 
-def compare_table(metrics: pd.DataFrame, windows: pd.DataFrame) -> pd.DataFrame:
+def compare_table(metrics: pd.DataFrame, windows: pd.DataFrame, convention: Convention = CONTINUOUS) -> pd.DataFrame:
     """OC vs each baseline on delta_xy over the same windows, paired by trajectory (Wilcoxon):
     all trajectories, per start orientation, theta tracked or not, and per third of the path
     (there the per-trajectory error is the mean window error over the windows of that third)."""
@@ -513,12 +535,12 @@ def compare_table(metrics: pd.DataFrame, windows: pd.DataFrame) -> pd.DataFrame:
             for name, gg in groups:
                 ww = wg.merge(gg[traj_keys], on=traj_keys)
                 won = float((ww["oc"] < ww[baseline]).mean()) if len(ww) else float("nan")
-                rows.append({"n0": n0, "n_oc": n_oc, "baseline": baseline, "group": name,
+                rows.append({"convention": convention.name, "n0": n0, "n_oc": n_oc, "baseline": baseline, "group": name,
                              **paired_row(gg["oc"], gg[baseline], won)})
             for lo, hi in PHASES:
                 ww = wg[(wg["phase"] >= lo) & ((wg["phase"] < hi) | (hi == 100.0))]
                 per = ww.groupby(traj_keys, observed=True)[["oc", baseline]].mean()
                 won = float((ww["oc"] < ww[baseline]).mean()) if len(ww) else float("nan")
-                rows.append({"n0": n0, "n_oc": n_oc, "baseline": baseline, "group": f"phase {lo:.0f}-{hi:.0f} %",
+                rows.append({"convention": convention.name, "n0": n0, "n_oc": n_oc, "baseline": baseline, "group": f"phase {lo:.0f}-{hi:.0f} %",
                              **paired_row(per["oc"], per[baseline], won)})
     return pd.DataFrame(rows, columns=list(PREDICTION_COMPARISON.columns))
