@@ -101,7 +101,7 @@ pairs-synthetic:
 	$(CLI) compare --out $(SPAIRS)
 	$(CLI) stats --out $(SPAIRS)
 	$(CLI) reconstruct --out $(SPAIRS)
-	$(CLI) predict --out $(SPAIRS) --entity table --kind trial --jobs $(JOBS) $(SPREDICT_ARGS)
+	$(CLI) predict --out $(SPAIRS) --entity table --kind trial --convention continuous --jobs $(JOBS) $(SPREDICT_ARGS)
 	$(CLI) report pairs --out $(SPAIRS) --to reports/synthetic-pairs
 
 localisation:
