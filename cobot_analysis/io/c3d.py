@@ -6,8 +6,9 @@ segfault or hang in our tests, so the file is checked here first (C3D User Guide
   words 2-5 give the number of points, analog values per frame and the first and last frame;
   words 7-8 the scale factor (negative = float data); word 9 the data start block. The file must
   hold ``frames x (points x 4 + analogs) x (4 bytes if float else 2)`` bytes from the data start.
-- parameter section: every group/parameter record is walked; names must be text, pointers and
-  data must stay inside the section, and POINT:USED must equal the header's point count.
+- parameter section: every group/parameter record is walked; pointers and data must stay inside
+  the section, and POINT:USED must equal the header's point count. Names may hold any bytes, as
+  ezc3d reads them (Vicon Nexus writes names with spaces, e.g. PROCESSING:Marker Diameter).
 The byte order follows the processor type stored in the parameter section (84 Intel, 85 DEC,
 86 MIPS big-endian).
 
@@ -40,6 +41,13 @@ class RawMarkers(NamedTuple):
     xyz: np.ndarray  # [frames, markers, 3], metres, NaN where occluded
     rate: float  # Hz
     units: str  # length unit of the raw file ("mm" or "m")
+    notes: tuple[str, ...] = ()  # what the reader left out, for the import report
+
+
+#: POINT groups that list model outputs stored as points (BTK's point types), with their unit
+#: parameter; a file's POINT:TYPE_GROUPS (Vicon: ANGLES, ANGLE, POWERS, POWER, ...) adds its own.
+OUTPUT_GROUPS = {"ANGLES": "ANGLE_UNITS", "FORCES": "FORCE_UNITS", "MOMENTS": "MOMENT_UNITS", "POWERS": "POWER_UNITS",
+                 "SCALARS": "SCALAR_UNITS", "REACTIONS": "REACTION_UNITS"}
 
 
 def is_c3d(head: bytes) -> bool:
@@ -92,6 +100,9 @@ def check_c3d_header(path: str | os.PathLike) -> dict[str, int | bool]:
     is_float = bool(head[{84: 15, 85: 13, 86: 12}[proc]] & 0x80)
     frame_bytes = (4 * n_points + n_analog) * (4 if is_float else 2)
     expected = (data_start - 1) * BLOCK + n_frames * frame_bytes
+    if size <= (data_start - 1) * BLOCK and frame_bytes:
+        raise InputError(f"empty trial (the C3D file holds no frames: it ends where its data section starts, although "
+                         f"its header announces {n_frames})", path=path, remedy="remove the trial from the protocol or re-export it")
     if last < 65535 and size < expected:  # 16-bit frame counts overflow on long trials
         raise InputError(f"truncated C3D file ({size} bytes, the header announces {expected})", path=path,
                          remedy="re-export the trial from the capture software")
@@ -126,9 +137,7 @@ def _walk_parameters(section: bytes, order: str, path: Path) -> dict[tuple[str, 
         name_end = pos + 2 + nchar
         if name_end + 2 > end:
             raise corrupt("record past its end")
-        name = section[pos + 2:name_end]
-        if not all(32 < c < 127 for c in name):
-            raise corrupt("non-text parameter name")
+        name = section[pos + 2:name_end].decode("latin-1")  # any bytes, as ezc3d reads them (Vicon: "Marker Diameter")
         offset, = struct.unpack(order + "h", section[name_end:name_end + 2])
         body = name_end + 2
         nxt = name_end + offset
@@ -136,20 +145,20 @@ def _walk_parameters(section: bytes, order: str, path: Path) -> dict[tuple[str, 
             raise corrupt("bad record pointer")
         limit = nxt if offset != 0 else end
         if gid < 0:
-            groups[-gid] = name.decode().upper()
+            groups[-gid] = name.upper()
             size = 1 + (section[body] if body < end else 0)
         else:
             if body + 2 > limit:
                 raise corrupt("truncated parameter record")
             dtype, ndims = struct.unpack("bB", section[body:body + 2])
             if dtype not in (-1, 1, 2, 4) or ndims > 7 or body + 2 + ndims > limit:
-                raise corrupt(f"bad parameter type of {name.decode()}")
+                raise corrupt(f"bad parameter type of {name.strip()!r}")
             dims = section[body + 2:body + 2 + ndims]
             count = int(np.prod(list(dims))) if ndims else 1
             data = body + 2 + ndims
             size = 2 + ndims + abs(dtype) * count + 1
             if ndims == 0 and dtype == 2 and data + 2 <= limit:
-                scalars.append((gid, name.decode().upper(), struct.unpack(order + "h", section[data:data + 2])[0]))
+                scalars.append((gid, name.upper(), struct.unpack(order + "h", section[data:data + 2])[0]))
         if body + size > limit:
             raise corrupt("parameter data past its record")
         if offset == 0:
@@ -158,11 +167,43 @@ def _walk_parameters(section: bytes, order: str, path: Path) -> dict[tuple[str, 
     return {(groups.get(g, "?"), n): v for g, n, v in scalars}
 
 
+def _values(group: dict, name: str) -> list:
+    """The values of a parameter as a list (empty when absent or not a list of values)."""
+    value = group.get(name, {}).get("value") if isinstance(group.get(name), dict) else None
+    try:
+        return [v for v in np.asarray(value).ravel()] if value is not None else []
+    except (TypeError, ValueError):
+        return []
+
+
+def model_outputs(point: dict) -> dict[str, str]:
+    """Labels of the POINT channels that are model outputs, not markers -> their group and unit.
+
+    Plug-in-Gait and other models store joint angles (deg), moments (N.mm), powers (W), forces (N)
+    and scalars as POINT channels, listed by label in POINT:ANGLES, MOMENTS, POWERS, FORCES,
+    SCALARS (and REACTIONS), each with its unit in POINT:<TYPE>_UNITS; POINT:TYPE_GROUPS names
+    further groups and their unit key in pairs (group, type).
+    """
+    groups = dict(OUTPUT_GROUPS)
+    pairs = [str(v).strip().upper() for v in _values(point, "TYPE_GROUPS")]
+    for group, kind in zip(pairs[0::2], pairs[1::2]):
+        groups.setdefault(group, f"{kind}_UNITS")
+    out: dict[str, str] = {}
+    for group, unit_key in groups.items():
+        units = [str(u).strip() for u in _values(point, unit_key)]
+        for label in _values(point, group):
+            label = str(label).strip()
+            if label:
+                out.setdefault(label, f"{group.lower()}{' (' + units[0] + ')' if units and units[0] else ''}")
+    return out
+
+
 def read_c3d(path: str | os.PathLike, units: str | None = None) -> RawMarkers:
-    """Read the markers of a C3D file: ``(labels, xyz [frames, markers, 3] in m, rate, units)``.
+    """Read the markers of a C3D file: ``(labels, xyz [frames, markers, 3] in m, rate, units, notes)``.
 
     ``units`` overrides the file's ``POINT:UNITS`` (default when the file states none: mm, the
-    Vicon default).
+    Vicon default). Model outputs stored as points (``model_outputs``) are left out and counted in
+    ``notes``: they are angles, moments, powers or forces, not positions.
     """
     import ezc3d
 
@@ -170,24 +211,37 @@ def read_c3d(path: str | os.PathLike, units: str | None = None) -> RawMarkers:
     check_c3d_header(path)
     try:
         c3d = ezc3d.c3d(str(path), extract_forceplat_data=False)
-    except Exception as exc:  # ezc3d raises OSError/RuntimeError on bad files
-        raise InputError(f"unreadable C3D file ({exc})", path=path, remedy="re-export the trial from the capture software") from exc
-    point = c3d["parameters"]["POINT"]
-    labels = [str(s).strip() for s in point["LABELS"]["value"]]
+        point = c3d["parameters"]["POINT"]
+        points = c3d["data"]["points"]  # (4, markers, frames)
+        residuals = c3d["data"]["meta_points"]["residuals"]
+        header_rate = float(c3d["header"]["points"]["frame_rate"])
+    except Exception as exc:  # ezc3d raises OSError/RuntimeError/KeyError on bad files
+        raise InputError(f"unreadable C3D file ({type(exc).__name__}: {exc})", path=path,
+                         remedy="re-export the trial from the capture software") from exc
+    if points.shape[2] == 0:
+        raise InputError("empty trial (the C3D file holds no frames)", path=path, remedy="remove the trial from the protocol or re-export it")
+    labels = [str(s).strip() for s in _values(point, "LABELS")]
     # Long label lists continue in LABELS2, LABELS3, ... (C3D convention for > 255 labels).
     for k in range(2, 100):
-        more = point.get(f"LABELS{k}")
-        if more is None:
+        if f"LABELS{k}" not in point:
             break
-        labels += [str(s).strip() for s in more["value"]]
-    points = c3d["data"]["points"]  # (4, markers, frames)
+        labels += [str(s).strip() for s in _values(point, f"LABELS{k}")]
     labels = labels[: points.shape[1]] + [f"*{i}" for i in range(len(labels), points.shape[1])]  # unlabelled: Vicon's "*N"
-    stated = (point.get("UNITS", {}).get("value") or [""])[0].strip()
+    stated = str((_values(point, "UNITS") or [""])[0]).strip()
     source_units = (units or stated or "mm").lower()
     factor = to_metres_factor(source_units, path)
-    xyz = points[:3].transpose(2, 1, 0) * factor  # [frames, markers, 3], one copy
-    residuals = c3d["data"]["meta_points"]["residuals"]
+    outputs = model_outputs(point)
+    keep = [j for j, lab in enumerate(labels) if lab not in outputs]
+    notes = ()
+    if len(keep) < len(labels):
+        kinds = sorted({outputs[labels[j]] for j in range(len(labels)) if labels[j] in outputs})
+        notes = (f"{path.name}: {len(labels) - len(keep)} model outputs stored as POINT channels left out "
+                 f"(not markers: {', '.join(kinds)})",)
+    xyz = points[:3, keep].transpose(2, 1, 0) * factor  # [frames, markers, 3]
     if residuals.size:
-        xyz[np.transpose(residuals[0] < 0)] = np.nan
-    rate = float(point["RATE"]["value"][0]) if len(point["RATE"]["value"]) else float(c3d["header"]["points"]["frame_rate"])
-    return RawMarkers(labels, xyz, rate, source_units)
+        xyz[np.transpose(residuals[0, keep] < 0)] = np.nan
+    try:
+        rate = float((_values(point, "RATE") or [header_rate])[0])
+    except (TypeError, ValueError):
+        rate = header_rate
+    return RawMarkers([labels[j] for j in keep], xyz, rate, source_units, notes)

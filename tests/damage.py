@@ -1,0 +1,89 @@
+"""Ways to damage an input file, shared by the tests and ``benchmarks/fuzz_inputs.py``.
+
+Each helper reads ``src`` and writes the damaged copy to ``dst`` (``src`` itself when ``dst`` is
+None), so a raw test file can be spoilt in place or copied. Offsets into the data section of a
+C3D file come from its header (``c3d_data_offset``); text exports are damaged as bytes. A new
+format (e.g. bags) only needs its own ``*_data_offset`` to get the same treatment.
+"""
+
+from __future__ import annotations
+
+import random
+import struct
+from pathlib import Path
+
+import numpy as np
+
+C3D_BLOCK = 512
+
+
+def _out(src: Path, dst: Path | None) -> Path:
+    return Path(src) if dst is None else Path(dst)
+
+
+def truncate(src, keep: int, dst=None) -> Path:
+    """Keep the first ``keep`` bytes (negative: drop the last ``-keep`` bytes)."""
+    data = Path(src).read_bytes()
+    out = _out(src, dst)
+    out.write_bytes(data[:keep])
+    return out
+
+
+def overwrite(src, offset: int, payload: bytes, dst=None) -> Path:
+    """Replace ``len(payload)`` bytes at ``offset`` (negative: from the end)."""
+    data = bytearray(Path(src).read_bytes())
+    start = offset if offset >= 0 else len(data) + offset
+    data[start:start + len(payload)] = payload
+    out = _out(src, dst)
+    out.write_bytes(bytes(data))
+    return out
+
+
+def mutate(src, seed: int, n: int = 1, start: int = 0, stop: int | None = None, dst=None) -> tuple[Path, list[int]]:
+    """Set ``n`` random bytes in ``[start, stop)`` to random values (reproducible with ``seed``).
+
+    Returns the damaged file and the offsets changed (a byte may be set to its own value).
+    """
+    data = bytearray(Path(src).read_bytes())
+    rng = random.Random(seed)
+    stop = len(data) if stop is None else min(stop, len(data))
+    offsets = sorted(rng.randrange(start, stop) for _ in range(n)) if stop > start else []
+    for i in offsets:
+        data[i] = rng.randrange(256)
+    out = _out(src, dst)
+    out.write_bytes(bytes(data))
+    return out, offsets
+
+
+def c3d_data_offset(src) -> int:
+    """Byte offset of the data section of a C3D file (header word 9: its 512-byte block, from 1)."""
+    data = Path(src).read_bytes()
+    param = (data[0] - 1) * C3D_BLOCK
+    order = ">" if len(data) > param + 3 and data[param + 3] == 86 else "<"  # processor type 86: MIPS (big-endian)
+    block, = struct.unpack(order + "H", data[16:18])
+    return (block - 1) * C3D_BLOCK
+
+
+def c3d_float_offset(src, frame: int, point: int, axis: int) -> int:
+    """Byte offset of one float coordinate (``axis`` 0..2) of ``point`` at ``frame`` in a float C3D
+    whose data hold only points (no analog samples)."""
+    data = Path(src).read_bytes()
+    n_points, = struct.unpack("<H", data[2:4])
+    return c3d_data_offset(src) + (frame * n_points * 4 + point * 4 + axis) * 4
+
+
+def c3d_set_float(src, frame: int, point: int, axis: int, value: float, dst=None) -> Path:
+    """Write ``value`` (float32, Intel byte order) as one coordinate of a point in a float C3D."""
+    return overwrite(src, c3d_float_offset(src, frame, point, axis), struct.pack("<f", value), dst)
+
+
+def c3d_mutate_data(src, seed: int, n: int = 1, dst=None) -> tuple[Path, list[int]]:
+    """``mutate`` restricted to the data section of a C3D file."""
+    return mutate(src, seed, n, start=c3d_data_offset(src), dst=dst)
+
+
+def scale_values(values: np.ndarray, factor: float, rows: slice | np.ndarray | None = None) -> np.ndarray:
+    """A copy of ``values`` with ``rows`` (all by default) multiplied by ``factor``."""
+    out = np.array(values, dtype=float, copy=True)
+    out[slice(None) if rows is None else rows] *= factor
+    return out
