@@ -61,7 +61,7 @@ def check_positions(xyz: np.ndarray, labels: list[str], rate: float, path: str |
             worst = float(np.nanmax(np.abs(xyz)))
             raise InputError(f"{what}implausible marker positions, up to {worst:.3g} m from the lab origin (limit {lab_extent:g} m): "
                              f"{_where(labels, far, rate)}", path=path,
-                             remedy=f"{REMEDY}; a lab larger than {lab_extent:g} m: pass --lab-extent")
+                             remedy=f"{REMEDY}; a lab larger than {lab_extent:g} m: import with --lab-extent")
     visible = ~np.isnan(xyz).any(axis=2)
     jumps = []  # (first frame, marker, next frame, step, speed, number of jumps of that marker)
     for k in range(xyz.shape[1]):  # markers, never frames
@@ -80,4 +80,4 @@ def check_positions(xyz: np.ndarray, labels: list[str], rate: float, path: str |
         more = f"; {total} jumps over the limit in {len(jumps)} marker(s)" if total > 1 else ""
         raise InputError(f"{what}implausible jump of marker {labels[k]}: {step:.3g} m between frames {a} and {b} "
                          f"(t = {a / rate:.3f} s), {speed:.3g} m/s (limit {max_speed:g} m/s){more}", path=path,
-                         remedy=f"{REMEDY}; a marker that really moves faster: pass --max-speed")
+                         remedy=f"{REMEDY}; a marker that really moves faster: import with --max-speed")
