@@ -55,26 +55,40 @@ def mutate(src, seed: int, n: int = 1, start: int = 0, stop: int | None = None, 
     return out, offsets
 
 
+def _bytes(src) -> bytes:
+    return src if isinstance(src, (bytes, bytearray)) else Path(src).read_bytes()
+
+
 def c3d_data_offset(src) -> int:
-    """Byte offset of the data section of a C3D file (header word 9: its 512-byte block, from 1)."""
-    data = Path(src).read_bytes()
+    """Byte offset of the data section of a C3D file or its bytes (header word 9: its 512-byte block, from 1)."""
+    data = _bytes(src)
     param = (data[0] - 1) * C3D_BLOCK
     order = ">" if len(data) > param + 3 and data[param + 3] == 86 else "<"  # processor type 86: MIPS (big-endian)
     block, = struct.unpack(order + "H", data[16:18])
     return (block - 1) * C3D_BLOCK
 
 
-def c3d_float_offset(src, frame: int, point: int, axis: int) -> int:
-    """Byte offset of one float coordinate (``axis`` 0..2) of ``point`` at ``frame`` in a float C3D
-    whose data hold only points (no analog samples)."""
-    data = Path(src).read_bytes()
-    n_points, = struct.unpack("<H", data[2:4])
-    return c3d_data_offset(src) + (frame * n_points * 4 + point * 4 + axis) * 4
+def c3d_layout(src) -> dict[str, int | bool]:
+    """Header facts of a C3D file or its bytes (Intel or DEC byte order): points, analog words per frame, frames,
+    float data."""
+    data = _bytes(src)
+    points, analogs, first, last = struct.unpack("<4H", data[2:10])
+    proc = data[(data[0] - 1) * C3D_BLOCK + 3]
+    is_float = bool(data[{84: 15, 85: 13, 86: 12}.get(proc, 15)] & 0x80)  # sign bit of the header's scale factor
+    return {"points": points, "analogs": analogs, "frames": last - first + 1, "float": is_float}
+
+
+def c3d_value_offset(src, frame: int, point: int, axis: int) -> int:
+    """Byte offset of one coordinate (``axis`` 0..2) of ``point`` at ``frame`` in the data section of a
+    C3D file (4-byte floats or 2-byte integers, points then analog words in each frame)."""
+    lay = c3d_layout(src)
+    size = 4 if lay["float"] else 2
+    return c3d_data_offset(src) + (frame * (4 * lay["points"] + lay["analogs"]) + point * 4 + axis) * size
 
 
 def c3d_set_float(src, frame: int, point: int, axis: int, value: float, dst=None) -> Path:
     """Write ``value`` (float32, Intel byte order) as one coordinate of a point in a float C3D."""
-    return overwrite(src, c3d_float_offset(src, frame, point, axis), struct.pack("<f", value), dst)
+    return overwrite(src, c3d_value_offset(src, frame, point, axis), struct.pack("<f", value), dst)
 
 
 def c3d_mutate_data(src, seed: int, n: int = 1, dst=None) -> tuple[Path, list[int]]:

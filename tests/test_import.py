@@ -549,6 +549,8 @@ def test_plug_in_gait_file_with_keep_all_markers(realdata, tmp_path, cli):
     (float("inf"), "infinite marker coordinates: RASI (frame 30, from t = 0.150 s)", "re-export"),
     (-120.0 - 120.0, "implausible jump of marker RASI: 0.12 m between frames 29 and 30 (t = 0.145 s), 24 m/s (limit 20 m/s)",
      "--max-speed"),  # y of RASI is -120 mm: moved by 120 mm in one frame
+    (-120.0 + 70.0, "implausible spike of marker RASI at frame 30 (t = 0.150 s): 0.07 m from the midpoint of its neighbours "
+     "(limit 0.05 m)", "--max-spike"),  # 70 mm for one frame: 14 m/s, below the speed limit
 ])
 def test_corrupt_values_in_the_data_block_are_refused(tmp_path, cli, mm, expected, remedy):
     """One C3D float overwritten in place (y of RASI, mm): refused with the marker and frame, nothing written."""
@@ -562,10 +564,13 @@ def test_plausibility_limits_are_options(tmp_path, cli):
     m["RASI"][30:, 1] -= 0.12  # a step of 12 cm in one frame (24 m/s), then steady: fast, but asked for
     proto = protocol(tmp_path, [write_c3d(tmp_path / "a.c3d", m)])
     assert_rejected(cli, tmp_path / "ws", [proto], "implausible jump of marker RASI")
-    code, _, err = cli("import", proto, "--out", tmp_path / "ws", "--jobs", "1", "--max-speed", "30")
+    assert_rejected(cli, tmp_path / "ws", [proto, "--max-speed", "30"],  # half the step off the midpoint of its neighbours
+                    "a.c3d: implausible spike of marker RASI at frame 29 (t = 0.145 s): 0.06 m from the midpoint of its "
+                    "neighbours (limit 0.05 m); 2 such samples in 1 marker(s)", "--max-spike")
+    code, _, err = cli("import", proto, "--out", tmp_path / "ws", "--jobs", "1", "--max-speed", "30", "--max-spike", "0.07")
     assert code == 0, err
     meta = table_metadata(tmp_path / "ws" / "import" / "markers.parquet")
-    assert meta["max_speed"] == 30.0 and meta["lab_extent"] == 100.0
+    assert meta["max_speed"] == 30.0 and meta["max_spike"] == 0.07 and meta["lab_extent"] == 100.0
     far = {k: v + np.array([150.0, 0, 0]) for k, v in person(20).items()}  # a lab whose origin is 150 m away
     proto = protocol(tmp_path, [write_c3d(tmp_path / "b.c3d", far)])
     assert_rejected(cli, tmp_path / "ws2", [proto], "b.c3d: implausible marker positions, up to 150 m", "--lab-extent")
@@ -695,3 +700,85 @@ def test_binary_trials_csv(tmp_path, cli):
     proto = protocol(tmp_path, [write_c3d(tmp_path / "a.c3d", person(10))])
     (tmp_path / "trials.csv").write_bytes(bytes(range(256)) * 4)
     assert_rejected(cli, tmp_path / "ws", [proto], "trials.csv: not a readable CSV table", "UTF-8 CSV")
+
+
+# ---- found by benchmarks/fuzz_inputs.py -------------------------------------------------------------
+def test_nan_coordinate_with_a_valid_residual_is_an_occluded_sample(tmp_path, cli):
+    f = write_c3d(tmp_path / "a.c3d", person(40))
+    damage.c3d_set_float(f, frame=12, point=0, axis=2, value=float("nan"))
+    raw = read_c3d(f)
+    assert np.isnan(raw.xyz[12, 0]).all() and not np.isnan(raw.xyz[13, 0]).any()
+    assert "a.c3d: 1 samples with a NaN coordinate counted as occluded" in raw.notes
+    code, _, err = cli("import", protocol(tmp_path, [f]), "--out", tmp_path / "ws", "--jobs", "1")
+    assert code == 0, err
+    df = read_table(tmp_path / "ws" / "import" / "markers.parquet", MARKERS)
+    lasi = df[df["marker"] == "LASI"].sort_values("frame")
+    assert lasi["occluded"].tolist() == [False] * 12 + [True] + [False] * 27 and lasi[["x", "y", "z"]].iloc[12].isna().all()
+
+
+def test_label_bytes_that_are_not_utf8(tmp_path, cli):
+    m = person(30)
+    m["XHEE"] = m.pop("LHEE")
+    f = write_c3d(tmp_path / "a.c3d", m)
+    data = f.read_bytes()
+    damage.overwrite(f, data.index(b"XHEE"), b"\xe9")
+    raw = read_c3d(f)
+    assert raw.labels[-1] == "\ufffdHEE"
+    code, _, err = cli("import", protocol(tmp_path, [f]), "--out", tmp_path / "ws", "--jobs", "1", "--keep-all-markers")
+    assert code == 0, err
+    assert "\ufffdHEE" in set(read_table(tmp_path / "ws" / "import" / "markers.parquet", MARKERS)["marker"])
+
+
+@pytest.mark.parametrize("cell, shown", [("12\t34", "'12 34'"), ('"12.5', "'\"12.5'")])
+def test_vicon_csv_damaged_cells(tmp_path, cli, cell, shown):
+    """A tab inside a cell (it split the row into one field too many) and an unclosed quote (it swallowed the
+    rest of the file into one field): a non-numeric value, refused."""
+    f = write_vicon_csv(tmp_path / "a.csv", person(30))
+    lines = f.read_text().splitlines()
+    row = next(i for i, ln in enumerate(lines) if ln.startswith("5,0,"))
+    cells = lines[row].split(",")
+    cells[4] = cell
+    lines[row] = ",".join(cells)
+    f.write_text("\n".join(lines) + "\n")
+    assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])], f"a.csv: non-numeric value {shown} in the data rows")
+
+
+def test_vicon_csv_labels_that_do_not_line_up(tmp_path, cli):
+    f = write_vicon_csv(tmp_path / "a.csv", person(20))
+    lines = f.read_text().splitlines()
+    row = next(i for i, ln in enumerate(lines) if "Subj:LASI" in ln)
+    lines[row] = lines[row].replace(",Subj:RASI", "Subj:RASI,", 1)  # RASI moved above LASI's Z column
+    f.write_text("\n".join(lines) + "\n")
+    assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])], "a.csv: ")
+
+
+@pytest.mark.parametrize("edit, expected", [
+    (lambda t: t.replace("RHEE\tRTOE", "RHEE\xf0RTOE") if "RTOE" in t else t.replace("\tRPSI\tLHEE", "\tRPSI\xf0LHEE"),
+     "NO_OF_MARKERS is '5' but MARKER_NAMES lists 4 names"),
+    (lambda t: t.replace("NO_OF_MARKERS\t5\n", "").replace("\tRPSI\tLHEE", "\tRPSI\xf0LHEE"), "the column header row does not match MARKER_NAMES"),
+    (lambda t: t.replace("NO_OF_MARKERS\t5\n", "").replace("\tRPSI\tLHEE", "\tRPSI\xf0LHEE").replace("Frame\tTime", "FRAME_X\tTime"),
+     "data rows have more columns, 12 expected for 4 markers"),  # no header row: no Frame and Time columns either
+])
+def test_qualisys_names_that_do_not_line_up(tmp_path, cli, edit, expected):
+    """A damaged MARKER_NAMES line (two names merged) would give the following markers their neighbour's data."""
+    f = write_qtm_tsv(tmp_path / "a.tsv", person(20))
+    f.write_text(edit(f.read_text()))
+    assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])], "a.tsv: " + expected)
+
+
+def test_damaged_frame_number_is_not_a_gap(tmp_path, cli):
+    f = write_vicon_csv(tmp_path / "a.csv", person(20), frames=np.r_[1:10, 1_000_000_010:1_000_000_021])
+    assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])], "a.csv: frame numbers jump from 9 to 1e+09 at data row 10")
+
+
+def test_c3d_header_announcing_fewer_frames_than_its_data(tmp_path, cli):
+    f = write_c3d(tmp_path / "a.c3d", person(100))
+    damage.overwrite(f, 8, (60).to_bytes(2, "little"))  # last frame 100 -> 60
+    assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])],
+                    "a.c3d: corrupt C3D header: the file holds 3392 bytes (42 frames' worth) beyond the 60 frames its header "
+                    "announces (frames 1-60)")  # 40 frames of 5 points x 4 floats (3200 bytes) and the padding
+
+
+def test_sampling_rate_outside_motion_capture_rates(tmp_path, cli):
+    f = write_c3d(tmp_path / "a.c3d", person(30), rate=2e-5)
+    assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])], "a.c3d: sampling rate 2e-05 Hz is not a motion-capture rate (1 to 10000 Hz)")

@@ -28,6 +28,7 @@ def import_command(
     skip_bad: Annotated[bool, typer.Option("--skip-bad", help="Import the good trials and skip the refused ones, listed on the console and in OUT/import/results.md (default: refuse the run, naming every bad file).")] = False,
     lab_extent: Annotated[float, typer.Option("--lab-extent", min=0.0, help="Largest |coordinate| of a marker from the lab origin (m); farther positions are refused as corrupt (docs/methods.md sec. 2).")] = 100.0,
     max_speed: Annotated[float, typer.Option("--max-speed", min=0.0, help="Largest marker speed between consecutive visible samples (m/s); faster jumps are refused as corrupt or mislabelled (docs/methods.md sec. 2).")] = 20.0,
+    max_spike: Annotated[float, typer.Option("--max-spike", min=0.0, help="Largest distance of a sample from the midpoint of its two neighbours (m; raised below 100 Hz to what 100 g allows); larger single-sample spikes are refused as corrupt (docs/methods.md sec. 2).")] = 0.05,
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
     force: ForceOpt = False,
@@ -45,4 +46,4 @@ def import_command(
     from cobot_analysis.io.markers import parse_map_options, run_import
 
     run_import(protocol, out, units=units.value, marker_map=parse_map_options(map_ or []), marker_map_file=marker_map,
-               keep_all=keep_all_markers, skip_bad=skip_bad, lab_extent=lab_extent, max_speed=max_speed, jobs=jobs, scheduler=scheduler, force=force)
+               keep_all=keep_all_markers, skip_bad=skip_bad, lab_extent=lab_extent, max_speed=max_speed, max_spike=max_spike, jobs=jobs, scheduler=scheduler, force=force)

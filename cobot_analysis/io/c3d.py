@@ -5,7 +5,9 @@ segfault or hang in our tests, so the file is checked here first (C3D User Guide
 - header: byte 1 is the key 0x50; byte 0 is the 512-byte block number of the parameter section;
   words 2-5 give the number of points, analog values per frame and the first and last frame;
   words 7-8 the scale factor (negative = float data); word 9 the data start block. The file must
-  hold ``frames x (points x 4 + analogs) x (4 bytes if float else 2)`` bytes from the data start.
+  hold ``frames x (points x 4 + analogs) x (4 bytes if float else 2)`` bytes from the data start,
+  and not whole frames more beyond one 512-byte block of padding (a damaged frame range or point
+  count would otherwise drop data silently).
 - parameter section: every group/parameter record is walked; pointers and data must stay inside
   the section, and POINT:USED must equal the header's point count. Names may hold any bytes, as
   ezc3d reads them (Vicon Nexus writes names with spaces, e.g. PROCESSING:Marker Diameter).
@@ -13,7 +15,9 @@ The byte order follows the processor type stored in the parameter section (84 In
 86 MIPS big-endian).
 
 Missing points: ezc3d returns NaN where the residual word is negative (how Vicon and ezc3d mark
-an occluded marker); any NaN coordinate makes the whole sample occluded.
+an occluded marker); any NaN coordinate makes the whole sample occluded (a NaN stored with a valid
+residual is counted in the notes). Labels are text as ezc3d decodes them; bytes that are not UTF-8
+become U+FFFD.
 """
 
 from __future__ import annotations
@@ -106,6 +110,10 @@ def check_c3d_header(path: str | os.PathLike) -> dict[str, int | bool]:
     if last < 65535 and size < expected:  # 16-bit frame counts overflow on long trials
         raise InputError(f"truncated C3D file ({size} bytes, the header announces {expected})", path=path,
                          remedy="re-export the trial from the capture software")
+    if last < 65535 and size - expected > BLOCK and size - expected >= frame_bytes > 0:  # writers pad up to a block
+        raise InputError(f"corrupt C3D header: the file holds {size - expected} bytes ({(size - expected) // frame_bytes} frames' "
+                         f"worth) beyond the {n_frames} frames its header announces (frames {first}-{last})", path=path,
+                         remedy="re-export the trial from the capture software")
     with open(path, "rb") as fh:
         fh.seek(param_start)
         section = fh.read(pblock[2] * BLOCK)
@@ -176,6 +184,17 @@ def _values(group: dict, name: str) -> list:
         return []
 
 
+def _text(value) -> str:
+    """A C3D string as clean text: ezc3d keeps bytes that are not UTF-8 as surrogates; they become U+FFFD."""
+    return str(value).encode("utf-8", "surrogateescape").decode("utf-8", "replace").strip()
+
+
+def occlude(xyz: np.ndarray) -> np.ndarray:
+    """A sample with any NaN coordinate is occluded as a whole (in place; returns ``xyz``)."""
+    xyz[np.isnan(xyz).any(axis=2)] = np.nan
+    return xyz
+
+
 def model_outputs(point: dict) -> dict[str, str]:
     """Labels of the POINT channels that are model outputs, not markers -> their group and unit.
 
@@ -185,14 +204,14 @@ def model_outputs(point: dict) -> dict[str, str]:
     further groups and their unit key in pairs (group, type).
     """
     groups = dict(OUTPUT_GROUPS)
-    pairs = [str(v).strip().upper() for v in _values(point, "TYPE_GROUPS")]
+    pairs = [_text(v).upper() for v in _values(point, "TYPE_GROUPS")]
     for group, kind in zip(pairs[0::2], pairs[1::2]):
         groups.setdefault(group, f"{kind}_UNITS")
     out: dict[str, str] = {}
     for group, unit_key in groups.items():
-        units = [str(u).strip() for u in _values(point, unit_key)]
+        units = [_text(u) for u in _values(point, unit_key)]
         for label in _values(point, group):
-            label = str(label).strip()
+            label = _text(label)
             if label:
                 out.setdefault(label, f"{group.lower()}{' (' + units[0] + ')' if units and units[0] else ''}")
     return out
@@ -220,14 +239,14 @@ def read_c3d(path: str | os.PathLike, units: str | None = None) -> RawMarkers:
                          remedy="re-export the trial from the capture software") from exc
     if points.shape[2] == 0:
         raise InputError("empty trial (the C3D file holds no frames)", path=path, remedy="remove the trial from the protocol or re-export it")
-    labels = [str(s).strip() for s in _values(point, "LABELS")]
+    labels = [_text(s) for s in _values(point, "LABELS")]
     # Long label lists continue in LABELS2, LABELS3, ... (C3D convention for > 255 labels).
     for k in range(2, 100):
         if f"LABELS{k}" not in point:
             break
-        labels += [str(s).strip() for s in _values(point, f"LABELS{k}")]
+        labels += [_text(s) for s in _values(point, f"LABELS{k}")]
     labels = labels[: points.shape[1]] + [f"*{i}" for i in range(len(labels), points.shape[1])]  # unlabelled: Vicon's "*N"
-    stated = str((_values(point, "UNITS") or [""])[0]).strip()
+    stated = _text((_values(point, "UNITS") or [""])[0])
     source_units = (units or stated or "mm").lower()
     factor = to_metres_factor(source_units, path)
     outputs = model_outputs(point)
@@ -240,6 +259,10 @@ def read_c3d(path: str | os.PathLike, units: str | None = None) -> RawMarkers:
     xyz = points[:3, keep].transpose(2, 1, 0) * factor  # [frames, markers, 3]
     if residuals.size:
         xyz[np.transpose(residuals[0, keep] < 0)] = np.nan
+    partial = np.isnan(xyz).any(axis=2) & ~np.isnan(xyz).all(axis=2)
+    if partial.any():
+        notes += (f"{path.name}: {int(partial.sum())} samples with a NaN coordinate counted as occluded",)
+    xyz = occlude(xyz)
     try:
         rate = float((_values(point, "RATE") or [header_rate])[0])
     except (TypeError, ValueError):

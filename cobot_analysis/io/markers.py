@@ -39,7 +39,7 @@ import pandas as pd
 from cobot_analysis.console import info, warn
 from cobot_analysis.errors import InputError
 from cobot_analysis.io.c3d import RawMarkers, is_c3d, read_c3d
-from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, check_positions
+from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, MAX_SPIKE, check_positions, check_rate
 from cobot_analysis.io.protocol import (ENTITIES, KEPT_SUBJECT_MARKERS, PELVIS_DEFINITIONS, PELVIS_MARKERS, SACRUM, TABLE_MARKERS,
                                         Protocol, load_protocol, pelvis_definition)
 from cobot_analysis.io.text_exports import read_qualisys_tsv, read_vicon_csv, sniff_text_format
@@ -95,6 +95,7 @@ class TrialTask:
     protocol_rate: float | None = None
     lab_extent: float = LAB_EXTENT
     max_speed: float = MAX_SPEED
+    max_spike: float = MAX_SPIKE
 
 
 @dataclass
@@ -171,6 +172,7 @@ def import_trial(task: TrialTask) -> ImportedTrial:
     rate = raw.rate if raw.rate and np.isfinite(raw.rate) and raw.rate > 0 else task.protocol_rate
     if not rate:
         raise InputError("no sampling rate in the file", path=path, remedy="give 'rate' (Hz) in the protocol")
+    check_rate(float(rate), path)
     notes = list(raw.notes)
     if task.protocol_rate and abs(rate - task.protocol_rate) > 1e-6:
         notes.append(f"{path.name}: file rate {rate:g} Hz differs from the protocol rate {task.protocol_rate:g} Hz; using the file's")
@@ -234,7 +236,8 @@ def import_trial(task: TrialTask) -> ImportedTrial:
     else:
         _scale_check(path, raw.units, [(xyz[:, col["table", "TAB1"]], xyz[:, col["table", "TAB2"]])], TABLE_SIDE_RANGE,
                      "table side |TAB1 - TAB2|")
-    check_positions(xyz, [raw.labels[j] for j in keep], float(rate), path, lab_extent=task.lab_extent, max_speed=task.max_speed)
+    check_positions(xyz, [raw.labels[j] for j in keep], float(rate), path, lab_extent=task.lab_extent, max_speed=task.max_speed,
+                    max_spike=task.max_spike)
     return ImportedTrial(task.trial, ents, marks, xyz, float(rate), raw.units, fmt, file_sha256(path), notes, pelvis)
 
 
@@ -366,7 +369,8 @@ def import_summary(protocol: Protocol, imported: list[ImportedTrial], refused: l
     lines = ["## Import (raw markers)", "",
              f"{len(imported)} of {len(protocol.trials)} trials of `{protocol.path.name}` imported "
              f"({', '.join(f'{n} {k}' for k, n in sorted(formats.items()))}); positions checked against the lab extent "
-             f"{limits['lab_extent']:g} m and the marker speed limit {limits['max_speed']:g} m/s.", "",
+             f"{limits['lab_extent']:g} m, the marker speed limit {limits['max_speed']:g} m/s and the spike limit "
+             f"{limits['max_spike']:g} m.", "",
              "| pelvis markers | pelvis trajectories |", "|---|---|",
              *[f"| {k} | {n} |" for k, n in sorted(pelvis.items())], ""]
     notes = [n for t in imported for n in t.notes]
@@ -381,7 +385,7 @@ def import_summary(protocol: Protocol, imported: list[ImportedTrial], refused: l
 def run_import(protocol_path: str | os.PathLike, out: str | os.PathLike, *, units: str = "auto",
                marker_map: dict[str, str] | None = None, marker_map_file: str | os.PathLike | None = None,
                keep_all: bool = False, skip_bad: bool = False, lab_extent: float = LAB_EXTENT, max_speed: float = MAX_SPEED,
-               jobs: int | None = None, scheduler: str | None = None, force: bool = False) -> Path:
+               max_spike: float = MAX_SPIKE, jobs: int | None = None, scheduler: str | None = None, force: bool = False) -> Path:
     """Import every trial of a protocol into ``out/import`` (Stage "import"); returns the stage directory.
 
     Every trial is read before anything is written: the refused ones are named together in one
@@ -406,8 +410,8 @@ def run_import(protocol_path: str | os.PathLike, out: str | os.PathLike, *, unit
     files = [protocol.trial_file(row) for _, row in protocol.trials.iterrows()]
     pair_study = "pair" in protocol.trials.columns and protocol.trials["pair"].notna().any()
     tasks = [TrialTask(str(row["trial"]), f, bool(pair_study), units, dict(protocol.entities), mapping, keep_all, protocol.rate,
-                       lab_extent, max_speed) for (_, row), f in zip(protocol.trials.iterrows(), files)]
-    limits = {"lab_extent": lab_extent, "max_speed": max_speed}
+                       lab_extent, max_speed, max_spike) for (_, row), f in zip(protocol.trials.iterrows(), files)]
+    limits = {"lab_extent": lab_extent, "max_speed": max_speed, "max_spike": max_spike}
     params = {"units": units, "marker_map": mapping, "keep_all_markers": keep_all, "entities": protocol.entities,
               "skip_bad": skip_bad, **limits}
     with Stage(out, "import", inputs=inputs + files, params=params, force=force) as stage:

@@ -1,7 +1,9 @@
 """Plausibility of marker positions: what a motion-capture volume and a moving body allow.
 
 A position that no lab can record is refused, never averaged (a corrupt byte in a C3D data block
-turns 950 mm into 1e35 m). Three checks on every visible sample of the markers kept:
+turns 950 mm into 1e35 m). The sampling rate must be a motion-capture rate (``RATE_RANGE``,
+1 Hz to 10 kHz: camera systems record at 50 Hz to a few kHz). Four checks on every visible
+sample of the markers kept:
 
 - finite: +-inf is not a position (NaN is an occluded sample, as the readers mark it);
 - inside the lab: ``|x|, |y|, |z| <= lab_extent`` (default ``LAB_EXTENT`` = 100 m from the lab
@@ -10,10 +12,16 @@ turns 950 mm into 1e35 m). Three checks on every visible sample of the markers k
   ``(j - i) / rate`` stays below ``max_speed`` (default ``MAX_SPEED`` = 20 m/s: markers of walking
   and running people stay below about 10 m/s, the feet of the recordings in ``../shared/realdata``
   below 6 m/s). A corrupt value, or a marker swapped with another for some frames, jumps by
-  metres (or tens of centimetres) within one frame.
+  metres (or tens of centimetres) within one frame;
+- no spike: a sample between two visible neighbours lies within ``max_spike`` (default
+  ``MAX_SPIKE`` = 5 cm) of their midpoint, unless the rate is so low that this is reached by an
+  acceleration below ``MAX_ACCELERATION`` (1000 m/s^2, 100 g): the deviation of a smooth path
+  from the midpoint is ``a / (2 rate^2)``, at most 2.2 cm (a shank marker at 120 Hz) in the real
+  recordings of ``../shared/realdata``, 0.5 mm for a pelvis marker at 100 Hz.
 
-The limits are options of ``import`` (``--lab-extent``, ``--max-speed``) and are stored in the
-metadata of ``markers.parquet`` so that ``preprocess`` applies the same ones.
+The limits are options of ``import`` (``--lab-extent``, ``--max-speed``, ``--max-spike``) and are
+stored in the metadata of ``markers.parquet`` so that ``preprocess`` applies the same ones
+(docs/methods.md sec. 2).
 """
 
 from __future__ import annotations
@@ -28,9 +36,23 @@ from cobot_analysis.errors import InputError
 LAB_EXTENT = 100.0
 #: m/s: largest marker speed between consecutive visible samples.
 MAX_SPEED = 20.0
+#: m: largest distance of a sample from the midpoint of its two neighbours (single-sample spike).
+MAX_SPIKE = 0.05
+#: m/s^2: accelerations no marker on a person or a table reaches (sets the spike limit below 100 Hz).
+MAX_ACCELERATION = 1000.0
+#: Hz: sampling rates of motion-capture recordings.
+RATE_RANGE = (1.0, 10_000.0)
 
 REMEDY = ("check the trial in the capture software (a corrupt file or a mislabelled marker) and re-export it, "
           "or leave it out of the protocol")
+
+
+def check_rate(rate: float, path: str | os.PathLike, what: str = "") -> None:
+    """Refuse a sampling rate outside ``RATE_RANGE`` (a corrupt RATE parameter or header word)."""
+    lo, hi = RATE_RANGE
+    if not lo <= rate <= hi:
+        raise InputError(f"{what}sampling rate {rate:.6g} Hz is not a motion-capture rate ({lo:g} to {hi:g} Hz)", path=path,
+                         remedy="re-export the trial from the capture software (or give 'rate' in the protocol for a file without one)")
 
 
 def _where(labels: list[str], bad: np.ndarray, rate: float, limit: int = 3) -> str:
@@ -45,7 +67,8 @@ def _where(labels: list[str], bad: np.ndarray, rate: float, limit: int = 3) -> s
 
 
 def check_positions(xyz: np.ndarray, labels: list[str], rate: float, path: str | os.PathLike, *,
-                    lab_extent: float = LAB_EXTENT, max_speed: float = MAX_SPEED, what: str = "") -> None:
+                    lab_extent: float = LAB_EXTENT, max_speed: float = MAX_SPEED, max_spike: float = MAX_SPIKE,
+                    what: str = "") -> None:
     """Refuse marker positions ``xyz [frames, markers, 3]`` (m, NaN = occluded) that no lab records.
 
     Raises ``InputError`` naming the file (``what``: e.g. 'trial t1: ') with the markers, frames and
@@ -81,3 +104,14 @@ def check_positions(xyz: np.ndarray, labels: list[str], rate: float, path: str |
         raise InputError(f"{what}implausible jump of marker {labels[k]}: {step:.3g} m between frames {a} and {b} "
                          f"(t = {a / rate:.3f} s), {speed:.3g} m/s (limit {max_speed:g} m/s){more}", path=path,
                          remedy=f"{REMEDY}; a marker that really moves faster: import with --max-speed")
+    spike_limit = max(max_spike, MAX_ACCELERATION / (2 * rate ** 2))
+    triple = visible[:-2] & visible[1:-1] & visible[2:]  # (frames - 2, markers)
+    with np.errstate(invalid="ignore"):
+        dev = np.linalg.norm(xyz[1:-1] - (xyz[:-2] + xyz[2:]) / 2, axis=2)
+        spikes = triple & (dev > spike_limit)
+    if spikes.any():
+        i, k = np.argwhere(spikes)[0]
+        raise InputError(f"{what}implausible spike of marker {labels[k]} at frame {i + 1} (t = {(i + 1) / rate:.3f} s): "
+                         f"{dev[i, k]:.3g} m from the midpoint of its neighbours (limit {spike_limit:.3g} m); "
+                         f"{int(spikes.sum())} such samples in {int(spikes.any(axis=0).sum())} marker(s)", path=path,
+                         remedy=f"{REMEDY}; a marker that really moves so abruptly: import with --max-spike")

@@ -57,7 +57,7 @@ from cobot_analysis import kinematics as kin
 from cobot_analysis.angles import wrap
 from cobot_analysis.errors import InputError
 from cobot_analysis.io.markers import Refused, refusal_error
-from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, check_positions
+from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, MAX_SPIKE, check_positions
 from cobot_analysis.io.protocol import PELVIS_MARKERS, SACRUM, TABLE_MARKERS, pelvis_definition, pelvis_requirement
 from cobot_analysis.preprocess import filtering, gaps, normalisation, segmentation
 from cobot_analysis.schema import MARKERS, TRAJECTORIES, TRIAL_COLUMNS, TRIALS, read_table, table_metadata, write_table
@@ -130,7 +130,8 @@ def load_recordings(markers_path: Path, trials_path: Path) -> list[Recording]:
     except Exception as exc:  # pyarrow raises several types for corrupt files or missing columns
         raise InputError(f"cannot read the marker columns ({type(exc).__name__}: {exc})", path=markers_path,
                          remedy="re-run `cobot-analysis import`") from exc
-    limits = {"lab_extent": float(meta.get("lab_extent") or LAB_EXTENT), "max_speed": float(meta.get("max_speed") or MAX_SPEED)}
+    limits = {"lab_extent": float(meta.get("lab_extent") or LAB_EXTENT), "max_speed": float(meta.get("max_speed") or MAX_SPEED),
+              "max_spike": float(meta.get("max_spike") or MAX_SPIKE)}
     known = set(trials["trial"].astype(str))
     stray = sorted({names[i] for i in np.unique(tcode)} - known)
     if stray:
