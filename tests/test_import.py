@@ -782,3 +782,13 @@ def test_c3d_header_announcing_fewer_frames_than_its_data(tmp_path, cli):
 def test_sampling_rate_outside_motion_capture_rates(tmp_path, cli):
     f = write_c3d(tmp_path / "a.c3d", person(30), rate=2e-5)
     assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])], "a.c3d: sampling rate 2e-05 Hz is not a motion-capture rate (1 to 10000 Hz)")
+
+
+@pytest.mark.parametrize("target, shift, value", [("LABELS", -1, 0xFF), ("USED", 10, 0x88)])
+def test_c3d_description_lengths_that_crashed_ezc3d(tmp_path, target, shift, value):
+    """A character parameter turned into a group (gid byte -> negative: its type byte 0xFF read as a
+    description length) made ezc3d segfault; a description length >= 128 made it hang."""
+    f = write_c3d(tmp_path / "a.c3d", person(20))
+    damage.overwrite(f, f.read_bytes().index(target.encode()) + shift, bytes([value]))
+    with pytest.raises(InputError, match=f"a.c3d: corrupt C3D parameter section \\(description length {value} of '{target}' out of range\\)"):
+        read_c3d(f)

@@ -8,8 +8,10 @@ segfault or hang in our tests, so the file is checked here first (C3D User Guide
   hold ``frames x (points x 4 + analogs) x (4 bytes if float else 2)`` bytes from the data start,
   and not whole frames more beyond one 512-byte block of padding (a damaged frame range or point
   count would otherwise drop data silently).
-- parameter section: every group/parameter record is walked; pointers and data must stay inside
-  the section, and POINT:USED must equal the header's point count. Names may hold any bytes, as
+- parameter section: every group/parameter record is walked; pointers, data and descriptions
+  must stay inside their record, a description is at most 127 characters (ezc3d reads its length
+  as a signed byte and hung or crashed on longer ones), and POINT:USED must equal the header's
+  point count. Names may hold any bytes, as
   ezc3d reads them (Vicon Nexus writes names with spaces, e.g. PROCESSING:Marker Diameter).
 The byte order follows the processor type stored in the parameter section (84 Intel, 85 DEC,
 86 MIPS big-endian).
@@ -154,7 +156,7 @@ def _walk_parameters(section: bytes, order: str, path: Path) -> dict[tuple[str, 
         limit = nxt if offset != 0 else end
         if gid < 0:
             groups[-gid] = name.upper()
-            size = 1 + (section[body] if body < end else 0)
+            desc = body
         else:
             if body + 2 > limit:
                 raise corrupt("truncated parameter record")
@@ -164,11 +166,15 @@ def _walk_parameters(section: bytes, order: str, path: Path) -> dict[tuple[str, 
             dims = section[body + 2:body + 2 + ndims]
             count = int(np.prod(list(dims))) if ndims else 1
             data = body + 2 + ndims
-            size = 2 + ndims + abs(dtype) * count + 1
+            desc = data + abs(dtype) * count
             if ndims == 0 and dtype == 2 and data + 2 <= limit:
                 scalars.append((gid, name.upper(), struct.unpack(order + "h", section[data:data + 2])[0]))
-        if body + size > limit:
+        if desc >= limit:
             raise corrupt("parameter data past its record")
+        if section[desc] > 127:  # ezc3d reads the length as a signed byte: it hung or crashed on these
+            raise corrupt(f"description length {section[desc]} of {name.strip()!r} out of range")
+        if desc + 1 + section[desc] > limit:
+            raise corrupt(f"description of {name.strip()!r} past its record")
         if offset == 0:
             break
         pos = nxt
