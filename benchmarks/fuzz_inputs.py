@@ -7,8 +7,9 @@ Inputs: seed files (a small synthetic walking study, ``cobot_analysis.synth.walk
 C3D and converted to the two text exports; the files of ``../shared/realdata`` or
 ``$COBOT_REALDATA`` when present), each damaged by one seeded mutation built on ``tests/damage.py``:
 random bytes anywhere, in the header / parameter part or in the data part, truncation, a special
-value written into one coordinate (inf, NaN, 1e35, 0, ...), C3D header words, text lines deleted,
-duplicated or swapped. Input ``i`` is fully determined by ``--seed`` and ``i``.
+value written into one coordinate (inf, NaN, 1e35, 0, ...), C3D header words, a structural byte of
+a C3D parameter record (group id, pointer, type, dimensions, description length), text lines
+deleted, duplicated or swapped. Input ``i`` is fully determined by ``--seed`` and ``i``.
 
 Each input is imported and, when the import succeeds, preprocessed in-process
 (``cobot_analysis.cli.run``) in a worker process (memory capped), and checked:
@@ -118,7 +119,7 @@ def _split(data: bytes, fmt: str) -> int:
 def mutate(data: bytes, fmt: str, rng: random.Random) -> tuple[bytes, str]:
     """One seeded mutation of ``data``: ``(damaged bytes, description)``."""
     split = _split(data, fmt)
-    kinds = ["bytes", "head-bytes", "data-bytes", "truncate", "special"] + (["header-word"] if fmt == "c3d" else ["lines"])
+    kinds = ["bytes", "head-bytes", "data-bytes", "truncate", "special"] + (["header-word", "record"] if fmt == "c3d" else ["lines"])
     kind = rng.choice(kinds)
     b = bytearray(data)
     if kind in ("bytes", "head-bytes", "data-bytes"):
@@ -136,6 +137,12 @@ def mutate(data: bytes, fmt: str, rng: random.Random) -> tuple[bytes, str]:
         value = rng.choice((0, 1, 2, 0xFFFF, 0x7FFF, 0x8000, rng.randrange(65536)))
         b[2 * word:2 * word + 2] = struct.pack("<H", value)
         return bytes(b), f"header word {word + 1} = {value}"
+    if kind == "record":  # a structural byte of a parameter record (group id, pointer, type, dimensions, description)
+        records = damage.c3d_parameter_records(data)
+        rec = rng.choice(records)
+        at = rng.choice(rec["structure"])
+        b[at] = rng.choice((0, 1, 0x7F, 0x80, 0xFF, b[at] ^ 1, b[at] ^ 0x80, rng.randrange(256)))
+        return bytes(b), f"record {rec['name']} byte {at - rec['offset']} = {b[at]}"
     if kind == "special":
         if fmt == "c3d":
             lay = damage.c3d_layout(data)

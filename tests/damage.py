@@ -101,3 +101,33 @@ def scale_values(values: np.ndarray, factor: float, rows: slice | np.ndarray | N
     out = np.array(values, dtype=float, copy=True)
     out[slice(None) if rows is None else rows] *= factor
     return out
+
+
+def c3d_parameter_records(src) -> list[dict]:
+    """The records of a C3D parameter section: name, group id (negative for a group), offset of the
+    record, and the offsets of its structural bytes (name length, group id, next-record pointer,
+    type, dimensions, description length), for damage aimed at the structure rather than the values."""
+    data = _bytes(src)
+    start = (data[0] - 1) * C3D_BLOCK
+    section = data[start:start + data[start + 2] * C3D_BLOCK]
+    out, pos = [], 4
+    while pos + 4 <= len(section):
+        nchar, gid = struct.unpack("bb", section[pos:pos + 2])
+        if nchar == 0:
+            break
+        name_end = pos + 2 + abs(nchar)
+        offset, = struct.unpack("<h", section[name_end:name_end + 2])
+        body = name_end + 2
+        places = [pos, pos + 1, name_end, name_end + 1]
+        if gid < 0:
+            places.append(body)
+        elif body + 2 <= len(section):
+            dtype, ndims = struct.unpack("bB", section[body:body + 2])
+            dims = section[body + 2:body + 2 + ndims]
+            places += [body, body + 1, *range(body + 2, body + 2 + len(dims)), body + 2 + ndims + abs(dtype) * int(np.prod(list(dims)))]
+        out.append({"name": section[pos + 2:name_end].decode("latin-1"), "gid": gid, "offset": start + pos,
+                    "structure": [start + p for p in places if start + p < len(data)]})
+        if offset <= 0:
+            break
+        pos = name_end + offset
+    return out

@@ -6,6 +6,7 @@ Test files are written here (C3D with ezc3d, text exports by hand), never commit
 from __future__ import annotations
 
 import random
+import re
 import sys
 from pathlib import Path
 
@@ -791,4 +792,43 @@ def test_c3d_description_lengths_that_crashed_ezc3d(tmp_path, target, shift, val
     f = write_c3d(tmp_path / "a.c3d", person(20))
     damage.overwrite(f, f.read_bytes().index(target.encode()) + shift, bytes([value]))
     with pytest.raises(InputError, match=f"a.c3d: corrupt C3D parameter section \\(description length {value} of '{target}' out of range\\)"):
+        read_c3d(f)
+
+
+def write_c3d_with_analogs(path, markers):
+    """A C3D with two analog channels (1000 Hz) beside the markers (200 Hz)."""
+    import ezc3d
+
+    c3d = ezc3d.c3d()
+    c3d["parameters"]["POINT"]["RATE"]["value"] = [RATE]
+    c3d["parameters"]["POINT"]["LABELS"]["value"] = tuple(markers)
+    xyz = np.stack(list(markers.values()), axis=1) * 1000.0
+    points = np.ones((4, xyz.shape[1], xyz.shape[0]))
+    points[:3] = xyz.transpose(2, 1, 0)
+    c3d["data"]["points"] = points
+    c3d["parameters"]["ANALOG"]["RATE"]["value"] = [5 * RATE]
+    c3d["parameters"]["ANALOG"]["LABELS"]["value"] = ("Fx", "Fy")
+    c3d["data"]["analogs"] = np.zeros((1, 2, 5 * xyz.shape[0]))
+    c3d.write(str(path))
+    return Path(path)
+
+
+def _record(f, group_id, name):
+    return next(r for r in damage.c3d_parameter_records(f) if r["name"] == name and r["gid"] == group_id)
+
+
+@pytest.mark.parametrize("damage_it, expected", [
+    (lambda f: damage.overwrite(f, _record(f, 2, "SCALE")["offset"] + 1, bytes([60])),  # ANALOG:SCALE moved to group 60
+     "ANALOG:SCALE holds 0 values for 2 analog channels"),
+    (lambda f: damage.overwrite(f, _record(f, 2, "SCALE")["offset"] + 1, bytes([1])),  # ... into POINT, which has a SCALE
+     "parameter POINT:SCALE given twice"),
+    (lambda f: damage.overwrite(f, _record(f, 1, "RATE")["structure"][4], bytes([0xFF])),  # POINT:RATE a character scalar
+     "bad parameter type of 'RATE'"),
+])
+def test_c3d_parameter_structures_that_crashed_ezc3d(tmp_path, damage_it, expected):
+    """Each of these made ezc3d segfault (found by the parameter-record sweep of the fuzz run); refused before ezc3d."""
+    f = write_c3d_with_analogs(tmp_path / "a.c3d", person(20))
+    assert read_c3d(f).xyz.shape == (20, 5, 3)
+    damage_it(f)
+    with pytest.raises(InputError, match=f"a.c3d: corrupt C3D parameter section \\({re.escape(expected)}\\)"):
         read_c3d(f)

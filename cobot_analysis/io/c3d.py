@@ -9,9 +9,11 @@ segfault or hang in our tests, so the file is checked here first (C3D User Guide
   and not whole frames more beyond one 512-byte block of padding (a damaged frame range or point
   count would otherwise drop data silently).
 - parameter section: every group/parameter record is walked; pointers, data and descriptions
-  must stay inside their record, a description is at most 127 characters (ezc3d reads its length
-  as a signed byte and hung or crashed on longer ones), and POINT:USED must equal the header's
-  point count. Names may hold any bytes, as
+  must stay inside their record, character parameters have dimensions (ezc3d crashed on a
+  character scalar), a description is at most 127 characters (ezc3d reads its length
+  as a signed byte and hung or crashed on longer ones), no parameter is given twice in a group,
+  POINT:SCALE and POINT:RATE hold a value, POINT:USED must equal the header's point count, and ANALOG:SCALE and ANALOG:OFFSET must hold a value per analog channel (ezc3d
+  crashed or hung without them). Names may hold any bytes, as
   ezc3d reads them (Vicon Nexus writes names with spaces, e.g. PROCESSING:Marker Diameter).
 The byte order follows the processor type stored in the parameter section (84 Intel, 85 DEC,
 86 MIPS big-endian).
@@ -120,22 +122,32 @@ def check_c3d_header(path: str | os.PathLike) -> dict[str, int | bool]:
         fh.seek(param_start)
         section = fh.read(pblock[2] * BLOCK)
     params = _walk_parameters(section, order, path)
-    used = params.get(("POINT", "USED"))
+    used = params.get(("POINT", "USED"), (1, None))[1]
     if used is not None and used != n_points:
         raise InputError(f"corrupt C3D file (header announces {n_points} points, POINT:USED {used})", path=path,
                          remedy="re-export the trial from the capture software")
+    for name in ("SCALE", "RATE"):
+        if params.get(("POINT", name), (1, None))[0] < 1:
+            raise InputError(f"corrupt C3D parameter section (POINT:{name} holds no value)", path=path,
+                             remedy="re-export the trial from the capture software")
+    channels = params.get(("ANALOG", "USED"), (1, None))[1]
+    for name in ("SCALE", "OFFSET") if n_analog and channels and channels > 0 else ():  # ezc3d crashed without them
+        count = params.get(("ANALOG", name), (0, None))[0]
+        if count < channels:
+            raise InputError(f"corrupt C3D parameter section (ANALOG:{name} holds {count} values for {channels} analog channels)",
+                             path=path, remedy="re-export the trial from the capture software")
     return {"points": n_points, "frames": n_frames, "float": is_float}
 
 
-def _walk_parameters(section: bytes, order: str, path: Path) -> dict[tuple[str, str], int]:
+def _walk_parameters(section: bytes, order: str, path: Path) -> dict[tuple[str, str], tuple[int, int | None]]:
     """Walk the parameter records (C3D User Guide, "The parameter section") and check that each
-    one lies inside the section, so that ezc3d never follows a corrupt pointer. Returns the
-    integer scalars found, keyed (GROUP, NAME)."""
+    one lies inside the section, so that ezc3d never follows a corrupt pointer. Returns, keyed
+    (GROUP, NAME), the number of values of each parameter and its value when it is an integer scalar."""
     def corrupt(what: str) -> InputError:
         return InputError(f"corrupt C3D parameter section ({what})", path=path, remedy="re-export the trial from the capture software")
 
     groups: dict[int, str] = {}
-    scalars: list[tuple[int, str, int]] = []
+    found: list[tuple[int, str, int, int | None]] = []  # group id, name, number of values, integer scalar
     pos, end = 4, len(section)
     for _ in range(100_000):
         if pos + 2 > end:
@@ -161,14 +173,14 @@ def _walk_parameters(section: bytes, order: str, path: Path) -> dict[tuple[str, 
             if body + 2 > limit:
                 raise corrupt("truncated parameter record")
             dtype, ndims = struct.unpack("bB", section[body:body + 2])
-            if dtype not in (-1, 1, 2, 4) or ndims > 7 or body + 2 + ndims > limit:
-                raise corrupt(f"bad parameter type of {name.strip()!r}")
+            if dtype not in (-1, 1, 2, 4) or ndims > 7 or body + 2 + ndims > limit or (dtype == -1 and ndims == 0):
+                raise corrupt(f"bad parameter type of {name.strip()!r}")  # ezc3d crashed on a character scalar
             dims = section[body + 2:body + 2 + ndims]
             count = int(np.prod(list(dims))) if ndims else 1
             data = body + 2 + ndims
             desc = data + abs(dtype) * count
-            if ndims == 0 and dtype == 2 and data + 2 <= limit:
-                scalars.append((gid, name.upper(), struct.unpack(order + "h", section[data:data + 2])[0]))
+            scalar = struct.unpack(order + "h", section[data:data + 2])[0] if ndims == 0 and dtype == 2 and data + 2 <= limit else None
+            found.append((gid, name.strip().upper(), count, scalar))
         if desc >= limit:
             raise corrupt("parameter data past its record")
         if section[desc] > 127:  # ezc3d reads the length as a signed byte: it hung or crashed on these
@@ -178,7 +190,11 @@ def _walk_parameters(section: bytes, order: str, path: Path) -> dict[tuple[str, 
         if offset == 0:
             break
         pos = nxt
-    return {(groups.get(g, "?"), n): v for g, n, v in scalars}
+    keys = [(g, n) for g, n, _, _ in found]
+    if len(set(keys)) < len(keys):  # ezc3d crashed when a parameter moved into a group that has one of its name
+        g, n = next(k for k in keys if keys.count(k) > 1)
+        raise corrupt(f"parameter {groups.get(g, '?')}:{n} given twice")
+    return {(groups.get(g, "?"), n): (count, v) for g, n, count, v in found}
 
 
 def _values(group: dict, name: str) -> list:

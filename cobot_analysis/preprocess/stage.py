@@ -99,7 +99,7 @@ class Recording:
     meta: dict[str, Any]
     markers: dict[tuple[str, str], np.ndarray] = field(default_factory=dict)
     source: str = ""  # markers file, for error messages
-    limits: dict[str, float] = field(default_factory=dict)  # plausibility limits of the import (lab_extent, max_speed)
+    limits: dict[str, float] = field(default_factory=dict)  # plausibility limits of the import (lab_extent, max_speed, max_spike)
 
 
 # ---- reading --------------------------------------------------------------------------------------
