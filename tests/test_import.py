@@ -832,3 +832,14 @@ def test_c3d_parameter_structures_that_crashed_ezc3d(tmp_path, damage_it, expect
     damage_it(f)
     with pytest.raises(InputError, match=f"a.c3d: corrupt C3D parameter section \\({re.escape(expected)}\\)"):
         read_c3d(f)
+
+
+def test_a_label_given_twice_in_a_yaml_map_is_refused(tmp_path, cli):
+    """PyYAML keeps the last of two equal keys silently: {SACR: LPSI, SACR: RPSI} would map SACR to RPSI only."""
+    m = person(20)
+    proto = protocol(tmp_path, [write_c3d(tmp_path / "a.c3d", m)])
+    mapfile = tmp_path / "labmap.yaml"
+    mapfile.write_text("SACR: LPSI\nSACR: RPSI\n")
+    assert_rejected(cli, tmp_path / "ws", [proto, "--marker-map", mapfile], "labmap.yaml: key 'SACR' given twice in the mapping at line 1")
+    proto.write_text(proto.read_text() + "marker_map:\n  SACR: LPSI\n  SACR: RPSI\n")
+    assert_rejected(cli, tmp_path / "ws", [proto], "protocol.yaml: key 'SACR' given twice")

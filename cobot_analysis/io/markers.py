@@ -41,7 +41,7 @@ from cobot_analysis.errors import InputError
 from cobot_analysis.io.c3d import RawMarkers, is_c3d, read_c3d
 from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, MAX_SPIKE, check_positions, check_rate
 from cobot_analysis.io.protocol import (ENTITIES, KEPT_SUBJECT_MARKERS, PELVIS_DEFINITIONS, PELVIS_MARKERS, SACRUM, TABLE_MARKERS,
-                                        Protocol, load_protocol, pelvis_definition)
+                                        Protocol, load_protocol, pelvis_definition, read_yaml)
 from cobot_analysis.io.text_exports import read_qualisys_tsv, read_vicon_csv, sniff_text_format
 from cobot_analysis.schema import MARKERS, TRIAL_COLUMNS, TRIALS, write_table
 
@@ -319,16 +319,12 @@ def trials_table(protocol: Protocol, trials: list[ImportedTrial]) -> pd.DataFram
 
 
 def load_marker_map(path: str | os.PathLike) -> dict[str, str]:
-    """A marker map YAML file: ``LAB: CANON`` lines, or the same under a ``marker_map:`` key."""
-    import yaml
-
+    """A marker map YAML file: ``LAB: CANON`` lines, or the same under a ``marker_map:`` key (a label
+    given twice is refused)."""
     path = Path(path)
     if not path.is_file():
         raise InputError("marker map file not found", path=path, remedy="pass an existing YAML file to --marker-map")
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise InputError(f"not a valid YAML marker map ({type(exc).__name__})", path=path, remedy="write one 'LAB: CANON' line per label") from exc
+    doc = read_yaml(path, "marker map", "write one 'LAB: CANON' line per label")
     doc = doc.get("marker_map", doc) if isinstance(doc, dict) else doc
     if not isinstance(doc, dict) or not all(isinstance(v, str) for v in doc.values()):
         raise InputError("a marker map must map lab labels to canonical labels", path=path, remedy="write one 'LAB: CANON' line per label")

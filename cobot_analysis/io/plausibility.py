@@ -16,8 +16,8 @@ sample of the markers kept:
 - no spike: a sample between two visible neighbours lies within ``max_spike`` (default
   ``MAX_SPIKE`` = 5 cm) of their midpoint, unless the rate is so low that this is reached by an
   acceleration below ``MAX_ACCELERATION`` (1000 m/s^2, 100 g): the deviation of a smooth path
-  from the midpoint is ``a / (2 rate^2)``, at most 2.2 cm (a shank marker at 120 Hz) in the real
-  recordings of ``../shared/realdata``, 0.5 mm for a pelvis marker at 100 Hz.
+  from the midpoint is ``a / (2 rate^2)``; in the real recordings of ``../shared/realdata`` it is
+  at most 2.2 cm (a shank marker at 120 Hz), 0.5 to 9.5 mm for the pelvis markers.
 
 The limits are options of ``import`` (``--lab-extent``, ``--max-speed``, ``--max-spike``) and are
 stored in the metadata of ``markers.parquet`` so that ``preprocess`` applies the same ones

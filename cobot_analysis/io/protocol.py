@@ -18,8 +18,9 @@ Trials columns: ``trial`` (unique id), ``file`` (relative to the protocol file),
 metadata of ``schema.TRIAL_COLUMNS`` that apply (subject or pair, condition, direction, scenario,
 configuration, end_orientation, repetition). CSV paths are relative to the protocol file.
 
-Any other key is an error that names the valid ones (``PROTOCOL_KEYS``); ``rate`` must be a
-number (Hz), ``entities`` and ``marker_map`` mappings of labels.
+Any other key is an error that names the valid ones (``PROTOCOL_KEYS``), and so is a key given
+twice in one mapping; ``rate`` must be a number (Hz), ``entities`` and ``marker_map`` mappings of
+labels.
 
 Canonical markers: pelvis LASI RASI LPSI RPSI, or LASI RASI and one sacrum marker SACR (Plug-in-Gait
 option; Vicon's older name VSAC is read as SACR, and a lab's PSIS midpoint can be mapped to SACR):
@@ -135,17 +136,32 @@ def _rate(doc: dict, path: Path) -> float | None:
     return rate
 
 
-def load_protocol(path: str | os.PathLike) -> Protocol:
-    """Read and check a protocol file: every trial file it names must exist."""
+def read_yaml(path: Path, what: str, remedy: str) -> Any:
+    """A YAML document; a key given twice in one mapping is an error (PyYAML would keep the last
+    silently: ``marker_map: {SACR: LPSI, SACR: RPSI}`` is one mapping, not two)."""
     import yaml
 
+    class Strict(yaml.SafeLoader):
+        def construct_mapping(self, node, deep=False):
+            keys = [self.construct_object(k, deep=deep) for k, _ in node.value]
+            dup = next((k for i, k in enumerate(keys) if k in keys[:i]), None)
+            if dup is not None:
+                raise InputError(f"key {dup!r} given twice in the mapping at line {node.start_mark.line + 1}", path=path,
+                                 remedy="give each key once; a label is one marker")
+            return super().construct_mapping(node, deep=deep)
+
+    try:
+        return yaml.load(path.read_text(), Loader=Strict)  # noqa: S506 - a SafeLoader subclass
+    except (yaml.YAMLError, UnicodeDecodeError, TypeError) as exc:  # TypeError: an unhashable key
+        raise InputError(f"not a valid YAML {what} ({type(exc).__name__})", path=path, remedy=remedy) from exc
+
+
+def load_protocol(path: str | os.PathLike) -> Protocol:
+    """Read and check a protocol file: every trial file it names must exist."""
     path = Path(path)
     if not path.is_file():
         raise InputError("protocol file not found", path=path, remedy="pass the protocol YAML written with the data (e.g. protocol.yaml)")
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise InputError(f"not a valid YAML protocol ({type(exc).__name__})", path=path, remedy="check its syntax") from exc
+    doc = read_yaml(path, "protocol", "check its syntax")
     if not isinstance(doc, dict) or "trials" not in doc:
         raise InputError("protocol has no 'trials' section", path=path, remedy="list the trials (inline or as a CSV path)")
     unknown = [str(k) for k in doc if k not in PROTOCOL_KEYS]
