@@ -843,3 +843,16 @@ def test_a_label_given_twice_in_a_yaml_map_is_refused(tmp_path, cli):
     assert_rejected(cli, tmp_path / "ws", [proto, "--marker-map", mapfile], "labmap.yaml: key 'SACR' given twice in the mapping at line 1")
     proto.write_text(proto.read_text() + "marker_map:\n  SACR: LPSI\n  SACR: RPSI\n")
     assert_rejected(cli, tmp_path / "ws", [proto], "protocol.yaml: key 'SACR' given twice")
+
+
+@pytest.mark.parametrize("writer, name", [(write_vicon_csv, "a.csv"), (write_qtm_tsv, "a.tsv")])
+def test_text_export_cut_inside_its_last_line(tmp_path, cli, writer, name):
+    """A truncated export ends in a cut number (1523.4 -> 15): refused; cut at a line end it is a shorter export."""
+    f = writer(tmp_path / name, person(30))
+    text = f.read_text().rstrip("\n")
+    f.write_text(text[:-3])
+    assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])], f"{name}: truncated export: its last line is cut off")
+    f.write_text(text[:text.rindex("\n") + 1])  # the last row dropped whole
+    code, _, err = cli("import", protocol(tmp_path, [f]), "--out", tmp_path / "ws", "--jobs", "1")
+    assert code == 0, err
+    assert read_table(tmp_path / "ws" / "import" / "trials.parquet", TRIALS)["n_frames"].tolist() == [29]

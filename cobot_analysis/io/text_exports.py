@@ -19,7 +19,8 @@ Qualisys QTM TSV export (3D data)::
     1      0.000 ...                         <- occluded: empty, NaN/null, or 0 0 0 (QTM's filler)
 
 QTM exports are in millimetres (the file does not state it). Frames must be strictly increasing
-(so must Time in QTM files); missing frame numbers are kept as occluded frames (up to as many as
+(so must Time in QTM files), and the file must end with an end of line (a truncated file would
+end in a cut number); missing frame numbers are kept as occluded frames (up to as many as
 the rows: a larger jump is a damaged frame number). Labels and
 columns must line up (a damaged label row would give one marker's data another's name): Vicon
 labels only above X columns followed by Y and Z; QTM MARKER_NAMES as many as NO_OF_MARKERS and
@@ -51,6 +52,13 @@ def sniff_text_format(head: str) -> str | None:
     if "Trajectories" in lines or lines[0] in ("Devices", "Model Outputs", "Joints", "Segments"):
         return "vicon-csv"
     return None
+
+
+def _complete(text: str, path: Path) -> str:
+    """The text of an export whose last line ends: a cut file would end in a cut number."""
+    if text and not text.endswith(("\n", "\r")):
+        raise InputError("truncated export: its last line is cut off (no end of line)", path=path, remedy=_REEXPORT)
+    return text
 
 
 def _numeric(rows: list[list[str]], path: Path, first_line: int) -> np.ndarray:
@@ -104,7 +112,8 @@ def read_vicon_csv(path: str | os.PathLike, units: str | None = None) -> RawMark
 
     path = Path(path)
     with open(path, newline="", encoding="utf-8-sig", errors="replace") as fh:
-        rows = list(csv.reader(fh, quoting=csv.QUOTE_NONE))  # Nexus never quotes: a stray '"' is a character
+        text = _complete(fh.read(), path)
+    rows = list(csv.reader(io.StringIO(text), quoting=csv.QUOTE_NONE))  # Nexus never quotes: a stray '"' is a character
     starts = [i for i, r in enumerate(rows) if r and r[0].strip() == "Trajectories"]
     if not starts:
         raise InputError("no 'Trajectories' section in this Vicon CSV export", path=path,
@@ -152,7 +161,7 @@ def read_qualisys_tsv(path: str | os.PathLike, units: str | None = None) -> RawM
     """Read a Qualisys QTM TSV 3D export (see module docstring); lengths in mm unless ``units``."""
     path = Path(path)
     with open(path, encoding="utf-8-sig", errors="replace") as fh:
-        lines = fh.read().splitlines()
+        lines = _complete(fh.read(), path).splitlines()
     header: dict[str, list[str]] = {}
     i = 0
     while i < len(lines):
