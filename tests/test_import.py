@@ -856,3 +856,13 @@ def test_text_export_cut_inside_its_last_line(tmp_path, cli, writer, name):
     code, _, err = cli("import", protocol(tmp_path, [f]), "--out", tmp_path / "ws", "--jobs", "1")
     assert code == 0, err
     assert read_table(tmp_path / "ws" / "import" / "trials.parquet", TRIALS)["n_frames"].tolist() == [29]
+
+
+def test_vicon_csv_with_a_lone_carriage_return(tmp_path, cli):
+    """A stray CR byte inside a data row splits it (as the csv module reads line ends): refused, not a crash."""
+    f = write_vicon_csv(tmp_path / "a.csv", person(20))
+    data = f.read_bytes()
+    row = data.index(b"\n5,0,") + 1
+    f.write_bytes(data[:row + 12] + b"\r" + data[row + 12:])
+    msg = assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])], "a.csv: ")
+    assert "internal error" not in msg

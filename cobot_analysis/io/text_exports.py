@@ -113,7 +113,7 @@ def read_vicon_csv(path: str | os.PathLike, units: str | None = None) -> RawMark
     path = Path(path)
     with open(path, newline="", encoding="utf-8-sig", errors="replace") as fh:
         text = _complete(fh.read(), path)
-    rows = list(csv.reader(io.StringIO(text), quoting=csv.QUOTE_NONE))  # Nexus never quotes: a stray '"' is a character
+    rows = list(csv.reader(io.StringIO(text, newline=""), quoting=csv.QUOTE_NONE))  # Nexus never quotes: a stray '"' is a character
     starts = [i for i, r in enumerate(rows) if r and r[0].strip() == "Trajectories"]
     if not starts:
         raise InputError("no 'Trajectories' section in this Vicon CSV export", path=path,
