@@ -7,6 +7,10 @@ mean only (``n_theta`` counts those that contributed). Spread: standard deviatio
 standard deviation ``sqrt(-2 ln R)`` for angles) and a 95 % band ``mean +- 1.96 sd``, the range
 expected to hold 95 % of individual trajectories under a normal model (documented choice; the
 band of the mean itself would be ``+- 1.96 sd / sqrt(n)``).
+
+Groups must be real conditions (``check_groups``): a grouping column that is empty for some trials
+(a trials table without ``condition``) would average unrelated trials into one mean, so it is
+refused with the trials concerned (docs/methods.md sec. 2).
 """
 
 from __future__ import annotations
@@ -15,6 +19,7 @@ import numpy as np
 import pandas as pd
 
 from cobot_analysis.compare import TrajectorySet, default_groups, group_keys
+from cobot_analysis.errors import InputError
 from cobot_analysis.schema import TRIAL_COLUMNS, Column, TableSchema
 
 Z95 = 1.959963984540054
@@ -50,6 +55,30 @@ MEANS = TableSchema(
         "quality": Column("string", "", "'ok' or 'orientation_missing' when no member had orientation"),
     },
 )
+
+
+def check_groups(meta: pd.DataFrame, by: list[str], path=None) -> None:
+    """Refuse a grouping under which trials without a value would be averaged together.
+
+    Every column of ``by`` (``entity`` is always set) must be given for every trial: one empty
+    for all trials would make one mean of the whole study, one empty for some would pool those
+    trials, whatever their conditions, into a group of their own.
+    """
+    per = meta.drop_duplicates(["trial", "entity"]) if {"trial", "entity"} <= set(meta.columns) else meta
+    for c in by:
+        empty = per[c].isna() | per[c].astype(str).str.strip().eq("")
+        if not empty.any():
+            continue
+        n = len(per)
+        if empty.all():
+            what = f"no trial has a {c!r} value: the means would average all {n} trajectories into one"
+        else:
+            ids = ", ".join(per.loc[empty, "trial"].astype(str).unique()[:5]) if "trial" in per.columns else ""
+            what = f"{int(empty.sum())} of {n} trajectories have no {c!r} value ({ids}...): they would be averaged together as one group"
+        raise InputError(what, path=path,
+                         remedy=f"give every trial its {c} in the protocol's trials table and re-run import and preprocess, "
+                                f"or choose the grouping with --by (e.g. --by {','.join(b for b in by if b != c)} for one mean "
+                                f"over all {c}s)")
 
 
 def _group_sums(values: np.ndarray, starts: np.ndarray) -> np.ndarray:

@@ -5,7 +5,8 @@ marks a sample that is missing after gap filling (a long gap). Every function pr
 instead of inventing values, except the rigid-body reconstruction of the pelvis centre
 (``pelvis_com``), which is exact for a rigid pelvis and documented there.
 
-- pelvis CoM (horizontal): ``c = (LASI + RASI + LPSI + RPSI) / 4``, keep (x, y)
+- pelvis CoM (horizontal): ``c = (LASI + RASI + LPSI + RPSI) / 4``, keep (x, y); with one sacrum
+  marker instead of the two PSIS: ``c = (LASI + RASI + 2 SACR) / 4`` (``sacrum_pelvis_com``)
 - pelvis orientation: ``l = LASI - RASI`` (horizontal), forward normal ``n = (l_y, -l_x)``,
   ``theta = atan2(n_y, n_x) = atan2(-l_x, l_y)``, unwrapped over time
 - local orientation: ``gamma = wrap(theta - atan2(v_y, v_x))``, ``v`` the CoM velocity
@@ -70,6 +71,18 @@ def pelvis_com(lasi, rasi, lpsi, rpsi) -> tuple[np.ndarray, np.ndarray]:
         com[target] = o[target] + np.einsum("tij,j->ti", frame[target], d)
         rigid[target] = True
     return com[..., :2], rigid
+
+
+def sacrum_pelvis_com(lasi, rasi, sacr) -> tuple[np.ndarray, np.ndarray]:
+    """Horizontal pelvis centre from the two ASIS and one sacrum marker -> ``(xy (T, 2), rigid (T,))``.
+
+    ``c = (LASI + RASI + 2 SACR) / 4``: the barycentre of the 4-marker pelvis with the sacrum marker
+    standing for both PSIS (Plug-in-Gait places SACR at the PSIS midpoint, so ``c`` equals the
+    4-marker barycentre there; docs/methods.md sec. 2). NaN where any of the three is missing: two
+    markers do not fix the pelvis, so nothing is reconstructed (``rigid`` is all False).
+    """
+    c = (np.asarray(lasi, dtype=float) + np.asarray(rasi, dtype=float) + 2.0 * np.asarray(sacr, dtype=float)) / 4.0
+    return c[..., :2], np.zeros(c.shape[:-1], dtype=bool)
 
 
 def _frame3(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

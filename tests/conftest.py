@@ -1,4 +1,5 @@
-"""Shared fixtures: the published datasets (skipped cleanly when absent) and CLI invocation."""
+"""Shared fixtures: the published datasets and the real lab recordings (skipped cleanly when absent) and CLI
+invocation."""
 
 from __future__ import annotations
 
@@ -39,3 +40,21 @@ def cli(capsys):
         return code, captured.out, captured.err
 
     return invoke
+
+
+def realdata_dir() -> Path | None:
+    """``$COBOT_REALDATA`` or ``../shared/realdata`` beside the project, if present."""
+    env = os.environ.get("COBOT_REALDATA")
+    for cand in ([Path(env)] if env else []) + [ROOT.parent / "shared" / "realdata"]:
+        if cand.is_dir():
+            return cand
+    return None
+
+
+@pytest.fixture(scope="session")
+def realdata() -> Path:
+    """Real recordings of other labs (BTKData, pyomeca test files); never copied into the repository."""
+    path = realdata_dir()
+    if path is None:
+        pytest.skip("real lab recordings not found: set $COBOT_REALDATA or place them in ../shared/realdata")
+    return path

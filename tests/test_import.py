@@ -6,6 +6,8 @@ Test files are written here (C3D with ezc3d, text exports by hand), never commit
 from __future__ import annotations
 
 import random
+import re
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +22,9 @@ from cobot_analysis.io.markers import ImportedTrial, detect_format, long_table
 from cobot_analysis.io.protocol import save_protocol
 from cobot_analysis.io.text_exports import read_qualisys_tsv, read_vicon_csv
 from cobot_analysis.schema import MARKERS, TRIALS, read_table, table_metadata
+
+sys.path.insert(0, str(Path(__file__).parent))
+import damage  # noqa: E402
 
 RATE = 200.0
 PELVIS_OFFSETS = {"LASI": (0.0, 0.12, 0.0), "RASI": (0.0, -0.12, 0.0), "LPSI": (-0.16, 0.045, 0.02), "RPSI": (-0.16, -0.045, 0.02)}
@@ -43,14 +48,16 @@ def table(n=100, prefix="Table:"):
     return {f"{prefix}{k}": centre + np.array(v) for k, v in TABLE_OFFSETS.items()}
 
 
-def write_c3d(path, markers, units="mm", scale=1000.0, rate=RATE):
-    """C3D written with ezc3d; NaN samples become occluded points."""
+def write_c3d(path, markers, units="mm", scale=1000.0, rate=RATE, extra_params=None):
+    """C3D written with ezc3d; NaN samples become occluded points; ``extra_params``: {(GROUP, NAME): values}."""
     import ezc3d
 
     c3d = ezc3d.c3d()
     c3d["parameters"]["POINT"]["RATE"]["value"] = [rate]
     c3d["parameters"]["POINT"]["LABELS"]["value"] = tuple(markers)
     c3d["parameters"]["POINT"]["UNITS"]["value"] = [units]
+    for (group, name), values in (extra_params or {}).items():
+        c3d.add_parameter(group, name, values)
     xyz = np.stack(list(markers.values()), axis=1) * scale  # [frames, markers, 3]
     points = np.ones((4, xyz.shape[1], xyz.shape[0]))
     points[:3] = xyz.transpose(2, 1, 0)
@@ -111,8 +118,8 @@ def assert_rejected(cli, ws, args, *fragments):
 def test_read_c3d_converts_mm_to_metres_and_keeps_occlusions(tmp_path):
     m = person(50)
     m["LASI"][10:15] = np.nan
-    labels, xyz, rate, units = read_c3d(write_c3d(tmp_path / "a.c3d", m))
-    assert labels == list(m) and rate == RATE and units == "mm"
+    labels, xyz, rate, units, notes = read_c3d(write_c3d(tmp_path / "a.c3d", m))
+    assert labels == list(m) and rate == RATE and units == "mm" and notes == ()
     assert xyz.shape == (50, 5, 3)
     assert np.isnan(xyz[10:15, 0]).all() and not np.isnan(xyz[15:, 0]).any()
     np.testing.assert_allclose(xyz[:, 1], m["RASI"], atol=1e-4)  # float32 storage of mm values
@@ -123,7 +130,7 @@ def test_text_exports_read_the_same_values_as_c3d(tmp_path):
     m["RPSI"][5:9] = np.nan
     ref = read_c3d(write_c3d(tmp_path / "a.c3d", m)).xyz
     for reader, writer, name in ((read_vicon_csv, write_vicon_csv, "a.csv"), (read_qualisys_tsv, write_qtm_tsv, "a.tsv")):
-        labels, xyz, rate, units = reader(writer(tmp_path / name, m))
+        labels, xyz, rate, units, _ = reader(writer(tmp_path / name, m))
         assert [lab.split(":")[-1] for lab in labels] == list(m) and rate == RATE and units == "mm"
         np.testing.assert_allclose(xyz, ref, atol=1e-4)
         assert np.array_equal(np.isnan(xyz), np.isnan(ref))
@@ -462,3 +469,400 @@ def test_import_synthetic_walking_and_pair_studies(tmp_path, cli):
         occluded = markers[markers["marker"].isin(["LASI", "RASI", "LPSI", "RPSI"])].groupby(["trial", "entity", "frame"], observed=True)["occluded"].sum()
         lost = truth.set_index(["trial", "entity", "frame"])["pelvis_occluded"]
         assert (occluded.reindex(lost.index) == lost).all()
+
+
+# ---- issue #11: real lab files and hostile input ------------------------------------------------
+REAL_C3D = "c3d/{}.c3d"
+
+
+def real_protocol(tmp_path, realdata, name):
+    """A one-trial protocol naming a file of ../shared/realdata in place (never copied)."""
+    f = realdata / name
+    proto = tmp_path / f"{f.stem}.yaml"
+    proto.write_text(f"study: realdata\ntrials:\n  - {{trial: t1, file: {f}, condition: c1}}\n")
+    return proto
+
+
+def ezc3d_marker(path, label):
+    """A marker straight from ezc3d (m, NaN where the residual is negative), for comparison."""
+    import ezc3d
+
+    c = ezc3d.c3d(str(path))
+    j = list(c["parameters"]["POINT"]["LABELS"]["value"]).index(label)
+    xyz = c["data"]["points"][:3, j].T / 1000.0
+    xyz[c["data"]["meta_points"]["residuals"][0, j] < 0] = np.nan
+    return xyz
+
+
+def test_vicon_parameter_names_with_spaces_are_read(realdata, tmp_path, cli):
+    """FunctionalWalk.c3d (Vicon Nexus) has PROCESSING:'Marker Diameter': ezc3d reads it, so do we."""
+    f = realdata / REAL_C3D.format("FunctionalWalk")
+    assert b"Marker Diameter" in f.read_bytes()
+    code, _, err = cli("import", real_protocol(tmp_path, realdata, REAL_C3D.format("FunctionalWalk")), "--out", tmp_path / "ws", "--jobs", "1")
+    assert code == 0, err
+    df = read_table(tmp_path / "ws" / "import" / "markers.parquet", MARKERS)
+    trials = read_table(tmp_path / "ws" / "import" / "trials.parquet", TRIALS)
+    assert trials["rate"].tolist() == [120.0] and trials["n_frames"].tolist() == [438]
+    assert trials["pelvis_markers"].tolist() == ["LASI,RASI,LPSI,RPSI"]  # SACR is never visible in this file
+    lasi = df[df["marker"] == "LASI"].sort_values("frame")[["x", "y", "z"]].to_numpy()
+    np.testing.assert_allclose(lasi, ezc3d_marker(f, "LASI"), atol=1e-9)
+
+
+def test_model_outputs_are_never_markers(tmp_path, cli):
+    """POINT channels listed under POINT:ANGLES / MOMENTS / POWERS / FORCES are left out, even with --keep-all-markers."""
+    m = person(40)
+    m["LHipAngles"] = np.full((40, 3), 0.012)  # 12 deg written as if mm
+    m["LKneeMoment"] = np.full((40, 3), 250.0)  # 250,000 N.mm
+    m["RHJC"] = m["RASI"] + 0.05  # a virtual marker (a position): kept with --keep-all-markers
+    f = write_c3d(tmp_path / "a.c3d", m, extra_params={("POINT", "ANGLES"): ["LHipAngles"], ("POINT", "ANGLE_UNITS"): ["deg"],
+                                                        ("POINT", "MOMENTS"): ["LKneeMoment"], ("POINT", "MOMENT_UNITS"): ["Nmm"]})
+    raw = read_c3d(f)
+    assert raw.labels == ["LASI", "RASI", "LPSI", "RPSI", "LHEE", "RHJC"]
+    assert "2 model outputs stored as POINT channels left out (not markers: angles (deg), moments (Nmm))" in raw.notes[0]
+    code, _, err = cli("import", protocol(tmp_path, [f]), "--out", tmp_path / "ws", "--jobs", "1", "--keep-all-markers")
+    assert code == 0, err
+    assert "2 model outputs stored as POINT channels left out" in " ".join(err.split())
+    df = read_table(tmp_path / "ws" / "import" / "markers.parquet", MARKERS)
+    assert set(df["marker"]) == {"LASI", "RASI", "LPSI", "RPSI", "LHEE", "RHJC"}
+    assert "model outputs stored as POINT channels left out" in (tmp_path / "ws" / "import" / "results.md").read_text()
+
+
+def test_plug_in_gait_file_with_keep_all_markers(realdata, tmp_path, cli):
+    f = realdata / REAL_C3D.format("PiG_Motion-FlatFoot-Full")
+    code, _, err = cli("import", real_protocol(tmp_path, realdata, REAL_C3D.format("PiG_Motion-FlatFoot-Full")), "--out", tmp_path / "ws",
+                       "--jobs", "1", "--keep-all-markers")
+    assert code == 0, err
+    import ezc3d
+
+    point = ezc3d.c3d(str(f))["parameters"]["POINT"]
+    outputs = {lab for g in ("ANGLES", "MOMENTS", "POWERS", "FORCES") for lab in point[g]["value"]}
+    assert len(outputs) == 80
+    df = read_table(tmp_path / "ws" / "import" / "markers.parquet", MARKERS)
+    kept = set(df["marker"].astype(str))
+    assert not kept & outputs and {"LHipAngles", "LKneeMoment", "LAnklePower", "LHipForce"} <= outputs
+    assert len(kept) == len(point["LABELS"]["value"]) - 80
+    assert df[["x", "y", "z"]].abs().max().max() < 3.0  # positions in metres; a moment / 1000 would be far larger
+
+
+@pytest.mark.parametrize("mm, expected, remedy", [
+    (1.2e38, "implausible marker positions, up to 1.2e+35 m from the lab origin (limit 100 m): RASI (frame 30, from t = 0.150 s)",
+     "--lab-extent"),
+    (float("inf"), "infinite marker coordinates: RASI (frame 30, from t = 0.150 s)", "re-export"),
+    (-120.0 - 120.0, "implausible jump of marker RASI: 0.12 m between frames 29 and 30 (t = 0.145 s), 24 m/s (limit 20 m/s)",
+     "--max-speed"),  # y of RASI is -120 mm: moved by 120 mm in one frame
+    (-120.0 + 70.0, "implausible spike of marker RASI at frame 30 (t = 0.150 s): 0.07 m from the midpoint of its neighbours "
+     "(limit 0.05 m)", "--max-spike"),  # 70 mm for one frame: 14 m/s, below the speed limit
+])
+def test_corrupt_values_in_the_data_block_are_refused(tmp_path, cli, mm, expected, remedy):
+    """One C3D float overwritten in place (y of RASI, mm): refused with the marker and frame, nothing written."""
+    f = write_c3d(tmp_path / "a.c3d", person(60))
+    damage.c3d_set_float(f, frame=30, point=1, axis=1, value=mm)
+    assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])], "a.c3d: " + expected, remedy)
+
+
+def test_plausibility_limits_are_options(tmp_path, cli):
+    m = person(60)
+    m["RASI"][30:, 1] -= 0.12  # a step of 12 cm in one frame (24 m/s), then steady: fast, but asked for
+    proto = protocol(tmp_path, [write_c3d(tmp_path / "a.c3d", m)])
+    assert_rejected(cli, tmp_path / "ws", [proto], "implausible jump of marker RASI")
+    assert_rejected(cli, tmp_path / "ws", [proto, "--max-speed", "30"],  # half the step off the midpoint of its neighbours
+                    "a.c3d: implausible spike of marker RASI at frame 29 (t = 0.145 s): 0.06 m from the midpoint of its "
+                    "neighbours (limit 0.05 m); 2 such samples in 1 marker(s)", "--max-spike")
+    code, _, err = cli("import", proto, "--out", tmp_path / "ws", "--jobs", "1", "--max-speed", "30", "--max-spike", "0.07")
+    assert code == 0, err
+    meta = table_metadata(tmp_path / "ws" / "import" / "markers.parquet")
+    assert meta["max_speed"] == 30.0 and meta["max_spike"] == 0.07 and meta["lab_extent"] == 100.0
+    far = {k: v + np.array([150.0, 0, 0]) for k, v in person(20).items()}  # a lab whose origin is 150 m away
+    proto = protocol(tmp_path, [write_c3d(tmp_path / "b.c3d", far)])
+    assert_rejected(cli, tmp_path / "ws2", [proto], "b.c3d: implausible marker positions, up to 150 m", "--lab-extent")
+    assert cli("import", proto, "--out", tmp_path / "ws2", "--jobs", "1", "--lab-extent", "200")[0] == 0
+
+
+def test_sacrum_pelvis_is_imported_and_named(tmp_path, cli):
+    """LASI RASI + one sacrum marker (VSAC read as SACR): the pelvis markers used are recorded."""
+    m = person(40)
+    sacrum = (m.pop("LPSI") + m.pop("RPSI")) / 2
+    m["VSAC"] = sacrum
+    f = write_c3d(tmp_path / "a.c3d", m)
+    g = write_c3d(tmp_path / "b.c3d", person(40))
+    code, _, err = cli("import", protocol(tmp_path, [f, g]), "--out", tmp_path / "ws", "--jobs", "1")
+    assert code == 0, err
+    trials = read_table(tmp_path / "ws" / "import" / "trials.parquet", TRIALS)
+    assert trials["pelvis_markers"].tolist() == ["LASI,RASI,SACR", "LASI,RASI,LPSI,RPSI"]
+    df = read_table(tmp_path / "ws" / "import" / "markers.parquet", MARKERS)
+    sacr = df[(df["trial"] == "t1") & (df["marker"] == "SACR")].sort_values("frame")[["x", "y", "z"]].to_numpy()
+    np.testing.assert_allclose(sacr, sacrum, atol=1e-4)
+    assert table_metadata(tmp_path / "ws" / "import" / "markers.parquet")["pelvis_markers"]["t1"] == {"walker": ["LASI", "RASI", "SACR"]}
+    results = (tmp_path / "ws" / "import" / "results.md").read_text()
+    assert "| LASI RASI SACR | 1 |" in results and "| LASI RASI LPSI RPSI | 1 |" in results
+    del m["VSAC"]
+    assert_rejected(cli, tmp_path / "ws3", [protocol(tmp_path, [write_c3d(tmp_path / "c.c3d", m)])],
+                    "c.c3d: required markers missing: walker:LPSI, walker:RPSI (or walker:SACR instead of walker:LPSI and walker:RPSI)")
+
+
+def test_realdata_sacrum_pelvis(realdata, tmp_path, cli):
+    """Gait.c3d: LASI RASI VSAC, visible in frames 133-326 only, duplicated labels (RKNE, ...)."""
+    proto = real_protocol(tmp_path, realdata, REAL_C3D.format("Gait"))
+    code, _, err = cli("import", proto, "--out", tmp_path / "ws", "--jobs", "1", "--keep-all-markers")
+    assert code == 0, err
+    trials = read_table(tmp_path / "ws" / "import" / "trials.parquet", TRIALS)
+    assert trials["pelvis_markers"].tolist() == ["LASI,RASI,SACR"]
+    df = read_table(tmp_path / "ws" / "import" / "markers.parquet", MARKERS)
+    sacr = df[df["marker"] == "SACR"].sort_values("frame")[["x", "y", "z"]].to_numpy()
+    np.testing.assert_allclose(sacr, ezc3d_marker(realdata / REAL_C3D.format("Gait"), "VSAC"), atol=1e-9)
+    assert {"RKNE", "RKNE#2"} <= set(df["marker"].astype(str))
+    assert "duplicated label 'RKNE' kept as RKNE#2" in " ".join(err.split())
+
+
+def test_one_label_mapped_to_two_markers_is_refused(tmp_path, cli):
+    m = person(20)
+    m["SACR"] = (m.pop("LPSI") + m.pop("RPSI")) / 2
+    proto = protocol(tmp_path, [write_c3d(tmp_path / "a.c3d", m)])
+    assert_rejected(cli, tmp_path / "ws", [proto, "--map", "SACR=LPSI", "--map", "SACR=RPSI"],
+                    "--map gives label 'SACR' two markers (SACR=LPSI and SACR=RPSI)", "map it once, --map SACR=SACR")
+    assert cli("import", proto, "--out", tmp_path / "ws", "--jobs", "1", "--map", "L=LASI", "--map", "L=LASI")[0] == 0  # same twice: fine
+
+
+def test_map_accepts_labels_with_their_subject_prefix(tmp_path, cli):
+    lab = {"LASI": "Daphnee:ASISl", "RASI": "Daphnee:ASISr", "LPSI": "Daphnee:PSISl", "RPSI": "Daphnee:PSISr"}
+    m = {lab.get(k, f"Daphnee:{k}"): v for k, v in person(30).items()}
+    proto = protocol(tmp_path, [write_c3d(tmp_path / "a.c3d", m)])
+    args = [a for k, v in lab.items() for a in ("--map", f"{v}={k}")]
+    code, _, err = cli("import", proto, "--out", tmp_path / "ws", "--jobs", "1", *args)
+    assert code == 0, err
+    df = read_table(tmp_path / "ws" / "import" / "markers.parquet", MARKERS)
+    assert set(zip(df["entity"], df["marker"])) == {("walker", k) for k in ("LASI", "RASI", "LPSI", "RPSI", "LHEE")}
+    rasi = df[df["marker"] == "RASI"].sort_values("frame")[["x", "y", "z"]].to_numpy()
+    np.testing.assert_allclose(rasi, person(30)["RASI"], atol=1e-4)
+
+
+def test_realdata_prefixed_labels_and_vicon_csv(realdata, tmp_path, cli):
+    """pyomeca_markers_analogs.c3d and its Vicon CSV export: Daphnee:ASISr ... mapped as the tool lists them."""
+    maps = [a for pair in (("Daphnee:ASISr", "RASI"), ("Daphnee:ASISl", "LASI"), ("Daphnee:PSISr", "RPSI"), ("Daphnee:PSISl", "LPSI"))
+            for a in ("--map", "=".join(pair))]
+    out = {}
+    for name in ("c3d/pyomeca_markers_analogs.c3d", "csv/pyomeca_markers.csv"):
+        ws = tmp_path / Path(name).stem
+        code, _, err = cli("import", real_protocol(tmp_path, realdata, name), "--out", ws, "--jobs", "1", *maps)
+        assert code == 0, err
+        df = read_table(ws / "import" / "markers.parquet", MARKERS)
+        out[name] = df[df["marker"] == "RASI"].sort_values("frame")[["x", "y", "z"]].to_numpy()
+    np.testing.assert_allclose(out["c3d/pyomeca_markers_analogs.c3d"], ezc3d_marker(realdata / "c3d/pyomeca_markers_analogs.c3d", "Daphnee:ASISr"),
+                               atol=1e-9)
+    np.testing.assert_allclose(out["csv/pyomeca_markers.csv"], out["c3d/pyomeca_markers_analogs.c3d"], atol=1e-5)
+
+
+def test_every_bad_file_is_named_in_one_error_or_skipped(tmp_path, cli):
+    good = write_c3d(tmp_path / "good.c3d", person(40))
+    short = damage.truncate(write_c3d(tmp_path / "short.c3d", person(40)), -1500)
+    (tmp_path / "notc3d.c3d").write_bytes(b"PK\x03\x04" + bytes(600))
+    nopelvis = {k: v for k, v in person(40).items() if k != "RPSI"}
+    files = [good, short, tmp_path / "notc3d.c3d", write_c3d(tmp_path / "nopelvis.c3d", nopelvis)]
+    proto = protocol(tmp_path, files)
+    msg = assert_rejected(cli, tmp_path / "ws", [proto], "protocol.yaml: 3 of 4 trials refused, nothing written:",
+                          "[t2] ", "short.c3d: truncated C3D file", "[t3] ", "notc3d.c3d: not a C3D file",
+                          "[t4] ", "nopelvis.c3d: required markers missing: walker:RPSI", "--skip-bad")
+    assert "[t1]" not in msg
+    code, _, err = cli("import", proto, "--out", tmp_path / "ws", "--jobs", "2", "--skip-bad")
+    assert code == 0, err
+    text = " ".join(err.split())
+    assert all(f"skipped trial {t}: " in text for t in ("t2", "t3", "t4"))
+    trials = read_table(tmp_path / "ws" / "import" / "trials.parquet", TRIALS)
+    assert trials["trial"].tolist() == ["t1"]
+    assert set(read_table(tmp_path / "ws" / "import" / "markers.parquet", MARKERS)["trial"]) == {"t1"}
+    results = (tmp_path / "ws" / "import" / "results.md").read_text()
+    assert "1 of 4 trials" in results and "Skipped (--skip-bad): 3 trials." in results
+    assert "| t2 |" in results and "short.c3d: truncated C3D file" in results
+    bad_only = protocol(tmp_path, files[1:])
+    assert_rejected(cli, tmp_path / "ws2", [bad_only, "--skip-bad"], "3 of 3 trials refused")  # nothing left to import
+
+
+def test_c3d_without_frame_data_is_an_empty_trial(tmp_path, cli):
+    f = write_c3d(tmp_path / "a.c3d", person(30))
+    damage.truncate(f, damage.c3d_data_offset(f))  # the file ends where the data section starts
+    assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])], "a.c3d: empty trial (the C3D file holds no frames: "
+                    "it ends where its data section starts, although its header announces 30)", "remove the trial")
+
+
+@pytest.mark.parametrize("edit, expected", [
+    ("rate: 200Hz\n", "'rate' must be a positive number of Hz, not '200Hz'"),
+    ("entities: [S1, S2]\n", "'entities' must map labels to names"),
+    ("entities: {S1: person1}\n", "'entities' names unknown entities ['person1']"),
+    ("marker_map: LASI\n", "'marker_map' must map labels to names, not 'LASI'"),
+    ("subjetcs: subjects.csv\n", "unknown protocol key(s) ['subjetcs']; use only study, rate, entities, marker_map, subjects, pairs, trials"),
+])
+def test_bad_protocol_entries(tmp_path, cli, edit, expected):
+    proto = protocol(tmp_path, [write_c3d(tmp_path / "a.c3d", person(10))])
+    proto.write_text(proto.read_text() + edit)
+    assert_rejected(cli, tmp_path / "ws", [proto], "protocol.yaml: " + expected)
+
+
+def test_binary_trials_csv(tmp_path, cli):
+    proto = protocol(tmp_path, [write_c3d(tmp_path / "a.c3d", person(10))])
+    (tmp_path / "trials.csv").write_bytes(bytes(range(256)) * 4)
+    assert_rejected(cli, tmp_path / "ws", [proto], "trials.csv: not a readable CSV table", "UTF-8 CSV")
+
+
+# ---- found by benchmarks/fuzz_inputs.py -------------------------------------------------------------
+def test_nan_coordinate_with_a_valid_residual_is_an_occluded_sample(tmp_path, cli):
+    f = write_c3d(tmp_path / "a.c3d", person(40))
+    damage.c3d_set_float(f, frame=12, point=0, axis=2, value=float("nan"))
+    raw = read_c3d(f)
+    assert np.isnan(raw.xyz[12, 0]).all() and not np.isnan(raw.xyz[13, 0]).any()
+    assert "a.c3d: 1 samples with a NaN coordinate counted as occluded" in raw.notes
+    code, _, err = cli("import", protocol(tmp_path, [f]), "--out", tmp_path / "ws", "--jobs", "1")
+    assert code == 0, err
+    df = read_table(tmp_path / "ws" / "import" / "markers.parquet", MARKERS)
+    lasi = df[df["marker"] == "LASI"].sort_values("frame")
+    assert lasi["occluded"].tolist() == [False] * 12 + [True] + [False] * 27 and lasi[["x", "y", "z"]].iloc[12].isna().all()
+
+
+def test_label_bytes_that_are_not_utf8(tmp_path, cli):
+    m = person(30)
+    m["XHEE"] = m.pop("LHEE")
+    f = write_c3d(tmp_path / "a.c3d", m)
+    data = f.read_bytes()
+    damage.overwrite(f, data.index(b"XHEE"), b"\xe9")
+    raw = read_c3d(f)
+    assert raw.labels[-1] == "\ufffdHEE"
+    code, _, err = cli("import", protocol(tmp_path, [f]), "--out", tmp_path / "ws", "--jobs", "1", "--keep-all-markers")
+    assert code == 0, err
+    assert "\ufffdHEE" in set(read_table(tmp_path / "ws" / "import" / "markers.parquet", MARKERS)["marker"])
+
+
+@pytest.mark.parametrize("cell, shown", [("12\t34", "'12 34'"), ('"12.5', "'\"12.5'")])
+def test_vicon_csv_damaged_cells(tmp_path, cli, cell, shown):
+    """A tab inside a cell (it split the row into one field too many) and an unclosed quote (it swallowed the
+    rest of the file into one field): a non-numeric value, refused."""
+    f = write_vicon_csv(tmp_path / "a.csv", person(30))
+    lines = f.read_text().splitlines()
+    row = next(i for i, ln in enumerate(lines) if ln.startswith("5,0,"))
+    cells = lines[row].split(",")
+    cells[4] = cell
+    lines[row] = ",".join(cells)
+    f.write_text("\n".join(lines) + "\n")
+    assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])], f"a.csv: non-numeric value {shown} in the data rows")
+
+
+def test_vicon_csv_labels_that_do_not_line_up(tmp_path, cli):
+    f = write_vicon_csv(tmp_path / "a.csv", person(20))
+    lines = f.read_text().splitlines()
+    row = next(i for i, ln in enumerate(lines) if "Subj:LASI" in ln)
+    lines[row] = lines[row].replace(",Subj:RASI", "Subj:RASI,", 1)  # RASI moved above LASI's Z column
+    f.write_text("\n".join(lines) + "\n")
+    assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])], "a.csv: ")
+
+
+@pytest.mark.parametrize("edit, expected", [
+    (lambda t: t.replace("RHEE\tRTOE", "RHEE\xf0RTOE") if "RTOE" in t else t.replace("\tRPSI\tLHEE", "\tRPSI\xf0LHEE"),
+     "NO_OF_MARKERS is '5' but MARKER_NAMES lists 4 names"),
+    (lambda t: t.replace("NO_OF_MARKERS\t5\n", "").replace("\tRPSI\tLHEE", "\tRPSI\xf0LHEE"), "the column header row does not match MARKER_NAMES"),
+    (lambda t: t.replace("NO_OF_MARKERS\t5\n", "").replace("\tRPSI\tLHEE", "\tRPSI\xf0LHEE").replace("Frame\tTime", "FRAME_X\tTime"),
+     "data rows have more columns, 12 expected for 4 markers"),  # no header row: no Frame and Time columns either
+])
+def test_qualisys_names_that_do_not_line_up(tmp_path, cli, edit, expected):
+    """A damaged MARKER_NAMES line (two names merged) would give the following markers their neighbour's data."""
+    f = write_qtm_tsv(tmp_path / "a.tsv", person(20))
+    f.write_text(edit(f.read_text()))
+    assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])], "a.tsv: " + expected)
+
+
+def test_damaged_frame_number_is_not_a_gap(tmp_path, cli):
+    f = write_vicon_csv(tmp_path / "a.csv", person(20), frames=np.r_[1:10, 1_000_000_010:1_000_000_021])
+    assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])], "a.csv: frame numbers jump from 9 to 1e+09 at data row 10")
+
+
+def test_c3d_header_announcing_fewer_frames_than_its_data(tmp_path, cli):
+    f = write_c3d(tmp_path / "a.c3d", person(100))
+    damage.overwrite(f, 8, (60).to_bytes(2, "little"))  # last frame 100 -> 60
+    assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])],
+                    "a.c3d: corrupt C3D header: the file holds 3392 bytes (42 frames' worth) beyond the 60 frames its header "
+                    "announces (frames 1-60)")  # 40 frames of 5 points x 4 floats (3200 bytes) and the padding
+
+
+def test_sampling_rate_outside_motion_capture_rates(tmp_path, cli):
+    f = write_c3d(tmp_path / "a.c3d", person(30), rate=2e-5)
+    assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])], "a.c3d: sampling rate 2e-05 Hz is not a motion-capture rate (1 to 10000 Hz)")
+
+
+@pytest.mark.parametrize("target, shift, value", [("LABELS", -1, 0xFF), ("USED", 10, 0x88)])
+def test_c3d_description_lengths_that_crashed_ezc3d(tmp_path, target, shift, value):
+    """A character parameter turned into a group (gid byte -> negative: its type byte 0xFF read as a
+    description length) made ezc3d segfault; a description length >= 128 made it hang."""
+    f = write_c3d(tmp_path / "a.c3d", person(20))
+    damage.overwrite(f, f.read_bytes().index(target.encode()) + shift, bytes([value]))
+    with pytest.raises(InputError, match=f"a.c3d: corrupt C3D parameter section \\(description length {value} of '{target}' out of range\\)"):
+        read_c3d(f)
+
+
+def write_c3d_with_analogs(path, markers):
+    """A C3D with two analog channels (1000 Hz) beside the markers (200 Hz)."""
+    import ezc3d
+
+    c3d = ezc3d.c3d()
+    c3d["parameters"]["POINT"]["RATE"]["value"] = [RATE]
+    c3d["parameters"]["POINT"]["LABELS"]["value"] = tuple(markers)
+    xyz = np.stack(list(markers.values()), axis=1) * 1000.0
+    points = np.ones((4, xyz.shape[1], xyz.shape[0]))
+    points[:3] = xyz.transpose(2, 1, 0)
+    c3d["data"]["points"] = points
+    c3d["parameters"]["ANALOG"]["RATE"]["value"] = [5 * RATE]
+    c3d["parameters"]["ANALOG"]["LABELS"]["value"] = ("Fx", "Fy")
+    c3d["data"]["analogs"] = np.zeros((1, 2, 5 * xyz.shape[0]))
+    c3d.write(str(path))
+    return Path(path)
+
+
+def _record(f, group_id, name):
+    return next(r for r in damage.c3d_parameter_records(f) if r["name"] == name and r["gid"] == group_id)
+
+
+@pytest.mark.parametrize("damage_it, expected", [
+    (lambda f: damage.overwrite(f, _record(f, 2, "SCALE")["offset"] + 1, bytes([60])),  # ANALOG:SCALE moved to group 60
+     "ANALOG:SCALE holds 0 values for 2 analog channels"),
+    (lambda f: damage.overwrite(f, _record(f, 2, "SCALE")["offset"] + 1, bytes([1])),  # ... into POINT, which has a SCALE
+     "parameter POINT:SCALE given twice"),
+    (lambda f: damage.overwrite(f, _record(f, 1, "RATE")["structure"][4], bytes([0xFF])),  # POINT:RATE a character scalar
+     "bad parameter type of 'RATE'"),
+])
+def test_c3d_parameter_structures_that_crashed_ezc3d(tmp_path, damage_it, expected):
+    """Each of these made ezc3d segfault (found by the parameter-record sweep of the fuzz run); refused before ezc3d."""
+    f = write_c3d_with_analogs(tmp_path / "a.c3d", person(20))
+    assert read_c3d(f).xyz.shape == (20, 5, 3)
+    damage_it(f)
+    with pytest.raises(InputError, match=f"a.c3d: corrupt C3D parameter section \\({re.escape(expected)}\\)"):
+        read_c3d(f)
+
+
+def test_a_label_given_twice_in_a_yaml_map_is_refused(tmp_path, cli):
+    """PyYAML keeps the last of two equal keys silently: {SACR: LPSI, SACR: RPSI} would map SACR to RPSI only."""
+    m = person(20)
+    proto = protocol(tmp_path, [write_c3d(tmp_path / "a.c3d", m)])
+    mapfile = tmp_path / "labmap.yaml"
+    mapfile.write_text("SACR: LPSI\nSACR: RPSI\n")
+    assert_rejected(cli, tmp_path / "ws", [proto, "--marker-map", mapfile], "labmap.yaml: key 'SACR' given twice in the mapping at line 1")
+    proto.write_text(proto.read_text() + "marker_map:\n  SACR: LPSI\n  SACR: RPSI\n")
+    assert_rejected(cli, tmp_path / "ws", [proto], "protocol.yaml: key 'SACR' given twice")
+
+
+@pytest.mark.parametrize("writer, name", [(write_vicon_csv, "a.csv"), (write_qtm_tsv, "a.tsv")])
+def test_text_export_cut_inside_its_last_line(tmp_path, cli, writer, name):
+    """A truncated export ends in a cut number (1523.4 -> 15): refused; cut at a line end it is a shorter export."""
+    f = writer(tmp_path / name, person(30))
+    text = f.read_text().rstrip("\n")
+    f.write_text(text[:-3])
+    assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])], f"{name}: truncated export: its last line is cut off")
+    f.write_text(text[:text.rindex("\n") + 1])  # the last row dropped whole
+    code, _, err = cli("import", protocol(tmp_path, [f]), "--out", tmp_path / "ws", "--jobs", "1")
+    assert code == 0, err
+    assert read_table(tmp_path / "ws" / "import" / "trials.parquet", TRIALS)["n_frames"].tolist() == [29]
+
+
+def test_vicon_csv_with_a_lone_carriage_return(tmp_path, cli):
+    """A stray CR byte inside a data row splits it (as the csv module reads line ends): refused, not a crash."""
+    f = write_vicon_csv(tmp_path / "a.csv", person(20))
+    data = f.read_bytes()
+    row = data.index(b"\n5,0,") + 1
+    f.write_bytes(data[:row + 12] + b"\r" + data[row + 12:])
+    msg = assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])], "a.csv: ")
+    assert "internal error" not in msg

@@ -420,7 +420,9 @@ def test_bad_units_in_millimetres(tmp_path, cli):
 
 
 def test_bad_no_walk_and_wrong_number_of_carriages(tmp_path, cli):
-    _bad(tmp_path, cli, walking_trial("W1", length=0.0), [trials_row("W1")], "no walk found")
+    _bad(tmp_path, cli, walking_trial("W1", length=0.0), [trials_row("W1")],
+         "trial W1: nobody walks in this recording (static recording? the pelvis CoM stays within 0.000 m of its median "
+         "position over 5 s, top speed 0.000 m/s")
 
 
 def test_bad_pair_recording_with_one_carriage(tmp_path, cli):
@@ -463,3 +465,119 @@ def test_bad_filter_parameters_exit_2(tmp_path, cli, args, expected):
 def test_missing_import_stage(tmp_path, cli):
     code, _, err = cli("preprocess", "--out", tmp_path / "ws")
     assert code == 2 and "no markers.parquet in the workspace" in err and "--markers" in err
+
+
+# ---- issue #11: sacrum pelvis, truncated walks, every bad recording named, real files ------------
+def test_sacrum_pelvis_gives_the_four_marker_barycentre(tmp_path, cli):
+    """LASI RASI + SACR at the PSIS midpoint: same CoM and theta as the 4-marker pelvis; the markers used are named."""
+    ws = tmp_path / "ws"
+    four = walking_trial("W1")
+    sacr = walking_trial("W2")
+    lpsi, rpsi = sacr[2], sacr[3]
+    mid = lpsi.copy()
+    mid["marker"] = "SACR"
+    mid[["x", "y", "z"]] = (lpsi[["x", "y", "z"]].to_numpy() + rpsi[["x", "y", "z"]].to_numpy()) / 2
+    write_workspace(ws, four + sacr[:2] + [mid], [trials_row("W1"), trials_row("W2")])
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1", "--samples", "101")
+    assert code == 0, err
+    traj = read_table(ws / "preprocess" / "trajectories.parquet", TRAJECTORIES)
+    a, b = (traj[traj["trial"] == t].sort_values("sample") for t in ("W1", "W2"))
+    assert a["pelvis_markers"].iloc[0] == "LASI,RASI,LPSI,RPSI" and b["pelvis_markers"].iloc[0] == "LASI,RASI,SACR"
+    np.testing.assert_allclose(b[["x", "y", "theta", "gamma", "travel_time"]], a[["x", "y", "theta", "gamma", "travel_time"]], atol=1e-9)
+    assert (b["quality"] == "ok").all()
+    results = (ws / "preprocess" / "results.md").read_text()
+    assert "| LASI RASI SACR | 1 |" in results and "| LASI RASI LPSI RPSI | 1 |" in results
+
+
+def test_sacrum_pelvis_gap_leaves_the_position_missing():
+    """c = (LASI + RASI + 2 SACR) / 4; where one of the three is missing nothing is reconstructed."""
+    from cobot_analysis import kinematics as kin
+
+    lasi, rasi, sacr = (np.array([[0.0, 0.12, 1.0], [1.0, 0.12, 1.0]]), np.array([[0.0, -0.12, 1.0], [1.0, -0.12, 1.0]]),
+                        np.array([[-0.16, 0.0, 1.0], [np.nan, np.nan, np.nan]]))
+    xy, rigid = kin.sacrum_pelvis_com(lasi, rasi, sacr)
+    np.testing.assert_allclose(xy[0], [-0.08, 0.0])
+    assert np.isnan(xy[1]).all() and not rigid.any()
+
+
+@pytest.mark.parametrize("start, hidden, label", [(-1.0, None, "walking at the first frame"),
+                                                 (1.0, (0, 500), "markers unseen until mid-walk")])
+def test_walk_running_off_the_recording_is_flagged_truncated(tmp_path, cli, start, hidden, label):
+    ws = tmp_path / "ws"
+    parts = walking_trial("W1", start=start, stop=start + 3.0)
+    if hidden:
+        for p in parts:
+            p.loc[hidden[0]:hidden[1] - 1, ["x", "y", "z"]] = np.nan
+            p.loc[hidden[0]:hidden[1] - 1, "occluded"] = True
+    parts += walking_trial("W2")  # rests before and after: not truncated
+    write_workspace(ws, parts, [trials_row("W1"), trials_row("W2")])
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1", "--samples", "101")
+    assert code == 0, err
+    traj = read_table(ws / "preprocess" / "trajectories.parquet", TRAJECTORIES)
+    w1, w2 = (traj[traj["trial"] == t].iloc[0] for t in ("W1", "W2"))
+    assert "truncated" in w1["quality"].split(";"), label
+    assert "truncated" not in w2["quality"].split(";")
+    assert w1["record_time"] == pytest.approx(0.0 if hidden is None else 2.5, abs=0.01)
+    results = (ws / "preprocess" / "results.md").read_text()
+    assert "| truncated | 1 |" in results and "1 trajectories are `truncated`: they run off the start or end" in results
+
+
+def test_cut_off_at_the_edges_and_next_to_missing_samples():
+    s = np.array([np.nan, 0.5, 1.0, 0.02, 0.0, 0.3, 0.3])
+    assert segmentation.cut_off(s, 1, 2)  # after a missing sample
+    assert not segmentation.cut_off(s, 2, 2) and segmentation.cut_off(s, 5, 6)  # ends at the last sample
+    assert not segmentation.cut_off(s, 5, 6, end=False)
+    assert segmentation.cut_off(s[1:], 0, 1)  # starts at the first sample
+
+
+def test_every_bad_recording_is_named_in_one_error_or_skipped(tmp_path, cli):
+    ws = tmp_path / "ws"
+    parts = walking_trial("W1") + walking_trial("W2", length=0.0) + walking_trial("W3")[:3]
+    write_workspace(ws, parts, [trials_row("W1"), trials_row("W2"), trials_row("W3")])
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1")
+    assert code == 2
+    line = " ".join(err.split())
+    assert "markers.parquet: 2 of 3 trials refused, nothing written: [W2] " in line and "trial W2: nobody walks" in line
+    assert "[W3] " in line and "trial W3: walker lacks markers ['RPSI'] (or SACR instead of LPSI and RPSI)" in line
+    assert "--skip-bad" in line and not (ws / "preprocess").exists()
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "2", "--skip-bad")
+    assert code == 0, err
+    assert "skipped recording W2: " in " ".join(err.split())
+    traj = read_table(ws / "preprocess" / "trajectories.parquet", TRAJECTORIES)
+    assert set(traj["trial"]) == {"W1"}
+    results = (ws / "preprocess" / "results.md").read_text()
+    assert "Skipped (--skip-bad): 2 recordings." in results and "| W2 |" in results and "| W3 |" in results
+
+
+@pytest.mark.parametrize("value, expected", [(np.inf, "trial W1: infinite marker coordinates: walker:RASI (frame 300"),
+                                             (-1e30, "trial W1: implausible marker positions, up to 1e+30 m"),
+                                             (0.5, "trial W1: implausible jump of marker walker:RASI: ")])
+def test_implausible_values_reaching_preprocess(tmp_path, cli, value, expected):
+    parts = walking_trial("W1")
+    parts[1].loc[300, "y"] = value
+    _bad(tmp_path, cli, parts, [trials_row("W1")], expected)
+
+
+def test_realdata_walks(realdata, tmp_path, cli):
+    """Gait-lab walks cross the capture volume: flagged truncated; Gait.c3d's pelvis is LASI RASI VSAC."""
+    expected = {"FunctionalWalk": ("LASI,RASI,LPSI,RPSI", 438 / 120), "PiG_Motion-FlatFoot-Full": ("LASI,RASI,LPSI,RPSI", 3.14),
+                "Gait": ("LASI,RASI,SACR", 1.91)}
+    for name, (pelvis_markers, travel_time) in expected.items():
+        ws = tmp_path / name
+        proto = tmp_path / f"{name}.yaml"
+        proto.write_text(f"study: realdata\ntrials:\n  - {{trial: t1, file: {realdata / 'c3d' / name}.c3d, condition: c1}}\n")
+        assert cli("import", proto, "--out", ws, "--jobs", "1")[0] == 0
+        code, _, err = cli("preprocess", "--out", ws, "--jobs", "1")
+        assert code == 0, err
+        first = read_table(ws / "preprocess" / "trajectories.parquet", TRAJECTORIES).iloc[0]
+        assert first["pelvis_markers"] == pelvis_markers and "truncated" in first["quality"].split(";")
+        assert first["travel_time"] <= travel_time + 1e-9 and first["travelled_distance"] > 2.5
+
+
+def test_realdata_static_recording_is_reported_as_such(realdata, tmp_path, cli):
+    proto = tmp_path / "static.yaml"
+    proto.write_text(f"study: realdata\ntrials:\n  - {{trial: static, file: {realdata / 'c3d/pyomeca_markers_analogs.c3d'}, condition: c1}}\n"
+                     "marker_map: {'Daphnee:ASISr': RASI, 'Daphnee:ASISl': LASI, 'Daphnee:PSISr': RPSI, 'Daphnee:PSISl': LPSI}\n")
+    assert cli("import", proto, "--out", tmp_path / "ws", "--jobs", "1")[0] == 0
+    code, _, err = cli("preprocess", "--out", tmp_path / "ws", "--jobs", "1")
+    assert code == 2 and "trial static: nobody walks in this recording (static recording?" in " ".join(err.split())

@@ -67,10 +67,12 @@ def average_command(
 
     Trials (kind = trial) are averaged; when a table holds only published means (pair-carriage-2022),
     those are carried over unchanged (spread columns empty) so that later stages can compare them.
+    A grouping column (e.g. condition) missing for some or all trials is refused: the means would
+    pool unrelated trials.
     """
     import numpy as np
 
-    from cobot_analysis.averaging import MEANS, mean_trajectories
+    from cobot_analysis.averaging import MEANS, check_groups, mean_trajectories
     from cobot_analysis.compare import default_groups
     from cobot_analysis.console import info, warn
     from cobot_analysis.schema import TRAJECTORIES, read_table, write_table
@@ -79,10 +81,12 @@ def average_command(
     path, ts = _trajectories(out, trajectories)
     cols = _by(by, list(ts.meta.columns), path)
     groups = cols or default_groups(ts.meta)
+    trials = ts.subset(ts.meta["kind"].eq("trial").to_numpy())
+    if len(trials):
+        check_groups(trials.meta, groups, path)
     with Stage(out, "average", inputs=[path], params={"by": groups}, force=force) as stage:
         if stage.skipped:
             return
-        trials = ts.subset(ts.meta["kind"].eq("trial").to_numpy())
         if len(trials):
             means = mean_trajectories(trials, groups)
             how = f"recomputed from {len(trials)} trajectories"
@@ -105,7 +109,13 @@ def average_command(
                  f"{int(first['n_trials'].min())} to {int(first['n_trials'].max())}.",
                  "- Positions: sample-wise arithmetic mean; angles: circular mean (theta unwrapped along the path), "
                  "trajectories without orientation excluded from the angle means only; band = mean +- 1.96 sd.",
-                 f"- Means without any orientation: {int((first['n_theta'] == 0).sum())}.", ""]
+                 f"- Means without any orientation: {int((first['n_theta'] == 0).sum())}."]
+        if len(trials) and "quality" in trials.meta.columns:
+            cut = int(trials.meta["quality"].fillna("").str.split(";").map(lambda f: "truncated" in f).sum())
+            if cut:
+                lines.append(f"- {cut} of the {len(trials)} trajectories averaged are flagged `truncated` (they run off their "
+                             "recording: travel time and path cover only the recorded part).")
+        lines.append("")
         stage.path("results.md").write_text("\n".join(lines))
         info(f"average: {n_means} means -> {stage.final_dir / 'means.parquet'}")
 

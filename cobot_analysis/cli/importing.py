@@ -24,7 +24,11 @@ def import_command(
     marker_map: Annotated[Optional[Path], typer.Option("--marker-map", help="YAML file of 'LAB: CANON' label mappings.")] = None,
     map_: Annotated[Optional[list[str]], typer.Option("--map", help="Map a lab label to a canonical one: LAB=CANON (repeatable).")] = None,
     units: Annotated[Units, typer.Option("--units", help="Length unit of the raw files; auto = as the file states (C3D POINT:UNITS, CSV header), checked for plausibility.")] = Units.auto,
-    keep_all_markers: Annotated[bool, typer.Option("--keep-all-markers", help="Keep markers the pipeline does not use.")] = False,
+    keep_all_markers: Annotated[bool, typer.Option("--keep-all-markers", help="Keep markers the pipeline does not use (model outputs stored as C3D points, e.g. Plug-in-Gait angles and moments, are never markers).")] = False,
+    skip_bad: Annotated[bool, typer.Option("--skip-bad", help="Import the good trials and skip the refused ones, listed on the console and in OUT/import/results.md (default: refuse the run, naming every bad file).")] = False,
+    lab_extent: Annotated[float, typer.Option("--lab-extent", min=0.0, help="Largest |coordinate| of a marker from the lab origin (m); farther positions are refused as corrupt (docs/methods.md sec. 2).")] = 100.0,
+    max_speed: Annotated[float, typer.Option("--max-speed", min=0.0, help="Largest marker speed between consecutive visible samples (m/s); faster jumps are refused as corrupt or mislabelled (docs/methods.md sec. 2).")] = 20.0,
+    max_spike: Annotated[float, typer.Option("--max-spike", min=0.0, help="Largest distance of a sample from the midpoint of its two neighbours (m; raised below 100 Hz to what 100 g allows); larger single-sample spikes are refused as corrupt (docs/methods.md sec. 2).")] = 0.05,
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
     force: ForceOpt = False,
@@ -33,10 +37,13 @@ def import_command(
     (trial, frame, time, entity, marker, x, y, z in m, occluded) and OUT/import/trials.parquet.
 
     The format is detected from each file's content. Labels such as "S1:LASI" resolve to
-    (subject1, LASI) through the protocol's entities and marker map. Every person needs its 4
-    pelvis markers (LASI RASI LPSI RPSI), a table its TAB1-TAB3.
+    (subject1, LASI) through the protocol's entities and marker map (--map accepts labels as the
+    file lists them, e.g. Daphnee:ASISr=RASI). Every person needs a pelvis: LASI RASI LPSI RPSI, or
+    LASI RASI and one sacrum marker SACR (VSAC is read as SACR); a table needs TAB1-TAB3. Every
+    trial is checked before anything is written: the bad ones are named together (or skipped with
+    --skip-bad).
     """
     from cobot_analysis.io.markers import parse_map_options, run_import
 
     run_import(protocol, out, units=units.value, marker_map=parse_map_options(map_ or []), marker_map_file=marker_map,
-               keep_all=keep_all_markers, jobs=jobs, scheduler=scheduler, force=force)
+               keep_all=keep_all_markers, skip_bad=skip_bad, lab_extent=lab_extent, max_speed=max_speed, max_spike=max_spike, jobs=jobs, scheduler=scheduler, force=force)

@@ -44,8 +44,9 @@ def preprocess_command(
     keep_approach: Annotated[bool, typer.Option("--keep-approach", help="Pair study: also keep each subject's walk to the table as a trial '<recording>_approach'.")] = False,
     orientation_markers: Annotated[OrientationMarkers, typer.Option(
         "--orientation-markers",
-        help="pelvis: a long gap on any pelvis marker makes theta/gamma missing for the trajectory; "
-             "asis: only a gap on LASI or RASI does (theta needs only them).")] = OrientationMarkers.pelvis,
+        help="pelvis: a long gap on any pelvis marker used (LASI RASI LPSI RPSI, or LASI RASI SACR) makes theta/gamma "
+             "missing for the trajectory; asis: only a gap on LASI or RASI does (theta needs only them).")] = OrientationMarkers.pelvis,
+    skip_bad: Annotated[bool, typer.Option("--skip-bad", help="Process the good recordings and skip the refused ones (e.g. a static recording where nobody walks), listed on the console and in OUT/preprocess/results.md (default: refuse the run, naming every bad recording).")] = False,
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
     force: ForceOpt = False,
@@ -53,8 +54,9 @@ def preprocess_command(
     """Fill short gaps, low-pass filter, compute pelvis/table kinematics, segment and time-normalise.
 
     Reads OUT/import/markers.parquet and trials.parquet; writes OUT/preprocess/trajectories.parquet
-    (one row per trajectory and sample), gaps.parquet (every gap of the pelvis and table markers)
-    and results.md (gap and quality summary).
+    (one row per trajectory and sample, with the pelvis markers used), gaps.parquet (every gap of
+    the pelvis and table markers) and results.md (gap and quality summary). A walk or carriage that
+    runs off the start or end of its recording is flagged 'truncated'.
     """
     from cobot_analysis.preprocess.stage import Params, run
     from cobot_analysis.workspace import find_input
@@ -64,5 +66,5 @@ def preprocess_command(
     params = Params(max_gap=max_gap, cutoff=cutoff, order=order, order_convention=order_convention.value, n_samples=samples,
                     lift_threshold=lift_threshold, floor_window=floor_window, speed_threshold=speed_threshold,
                     rest_speed=rest_speed, min_duration=min_duration, gamma_min_speed=gamma_min_speed, keep_approach=keep_approach,
-                    orientation_markers=orientation_markers.value)
+                    orientation_markers=orientation_markers.value, skip_bad=skip_bad)
     run(out, markers_path, trials_path, params, force=force, jobs=jobs, scheduler=scheduler)

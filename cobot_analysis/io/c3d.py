@@ -5,14 +5,23 @@ segfault or hang in our tests, so the file is checked here first (C3D User Guide
 - header: byte 1 is the key 0x50; byte 0 is the 512-byte block number of the parameter section;
   words 2-5 give the number of points, analog values per frame and the first and last frame;
   words 7-8 the scale factor (negative = float data); word 9 the data start block. The file must
-  hold ``frames x (points x 4 + analogs) x (4 bytes if float else 2)`` bytes from the data start.
-- parameter section: every group/parameter record is walked; names must be text, pointers and
-  data must stay inside the section, and POINT:USED must equal the header's point count.
+  hold ``frames x (points x 4 + analogs) x (4 bytes if float else 2)`` bytes from the data start,
+  and not whole frames more beyond one 512-byte block of padding (a damaged frame range or point
+  count would otherwise drop data silently).
+- parameter section: every group/parameter record is walked; pointers, data and descriptions
+  must stay inside their record, character parameters have dimensions (ezc3d crashed on a
+  character scalar), a description is at most 127 characters (ezc3d reads its length
+  as a signed byte and hung or crashed on longer ones), no parameter is given twice in a group,
+  POINT:SCALE and POINT:RATE hold a value, POINT:USED must equal the header's point count, and ANALOG:SCALE and ANALOG:OFFSET must hold a value per analog channel (ezc3d
+  crashed or hung without them). Names may hold any bytes, as
+  ezc3d reads them (Vicon Nexus writes names with spaces, e.g. PROCESSING:Marker Diameter).
 The byte order follows the processor type stored in the parameter section (84 Intel, 85 DEC,
 86 MIPS big-endian).
 
 Missing points: ezc3d returns NaN where the residual word is negative (how Vicon and ezc3d mark
-an occluded marker); any NaN coordinate makes the whole sample occluded.
+an occluded marker); any NaN coordinate makes the whole sample occluded (a NaN stored with a valid
+residual is counted in the notes). Labels are text as ezc3d decodes them; bytes that are not UTF-8
+become U+FFFD.
 """
 
 from __future__ import annotations
@@ -40,6 +49,13 @@ class RawMarkers(NamedTuple):
     xyz: np.ndarray  # [frames, markers, 3], metres, NaN where occluded
     rate: float  # Hz
     units: str  # length unit of the raw file ("mm" or "m")
+    notes: tuple[str, ...] = ()  # what the reader left out, for the import report
+
+
+#: POINT groups that list model outputs stored as points (BTK's point types), with their unit
+#: parameter; a file's POINT:TYPE_GROUPS (Vicon: ANGLES, ANGLE, POWERS, POWER, ...) adds its own.
+OUTPUT_GROUPS = {"ANGLES": "ANGLE_UNITS", "FORCES": "FORCE_UNITS", "MOMENTS": "MOMENT_UNITS", "POWERS": "POWER_UNITS",
+                 "SCALARS": "SCALAR_UNITS", "REACTIONS": "REACTION_UNITS"}
 
 
 def is_c3d(head: bytes) -> bool:
@@ -92,29 +108,46 @@ def check_c3d_header(path: str | os.PathLike) -> dict[str, int | bool]:
     is_float = bool(head[{84: 15, 85: 13, 86: 12}[proc]] & 0x80)
     frame_bytes = (4 * n_points + n_analog) * (4 if is_float else 2)
     expected = (data_start - 1) * BLOCK + n_frames * frame_bytes
+    if size <= (data_start - 1) * BLOCK and frame_bytes:
+        raise InputError(f"empty trial (the C3D file holds no frames: it ends where its data section starts, although "
+                         f"its header announces {n_frames})", path=path, remedy="remove the trial from the protocol or re-export it")
     if last < 65535 and size < expected:  # 16-bit frame counts overflow on long trials
         raise InputError(f"truncated C3D file ({size} bytes, the header announces {expected})", path=path,
+                         remedy="re-export the trial from the capture software")
+    if last < 65535 and size - expected > BLOCK and size - expected >= frame_bytes > 0:  # writers pad up to a block
+        raise InputError(f"corrupt C3D header: the file holds {size - expected} bytes ({(size - expected) // frame_bytes} frames' "
+                         f"worth) beyond the {n_frames} frames its header announces (frames {first}-{last})", path=path,
                          remedy="re-export the trial from the capture software")
     with open(path, "rb") as fh:
         fh.seek(param_start)
         section = fh.read(pblock[2] * BLOCK)
     params = _walk_parameters(section, order, path)
-    used = params.get(("POINT", "USED"))
+    used = params.get(("POINT", "USED"), (1, None))[1]
     if used is not None and used != n_points:
         raise InputError(f"corrupt C3D file (header announces {n_points} points, POINT:USED {used})", path=path,
                          remedy="re-export the trial from the capture software")
+    for name in ("SCALE", "RATE"):
+        if params.get(("POINT", name), (1, None))[0] < 1:
+            raise InputError(f"corrupt C3D parameter section (POINT:{name} holds no value)", path=path,
+                             remedy="re-export the trial from the capture software")
+    channels = params.get(("ANALOG", "USED"), (1, None))[1]
+    for name in ("SCALE", "OFFSET") if n_analog and channels and channels > 0 else ():  # ezc3d crashed without them
+        count = params.get(("ANALOG", name), (0, None))[0]
+        if count < channels:
+            raise InputError(f"corrupt C3D parameter section (ANALOG:{name} holds {count} values for {channels} analog channels)",
+                             path=path, remedy="re-export the trial from the capture software")
     return {"points": n_points, "frames": n_frames, "float": is_float}
 
 
-def _walk_parameters(section: bytes, order: str, path: Path) -> dict[tuple[str, str], int]:
+def _walk_parameters(section: bytes, order: str, path: Path) -> dict[tuple[str, str], tuple[int, int | None]]:
     """Walk the parameter records (C3D User Guide, "The parameter section") and check that each
-    one lies inside the section, so that ezc3d never follows a corrupt pointer. Returns the
-    integer scalars found, keyed (GROUP, NAME)."""
+    one lies inside the section, so that ezc3d never follows a corrupt pointer. Returns, keyed
+    (GROUP, NAME), the number of values of each parameter and its value when it is an integer scalar."""
     def corrupt(what: str) -> InputError:
         return InputError(f"corrupt C3D parameter section ({what})", path=path, remedy="re-export the trial from the capture software")
 
     groups: dict[int, str] = {}
-    scalars: list[tuple[int, str, int]] = []
+    found: list[tuple[int, str, int, int | None]] = []  # group id, name, number of values, integer scalar
     pos, end = 4, len(section)
     for _ in range(100_000):
         if pos + 2 > end:
@@ -126,9 +159,7 @@ def _walk_parameters(section: bytes, order: str, path: Path) -> dict[tuple[str, 
         name_end = pos + 2 + nchar
         if name_end + 2 > end:
             raise corrupt("record past its end")
-        name = section[pos + 2:name_end]
-        if not all(32 < c < 127 for c in name):
-            raise corrupt("non-text parameter name")
+        name = section[pos + 2:name_end].decode("latin-1")  # any bytes, as ezc3d reads them (Vicon: "Marker Diameter")
         offset, = struct.unpack(order + "h", section[name_end:name_end + 2])
         body = name_end + 2
         nxt = name_end + offset
@@ -136,33 +167,84 @@ def _walk_parameters(section: bytes, order: str, path: Path) -> dict[tuple[str, 
             raise corrupt("bad record pointer")
         limit = nxt if offset != 0 else end
         if gid < 0:
-            groups[-gid] = name.decode().upper()
-            size = 1 + (section[body] if body < end else 0)
+            groups[-gid] = name.upper()
+            desc = body
         else:
             if body + 2 > limit:
                 raise corrupt("truncated parameter record")
             dtype, ndims = struct.unpack("bB", section[body:body + 2])
-            if dtype not in (-1, 1, 2, 4) or ndims > 7 or body + 2 + ndims > limit:
-                raise corrupt(f"bad parameter type of {name.decode()}")
+            if dtype not in (-1, 1, 2, 4) or ndims > 7 or body + 2 + ndims > limit or (dtype == -1 and ndims == 0):
+                raise corrupt(f"bad parameter type of {name.strip()!r}")  # ezc3d crashed on a character scalar
             dims = section[body + 2:body + 2 + ndims]
             count = int(np.prod(list(dims))) if ndims else 1
             data = body + 2 + ndims
-            size = 2 + ndims + abs(dtype) * count + 1
-            if ndims == 0 and dtype == 2 and data + 2 <= limit:
-                scalars.append((gid, name.decode().upper(), struct.unpack(order + "h", section[data:data + 2])[0]))
-        if body + size > limit:
+            desc = data + abs(dtype) * count
+            scalar = struct.unpack(order + "h", section[data:data + 2])[0] if ndims == 0 and dtype == 2 and data + 2 <= limit else None
+            found.append((gid, name.strip().upper(), count, scalar))
+        if desc >= limit:
             raise corrupt("parameter data past its record")
+        if section[desc] > 127:  # ezc3d reads the length as a signed byte: it hung or crashed on these
+            raise corrupt(f"description length {section[desc]} of {name.strip()!r} out of range")
+        if desc + 1 + section[desc] > limit:
+            raise corrupt(f"description of {name.strip()!r} past its record")
         if offset == 0:
             break
         pos = nxt
-    return {(groups.get(g, "?"), n): v for g, n, v in scalars}
+    keys = [(g, n) for g, n, _, _ in found]
+    if len(set(keys)) < len(keys):  # ezc3d crashed when a parameter moved into a group that has one of its name
+        g, n = next(k for k in keys if keys.count(k) > 1)
+        raise corrupt(f"parameter {groups.get(g, '?')}:{n} given twice")
+    return {(groups.get(g, "?"), n): (count, v) for g, n, count, v in found}
+
+
+def _values(group: dict, name: str) -> list:
+    """The values of a parameter as a list (empty when absent or not a list of values)."""
+    value = group.get(name, {}).get("value") if isinstance(group.get(name), dict) else None
+    try:
+        return [v for v in np.asarray(value).ravel()] if value is not None else []
+    except (TypeError, ValueError):
+        return []
+
+
+def _text(value) -> str:
+    """A C3D string as clean text: ezc3d keeps bytes that are not UTF-8 as surrogates; they become U+FFFD."""
+    return str(value).encode("utf-8", "surrogateescape").decode("utf-8", "replace").strip()
+
+
+def occlude(xyz: np.ndarray) -> np.ndarray:
+    """A sample with any NaN coordinate is occluded as a whole (in place; returns ``xyz``)."""
+    xyz[np.isnan(xyz).any(axis=2)] = np.nan
+    return xyz
+
+
+def model_outputs(point: dict) -> dict[str, str]:
+    """Labels of the POINT channels that are model outputs, not markers -> their group and unit.
+
+    Plug-in-Gait and other models store joint angles (deg), moments (N.mm), powers (W), forces (N)
+    and scalars as POINT channels, listed by label in POINT:ANGLES, MOMENTS, POWERS, FORCES,
+    SCALARS (and REACTIONS), each with its unit in POINT:<TYPE>_UNITS; POINT:TYPE_GROUPS names
+    further groups and their unit key in pairs (group, type).
+    """
+    groups = dict(OUTPUT_GROUPS)
+    pairs = [_text(v).upper() for v in _values(point, "TYPE_GROUPS")]
+    for group, kind in zip(pairs[0::2], pairs[1::2]):
+        groups.setdefault(group, f"{kind}_UNITS")
+    out: dict[str, str] = {}
+    for group, unit_key in groups.items():
+        units = [_text(u) for u in _values(point, unit_key)]
+        for label in _values(point, group):
+            label = _text(label)
+            if label:
+                out.setdefault(label, f"{group.lower()}{' (' + units[0] + ')' if units and units[0] else ''}")
+    return out
 
 
 def read_c3d(path: str | os.PathLike, units: str | None = None) -> RawMarkers:
-    """Read the markers of a C3D file: ``(labels, xyz [frames, markers, 3] in m, rate, units)``.
+    """Read the markers of a C3D file: ``(labels, xyz [frames, markers, 3] in m, rate, units, notes)``.
 
     ``units`` overrides the file's ``POINT:UNITS`` (default when the file states none: mm, the
-    Vicon default).
+    Vicon default). Model outputs stored as points (``model_outputs``) are left out and counted in
+    ``notes``: they are angles, moments, powers or forces, not positions.
     """
     import ezc3d
 
@@ -170,24 +252,41 @@ def read_c3d(path: str | os.PathLike, units: str | None = None) -> RawMarkers:
     check_c3d_header(path)
     try:
         c3d = ezc3d.c3d(str(path), extract_forceplat_data=False)
-    except Exception as exc:  # ezc3d raises OSError/RuntimeError on bad files
-        raise InputError(f"unreadable C3D file ({exc})", path=path, remedy="re-export the trial from the capture software") from exc
-    point = c3d["parameters"]["POINT"]
-    labels = [str(s).strip() for s in point["LABELS"]["value"]]
+        point = c3d["parameters"]["POINT"]
+        points = c3d["data"]["points"]  # (4, markers, frames)
+        residuals = c3d["data"]["meta_points"]["residuals"]
+        header_rate = float(c3d["header"]["points"]["frame_rate"])
+    except Exception as exc:  # ezc3d raises OSError/RuntimeError/KeyError on bad files
+        raise InputError(f"unreadable C3D file ({type(exc).__name__}: {exc})", path=path,
+                         remedy="re-export the trial from the capture software") from exc
+    if points.shape[2] == 0:
+        raise InputError("empty trial (the C3D file holds no frames)", path=path, remedy="remove the trial from the protocol or re-export it")
+    labels = [_text(s) for s in _values(point, "LABELS")]
     # Long label lists continue in LABELS2, LABELS3, ... (C3D convention for > 255 labels).
     for k in range(2, 100):
-        more = point.get(f"LABELS{k}")
-        if more is None:
+        if f"LABELS{k}" not in point:
             break
-        labels += [str(s).strip() for s in more["value"]]
-    points = c3d["data"]["points"]  # (4, markers, frames)
+        labels += [_text(s) for s in _values(point, f"LABELS{k}")]
     labels = labels[: points.shape[1]] + [f"*{i}" for i in range(len(labels), points.shape[1])]  # unlabelled: Vicon's "*N"
-    stated = (point.get("UNITS", {}).get("value") or [""])[0].strip()
+    stated = _text((_values(point, "UNITS") or [""])[0])
     source_units = (units or stated or "mm").lower()
     factor = to_metres_factor(source_units, path)
-    xyz = points[:3].transpose(2, 1, 0) * factor  # [frames, markers, 3], one copy
-    residuals = c3d["data"]["meta_points"]["residuals"]
+    outputs = model_outputs(point)
+    keep = [j for j, lab in enumerate(labels) if lab not in outputs]
+    notes = ()
+    if len(keep) < len(labels):
+        kinds = sorted({outputs[labels[j]] for j in range(len(labels)) if labels[j] in outputs})
+        notes = (f"{path.name}: {len(labels) - len(keep)} model outputs stored as POINT channels left out "
+                 f"(not markers: {', '.join(kinds)})",)
+    xyz = points[:3, keep].transpose(2, 1, 0) * factor  # [frames, markers, 3]
     if residuals.size:
-        xyz[np.transpose(residuals[0] < 0)] = np.nan
-    rate = float(point["RATE"]["value"][0]) if len(point["RATE"]["value"]) else float(c3d["header"]["points"]["frame_rate"])
-    return RawMarkers(labels, xyz, rate, source_units)
+        xyz[np.transpose(residuals[0, keep] < 0)] = np.nan
+    partial = np.isnan(xyz).any(axis=2) & ~np.isnan(xyz).all(axis=2)
+    if partial.any():
+        notes += (f"{path.name}: {int(partial.sum())} samples with a NaN coordinate counted as occluded",)
+    xyz = occlude(xyz)
+    try:
+        rate = float((_values(point, "RATE") or [header_rate])[0])
+    except (TypeError, ValueError):
+        rate = header_rate
+    return RawMarkers([labels[j] for j in keep], xyz, rate, source_units, notes)

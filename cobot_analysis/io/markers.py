@@ -3,19 +3,27 @@
 Each trial file named by the protocol is read by content (C3D header, Vicon CSV "Trajectories"
 section or Qualisys TSV header, whatever its name), converted to metres, and its labels are
 resolved to (entity, canonical marker) with ``Protocol.resolve_label`` after the marker map
-(protocol ``marker_map``, then ``--marker-map FILE``, then ``--map LAB=CANON``). In a
+(protocol ``marker_map``, then ``--marker-map FILE``, then ``--map LAB=CANON``; a map key may be
+the whole label as the file lists it, ``Daphnee:ASISr``, or the label without its prefix). In a
 single-person study a label prefix the protocol does not declare as an entity (Vicon writes the
-subject's name: ``Alice:LASI``) is ignored. Only the markers
-the pipeline uses are kept (``SUBJECT_MARKERS`` per person, ``TABLE_MARKERS`` for the table)
-unless ``keep_all`` is set.
+subject's name: ``Alice:LASI``) is ignored. Only the markers the pipeline uses are kept
+(``KEPT_SUBJECT_MARKERS`` per person, ``TABLE_MARKERS`` for the table) unless ``keep_all`` is
+set; model outputs stored as C3D points (angles, moments, powers, forces) are never markers.
+
+Pelvis: LASI RASI LPSI RPSI, or LASI RASI SACR when the PSIS are absent or never visible
+(``protocol.pelvis_definition``); the markers used are stored per trial (``pelvis_markers`` in
+trials.parquet and in the metadata of markers.parquet) and counted in ``import/results.md``.
 
 Checks (each an ``InputError`` naming the file and the remedy): unreadable or truncated file,
-empty trial, two labels mapped to one marker, missing pelvis markers of a person (LASI RASI LPSI
-RPSI of walker / subject1 / subject2) or table corners (TAB1..TAB3), a required marker never
-visible, and an implausible length scale. Scale check: the median inter-ASIS distance
-|LASI - RASI| of adults is 0.15-0.40 m (for a table-only recording, |TAB1 - TAB2| is 0.5-2.5 m);
-a value 1000 times too large or too small means mm and m were confused. Pelvis heights are not
-used: labs differ in their vertical axis and floor origin, distances do not.
+empty trial, two labels mapped to one pelvis or table marker, missing pelvis markers of a person
+(walker / subject1 / subject2) or table corners (TAB1..TAB3), a required marker never visible,
+a sampling rate outside 1 Hz-10 kHz, implausible positions (``plausibility.check_positions``:
+infinite, outside the lab, jumps, single-sample spikes), and an implausible length scale. Scale check: the median inter-ASIS distance |LASI - RASI| of adults is
+0.15-0.40 m (for a table-only recording, |TAB1 - TAB2| is 0.5-2.5 m); a value 1000 times too
+large or too small means mm and m were confused. Pelvis heights are not used: labs differ in
+their vertical axis and floor origin, distances do not. Every trial is checked before anything
+is written, and all refused trials are named in one error (or skipped and listed with
+``--skip-bad``).
 """
 
 from __future__ import annotations
@@ -31,7 +39,9 @@ import pandas as pd
 from cobot_analysis.console import info, warn
 from cobot_analysis.errors import InputError
 from cobot_analysis.io.c3d import RawMarkers, is_c3d, read_c3d
-from cobot_analysis.io.protocol import ENTITIES, PELVIS_MARKERS, SUBJECT_MARKERS, TABLE_MARKERS, Protocol, load_protocol
+from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, MAX_SPIKE, check_positions, check_rate
+from cobot_analysis.io.protocol import (ENTITIES, KEPT_SUBJECT_MARKERS, PELVIS_DEFINITIONS, PELVIS_MARKERS, SACRUM, TABLE_MARKERS,
+                                        Protocol, load_protocol, pelvis_definition, read_yaml)
 from cobot_analysis.io.text_exports import read_qualisys_tsv, read_vicon_csv, sniff_text_format
 from cobot_analysis.schema import MARKERS, TRIAL_COLUMNS, TRIALS, write_table
 
@@ -83,6 +93,9 @@ class TrialTask:
     marker_map: dict[str, str]
     keep_all: bool
     protocol_rate: float | None = None
+    lab_extent: float = LAB_EXTENT
+    max_speed: float = MAX_SPEED
+    max_spike: float = MAX_SPIKE
 
 
 @dataclass
@@ -96,18 +109,36 @@ class ImportedTrial:
     source_format: str
     sha256: str
     notes: list[str] = field(default_factory=list)
+    pelvis: dict[str, tuple[str, ...]] = field(default_factory=dict)  # person -> pelvis markers used
+
+
+@dataclass(frozen=True)
+class Refused:
+    """A trial the import refused: its id, file and the one-line reason (``InputError`` text)."""
+
+    trial: str
+    path: Path
+    reason: str
 
 
 def _is_person(entity: str) -> bool:
     return entity in ENTITIES and entity != "table"
 
 
-def _strip_subject_name(label: str, task: TrialTask) -> str:
-    """Single-person recordings: drop a label prefix the protocol does not declare (Vicon writes
-    the subject's name, ``Alice:LASI``), so the marker belongs to the walker."""
-    prefix, _, name = label.rpartition(":")
-    undeclared = prefix and prefix not in task.entities and prefix.lower() not in ENTITIES
-    return name if undeclared and not task.pair_study else label
+def _resolve(resolver: Protocol, label: str, task: TrialTask) -> tuple[str, str]:
+    """Raw label -> (entity, canonical marker). The marker map is looked up with the whole label
+    first (``Daphnee:ASISr``, as the file lists it), then without its prefix. Single-person
+    recordings: a label prefix the protocol does not declare is the subject's name (Vicon writes
+    ``Alice:LASI``), so the marker belongs to the walker."""
+    entity, marker = resolver.resolve_label(label)
+    prefix = label.rpartition(":")[0]
+    if prefix and not task.pair_study and prefix not in task.entities and prefix.lower() not in ENTITIES:
+        entity = "table" if marker in TABLE_MARKERS else "walker"
+    return entity, marker
+
+
+def _required(entity: str) -> set[str]:
+    return set(TABLE_MARKERS) if entity == "table" else {m for d in PELVIS_DEFINITIONS for m in d}
 
 
 def _scale_check(path: Path, units: str, pairs: list[tuple[np.ndarray, np.ndarray]], bounds: tuple[float, float], what: str) -> None:
@@ -141,19 +172,26 @@ def import_trial(task: TrialTask) -> ImportedTrial:
     rate = raw.rate if raw.rate and np.isfinite(raw.rate) and raw.rate > 0 else task.protocol_rate
     if not rate:
         raise InputError("no sampling rate in the file", path=path, remedy="give 'rate' (Hz) in the protocol")
-    notes = []
+    check_rate(float(rate), path)
+    notes = list(raw.notes)
     if task.protocol_rate and abs(rate - task.protocol_rate) > 1e-6:
         notes.append(f"{path.name}: file rate {rate:g} Hz differs from the protocol rate {task.protocol_rate:g} Hz; using the file's")
     resolver = Protocol(path=path, study="", trials=pd.DataFrame(), entities=task.entities, marker_map=task.marker_map)
-    resolved = [resolver.resolve_label(_strip_subject_name(lab, task)) for lab in raw.labels]
+    resolved = [_resolve(resolver, lab, task) for lab in raw.labels]
     keep, seen = [], {}
     for j, (entity, marker) in enumerate(resolved):
-        known = (entity == "table" and marker in TABLE_MARKERS) or (_is_person(entity) and marker in SUBJECT_MARKERS)
+        known = (entity == "table" and marker in TABLE_MARKERS) or (_is_person(entity) and marker in KEPT_SUBJECT_MARKERS)
         if not (known or task.keep_all):
             continue
         if (entity, marker) in seen:
-            raise InputError(f"labels {raw.labels[seen[entity, marker]]!r} and {raw.labels[j]!r} both map to {entity} {marker}",
-                             path=path, remedy=f"fix the marker map; {MAP_REMEDY}")
+            if marker in _required(entity):
+                raise InputError(f"labels {raw.labels[seen[entity, marker]]!r} and {raw.labels[j]!r} both map to {entity} {marker}",
+                                 path=path, remedy=f"fix the marker map; {MAP_REMEDY}")
+            k = 2  # a duplicated label the pipeline does not use (e.g. two RKNE): kept under a numbered name
+            while (entity, f"{marker}#{k}") in seen:
+                k += 1
+            notes.append(f"{path.name}: duplicated label {raw.labels[j]!r} kept as {marker}#{k}")
+            resolved[j] = (entity, marker := f"{marker}#{k}")
         seen[entity, marker] = j
         keep.append(j)
 
@@ -162,7 +200,18 @@ def import_trial(task: TrialTask) -> ImportedTrial:
         expected |= {"subject1", "subject2", "table"}
     if not expected & {"walker", "subject1", "subject2"} and "table" not in expected:
         expected.add("walker")
-    missing = [f"{e}:{m}" for e in sorted(expected) for m in (TABLE_MARKERS if e == "table" else PELVIS_MARKERS) if (e, m) not in seen]
+    visible = {key for key, j in seen.items() if not np.isnan(raw.xyz[:, j, 0]).all()}
+    missing, pelvis = [], {}
+    for e in sorted(expected):
+        present = {m for ee, m in seen if ee == e}
+        if e == "table":
+            missing += [f"table:{m}" for m in TABLE_MARKERS if m not in present]
+            continue
+        use = pelvis_definition({m for ee, m in visible if ee == e}) or pelvis_definition(present)
+        if use is None:  # LPSI and RPSI, or SACR: name the markers of the 4-marker pelvis, and the alternative
+            alternative = f" (or {e}:{SACRUM} instead of {e}:LPSI and {e}:RPSI)" if SACRUM not in present else ""
+            missing.append(", ".join(f"{e}:{m}" for m in PELVIS_MARKERS if m not in present) + alternative)
+        pelvis[e] = use
     if missing:
         found = ", ".join(raw.labels[:20]) + (" ..." if len(raw.labels) > 20 else "")
         raise InputError(f"required markers missing: {', '.join(missing)} (labels found: {found})", path=path, remedy=MAP_REMEDY)
@@ -173,8 +222,8 @@ def import_trial(task: TrialTask) -> ImportedTrial:
     marks = [resolved[j][1] for j in keep]
     never = np.isnan(xyz[:, :, 0]).all(axis=0)
     for k in np.flatnonzero(never):
-        required = marks[k] in (TABLE_MARKERS if ents[k] == "table" else PELVIS_MARKERS)
-        if required:
+        needed = marks[k] in (TABLE_MARKERS if ents[k] == "table" else pelvis.get(ents[k], ()))
+        if needed:
             raise InputError(f"marker {marks[k]} of {ents[k]} is never visible (all {len(xyz)} samples missing)", path=path,
                              remedy="check the labelling of the trial in the capture software, or leave the trial out of the protocol")
         notes.append(f"{path.name}: marker {marks[k]} of {ents[k]} is never visible")
@@ -187,7 +236,27 @@ def import_trial(task: TrialTask) -> ImportedTrial:
     else:
         _scale_check(path, raw.units, [(xyz[:, col["table", "TAB1"]], xyz[:, col["table", "TAB2"]])], TABLE_SIDE_RANGE,
                      "table side |TAB1 - TAB2|")
-    return ImportedTrial(task.trial, ents, marks, xyz, float(rate), raw.units, fmt, file_sha256(path), notes)
+    check_positions(xyz, [raw.labels[j] for j in keep], float(rate), path, lab_extent=task.lab_extent, max_speed=task.max_speed,
+                    max_spike=task.max_spike)
+    return ImportedTrial(task.trial, ents, marks, xyz, float(rate), raw.units, fmt, file_sha256(path), notes, pelvis)
+
+
+def import_or_refuse(task: TrialTask) -> ImportedTrial | Refused:
+    """``import_trial``, with bad input returned as ``Refused`` so that one run names every bad file."""
+    try:
+        return import_trial(task)
+    except InputError as exc:
+        return Refused(task.trial, task.path, str(exc))
+
+
+def refusal_error(refused: list[Refused], n_trials: int, where: str | os.PathLike, stage: str) -> InputError:
+    """One ``InputError`` naming every refused trial of a stage (the error itself when it is the only trial)."""
+    if n_trials == 1 and len(refused) == 1:
+        return InputError(refused[0].reason)
+    listing = " | ".join(f"[{r.trial}] {r.reason}" for r in refused)
+    return InputError(f"{len(refused)} of {n_trials} trials refused, nothing written: {listing}", path=where,
+                      remedy=f"fix these trials or leave them out of the protocol, or pass --skip-bad to {stage} the others "
+                             f"(the skipped trials are listed in {stage}/results.md)")
 
 
 def long_table(trials: list[ImportedTrial]) -> pd.DataFrame:
@@ -245,20 +314,17 @@ def trials_table(protocol: Protocol, trials: list[ImportedTrial]) -> pd.DataFram
     df["source_units"] = [by_id[t].source_units for t in df["trial"]]
     df["rate"] = [by_id[t].rate for t in df["trial"]]
     df["n_frames"] = [by_id[t].xyz.shape[0] for t in df["trial"]]
+    df["pelvis_markers"] = [_pelvis_text(by_id[t].pelvis) for t in df["trial"]]
     return df[list(TRIALS.columns) + [c for c in df.columns if c not in TRIALS.columns]]
 
 
 def load_marker_map(path: str | os.PathLike) -> dict[str, str]:
-    """A marker map YAML file: ``LAB: CANON`` lines, or the same under a ``marker_map:`` key."""
-    import yaml
-
+    """A marker map YAML file: ``LAB: CANON`` lines, or the same under a ``marker_map:`` key (a label
+    given twice is refused)."""
     path = Path(path)
     if not path.is_file():
         raise InputError("marker map file not found", path=path, remedy="pass an existing YAML file to --marker-map")
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise InputError(f"not a valid YAML marker map ({type(exc).__name__})", path=path, remedy="write one 'LAB: CANON' line per label") from exc
+    doc = read_yaml(path, "marker map", "write one 'LAB: CANON' line per label")
     doc = doc.get("marker_map", doc) if isinstance(doc, dict) else doc
     if not isinstance(doc, dict) or not all(isinstance(v, str) for v in doc.values()):
         raise InputError("a marker map must map lab labels to canonical labels", path=path, remedy="write one 'LAB: CANON' line per label")
@@ -266,20 +332,61 @@ def load_marker_map(path: str | os.PathLike) -> dict[str, str]:
 
 
 def parse_map_options(items: list[str]) -> dict[str, str]:
-    """``["L_ASIS=LASI", ...]`` -> ``{"L_ASIS": "LASI"}``."""
-    out = {}
+    """``["L_ASIS=LASI", ...]`` -> ``{"L_ASIS": "LASI"}``; a label given two different targets is refused
+    (one label is one marker; a single sacrum marker is a pelvis definition of its own)."""
+    out: dict[str, str] = {}
     for item in items:
         lab, sep, canon = item.partition("=")
-        if not sep or not lab.strip() or not canon.strip():
+        lab, canon = lab.strip(), canon.strip()
+        if not sep or not lab or not canon:
             raise InputError(f"--map {item!r} is not LAB=CANON", remedy="write e.g. --map L_ASIS=LASI")
-        out[lab.strip()] = canon.strip()
+        if out.get(lab, canon) != canon:
+            hint = (f"LASI RASI plus one sacrum marker is a pelvis: map it once, --map {lab}={SACRUM}"
+                    if {out[lab], canon} <= {"LPSI", "RPSI", SACRUM} else "give each label one canonical marker")
+            raise InputError(f"--map gives label {lab!r} two markers ({lab}={out[lab]} and {lab}={canon}); a label is one marker",
+                             remedy=hint)
+        out[lab] = canon
     return out
+
+
+def _pelvis_text(pelvis: dict[str, tuple[str, ...]]) -> str:
+    """'LASI,RASI,SACR' (one person) or 'subject1=LASI,RASI,LPSI,RPSI;subject2=...'."""
+    if list(pelvis) == ["walker"]:
+        return ",".join(pelvis["walker"])
+    return ";".join(f"{e}={','.join(m)}" for e, m in sorted(pelvis.items()))
+
+
+def import_summary(protocol: Protocol, imported: list[ImportedTrial], refused: list[Refused], limits: dict[str, float]) -> str:
+    """The stage's results.md: what was imported, with which pelvis markers, what was left out or skipped."""
+    from collections import Counter
+
+    pelvis = Counter(" ".join(m) for t in imported for m in t.pelvis.values())
+    formats = Counter(t.source_format for t in imported)
+    lines = ["## Import (raw markers)", "",
+             f"{len(imported)} of {len(protocol.trials)} trials of `{protocol.path.name}` imported "
+             f"({', '.join(f'{n} {k}' for k, n in sorted(formats.items()))}); positions checked against the lab extent "
+             f"{limits['lab_extent']:g} m, the marker speed limit {limits['max_speed']:g} m/s and the spike limit "
+             f"{limits['max_spike']:g} m.", "",
+             "| pelvis markers | pelvis trajectories |", "|---|---|",
+             *[f"| {k} | {n} |" for k, n in sorted(pelvis.items())], ""]
+    notes = [n for t in imported for n in t.notes]
+    if notes:
+        lines += ["Notes:", "", *[f"- {n}" for n in notes], ""]
+    if refused:
+        lines += [f"Skipped (--skip-bad): {len(refused)} trials.", "", "| trial | reason |", "|---|---|",
+                  *[f"| {r.trial} | {r.reason.replace('|', '/')} |" for r in refused], ""]
+    return "\n".join(lines)
 
 
 def run_import(protocol_path: str | os.PathLike, out: str | os.PathLike, *, units: str = "auto",
                marker_map: dict[str, str] | None = None, marker_map_file: str | os.PathLike | None = None,
-               keep_all: bool = False, jobs: int | None = None, scheduler: str | None = None, force: bool = False) -> Path:
-    """Import every trial of a protocol into ``out/import`` (Stage "import"); returns the stage directory."""
+               keep_all: bool = False, skip_bad: bool = False, lab_extent: float = LAB_EXTENT, max_speed: float = MAX_SPEED,
+               max_spike: float = MAX_SPIKE, jobs: int | None = None, scheduler: str | None = None, force: bool = False) -> Path:
+    """Import every trial of a protocol into ``out/import`` (Stage "import"); returns the stage directory.
+
+    Every trial is read before anything is written: the refused ones are named together in one
+    ``InputError``, or, with ``skip_bad``, left out and listed (console and ``import/results.md``).
+    """
     from cobot_analysis.parallel import map_tasks
     from cobot_analysis.workspace import Stage
 
@@ -298,28 +405,41 @@ def run_import(protocol_path: str | os.PathLike, out: str | os.PathLike, *, unit
             inputs.append(ref)
     files = [protocol.trial_file(row) for _, row in protocol.trials.iterrows()]
     pair_study = "pair" in protocol.trials.columns and protocol.trials["pair"].notna().any()
-    tasks = [TrialTask(str(row["trial"]), f, bool(pair_study), units, dict(protocol.entities), mapping, keep_all, protocol.rate)
-             for (_, row), f in zip(protocol.trials.iterrows(), files)]
-    params = {"units": units, "marker_map": mapping, "keep_all_markers": keep_all, "entities": protocol.entities}
+    tasks = [TrialTask(str(row["trial"]), f, bool(pair_study), units, dict(protocol.entities), mapping, keep_all, protocol.rate,
+                       lab_extent, max_speed, max_spike) for (_, row), f in zip(protocol.trials.iterrows(), files)]
+    limits = {"lab_extent": lab_extent, "max_speed": max_speed, "max_spike": max_spike}
+    params = {"units": units, "marker_map": mapping, "keep_all_markers": keep_all, "entities": protocol.entities,
+              "skip_bad": skip_bad, **limits}
     with Stage(out, "import", inputs=inputs + files, params=params, force=force) as stage:
         if stage.skipped:
             return stage.final_dir
-        imported = map_tasks(import_trial, tasks, jobs=jobs, scheduler=scheduler, description="import")
+        results = map_tasks(import_or_refuse, tasks, jobs=jobs, scheduler=scheduler, description="import")
+        refused = [r for r in results if isinstance(r, Refused)]
+        imported = [r for r in results if isinstance(r, ImportedTrial)]
+        if refused and (not skip_bad or not imported):
+            raise refusal_error(refused, len(tasks), protocol.path, "import")
         for t in imported:
             for note in t.notes:
                 warn(note)
-        trials = trials_table(protocol, imported)
+        for r in refused:
+            warn(f"skipped trial {r.trial}: {r.reason}")
+        kept = protocol.trials[protocol.trials["trial"].astype(str).isin({t.trial for t in imported})]
+        trials = trials_table(Protocol(protocol.path, protocol.study, kept, rate=protocol.rate), imported)
         rates = {t.trial: t.rate for t in imported}
         unique_rates = sorted(set(rates.values()))
         meta = {"study": protocol.study, "rate": unique_rates[0] if len(unique_rates) == 1 else None, "rates": rates,
                 "source_units": {t.trial: t.source_units for t in imported},
-                "source_format": {t.trial: t.source_format for t in imported}}
+                "source_format": {t.trial: t.source_format for t in imported},
+                "pelvis_markers": {t.trial: {e: list(m) for e, m in t.pelvis.items()} for t in imported},
+                "skipped": {r.trial: r.reason for r in refused}, **limits}
+        stage.path("results.md").write_text(import_summary(protocol, imported, refused, limits))
         markers = long_table(imported)
-        del imported  # the per-trial arrays: the long table holds a copy
+        del imported, results  # the per-trial arrays: the long table holds a copy
         write_table(markers, stage.path("markers.parquet"), MARKERS, **meta)
         write_table(trials, stage.path("trials.parquet"), TRIALS, study=protocol.study)
         n_occ = int(markers["occluded"].sum())
-        info(f"[green]import[/green]: {len(trials)} trials, {len(markers)} marker samples "
+        skipped = f", {len(refused)} skipped (listed in results.md)" if refused else ""
+        info(f"[green]import[/green]: {len(trials)} trials{skipped}, {len(markers)} marker samples "
              f"({n_occ / max(len(markers), 1):.1%} occluded) -> {stage.final_dir}")
     return stage.final_dir
 

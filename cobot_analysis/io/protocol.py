@@ -18,9 +18,15 @@ Trials columns: ``trial`` (unique id), ``file`` (relative to the protocol file),
 metadata of ``schema.TRIAL_COLUMNS`` that apply (subject or pair, condition, direction, scenario,
 configuration, end_orientation, repetition). CSV paths are relative to the protocol file.
 
-Canonical markers: pelvis LASI RASI LPSI RPSI; feet LHEE LTOE LMT5 / RHEE RTOE RMT5; head LFHD
-RFHD LBHD RBHD; table TAB1 TAB2 TAB3 with TAB1->TAB2 along a long side and TAB1->TAB3 along a
-short side (TAB2 and TAB3 are opposite corners).
+Any other key is an error that names the valid ones (``PROTOCOL_KEYS``), and so is a key given
+twice in one mapping; ``rate`` must be a number (Hz), ``entities`` and ``marker_map`` mappings of
+labels.
+
+Canonical markers: pelvis LASI RASI LPSI RPSI, or LASI RASI and one sacrum marker SACR (Plug-in-Gait
+option; Vicon's older name VSAC is read as SACR, and a lab's PSIS midpoint can be mapped to SACR):
+see ``pelvis_definition``; feet LHEE LTOE LMT5 / RHEE RTOE RMT5; head LFHD RFHD LBHD RBHD; table
+TAB1 TAB2 TAB3 with TAB1->TAB2 along a long side and TAB1->TAB3 along a short side (TAB2 and TAB3
+are opposite corners).
 """
 
 from __future__ import annotations
@@ -35,12 +41,31 @@ import pandas as pd
 from cobot_analysis.errors import InputError
 
 PELVIS_MARKERS = ("LASI", "RASI", "LPSI", "RPSI")
+SACRUM = "SACR"
+#: the two pelvis definitions, preferred first: 2 ASIS + 2 PSIS, or 2 ASIS + one sacrum marker.
+PELVIS_DEFINITIONS = (PELVIS_MARKERS, ("LASI", "RASI", SACRUM))
+#: labels that name a canonical marker without a marker map.
+ALIASES = {"VSAC": SACRUM}
 FOOT_MARKERS = ("LHEE", "LTOE", "LMT5", "RHEE", "RTOE", "RMT5")
 HEAD_MARKERS = ("LFHD", "RFHD", "LBHD", "RBHD")
 SUBJECT_MARKERS = PELVIS_MARKERS + FOOT_MARKERS + HEAD_MARKERS
 TABLE_MARKERS = ("TAB1", "TAB2", "TAB3")
+#: markers of a person that the import keeps (the sacrum besides the 14 markers of the studies).
+KEPT_SUBJECT_MARKERS = SUBJECT_MARKERS + (SACRUM,)
 ENTITIES = ("walker", "subject1", "subject2", "table")
 DEFAULT_ENTITIES = {"S1": "subject1", "S2": "subject2", "Table": "table", "TABLE": "table"}
+PROTOCOL_KEYS = ("study", "rate", "entities", "marker_map", "subjects", "pairs", "trials")
+
+
+def pelvis_definition(present) -> tuple[str, ...] | None:
+    """The pelvis markers to use among the canonical markers ``present`` (LPSI and RPSI when both are
+    there, else SACR), or None when neither definition is complete."""
+    return next((d for d in PELVIS_DEFINITIONS if set(d) <= set(present)), None)
+
+
+def pelvis_requirement() -> str:
+    """'LASI RASI LPSI RPSI (or LASI RASI SACR)', for messages."""
+    return " (or ".join(" ".join(d) for d in PELVIS_DEFINITIONS) + ")"
 
 
 @dataclass
@@ -61,6 +86,7 @@ class Protocol:
         """Raw label -> (entity, canonical marker). ``"S1:LASI"`` -> ``("subject1", "LASI")``."""
         prefix, _, name = label.rpartition(":")
         name = self.marker_map.get(label, self.marker_map.get(name, name)).strip()
+        name = ALIASES.get(name, name)
         entity = self.entities.get(prefix, prefix.lower()) if prefix else default_entity
         if name in TABLE_MARKERS and not prefix:
             entity = "table"
@@ -68,36 +94,95 @@ class Protocol:
 
 
 def _table(value: Any, base: Path, what: str, protocol_path: Path) -> pd.DataFrame:
+    """A protocol section given inline (a list of mappings) or as a CSV path."""
     if value is None:
         return pd.DataFrame()
     if isinstance(value, list):
+        if not all(isinstance(v, dict) for v in value):
+            raise InputError(f"'{what}' must be a list of mappings (one per row) or a CSV file name", path=protocol_path,
+                             remedy=f"write each {what} row as {{column: value, ...}}")
         return pd.DataFrame(value)
-    csv = base / str(value)
+    if not isinstance(value, str):
+        raise InputError(f"'{what}' must be a CSV file name or a list of rows, not {type(value).__name__}", path=protocol_path,
+                         remedy=f"write e.g. '{what}: {what}.csv'")
+    csv = base / value
     if not csv.is_file():
         raise InputError(f"{what} file {value} not found", path=protocol_path, remedy="fix the path (relative to the protocol file)")
-    return pd.read_csv(csv)
+    try:
+        return pd.read_csv(csv)
+    except (UnicodeDecodeError, ValueError, pd.errors.ParserError) as exc:  # binary, empty or malformed CSV
+        raise InputError(f"not a readable CSV table ({type(exc).__name__})", path=csv,
+                         remedy=f"write the {what} as a UTF-8 CSV file with a header row") from exc
+
+
+def _mapping(doc: dict, key: str, path: Path, example: str) -> dict[str, str]:
+    """A protocol section that maps labels to names (``entities``, ``marker_map``)."""
+    value = doc.get(key) or {}
+    if not isinstance(value, dict) or not all(isinstance(v, str) for v in value.values()):
+        raise InputError(f"'{key}' must map labels to names, not {value!r:.60}", path=path, remedy=f"write e.g. '{key}: {{{example}}}'")
+    return {str(k): v for k, v in value.items()}
+
+
+def _rate(doc: dict, path: Path) -> float | None:
+    value = doc.get("rate")
+    if value is None:
+        return None
+    try:
+        rate = float(value)
+    except (TypeError, ValueError):
+        rate = float("nan")
+    if isinstance(value, bool) or not rate > 0 or rate == float("inf"):
+        raise InputError(f"'rate' must be a positive number of Hz, not {value!r:.40}", path=path, remedy="write e.g. 'rate: 200'")
+    return rate
+
+
+def read_yaml(path: Path, what: str, remedy: str) -> Any:
+    """A YAML document; a key given twice in one mapping is an error (PyYAML would keep the last
+    silently: ``marker_map: {SACR: LPSI, SACR: RPSI}`` is one mapping, not two)."""
+    import yaml
+
+    class Strict(yaml.SafeLoader):
+        def construct_mapping(self, node, deep=False):
+            keys = [self.construct_object(k, deep=deep) for k, _ in node.value]
+            dup = next((k for i, k in enumerate(keys) if k in keys[:i]), None)
+            if dup is not None:
+                raise InputError(f"key {dup!r} given twice in the mapping at line {node.start_mark.line + 1}", path=path,
+                                 remedy="give each key once; a label is one marker")
+            return super().construct_mapping(node, deep=deep)
+
+    try:
+        return yaml.load(path.read_text(), Loader=Strict)  # noqa: S506 - a SafeLoader subclass
+    except (yaml.YAMLError, UnicodeDecodeError, TypeError) as exc:  # TypeError: an unhashable key
+        raise InputError(f"not a valid YAML {what} ({type(exc).__name__})", path=path, remedy=remedy) from exc
 
 
 def load_protocol(path: str | os.PathLike) -> Protocol:
     """Read and check a protocol file: every trial file it names must exist."""
-    import yaml
-
     path = Path(path)
     if not path.is_file():
         raise InputError("protocol file not found", path=path, remedy="pass the protocol YAML written with the data (e.g. protocol.yaml)")
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise InputError(f"not a valid YAML protocol ({type(exc).__name__})", path=path, remedy="check its syntax") from exc
+    doc = read_yaml(path, "protocol", "check its syntax")
     if not isinstance(doc, dict) or "trials" not in doc:
         raise InputError("protocol has no 'trials' section", path=path, remedy="list the trials (inline or as a CSV path)")
+    unknown = [str(k) for k in doc if k not in PROTOCOL_KEYS]
+    if unknown:
+        raise InputError(f"unknown protocol key(s) {unknown}", path=path, remedy=f"use only {', '.join(PROTOCOL_KEYS)}")
     base = path.parent
+    rate = _rate(doc, path)
+    entities = _mapping(doc, "entities", path, "S1: subject1, Table: table")
+    bad = sorted({e for e in entities.values() if e not in ENTITIES})
+    if bad:
+        raise InputError(f"'entities' names unknown entities {bad}", path=path, remedy=f"map label prefixes to {', '.join(ENTITIES)}")
+    marker_map = _mapping(doc, "marker_map", path, "L_ASIS: LASI")
     trials = _table(doc["trials"], base, "trials", path)
     for col in ("trial", "file"):
         if col not in trials.columns:
             raise InputError(f"trials table has no '{col}' column", path=path, remedy="add it (see docs/protocol.md)")
     if trials.empty:
         raise InputError("protocol lists no trials", path=path, remedy="add at least one trial")
+    if trials["file"].isna().any() or trials["trial"].isna().any():
+        rows = [int(i) + 1 for i in trials.index[trials["file"].isna() | trials["trial"].isna()][:5]]
+        raise InputError(f"trials rows {rows} have no trial id or no file", path=path, remedy="give every trial an id and a file")
     dup = trials["trial"][trials["trial"].duplicated()].unique()
     if len(dup):
         raise InputError(f"duplicated trial ids {list(dup[:5])}", path=path, remedy="make trial ids unique")
@@ -107,9 +192,9 @@ def load_protocol(path: str | os.PathLike) -> Protocol:
         trials=trials,
         subjects=_table(doc.get("subjects"), base, "subjects", path),
         pairs=_table(doc.get("pairs"), base, "pairs", path),
-        rate=float(doc["rate"]) if doc.get("rate") else None,
-        entities={**DEFAULT_ENTITIES, **(doc.get("entities") or {})},
-        marker_map=dict(doc.get("marker_map") or {}),
+        rate=rate,
+        entities={**DEFAULT_ENTITIES, **entities},
+        marker_map=marker_map,
     )
     for _, row in trials.iterrows():
         f = proto.trial_file(row)

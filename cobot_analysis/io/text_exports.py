@@ -19,7 +19,12 @@ Qualisys QTM TSV export (3D data)::
     1      0.000 ...                         <- occluded: empty, NaN/null, or 0 0 0 (QTM's filler)
 
 QTM exports are in millimetres (the file does not state it). Frames must be strictly increasing
-(so must Time in QTM files); missing frame numbers are kept as occluded frames. Both readers
+(so must Time in QTM files), and the file must end with an end of line (a truncated file would
+end in a cut number); missing frame numbers are kept as occluded frames (up to as many as
+the rows: a larger jump is a damaged frame number). Labels and
+columns must line up (a damaged label row would give one marker's data another's name): Vicon
+labels only above X columns followed by Y and Z; QTM MARKER_NAMES as many as NO_OF_MARKERS and
+as the header row's "<label> X/Y/Z" columns, and no data beyond them. Both readers
 return ``RawMarkers`` (labels, xyz [frames, markers, 3] in metres, rate, source units).
 """
 
@@ -32,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from cobot_analysis.errors import InputError
-from cobot_analysis.io.c3d import REMEDY_UNITS, RawMarkers, to_metres_factor
+from cobot_analysis.io.c3d import REMEDY_UNITS, RawMarkers, occlude, to_metres_factor
 
 _REEXPORT = "re-export the trial from the capture software"
 
@@ -49,15 +54,27 @@ def sniff_text_format(head: str) -> str | None:
     return None
 
 
+def _complete(text: str, path: Path) -> str:
+    """The text of an export whose last line ends: a cut file would end in a cut number."""
+    if text and not text.endswith(("\n", "\r")):
+        raise InputError("truncated export: its last line is cut off (no end of line)", path=path, remedy=_REEXPORT)
+    return text
+
+
 def _numeric(rows: list[list[str]], path: Path, first_line: int) -> np.ndarray:
     """Rows of text cells -> float array; empty cells, 'NaN' and 'null' become NaN."""
     import pandas as pd
 
     width = max((len(r) for r in rows), default=0)
-    text = "\n".join("\t".join(c.strip() for c in r) + "\t" * (width - len(r)) for r in rows)
+    text = "\n".join("\t".join(" ".join(c.split()) for c in r) + "\t" * (width - len(r)) for r in rows)  # no tab or newline inside a cell
     if not text:
         return np.empty((0, 0))
-    df = pd.read_csv(io.StringIO(text), sep="\t", header=None, na_values=["null", "NaN", "nan"], skip_blank_lines=False)
+    try:
+        df = pd.read_csv(io.StringIO(text), sep="\t", header=None, na_values=["null", "NaN", "nan"], skip_blank_lines=False,
+                         quoting=3)  # csv.QUOTE_NONE: a quote is a character
+    except (pd.errors.ParserError, ValueError) as exc:
+        raise InputError(f"malformed data rows (from line {first_line}: {str(exc).splitlines()[-1][:80]})", path=path,
+                         remedy=_REEXPORT) from exc
     for j, col in df.items():
         if not pd.api.types.is_numeric_dtype(col):
             bad = col[pd.to_numeric(col, errors="coerce").isna() & col.notna()].iloc[0]
@@ -78,6 +95,11 @@ def _frames_to_grid(frame_numbers: np.ndarray, values: np.ndarray, path: Path, w
         kind = "duplicated" if step[i - 1] == 0 else "non-monotonic"
         raise InputError(f"{kind} {what} at data row {i + 1} ({frame_numbers[i - 1]:g} then {frame_numbers[i]:g})",
                          path=path, remedy="remove the repeated or out-of-order rows (or re-export the trial)")
+    span = frame_numbers[-1] - frame_numbers[0] + 1
+    if span > 2 * len(frame_numbers) + 100:  # more missing frames than rows: a damaged frame number, not gaps
+        i = int(np.argmax(step))
+        raise InputError(f"{what} jump from {frame_numbers[i]:g} to {frame_numbers[i + 1]:g} at data row {i + 2} "
+                         f"({span:.0f} frames for {len(frame_numbers)} rows)", path=path, remedy=_REEXPORT)
     index = np.rint(frame_numbers - frame_numbers[0]).astype(int)
     grid = np.full((index[-1] + 1,) + values.shape[1:], np.nan)
     grid[index] = values
@@ -90,7 +112,8 @@ def read_vicon_csv(path: str | os.PathLike, units: str | None = None) -> RawMark
 
     path = Path(path)
     with open(path, newline="", encoding="utf-8-sig", errors="replace") as fh:
-        rows = list(csv.reader(fh))
+        text = _complete(fh.read(), path)
+    rows = list(csv.reader(io.StringIO(text, newline=""), quoting=csv.QUOTE_NONE))  # Nexus never quotes: a stray '"' is a character
     starts = [i for i, r in enumerate(rows) if r and r[0].strip() == "Trajectories"]
     if not starts:
         raise InputError("no 'Trajectories' section in this Vicon CSV export", path=path,
@@ -109,6 +132,10 @@ def read_vicon_csv(path: str | os.PathLike, units: str | None = None) -> RawMark
     labels = [names[j].strip() if j < len(names) else "" for j in cols]
     if not cols or any(not lab for lab in labels):
         raise InputError("marker labels missing above the X, Y, Z columns", path=path, remedy=_REEXPORT)
+    stray = [names[j].strip() for j in range(len(names)) if names[j].strip() and j not in set(cols)]
+    if stray or any([a.strip() for a in axes[j + 1:j + 3]] != ["Y", "Z"] for j in cols):
+        raise InputError(f"labels and X, Y, Z columns do not line up{f' (label {stray[0]!r} above no X column)' if stray else ''}",
+                         path=path, remedy=_REEXPORT)
     stated = {unit_row[j].strip() for j in cols if j < len(unit_row) and unit_row[j].strip()}
     if len(stated) > 1:
         raise InputError(f"mixed length units {sorted(stated)}", path=path, remedy=REMEDY_UNITS)
@@ -127,14 +154,14 @@ def read_vicon_csv(path: str | os.PathLike, units: str | None = None) -> RawMark
     if axes[1].strip() == "Sub Frame" and np.nan_to_num(data[:, 1]).any():
         raise InputError("sub-frame rows in the Trajectories section", path=path, remedy="export trajectories at the camera rate")
     xyz = _frames_to_grid(data[:, 0], data[:, xyz_cols], path, "frame numbers") * to_metres_factor(source_units, path)
-    return RawMarkers(labels, _occlude(xyz), rate, source_units)
+    return RawMarkers(labels, occlude(xyz), rate, source_units)
 
 
 def read_qualisys_tsv(path: str | os.PathLike, units: str | None = None) -> RawMarkers:
     """Read a Qualisys QTM TSV 3D export (see module docstring); lengths in mm unless ``units``."""
     path = Path(path)
     with open(path, encoding="utf-8-sig", errors="replace") as fh:
-        lines = fh.read().splitlines()
+        lines = _complete(fh.read(), path).splitlines()
     header: dict[str, list[str]] = {}
     i = 0
     while i < len(lines):
@@ -147,6 +174,9 @@ def read_qualisys_tsv(path: str | os.PathLike, units: str | None = None) -> RawM
     labels = [c for c in header.get("MARKER_NAMES", []) if c]
     if not labels:
         raise InputError("no MARKER_NAMES line in this Qualisys TSV export", path=path, remedy="export 3D data with marker names from QTM")
+    stated = (header.get("NO_OF_MARKERS") or [""])[0]
+    if stated and stated != str(len(labels)):
+        raise InputError(f"NO_OF_MARKERS is {stated!r} but MARKER_NAMES lists {len(labels)} names", path=path, remedy=_REEXPORT)
     try:
         rate = float(header["FREQUENCY"][0])
     except (KeyError, IndexError, ValueError) as exc:
@@ -162,11 +192,16 @@ def read_qualisys_tsv(path: str | os.PathLike, units: str | None = None) -> RawM
     n = len(labels)
     if columns:
         lead = next((j for j, c in enumerate(columns) if c.endswith(" X")), len(columns))
+        named = [c for c in columns[lead:] if c]
+        if named != [f"{lab} {a}" for lab in labels for a in "XYZ"]:
+            raise InputError("the column header row does not match MARKER_NAMES", path=path, remedy=_REEXPORT)
     else:  # no header row: Frame and Time columns present when the width says so
         lead = 2 if data.shape[1] == 3 * n + 2 else 0
         columns = ["Frame", "Time"] if lead == 2 else []
-    if data.shape[1] < lead + 3 * n:
-        raise InputError(f"data rows have {data.shape[1]} columns, {lead + 3 * n} expected for {n} markers", path=path, remedy=_REEXPORT)
+    extra = data[:, lead + 3 * n:]
+    if data.shape[1] < lead + 3 * n or not np.isnan(extra).all():
+        raise InputError(f"data rows have {data.shape[1] if extra.size == 0 else 'more'} columns, {lead + 3 * n} expected for "
+                         f"{n} markers", path=path, remedy=_REEXPORT)
     xyz = data[:, lead:lead + 3 * n].reshape(len(data), n, 3)
     xyz[np.all(xyz == 0.0, axis=2)] = np.nan  # QTM writes 0 0 0 for an unlabelled/occluded marker
     if "Time" in columns[:lead]:
@@ -174,10 +209,4 @@ def read_qualisys_tsv(path: str | os.PathLike, units: str | None = None) -> RawM
     frame = data[:, 0] if "Frame" in columns[:lead] else np.arange(len(data), dtype=float)
     source_units = (units or "mm").lower()
     xyz = _frames_to_grid(frame, xyz, path, "frame numbers") * to_metres_factor(source_units, path)
-    return RawMarkers(labels, _occlude(xyz), rate, source_units)
-
-
-def _occlude(xyz: np.ndarray) -> np.ndarray:
-    """A sample with any NaN coordinate is occluded as a whole."""
-    xyz[np.isnan(xyz).any(axis=2)] = np.nan
-    return xyz
+    return RawMarkers(labels, occlude(xyz), rate, source_units)

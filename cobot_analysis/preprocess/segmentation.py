@@ -15,6 +15,11 @@ ignored (sway while standing); the walk spans the first to the last such run (a 
 between stays inside) and is then extended outwards while ``|v| >= rest_speed`` (default
 0.05 m/s, above the speed noise of a standing subject), so that onset and offset lie where the
 subject starts and stops moving rather than where it passes the detection threshold.
+
+A trajectory whose onset is the first sample of the recording, or of a run of valid samples (the
+markers were not seen before), started before it was recorded; likewise at its offset
+(``cut_off``). Its travel time and path are then those of the recorded part only: the stage flags
+it ``truncated`` rather than report the recording's length as a travel time.
 """
 
 from __future__ import annotations
@@ -67,3 +72,13 @@ def walking_bounds(speed: np.ndarray, rate: float, threshold: float = SPEED_THRE
     on = int(before[-1]) + 1 if before.size else 0
     off = off + int(after[0]) if after.size else len(speed) - 1
     return on, off
+
+
+def cut_off(signal: np.ndarray, onset: int, offset: int, end: bool = True) -> bool:
+    """True if the run ``[onset, offset]`` of ``signal`` (speed or table height) starts at the first
+    sample or right after a missing one, or (``end``) ends at the last sample or right before a
+    missing one: the movement ran off the recorded data."""
+    signal = np.asarray(signal, dtype=float)
+    start_cut = onset == 0 or np.isnan(signal[onset - 1])
+    end_cut = offset >= len(signal) - 1 or np.isnan(signal[offset + 1])
+    return bool(start_cut or (end and end_cut))

@@ -2,20 +2,28 @@
 
 Order of operations, per recording:
 
-1. gap report of the markers used (pelvis LASI RASI LPSI RPSI of each subject, TAB1-3 of the
-   table) -> ``gaps.parquet``;
+1. checks (``_check``): the pelvis of each subject (LASI RASI LPSI RPSI, or LASI RASI SACR when
+   the PSIS are absent or never seen: ``io.protocol.pelvis_definition``), TAB1-3 of the table,
+   positions as plausible as the import required (``io.plausibility``, with the import's limits
+   stored in markers.parquet), heights in metres; gap report of these markers -> ``gaps.parquet``;
 2. short gaps (<= ``max_gap``, interior) filled by cubic spline and flagged (``gaps.py``);
 3. zero-phase Butterworth low-pass of each continuous segment (``filtering.py``);
-4. kinematics (``cobot_analysis.kinematics``): pelvis CoM (rigid-body reconstruction when one
-   pelvis marker is missing), theta, velocity; table centre, orientation, height;
+4. kinematics (``cobot_analysis.kinematics``): pelvis CoM (4 markers: rigid-body reconstruction
+   when one is missing; sacrum pelvis: ``sacrum_pelvis_com``), theta, velocity; table centre,
+   orientation, height;
 5. segmentation (``segmentation.py``): pair recordings by table height into forward and return
    carriages (each of the 3 entities cut at the table's onset/offset; trial ids
    ``<recording>_forward`` / ``<recording>_return``; the return is scenario 3 and its
    ``end_orientation`` is the measured table orientation at its offset), walking trials by CoM
    speed. With ``keep_approach``, each subject's walk to the table (speed segmentation before the
-   first lift) is kept as ``<recording>_approach`` (direction "approach", subjects only);
+   first lift) is kept as ``<recording>_approach`` (direction "approach", subjects only). A walking
+   recording where nobody walks (a static recording) is refused as such;
 6. per trajectory: gamma (``kinematics.gamma``, ends held below ``gamma_min_speed``), quality
-   flags, time normalisation to N samples (``normalisation.py``) -> ``trajectories.parquet``.
+   flags, time normalisation to N samples (``normalisation.py``) -> ``trajectories.parquet``, with
+   the pelvis markers used (``pelvis_markers``, e.g. 'LASI,RASI,SACR'; empty for the table).
+
+Every recording is processed before anything is written: the refused ones are named together in
+one error, or skipped and listed (console and results.md) with ``skip_bad``.
 
 Orientation with a long pelvis-marker gap: by default (``orientation_markers="pelvis"``) a long
 gap on any of the 4 pelvis markers makes the trajectory's orientation missing, as in the walking
@@ -31,7 +39,9 @@ reconstructed from 3 markers somewhere), ``orientation_missing`` (a long gap on 
 or on TAB1/TAB2 for the table -- somewhere in the trajectory: theta and gamma are NaN for the whole
 trajectory, position is kept, docs/methods.md sec. 2.2), ``position_missing`` (some samples of
 x, y are NaN: two or more pelvis markers missing at once), ``gamma_undefined`` (the speed never
-reaches ``gamma_min_speed``).
+reaches ``gamma_min_speed``), ``truncated`` (the walk or carriage runs off the start or end of the
+recording, or of the visible data, while moving: ``segmentation.cut_off``; its travel time and
+distance cover only the recorded part).
 """
 
 from __future__ import annotations
@@ -46,12 +56,14 @@ import pandas as pd
 from cobot_analysis import kinematics as kin
 from cobot_analysis.angles import wrap
 from cobot_analysis.errors import InputError
-from cobot_analysis.io.protocol import PELVIS_MARKERS, TABLE_MARKERS
+from cobot_analysis.io.markers import Refused, refusal_error
+from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, MAX_SPIKE, check_positions
+from cobot_analysis.io.protocol import PELVIS_MARKERS, SACRUM, TABLE_MARKERS, pelvis_definition, pelvis_requirement
 from cobot_analysis.preprocess import filtering, gaps, normalisation, segmentation
 from cobot_analysis.schema import MARKERS, TRAJECTORIES, TRIAL_COLUMNS, TRIALS, read_table, table_metadata, write_table
 
 SUBJECT_ENTITIES = ("walker", "subject1", "subject2")
-USED_MARKERS = PELVIS_MARKERS + TABLE_MARKERS
+USED_MARKERS = PELVIS_MARKERS + (SACRUM,) + TABLE_MARKERS
 #: trial metadata columns copied from trials.parquet to every trajectory.
 META_COLUMNS = tuple(c for c in TRIAL_COLUMNS if c not in ("kind", "n_trials", "direction"))
 NUMERIC = ("sample", "phase", "time", "record_time", "x", "y", "theta", "gamma", "vx", "vy",
@@ -74,7 +86,8 @@ class Params:
     min_duration: float = segmentation.MIN_DURATION  # s
     gamma_min_speed: float = kin.GAMMA_MIN_SPEED  # m/s
     keep_approach: bool = False
-    orientation_markers: str = "pelvis"  # "pelvis": theta needs all 4 pelvis markers; "asis": LASI and RASI
+    orientation_markers: str = "pelvis"  # "pelvis": theta needs all the pelvis markers used; "asis": LASI and RASI
+    skip_bad: bool = False  # skip (and list) the refused recordings instead of refusing the run
 
 
 @dataclass
@@ -86,6 +99,7 @@ class Recording:
     meta: dict[str, Any]
     markers: dict[tuple[str, str], np.ndarray] = field(default_factory=dict)
     source: str = ""  # markers file, for error messages
+    limits: dict[str, float] = field(default_factory=dict)  # plausibility limits of the import (lab_extent, max_speed, max_spike)
 
 
 # ---- reading --------------------------------------------------------------------------------------
@@ -116,6 +130,8 @@ def load_recordings(markers_path: Path, trials_path: Path) -> list[Recording]:
     except Exception as exc:  # pyarrow raises several types for corrupt files or missing columns
         raise InputError(f"cannot read the marker columns ({type(exc).__name__}: {exc})", path=markers_path,
                          remedy="re-run `cobot-analysis import`") from exc
+    limits = {"lab_extent": float(meta.get("lab_extent") or LAB_EXTENT), "max_speed": float(meta.get("max_speed") or MAX_SPEED),
+              "max_spike": float(meta.get("max_spike") or MAX_SPIKE)}
     known = set(trials["trial"].astype(str))
     stray = sorted({names[i] for i in np.unique(tcode)} - known)
     if stray:
@@ -133,7 +149,7 @@ def load_recordings(markers_path: Path, trials_path: Path) -> list[Recording]:
         if not rate > 0:
             raise InputError(f"trial {trial} has no valid sampling rate ({row.get('rate')})", path=trials_path,
                              remedy="re-run `cobot-analysis import` (the rate comes from the raw file or the protocol)")
-        rec = Recording(trial, rate, {c: row.get(c) for c in TRIAL_COLUMNS}, source=str(markers_path))
+        rec = Recording(trial, rate, {c: row.get(c) for c in TRIAL_COLUMNS}, source=str(markers_path), limits=limits)
         i = where.get(trial)
         a, b = (bounds[i], bounds[i + 1]) if i is not None else (0, 0)
         if a == b:
@@ -207,35 +223,59 @@ def _read_marker_rows(path: Path):
 
 
 # ---- one recording --------------------------------------------------------------------------------
-def _check(rec: Recording) -> tuple[list[str], bool]:
-    """Entities of the recording (subjects, then table) after the bad-input checks."""
+def _pelvis(rec: Recording, entity: str) -> tuple[str, ...]:
+    """The pelvis markers of a subject (``protocol.pelvis_definition`` of the markers seen at least once)."""
+    present = {m for e, m in rec.markers if e == entity}
+    seen = {m for m in present if not np.isnan(rec.markers[(entity, m)]).all()}
+    use = pelvis_definition(seen)
+    if use is not None:
+        return use
+    use = pelvis_definition(present)
+    if use is None:
+        missing = [m for m in PELVIS_MARKERS if m not in present]
+        raise InputError(f"trial {rec.trial}: {entity} lacks markers {missing}"
+                         + (f" (or {SACRUM} instead of LPSI and RPSI)" if SACRUM not in present else ""), path=rec.source,
+                         remedy="map them with the protocol's marker_map (--map LAB=CANON) and re-import")
+    m = next(m for m in use if m not in seen)
+    raise InputError(f"trial {rec.trial}: marker {m} of {entity} is NaN in every frame", path=rec.source,
+                     remedy="fix its label in the raw file or remove the trial from the protocol")
+
+
+def _check(rec: Recording) -> tuple[list[str], bool, dict[str, tuple[str, ...]]]:
+    """Entities of the recording (subjects, then table) and the markers used per entity (pelvis
+    definition of each subject, TAB1-3 of the table), after the bad-input checks."""
     entities = sorted({e for e, _ in rec.markers}, key=lambda e: (e == "table", e))
     subjects = [e for e in entities if e in SUBJECT_ENTITIES]
     has_table = "table" in entities
     if not subjects:
         raise InputError(f"trial {rec.trial} has no pelvis markers (found entities {entities})", path=rec.source,
-                         remedy="map the pelvis labels to LASI RASI LPSI RPSI with the protocol's marker_map and re-import")
+                         remedy=f"map the pelvis labels to {pelvis_requirement()} with the protocol's marker_map and re-import")
     if all(np.isnan(xyz).all() for xyz in rec.markers.values()):
         raise InputError(f"trial {rec.trial}: every pelvis and table marker sample is NaN (no data)", path=rec.source,
                          remedy="check the raw file, or remove the trial from the protocol")
+    used: dict[str, tuple[str, ...]] = {}
     for e in entities:
-        need = TABLE_MARKERS if e == "table" else PELVIS_MARKERS
-        missing = [m for m in need if (e, m) not in rec.markers]
+        if e != "table":
+            used[e] = _pelvis(rec, e)
+            continue
+        missing = [m for m in TABLE_MARKERS if (e, m) not in rec.markers]
         if missing:
             raise InputError(f"trial {rec.trial}: {e} lacks markers {missing}", path=rec.source,
                              remedy="map them with the protocol's marker_map (--map LAB=CANON) and re-import")
-        for m in need:
+        for m in TABLE_MARKERS:
             if np.isnan(rec.markers[(e, m)]).all():
                 raise InputError(f"trial {rec.trial}: marker {m} of {e} is NaN in every frame", path=rec.source,
                                  remedy="fix its label in the raw file or remove the trial from the protocol")
-    z = np.concatenate([rec.markers[(e, m)][:, 2] for e in entities
-                        for m in (TABLE_MARKERS if e == "table" else PELVIS_MARKERS)])
-    zmed = float(np.nanmedian(z))
+        used[e] = TABLE_MARKERS
+    keys = [(e, m) for e in entities for m in used[e]]
+    zmed = float(np.nanmedian(np.concatenate([rec.markers[k][:, 2] for k in keys])))
     if not 0.2 < zmed < 3.0:
         hint = "millimetres" if zmed > 200 else "a wrong unit or a vertical axis other than z"
         raise InputError(f"trial {rec.trial}: median marker height {zmed:.4g} m looks like {hint}", path=rec.source,
                          remedy="re-import with the right --units (markers.parquet must be in metres, z up)")
-    return entities, has_table
+    check_positions(np.stack([rec.markers[k] for k in keys], axis=1), [f"{e}:{m}" for e, m in keys], rec.rate, rec.source,
+                    what=f"trial {rec.trial}: ", **rec.limits)
+    return entities, has_table, used
 
 
 def _flags(*pairs: tuple[str, bool]) -> str:
@@ -249,14 +289,14 @@ def process_recording(rec: Recording, p: Params) -> dict[str, Any]:
     Returns ``{"gaps": [GAPS row tuples], "trajectories": [(metadata dict, numeric array
     (N, len(NUMERIC)))]}``.
     """
-    entities, has_table = _check(rec)
+    entities, has_table, used = _check(rec)
     rate = rec.rate
     # 1-2. gaps: report and fill the short ones
     gap_rows: list[tuple] = []
     filled: dict[tuple[str, str], np.ndarray] = {}
     fill_mask: dict[tuple[str, str], np.ndarray] = {}
     for e in entities:
-        for m in (TABLE_MARKERS if e == "table" else PELVIS_MARKERS):
+        for m in used[e]:
             xyz, mask, starts, lengths, done = gaps.fill_gaps(rec.markers[(e, m)], rate, p.max_gap)
             filled[(e, m)], fill_mask[(e, m)] = xyz, mask
             gap_rows += [(rec.trial, e, m, int(s), int(k), k / rate, bool(d)) for s, k, d in zip(starts, lengths, done)]
@@ -273,22 +313,25 @@ def process_recording(rec: Recording, p: Params) -> dict[str, Any]:
             xy, theta = kin.table_pose(mk[(e, "TAB1")], mk[(e, "TAB2")], mk[(e, "TAB3")])
             rigid = np.zeros(n_frames, dtype=bool)
             theta_needs = ("TAB1", "TAB2")
-        else:
+        elif used[e] == PELVIS_MARKERS:
             xy, rigid = kin.pelvis_com(*(mk[(e, m)] for m in PELVIS_MARKERS))
+        else:
+            xy, rigid = kin.sacrum_pelvis_com(*(mk[(e, m)] for m in used[e]))
+        if e != "table":
             theta = kin.pelvis_theta(mk[(e, "LASI")], mk[(e, "RASI")])
-            theta_needs = PELVIS_MARKERS if p.orientation_markers == "pelvis" else ("LASI", "RASI")
-        markers = TABLE_MARKERS if e == "table" else PELVIS_MARKERS
+            theta_needs = used[e] if p.orientation_markers == "pelvis" else ("LASI", "RASI")
+        markers = used[e]
         kinem[e] = {
             "xy": xy, "theta": theta, "v": kin.velocity(xy, rate), "rigid": rigid,
             "filled": np.any([fill_mask[(e, m)] for m in markers], axis=0),
             "gap": np.any([np.isnan(filled[(e, m)]).any(axis=1) for m in markers], axis=0),
             "theta_gap": np.any([np.isnan(filled[(e, m)]).any(axis=1) for m in theta_needs], axis=0),
         }
-    # 5. segmentation -> (label, onset, offset, entities)
+    # 5. segmentation -> (label, onset, offset, entities, cut off by the recording's edges)
     segs = _segments(rec, p, entities, has_table, mk, kinem)
     # 6. trajectories
     out = []
-    for label, on, off, ents in segs:
+    for label, on, off, ents, cut in segs:
         base = {c: rec.meta.get(c) for c in META_COLUMNS}
         base.update(kind="trial", n_trials=1, direction=label)
         base["trial"] = f"{rec.trial}_{label}" if label else rec.trial
@@ -297,22 +340,40 @@ def process_recording(rec: Recording, p: Params) -> dict[str, Any]:
             th = kinem["table"]["theta"][off] if "table" in kinem else np.nan
             base["end_orientation"] = float(wrap(th))  # measured: the table's orientation at the offset
         for e in ents:
-            out.append(_trajectory(base, e, kinem[e], on, off, rate, p))
+            meta, numeric = _trajectory(base, e, kinem[e], on, off, rate, p, cut)
+            meta["pelvis_markers"] = None if e == "table" else ",".join(used[e])
+            out.append((meta, numeric))
     return {"gaps": gap_rows, "trajectories": out}
 
 
+def process_or_refuse(rec: Recording, p: Params) -> dict[str, Any] | Refused:
+    """``process_recording``, with bad input returned as ``Refused`` so that one run names every bad trial."""
+    try:
+        return process_recording(rec, p)
+    except InputError as exc:
+        return Refused(rec.trial, Path(rec.source), str(exc))
+
+
 def _segments(rec: Recording, p: Params, entities: list[str], has_table: bool, mk: dict, kinem: dict) -> list[tuple]:
-    """``[(direction label or None, onset frame, offset frame, entities), ...]`` of one recording."""
+    """``[(direction label or None, onset frame, offset frame, entities, cut), ...]`` of one recording;
+    ``cut``: the trajectory runs off the start or end of the recording or of its visible data
+    (``segmentation.cut_off``)."""
     subjects = [e for e in entities if e != "table"]
     rate = rec.rate
     if not has_table:
         speed = np.hypot(*kinem[subjects[0]]["v"].T)
         bounds = segmentation.walking_bounds(speed, rate, p.speed_threshold, p.min_duration, p.rest_speed)
         if bounds is None:
-            raise InputError(f"trial {rec.trial}: the CoM speed never stays above {p.speed_threshold} m/s for "
-                             f"{p.min_duration} s (no walk found)", path=rec.source,
-                             remedy="check the trial, or lower --speed-threshold / --min-duration")
-        return [(None, bounds[0], bounds[1], subjects)]
+            xy = kinem[subjects[0]]["xy"]
+            with np.errstate(invalid="ignore"):
+                spread = float(np.nanmax(np.hypot(*(xy - np.nanmedian(xy, axis=0)).T))) if np.isfinite(xy).any() else float("nan")
+                top = float(np.nanmax(speed)) if np.isfinite(speed).any() else float("nan")
+            raise InputError(f"trial {rec.trial}: nobody walks in this recording (static recording? the pelvis CoM stays within "
+                             f"{spread:.3f} m of its median position over {len(speed) / rate:.3g} s, top speed {top:.3f} m/s; a walk "
+                             f"is a CoM speed above {p.speed_threshold:g} m/s for {p.min_duration:g} s)", path=rec.source,
+                             remedy="leave it out of the protocol (or pass --skip-bad), or lower --speed-threshold / --min-duration "
+                                    "for a slow walk")
+        return [(None, bounds[0], bounds[1], subjects, segmentation.cut_off(speed, *bounds))]
     height = kin.table_height(*(mk[("table", m)] for m in TABLE_MARKERS))
     found, h0 = segmentation.carriages(height, rate, p.lift_threshold, p.floor_window, p.min_duration)
     direction = rec.meta.get("direction")
@@ -322,21 +383,21 @@ def _segments(rec: Recording, p: Params, entities: list[str], has_table: bool, m
                          f"{h0:.3f} m + {p.lift_threshold * 1000:g} mm for {p.min_duration} s), expected {len(labels)} "
                          f"({', '.join(labels)})", path=rec.source,
                          remedy="check the table markers, or adjust --lift-threshold / --floor-window / --min-duration")
-    segs = [(lab, a, b, entities) for lab, (a, b) in zip(labels, found)]
+    segs = [(lab, a, b, entities, segmentation.cut_off(height, a, b)) for lab, (a, b) in zip(labels, found)]
     if p.keep_approach:  # each subject's walk to the table: speed segmentation before the first lift
         on = found[0][0]
         approach = []
         for e in subjects:
             speed = np.hypot(*kinem[e]["v"][: on + 1].T)
             bounds = segmentation.walking_bounds(speed, rate, p.speed_threshold, p.min_duration, p.rest_speed)
-            if bounds is not None:
-                approach.append(("approach", bounds[0], bounds[1], [e]))
+            if bounds is not None:  # it ends where the carriage starts: only a cut-off start counts
+                approach.append(("approach", bounds[0], bounds[1], [e], segmentation.cut_off(speed, bounds[0], bounds[1], end=False)))
         segs = approach + segs
     return segs
 
 
 def _trajectory(base: dict[str, Any], entity: str, k: dict[str, np.ndarray], on: int, off: int, rate: float,
-                p: Params) -> tuple[dict[str, Any], np.ndarray]:
+                p: Params, cut: bool = False) -> tuple[dict[str, Any], np.ndarray]:
     sl = slice(on, off + 1)
     xy, v, theta = k["xy"][sl], k["v"][sl], k["theta"][sl]
     orientation_missing = bool(k["theta_gap"][sl].any() or np.isnan(theta).any())
@@ -362,13 +423,14 @@ def _trajectory(base: dict[str, Any], entity: str, k: dict[str, np.ndarray], on:
         ("orientation_missing", orientation_missing),
         ("position_missing", bool(np.isnan(xy).any())),
         ("gamma_undefined", not orientation_missing and bool(np.isnan(g).all())),
+        ("truncated", cut),
     )
     return {**base, "entity": entity, "quality": quality}, numeric
 
 
-def _process_chunk(item: tuple[list[Recording], Params]) -> list[dict[str, Any]]:
+def _process_chunk(item: tuple[list[Recording], Params]) -> list[dict[str, Any] | Refused]:
     recs, p = item
-    return [process_recording(r, p) for r in recs]
+    return [process_or_refuse(r, p) for r in recs]
 
 
 # ---- assembling -----------------------------------------------------------------------------------
@@ -376,28 +438,30 @@ def assemble(results: list[dict[str, Any]], n_samples: int) -> tuple[pd.DataFram
     """Concatenate per-recording results into the trajectories and gaps tables."""
     trajs = [t for r in results for t in r["trajectories"]]
     numeric = np.concatenate([a for _, a in trajs]) if trajs else np.empty((0, len(NUMERIC)))
-    meta = pd.DataFrame([m for m, _ in trajs], columns=[*TRIAL_COLUMNS, "entity", "quality"])
+    meta = pd.DataFrame([m for m, _ in trajs], columns=[*TRIAL_COLUMNS, "entity", "pelvis_markers", "quality"])
     for c in ("scenario", "repetition", "n_trials"):
         meta[c] = pd.to_numeric(meta[c], errors="coerce").astype("Int64")
     meta["end_orientation"] = pd.to_numeric(meta["end_orientation"], errors="coerce").astype(float)
     for c in meta.columns:  # labels: str or None (never NaN, never numbers)
-        if c in ("entity", "quality") or TRIAL_COLUMNS[c].dtype == "string":
+        if c in ("entity", "pelvis_markers", "quality") or TRIAL_COLUMNS[c].dtype == "string":
             meta[c] = [v if isinstance(v, str) else None if v is None or pd.isna(v) else str(v) for v in meta[c]]
     df = meta.iloc[np.repeat(np.arange(len(meta)), n_samples)].reset_index(drop=True)
     for j, c in enumerate(NUMERIC):
         df[c] = numeric[:, j]
     df["sample"] = df["sample"].astype(np.int64)
-    df = df[[*TRIAL_COLUMNS, "entity", *NUMERIC, "quality"]]
+    df = df[[*TRIAL_COLUMNS, "entity", *NUMERIC, "quality", "pelvis_markers"]]
     gap_df = pd.DataFrame([g for r in results for g in r["gaps"]],
                           columns=["trial", "entity", "marker", "start_frame", "n_frames", "duration", "filled"])
     gap_df = gap_df.astype({"start_frame": np.int64, "n_frames": np.int64, "duration": float, "filled": bool})
     return df, gap_df
 
 
-def summary_markdown(traj: pd.DataFrame, gap_df: pd.DataFrame, p: Params, n_recordings: int) -> str:
-    """The stage's results.md fragment: what was processed, gaps and quality flags."""
+def summary_markdown(traj: pd.DataFrame, gap_df: pd.DataFrame, p: Params, n_recordings: int,
+                     refused: list[Refused] = ()) -> str:
+    """The stage's results.md fragment: what was processed, pelvis markers, gaps, quality flags and skipped trials."""
     per = traj.drop_duplicates(["trial", "entity"])
     flags = per["quality"].str.split(";").explode().value_counts()
+    pelvis = per["pelvis_markers"].dropna().value_counts()
     lines = [
         "## Preprocessing (raw markers -> trajectories)", "",
         f"{n_recordings} recordings -> {per['trial'].nunique()} trials, {len(per)} trajectories of "
@@ -413,8 +477,13 @@ def summary_markdown(traj: pd.DataFrame, gap_df: pd.DataFrame, p: Params, n_reco
         "|---|---|---|---|---|---|",
         *[f"| {e} | {m} | {g['trial'].nunique()} | {int(g['filled'].sum())} | {int((~g['filled']).sum())} | "
           f"{int(g.loc[~g['filled'], 'n_frames'].sum())} |" for (e, m), g in gap_df.groupby(["entity", "marker"])], "",
+        "| pelvis markers (CoM = barycentre, SACR counted for both PSIS; theta from LASI-RASI) | trajectories |", "|---|---|",
+        *[f"| {k.replace(',', ' ')} | {v} |" for k, v in pelvis.items()], "",
         "| quality flag | trajectories |", "|---|---|",
         *[f"| {k} | {v} |" for k, v in flags.items()], "",
+        *([f"{int(flags['truncated'])} trajectories are `truncated`: they run off the start or end of the recording (or of "
+           "the visible data) while moving, so their travel time and distance cover only the recorded part.", ""]
+          if "truncated" in flags else []),
         "| entity | direction | trajectories | travel time (s), median [IQR] | travelled distance (m), median |",
         "|---|---|---|---|---|",
     ]
@@ -422,13 +491,16 @@ def summary_markdown(traj: pd.DataFrame, gap_df: pd.DataFrame, p: Params, n_reco
         q = g["travel_time"].quantile([0.25, 0.5, 0.75]).to_numpy()
         lines.append(f"| {ent} | {dirn} | {len(g)} | {q[1]:.2f} [{q[0]:.2f}, {q[2]:.2f}] | "
                      f"{g['travelled_distance'].median():.2f} |")
+    if refused:
+        lines += ["", f"Skipped (--skip-bad): {len(refused)} recordings.", "", "| recording | reason |", "|---|---|",
+                  *[f"| {r.trial} | {r.reason.replace('|', '/')} |" for r in refused]]
     return "\n".join(lines) + "\n"
 
 
 def run(out: Path, markers_path: Path, trials_path: Path, p: Params, *, force: bool = False, jobs: int | None = None,
         scheduler: str | None = None) -> Path:
     """Run the stage into ``out/preprocess`` (skipped when up to date); returns its directory."""
-    from cobot_analysis.console import info
+    from cobot_analysis.console import info, warn
     from cobot_analysis.parallel import chunked, default_jobs, map_tasks
     from cobot_analysis.workspace import Stage
 
@@ -438,8 +510,7 @@ def run(out: Path, markers_path: Path, trials_path: Path, p: Params, *, force: b
         recordings = load_recordings(markers_path, trials_path)
         import scipy.interpolate  # noqa: F401 - imported once here, inherited by forked workers
 
-        for r in recordings:  # bad input is reported before any long work
-            _check(r)
+        for r in recordings:  # bad parameters are reported before any long work
             try:
                 filtering.butter_sos(p.cutoff, r.rate, p.order, p.order_convention)
             except ValueError as exc:
@@ -449,13 +520,19 @@ def run(out: Path, markers_path: Path, trials_path: Path, p: Params, *, force: b
         size = max(1, min(25, len(recordings) // (4 * n_jobs) or 1))
         chunks = [(list(c), p) for c in chunked(recordings, size)]
         del recordings
-        results = [r for chunk in map_tasks(_process_chunk, chunks, jobs=n_jobs, scheduler=scheduler,
-                                            description="preprocess") for r in chunk]
+        done = [r for chunk in map_tasks(_process_chunk, chunks, jobs=n_jobs, scheduler=scheduler,
+                                         description="preprocess") for r in chunk]
+        refused = [r for r in done if isinstance(r, Refused)]
+        results = [r for r in done if not isinstance(r, Refused)]
+        if refused and (not p.skip_bad or not results):
+            raise refusal_error(refused, len(done), markers_path, "preprocess")
+        for r in refused:
+            warn(f"skipped recording {r.trial}: {r.reason}")
         traj, gap_df = assemble(results, p.n_samples)
         params = asdict(p)
         write_table(traj, stage.path("trajectories.parquet"), TRAJECTORIES, stage="preprocess", **params)
         write_table(gap_df, stage.path("gaps.parquet"), gaps.GAPS, stage="preprocess", max_gap=p.max_gap)
-        stage.path("results.md").write_text(summary_markdown(traj, gap_df, p, len(results)))
+        stage.path("results.md").write_text(summary_markdown(traj, gap_df, p, len(results), refused))
         info(f"[green]preprocess[/green]: {traj[['trial', 'entity']].drop_duplicates().shape[0]} trajectories "
              f"from {len(results)} recordings -> {stage.final_dir}")
     return stage.final_dir

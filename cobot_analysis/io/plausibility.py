@@ -1,0 +1,117 @@
+"""Plausibility of marker positions: what a motion-capture volume and a moving body allow.
+
+A position that no lab can record is refused, never averaged (a corrupt byte in a C3D data block
+turns 950 mm into 1e35 m). The sampling rate must be a motion-capture rate (``RATE_RANGE``,
+1 Hz to 10 kHz: camera systems record at 50 Hz to a few kHz). Four checks on every visible
+sample of the markers kept:
+
+- finite: +-inf is not a position (NaN is an occluded sample, as the readers mark it);
+- inside the lab: ``|x|, |y|, |z| <= lab_extent`` (default ``LAB_EXTENT`` = 100 m from the lab
+  origin: the largest motion-capture volumes, sports halls, span a few tens of metres);
+- no jump: between two consecutive visible samples ``i < j`` of a marker, the displacement over
+  ``(j - i) / rate`` stays below ``max_speed`` (default ``MAX_SPEED`` = 20 m/s: markers of walking
+  and running people stay below about 10 m/s, the feet of the recordings in ``../shared/realdata``
+  below 6 m/s). A corrupt value, or a marker swapped with another for some frames, jumps by
+  metres (or tens of centimetres) within one frame;
+- no spike: a sample between two visible neighbours lies within ``max_spike`` (default
+  ``MAX_SPIKE`` = 5 cm) of their midpoint, unless the rate is so low that this is reached by an
+  acceleration below ``MAX_ACCELERATION`` (1000 m/s^2, 100 g): the deviation of a smooth path
+  from the midpoint is ``a / (2 rate^2)``; in the real recordings of ``../shared/realdata`` it is
+  at most 2.2 cm (a shank marker at 120 Hz), 0.5 to 9.5 mm for the pelvis markers.
+
+The limits are options of ``import`` (``--lab-extent``, ``--max-speed``, ``--max-spike``) and are
+stored in the metadata of ``markers.parquet`` so that ``preprocess`` applies the same ones
+(docs/methods.md sec. 2).
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from cobot_analysis.errors import InputError
+
+#: m: largest |coordinate| of a marker from the lab origin.
+LAB_EXTENT = 100.0
+#: m/s: largest marker speed between consecutive visible samples.
+MAX_SPEED = 20.0
+#: m: largest distance of a sample from the midpoint of its two neighbours (single-sample spike).
+MAX_SPIKE = 0.05
+#: m/s^2: accelerations no marker on a person or a table reaches (sets the spike limit below 100 Hz).
+MAX_ACCELERATION = 1000.0
+#: Hz: sampling rates of motion-capture recordings.
+RATE_RANGE = (1.0, 10_000.0)
+
+REMEDY = ("check the trial in the capture software (a corrupt file or a mislabelled marker) and re-export it, "
+          "or leave it out of the protocol")
+
+
+def check_rate(rate: float, path: str | os.PathLike, what: str = "") -> None:
+    """Refuse a sampling rate outside ``RATE_RANGE`` (a corrupt RATE parameter or header word)."""
+    lo, hi = RATE_RANGE
+    if not lo <= rate <= hi:
+        raise InputError(f"{what}sampling rate {rate:.6g} Hz is not a motion-capture rate ({lo:g} to {hi:g} Hz)", path=path,
+                         remedy="re-export the trial from the capture software (or give 'rate' in the protocol for a file without one)")
+
+
+def _where(labels: list[str], bad: np.ndarray, rate: float, limit: int = 3) -> str:
+    """'LASI (frames 10-12, t = 0.05 s), RASI (frame 40, ...)' for a (frames, markers) mask."""
+    parts = []
+    for k in np.flatnonzero(bad.any(axis=0))[:limit]:
+        frames = np.flatnonzero(bad[:, k])
+        span = f"frame {frames[0]}" if len(frames) == 1 else f"{len(frames)} samples in frames {frames[0]}-{frames[-1]}"
+        parts.append(f"{labels[k]} ({span}, from t = {frames[0] / rate:.3f} s)")
+    more = int(bad.any(axis=0).sum()) - limit
+    return ", ".join(parts) + (f" and {more} more markers" if more > 0 else "")
+
+
+def check_positions(xyz: np.ndarray, labels: list[str], rate: float, path: str | os.PathLike, *,
+                    lab_extent: float = LAB_EXTENT, max_speed: float = MAX_SPEED, max_spike: float = MAX_SPIKE,
+                    what: str = "") -> None:
+    """Refuse marker positions ``xyz [frames, markers, 3]`` (m, NaN = occluded) that no lab records.
+
+    Raises ``InputError`` naming the file (``what``: e.g. 'trial t1: ') with the markers, frames and
+    values at fault. Frames count from 0 at the first sample of the recording.
+    """
+    xyz = np.asarray(xyz, dtype=float)
+    with np.errstate(invalid="ignore"):
+        infinite = np.isinf(xyz).any(axis=2)
+        if infinite.any():
+            raise InputError(f"{what}infinite marker coordinates: {_where(labels, infinite, rate)}", path=path, remedy=REMEDY)
+        far = (np.abs(xyz) > lab_extent).any(axis=2)
+        if far.any():
+            worst = float(np.nanmax(np.abs(xyz)))
+            raise InputError(f"{what}implausible marker positions, up to {worst:.3g} m from the lab origin (limit {lab_extent:g} m): "
+                             f"{_where(labels, far, rate)}", path=path,
+                             remedy=f"{REMEDY}; a lab larger than {lab_extent:g} m: import with --lab-extent")
+    visible = ~np.isnan(xyz).any(axis=2)
+    jumps = []  # (first frame, marker, next frame, step, speed, number of jumps of that marker)
+    for k in range(xyz.shape[1]):  # markers, never frames
+        idx = np.flatnonzero(visible[:, k])
+        if len(idx) < 2:
+            continue
+        step = np.linalg.norm(np.diff(xyz[idx, k], axis=0), axis=1)
+        speed = step * rate / np.diff(idx)
+        fast = np.flatnonzero(speed > max_speed)
+        if fast.size:
+            i = fast[0]
+            jumps.append((int(idx[i]), k, int(idx[i + 1]), float(step[i]), float(speed[i]), len(fast)))
+    if jumps:
+        a, k, b, step, speed, _ = min(jumps)
+        total = sum(j[5] for j in jumps)
+        more = f"; {total} jumps over the limit in {len(jumps)} marker(s)" if total > 1 else ""
+        raise InputError(f"{what}implausible jump of marker {labels[k]}: {step:.3g} m between frames {a} and {b} "
+                         f"(t = {a / rate:.3f} s), {speed:.3g} m/s (limit {max_speed:g} m/s){more}", path=path,
+                         remedy=f"{REMEDY}; a marker that really moves faster: import with --max-speed")
+    spike_limit = max(max_spike, MAX_ACCELERATION / (2 * rate ** 2))
+    triple = visible[:-2] & visible[1:-1] & visible[2:]  # (frames - 2, markers)
+    with np.errstate(invalid="ignore"):
+        dev = np.linalg.norm(xyz[1:-1] - (xyz[:-2] + xyz[2:]) / 2, axis=2)
+        spikes = triple & (dev > spike_limit)
+    if spikes.any():
+        i, k = np.argwhere(spikes)[0]
+        raise InputError(f"{what}implausible spike of marker {labels[k]} at frame {i + 1} (t = {(i + 1) / rate:.3f} s): "
+                         f"{dev[i, k]:.3g} m from the midpoint of its neighbours (limit {spike_limit:.3g} m); "
+                         f"{int(spikes.sum())} such samples in {int(spikes.any(axis=0).sum())} marker(s)", path=path,
+                         remedy=f"{REMEDY}; a marker that really moves so abruptly: import with --max-spike")

@@ -1,0 +1,58 @@
+"""`cobot-analysis average`: the groups the means are made over must be real conditions (issue #11)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from cobot_analysis.averaging import MEANS
+from cobot_analysis.schema import TRAJECTORIES, read_table, write_table
+
+sys.path.insert(0, str(Path(__file__).parent))
+from synthetic_tables import walking_table  # noqa: E402
+
+
+def _workspace(tmp_path, df) -> Path:
+    ws = tmp_path / "ws"
+    write_table(df, ws / "preprocess" / "trajectories.parquet", TRAJECTORIES)
+    return ws
+
+
+def _refused(cli, ws, *args) -> str:
+    code, _, err = cli("average", "--out", ws, *args)
+    assert code == 2, err
+    assert len(err.strip().splitlines()) == 1 and not (ws / "average").exists() and not list(ws.glob(".average.*"))
+    return " ".join(err.split())
+
+
+def test_trials_without_condition_are_not_averaged_into_one_mean(tmp_path, cli):
+    df = walking_table(seed=1, n_subjects=2, n_conditions=3, n_trials=2)  # 12 trajectories
+    ws = _workspace(tmp_path, df.assign(condition=None))
+    msg = _refused(cli, ws)
+    assert "trajectories.parquet: no trial has a 'condition' value: the means would average all 12 trajectories into one" in msg
+    assert "give every trial its condition in the protocol's trials table" in msg and "--by study,entity" in msg
+    code, _, err = cli("average", "--out", ws, "--by", "study,entity")  # one mean over everything, when asked for
+    assert code == 0, err
+    means = read_table(ws / "average" / "means.parquet", MEANS)
+    assert means["n_trials"].unique().tolist() == [12]
+    x = df.pivot_table(index="sample", columns="trial", values="x").mean(axis=1).to_numpy()
+    np.testing.assert_allclose(means.sort_values("sample")["x"], x, atol=1e-12)
+
+
+def test_some_trials_without_condition_are_refused(tmp_path, cli):
+    df = walking_table(seed=1, n_subjects=2, n_conditions=2, n_trials=2)
+    lost = df["trial"].unique()[:2]
+    ws = _workspace(tmp_path, df.assign(condition=np.where(df["trial"].isin(lost), None, df["condition"])))
+    msg = _refused(cli, ws)
+    assert f"2 of 8 trajectories have no 'condition' value ({lost[0]}, {lost[1]}...): they would be averaged together" in msg
+
+
+def test_truncated_trajectories_are_counted(tmp_path, cli):
+    df = walking_table(seed=1, n_subjects=2, n_conditions=1, n_trials=2)
+    first = df["trial"] == df["trial"].iloc[0]
+    ws = _workspace(tmp_path, df.assign(quality=np.where(first, "truncated", df["quality"])))
+    code, _, err = cli("average", "--out", ws)
+    assert code == 0, err
+    assert "1 of the 4 trajectories averaged are flagged `truncated`" in (ws / "average" / "results.md").read_text()
