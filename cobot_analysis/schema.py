@@ -108,6 +108,8 @@ TRIALS = TableSchema(
         "source_units": Column("string", "", "length unit of the raw file (mm or m)"),
         "rate": Column("float", "Hz", "marker sampling rate"),
         "n_frames": Column("int", "-", "number of frames in the recording"),
+        "pelvis_markers": Column("string", "", "pelvis markers per entity, e.g. 'walker: LASI,RASI,SACR' (docs/methods.md "
+                                               "sec. 2.4)", required=False),
     },
 )
 
@@ -133,7 +135,10 @@ TRAJECTORIES = TableSchema(
         "vy": Column("float", "m/s", "CoM velocity", required=False),
         "travel_time": Column("float", "s", "duration of the trajectory (onset to offset); NaN if unknown"),
         "travelled_distance": Column("float", "m", "straight-line distance start -> end position (docs/methods.md sec. 3)"),
-        "quality": Column("string", "", "'ok' or ';'-separated flags, e.g. orientation_missing;long_gap"),
+        "quality": Column("string", "", "'ok' or ';'-separated flags, e.g. orientation_missing;long_gap;truncated "
+                                        "(truncated: the walk or carriage runs off the recording)"),
+        "pelvis_markers": Column("string", "", "pelvis markers the CoM and orientation come from, e.g. 'LASI,RASI,SACR' "
+                                               "(empty for the table)", required=False),
     },
 )
 

@@ -10,13 +10,13 @@ sample of the markers kept:
   origin: the largest motion-capture volumes, sports halls, span a few tens of metres);
 - no jump: between two consecutive visible samples ``i < j`` of a marker, the displacement over
   ``(j - i) / rate`` stays below ``max_speed`` (default ``MAX_SPEED`` = 20 m/s: markers of walking
-  and running people stay below about 10 m/s, the feet of the recordings in ``../shared/realdata``
+  and running people stay below about 10 m/s, the feet of real gait recordings from other labs (BTKData, pyomeca)
   below 6 m/s). A corrupt value, or a marker swapped with another for some frames, jumps by
   metres (or tens of centimetres) within one frame;
 - no spike: a sample between two visible neighbours lies within ``max_spike`` (default
   ``MAX_SPIKE`` = 5 cm) of their midpoint, unless the rate is so low that this is reached by an
   acceleration below ``MAX_ACCELERATION`` (1000 m/s^2, 100 g): the deviation of a smooth path
-  from the midpoint is ``a / (2 rate^2)``; in the real recordings of ``../shared/realdata`` it is
+  from the midpoint is ``a / (2 rate^2)``; in real gait recordings (BTKData, pyomeca) it is
   at most 2.2 cm (a shank marker at 120 Hz), 0.5 to 9.5 mm for the pelvis markers.
 
 The limits are options of ``import`` (``--lab-extent``, ``--max-speed``, ``--max-spike``) and are
