@@ -416,8 +416,9 @@ def fit_ioc_command(
             lower = ("lower level: the published convention (docs/methods.md sec. 11): explicit Euler at the authors' node "
                      "step, costs summed per node, the authors' start and goal poses; each path's horizon chosen by the authors' "
                      "duration rule (Nelder-Mead on J/T) at the start weights and held during the fit, then the rule run again "
-                     "at the fitted weights (the D fitted below); distances after arc-length resampling of both paths, the "
-                     f"authors' mean block ({mean_src})")
+                     "at the fitted weights (the D fitted below); distances after arc-length resampling of both paths, to "
+                     + ("the authors' mean block" if Path(mean_src).parent.name == "import-published" else "the means")
+                     + f" ({mean_src})")
         else:
             lower = (f"lower level: OC with free duration on {intervals} intervals (continuous convention, docs/methods.md "
                      "sec. 11), warm-started from the solution at the best weights so far")
