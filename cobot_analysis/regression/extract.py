@@ -419,8 +419,10 @@ STAGE_METRICS: dict[str, Callable[[Path, Collector, dict], None]] = {
 
 
 def base_stage(stage: str) -> str:
-    """The stage without its convention suffix (``fit-ioc-published`` -> ``fit-ioc``, docs/methods.md sec. 11)."""
-    return stage[: -len("-published")] if stage.endswith("-published") else stage
+    """The stage without its convention suffix (``fit-ioc-published`` -> ``fit-ioc``, docs/methods.md sec. 11;
+    ``import-published`` is a stage of its own)."""
+    base = stage[: -len("-published")] if stage.endswith("-published") else stage
+    return base if base in MODEL_STAGES or base == "compare" or base.startswith("predict") else stage
 
 
 def extractor(stage: str) -> Callable | None:
