@@ -17,7 +17,8 @@ from typing import Annotated, Optional
 
 import typer
 
-from cobot_analysis.cli.app import PANEL_ANALYSIS, PANEL_REPORT, DEFAULT_OUT_PATH, ConventionOpt, ForceOpt, OutOpt, app
+from cobot_analysis.cli.app import (PANEL_ANALYSIS, PANEL_REPORT, DEFAULT_OUT_PATH, ConventionOpt, ForceOpt, OutOpt, app, count,
+                                   finished)
 from cobot_analysis.errors import InputError
 
 TRAJ_STAGES = ["preprocess", "import-published"]
@@ -74,7 +75,7 @@ def average_command(
 
     from cobot_analysis.averaging import MEANS, check_groups, mean_trajectories
     from cobot_analysis.compare import default_groups
-    from cobot_analysis.console import info, warn
+    from cobot_analysis.console import warn
     from cobot_analysis.schema import TRAJECTORIES, read_table, write_table
     from cobot_analysis.workspace import Stage
 
@@ -117,7 +118,7 @@ def average_command(
                              "recording: travel time and path cover only the recorded part).")
         lines.append("")
         stage.path("results.md").write_text("\n".join(lines))
-        info(f"average: {n_means} means -> {stage.final_dir / 'means.parquet'}")
+    finished("average", f"{n_means} means", stage.final_dir / "means.parquet")
 
 
 # ---- compare ------------------------------------------------------------------------------------
@@ -145,7 +146,6 @@ def compare_command(
     from cobot_analysis import conventions
     from cobot_analysis.compare import (DISTANCES, WALKING_GROUPS, against_set, against_vs_mean, any_vs_any, compare_sets,
                                         default_groups, read_trajectory_set)
-    from cobot_analysis.console import info
     from cobot_analysis.schema import table_metadata, write_table
     from cobot_analysis.workspace import Stage, find_input
 
@@ -195,7 +195,7 @@ def compare_command(
                    for k in ("d_xy", "d_theta", "d_gamma")]
             lines.append(f"| {comp} | {ent} | {int(r[('d_xy', 'count')])} | " + " | ".join(fmt) + " |")
         stage.path("results.md").write_text("\n".join(lines) + "\n")
-        info(f"compare ({conv.name}): {len(d)} compared pairs -> {stage.final_dir / 'distances.parquet'}")
+    finished(f"compare ({conv.name})", f"{len(d)} compared pairs", stage.final_dir / "distances.parquet")
 
 
 # ---- stats --------------------------------------------------------------------------------------
@@ -225,7 +225,7 @@ def stats_command(
 ) -> None:
     """Every statistical question of the study's configuration (tests, effect sizes, Holm) -> stats/stats.parquet and stats.md."""
     from cobot_analysis.compare import DISTANCES
-    from cobot_analysis.console import info, track, warn
+    from cobot_analysis.console import track, warn
     from cobot_analysis.schema import read_table, write_table
     from cobot_analysis.stats import analyses
     from cobot_analysis.stats import config as cfg
@@ -291,7 +291,7 @@ def stats_command(
             "elimination above (the row says which).",
         ]
         stage.path("results.md").write_text(md + "\n" + note + "\n\n" + "\n".join(choices) + "\n")
-        info(f"stats: {note} -> {stage.final_dir / 'stats.parquet'}")
+    finished("stats", note, stage.final_dir / "stats.parquet")
 
 
 # ---- reconstruct --------------------------------------------------------------------------------
@@ -306,7 +306,7 @@ def reconstruct_command(
     """Subjects reconstructed from the table trajectory (docs/methods.md sec. 8), d_xy / d_theta vs measured -> reconstruct/reconstruction.parquet."""
     import pandas as pd
 
-    from cobot_analysis.console import info, track
+    from cobot_analysis.console import track
     from cobot_analysis.reconstruct import RECONSTRUCTION, accuracy, read_wrt_table, relative_pose, relative_pose_table
     from cobot_analysis.schema import write_table
     from cobot_analysis.workspace import Stage
@@ -349,7 +349,7 @@ def reconstruct_command(
             lines.append(f"| {src} | {kind} | {direction} | {ent} | {int(r[('d_xy', 'count')])} | "
                          f"{r[('d_xy', 'mean')]:.3f} +- {r[('d_xy', 'std')]:.3f} | {r[('d_theta', 'mean')]:.3f} +- {r[('d_theta', 'std')]:.3f} |")
         stage.path("results.md").write_text("\n".join(lines) + "\n")
-        info(f"reconstruct: {len(rec)} reconstructions -> {stage.final_dir / 'reconstruction.parquet'}")
+    finished("reconstruct", f"{len(rec)} reconstructions", stage.final_dir / "reconstruction.parquet")
 
 
 # ---- report -------------------------------------------------------------------------------------
@@ -361,7 +361,6 @@ def report_command(
     force: ForceOpt = False,
 ) -> None:
     """Markdown report with tables and figures (PNG + PDF) of a study's workspace -> --to (and report/ in the workspace)."""
-    from cobot_analysis.console import info
     from cobot_analysis.reports.builders import build_report, report_inputs
     from cobot_analysis.workspace import Stage
 
@@ -380,4 +379,5 @@ def report_command(
     if to.exists():
         shutil.rmtree(to)
     tmp.rename(to)
-    info(f"report: {to / 'README.md'}")
+    figures = len(list(to.glob("*.png")))
+    finished(f"report ({study})", count(figures, "figure"), to / "README.md")

@@ -12,8 +12,22 @@ from typing import Annotated, Optional
 import typer
 
 from cobot_analysis import __version__
-from cobot_analysis.console import set_verbosity
+from cobot_analysis.console import console, set_verbosity, verbosity
 from cobot_analysis.workspace import DEFAULT_OUT
+
+
+def finished(stage: str, what: str, where) -> None:
+    """The line every stage ends with: ``stage: what -> where`` (one line, silent under --quiet)."""
+    from rich.markup import escape
+
+    if verbosity() >= 1:
+        console.print(f"[green]{escape(stage)}[/green]: {escape(str(what))} -> {escape(str(where))}", soft_wrap=True)
+
+
+def count(n: int, noun: str, plural: str | None = None) -> str:
+    """``1 figure``, ``2 figures`` (``plural`` where it is not noun + s)."""
+    return f"{n} {noun if n == 1 else plural or noun + 's'}"
+
 
 EXIT_CODES = ("Exit codes: 0 success, 1 internal error, 2 bad usage or bad input, 130 interrupted (Ctrl-C), "
               "143 terminated (SIGTERM). An interrupted stage writes nothing and stops its workers.")

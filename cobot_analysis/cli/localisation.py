@@ -18,6 +18,7 @@ from cobot_analysis.cli.app import (
     SchedulerOpt,
     SeedOpt,
     app,
+    finished,
     synth_app,
 )
 from cobot_analysis.errors import InputError
@@ -80,6 +81,7 @@ def bag_info_command(
         typer.echo(f"{r['topic']}\t{r['type']}\t{r['count']}\t{r['rate']:.3f}\t{r['start']:.9f}\t{r['end']:.9f}")
     for e in edges:
         typer.echo(f"tf:{e['parent']}->{e['child']}\t{e['count']}\t{'static' if e['static'] else 'dynamic'}")
+    finished("bag-info", f"{len(rows)} topics ({sum(bool(r['pose']) for r in rows)} of poses), {len(edges)} tf frame pairs", "stdout")
 
 
 def _print_whole(console, table) -> None:
@@ -107,7 +109,7 @@ def synth_localisation_command(
 ) -> None:
     """Synthetic robot run: mocap 200 Hz, ICP 10 Hz with a known delay, offset and noise, goals and
     cmd_vel, written as a ROS1 bag, a ROS2 bag and an MCAP file, with truth.json and goals.csv."""
-    from cobot_analysis.console import info, track
+    from cobot_analysis.console import track
     from cobot_analysis.localisation import synth
     from cobot_analysis.workspace import Stage
 
@@ -127,8 +129,8 @@ def synth_localisation_command(
             write(run, stage.path(name))
         synth.write_goals_csv(run, stage.path("goals.csv"))
         synth.write_truth(run, stage.path("truth.json"))
-    info(f"[green]{SYNTH_STAGE}[/green]: {len(run.t_mocap)} mocap and {len(run.t_icp)} ICP poses, "
-         f"{run.distance:.2f} m, {len(run.goals)} goals -> {stage.final_dir}")
+    finished(SYNTH_STAGE, f"{len(run.t_mocap)} mocap and {len(run.t_icp)} ICP poses, {run.distance:.2f} m, {len(run.goals)} goals",
+             stage.final_dir)
 
 
 @app.command("localisation", rich_help_panel=PANEL_LOCALISATION)
@@ -264,7 +266,7 @@ def localisation_command(
         info(f"[green]{r['run']}[/green]: delay {d}, RMSE {1000 * row['ape_rmse']:.1f} mm"
              + (f", goals {row['goals_found']}/{row['goals_commanded']}" if "goals_found" in row else "")
              + (f", {len(row['warnings'].split(' | '))} warning(s) (results.md)" if row["warnings"] else ""))
-    info(f"[green]{STAGE}[/green]: {len(results)} run(s) -> {stage.final_dir}")
+    finished(STAGE, f"{len(results)} run(s)", stage.final_dir)
 
 
 def _labels(bags: list[Path]) -> list[str]:

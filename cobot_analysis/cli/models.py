@@ -9,7 +9,7 @@ from typing import Annotated, Optional
 import typer
 
 from cobot_analysis.cli.app import (PANEL_MODELS, DEFAULT_OUT_PATH, ConventionOpt, ForceOpt, JobsOpt, OutOpt, SchedulerOpt,
-                                   SeedOpt, app)
+                                   SeedOpt, app, count, finished)
 
 MODEL_CHOICES = ("unicycle", "clothoid", "mombaur", "improved", "table", "all")
 
@@ -151,9 +151,7 @@ def generate_command(
             g = goal_of[r.trial]
             lines.append(f"| {r.trial} | {r.travel_time:.2f} | {r.cost:.3f} | {math.hypot(r.x - g[0], r.y - g[1]):.3f} |")
         stage.path("results.md").write_text("\n".join(lines) + "\n")
-        from cobot_analysis.console import info
-
-        info(f"generate ({conv.name}): {df['trial'].nunique()} trajectories -> {stage.final_dir / 'generated.parquet'}")
+    finished(f"generate ({conv.name})", count(df["trial"].nunique(), "trajectory", "trajectories"), stage.final_dir / "generated.parquet")
 
 
 def _published_walking_cases(out: Path, means: Path | None) -> list:
@@ -475,6 +473,12 @@ def fit_ioc_command(
             stage.savefig(figure_paths(mean_targets, gen, "mean (black) vs improved OC: published, fitted"), "paths")
             lines += ["![generated vs mean paths](paths.png)", ""]
         stage.path("results.md").write_text("\n".join(lines) + "\n")
+    n_paths = sum(len(fits[k]) for k in results)
+    start_d = sum(r.start_objective for r in results.values()) / len(results)
+    end_d = sum(r.objective for r in results.values()) / len(results)
+    how = ", ".join([conv.name] + (["coupled"] if model == "coupled" else []) + (["per subject"] if per is Per.subject else []))
+    fitted = f"{n_paths} paths, D" if len(results) == 1 else f"{len(results)} fits, {n_paths} paths, mean D"
+    finished(f"fit-ioc ({how})", f"{fitted} {end_d:.3f} fitted ({start_d:.3f} at the start weights)", stage.final_dir)
 
 
 # ---- velocity-commands -------------------------------------------------------------------------
@@ -529,3 +533,5 @@ def velocity_commands_command(
         stage.path("results.md").write_text(
             f"## Velocity commands\n\nTrajectory {trial} at {rate:g} Hz: {len(cmd)} commands, saturated at "
             f"{v_max:g} m/s and {omega_max:g} deg/s; {cmd['saturated'].mean() * 100:.0f} % of the commands hit a limit.\n")
+    finished("velocity-commands", f"{len(cmd)} commands of {trial} at {rate:g} Hz, {cmd['saturated'].mean() * 100:.0f} % saturated",
+             stage.final_dir / f"commands.{fmt.value}")

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from cobot_analysis.cli.app import PANEL_REPORT, DEFAULT_OUT_PATH, OutOpt, app
+from cobot_analysis.cli.app import PANEL_REPORT, DEFAULT_OUT_PATH, OutOpt, app, count, finished
 
 
 @app.command("results", rich_help_panel=PANEL_REPORT)
@@ -20,7 +20,6 @@ def results_command(
     """Assemble docs/results.md from the results.md fragments of the given workspaces (generated, never typed)."""
     import os
 
-    from cobot_analysis.console import info
     from cobot_analysis.pipeline import assemble_results
 
     text = assemble_results(workspaces, title=title, preface=" ".join(preface.split()))
@@ -28,7 +27,8 @@ def results_command(
     tmp = to.with_name(f".{to.name}.tmp")
     tmp.write_text(text)
     os.replace(tmp, to)
-    info(f"results written to [bold]{to}[/bold]")
+    sections = sum(line.startswith("## ") for line in text.splitlines())
+    finished("results", f"{count(sections, 'section')} from {count(len(workspaces), 'workspace')}", to)
 
 
 #: synth options per demo size: walking study, pair study. "default" is the full walking design and
@@ -99,7 +99,6 @@ def demo_command(
     runs every stage on each, then writes OUT/report.md. Each study has its own workspace under
     OUT; stages already up to date are skipped.
     """
-    from cobot_analysis.console import info
     from cobot_analysis.pipeline import assemble_results, run_steps
 
     if size not in DEMO_SIZES:
@@ -116,5 +115,4 @@ def demo_command(
     ])
     report.write_text(assemble_results([out / s for s in studies], title="cobot-analysis demo report (synthetic studies)",
                                        preface=preface))
-    info(f"\n[bold green]done[/bold green]: report [bold]{report}[/bold]; Parquet outputs under "
-         + ", ".join(f"[bold]{out / s}[/bold]" for s in studies))
+    finished("demo", f"{len(studies)} studies, Parquet outputs under {', '.join(str(out / s) for s in studies)}", report)

@@ -9,7 +9,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from cobot_analysis.cli.app import PANEL_MODELS, DEFAULT_OUT_PATH, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, app
+from cobot_analysis.cli.app import PANEL_MODELS, DEFAULT_OUT_PATH, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, app, count, finished
 
 STAGE = "predict"
 WORK = ".predict-work"
@@ -187,7 +187,9 @@ def predict_command(
             else:
                 text += "\n" + "\n".join(conventions_markdown(both) + [f"", f"From this stage and `{other.name}`."]) + "\n"
         stage.path("results.md").write_text(text)
-    info(f"[green]predict[/green] ({conv.name} convention): {stage.final_dir}")
+    n_windows = int(metrics.drop_duplicates(["study", "trial", "entity", "n0", "n_oc"])["n_windows"].sum())
+    finished(f"predict ({conv.name})", f"{count(len(trajs), 'trajectory', 'trajectories')} x {count(len(config.settings), 'setting')} x "
+             f"{count(len(config.predictors), 'predictor')}, {n_windows} windows per predictor", stage.final_dir)
 
 
 # ---- figures and report -----------------------------------------------------------------------

@@ -7,8 +7,7 @@ from typing import Annotated
 
 import typer
 
-from cobot_analysis.cli.app import DEFAULT_OUT_PATH, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, SeedOpt, synth_app
-from cobot_analysis.console import info
+from cobot_analysis.cli.app import DEFAULT_OUT_PATH, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, SeedOpt, finished, synth_app
 from cobot_analysis.errors import InputError
 
 
@@ -65,7 +64,7 @@ def walking_command(
             return
         walking.generate(stage.dir, seed=seed, n_subjects=subjects, n_trials=trials, conditions=codes,
                          jobs=jobs, scheduler=scheduler)
-    info(f"[green]{walking.STAGE}[/green]: {subjects * len(codes) * trials} trials -> {stage.final_dir}")
+    finished(walking.STAGE, f"{subjects * len(codes) * trials} trials", stage.final_dir)
 
 
 @synth_app.command("pairs")
@@ -100,4 +99,4 @@ def pairs_command(
             return
         synth_pairs.generate(stage.dir, seed=seed, n_pairs=pairs, goals=stems, scenarios=scens, jobs=jobs,
                              scheduler=scheduler)
-    info(f"[green]{synth_pairs.STAGE}[/green]: {pairs * len(stems) * len(scens)} recordings -> {stage.final_dir}")
+    finished(synth_pairs.STAGE, f"{pairs * len(stems) * len(scens)} recordings", stage.final_dir)
