@@ -137,7 +137,7 @@ def test_bad_trajectories_exit_2_without_output(cli, tmp_path, traj_file):
     bad.write_bytes(b"PAR1 truncated")
     code, _, err = cli("predict", "--out", out, "--trajectories", bad, "--settings", "8:20")
     assert code == 2 and "bad.parquet: not a readable Parquet file" in err
-    code, _, err = cli("predict", "--out", out, "--trajectories", traj_file(), "--study", "nope", "--settings", "8:20")
+    code, _, err = cli("predict", "--out", out, "--trajectories", traj_file(), "--only-study", "nope", "--settings", "8:20")
     assert code == 2 and "empty selection" in err
     assert not out.exists() or not any(out.iterdir())
 

@@ -6,7 +6,7 @@ Typical sequence (published walking data imported into WS):
     cobot-analysis compare --out WS
     cobot-analysis stats --out WS                 # pipelines/<study>.toml
     cobot-analysis reconstruct --out WS --wrt-table DATASETS/pair-carriage-2022   (pair study)
-    cobot-analysis report walking --out WS --to reports/walking
+    cobot-analysis report walking-2020 --out WS --to reports/walking
 """
 
 from __future__ import annotations
@@ -128,7 +128,7 @@ def compare_command(
     trajectories: TrajOpt = None,
     means: Annotated[Optional[Path], typer.Option("--means", help="means.parquet (default: WS/average/means.parquet).")] = None,
     against: Annotated[Optional[Path], typer.Option("--against", help="Another trajectory table (e.g. model-generated paths) to compare with the means of the same group.")] = None,
-    label: Annotated[str, typer.Option("--label", help="comparison name of the --against rows (e.g. model).")] = "against",
+    comparison: Annotated[str, typer.Option("--comparison", help="Name of the --against rows in the comparison column (e.g. model).")] = "against",
     any_any: Annotated[Optional[str], typer.Option("--any-vs-any", help="Also compare every two trials that agree on these comma-separated columns (e.g. condition,entity) -> comparison any-any.")] = None,
     by: ByOpt = None,
     convention: ConventionOpt = None,
@@ -158,7 +158,7 @@ def compare_command(
     other = against_set(against, mts.n_samples, conv) if against is not None else None
     same = _by(any_any, list(ts.meta.columns), path)
     inputs = [path, means_path] + ([against] if against else [])
-    params = {"by": groups, "label": label, "any_vs_any": same, "convention": conv.name}
+    params = {"by": groups, "label": comparison, "any_vs_any": same, "convention": conv.name}
     with Stage(out, conventions.stage_name("compare", conv), inputs=inputs, params=params, force=force) as stage:
         if stage.skipped:
             return
@@ -174,7 +174,7 @@ def compare_command(
         if same:
             parts.append(any_vs_any(trials, same=["study", *same]))
         if other is not None:
-            parts.append(against_vs_mean(other, mts, groups, label, against))
+            parts.append(against_vs_mean(other, mts, groups, comparison, against))
         d = pd.concat([p for p in parts if len(p)] or parts[:1], ignore_index=True)
         d["convention"] = conv.name
         write_table(d, stage.path("distances.parquet"), DISTANCES, grouping=groups, convention=conv.name)
@@ -353,9 +353,13 @@ def reconstruct_command(
 
 
 # ---- report -------------------------------------------------------------------------------------
+#: Study names (the 'study' column of the data) -> the design their report follows.
+STUDY_DESIGNS = {"walking-2020": "walking", "synthetic-walking": "walking", "pair-carriage-2022": "pairs", "synthetic-pairs": "pairs"}
+
+
 @app.command("report", rich_help_panel=PANEL_REPORT)
 def report_command(
-    study: Annotated[str, typer.Argument(help="walking or pairs")],
+    study: Annotated[str, typer.Argument(help=f"The workspace's study: {', '.join(STUDY_DESIGNS)}.")],
     out: OutOpt = DEFAULT_OUT_PATH,
     to: Annotated[Optional[Path], typer.Option("--to", help="Report directory (default: reports/STUDY).")] = None,
     force: ForceOpt = False,
@@ -364,15 +368,16 @@ def report_command(
     from cobot_analysis.reports.builders import build_report, report_inputs
     from cobot_analysis.workspace import Stage
 
-    if study not in ("walking", "pairs"):
-        raise InputError(f"unknown study {study!r}", remedy="use walking or pairs")
+    if study not in STUDY_DESIGNS:
+        raise InputError(f"unknown study {study!r}", remedy=f"use one of {', '.join(STUDY_DESIGNS)}")
+    design = STUDY_DESIGNS[study]
     inputs = report_inputs(out)
     if not inputs:
         raise InputError("nothing to report in this workspace", path=out, remedy="run average, compare and stats first")
     to = to or Path("reports") / study
-    with Stage(out, "report", inputs=list(inputs.values()), params={"study": study}, force=force) as stage:
+    with Stage(out, "report", inputs=list(inputs.values()), params={"study": design}, force=force) as stage:
         if not stage.skipped:
-            build_report(study, inputs, stage, out)
+            build_report(design, inputs, stage, out)
     tmp = to.with_name(f".{to.name}.tmp")
     shutil.rmtree(tmp, ignore_errors=True)
     shutil.copytree(stage.final_dir, tmp, ignore=shutil.ignore_patterns("manifest.json"))

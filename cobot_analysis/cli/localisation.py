@@ -144,7 +144,7 @@ def localisation_command(
     icp: Annotated[str, typer.Option(help="ICP stream: a topic or tf:PARENT->CHILD.")] = "/icp/pose",
     time: Annotated[str, typer.Option(help="Stamps: 'header' (message header) or 'record' (bag receive time).")] = "header",
     label: Annotated[Optional[list[str]], typer.Option(help="Run label, once per bag (default: file stem).")] = None,
-    map_label: Annotated[Optional[list[str]], typer.Option("--map", help="Map label, once for all bags or once per bag.")] = None,
+    map_name: Annotated[Optional[list[str]], typer.Option("--map-name", help="Name of the map the ICP localised in (e.g. scanned), once for all bags or once per bag.")] = None,
     delay: Annotated[Optional[float], typer.Option(help="Use this delay (s) instead of estimating it.")] = None,
     delay_window: Annotated[str, typer.Option(help="Delay search window MIN,MAX (s; MIN < MAX, MIN may be negative). An estimate on an end of it is warned about.")] = "0,1.5",
     delay_weights: Annotated[str, typer.Option(help="Weights of x,y,z,yaw in the delay cost (yaw in m/rad; 0 drops an axis).")] = "1,1,1,1",
@@ -152,8 +152,8 @@ def localisation_command(
     association: Annotated[str, typer.Option(help="interpolate (truth at the ICP stamps) or nearest (nearest stamp, as evo).")] = "interpolate",
     max_gap: Annotated[Optional[float], typer.Option(help="Longest truth gap to interpolate across (s); default: twice the median sample spacing of the truth stream, at least 0.05 s.")] = None,
     max_diff: Annotated[float, typer.Option(help="Nearest association: largest stamp difference (s).")] = 0.01,
-    goals: Annotated[Optional[Path], typer.Option(help="Commanded goals CSV (x,y,yaw in the ICP map frame, levelled to z-up when --up is not z) for every run.")] = None,
-    goal_topic: Annotated[str, typer.Option(help="Topic of the commanded goals in the bag (used when --goals is not given).")] = "/goal",
+    goals: Annotated[Optional[Path], typer.Option("--goals-csv", help="Commanded goals CSV (x,y,yaw in the ICP map frame, levelled to z-up when --up is not z) for every run.")] = None,
+    goal_topic: Annotated[str, typer.Option(help="Topic of the commanded goals in the bag (used when --goals-csv is not given).")] = "/goal",
     speed_threshold: Annotated[float, typer.Option(help="Stop: planar speed below this (m/s).")] = 0.02,
     yaw_rate_threshold: Annotated[float, typer.Option(help="Stop: |yaw rate| below this (rad/s).")] = 0.03,
     min_stop: Annotated[float, typer.Option(help="Stop: minimum duration (s).")] = 3.0,
@@ -217,11 +217,11 @@ def localisation_command(
     labels = list(label) if label else _labels(bags)
     if len(labels) != len(bags):
         raise InputError(f"{len(labels)} --label for {len(bags)} bags", remedy="give one --label per bag")
-    maps = list(map_label or [""])
+    maps = list(map_name or [""])
     if len(maps) == 1:
         maps = maps * len(bags)
     if len(maps) != len(bags):
-        raise InputError(f"{len(maps)} --map for {len(bags)} bags", remedy="give one --map for all bags or one per bag")
+        raise InputError(f"{len(maps)} --map-name for {len(bags)} bags", remedy="give one --map-name for all bags or one per bag")
     goal_rows = tuple(map(tuple, read_goals_csv(goals))) if goals else None
     opts = Options(truth=truth, icp=icp, time=time, delay=delay, window=window, weights=weights, alignment=alignment,
                    association=association, max_gap=max_gap, max_diff=max_diff, distance_window=distance_window,

@@ -35,7 +35,7 @@ def results_command(
 #: 6 of the 20 pairs (all goals and scenarios: 324 trials, 972 trajectories, about 0.8 GB of C3D
 #: instead of 2.7 GB for the full pair design).
 DEMO_SIZES = {
-    "small": (["--subjects", "2", "--trials", "1", "--conditions", "8"], ["--pairs", "2", "--goals", "3"]),
+    "small": (["--subjects", "2", "--repetitions", "1", "--conditions", "8"], ["--pairs", "2", "--goals", "3"]),
     "default": ([], ["--pairs", "6"]),
     "full": ([], []),
 }
@@ -71,18 +71,18 @@ def demo_steps(out: Path, size: str, jobs: int | None) -> dict[str, list[list[st
             ["preprocess", "--out", str(walking), *j],
             *([cmd, "--out", str(walking)] for cmd in analysis),
             *models,
-            ["report", "walking", "--out", str(walking), "--to", str(out / "reports" / "walking")],
+            ["report", "synthetic-walking", "--out", str(walking), "--to", str(out / "reports" / "walking")],
         ],
         "pairs": [
             ["synth", "pairs", "--out", str(pairs), *size_p, *j],
             ["import", str(pairs / "synth-pairs" / "protocol.yaml"), "--out", str(pairs), *j],
             ["preprocess", "--out", str(pairs), *j],
             *([cmd, "--out", str(pairs)] for cmd in [*analysis, "reconstruct"]),
-            ["report", "pairs", "--out", str(pairs), "--to", str(out / "reports" / "pairs")],
+            ["report", "synthetic-pairs", "--out", str(pairs), "--to", str(out / "reports" / "pairs")],
         ],
         "localisation": [
             ["synth", "localisation", "--out", str(loc)],
-            ["localisation", "--out", str(loc), "--map", "synthetic"],
+            ["localisation", "--out", str(loc), "--map-name", "synthetic"],
         ],
     }
 

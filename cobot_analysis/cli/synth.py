@@ -40,7 +40,7 @@ def walking_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     seed: SeedOpt = 0,
     subjects: Annotated[int, typer.Option("--subjects", min=1, help="Number of subjects.")] = 10,
-    trials: Annotated[int, typer.Option("--trials", min=1, help="Repetitions per start condition.")] = 3,
+    repetitions: Annotated[int, typer.Option("--repetitions", min=1, help="Trials of each subject per start condition.")] = 3,
     conditions: Annotated[str, typer.Option("--conditions", help="Start conditions: all, N (the first N of the design), or codes like E4015,N1500.")] = "all",
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
@@ -58,13 +58,13 @@ def walking_command(
 
     check_seed(seed)
     codes = select(conditions, WALKING_CONDITIONS, "--conditions")
-    params = {"seed": seed, "subjects": subjects, "trials": trials, "conditions": codes, "generator": GENERATOR_VERSION}
+    params = {"seed": seed, "subjects": subjects, "trials": repetitions, "conditions": codes, "generator": GENERATOR_VERSION}
     with Stage(out, walking.STAGE, params=params, force=force) as stage:
         if stage.skipped:
             return
-        walking.generate(stage.dir, seed=seed, n_subjects=subjects, n_trials=trials, conditions=codes,
+        walking.generate(stage.dir, seed=seed, n_subjects=subjects, n_trials=repetitions, conditions=codes,
                          jobs=jobs, scheduler=scheduler)
-    finished(walking.STAGE, f"{subjects * len(codes) * trials} trials", stage.final_dir)
+    finished(walking.STAGE, f"{subjects * len(codes) * repetitions} trials", stage.final_dir)
 
 
 @synth_app.command("pairs")
