@@ -18,7 +18,7 @@ from typing import Annotated, Optional
 import typer
 
 from cobot_analysis.cli.app import (PANEL_ANALYSIS, PANEL_REPORT, DEFAULT_OUT_PATH, ConventionOpt, ForceOpt, OutOpt, app, count,
-                                   finished)
+                                   examples, finished)
 from cobot_analysis.errors import InputError
 
 TRAJ_STAGES = ["preprocess", "import-published"]
@@ -57,7 +57,9 @@ def _study(ts) -> str:
 
 
 # ---- average ------------------------------------------------------------------------------------
-@app.command("average", rich_help_panel=PANEL_ANALYSIS)
+@app.command("average", rich_help_panel=PANEL_ANALYSIS, epilog=examples(
+    "cobot-analysis average --out walking",
+    "cobot-analysis average --out walking --by condition,entity"))
 def average_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     trajectories: TrajOpt = None,
@@ -122,7 +124,12 @@ def average_command(
 
 
 # ---- compare ------------------------------------------------------------------------------------
-@app.command("compare", rich_help_panel=PANEL_ANALYSIS)
+@app.command("compare", rich_help_panel=PANEL_ANALYSIS, epilog=examples(
+    "cobot-analysis compare --out walking",
+    "cobot-analysis compare --out walking --convention published",
+    "cobot-analysis compare --out walking --any-vs-any condition,entity",
+    "cobot-analysis compare --out walking --comparison model \\",
+    "    --against walking/generate/generated.parquet"))
 def compare_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     trajectories: TrajOpt = None,
@@ -213,7 +220,9 @@ def default_config(study: str) -> Path:
     raise InputError(f"no statistics configuration for study {study!r}", path=PIPELINES, remedy="pass --config FILE.toml")
 
 
-@app.command("stats", rich_help_panel=PANEL_ANALYSIS)
+@app.command("stats", rich_help_panel=PANEL_ANALYSIS, epilog=examples(
+    "cobot-analysis stats --out walking",
+    "cobot-analysis stats --out walking --config pipelines/walking-2020.toml"))
 def stats_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     config: Annotated[Optional[Path], typer.Option("--config", help="Declarative analyses (default: pipelines/<study>.toml).")] = None,
@@ -295,7 +304,8 @@ def stats_command(
 
 
 # ---- reconstruct --------------------------------------------------------------------------------
-@app.command("reconstruct", rich_help_panel=PANEL_ANALYSIS)
+@app.command("reconstruct", rich_help_panel=PANEL_ANALYSIS, epilog=examples(
+    "cobot-analysis reconstruct --out pairs"))
 def reconstruct_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     trajectories: TrajOpt = None,
@@ -357,7 +367,9 @@ def reconstruct_command(
 STUDY_DESIGNS = {"walking-2020": "walking", "synthetic-walking": "walking", "pair-carriage-2022": "pairs", "synthetic-pairs": "pairs"}
 
 
-@app.command("report", rich_help_panel=PANEL_REPORT)
+@app.command("report", rich_help_panel=PANEL_REPORT, epilog=examples(
+    "cobot-analysis report synthetic-walking --out walking --to walking-report",
+    "cobot-analysis report synthetic-pairs --out pairs --to pairs-report"))
 def report_command(
     study: Annotated[str, typer.Argument(help=f"The workspace's study: {', '.join(STUDY_DESIGNS)}.")],
     out: OutOpt = DEFAULT_OUT_PATH,

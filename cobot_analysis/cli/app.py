@@ -112,6 +112,11 @@ def count(n: int, noun: str, plural: str | None = None) -> str:
     return f"{n} {noun if n == 1 else plural or noun + 's'}"
 
 
+def examples(*lines: str) -> str:
+    """The ``Examples:`` block of a command's help (``tests/test_cli_examples.py`` runs every line)."""
+    return "Examples:\n\n" + "\n".join(f"  {line}" for line in lines)
+
+
 EXIT_CODES = ("Exit codes: 0 success, 1 internal error, 2 bad usage or bad input, 130 interrupted (Ctrl-C), "
               "143 terminated (SIGTERM). An interrupted stage writes nothing and stops its workers.")
 app = typer.Typer(

@@ -18,6 +18,7 @@ from cobot_analysis.cli.app import (
     SchedulerOpt,
     SeedOpt,
     app,
+    examples,
     finished,
     synth_app,
 )
@@ -47,7 +48,8 @@ def _at_least(value: float | None, option: str, low: float = 0.0, strict: bool =
                          remedy=f"e.g. {option} {example}" if example else None)
 
 
-@app.command("bag-info", rich_help_panel=PANEL_LOCALISATION)
+@app.command("bag-info", rich_help_panel=PANEL_LOCALISATION, epilog=examples(
+    "cobot-analysis bag-info robot/synth-localisation/run.mcap"))
 def bag_info_command(
     bag: Annotated[Path, typer.Argument(help="ROS1 .bag, ROS2 bag directory, or .mcap/.db3 file.")],
 ) -> None:
@@ -93,7 +95,11 @@ def _print_whole(console, table) -> None:
     Console(stderr=True, width=width, highlight=False, force_terminal=console.is_terminal or None).print(table)
 
 
-@synth_app.command("localisation")
+@synth_app.command("localisation", epilog=examples(
+    "cobot-analysis synth localisation --out robot --goals-per-lap 2 \\",
+    "    --formats mcap",
+    "cobot-analysis synth localisation --out robot2 --goals-per-lap 1 \\",
+    "    --delay 0.3"))
 def synth_localisation_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     force: ForceOpt = False,
@@ -133,7 +139,11 @@ def synth_localisation_command(
              stage.final_dir)
 
 
-@app.command("localisation", rich_help_panel=PANEL_LOCALISATION)
+@app.command("localisation", rich_help_panel=PANEL_LOCALISATION, epilog=examples(
+    "cobot-analysis localisation --out robot --map-name synthetic",
+    "cobot-analysis localisation robot/synth-localisation/run.mcap \\",
+    "    --out robot --label run1 --no-figures \\",
+    "    --goals-csv robot/synth-localisation/goals.csv"))
 def localisation_command(
     bags: Annotated[Optional[list[Path]], typer.Argument(help="Bags (ROS1 .bag, ROS2 directory, .mcap); default: the synthetic runs of `synth localisation` in --out.")] = None,
     out: OutOpt = DEFAULT_OUT_PATH,

@@ -9,7 +9,7 @@ from typing import Annotated, Optional
 import typer
 
 from cobot_analysis.cli.app import (PANEL_MODELS, DEFAULT_OUT_PATH, ConventionOpt, ForceOpt, JobsOpt, OutOpt, SchedulerOpt,
-                                   SeedOpt, app, count, finished)
+                                   SeedOpt, app, count, examples, finished)
 
 MODEL_CHOICES = ("unicycle", "clothoid", "mombaur", "improved", "table", "all")
 
@@ -50,7 +50,13 @@ def _generate_task(task):
     return generate(model, start, goal, weights=weights, **kw)
 
 
-@app.command("generate", rich_help_panel=PANEL_MODELS)
+@app.command("generate", rich_help_panel=PANEL_MODELS, epilog=examples(
+    "cobot-analysis generate --out walking --start 2 3 0",
+    "cobot-analysis generate --out walking --start -1.5,-3,0.5 --model unicycle \\",
+    "    --convention continuous",
+    "cobot-analysis generate --out walking --start 2 3 0 \\",
+    "    --weights walking/fit-ioc/weights.json",
+    "cobot-analysis generate --out walking --study walking-2020 --model clothoid"))
 def generate_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     model: Annotated[str, typer.Option("--model", "-m", help=f"Model: {', '.join(MODEL_CHOICES)}.")] = "improved",
@@ -190,7 +196,12 @@ def _read_trajectories(path: Path):
     return read_table(path, MEANS if name == "means" else TRAJECTORIES)
 
 
-@app.command("fit-ioc", rich_help_panel=PANEL_MODELS)
+@app.command("fit-ioc", rich_help_panel=PANEL_MODELS, epilog=examples(
+    "cobot-analysis fit-ioc --out walking --max-evaluations 2 --no-compare",
+    "cobot-analysis fit-ioc --out walking --max-evaluations 2 \\",
+    "    --convention published",
+    "cobot-analysis fit-ioc --out walking --per subject --max-evaluations 2 \\",
+    "    --start-weights walking/fit-ioc/weights.json --no-compare"))
 def fit_ioc_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     means: Annotated[Optional[Path], typer.Option("--means", help="means.parquet (default: OUT/average/, else the kind=mean rows of --trajectories).")] = None,
@@ -482,7 +493,10 @@ def fit_ioc_command(
 
 
 # ---- velocity-commands -------------------------------------------------------------------------
-@app.command("velocity-commands", rich_help_panel=PANEL_MODELS)
+@app.command("velocity-commands", rich_help_panel=PANEL_MODELS, epilog=examples(
+    "cobot-analysis velocity-commands --out walking --trial clothoid_N1500",
+    "cobot-analysis velocity-commands --out walking --trial clothoid_E1515 \\",
+    "    --rate 20 --format parquet"))
 def velocity_commands_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     generated: Annotated[Optional[Path], typer.Option("--generated", help="generated.parquet (default: OUT/generate/).")] = None,

@@ -7,10 +7,12 @@ from typing import Annotated
 
 import typer
 
-from cobot_analysis.cli.app import PANEL_REPORT, DEFAULT_OUT_PATH, OutOpt, app, count, finished
+from cobot_analysis.cli.app import PANEL_REPORT, DEFAULT_OUT_PATH, OutOpt, app, count, examples, finished
 
 
-@app.command("results", rich_help_panel=PANEL_REPORT)
+@app.command("results", rich_help_panel=PANEL_REPORT, epilog=examples(
+    "cobot-analysis results walking robot --to results.md",
+    'cobot-analysis results walking --to walking.md --title "Synthetic walking"'))
 def results_command(
     workspaces: Annotated[list[Path], typer.Argument(help="Workspaces whose stages wrote results.md fragments.")],
     to: Annotated[Path, typer.Option("--to", help="Markdown file to write.")] = Path("docs/results.md"),
@@ -87,7 +89,8 @@ def demo_steps(out: Path, size: str, jobs: int | None) -> dict[str, list[list[st
     }
 
 
-@app.command("demo", rich_help_panel=PANEL_REPORT)
+@app.command("demo", rich_help_panel=PANEL_REPORT, epilog=examples(
+    "cobot-analysis demo --out demo --size small"))
 def demo_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     size: Annotated[str, typer.Option("--size", help="small (a quick look), default (full walking study, 6 of the 20 pairs) or full (both full designs).")] = "default",

@@ -9,7 +9,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from cobot_analysis.cli.app import PANEL_MODELS, DEFAULT_OUT_PATH, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, app, count, finished
+from cobot_analysis.cli.app import PANEL_MODELS, DEFAULT_OUT_PATH, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, app, count, examples, finished
 
 STAGE = "predict"
 WORK = ".predict-work"
@@ -61,7 +61,11 @@ def parse_settings(text: str) -> tuple[tuple[int, int], ...]:
     return tuple(out)
 
 
-@app.command("predict", rich_help_panel=PANEL_MODELS)
+@app.command("predict", rich_help_panel=PANEL_MODELS, epilog=examples(
+    "cobot-analysis predict --out walking --settings 50:100 --every 50",
+    "cobot-analysis predict --out walking --predictors cv,ctrv --kind trial",
+    "cobot-analysis predict --out walking --settings 50:100 --every 50 \\",
+    "    -w walking/fit-ioc/weights.json --stage-name predict-fitted"))
 def predict_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     trajectories: Annotated[Optional[Path], typer.Option("--trajectories", help="trajectories.parquet (default: from preprocess or import-published in OUT).")] = None,

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from cobot_analysis.cli.app import DEFAULT_OUT_PATH, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, SeedOpt, finished, synth_app
+from cobot_analysis.cli.app import DEFAULT_OUT_PATH, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, SeedOpt, examples, finished, synth_app
 from cobot_analysis.errors import InputError
 
 
@@ -35,7 +35,11 @@ def select(spec: str, universe: Sequence, option: str, counts: bool = True) -> l
     return [names[s] for s in dict.fromkeys(chosen)]
 
 
-@synth_app.command("walking")
+@synth_app.command("walking", epilog=examples(
+    "cobot-analysis synth walking --out walking --subjects 2 --repetitions 1 \\",
+    "    --conditions N1500,E1515",
+    "cobot-analysis synth walking --out walking2 --subjects 1 --repetitions 1 \\",
+    "    --conditions 2 --seed 7"))
 def walking_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     seed: SeedOpt = 0,
@@ -67,7 +71,10 @@ def walking_command(
     finished(walking.STAGE, f"{subjects * len(codes) * repetitions} trials", stage.final_dir)
 
 
-@synth_app.command("pairs")
+@synth_app.command("pairs", epilog=examples(
+    "cobot-analysis synth pairs --out pairs --pairs 1 --goals 1 --scenarios 3",
+    "cobot-analysis synth pairs --out pairs2 --pairs 1 --goals d3_p7_gris \\",
+    "    --scenarios 1,3"))
 def pairs_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     seed: SeedOpt = 0,
