@@ -109,7 +109,10 @@ def generate_command(
     if weights and Path(weights).is_file():
         inputs.append(Path(weights))
     oc_models = [m for m in models if m != "clothoid"]
-    conv = conventions.get(convention or (weights_convention(weights) if oc_models else None) or "continuous")
+    default = weights_convention(weights) if oc_models else None
+    if default and convention is None and any(m not in conventions.get(default).oc for m in oc_models):
+        default = None  # the weights' convention has no rule for a model asked for (unicycle): ours
+    conv = conventions.get(convention or default or "continuous")
     for m in oc_models:
         conv.oc_rule(m)
     if conv.name == "published" and duration is not None:
@@ -243,7 +246,7 @@ def fit_ioc_command(
     from cobot_analysis.errors import InputError
     from cobot_analysis.models.ioc import IOCSpec, fit, pair_targets_from_table, targets_from_table
     from cobot_analysis.models.outputs import IOC_DISTANCES
-    from cobot_analysis.models.presets import load_weights, names_for, weights_vector
+    from cobot_analysis.models.presets import DEFAULT_PRESET, load_weights, names_for, weights_vector
     from cobot_analysis.models.report import (compare_models, compared_models, duration_flag, weight_limit_flag, figure_boxplots, figure_paths,
                                               statistics, subject_distances, summary_table)
     from cobot_analysis.parallel import default_jobs, executor
@@ -447,8 +450,11 @@ def fit_ioc_command(
                  "",
                  "| fit | paths | D start | D fitted | evaluations | not converged | " + " | ".join(names) + " |",
                  "|---|---|---|---|---|---|" + "---|" * len(names)]
+        start_label = start_weights or DEFAULT_PRESET[model]
         for k, r in results.items():
-            lines.append(f"| {k} | {len(fits[k])} | {r.start_objective:.4f} | {r.objective:.4f} | {r.evaluations} | {r.failed} | "
+            lines.append(f"| {k}: start weights ({start_label}) | {len(fits[k])} | {r.start_objective:.4f} |  |  |  | "
+                         + " | ".join(f"{w0[all_names.index(n)]:.3g}" for n in names) + " |")
+            lines.append(f"| {k}: fitted | {len(fits[k])} | {r.start_objective:.4f} | {r.objective:.4f} | {r.evaluations} | {r.failed} | "
                          + " | ".join(f"{r.weights[n]:.3g}" for n in names) + " |")
         lines.append("")
         for k, r in results.items():
