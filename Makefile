@@ -65,13 +65,13 @@ walking:
 	$(CLI) fit-ioc --out $(WALK) --convention published --jobs $(JOBS) $(PUBLISHED_IOC_ARGS)
 	$(CLI) generate --out $(WALK) --study walking-2020 --weights $(WALK)/fit-ioc/weights.json --jobs $(JOBS)
 	$(CLI) generate --out $(WALK) --study walking-2020 --convention published --jobs $(JOBS)
-	$(CLI) compare --out $(WALK) --against $(WALK)/generate/generated.parquet --label model
-	$(CLI) compare --out $(WALK) --against $(WALK)/generate-published/generated.parquet --label model --convention published
+	$(CLI) compare --out $(WALK) --against $(WALK)/generate/generated.parquet --comparison model
+	$(CLI) compare --out $(WALK) --against $(WALK)/generate-published/generated.parquet --comparison model --convention published
 	$(CLI) stats --out $(WALK)
 	$(CLI) predict --out $(WALK) --kind trial --convention continuous --jobs $(JOBS) $(PREDICT_ARGS)
 	$(CLI) predict --out $(WALK) --kind trial --convention published --jobs $(JOBS) $(PUBLISHED_PREDICT_ARGS)
 	$(CLI) predict --out $(WALK) --kind trial --weights $(WALK)/fit-ioc/weights.json --stage-name predict-fitted --jobs $(JOBS) $(PREDICT_FITTED_ARGS)
-	$(CLI) report walking --out $(WALK) --to reports/walking
+	$(CLI) report walking-2020 --out $(WALK) --to reports/walking
 
 # per-subject IOC (after walking): one fit per subject over its trials, started from the fit over the means
 walking-subjects:
@@ -91,7 +91,7 @@ pairs-published:
 	$(CLI) fit-ioc --out $(PAIRS) --model coupled --jobs $(JOBS) $(COUPLED_IOC_ARGS)
 	$(CLI) predict --out $(PAIRS) --entity table --convention continuous --jobs $(JOBS) $(PREDICT_ARGS)
 	$(CLI) predict --out $(PAIRS) --entity table --convention published --jobs $(JOBS) $(PUBLISHED_PREDICT_ARGS)
-	$(CLI) report pairs --out $(PAIRS) --to reports/pairs
+	$(CLI) report pair-carriage-2022 --out $(PAIRS) --to reports/pairs
 
 pairs-synthetic:
 	$(CLI) synth pairs --out $(SPAIRS) --jobs $(JOBS)
@@ -102,11 +102,11 @@ pairs-synthetic:
 	$(CLI) stats --out $(SPAIRS)
 	$(CLI) reconstruct --out $(SPAIRS)
 	$(CLI) predict --out $(SPAIRS) --entity table --kind trial --convention continuous --jobs $(JOBS) $(SPREDICT_ARGS)
-	$(CLI) report pairs --out $(SPAIRS) --to reports/synthetic-pairs
+	$(CLI) report synthetic-pairs --out $(SPAIRS) --to reports/synthetic-pairs
 
 localisation:
 	$(CLI) synth localisation --out $(LOC)
-	$(CLI) localisation --out $(LOC) --map $(MAP) $(BAGS) $(LOC_ARGS)
+	$(CLI) localisation --out $(LOC) --map-name $(MAP) $(BAGS) $(LOC_ARGS)
 
 results:
 	$(CLI) results $(wildcard $(WALK) $(PAIRS) $(SPAIRS) $(LOC)) --to docs/results.md \

@@ -50,7 +50,7 @@ def bench_pipeline(workspace: Path | None) -> list[tuple[str, float, float]]:
         _fallback_table(ws / "preprocess" / "trajectories.parquet")
     times = []
     try:
-        for args in (["average"], ["compare"], ["stats"], ["reconstruct"], ["report", "pairs", "--to", str(tmp / "report")]):
+        for args in (["average"], ["compare"], ["stats"], ["reconstruct"], ["report", "synthetic-pairs", "--to", str(tmp / "report")]):
             t0, c0 = time.perf_counter(), time.process_time()
             code = run(["-q", *args, "--out", str(ws)])
             times.append((args[0], time.perf_counter() - t0, time.process_time() - c0))

@@ -36,7 +36,7 @@ def verbosity() -> int:
 
 def info(message: str) -> None:
     if _level >= 1:
-        console.print(message)
+        console.print(message, soft_wrap=True)  # a message is one line, whatever the terminal's width
 
 
 def debug(message: str) -> None:

@@ -69,13 +69,15 @@ def _manifest_line(stage_dir: Path) -> str:
 
 
 def run_steps(steps: list[list[str]]) -> None:
-    """Run CLI steps in-process; stop at the first failing one with its exit code."""
+    """Run CLI steps in-process, at the verbosity of this run (-q, -v); stop at the first failing one
+    with its exit code."""
     from cobot_analysis.cli import run
-    from cobot_analysis.console import info
+    from cobot_analysis.console import info, verbosity
 
+    level = {0: ["-q"], 2: ["-v"]}.get(verbosity(), [])
     for argv in steps:
         info(f"[bold]$ cobot-analysis {' '.join(argv)}[/bold]")
-        code = run(argv)
+        code = run([*level, *argv])
         if code != 0:
             raise SystemExit(code)
 

@@ -205,7 +205,7 @@ class Stage:
         self._inputs = describe_inputs(self.input_paths)
         if not self.force and self._up_to_date():
             self.skipped = True
-            info(f"[green]{self.name}[/green]: up to date, skipped (use --force to redo): {self.final_dir}")
+            info(f"[green]{self.name}[/green]: up to date, skipped (--force redoes it) -> {self.final_dir}")
             return self
         with deferred():
             try:

@@ -55,7 +55,7 @@ def _synthetic(which: str):
 def _localisation(root: Path, datasets: Path | None, j: list[str]) -> tuple[list[Path], Steps]:
     ws = root / "localisation"
     return [ws], [["synth", "localisation", "--out", str(ws), "--goals-per-lap", "3"],
-                  ["localisation", "--out", str(ws), "--map", "synthetic", *j]]
+                  ["localisation", "--out", str(ws), "--map-name", "synthetic", *j]]
 
 
 def _walking(root: Path, datasets: Path | None, j: list[str]) -> tuple[list[Path], Steps]:
@@ -73,7 +73,7 @@ def _walking(root: Path, datasets: Path | None, j: list[str]) -> tuple[list[Path
                       ["generate", "--out", str(m), "--study", "walking-2020", "--weights", "walking-2021", "--means", tables[3],
                        *options, *j],
                       ["compare", "--out", str(m), *tables, "--against", str(m / "generate-published" / "generated.parquet"),
-                       "--label", "model", *options]]
+                       "--comparison", "model", *options]]
         else:
             steps += [["fit-ioc", "--out", str(m), *tables, "--max-evaluations", "20", *options, *j],
                       ["generate", "--out", str(m), "--study", "walking-2020", "--weights", str(m / "fit-ioc" / "weights.json"),

@@ -31,7 +31,7 @@ def pair_ws(tmp_path_factory):
     from cobot_analysis.cli import run
 
     ws = _workspace(tmp_path_factory.mktemp("pairs"), pair_table(seed=7, n_pairs=5, goals=4, n=20))
-    for args in (["average"], ["compare"], ["stats"], ["reconstruct"], ["report", "pairs", "--to", str(ws.parent / "report")]):
+    for args in (["average"], ["compare"], ["stats"], ["reconstruct"], ["report", "synthetic-pairs", "--to", str(ws.parent / "report")]):
         assert run(["-q", *args, "--out", str(ws)]) == 0, args
     return ws
 
@@ -75,6 +75,18 @@ def test_second_run_is_skipped_and_force_redoes(pair_ws, cli):
     assert code == 0 and "up to date" in err
 
 
+def test_report_takes_the_study_name_and_the_old_short_one_with_a_warning(pair_ws, cli):
+    to = pair_ws.parent / "report-old"
+    code, _, err = cli("report", "pairs", "--out", pair_ws, "--to", to)
+    assert code == 0, err
+    lines = err.strip().splitlines()
+    assert lines[0] == "warning: pairs is deprecated in `report`: use pair-carriage-2022"
+    assert sum("warning" in line for line in lines) == 1
+    figures = sorted(p.name for p in to.glob("*.png"))
+    assert figures == sorted(p.name for p in (pair_ws.parent / "report").glob("*.png")) and len(figures) > 5
+    assert lines[-1] == f"report (pair-carriage-2022): {len(figures)} figures -> {to / 'README.md'}"
+
+
 def test_compare_against_another_table_and_walking_questions(tmp_path, cli):
     ws = _workspace(tmp_path, walking_table(seed=2, n_subjects=5, n_conditions=8, n_trials=3, subject_effect=0.1))
     for args in (["average"], ["compare"], ["stats"]):
@@ -89,7 +101,7 @@ def test_compare_against_another_table_and_walking_questions(tmp_path, cli):
     shift = 0.05 + 0.01 * means.groupby("trial", sort=True).ngroup()
     model = means.assign(x=means["x"] + shift, kind="model", trial="model:" + means["trial"])
     model.to_parquet(tmp_path / "model.parquet")
-    code, _, err = cli("compare", "--out", ws, "--against", tmp_path / "model.parquet", "--label", "model",
+    code, _, err = cli("compare", "--out", ws, "--against", tmp_path / "model.parquet", "--comparison", "model",
                        "--any-vs-any", "condition,entity")
     assert code == 0, err
     d = pd.read_parquet(ws / "compare" / "distances.parquet")
@@ -145,6 +157,7 @@ def test_bad_options_and_config(tmp_path, cli):
     assert code == 2 and "no table trajectories" in err and _no_stage(ws, "reconstruct")
     code, _, err = cli("report", "lizards", "--out", ws)
     assert code == 2 and "unknown study 'lizards'" in err
+    assert "use one of walking-2020, synthetic-walking, pair-carriage-2022, synthetic-pairs" in err
     (tmp_path / "nope.parquet").write_text("x")
     code, _, err = cli("compare", "--out", ws, "--force", "--against", tmp_path / "nope.parquet")
     assert code == 2 and "nope.parquet: not a readable trajectory table" in err

@@ -51,7 +51,7 @@ def _model(ws, tmp_path, **changes) -> Path:
 def test_against_table_matching_no_mean_is_refused(ws, tmp_path, cli):
     before = (ws / "compare" / "manifest.json").read_text()
     path = _model(ws, tmp_path, study=lambda m: "walking-2020")
-    code, _, err = cli("compare", "--out", ws, "--against", path, "--label", "model")
+    code, _, err = cli("compare", "--out", ws, "--against", path, "--comparison", "model")
     assert code == 2 and _line(err) == (f"error: {path}: none of its 4 trajectories matches a mean on study, condition, "
                                         "entity: study walking-2020 (means: synthetic-walking); compare with the means of the "
                                         "same study and grouping (--by, --means), or fix those columns")
@@ -64,7 +64,7 @@ def test_against_table_matching_some_means_is_warned(ws, tmp_path, cli):
     ws = shutil.copytree(ws, tmp_path / "ws")  # the module's workspace stays as it was
     first = sorted(pd.read_parquet(ws / "average" / "means.parquet")["condition"].unique())[:2]
     path = _model(ws, tmp_path, condition=lambda m: m["condition"].where(~m["condition"].isin(first), "X9999"))
-    code, _, err = cli("compare", "--out", ws, "--against", path, "--label", "model", "--force")
+    code, _, err = cli("compare", "--out", ws, "--against", path, "--comparison", "model", "--force")
     assert code == 0, err
     assert (f"{path}: 2 of its 4 trajectories match no mean on study, condition, entity and are not compared: condition "
             "X9999 (means:") in " ".join(err.split())

@@ -27,7 +27,7 @@ def imported(tmp_path_factory):
     from cobot_analysis.cli import run
 
     ws = tmp_path_factory.mktemp("study")
-    assert run(["-q", "synth", "walking", "--out", str(ws), "--subjects", "3", "--trials", "2", "--conditions", "10"]) == 0
+    assert run(["-q", "synth", "walking", "--out", str(ws), "--subjects", "3", "--repetitions", "2", "--conditions", "10"]) == 0
     assert run(["-q", "import", str(ws / "synth-walking" / "protocol.yaml"), "--out", str(ws), "--jobs", "1"]) == 0
     return ws / "import"
 

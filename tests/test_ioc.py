@@ -98,6 +98,10 @@ def test_fit_ioc_command_end_to_end_and_per_subject(planted_paths, tmp_path, cli
     assert code == 0, err
     w = json.loads((out / "fit-ioc" / "weights.json").read_text())
     assert set(w["weights"]) == set(PRESETS["walking-2021"]) and w["fits"]["all"]["evaluations"] <= 12 + 2
+    fit = w["fits"]["all"]
+    # the summary line: the fit over the 2 means
+    assert err.strip().splitlines()[-1] == (f"fit-ioc (continuous): 2 paths, D {fit['objective']:.3f} fitted "
+                                            f"({fit['start_objective']:.3f} at the start weights) -> {out / 'fit-ioc'}")
     dist = read_table(out / "fit-ioc" / "distances.parquet", __import__("cobot_analysis.models.outputs", fromlist=["x"]).IOC_DISTANCES)
     assert {"unicycle", "clothoid", "Mombaur OC", "improved OC (published)", "improved OC (fitted)", "subjects vs mean"} <= set(dist.model)
     fitted = dist[dist.model == "improved OC (fitted)"]
@@ -116,6 +120,8 @@ def test_fit_ioc_command_end_to_end_and_per_subject(planted_paths, tmp_path, cli
     assert code == 0, err
     fits = json.loads((out / "fit-ioc-subjects" / "weights.json").read_text())["fits"]
     assert sorted(fits) == ["S1", "S2"]
+    mean_d = (fits["S1"]["objective"] + fits["S2"]["objective"]) / 2
+    assert err.strip().splitlines()[-1].startswith(f"fit-ioc (continuous, per subject): 2 fits, 4 paths, mean D {mean_d:.3f} fitted")
     assert json.loads((out / "fit-ioc" / "weights.json").read_text())["fits"].keys() == {"all"}
     assert "## Inverse optimal control (improved model, one fit per subject, continuous convention)" in (out / "fit-ioc-subjects" / "results.md").read_text()
 

@@ -22,7 +22,7 @@ def ws(tmp_path_factory):
     """One full synthetic run (6 goals, about 10 m) in three formats, analysed once without figures."""
     out = tmp_path_factory.mktemp("loc")
     assert cli_run(["-q", "synth", "localisation", "--out", str(out)]) == 0
-    assert cli_run(["-q", "localisation", "--out", str(out), "--no-figures", "--map", "synthetic"]) == 0
+    assert cli_run(["-q", "localisation", "--out", str(out), "--no-figures", "--map-name", "synthetic"]) == 0
     return out
 
 
@@ -111,7 +111,7 @@ def test_other_streams_tf_chain_record_time_and_alignments(ws, cli, truth):
     bag = ws / "synth-localisation" / "run_ros2"
     out = ws / "variants"
     code, _, err = cli("-q", "localisation", bag, "--out", out, "--no-figures", "--icp", "tf:map->base_link", "--alignment", "yaw",
-                       "--goals", ws / "synth-localisation" / "goals.csv")
+                       "--goals-csv", ws / "synth-localisation" / "goals.csv")
     assert code == 0, err
     r = read_table(out / "localisation" / "localisation.parquet", RUNS).iloc[0]
     assert r["alignment"] == "yaw" and abs(r["delay"] - truth["delay"]) < 0.005 and r["goals_found"] == 6

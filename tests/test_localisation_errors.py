@@ -127,5 +127,5 @@ def test_bad_options(cli, tmp_path, short):
     _fails(cli, tmp_path / "ws", d / "short.bag", "--label", "a", "--label", "b", match=["2 --label for 1 bags"])
     goals = tmp_path / "goals.csv"
     goals.write_text("x,y\n1,2\n")
-    _fails(cli, tmp_path / "ws", d / "short.bag", "--goals", goals, match=["goals.csv", "lacks columns ['yaw']"])
+    _fails(cli, tmp_path / "ws", d / "short.bag", "--goals-csv", goals, match=["goals.csv", "lacks columns ['yaw']"])
     _fails(cli, tmp_path / "ws", match=["no bag given and no synthetic runs"])

@@ -36,7 +36,7 @@ def workspaces(tmp_path_factory) -> dict[str, Path]:
     """Two synthetic workspaces (walking, pairs) taken through import .. stats by the CLI."""
     root = tmp_path_factory.mktemp("interop")
     walking, pairs = root / "walking", root / "pairs"
-    _run("synth", "walking", "--out", walking, "--subjects", "2", "--trials", "1", "--conditions", "3")
+    _run("synth", "walking", "--out", walking, "--subjects", "2", "--repetitions", "1", "--conditions", "3")
     _run("synth", "pairs", "--out", pairs, "--pairs", "1", "--goals", "2")
     for ws, study in ((walking, "synth-walking"), (pairs, "synth-pairs")):
         _run("import", ws / study / "protocol.yaml", "--out", ws)

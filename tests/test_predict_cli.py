@@ -137,9 +137,48 @@ def test_bad_trajectories_exit_2_without_output(cli, tmp_path, traj_file):
     bad.write_bytes(b"PAR1 truncated")
     code, _, err = cli("predict", "--out", out, "--trajectories", bad, "--settings", "8:20")
     assert code == 2 and "bad.parquet: not a readable Parquet file" in err
-    code, _, err = cli("predict", "--out", out, "--trajectories", traj_file(), "--study", "nope", "--settings", "8:20")
+    code, _, err = cli("predict", "--out", out, "--trajectories", traj_file(), "--only-study", "nope", "--settings", "8:20")
     assert code == 2 and "empty selection" in err
     assert not out.exists() or not any(out.iterdir())
+
+
+
+def test_prediction_figures_are_reviewable(tmp_path):
+    """The three figures of the stage as a reviewer checks them (``check_figure``: axis labels with
+    units, every series of an axes named by a legend), and what each legend names."""
+    from cobot_analysis.cli.predict import figures
+    from cobot_analysis.reports.figures import check_figure
+
+    config = SweepConfig(settings=((8, 20),), predictors=("oc", "cv", "ctrv"))
+    trajs = trajectories_from_table(trajectories_table(), config)
+    metrics, _, _ = run_sweep(trajs, config, WorkDir(tmp_path), jobs=1)
+    figs = figures(metrics, trajs[0], config)
+    try:
+        assert list(figs) == ["prediction_overlay", "prediction_at_k", "prediction_error_vs_distance"]
+        for stem, fig in figs.items():
+            assert check_figure(fig) == [], stem
+        overlay = figs["prediction_overlay"]
+        assert [[t.get_text() for t in ax.get_legend().get_texts()] for ax in overlay.axes] == [
+            ["recorded", f"{p}: prediction from each k"] for p in config.predictors]
+        assert [ax.get_title() for ax in overlay.axes] == [f"{p}: all {N - 8 + 1} predictions" for p in config.predictors]
+        at_k = figs["prediction_at_k"]
+        assert [t.get_text() for t in at_k.legends[0].get_texts()] == [
+            "recorded path", "measured past (N0 samples)", "recorded future (N_OC - N0 samples)",
+            "oc prediction", "cv prediction", "ctrv prediction"]
+        past = next(line for line in at_k.axes[0].lines if line.get_label() == "measured past (N0 samples)")
+        assert len(past.get_xdata()) == 8 and {ax.get_xlabel() for ax in at_k.axes} == {"x (m)"}
+        error = figs["prediction_error_vs_distance"]
+        assert [t.get_text() for t in error.legends[0].get_texts()] == sorted(c[0] for c in CONDITIONS)  # E N O S
+        assert [ax.get_xlabel() for ax in error.axes] == ["global distance (m)"] * 3
+        oc = error.axes[0]
+        means = {line.get_label(): line.get_ydata()[0] for line in oc.lines}  # one condition per orientation
+        expected = metrics[metrics["predictor"] == "oc"].set_index("condition")["delta_xy"]
+        assert means == pytest.approx({c[0]: expected[c] for c in CONDITIONS})
+    finally:
+        import matplotlib.pyplot as plt
+
+        for fig in figs.values():
+            plt.close(fig)
 
 
 # ---- the sweep --------------------------------------------------------------------------------

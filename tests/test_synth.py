@@ -298,7 +298,7 @@ def test_rigid_pelvis_barycentre_is_the_com_and_normal_is_theta():
 # ---- CLI -------------------------------------------------------------------------------------
 def test_cli_synth_walking_small_study_and_skip(cli, tmp_path):
     out = tmp_path / "ws"
-    args = ("synth", "walking", "--out", out, "--subjects", "2", "--conditions", "E4015,N1500", "--trials", "1",
+    args = ("synth", "walking", "--out", out, "--subjects", "2", "--conditions", "E4015,N1500", "--repetitions", "1",
             "--jobs", "1", "--seed", "3")
     code, _, err = cli(*args)
     assert code == 0, err
@@ -312,7 +312,7 @@ def test_cli_synth_walking_small_study_and_skip(cli, tmp_path):
 
 @pytest.mark.parametrize("args, message", [
     (("--subjects", "0"), "--subjects"),
-    (("--trials", "0"), "--trials"),
+    (("--repetitions", "0"), "--repetitions"),
     (("--conditions", "X1500"), "unknown value"),
     (("--conditions", "41"), "between 1 and 40"),
     (("--seed", "-1"), "seeds must be >= 0"),

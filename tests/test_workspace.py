@@ -16,7 +16,7 @@ def study(tmp_path_factory):
     from cobot_analysis.cli import run
 
     ws = tmp_path_factory.mktemp("study")
-    assert run(["-q", "synth", "walking", "--out", str(ws), "--subjects", "1", "--trials", "1", "--conditions", "2"]) == 0
+    assert run(["-q", "synth", "walking", "--out", str(ws), "--subjects", "1", "--repetitions", "1", "--conditions", "2"]) == 0
     assert run(["-q", "import", str(ws / "synth-walking" / "protocol.yaml"), "--out", str(ws), "--jobs", "1"]) == 0
     return ws
 

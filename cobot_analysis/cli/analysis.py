@@ -6,7 +6,7 @@ Typical sequence (published walking data imported into WS):
     cobot-analysis compare --out WS
     cobot-analysis stats --out WS                 # pipelines/<study>.toml
     cobot-analysis reconstruct --out WS --wrt-table DATASETS/pair-carriage-2022   (pair study)
-    cobot-analysis report walking --out WS --to reports/walking
+    cobot-analysis report walking-2020 --out WS --to reports/walking
 """
 
 from __future__ import annotations
@@ -17,7 +17,8 @@ from typing import Annotated, Optional
 
 import typer
 
-from cobot_analysis.cli.app import PANEL_ANALYSIS, PANEL_REPORT, DEFAULT_OUT_PATH, ConventionOpt, ForceOpt, OutOpt, app
+from cobot_analysis.cli.app import (PANEL_ANALYSIS, PANEL_REPORT, DEFAULT_OUT_PATH, ConventionOpt, ForceOpt, OutOpt, app, count,
+                                   examples, finished)
 from cobot_analysis.errors import InputError
 
 TRAJ_STAGES = ["preprocess", "import-published"]
@@ -56,7 +57,9 @@ def _study(ts) -> str:
 
 
 # ---- average ------------------------------------------------------------------------------------
-@app.command("average", rich_help_panel=PANEL_ANALYSIS)
+@app.command("average", rich_help_panel=PANEL_ANALYSIS, epilog=examples(
+    "cobot-analysis average --out walking",
+    "cobot-analysis average --out walking --by condition,entity"))
 def average_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     trajectories: TrajOpt = None,
@@ -74,7 +77,7 @@ def average_command(
 
     from cobot_analysis.averaging import MEANS, check_groups, mean_trajectories
     from cobot_analysis.compare import default_groups
-    from cobot_analysis.console import info, warn
+    from cobot_analysis.console import warn
     from cobot_analysis.schema import TRAJECTORIES, read_table, write_table
     from cobot_analysis.workspace import Stage
 
@@ -117,17 +120,22 @@ def average_command(
                              "recording: travel time and path cover only the recorded part).")
         lines.append("")
         stage.path("results.md").write_text("\n".join(lines))
-        info(f"average: {n_means} means -> {stage.final_dir / 'means.parquet'}")
+    finished("average", f"{n_means} means", stage.final_dir / "means.parquet")
 
 
 # ---- compare ------------------------------------------------------------------------------------
-@app.command("compare", rich_help_panel=PANEL_ANALYSIS)
+@app.command("compare", rich_help_panel=PANEL_ANALYSIS, epilog=examples(
+    "cobot-analysis compare --out walking",
+    "cobot-analysis compare --out walking --convention published",
+    "cobot-analysis compare --out walking --any-vs-any condition,entity",
+    "cobot-analysis compare --out walking --comparison model \\",
+    "    --against walking/generate/generated.parquet"))
 def compare_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     trajectories: TrajOpt = None,
     means: Annotated[Optional[Path], typer.Option("--means", help="means.parquet (default: WS/average/means.parquet).")] = None,
     against: Annotated[Optional[Path], typer.Option("--against", help="Another trajectory table (e.g. model-generated paths) to compare with the means of the same group.")] = None,
-    label: Annotated[str, typer.Option("--label", help="comparison name of the --against rows (e.g. model).")] = "against",
+    comparison: Annotated[str, typer.Option("--comparison", help="Name of the --against rows in the comparison column (e.g. model).")] = "against",
     any_any: Annotated[Optional[str], typer.Option("--any-vs-any", help="Also compare every two trials that agree on these comma-separated columns (e.g. condition,entity) -> comparison any-any.")] = None,
     by: ByOpt = None,
     convention: ConventionOpt = None,
@@ -145,7 +153,6 @@ def compare_command(
     from cobot_analysis import conventions
     from cobot_analysis.compare import (DISTANCES, WALKING_GROUPS, against_set, against_vs_mean, any_vs_any, compare_sets,
                                         default_groups, read_trajectory_set)
-    from cobot_analysis.console import info
     from cobot_analysis.schema import table_metadata, write_table
     from cobot_analysis.workspace import Stage, find_input
 
@@ -158,7 +165,7 @@ def compare_command(
     other = against_set(against, mts.n_samples, conv) if against is not None else None
     same = _by(any_any, list(ts.meta.columns), path)
     inputs = [path, means_path] + ([against] if against else [])
-    params = {"by": groups, "label": label, "any_vs_any": same, "convention": conv.name}
+    params = {"by": groups, "label": comparison, "any_vs_any": same, "convention": conv.name}
     with Stage(out, conventions.stage_name("compare", conv), inputs=inputs, params=params, force=force) as stage:
         if stage.skipped:
             return
@@ -174,7 +181,7 @@ def compare_command(
         if same:
             parts.append(any_vs_any(trials, same=["study", *same]))
         if other is not None:
-            parts.append(against_vs_mean(other, mts, groups, label, against))
+            parts.append(against_vs_mean(other, mts, groups, comparison, against))
         d = pd.concat([p for p in parts if len(p)] or parts[:1], ignore_index=True)
         d["convention"] = conv.name
         write_table(d, stage.path("distances.parquet"), DISTANCES, grouping=groups, convention=conv.name)
@@ -195,7 +202,7 @@ def compare_command(
                    for k in ("d_xy", "d_theta", "d_gamma")]
             lines.append(f"| {comp} | {ent} | {int(r[('d_xy', 'count')])} | " + " | ".join(fmt) + " |")
         stage.path("results.md").write_text("\n".join(lines) + "\n")
-        info(f"compare ({conv.name}): {len(d)} compared pairs -> {stage.final_dir / 'distances.parquet'}")
+    finished(f"compare ({conv.name})", f"{len(d)} compared pairs", stage.final_dir / "distances.parquet")
 
 
 # ---- stats --------------------------------------------------------------------------------------
@@ -213,7 +220,9 @@ def default_config(study: str) -> Path:
     raise InputError(f"no statistics configuration for study {study!r}", path=PIPELINES, remedy="pass --config FILE.toml")
 
 
-@app.command("stats", rich_help_panel=PANEL_ANALYSIS)
+@app.command("stats", rich_help_panel=PANEL_ANALYSIS, epilog=examples(
+    "cobot-analysis stats --out walking",
+    "cobot-analysis stats --out walking --config pipelines/walking-2020.toml"))
 def stats_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     config: Annotated[Optional[Path], typer.Option("--config", help="Declarative analyses (default: pipelines/<study>.toml).")] = None,
@@ -225,7 +234,7 @@ def stats_command(
 ) -> None:
     """Every statistical question of the study's configuration (tests, effect sizes, Holm) -> stats/stats.parquet and stats.md."""
     from cobot_analysis.compare import DISTANCES
-    from cobot_analysis.console import info, track, warn
+    from cobot_analysis.console import track, warn
     from cobot_analysis.schema import read_table, write_table
     from cobot_analysis.stats import analyses
     from cobot_analysis.stats import config as cfg
@@ -291,11 +300,12 @@ def stats_command(
             "elimination above (the row says which).",
         ]
         stage.path("results.md").write_text(md + "\n" + note + "\n\n" + "\n".join(choices) + "\n")
-        info(f"stats: {note} -> {stage.final_dir / 'stats.parquet'}")
+    finished("stats", note, stage.final_dir / "stats.parquet")
 
 
 # ---- reconstruct --------------------------------------------------------------------------------
-@app.command("reconstruct", rich_help_panel=PANEL_ANALYSIS)
+@app.command("reconstruct", rich_help_panel=PANEL_ANALYSIS, epilog=examples(
+    "cobot-analysis reconstruct --out pairs"))
 def reconstruct_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     trajectories: TrajOpt = None,
@@ -306,7 +316,7 @@ def reconstruct_command(
     """Subjects reconstructed from the table trajectory (docs/methods.md sec. 8), d_xy / d_theta vs measured -> reconstruct/reconstruction.parquet."""
     import pandas as pd
 
-    from cobot_analysis.console import info, track
+    from cobot_analysis.console import track
     from cobot_analysis.reconstruct import RECONSTRUCTION, accuracy, read_wrt_table, relative_pose, relative_pose_table
     from cobot_analysis.schema import write_table
     from cobot_analysis.workspace import Stage
@@ -349,35 +359,42 @@ def reconstruct_command(
             lines.append(f"| {src} | {kind} | {direction} | {ent} | {int(r[('d_xy', 'count')])} | "
                          f"{r[('d_xy', 'mean')]:.3f} +- {r[('d_xy', 'std')]:.3f} | {r[('d_theta', 'mean')]:.3f} +- {r[('d_theta', 'std')]:.3f} |")
         stage.path("results.md").write_text("\n".join(lines) + "\n")
-        info(f"reconstruct: {len(rec)} reconstructions -> {stage.final_dir / 'reconstruction.parquet'}")
+    finished("reconstruct", f"{len(rec)} reconstructions", stage.final_dir / "reconstruction.parquet")
 
 
 # ---- report -------------------------------------------------------------------------------------
-@app.command("report", rich_help_panel=PANEL_REPORT)
+#: Study names (the 'study' column of the data) -> the design their report follows.
+STUDY_DESIGNS = {"walking-2020": "walking", "synthetic-walking": "walking", "pair-carriage-2022": "pairs", "synthetic-pairs": "pairs"}
+
+
+@app.command("report", rich_help_panel=PANEL_REPORT, epilog=examples(
+    "cobot-analysis report synthetic-walking --out walking --to walking-report",
+    "cobot-analysis report synthetic-pairs --out pairs --to pairs-report"))
 def report_command(
-    study: Annotated[str, typer.Argument(help="walking or pairs")],
+    study: Annotated[str, typer.Argument(help=f"The workspace's study: {', '.join(STUDY_DESIGNS)}.")],
     out: OutOpt = DEFAULT_OUT_PATH,
     to: Annotated[Optional[Path], typer.Option("--to", help="Report directory (default: reports/STUDY).")] = None,
     force: ForceOpt = False,
 ) -> None:
     """Markdown report with tables and figures (PNG + PDF) of a study's workspace -> --to (and report/ in the workspace)."""
-    from cobot_analysis.console import info
     from cobot_analysis.reports.builders import build_report, report_inputs
     from cobot_analysis.workspace import Stage
 
-    if study not in ("walking", "pairs"):
-        raise InputError(f"unknown study {study!r}", remedy="use walking or pairs")
+    if study not in STUDY_DESIGNS:
+        raise InputError(f"unknown study {study!r}", remedy=f"use one of {', '.join(STUDY_DESIGNS)}")
+    design = STUDY_DESIGNS[study]
     inputs = report_inputs(out)
     if not inputs:
         raise InputError("nothing to report in this workspace", path=out, remedy="run average, compare and stats first")
     to = to or Path("reports") / study
-    with Stage(out, "report", inputs=list(inputs.values()), params={"study": study}, force=force) as stage:
+    with Stage(out, "report", inputs=list(inputs.values()), params={"study": design}, force=force) as stage:
         if not stage.skipped:
-            build_report(study, inputs, stage, out)
+            build_report(design, inputs, stage, out)
     tmp = to.with_name(f".{to.name}.tmp")
     shutil.rmtree(tmp, ignore_errors=True)
     shutil.copytree(stage.final_dir, tmp, ignore=shutil.ignore_patterns("manifest.json"))
     if to.exists():
         shutil.rmtree(to)
     tmp.rename(to)
-    info(f"report: {to / 'README.md'}")
+    figures = len(list(to.glob("*.png")))
+    finished(f"report ({study})", count(figures, "figure"), to / "README.md")

@@ -10,15 +10,118 @@ from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
+from typer.core import TyperGroup
 
 from cobot_analysis import __version__
-from cobot_analysis.console import set_verbosity
+from cobot_analysis.console import console, set_verbosity, verbosity, warn
 from cobot_analysis.workspace import DEFAULT_OUT
+
+#: Options of the whole program, accepted anywhere on the command line (moved before the command).
+GLOBAL_OPTIONS = ("-v", "--verbose", "-q", "--quiet", "--version")
+
+#: Old spellings kept as deprecated aliases, per command: {old: new}, for option names ("--label")
+#: and for values of the command's arguments ("walking", a study of `report`). They are rewritten
+#: before parsing (so --help never shows them) and each use prints one warning naming the new spelling.
+DEPRECATED = {
+    ("compare",): {"--label": "--comparison"},
+    ("fit-ioc",): {"-w": "--start-weights"},
+    ("predict",): {"--study": "--only-study", "--nominal-speed": "--v-nominal"},
+    ("localisation",): {"--map": "--map-name", "--goals": "--goals-csv"},
+    ("synth", "walking"): {"--trials": "--repetitions"},
+    ("report",): {"walking": "walking-2020", "pairs": "pair-carriage-2022"},
+}
+_NOTES = "cobot_analysis.deprecated"
+
+
+def _deprecated(token: str, aliases: dict[str, str]) -> tuple[str, str] | None:
+    """(old, new token) when ``token`` is a deprecated spelling: ``--old``, ``--old=V``, ``-oV``, ``value``."""
+    name = token.partition("=")[0] if token.startswith("--") else token
+    if name in aliases:
+        return name, aliases[name] + token[len(name):]
+    if token.startswith("-") and not token.startswith("--") and token[:2] in aliases:  # a short option with its value attached
+        return token[:2], f"{aliases[token[:2]]}={token[2:]}"
+    return None
+
+
+def normalise_args(group, args: list[str]) -> tuple[list[str], list[str]]:
+    """The command line as click parses it: global options moved before the command, deprecated
+    spellings replaced by the new ones (``DEPRECATED``), ``--start X,Y,THETA`` split into its values
+    (any option of several values); returns (args, one deprecation warning per old spelling used)."""
+    args, i, path, head = list(args), 0, [], []
+    command = group
+    while i < len(args) and hasattr(command, "commands"):  # group levels: their options, the command names
+        token = args[i]
+        i += 1
+        if not token.startswith("-"):
+            if token not in command.commands:
+                return args, []  # an unknown command: click says so
+            path.append(token)
+            command = command.commands[token]
+        head.append(token)
+    if hasattr(command, "commands"):
+        return args, []
+    options = {name: p for p in command.params if p.param_type_name == "option" for name in (*p.opts, *p.secondary_opts)}
+    aliases = {old: new for old, new in DEPRECATED.get(tuple(path), {}).items() if old not in options}
+    hoisted, tail, notes = [], [], []
+    while i < len(args):
+        token = args[i]
+        i += 1
+        if token == "--":
+            tail += args[i - 1:]
+            break
+        if token in GLOBAL_OPTIONS and token not in options:
+            hoisted.append(token)
+            continue
+        alias = _deprecated(token, aliases)
+        if alias is not None:
+            old, token = alias
+            note = f"{old} is deprecated in `{' '.join(path)}`: use {aliases[old]}"
+            notes += [note] if note not in notes else []
+        tail.append(token)
+        option = options.get(token)  # an option whose values follow (not --name=value)
+        if option is None or option.is_flag or option.count:
+            continue
+        if option.nargs > 1 and i < len(args) and len(args[i].split(",")) == option.nargs:
+            tail += args[i].split(",")
+            i += 1
+        else:
+            tail += args[i:i + option.nargs]
+            i += option.nargs
+    return [*hoisted, *head, *tail], notes
+
+
+class CobotGroup(TyperGroup):
+    """The top-level group: normalises the command line (``normalise_args``) before parsing it."""
+
+    def parse_args(self, ctx, args):
+        args, notes = normalise_args(self, args)
+        ctx.meta[_NOTES] = notes
+        return super().parse_args(ctx, args)
+
+
+def finished(stage: str, what: str, where) -> None:
+    """The line every stage ends with: ``stage: what -> where`` (one line, silent under --quiet)."""
+    from rich.markup import escape
+
+    if verbosity() >= 1:
+        console.print(f"[green]{escape(stage)}[/green]: {escape(str(what))} -> {escape(str(where))}", soft_wrap=True)
+
+
+def count(n: int, noun: str, plural: str | None = None) -> str:
+    """``1 figure``, ``2 figures`` (``plural`` where it is not noun + s)."""
+    return f"{n} {noun if n == 1 else plural or noun + 's'}"
+
+
+def examples(*lines: str) -> str:
+    """The ``Examples:`` block of a command's help (``tests/test_cli_examples.py`` runs every line)."""
+    return "Examples:\n\n" + "\n".join(f"  {line}" for line in lines)
+
 
 EXIT_CODES = ("Exit codes: 0 success, 1 internal error, 2 bad usage or bad input, 130 interrupted (Ctrl-C), "
               "143 terminated (SIGTERM). An interrupted stage writes nothing and stops its workers.")
 app = typer.Typer(
     name="cobot-analysis",
+    cls=CobotGroup,
     help="Reproducible analysis of motion-capture studies of walking and collaborative carriage (CoBot).",
     epilog=EXIT_CODES,
     no_args_is_help=True,
@@ -58,12 +161,16 @@ def _version(value: bool) -> None:
 
 @app.callback()
 def _global(
+    ctx: typer.Context,
     verbose: Annotated[bool, typer.Option("--verbose", "-v", help="More details (and tracebacks on internal errors).")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Only errors; no progress bars.")] = False,
     version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True, help="Show the version and exit.")] = False,
 ) -> None:
     """Stages read and write Parquet in the workspace (--out); each writes a manifest.json.
 
-    Exit codes: see EXIT_CODES (the epilog of --help).
+    -v, -q and --version are accepted anywhere on the command line. Exit codes: see EXIT_CODES (the
+    epilog of --help).
     """
     set_verbosity(0 if quiet else 2 if verbose else 1)
+    for note in ctx.meta.pop(_NOTES, []):
+        warn(note)

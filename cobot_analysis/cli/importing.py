@@ -8,7 +8,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from cobot_analysis.cli.app import DEFAULT_OUT_PATH, PANEL_DATA, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, app
+from cobot_analysis.cli.app import DEFAULT_OUT_PATH, PANEL_DATA, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, app, examples
 
 
 class Units(str, Enum):
@@ -17,7 +17,11 @@ class Units(str, Enum):
     m = "m"
 
 
-@app.command("import", rich_help_panel=PANEL_DATA)
+@app.command("import", rich_help_panel=PANEL_DATA, epilog=examples(
+    "cobot-analysis import walking/synth-walking/protocol.yaml --out walking",
+    "cobot-analysis import walking/synth-walking/protocol.yaml --out walking \\",
+    "    --map L_ASIS=LASI --skip-bad",
+    "cobot-analysis import pairs/synth-pairs/protocol.yaml --out pairs"))
 def import_command(
     protocol: Annotated[Path, typer.Argument(help="Protocol YAML naming each trial's file, subject/pair and condition.")],
     out: OutOpt = DEFAULT_OUT_PATH,

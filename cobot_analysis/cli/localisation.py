@@ -18,6 +18,8 @@ from cobot_analysis.cli.app import (
     SchedulerOpt,
     SeedOpt,
     app,
+    examples,
+    finished,
     synth_app,
 )
 from cobot_analysis.errors import InputError
@@ -46,7 +48,8 @@ def _at_least(value: float | None, option: str, low: float = 0.0, strict: bool =
                          remedy=f"e.g. {option} {example}" if example else None)
 
 
-@app.command("bag-info", rich_help_panel=PANEL_LOCALISATION)
+@app.command("bag-info", rich_help_panel=PANEL_LOCALISATION, epilog=examples(
+    "cobot-analysis bag-info robot/synth-localisation/run.mcap"))
 def bag_info_command(
     bag: Annotated[Path, typer.Argument(help="ROS1 .bag, ROS2 bag directory, or .mcap/.db3 file.")],
 ) -> None:
@@ -80,6 +83,7 @@ def bag_info_command(
         typer.echo(f"{r['topic']}\t{r['type']}\t{r['count']}\t{r['rate']:.3f}\t{r['start']:.9f}\t{r['end']:.9f}")
     for e in edges:
         typer.echo(f"tf:{e['parent']}->{e['child']}\t{e['count']}\t{'static' if e['static'] else 'dynamic'}")
+    finished("bag-info", f"{len(rows)} topics ({sum(bool(r['pose']) for r in rows)} of poses), {len(edges)} tf frame pairs", "stdout")
 
 
 def _print_whole(console, table) -> None:
@@ -91,7 +95,11 @@ def _print_whole(console, table) -> None:
     Console(stderr=True, width=width, highlight=False, force_terminal=console.is_terminal or None).print(table)
 
 
-@synth_app.command("localisation")
+@synth_app.command("localisation", epilog=examples(
+    "cobot-analysis synth localisation --out robot --goals-per-lap 2 \\",
+    "    --formats mcap",
+    "cobot-analysis synth localisation --out robot2 --goals-per-lap 1 \\",
+    "    --delay 0.3"))
 def synth_localisation_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     force: ForceOpt = False,
@@ -107,7 +115,7 @@ def synth_localisation_command(
 ) -> None:
     """Synthetic robot run: mocap 200 Hz, ICP 10 Hz with a known delay, offset and noise, goals and
     cmd_vel, written as a ROS1 bag, a ROS2 bag and an MCAP file, with truth.json and goals.csv."""
-    from cobot_analysis.console import info, track
+    from cobot_analysis.console import track
     from cobot_analysis.localisation import synth
     from cobot_analysis.workspace import Stage
 
@@ -127,11 +135,15 @@ def synth_localisation_command(
             write(run, stage.path(name))
         synth.write_goals_csv(run, stage.path("goals.csv"))
         synth.write_truth(run, stage.path("truth.json"))
-    info(f"[green]{SYNTH_STAGE}[/green]: {len(run.t_mocap)} mocap and {len(run.t_icp)} ICP poses, "
-         f"{run.distance:.2f} m, {len(run.goals)} goals -> {stage.final_dir}")
+    finished(SYNTH_STAGE, f"{len(run.t_mocap)} mocap and {len(run.t_icp)} ICP poses, {run.distance:.2f} m, {len(run.goals)} goals",
+             stage.final_dir)
 
 
-@app.command("localisation", rich_help_panel=PANEL_LOCALISATION)
+@app.command("localisation", rich_help_panel=PANEL_LOCALISATION, epilog=examples(
+    "cobot-analysis localisation --out robot --map-name synthetic",
+    "cobot-analysis localisation robot/synth-localisation/run.mcap \\",
+    "    --out robot --label run1 --no-figures \\",
+    "    --goals-csv robot/synth-localisation/goals.csv"))
 def localisation_command(
     bags: Annotated[Optional[list[Path]], typer.Argument(help="Bags (ROS1 .bag, ROS2 directory, .mcap); default: the synthetic runs of `synth localisation` in --out.")] = None,
     out: OutOpt = DEFAULT_OUT_PATH,
@@ -142,7 +154,7 @@ def localisation_command(
     icp: Annotated[str, typer.Option(help="ICP stream: a topic or tf:PARENT->CHILD.")] = "/icp/pose",
     time: Annotated[str, typer.Option(help="Stamps: 'header' (message header) or 'record' (bag receive time).")] = "header",
     label: Annotated[Optional[list[str]], typer.Option(help="Run label, once per bag (default: file stem).")] = None,
-    map_label: Annotated[Optional[list[str]], typer.Option("--map", help="Map label, once for all bags or once per bag.")] = None,
+    map_name: Annotated[Optional[list[str]], typer.Option("--map-name", help="Name of the map the ICP localised in (e.g. scanned), once for all bags or once per bag.")] = None,
     delay: Annotated[Optional[float], typer.Option(help="Use this delay (s) instead of estimating it.")] = None,
     delay_window: Annotated[str, typer.Option(help="Delay search window MIN,MAX (s; MIN < MAX, MIN may be negative). An estimate on an end of it is warned about.")] = "0,1.5",
     delay_weights: Annotated[str, typer.Option(help="Weights of x,y,z,yaw in the delay cost (yaw in m/rad; 0 drops an axis).")] = "1,1,1,1",
@@ -150,8 +162,8 @@ def localisation_command(
     association: Annotated[str, typer.Option(help="interpolate (truth at the ICP stamps) or nearest (nearest stamp, as evo).")] = "interpolate",
     max_gap: Annotated[Optional[float], typer.Option(help="Longest truth gap to interpolate across (s); default: twice the median sample spacing of the truth stream, at least 0.05 s.")] = None,
     max_diff: Annotated[float, typer.Option(help="Nearest association: largest stamp difference (s).")] = 0.01,
-    goals: Annotated[Optional[Path], typer.Option(help="Commanded goals CSV (x,y,yaw in the ICP map frame, levelled to z-up when --up is not z) for every run.")] = None,
-    goal_topic: Annotated[str, typer.Option(help="Topic of the commanded goals in the bag (used when --goals is not given).")] = "/goal",
+    goals: Annotated[Optional[Path], typer.Option("--goals-csv", help="Commanded goals CSV (x,y,yaw in the ICP map frame, levelled to z-up when --up is not z) for every run.")] = None,
+    goal_topic: Annotated[str, typer.Option(help="Topic of the commanded goals in the bag (used when --goals-csv is not given).")] = "/goal",
     speed_threshold: Annotated[float, typer.Option(help="Stop: planar speed below this (m/s).")] = 0.02,
     yaw_rate_threshold: Annotated[float, typer.Option(help="Stop: |yaw rate| below this (rad/s).")] = 0.03,
     min_stop: Annotated[float, typer.Option(help="Stop: minimum duration (s).")] = 3.0,
@@ -215,11 +227,11 @@ def localisation_command(
     labels = list(label) if label else _labels(bags)
     if len(labels) != len(bags):
         raise InputError(f"{len(labels)} --label for {len(bags)} bags", remedy="give one --label per bag")
-    maps = list(map_label or [""])
+    maps = list(map_name or [""])
     if len(maps) == 1:
         maps = maps * len(bags)
     if len(maps) != len(bags):
-        raise InputError(f"{len(maps)} --map for {len(bags)} bags", remedy="give one --map for all bags or one per bag")
+        raise InputError(f"{len(maps)} --map-name for {len(bags)} bags", remedy="give one --map-name for all bags or one per bag")
     goal_rows = tuple(map(tuple, read_goals_csv(goals))) if goals else None
     opts = Options(truth=truth, icp=icp, time=time, delay=delay, window=window, weights=weights, alignment=alignment,
                    association=association, max_gap=max_gap, max_diff=max_diff, distance_window=distance_window,
@@ -264,7 +276,7 @@ def localisation_command(
         info(f"[green]{r['run']}[/green]: delay {d}, RMSE {1000 * row['ape_rmse']:.1f} mm"
              + (f", goals {row['goals_found']}/{row['goals_commanded']}" if "goals_found" in row else "")
              + (f", {len(row['warnings'].split(' | '))} warning(s) (results.md)" if row["warnings"] else ""))
-    info(f"[green]{STAGE}[/green]: {len(results)} run(s) -> {stage.final_dir}")
+    finished(STAGE, f"{len(results)} run(s)", stage.final_dir)
 
 
 def _labels(bags: list[Path]) -> list[str]:

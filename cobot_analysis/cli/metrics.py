@@ -12,7 +12,7 @@ from typing import Annotated
 
 import typer
 
-from cobot_analysis.cli.app import PANEL_REPORT, app
+from cobot_analysis.cli.app import PANEL_REPORT, app, examples
 
 metrics_app = typer.Typer(help="Stage metrics (metrics.json) against a committed baseline: show, check, update.",
                           no_args_is_help=True)
@@ -22,7 +22,7 @@ BaselineArg = Annotated[Path, typer.Argument(help="Baseline JSON (e.g. tests/bas
 WorkspacesArg = Annotated[list[Path], typer.Argument(help="Workspaces of one study (e.g. its analysis and its model stages of each convention).")]
 
 
-@metrics_app.command("show")
+@metrics_app.command("show", epilog=examples("cobot-analysis metrics show robot"))
 def show_command(workspaces: WorkspacesArg) -> None:
     """Print every stage metric of the workspaces: name, value, unit, stage, convention."""
     from cobot_analysis.regression.baseline import collect
@@ -35,7 +35,9 @@ def show_command(workspaces: WorkspacesArg) -> None:
         typer.echo(f"error: {e}", err=True)
 
 
-@metrics_app.command("check")
+@metrics_app.command("check", epilog=examples(
+    "cobot-analysis metrics check robot-baseline.json robot",
+    "cobot-analysis metrics check robot-baseline.json robot --failures-only"))
 def check_command(
     baseline: BaselineArg,
     workspaces: WorkspacesArg,
@@ -64,7 +66,9 @@ def check_command(
         raise typer.Exit(1)
 
 
-@metrics_app.command("update")
+@metrics_app.command("update", epilog=examples(
+    "cobot-analysis metrics update robot-baseline.json robot --dry-run",
+    "cobot-analysis metrics update robot-baseline.json robot"))
 def update_command(
     baseline: BaselineArg,
     workspaces: WorkspacesArg,

@@ -9,7 +9,7 @@ from typing import Annotated, Optional
 import typer
 
 from cobot_analysis.cli.app import (PANEL_MODELS, DEFAULT_OUT_PATH, ConventionOpt, ForceOpt, JobsOpt, OutOpt, SchedulerOpt,
-                                   SeedOpt, app)
+                                   SeedOpt, app, count, examples, finished)
 
 MODEL_CHOICES = ("unicycle", "clothoid", "mombaur", "improved", "table", "all")
 
@@ -50,13 +50,19 @@ def _generate_task(task):
     return generate(model, start, goal, weights=weights, **kw)
 
 
-@app.command("generate", rich_help_panel=PANEL_MODELS)
+@app.command("generate", rich_help_panel=PANEL_MODELS, epilog=examples(
+    "cobot-analysis generate --out walking --start 2 3 0",
+    "cobot-analysis generate --out walking --start -1.5,-3,0.5 --model unicycle \\",
+    "    --convention continuous",
+    "cobot-analysis generate --out walking --start 2 3 0 \\",
+    "    --weights walking/fit-ioc/weights.json",
+    "cobot-analysis generate --out walking --study walking-2020 --model clothoid"))
 def generate_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     model: Annotated[str, typer.Option("--model", "-m", help=f"Model: {', '.join(MODEL_CHOICES)}.")] = "improved",
     weights: Annotated[Optional[str], typer.Option("--weights", "-w", help="Preset (mombaur-2010, walking-2021, table-2022) or weights.json from fit-ioc; default: the model's preset.")] = None,
-    start: Annotated[Optional[tuple[float, float, float]], typer.Option("--start", help="Start pose X Y THETA (m, m, rad).")] = None,
-    goal: Annotated[Optional[tuple[float, float, float]], typer.Option("--goal", help="Goal pose X Y THETA (default: the walking goal 0 0 pi/2).")] = None,
+    start: Annotated[Optional[tuple[float, float, float]], typer.Option("--start", metavar="X Y THETA", help="Start pose (m, m, rad): --start 2 3 0 or --start 2,3,0.")] = None,
+    goal: Annotated[Optional[tuple[float, float, float]], typer.Option("--goal", metavar="X Y THETA", help="Goal pose (m, m, rad), as --start (default: the walking goal 0 0 1.5708, pi/2).")] = None,
     study: Annotated[Optional[str], typer.Option("--study", help="Generate all conditions of a study instead of one start: walking-2020.")] = None,
     samples: Annotated[int, typer.Option("--samples", "-n", min=2, help="Samples of each generated trajectory.")] = 500,
     intervals: Annotated[int, typer.Option("--intervals", min=10, help="Intervals of the OC grid (solution resampled to --samples).")] = 100,
@@ -154,9 +160,7 @@ def generate_command(
             g = goal_of[r.trial]
             lines.append(f"| {r.trial} | {r.travel_time:.2f} | {r.cost:.3f} | {math.hypot(r.x - g[0], r.y - g[1]):.3f} |")
         stage.path("results.md").write_text("\n".join(lines) + "\n")
-        from cobot_analysis.console import info
-
-        info(f"generate ({conv.name}): {df['trial'].nunique()} trajectories -> {stage.final_dir / 'generated.parquet'}")
+    finished(f"generate ({conv.name})", count(df["trial"].nunique(), "trajectory", "trajectories"), stage.final_dir / "generated.parquet")
 
 
 def _published_walking_cases(out: Path, means: Path | None) -> list:
@@ -195,13 +199,18 @@ def _read_trajectories(path: Path):
     return read_table(path, MEANS if name == "means" else TRAJECTORIES)
 
 
-@app.command("fit-ioc", rich_help_panel=PANEL_MODELS)
+@app.command("fit-ioc", rich_help_panel=PANEL_MODELS, epilog=examples(
+    "cobot-analysis fit-ioc --out walking --max-evaluations 2 --no-compare",
+    "cobot-analysis fit-ioc --out walking --max-evaluations 2 \\",
+    "    --convention published",
+    "cobot-analysis fit-ioc --out walking --per subject --max-evaluations 2 \\",
+    "    --start-weights walking/fit-ioc/weights.json --no-compare"))
 def fit_ioc_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     means: Annotated[Optional[Path], typer.Option("--means", help="means.parquet (default: OUT/average/, else the kind=mean rows of --trajectories).")] = None,
     trajectories: Annotated[Optional[Path], typer.Option("--trajectories", help="trajectories.parquet (default: OUT/import-published/ or OUT/preprocess/); its trials serve --per subject and the subjects-vs-mean statistics.")] = None,
     model: Annotated[str, typer.Option("--model", "-m", help="improved (walkers, D = d_xy + 0.5 d_gamma), table (D = d_xy + 0.5 d_theta) or coupled (two carriers, scenario-3 means, roles swapped on returns).")] = "improved",
-    start_weights: Annotated[Optional[str], typer.Option("--start-weights", "-w", help="Preset or weights.json to start from; 'ones' = neutral start (every fitted weight 1).")] = None,
+    start_weights: Annotated[Optional[str], typer.Option("--start-weights", help="Preset or weights.json to start from; 'ones' = neutral start (every fitted weight 1).")] = None,
     fit_names: Annotated[Optional[str], typer.Option("--fit", help="Comma-separated weights to fit, the others stay at their start value (default: all but b0, which fixes the scale; coupled: also a0, the time cost).")] = None,
     optimizer: Annotated[Optional[Optimizer], typer.Option("--optimizer", help="Upper-level derivative-free method.")] = Optimizer.powell,
     max_evaluations: Annotated[int, typer.Option("--max-evaluations", min=1, help="Budget of upper-level evaluations per fit.")] = 2000,
@@ -489,10 +498,19 @@ def fit_ioc_command(
             stage.savefig(figure_paths(mean_targets, gen, "mean (black) vs improved OC: published, fitted"), "paths")
             lines += ["![generated vs mean paths](paths.png)", ""]
         stage.path("results.md").write_text("\n".join(lines) + "\n")
+    n_paths = sum(len(fits[k]) for k in results)
+    start_d = sum(r.start_objective for r in results.values()) / len(results)
+    end_d = sum(r.objective for r in results.values()) / len(results)
+    how = ", ".join([conv.name] + (["coupled"] if model == "coupled" else []) + (["per subject"] if per is Per.subject else []))
+    fitted = f"{n_paths} paths, D" if len(results) == 1 else f"{len(results)} fits, {n_paths} paths, mean D"
+    finished(f"fit-ioc ({how})", f"{fitted} {end_d:.3f} fitted ({start_d:.3f} at the start weights)", stage.final_dir)
 
 
 # ---- velocity-commands -------------------------------------------------------------------------
-@app.command("velocity-commands", rich_help_panel=PANEL_MODELS)
+@app.command("velocity-commands", rich_help_panel=PANEL_MODELS, epilog=examples(
+    "cobot-analysis velocity-commands --out walking --trial clothoid_N1500",
+    "cobot-analysis velocity-commands --out walking --trial clothoid_E1515 \\",
+    "    --rate 20 --format parquet"))
 def velocity_commands_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     generated: Annotated[Optional[Path], typer.Option("--generated", help="generated.parquet (default: OUT/generate/).")] = None,
@@ -543,3 +561,5 @@ def velocity_commands_command(
         stage.path("results.md").write_text(
             f"## Velocity commands\n\nTrajectory {trial} at {rate:g} Hz: {len(cmd)} commands, saturated at "
             f"{v_max:g} m/s and {omega_max:g} deg/s; {cmd['saturated'].mean() * 100:.0f} % of the commands hit a limit.\n")
+    finished("velocity-commands", f"{len(cmd)} commands of {trial} at {rate:g} Hz, {cmd['saturated'].mean() * 100:.0f} % saturated",
+             stage.final_dir / f"commands.{fmt.value}")

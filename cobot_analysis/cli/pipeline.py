@@ -7,10 +7,12 @@ from typing import Annotated
 
 import typer
 
-from cobot_analysis.cli.app import PANEL_REPORT, DEFAULT_OUT_PATH, OutOpt, app
+from cobot_analysis.cli.app import PANEL_REPORT, DEFAULT_OUT_PATH, OutOpt, app, count, examples, finished
 
 
-@app.command("results", rich_help_panel=PANEL_REPORT)
+@app.command("results", rich_help_panel=PANEL_REPORT, epilog=examples(
+    "cobot-analysis results walking robot --to results.md",
+    'cobot-analysis results walking --to walking.md --title "Synthetic walking"'))
 def results_command(
     workspaces: Annotated[list[Path], typer.Argument(help="Workspaces whose stages wrote results.md fragments.")],
     to: Annotated[Path, typer.Option("--to", help="Markdown file to write.")] = Path("docs/results.md"),
@@ -20,7 +22,6 @@ def results_command(
     """Assemble docs/results.md from the results.md fragments of the given workspaces (generated, never typed)."""
     import os
 
-    from cobot_analysis.console import info
     from cobot_analysis.pipeline import assemble_results
 
     text = assemble_results(workspaces, title=title, preface=" ".join(preface.split()))
@@ -28,14 +29,15 @@ def results_command(
     tmp = to.with_name(f".{to.name}.tmp")
     tmp.write_text(text)
     os.replace(tmp, to)
-    info(f"results written to [bold]{to}[/bold]")
+    sections = sum(line.startswith("## ") for line in text.splitlines())
+    finished("results", f"{count(sections, 'section')} from {count(len(workspaces), 'workspace')}", to)
 
 
 #: synth options per demo size: walking study, pair study. "default" is the full walking design and
 #: 6 of the 20 pairs (all goals and scenarios: 324 trials, 972 trajectories, about 0.8 GB of C3D
 #: instead of 2.7 GB for the full pair design).
 DEMO_SIZES = {
-    "small": (["--subjects", "2", "--trials", "1", "--conditions", "8"], ["--pairs", "2", "--goals", "3"]),
+    "small": (["--subjects", "2", "--repetitions", "1", "--conditions", "8"], ["--pairs", "2", "--goals", "3"]),
     "default": ([], ["--pairs", "6"]),
     "full": ([], []),
 }
@@ -71,23 +73,24 @@ def demo_steps(out: Path, size: str, jobs: int | None) -> dict[str, list[list[st
             ["preprocess", "--out", str(walking), *j],
             *([cmd, "--out", str(walking)] for cmd in analysis),
             *models,
-            ["report", "walking", "--out", str(walking), "--to", str(out / "reports" / "walking")],
+            ["report", "synthetic-walking", "--out", str(walking), "--to", str(out / "reports" / "walking")],
         ],
         "pairs": [
             ["synth", "pairs", "--out", str(pairs), *size_p, *j],
             ["import", str(pairs / "synth-pairs" / "protocol.yaml"), "--out", str(pairs), *j],
             ["preprocess", "--out", str(pairs), *j],
             *([cmd, "--out", str(pairs)] for cmd in [*analysis, "reconstruct"]),
-            ["report", "pairs", "--out", str(pairs), "--to", str(out / "reports" / "pairs")],
+            ["report", "synthetic-pairs", "--out", str(pairs), "--to", str(out / "reports" / "pairs")],
         ],
         "localisation": [
             ["synth", "localisation", "--out", str(loc)],
-            ["localisation", "--out", str(loc), "--map", "synthetic"],
+            ["localisation", "--out", str(loc), "--map-name", "synthetic"],
         ],
     }
 
 
-@app.command("demo", rich_help_panel=PANEL_REPORT)
+@app.command("demo", rich_help_panel=PANEL_REPORT, epilog=examples(
+    "cobot-analysis demo --out demo --size small"))
 def demo_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     size: Annotated[str, typer.Option("--size", help="small (a quick look), default (full walking study, 6 of the 20 pairs) or full (both full designs).")] = "default",
@@ -99,7 +102,6 @@ def demo_command(
     runs every stage on each, then writes OUT/report.md. Each study has its own workspace under
     OUT; stages already up to date are skipped.
     """
-    from cobot_analysis.console import info
     from cobot_analysis.pipeline import assemble_results, run_steps
 
     if size not in DEMO_SIZES:
@@ -116,5 +118,4 @@ def demo_command(
     ])
     report.write_text(assemble_results([out / s for s in studies], title="cobot-analysis demo report (synthetic studies)",
                                        preface=preface))
-    info(f"\n[bold green]done[/bold green]: report [bold]{report}[/bold]; Parquet outputs under "
-         + ", ".join(f"[bold]{out / s}[/bold]" for s in studies))
+    finished("demo", f"{len(studies)} studies, Parquet outputs under {', '.join(str(out / s) for s in studies)}", report)

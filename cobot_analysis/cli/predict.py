@@ -9,7 +9,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from cobot_analysis.cli.app import PANEL_MODELS, DEFAULT_OUT_PATH, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, app
+from cobot_analysis.cli.app import PANEL_MODELS, DEFAULT_OUT_PATH, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, app, count, examples, finished
 
 STAGE = "predict"
 WORK = ".predict-work"
@@ -61,20 +61,24 @@ def parse_settings(text: str) -> tuple[tuple[int, int], ...]:
     return tuple(out)
 
 
-@app.command("predict", rich_help_panel=PANEL_MODELS)
+@app.command("predict", rich_help_panel=PANEL_MODELS, epilog=examples(
+    "cobot-analysis predict --out walking --settings 50:100 --every 50",
+    "cobot-analysis predict --out walking --predictors cv,ctrv --kind trial",
+    "cobot-analysis predict --out walking --settings 50:100 --every 50 \\",
+    "    -w walking/fit-ioc/weights.json --stage-name predict-fitted"))
 def predict_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     trajectories: Annotated[Optional[Path], typer.Option("--trajectories", help="trajectories.parquet (default: from preprocess or import-published in OUT).")] = None,
     settings: Annotated[str, typer.Option("--settings", help="(N0, N_OC) pairs in samples, as N0:N_OC,...")] = "25:100,50:100,75:100,50:200",
     predictors: Annotated[str, typer.Option("--predictors", help="Comma-separated: oc (receding-horizon OC), cv (constant velocity), ctrv (constant turn rate and velocity).")] = "oc,cv,ctrv",
-    weights: Annotated[Optional[str], typer.Option("--weights", help="OC cost weights a0..a3: a preset (walking-2021, table-2022, ...) or a fitted weights.json. Default: walking-2021, and for tables the convention's table preset (published: table-prediction-2022, the authors' predictor; continuous: table-2022).")] = None,
+    weights: Annotated[Optional[str], typer.Option("--weights", "-w", help="OC cost weights a0..a3: a preset (walking-2021, table-2022, ...) or a fitted weights.json. Default: walking-2021, and for tables the convention's table preset (published: table-prediction-2022, the authors' predictor; continuous: table-2022).")] = None,
     convention: Annotated[Optional[str], typer.Option("--convention", help="published (the authors' code: one node of 0.1 s per sample, every window from rest, explicit Euler, costs summed per node, cold solves, population sd) or continuous (the real sample period, the start velocity estimated, warm starts, sample sd); docs/methods.md sec. 11. Default: the convention of the weights: published for a preset, the \"convention\" key of a fit-ioc weights.json, else continuous. Stage directory: STAGE-NAME (continuous) or STAGE-NAME-published.")] = None,
     g0: Annotated[float, typer.Option("--g0", min=0.0, help="Weight of the position tracking of the measured past.")] = 10.0,
     g1: Annotated[float, typer.Option("--g1", min=0.0, help="Weight of the orientation tracking (0 where theta is missing).")] = 10.0,
     t_oc: Annotated[Optional[float], typer.Option("--t-oc", help="Sampling period T_OC (s): resample each trajectory to it. Default: the trajectory's own sample period.")] = None,
     orientation: Annotated[str, typer.Option("--orientation", help="Give the measured theta to the predictors: auto (unless flagged orientation_missing / implausible_gamma), track (always), ignore (positions only).")] = "auto",
-    nominal_speed: Annotated[float, typer.Option("--nominal-speed", help="Speed (m/s) giving the assumed duration (path length / speed) of trajectories without a travel time.")] = 1.0,
-    study: Annotated[Optional[list[str]], typer.Option("--study", help="Only these studies (repeatable).")] = None,
+    nominal_speed: Annotated[float, typer.Option("--v-nominal", help="Nominal speed (m/s) giving the assumed duration (path length / speed) of trajectories without a travel time.")] = 1.0,
+    study: Annotated[Optional[list[str]], typer.Option("--only-study", help="Only the trajectories of these studies, e.g. walking-2020 (repeatable).")] = None,
     entity: Annotated[Optional[list[str]], typer.Option("--entity", help="Only these entities: walker, subject1, subject2, table (repeatable).")] = None,
     kind: Annotated[str, typer.Option("--kind", help="'trial', 'mean' or 'all' trajectories.")] = "all",
     limit: Annotated[Optional[int], typer.Option("--limit", min=1, help="Only the first N trajectories (a quick look).")] = None,
@@ -173,7 +177,8 @@ def predict_command(
         write_table(summary, stage.path("prediction_summary.parquet"), PREDICTION_SUMMARY, **meta)
         write_table(comparison, stage.path("prediction_comparison.parquet"), PREDICTION_COMPARISON, **meta)
         example = example_trajectory(metrics, trajs, config)
-        figures(stage, metrics, example, config)
+        for stem, fig in figures(metrics, example, config).items():
+            stage.savefig(fig, stem)
         text = results_fragment(metrics, summary, comparison, config, example, unpredictable, directory)
         other = Path(out) / stage_dir_name(stage_name, next(n for n in conventions.NAMES if n != conv.name))
         if (other / "prediction_summary.parquet").is_file() and (other / "prediction_comparison.parquet").is_file():
@@ -186,7 +191,9 @@ def predict_command(
             else:
                 text += "\n" + "\n".join(conventions_markdown(both) + [f"", f"From this stage and `{other.name}`."]) + "\n"
         stage.path("results.md").write_text(text)
-    info(f"[green]predict[/green] ({conv.name} convention): {stage.final_dir}")
+    n_windows = int(metrics.drop_duplicates(["study", "trial", "entity", "n0", "n_oc"])["n_windows"].sum())
+    finished(f"predict ({conv.name})", f"{count(len(trajs), 'trajectory', 'trajectories')} x {count(len(config.settings), 'setting')} x "
+             f"{count(len(config.predictors), 'predictor')}, {n_windows} windows per predictor", stage.final_dir)
 
 
 # ---- figures and report -----------------------------------------------------------------------
@@ -205,14 +212,17 @@ def example_trajectory(metrics, trajs, config):
     return next(t for t in trajs if (t.study, t.trial, t.entity) == (row["study"], row["trial"], row["entity"]))
 
 
-def figures(stage, metrics, traj, config) -> None:
-    """All predictions of one trajectory, error vs global distance, and 'prediction at k' panels."""
+def figures(metrics, traj, config) -> dict:
+    """The stage's figures by file stem: every prediction of one trajectory (``prediction_overlay``),
+    the predictions at six samples k (``prediction_at_k``) and the error against the global distance
+    (``prediction_error_vs_distance``)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
     from matplotlib.collections import LineCollection
+    from matplotlib.legend_handler import HandlerTuple
 
     from cobot_analysis.models.prediction.predictor import make_predictor
 
@@ -223,51 +233,66 @@ def figures(stage, metrics, traj, config) -> None:
         preds[name] = make_predictor(name, n0, n_oc, traj.dt, convention=config.convention, **options).predict_offline(traj.seen)
     xy = traj.poses[:, :2]
     colours = {"oc": "tab:blue", "cv": "tab:orange", "ctrv": "tab:green"}
+    conv = config.convention
+    span = np.nanmax(xy, axis=0) - np.nanmin(xy, axis=0)
+    aspect = float(np.clip(span[1] / max(span[0], 1e-9), 0.3, 1.5))  # of the equal-aspect path panels
+    out = {}
 
-    fig, axes = plt.subplots(1, len(preds), figsize=(4.2 * len(preds), 4.2), squeeze=False)
+    fig, axes = plt.subplots(1, len(preds), figsize=(4.2 * len(preds), 4.2 * aspect + 1.2), squeeze=False, layout="constrained")
     for ax, (name, P) in zip(axes[0], preds.items()):
+        ok = np.isfinite(P[:, 0, 0])
         ax.plot(*xy.T, color="0.6", lw=2.5, label="recorded", zorder=1)
-        ax.add_collection(LineCollection(P[np.isfinite(P[:, 0, 0]), :, :2], colors=colours[name], linewidths=0.5,
-                                         alpha=0.4, zorder=2))
-        ax.set_title(f"{name}: all {np.isfinite(P[:, 0, 0]).sum()} predictions")
+        ax.add_collection(LineCollection(P[ok, :, :2], colors=colours[name], linewidths=0.5, alpha=0.4, zorder=2,
+                                         label=f"{name}: prediction from each k"))
+        ax.set_title(f"{name}: all {ok.sum()} predictions")
         ax.set_aspect("equal")
         ax.set_xlabel("x (m)")
-    axes[0, 0].set_ylabel("y (m)")
-    axes[0, 0].legend(loc="best", fontsize=7)
-    conv = config.convention
+        ax.set_ylabel("y (m)")
+        ax.legend(loc="best", fontsize=7)
     step = f"OC nodes of {conv.prediction.node_dt:g} s" if conv.prediction.node_dt else f"T_OC = {traj.dt * 1000:.1f} ms"
     fig.suptitle(f"{traj.label}, N0 = {n0}, N_OC = {n_oc}, {step}, {conv.name} convention")
-    stage.savefig(fig, "prediction_overlay")
+    out["prediction_overlay"] = fig
 
     ks = np.linspace(n0 - 1, len(xy) - 1 - (n_oc - n0) // 2, 6).astype(int)
-    fig, axes = plt.subplots(2, 3, figsize=(12, 8), squeeze=False)
+    fig, axes = plt.subplots(2, 3, figsize=(12, 2 * 4 * aspect + 1.6), squeeze=False, layout="constrained")
     for ax, k in zip(axes.ravel(), ks):
-        ax.plot(*xy.T, color="0.8", lw=1)
-        ax.plot(*xy[k - n0 + 1: k + 1].T, color="k", lw=2.5, label="measured past (N0)")
-        ax.plot(*xy[k: k + n_oc - n0 + 1].T, color="k", ls="--", lw=1, label="to come")
+        ax.plot(*xy.T, color="0.8", lw=1, label="recorded path")
+        ax.plot(*xy[k - n0 + 1: k + 1].T, color="k", lw=2.5, label="measured past (N0 samples)")
+        ax.plot(*xy[k: k + n_oc - n0 + 1].T, color="k", ls="--", lw=1, label="recorded future (N_OC - N0 samples)")
         for name, P in reversed(preds.items()):  # the first predictor (oc) drawn on top
-            ax.plot(*P[k - n0 + 1][:, :2].T, color=colours[name], lw=1.5, label=name)
+            ax.plot(*P[k - n0 + 1][:, :2].T, color=colours[name], lw=1.5, label=f"{name} prediction")
         ax.set_title(f"k = {k} ({100 * k / (len(xy) - 1):.0f} %)")
         ax.set_aspect("equal")
-    axes[0, 0].legend(fontsize=7)
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    order = [*range(3), *reversed(range(3, len(labels)))]  # the predictors in the order given
+    fig.legend([handles[i] for i in order], [labels[i] for i in order], loc="outside lower center", ncol=3 + len(preds),
+               fontsize=8)
     fig.suptitle(f"Prediction at k: {traj.label}, N0 = {n0}, N_OC = {n_oc}, {conv.name} convention")
-    stage.savefig(fig, "prediction_at_k")
+    out["prediction_at_k"] = fig
 
     m = metrics[(metrics["n0"] == n0) & (metrics["n_oc"] == n_oc)]
-    fig, axes = plt.subplots(1, len(preds), figsize=(4.2 * len(preds), 3.8), squeeze=False, sharey=True)
+    orientations = sorted(m["start_orientation"].replace("", "all").unique())
+    fig, axes = plt.subplots(1, len(preds), figsize=(4.2 * len(preds), 4.2), squeeze=False, sharey=True, layout="constrained")
+    series = {}
     for ax, name in zip(axes[0], preds):
         mp = m[m["predictor"] == name]
-        for orient, g in mp.groupby(mp["start_orientation"].replace("", "all"), sort=True):
+        for i, (orient, g) in enumerate(mp.groupby(mp["start_orientation"].replace("", "all"), sort=True)):
             c = g.groupby("condition").agg(d=("global_distance", "mean"), mean=("delta_xy", "mean"),
                                            lo=("delta_xy", "min"), hi=("delta_xy", "max")).sort_values("d")
-            line, = ax.plot(c["d"], c["mean"], marker="o", ms=3, label=orient)
-            ax.fill_between(c["d"], c["lo"], c["hi"], color=line.get_color(), alpha=0.15)
+            colour = f"C{orientations.index(orient)}"
+            line, = ax.plot(c["d"], c["mean"], marker="o", ms=3, color=colour, label=orient)
+            band = ax.fill_between(c["d"], c["lo"], c["hi"], color=colour, alpha=0.15, label=orient)
+            series.setdefault(orient, (line, band))
         ax.set_title(name)
         ax.set_xlabel("global distance (m)")
-    axes[0, 0].set_ylabel("delta_xy (m): mean, min-max band")
-    axes[0, 0].legend(title="start orientation", fontsize=7)
+    axes[0, 0].set_ylabel("delta_xy per condition, mean and min-max (m)")
+    fig.legend(list(series.values()), list(series), handler_map={tuple: HandlerTuple(ndivide=1)}, title="start orientation",
+               loc="outside right center", fontsize=8)
     fig.suptitle(f"Prediction error vs global distance, N0 = {n0}, N_OC = {n_oc}, {conv.name} convention")
-    stage.savefig(fig, "prediction_error_vs_distance")
+    out["prediction_error_vs_distance"] = fig
+    return out
 
 
 def _fmt(v, digits=3) -> str:

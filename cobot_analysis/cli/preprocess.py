@@ -8,7 +8,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from cobot_analysis.cli.app import PANEL_PROCESS, DEFAULT_OUT_PATH, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, app
+from cobot_analysis.cli.app import PANEL_PROCESS, DEFAULT_OUT_PATH, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, app, examples
 
 
 class OrderConvention(str, Enum):
@@ -21,7 +21,10 @@ class OrientationMarkers(str, Enum):
     asis = "asis"
 
 
-@app.command("preprocess", rich_help_panel=PANEL_PROCESS)
+@app.command("preprocess", rich_help_panel=PANEL_PROCESS, epilog=examples(
+    "cobot-analysis preprocess --out walking",
+    "cobot-analysis preprocess --out walking --cutoff 6 --max-gap 0.2",
+    "cobot-analysis preprocess --out pairs --keep-approach"))
 def preprocess_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     markers: Annotated[Optional[Path], typer.Option("--markers", help="markers.parquet (default: OUT/import/markers.parquet).")] = None,

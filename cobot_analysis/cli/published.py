@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from cobot_analysis.cli.app import DEFAULT_OUT_PATH, PANEL_DATA, ForceOpt, OutOpt, app
+from cobot_analysis.cli.app import DEFAULT_OUT_PATH, PANEL_DATA, ForceOpt, OutOpt, app, examples
 
 
 class Dataset(str, Enum):
@@ -16,7 +16,11 @@ class Dataset(str, Enum):
     pair_carriage_2022 = "pair-carriage-2022"
 
 
-@app.command("import-published", rich_help_panel=PANEL_DATA)
+@app.command("import-published", rich_help_panel=PANEL_DATA, epilog=examples(
+    "cobot-analysis import-published walking-2020 \\",
+    "    ../shared/datasets/walking-2020 --out walking-2020",
+    "cobot-analysis import-published pair-carriage-2022 \\",
+    "    ../shared/datasets/pair-carriage-2022 --out pair-carriage-2022"))
 def import_published_command(
     dataset: Annotated[Dataset, typer.Argument(help="Which published dataset PATH holds.")],
     path: Annotated[Path, typer.Argument(help="Folder of the dataset (e.g. ../shared/datasets/walking-2020).")],

@@ -8,10 +8,10 @@ import pkgutil
 import typer
 
 import cobot_analysis
-from cobot_analysis.cli.app import PANEL_REPORT, app
+from cobot_analysis.cli.app import PANEL_REPORT, app, examples, finished
 
 
-@app.command("schemas", rich_help_panel=PANEL_REPORT)
+@app.command("schemas", rich_help_panel=PANEL_REPORT, epilog=examples("cobot-analysis schemas"))
 def schemas_command() -> None:
     """Print the columns, types, units and descriptions of every Parquet table, as Markdown.
 
@@ -24,4 +24,6 @@ def schemas_command() -> None:
             importlib.import_module(mod.name)
     from cobot_analysis.schema import schemas_markdown
 
-    typer.echo(schemas_markdown())
+    text = schemas_markdown()
+    typer.echo(text)
+    finished("schemas", f"{sum(line.startswith('## ') for line in text.splitlines())} tables", "stdout")

@@ -7,8 +7,7 @@ from typing import Annotated
 
 import typer
 
-from cobot_analysis.cli.app import DEFAULT_OUT_PATH, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, SeedOpt, synth_app
-from cobot_analysis.console import info
+from cobot_analysis.cli.app import DEFAULT_OUT_PATH, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, SeedOpt, examples, finished, synth_app
 from cobot_analysis.errors import InputError
 
 
@@ -36,12 +35,16 @@ def select(spec: str, universe: Sequence, option: str, counts: bool = True) -> l
     return [names[s] for s in dict.fromkeys(chosen)]
 
 
-@synth_app.command("walking")
+@synth_app.command("walking", epilog=examples(
+    "cobot-analysis synth walking --out walking --subjects 2 --repetitions 1 \\",
+    "    --conditions N1500,E1515",
+    "cobot-analysis synth walking --out walking2 --subjects 1 --repetitions 1 \\",
+    "    --conditions 2 --seed 7"))
 def walking_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     seed: SeedOpt = 0,
     subjects: Annotated[int, typer.Option("--subjects", min=1, help="Number of subjects.")] = 10,
-    trials: Annotated[int, typer.Option("--trials", min=1, help="Repetitions per start condition.")] = 3,
+    repetitions: Annotated[int, typer.Option("--repetitions", min=1, help="Trials of each subject per start condition.")] = 3,
     conditions: Annotated[str, typer.Option("--conditions", help="Start conditions: all, N (the first N of the design), or codes like E4015,N1500.")] = "all",
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
@@ -59,16 +62,19 @@ def walking_command(
 
     check_seed(seed)
     codes = select(conditions, WALKING_CONDITIONS, "--conditions")
-    params = {"seed": seed, "subjects": subjects, "trials": trials, "conditions": codes, "generator": GENERATOR_VERSION}
+    params = {"seed": seed, "subjects": subjects, "trials": repetitions, "conditions": codes, "generator": GENERATOR_VERSION}
     with Stage(out, walking.STAGE, params=params, force=force) as stage:
         if stage.skipped:
             return
-        walking.generate(stage.dir, seed=seed, n_subjects=subjects, n_trials=trials, conditions=codes,
+        walking.generate(stage.dir, seed=seed, n_subjects=subjects, n_trials=repetitions, conditions=codes,
                          jobs=jobs, scheduler=scheduler)
-    info(f"[green]{walking.STAGE}[/green]: {subjects * len(codes) * trials} trials -> {stage.final_dir}")
+    finished(walking.STAGE, f"{subjects * len(codes) * repetitions} trials", stage.final_dir)
 
 
-@synth_app.command("pairs")
+@synth_app.command("pairs", epilog=examples(
+    "cobot-analysis synth pairs --out pairs --pairs 1 --goals 1 --scenarios 3",
+    "cobot-analysis synth pairs --out pairs2 --pairs 1 --goals d3_p7_gris \\",
+    "    --scenarios 1,3"))
 def pairs_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     seed: SeedOpt = 0,
@@ -100,4 +106,4 @@ def pairs_command(
             return
         synth_pairs.generate(stage.dir, seed=seed, n_pairs=pairs, goals=stems, scenarios=scens, jobs=jobs,
                              scheduler=scheduler)
-    info(f"[green]{synth_pairs.STAGE}[/green]: {pairs * len(stems) * len(scens)} recordings -> {stage.final_dir}")
+    finished(synth_pairs.STAGE, f"{pairs * len(stems) * len(scens)} recordings", stage.final_dir)

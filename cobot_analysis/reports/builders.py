@@ -160,7 +160,7 @@ def _walking(data: dict, stage, lines: list[str], results: list[str]) -> None:
             _fig(stage, figures.scatter_r({"walker": (ind["global_distance"], ind["d_xy"])}, "global distance (m)", "d_xy (m)"),
                  "scatter_d_xy_global", "W1.6: individual vs mean d_xy against the global distance", lines)
         model = dist[dist["comparison"].eq("model")]
-        if len(model):  # rows of `compare --against generated.parquet --label model`
+        if len(model):  # rows of `compare --against generated.parquet --comparison model`
             _fig(stage, figures.boxplots({"subjects vs mean": ind["d_xy"].to_numpy(), "model vs mean": model["d_xy"].to_numpy()},
                                          "d_xy (m)", "Model error and subject variability", xlabel="comparison"), "box_model",
                  "W2: model vs mean and subject vs mean d_xy", lines)
@@ -270,4 +270,4 @@ def build_report(study: str, inputs: dict, stage, out: Path) -> None:
                     shutil.copy2(fig, stage.path(fig.name))
     _stats_section(data, lines)
     stage.path("README.md").write_text("\n".join(lines) + "\n")
-    stage.path("results.md").write_text("\n".join(results) + "\n" if results else f"## {title}: report\n\nSee reports/{study}/README.md.\n")
+    stage.path("results.md").write_text("\n".join(results) + "\n" if results else f"## {title}: report\n\nSee README.md in the report stage (and the --to directory of `report`).\n")

@@ -141,7 +141,7 @@ class SweepConfig:
         if self.orientation not in ORIENTATION_MODES:
             raise InputError(f"unknown orientation mode {self.orientation!r}", remedy=f"use one of {', '.join(ORIENTATION_MODES)}")
         if not self.nominal_speed > 0:
-            raise InputError(f"nominal speed must be positive (got {self.nominal_speed})", remedy="pass a positive --nominal-speed")
+            raise InputError(f"nominal speed must be positive (got {self.nominal_speed})", remedy="pass a positive --v-nominal")
 
     def weights_for(self, entity: str) -> str:
         """``weights``, else walking-2021 for walkers and the convention's table preset for tables."""
@@ -212,7 +212,7 @@ def trajectories_from_table(df: pd.DataFrame, config: SweepConfig, path: str | o
     from cobot_analysis.design import walking_condition
 
     if df.empty:
-        raise InputError("no trajectory to predict (empty selection)", path=path, remedy="check --study / --entity / --kind")
+        raise InputError("no trajectory to predict (empty selection)", path=path, remedy="check --only-study / --entity / --kind")
     n0_max = max(n0 for n0, _ in config.settings)
     out = []
     for (study, trial, entity), g in df.groupby(["study", "trial", "entity"], sort=True, observed=True):
