@@ -237,26 +237,11 @@ def test_tf_chain_with_inverse_static_and_interpolated_edges(tmp_path):
 
 def test_mcap_with_ros1_encoding_reads_like_the_ros1_bag(tmp_path):
     """MCAP files recorded with ROS1 encoding (mcap-ros1-support) go through the mcap library."""
-    from mcap.writer import Writer
-
     from cobot_analysis.localisation import synth
     from cobot_analysis.localisation.bags import PoseSpec, bag_info, open_bag, read_streams
 
     run = synth.make_run(synth.SynthParams(n_goals=1, stop=3.0, speed=0.3))
-    store = synth._typestore(ros1=True)
-    msgs = synth._messages(run, store, ros1=True)
-    path = tmp_path / "ros1.mcap"
-    with open(path, "wb") as fh:
-        w = Writer(fh)
-        w.start(profile="ros1", library="test")
-        channels = {}
-        for ts, topic, msgtype, msg in msgs:
-            if topic not in channels:
-                name = msgtype.replace("/msg/", "/")
-                sid = w.register_schema(name, "ros1msg", store.generate_msgdef(msgtype, ros_version=1)[0].encode())
-                channels[topic] = w.register_channel(topic, "ros1", sid)
-            w.add_message(channels[topic], log_time=ts, data=bytes(store.serialize_ros1(msg, msgtype)), publish_time=ts)
-        w.finish()
+    path = synth.write_mcap_ros1(run, tmp_path / "ros1.mcap")
     synth.write_ros1(run, tmp_path / "ros1.bag")
     specs = {"truth": PoseSpec.parse("/mocap/pose"), "icp": PoseSpec.parse("/icp/odom"), "tf": PoseSpec.parse("tf:map->os_sensor")}
     a, b = read_streams(path, specs), read_streams(tmp_path / "ros1.bag", specs)
