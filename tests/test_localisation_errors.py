@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from cobot_analysis.localisation import synth
 from cobot_analysis.localisation.report import RUNS
 from cobot_analysis.schema import read_table
+
+sys.path.insert(0, str(Path(__file__).parent))
+import damage  # noqa: E402
 
 SHORT = synth.SynthParams(n_goals=1, stop=3.0, speed=0.3)  # a 1-goal run of about 14 s
 
@@ -52,9 +58,7 @@ def test_not_a_bag(cli, tmp_path):
 @pytest.mark.parametrize("name", ["short.bag", "short.mcap"])
 def test_truncated_bag(cli, tmp_path, short, name):
     d, _ = short
-    data = (d / name).read_bytes()
-    cut = tmp_path / name
-    cut.write_bytes(data[: len(data) * 6 // 10])
+    cut = damage.truncate(d / name, (d / name).stat().st_size * 6 // 10, tmp_path / name)
     line = _fails(cli, tmp_path / "ws", cut, match=[name])
     assert "truncated" in line or "not a readable" in line or "cannot read" in line
 
@@ -75,18 +79,8 @@ def test_tf_frames_missing_or_not_connected(cli, tmp_path, short):
     d, run = short
     _fails(cli, tmp_path / "ws", d / "short.bag", "--icp", "tf:map->camera",
            match=["camera not in the bag", "base_link, map, odom, os_sensor"])
-
-    def add_island(msgs, store):
-        T = store.types
-        tr = T["geometry_msgs/msg/TransformStamped"](
-            header=T["std_msgs/msg/Header"](seq=0, stamp=T["builtin_interfaces/msg/Time"](sec=int(synth.T0), nanosec=0), frame_id="world"),
-            child_frame_id="camera", transform=T["geometry_msgs/msg/Transform"](
-                translation=T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0),
-                rotation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)))
-        return [(int(synth.T0 * 1e9), "/tf_static", "tf2_msgs/msg/TFMessage", T["tf2_msgs/msg/TFMessage"](transforms=[tr]))] + msgs
-
     island = tmp_path / "island.bag"
-    synth.write_ros1(run, island, edit=add_island)
+    synth.write_ros1(run, island, edit=damage.add_static_tf("world", "camera", synth.T0))
     _fails(cli, tmp_path / "ws", island, "--icp", "tf:map->camera",
            match=["map and camera are not connected", "world->camera", "map->odom"])
 
@@ -101,15 +95,8 @@ def test_too_few_overlapping_samples(cli, tmp_path):
 
 def test_non_monotonic_stamps_are_sorted_with_a_warning(cli, tmp_path, short):
     d, run = short
-
-    def shuffle(msgs, store):
-        icp = [i for i, m in enumerate(msgs) if m[1] == "/icp/pose"]
-        msgs = list(msgs)
-        for a, b in zip(icp[10:60:2], icp[11:60:2]):  # swap the messages, keep the record times
-            msgs[a], msgs[b] = (msgs[a][0], *msgs[b][1:]), (msgs[b][0], *msgs[a][1:])
-        return msgs
-
-    bag = synth.write_ros1(run, tmp_path / "shuffled.bag", edit=shuffle)
+    pairs = [(a, a + 1) for a in range(10, 60, 2)]  # messages swapped, record times kept
+    bag = synth.write_ros1(run, tmp_path / "shuffled.bag", edit=damage.swap_messages("/icp/pose", pairs))
     code, _, err = cli("localisation", bag, "--out", tmp_path / "ws", "--no-figures")
     assert code == 0, err
     assert "stamps are not monotonic; sorted" in err
