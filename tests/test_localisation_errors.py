@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 import sys
 from pathlib import Path
 
@@ -24,6 +25,7 @@ def short(tmp_path_factory):
     run = synth.make_run(SHORT)
     synth.write_ros1(run, d / "short.bag")
     synth.write_mcap(run, d / "short.mcap")
+    synth.write_ros2(run, d / "short_ros2")
     return d, run
 
 
@@ -116,3 +118,31 @@ def test_bad_options(cli, tmp_path, short):
     goals.write_text("x,y\n1,2\n")
     _fails(cli, tmp_path / "ws", d / "short.bag", "--goals", goals, match=["goals.csv", "lacks columns ['yaw']"])
     _fails(cli, tmp_path / "ws", match=["no bag given and no synthetic runs"])
+
+
+# ---- damaged bags (what `benchmarks/fuzz_inputs.py` found) -------------------------------------------
+def _copy(d, name, tmp_path):
+    """A copy of a seed bag, and the file holding its messages (the .db3 of a ROS2 directory)."""
+    if (d / name).is_dir():
+        bag = shutil.copytree(d / name, tmp_path / name)
+        return bag, next(bag.glob("*.db3"))
+    bag = shutil.copy(d / name, tmp_path / name)
+    return bag, bag
+
+
+def test_damaged_sqlite_record_is_one_line(cli, tmp_path, short):
+    bag, db3 = _copy(short[0], "short_ros2", tmp_path)
+    damage.db3_set(db3, "/mocap/pose", 10, "timestamp", bytes(10))  # a record's type byte flipped: the time read as a blob
+    line = _fails(cli, tmp_path / "ws", bag, match=[str(bag), "cannot read the messages (a damaged record of /mocap/pose: "
+                                                    "its time is bytes, its data bytes)", "re-export it (ros2 bag convert)"])
+    code, _, err = cli("bag-info", bag)
+    assert code == 2 and err.strip().splitlines()[-1] == line
+
+
+def test_damaged_metadata_is_one_line(cli, tmp_path, short):
+    bag, _ = _copy(short[0], "short_ros2", tmp_path)
+    damage.replace_bytes(bag / "metadata.yaml", b"type: geometry_msgs/msg/PoseStamped", b"type: []")
+    line = _fails(cli, tmp_path / "ws", bag, match=[str(bag), "not a readable ROS bag (ValueError: the topic", "has the message "
+                                                    "type [], not a name)"])
+    code, _, err = cli("bag-info", bag)
+    assert code == 2 and err.strip().splitlines()[-1] == line

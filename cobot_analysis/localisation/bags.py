@@ -102,6 +102,8 @@ class _RosbagsSource(_Source):
         self.reader = reader
         self.ros1 = not reader.is2
         for c in reader.connections:
+            if not isinstance(c.topic, str) or not isinstance(c.msgtype, str):  # a damaged metadata.yaml
+                raise ValueError(f"the topic {c.topic!r} has the message type {c.msgtype!r}, not a name")
             t = self.topics.setdefault(c.topic, Topic(c.topic, c.msgtype, 0))
             t.count += c.msgcount
 
@@ -285,8 +287,15 @@ def bag_info(path: str | os.PathLike) -> tuple[list[dict], list[dict]]:
 
 
 def _checked(src: _Source, topics, raw: bool = False) -> Iterator[tuple[str, str, int, object]]:
+    """The messages of ``topics``; a reader's failure, or a record whose time is not an integer or
+    whose data are not bytes (a damaged SQLite record), is an ``InputError``."""
     try:
-        yield from (src.raw(topics) if raw else src.messages(topics))
+        for item in (src.raw(topics) if raw else src.messages(topics)):
+            if not isinstance(item[2], int) or (raw and not isinstance(item[3], (bytes, bytearray, memoryview))):
+                raise InputError(f"cannot read the messages (a damaged record of {item[0]}: its time is "
+                                 f"{type(item[2]).__name__}, its data {type(item[3]).__name__})", path=src.path,
+                                 remedy=_repair(src.path))
+            yield item
     except InputError:
         raise
     except Exception as exc:  # noqa: BLE001
