@@ -121,6 +121,9 @@ def test_bad_options(cli, tmp_path, short):
 
 
 # ---- damaged bags (what `benchmarks/fuzz_inputs.py` found) -------------------------------------------
+FORMATS = ["short.bag", "short.mcap", "short_ros2"]
+
+
 def _copy(d, name, tmp_path):
     """A copy of a seed bag, and the file holding its messages (the .db3 of a ROS2 directory)."""
     if (d / name).is_dir():
@@ -128,6 +131,30 @@ def _copy(d, name, tmp_path):
         return bag, next(bag.glob("*.db3"))
     bag = shutil.copy(d / name, tmp_path / name)
     return bag, bag
+
+
+@pytest.mark.parametrize("name", FORMATS)
+@pytest.mark.parametrize("topic, index, field, change, what", [
+    ("/mocap/pose", 1000, "y", lambda v: v + 5.0, "a position spike (to and from its neighbours faster than 10 m/s)"),
+    ("/mocap/pose", 1000, "qz", lambda v: -v, "an orientation spike (to and from its neighbours faster than 10 rad/s)"),
+    ("/icp/pose", 60, "z", lambda v: 1e35, "a position beyond 1000 m from the frame origin (1e+35 m)"),
+    ("/goal", 0, "x", lambda v: v + 1000.0, "a position beyond 1000 m from the frame origin (1e+03 m)"),
+    ("/mocap/pose", 1000, "nanosec", lambda v: v + 10**9, "a stamp whose nanosec is not below 1e9"),
+    ("/mocap/pose", 1000, "sec", lambda v: v + 1, "a stamp out of place (more than 0.5 s from the stamps of the messages "
+                                                  "before and after it)"),
+    ("/mocap/pose", 1000, "sec", lambda v: v - 3600, "a stamp that jumps by more than 10 s against the bag's record times"),
+])
+def test_implausible_pose_value_names_the_message(cli, tmp_path, short, name, topic, index, field, change, what):
+    d, run = short
+    bag, data = _copy(d, name, tmp_path)
+    before = damage.pose_of(data, topic, index)
+    damage.set_pose_field(data, topic, index, field, change(before[field]))
+    n = {"/mocap/pose": len(run.t_mocap), "/icp/pose": len(run.t_icp), "/goal": len(run.goals)}[topic]
+    t = before["t"] + (change(before["sec"]) - before["sec"] if field == "sec" else 0)
+    stamp = "" if field == "nanosec" else f" (stamp {t:.3f} s)"
+    line = _fails(cli, tmp_path / "ws", bag, match=[str(bag), f"{topic}: {what} in message {index + 1} of {n}{stamp}",
+                                                     "a damaged bag: re-export it or record it again"])
+    assert ("--time record" in line) == ("record times" in what)
 
 
 def test_damaged_sqlite_record_is_one_line(cli, tmp_path, short):

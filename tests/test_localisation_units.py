@@ -361,3 +361,36 @@ def test_zero_orientation_quaternions_are_dropped_with_a_warning(capsys):
     stream = _stream(Path("run.bag"), "/icp/pose", rows)
     assert stream.t.tolist() == [0.0, 0.2]
     assert "/icp/pose: 1 of 3 message(s) dropped: 1 with a zero orientation quaternion" in capsys.readouterr().err
+
+
+def test_isolated_spikes_and_stray_stamps_are_refused_and_a_jump_at_an_end_is_warned(capsys):
+    from pathlib import Path
+
+    from cobot_analysis.errors import InputError
+    from cobot_analysis.localisation.bags import _stream
+
+    t = np.arange(200) * 0.01
+    rows = np.column_stack([t, 0.3 * t, np.zeros((200, 2)), np.tile([0.0, 0.0, 0.0, 1.0], (200, 1))])  # 0.3 m/s along x
+
+    def refused(where, value, record=None):
+        r = rows.copy()
+        r[where] = value
+        with pytest.raises(InputError) as exc:
+            _stream(Path("run.bag"), "/icp/pose", r, record=record)
+        return str(exc.value)
+
+    assert "/icp/pose: a position spike (to and from its neighbours faster than 10 m/s) in message 101 of 200 (stamp 1.000 s)" \
+        in refused((100, 2), 1.0)
+    assert "an orientation spike" in refused((100, slice(4, 8)), [0.0, 0.0, 0.5 ** 0.5, 0.5 ** 0.5])  # 90 degrees for 10 ms
+    assert "a stamp out of place" in refused((100, 0), 1.8)
+    assert "a stamp far from all others (further from them than they span) in message 200 of 200 (stamp 101.990 s)" \
+        in refused((199, 0), 101.99)
+    block = refused((slice(150, None), 0), t[150:] + 3600, record=t)  # 50 stamps an hour off
+    assert "a stamp that jumps by more than 10 s against the bag's record times in message 151 of 200" in block
+    assert "--time record" in block
+    first = rows.copy()
+    first[0, 1] = -1.0  # the first pose 1 m off: a damaged message, or a real first fix before a relocalisation
+    s = _stream(Path("run.bag"), "/icp/pose", first)
+    assert len(s) == 200 and s.xyz[0, 0] == -1.0
+    assert "1 jump(s) between consecutive poses faster than 10 m/s or 10 rad/s (up to 100 m/s" in s.meta["notes"][0]
+    assert "1 jump(s)" in capsys.readouterr().err
