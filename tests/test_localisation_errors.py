@@ -173,3 +173,10 @@ def test_damaged_metadata_is_one_line(cli, tmp_path, short):
                                                     "type [], not a name)"])
     code, _, err = cli("bag-info", bag)
     assert code == 2 and err.strip().splitlines()[-1] == line
+
+
+def test_tf_topic_of_another_type_is_one_line(cli, tmp_path, short):
+    bag = synth.write_mcap_ros1(short[1], tmp_path / "ros1.mcap")
+    damage.replace_bytes(bag, b"tf2_msgs/TFMessage", b"tf2_msgs/TF1essage")  # the schema of /tf_static, recorded first
+    _fails(cli, tmp_path / "ws", bag, "--icp", "tf:map->base_link",
+           match=[str(bag), "topic /tf_static has message type tf2_msgs/TF1essage, not tf2_msgs/TFMessage", "pass a pose topic"])

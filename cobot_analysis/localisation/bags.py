@@ -336,6 +336,12 @@ def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str 
                 if not present:
                     raise InputError(f"no /tf or /tf_static topic for {spec}", path=path,
                                      remedy=f"topics in the bag: {_topic_list(src)}")
+                for t in present:
+                    if src.topics[t].msgtype != TF_TYPE:
+                        raise InputError(f"topic {t} has message type {src.topics[t].msgtype.replace('/msg/', '/')}, "
+                                         f"not {TF_TYPE.replace('/msg/', '/')}", path=path,
+                                         remedy="a damaged bag, or tf recorded in another type: re-export it, or pass a pose "
+                                                "topic (e.g. --icp /icp/pose)")
                 need.update(present)
             else:
                 if spec.topic not in src.topics:
