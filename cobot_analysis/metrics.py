@@ -93,7 +93,8 @@ def path_distances(measured, other, comparison, *, measured_gamma=None, resample
 
     gamma: ``measured_gamma`` when given (e.g. the published data's own), else from the measured
     path, and from the (resampled) path for ``other`` (``gamma_from_path``); d_gamma over the first
-    N - 1 samples. NaN where a theta is NaN.
+    N - 1 samples. With ``measured_gamma`` also ``d_theta_tangent``: ``other``'s theta against the
+    measured path's tangent theta - gamma. NaN where a theta is NaN.
     """
     mx, my, mth = (np.asarray(v, dtype=float) for v in measured)
     ox, oy, oth = (np.asarray(v, dtype=float) for v in other)
@@ -107,10 +108,13 @@ def path_distances(measured, other, comparison, *, measured_gamma=None, resample
     else:
         ox, oy, oth = (resample_time(v, n) for v in (ox, oy, oth))
     with np.errstate(invalid="ignore"):
-        return {"d_xy": float(d_xy(mx, my, ox, oy)),
-                "d_theta": float(angle_distance(mth, oth, comparison.angle_difference)),
-                "d_gamma": float(np.mean(np.abs(_gamma_difference(mg, gamma_from_path(ox, oy, oth),
-                                                                  comparison.angle_difference))[:-1]))}
+        out = {"d_xy": float(d_xy(mx, my, ox, oy)),
+               "d_theta": float(angle_distance(mth, oth, comparison.angle_difference)),
+               "d_gamma": float(np.mean(np.abs(_gamma_difference(mg, gamma_from_path(ox, oy, oth),
+                                                                 comparison.angle_difference))[:-1]))}
+        if measured_gamma is not None:  # the model's theta against the measured path's tangent, theta - gamma
+            out["d_theta_tangent"] = float(angle_distance(mth - mg, oth, comparison.angle_difference))
+    return out
 
 
 def _gamma_difference(g1, g2, difference: str):

@@ -23,6 +23,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from conftest import datasets_dir  # tests/ is on sys.path, as a script and under pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 BASELINES = ROOT / "tests" / "baselines"
 
@@ -110,14 +112,6 @@ STUDIES: dict[str, Study] = {
     "pair-carriage-2022": Study("pair-carriage-2022.json", _pairs, needs_datasets=True),
 }
 
-
-def datasets_dir() -> Path | None:
-    """``$COBOT_DATASETS`` or ``../shared/datasets`` beside the project, if present (as tests/conftest.py)."""
-    env = os.environ.get("COBOT_DATASETS")
-    for cand in ([Path(env)] if env else []) + [ROOT.parent / "shared" / "datasets"]:
-        if cand.is_dir():
-            return cand
-    return None
 
 
 def run_study(name: str, study: Study, root: Path, datasets: Path | None, jobs: int, update: bool, baselines: Path) -> int:

@@ -102,7 +102,7 @@ def test_variable_horizon_equals_the_fixed_horizon_problem():
 
 
 def test_published_duration_rule_ends_on_its_upper_bound():
-    """J / T = a0 + (J - a0 T) / T decreases with T, so the authors' Nelder-Mead takes the largest
+    """J / T = a0 / dt + J' / T (J' the cost without a0) decreases with T, so the authors' Nelder-Mead takes the largest
     horizon it allows: the last integer below 200 d steps."""
     from cobot_analysis.models.oc import solve_model
 
@@ -113,6 +113,29 @@ def test_published_duration_rule_ends_on_its_upper_bound():
     assert sol.U.shape[0] == math.ceil(200 * d) - 1
     assert sol.T == pytest.approx(0.1 * sol.U.shape[0])
     assert np.hypot(sol.X[-1, 0] - goal[0], sol.X[-1, 1] - goal[1]) < 0.01
+
+
+def test_published_paths_do_not_depend_on_a0():
+    """Under the published convention a0 is a constant per node: J grows by a0 N, the rule's J / T by
+    a0 / dt, and the path, the horizon and J - a0 N are unchanged (why fit-ioc holds a0 there)."""
+    from cobot_analysis.models.oc import solve_model
+
+    start, goal = (0.0, 0.0, 0.0), (1.0, 0.8, math.pi / 2)
+    w_big = WALKING_2021.copy()
+    w_big[0] = 500.0
+    a, b = (solve_model("improved", start, goal, w, convention="published", warm=True) for w in (WALKING_2021, w_big))
+    assert a.success and b.success and a.U.shape == b.U.shape
+    assert np.abs(a.X - b.X).max() < 1e-6
+    n = a.U.shape[0]
+    assert b.cost - 500.0 * n == pytest.approx(a.cost - WALKING_2021[0] * n, rel=1e-6)
+
+
+def test_weights_at_the_search_limits_are_named():
+    from cobot_analysis.models.report import weight_limit_flag
+
+    assert weight_limit_flag({"a1": 1.5, "a2": 999.0}, ("a1",)).startswith("Fitted weights inside")
+    line = weight_limit_flag({"a1": 1.5, "a2": 950.0, "a3": 1.05e-7}, ("a1", "a2", "a3"))
+    assert "a2 = 950 at the upper limit" in line and "a3 = 1.05e-07 at the lower limit" in line and "a1" not in line
 
 
 def test_straight_walk_both_conventions_walk_the_straight_line():
@@ -229,8 +252,10 @@ def test_published_fit_ioc_holds_the_rule_horizons_and_checks_them(walking_means
     assert w["convention"] == "published"
     fit = w["fits"]["all"]
     assert fit["spec"]["convention"] == "published" and fit["horizons_changed"] is not None
+    assert "a0" not in fit["spec"]["fitted"] and fit["weights"]["a0"] == WALKING_2021[0]  # moves no path: held
     assert all(t["T_at_bound"] == 1 for t in fit["per_target"])
     text = (out / "fit-ioc-published" / "results.md").read_text()
     assert "published convention" in text and "ends on its upper bound for 3 of 3 paths" in text
     assert "the duration rule run again there moves the horizon of" in text
+    assert "a0 is held at its start value under the published convention" in text and "search limits" in text
     assert not (out / "fit-ioc").exists()

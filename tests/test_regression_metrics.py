@@ -22,6 +22,7 @@ from synthetic_tables import pair_table, walking_table  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 BASELINES = ROOT / "tests" / "baselines"
 D_XY = "compare.individual-mean.walker.d_xy.mean"
+D_XY_KEY = D_XY + "@continuous"  # compare runs under a convention: the key carries it
 
 
 def _records(stage_dir: Path) -> dict[str, dict]:
@@ -51,7 +52,7 @@ def checked(walking_ws, tmp_path, cli):
     shutil.copy(BASELINES / "tolerances.toml", baseline.parent / "tolerances.toml")
     code, out, err = cli("metrics", "update", baseline, ws)
     assert code == 0, err
-    assert f"added    {D_XY}: " in out and "written" in out
+    assert f"added    {D_XY_KEY}: " in out and "written" in out
     return ws, baseline
 
 
@@ -60,7 +61,7 @@ def test_stages_write_their_headline_numbers(walking_ws):
     ind = d[d["comparison"] == "individual-mean"]
     rec = _records(walking_ws / "compare")
     assert rec[D_XY] == {"name": D_XY, "value": pytest.approx(ind["d_xy"].mean(), rel=1e-15), "unit": "m", "stage": "compare",
-                         "convention": None}
+                         "convention": "continuous"}  # compare runs under a convention (docs/methods.md sec. 11)
     assert rec["compare.individual-mean.walker.d_xy.sd"]["value"] == pytest.approx(ind["d_xy"].std(ddof=1), rel=1e-15)
     assert rec["compare.individual-mean.walker.n"]["value"] == len(ind) == 96
     assert rec["compare.individual-mean.walker.d_theta.n"]["value"] == ind["d_theta"].notna().sum()
@@ -79,7 +80,7 @@ def test_unchanged_run_passes(checked, cli):
     code, out, err = cli("metrics", "check", baseline, ws)
     assert code == 0, out + err
     assert out.splitlines()[1].split() == ["metric", "baseline", "now", "tolerance", "change", "status"]
-    row = next(line for line in out.splitlines() if line.startswith(D_XY + " "))
+    row = next(line for line in out.splitlines() if line.startswith(D_XY_KEY + " "))
     assert row.split()[-1] == "ok" and "rel 1e-06 + abs 1e-12" in row
     assert "passed: " in out and " 0 outside tolerance, 0 missing, 0 new" in out
 
@@ -89,21 +90,21 @@ def test_scaled_distance_fails_and_update_prints_the_diff(checked, cli, monkeypa
     import cobot_analysis.metrics as metrics
 
     ws, baseline = checked
-    before = baseline_metrics(load_baseline(baseline))[D_XY].value
+    before = baseline_metrics(load_baseline(baseline))[D_XY_KEY].value
     real = metrics.d_xy
     monkeypatch.setattr(metrics, "d_xy", lambda *a: 1.1 * real(*a))
     assert cli("-q", "compare", "--out", ws, "--force")[0] == 0
     code, out, _ = cli("metrics", "check", baseline, ws)
     assert code == 1
-    row = next(line for line in out.splitlines() if line.startswith(D_XY + " ")).split()
+    row = next(line for line in out.splitlines() if line.startswith(D_XY_KEY + " ")).split()
     assert row[-1] == "FAIL" and row[-3:-1] == ["+10", "%"]
     assert float(row[1]) == pytest.approx(before, rel=1e-5) and float(row[2]) == pytest.approx(1.1 * before, rel=1e-5)
     assert "FAILED: " in out and "metrics update" in out
-    assert D_XY in out.split("not ok:")[1]
+    assert D_XY_KEY in out.split("not ok:")[1]
     # the explicit update step prints old -> new and makes the check pass again
     code, out, _ = cli("metrics", "update", baseline, ws)
-    assert code == 0 and f"changed  {D_XY}: " in out and "(+10 %)" in out
-    assert baseline_metrics(load_baseline(baseline))[D_XY].value == pytest.approx(1.1 * before, rel=1e-12)
+    assert code == 0 and f"changed  {D_XY_KEY}: " in out and "(+10 %)" in out
+    assert baseline_metrics(load_baseline(baseline))[D_XY_KEY].value == pytest.approx(1.1 * before, rel=1e-12)
     assert cli("metrics", "check", baseline, ws)[0] == 0
 
 
@@ -161,10 +162,10 @@ def test_baseline_that_is_not_json(checked, cli):
 def test_metric_without_tolerance(checked, cli):
     ws, baseline = checked
     rules = baseline.with_name("tolerances.toml")
-    rules.write_text(rules.read_text().replace('"compare.*", ', ""))
+    rules.write_text(rules.read_text().replace('"average.*", ', ""))
     code, _, err = cli("metrics", "check", baseline, ws)
     line = _one_line(err)
-    assert code == 2 and "have no tolerance, e.g. compare.individual-mean.walker.d_xy.mean" in line and str(rules) in line
+    assert code == 2 and "have no tolerance, e.g. average." in line and str(rules) in line
 
 
 def test_tolerance_rule_without_reason(checked, cli):
@@ -206,7 +207,7 @@ def test_corrupt_metrics_file(checked, cli):
 # ---- conventions, extraction errors, older workspaces -------------------------------------------------
 def test_model_metrics_carry_their_convention(tmp_path, cli):
     ws = tmp_path / "ws"
-    code, _, err = cli("-q", "generate", "--out", ws, "--start", "-1.5", "-1", "0")
+    code, _, err = cli("-q", "generate", "--out", ws, "--start", "-1.5", "-1", "0", "--convention", "continuous")
     assert code == 0, err
     rec = _records(ws / "generate")
     assert rec["generate.improved.paths"]["convention"] == "continuous" and rec["generate.improved.paths"]["value"] == 1
@@ -214,7 +215,8 @@ def test_model_metrics_carry_their_convention(tmp_path, cli):
     assert rec["generate.improved.end_error.max"]["value"] == pytest.approx(np.hypot(g["x"].iloc[-1], g["y"].iloc[-1]), rel=1e-12)
     # the convention of a model stage: its parameters, else its Parquet metadata, else continuous
     assert stage_convention("generate", ws / "generate", {"spec": {"convention": "published"}}) == "published"
-    assert stage_convention("compare", ws / "generate", {"convention": "published"}) is None
+    assert stage_convention("compare", ws / "generate", {"convention": "published"}) == "published"
+    assert stage_convention("stats", ws / "generate", {"convention": "published"}) is None
     other = tmp_path / "ws-published"
     shutil.copytree(ws, other)
     payload = stage_metrics("generate", other / "generate", {"convention": "published"})
@@ -239,7 +241,7 @@ def test_extraction_error_is_recorded_not_raised(tmp_path, cli, checked):
     shutil.copy(stage / "metrics.json", ws / "compare" / "metrics.json")
     code, out, _ = cli("metrics", "check", baseline, ws)
     assert code == 1 and "metrics could not be computed" in out
-    assert next(line for line in out.splitlines() if line.startswith(D_XY + " ")).split()[-1] == "MISSING"
+    assert next(line for line in out.splitlines() if line.startswith(D_XY_KEY + " ")).split()[-1] == "MISSING"
 
 
 def test_stage_without_metrics_file_is_read_from_its_outputs(checked, cli):
@@ -262,7 +264,7 @@ def test_committed_baselines_have_a_tolerance_for_every_metric_and_a_runner():
         values = [m.value for m in metrics.values()]
         assert all(v is not None and not (isinstance(v, float) and not np.isfinite(v)) for v in values)
     walking = baseline_metrics(load_baseline(BASELINES / "walking-2020.json"))
-    assert walking[D_XY].value == pytest.approx(0.100, abs=5e-4)  # docs/results.md: 0.100 +- 0.062
+    assert walking[D_XY_KEY].value == pytest.approx(0.100, abs=5e-4)  # docs/results.md: 0.100 +- 0.062
     pairs = baseline_metrics(load_baseline(BASELINES / "pair-carriage-2022.json"))
     assert pairs["stats.Q1.1.p"].value == pytest.approx(1.47e-29, rel=1e-2)  # Kruskal, travel time by scenario
     loc = baseline_metrics(load_baseline(BASELINES / "localisation.json"))

@@ -234,8 +234,8 @@ def fit_ioc_command(
     from cobot_analysis.errors import InputError
     from cobot_analysis.models.ioc import IOCSpec, fit, pair_targets_from_table, targets_from_table
     from cobot_analysis.models.outputs import IOC_DISTANCES
-    from cobot_analysis.models.presets import load_weights, names_for, weights_vector
-    from cobot_analysis.models.report import (compare_models, compared_models, duration_flag, figure_boxplots, figure_paths,
+    from cobot_analysis.models.presets import DEFAULT_PRESET, load_weights, names_for, weights_vector
+    from cobot_analysis.models.report import (compare_models, compared_models, duration_flag, weight_limit_flag, figure_boxplots, figure_paths,
                                               statistics, subject_distances, summary_table)
     from cobot_analysis.parallel import default_jobs, executor
     from cobot_analysis.schema import Column, TableSchema, write_table
@@ -249,8 +249,10 @@ def fit_ioc_command(
     conv.oc_rule(model)
     all_names = names_for(model)
     # b0 fixes the scale; a5, a6 of the walker belong to the Mombaur model; the coupled time cost a0 is
-    # not identifiable from time-normalised paths (fitted, it goes to ~0 and every T to its bound)
-    held = ("a0", "b0") if model == "coupled" else ("a5", "a6", "b0")
+    # not identifiable from time-normalised paths (fitted, it goes to ~0 and every T to its bound); under
+    # the published convention a0 is a per-node constant: it adds a0 N to J on a held horizon and a0 / dt
+    # to the duration rule's J / T, so it moves no path and is not identifiable either (docs/methods.md 11)
+    held = ("a0", "b0") if model == "coupled" else ("a5", "a6", "b0") + (("a0",) if conv.name == "published" else ())
     fit_names = fit_names or ",".join(n for n in all_names if n not in held)
     names = tuple(n.strip() for n in fit_names.split(",") if n.strip())
     bad = [n for n in names if n not in all_names]
@@ -416,8 +418,9 @@ def fit_ioc_command(
             lower = ("lower level: the published convention (docs/methods.md sec. 11): explicit Euler at the authors' node "
                      "step, costs summed per node, the authors' start and goal poses; each path's horizon chosen by the authors' "
                      "duration rule (Nelder-Mead on J/T) at the start weights and held during the fit, then the rule run again "
-                     "at the fitted weights (the D fitted below); distances after arc-length resampling of both paths, the "
-                     f"authors' mean block ({mean_src})")
+                     "at the fitted weights (the D fitted below); distances after arc-length resampling of both paths, to "
+                     + ("the authors' mean block" if Path(mean_src).parent.name == "import-published" else "the means")
+                     + f" ({mean_src})")
         else:
             lower = (f"lower level: OC with free duration on {intervals} intervals (continuous convention, docs/methods.md "
                      "sec. 11), warm-started from the solution at the best weights so far")
@@ -435,13 +438,21 @@ def fit_ioc_command(
                  "",
                  "| fit | paths | D start | D fitted | evaluations | not converged | " + " | ".join(names) + " |",
                  "|---|---|---|---|---|---|" + "---|" * len(names)]
+        start_label = start_weights or DEFAULT_PRESET[model]
         for k, r in results.items():
-            lines.append(f"| {k} | {len(fits[k])} | {r.start_objective:.4f} | {r.objective:.4f} | {r.evaluations} | {r.failed} | "
+            lines.append(f"| {k}: start weights ({start_label}) | {len(fits[k])} | {r.start_objective:.4f} |  |  |  | "
+                         + " | ".join(f"{w0[all_names.index(n)]:.3g}" for n in names) + " |")
+            lines.append(f"| {k}: fitted | {len(fits[k])} | {r.start_objective:.4f} | {r.objective:.4f} | {r.evaluations} | {r.failed} | "
                          + " | ".join(f"{r.weights[n]:.3g}" for n in names) + " |")
         lines.append("")
         for k, r in results.items():
             lines += [("" if per is Per.all else f"Fit {k}: ") + duration_flag(r.per_target, v_nominal, conv.name)
+                      + " " + weight_limit_flag(r.weights, names)
                       + (f" Optimiser: {r.message.strip()}" if per is Per.all else ""), ""]
+        if conv.name == "published" and "a0" not in names and model != "coupled":
+            lines += ["a0 is held at its start value under the published convention: a constant per node, it adds a0 N to J "
+                      "on a held horizon and a0 / dt to the duration rule's J / T, so no path depends on it (docs/methods.md "
+                      "sec. 11).", ""]
             if r.held_objective is not None:
                 lines += [f"{'' if per is Per.all else f'Fit {k}: '}with the horizons held, D = {r.held_objective:.4f} at the "
                           f"fitted weights; the duration rule run again there moves the horizon of {r.horizons_changed} of "

@@ -41,6 +41,8 @@ IOC_DISTANCES = TableSchema(
         "d_xy": Column("float", "m", "linear distance"),
         "d_theta": Column("float", "rad", "angular distance"),
         "d_gamma": Column("float", "rad", "local angular distance"),
+        "d_theta_tangent": Column("float", "rad", "published convention: the model's theta against the measured path's "
+                                                 "tangent (theta - recorded gamma)", required=False),
         "D": Column("float", "-", "IOC objective term: d_xy + 0.5 d_gamma (walker) or d_xy + 0.5 d_theta (table)"),
     },
 )

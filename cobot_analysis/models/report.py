@@ -259,12 +259,25 @@ def duration_flag(terms: list[dict], v_nominal: float = 1.0, convention: str = "
     if convention == "published":
         span = f"; T from {min(d['T'] for d in ok):.1f} to {max(d['T'] for d in ok):.1f} s" if ok else ""
         return (f"Duration: the authors' rule (Nelder-Mead on J / T from int(2/3 100 d) steps, T < 200 d steps) ends on its "
-                f"upper bound for {hi} of {len(ok)} paths{span}: J / T = a0 + (J - a0 T) / T keeps decreasing with T, so the "
-                "rule takes the longest horizon it allows (20 s per metre of start-goal distance).")
+                f"upper bound for {hi} of {len(ok)} paths{span}: J / T = a0 / dt + J' / T (J' the cost without a0) keeps "
+                "decreasing with T, so the rule takes the longest horizon it allows (20 s per metre of start-goal distance).")
     span = f"; T / T0 from {min(ratio):.2f} to {max(ratio):.2f}" if ratio else ""
     head = (f"**Warning: fitted duration T at its bound** ({T_BOUNDS[0]:g}, {T_BOUNDS[1]:g}) x T0 (T0 = start-goal "
             f"distance / {v_nominal:g} m/s + 1 s)" if lo + hi else f"Fitted duration T inside its bounds ({T_BOUNDS[0]:g}, {T_BOUNDS[1]:g}) x T0")
     return f"{head}: {lo + hi} of {len(ok)} paths ({lo} at the lower, {hi} at the upper bound){span}."
+
+
+def weight_limit_flag(weights: dict[str, float], fitted: tuple[str, ...]) -> str:
+    """Markdown line naming the fitted weights that end within a factor 1.12 (0.05 in log10) of the search
+    limits ``ioc.LOG_BOUNDS``; there the data ask for a term the bounds cut, so the weight is a bound, not an estimate."""
+    from cobot_analysis.models.ioc.fit import LOG_BOUNDS
+
+    near = [f"{n} = {weights[n]:.3g} at the {'lower' if np.log10(weights[n]) < sum(LOG_BOUNDS) / 2 else 'upper'} limit"
+            for n in fitted if min(abs(np.log10(max(weights[n], 1e-300)) - b) for b in LOG_BOUNDS) < 0.05]
+    if not near:
+        return f"Fitted weights inside the search limits 1e{LOG_BOUNDS[0]:g}..1e{LOG_BOUNDS[1]:g}."
+    return (f"**Warning: fitted weights at a search limit** (1e{LOG_BOUNDS[0]:g}..1e{LOG_BOUNDS[1]:g}): {', '.join(near)}; "
+            "the optimum may lie beyond the limit, so these values bound the estimate rather than estimate it.")
 
 
 # ---- coupled model (two carriers) ----------------------------------------------------------------

@@ -337,14 +337,16 @@ def _generate(d: Path, out: Collector, params: dict) -> None:
 
     g = _parquet(d / "generated.parquet", ["trial", "model", "sample", "x", "y", "travel_time", "cost"])
     ends = g.sort_values("sample").groupby("trial").tail(1)
-    goal = params.get("goal")
+    # each case's goal (params: cases = [condition, start, goal]; trial = model_condition, or model)
+    goals = {f"{m}_{c}" if c else m: goal for m in params.get("models", []) for c, _, goal in params.get("cases", [])}
     for key, e in _groups(ends, ["model"]):
         out.count((*key, "paths"), len(e))
         out.mean_sd((*key, "T"), e["travel_time"], "s")
         out.mean_sd((*key, "cost"), e["cost"], "")
-        if goal:
-            err = np.hypot(e["x"] - goal[0], e["y"] - goal[1])
-            out.add((*key, "end_error", "max"), float(err.max()), "m")
+        known = e[e["trial"].isin(list(goals))]
+        if len(known):
+            err = [np.hypot(r.x - goals[r.trial][0], r.y - goals[r.trial][1]) for r in known.itertuples()]
+            out.add((*key, "end_error", "max"), float(max(err)), "m")
 
 
 def _predict(d: Path, out: Collector, params: dict) -> None:
@@ -419,8 +421,10 @@ STAGE_METRICS: dict[str, Callable[[Path, Collector, dict], None]] = {
 
 
 def base_stage(stage: str) -> str:
-    """The stage without its convention suffix (``fit-ioc-published`` -> ``fit-ioc``, docs/methods.md sec. 11)."""
-    return stage[: -len("-published")] if stage.endswith("-published") else stage
+    """The stage without its convention suffix (``fit-ioc-published`` -> ``fit-ioc``, docs/methods.md sec. 11;
+    ``import-published`` is a stage of its own)."""
+    base = stage[: -len("-published")] if stage.endswith("-published") else stage
+    return base if base in MODEL_STAGES or base == "compare" or base.startswith("predict") else stage
 
 
 def extractor(stage: str) -> Callable | None:
@@ -493,7 +497,11 @@ def write_stage_metrics(stage: str, stage_dir: Path, params: dict | None = None)
         payload = stage_metrics(stage, Path(stage_dir), params)
     except Exception as exc:  # noqa: BLE001 - see docstring
         warn(f"{stage}: metrics.json records an error instead of the metrics ({type(exc).__name__}: {exc})")
-        payload = {"format": FORMAT, "stage": stage, "study": None, "convention": None, "metrics": [],
+        try:
+            conv = stage_convention(stage, Path(stage_dir), params or {})
+        except Exception:  # noqa: BLE001 - the stage's outputs are what failed to read
+            conv = None
+        payload = {"format": FORMAT, "stage": stage, "study": None, "convention": conv, "metrics": [],
                    "error": f"{type(exc).__name__}: {exc}"}
     if payload is not None:
         (Path(stage_dir) / METRICS_FILE).write_text(json.dumps(payload, indent=1) + "\n")
