@@ -183,6 +183,10 @@ def test_cli_generate_names_its_convention_and_its_stage(cli, tmp_path):
     path = tmp_path / "generate-published" / "generated.parquet"
     assert table_metadata(path)["convention"] == "published"
     assert "(published convention)" in (tmp_path / "generate-published" / "results.md").read_text()
+    # a model the preset's convention has no rule for runs under ours, unasked
+    code, _, err = cli("generate", "--out", tmp_path, "--model", "unicycle", "--start", "-0.5", "-1", "1.2")
+    assert code == 0, err
+    assert table_metadata(tmp_path / "generate" / "generated.parquet")["convention"] == "continuous"
     code, _, err = cli("generate", "--out", tmp_path, "--start", "-0.5", "-1", "1.2", "--convention", "continuous")
     assert code == 0, err
     assert table_metadata(tmp_path / "generate" / "generated.parquet")["convention"] == "continuous"

@@ -8,7 +8,7 @@ import pytest
 
 def test_generate_study_on_dask_equals_local_run(cli, tmp_path):
     distributed = pytest.importorskip("distributed")
-    args = ("generate", "--study", "walking-2020", "--intervals", "20", "--samples", "40")
+    args = ("generate", "--study", "walking-2020", "--convention", "continuous", "--intervals", "20", "--samples", "40")
     code, _, err = cli(*args, "--out", tmp_path / "local", "--jobs", "2")
     assert code == 0, err
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:

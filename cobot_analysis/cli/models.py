@@ -103,7 +103,10 @@ def generate_command(
     if weights and Path(weights).is_file():
         inputs.append(Path(weights))
     oc_models = [m for m in models if m != "clothoid"]
-    conv = conventions.get(convention or (weights_convention(weights) if oc_models else None) or "continuous")
+    default = weights_convention(weights) if oc_models else None
+    if default and convention is None and any(m not in conventions.get(default).oc for m in oc_models):
+        default = None  # the weights' convention has no rule for a model asked for (unicycle): ours
+    conv = conventions.get(convention or default or "continuous")
     for m in oc_models:
         conv.oc_rule(m)
     if conv.name == "published" and duration is not None:
