@@ -2,12 +2,19 @@
 
 from __future__ import annotations
 
+import shutil
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from cobot_analysis.localisation import synth
 from cobot_analysis.localisation.report import RUNS
 from cobot_analysis.schema import read_table
+
+sys.path.insert(0, str(Path(__file__).parent))
+import damage  # noqa: E402
 
 SHORT = synth.SynthParams(n_goals=1, stop=3.0, speed=0.3)  # a 1-goal run of about 14 s
 
@@ -18,6 +25,7 @@ def short(tmp_path_factory):
     run = synth.make_run(SHORT)
     synth.write_ros1(run, d / "short.bag")
     synth.write_mcap(run, d / "short.mcap")
+    synth.write_ros2(run, d / "short_ros2")
     return d, run
 
 
@@ -52,9 +60,7 @@ def test_not_a_bag(cli, tmp_path):
 @pytest.mark.parametrize("name", ["short.bag", "short.mcap"])
 def test_truncated_bag(cli, tmp_path, short, name):
     d, _ = short
-    data = (d / name).read_bytes()
-    cut = tmp_path / name
-    cut.write_bytes(data[: len(data) * 6 // 10])
+    cut = damage.truncate(d / name, (d / name).stat().st_size * 6 // 10, tmp_path / name)
     line = _fails(cli, tmp_path / "ws", cut, match=[name])
     assert "truncated" in line or "not a readable" in line or "cannot read" in line
 
@@ -75,18 +81,8 @@ def test_tf_frames_missing_or_not_connected(cli, tmp_path, short):
     d, run = short
     _fails(cli, tmp_path / "ws", d / "short.bag", "--icp", "tf:map->camera",
            match=["camera not in the bag", "base_link, map, odom, os_sensor"])
-
-    def add_island(msgs, store):
-        T = store.types
-        tr = T["geometry_msgs/msg/TransformStamped"](
-            header=T["std_msgs/msg/Header"](seq=0, stamp=T["builtin_interfaces/msg/Time"](sec=int(synth.T0), nanosec=0), frame_id="world"),
-            child_frame_id="camera", transform=T["geometry_msgs/msg/Transform"](
-                translation=T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0),
-                rotation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)))
-        return [(int(synth.T0 * 1e9), "/tf_static", "tf2_msgs/msg/TFMessage", T["tf2_msgs/msg/TFMessage"](transforms=[tr]))] + msgs
-
     island = tmp_path / "island.bag"
-    synth.write_ros1(run, island, edit=add_island)
+    synth.write_ros1(run, island, edit=damage.add_static_tf("world", "camera", synth.T0))
     _fails(cli, tmp_path / "ws", island, "--icp", "tf:map->camera",
            match=["map and camera are not connected", "world->camera", "map->odom"])
 
@@ -101,15 +97,8 @@ def test_too_few_overlapping_samples(cli, tmp_path):
 
 def test_non_monotonic_stamps_are_sorted_with_a_warning(cli, tmp_path, short):
     d, run = short
-
-    def shuffle(msgs, store):
-        icp = [i for i, m in enumerate(msgs) if m[1] == "/icp/pose"]
-        msgs = list(msgs)
-        for a, b in zip(icp[10:60:2], icp[11:60:2]):  # swap the messages, keep the record times
-            msgs[a], msgs[b] = (msgs[a][0], *msgs[b][1:]), (msgs[b][0], *msgs[a][1:])
-        return msgs
-
-    bag = synth.write_ros1(run, tmp_path / "shuffled.bag", edit=shuffle)
+    pairs = [(a, a + 1) for a in range(10, 60, 2)]  # messages swapped, record times kept
+    bag = synth.write_ros1(run, tmp_path / "shuffled.bag", edit=damage.swap_messages("/icp/pose", pairs))
     code, _, err = cli("localisation", bag, "--out", tmp_path / "ws", "--no-figures")
     assert code == 0, err
     assert "stamps are not monotonic; sorted" in err
@@ -129,3 +118,65 @@ def test_bad_options(cli, tmp_path, short):
     goals.write_text("x,y\n1,2\n")
     _fails(cli, tmp_path / "ws", d / "short.bag", "--goals-csv", goals, match=["goals.csv", "lacks columns ['yaw']"])
     _fails(cli, tmp_path / "ws", match=["no bag given and no synthetic runs"])
+
+
+# ---- damaged bags (what `benchmarks/fuzz_inputs.py` found) -------------------------------------------
+FORMATS = ["short.bag", "short.mcap", "short_ros2"]
+
+
+def _copy(d, name, tmp_path):
+    """A copy of a seed bag, and the file holding its messages (the .db3 of a ROS2 directory)."""
+    if (d / name).is_dir():
+        bag = shutil.copytree(d / name, tmp_path / name)
+        return bag, next(bag.glob("*.db3"))
+    bag = shutil.copy(d / name, tmp_path / name)
+    return bag, bag
+
+
+@pytest.mark.parametrize("name", FORMATS)
+@pytest.mark.parametrize("topic, index, field, change, what", [
+    ("/mocap/pose", 1000, "y", lambda v: v + 5.0, "a position spike (to and from its neighbours faster than 10 m/s)"),
+    ("/mocap/pose", 1000, "qz", lambda v: -v, "an orientation spike (to and from its neighbours faster than 10 rad/s)"),
+    ("/icp/pose", 60, "z", lambda v: 1e35, "a position beyond 1000 m from the frame origin (1e+35 m)"),
+    ("/goal", 0, "x", lambda v: v + 1000.0, "a position beyond 1000 m from the frame origin (1e+03 m)"),
+    ("/mocap/pose", 1000, "nanosec", lambda v: v + 10**9, "a stamp whose nanosec is not below 1e9"),
+    ("/mocap/pose", 1000, "sec", lambda v: v + 1, "a stamp out of place (more than 0.5 s from the stamps of the messages "
+                                                  "before and after it)"),
+    ("/mocap/pose", 1000, "sec", lambda v: v - 3600, "a stamp that jumps by more than 10 s against the bag's record times"),
+])
+def test_implausible_pose_value_names_the_message(cli, tmp_path, short, name, topic, index, field, change, what):
+    d, run = short
+    bag, data = _copy(d, name, tmp_path)
+    before = damage.pose_of(data, topic, index)
+    damage.set_pose_field(data, topic, index, field, change(before[field]))
+    n = {"/mocap/pose": len(run.t_mocap), "/icp/pose": len(run.t_icp), "/goal": len(run.goals)}[topic]
+    t = before["t"] + (change(before["sec"]) - before["sec"] if field == "sec" else 0)
+    stamp = "" if field == "nanosec" else f" (stamp {t:.3f} s)"
+    line = _fails(cli, tmp_path / "ws", bag, match=[str(bag), f"{topic}: {what} in message {index + 1} of {n}{stamp}",
+                                                     "a damaged bag: re-export it or record it again"])
+    assert ("--time record" in line) == ("record times" in what)
+
+
+def test_damaged_sqlite_record_is_one_line(cli, tmp_path, short):
+    bag, db3 = _copy(short[0], "short_ros2", tmp_path)
+    damage.db3_set(db3, "/mocap/pose", 10, "timestamp", bytes(10))  # a record's type byte flipped: the time read as a blob
+    line = _fails(cli, tmp_path / "ws", bag, match=[str(bag), "cannot read the messages (a damaged record of /mocap/pose: "
+                                                    "its time is bytes, its data bytes)", "re-export it (ros2 bag convert)"])
+    code, _, err = cli("bag-info", bag)
+    assert code == 2 and err.strip().splitlines()[-1] == line
+
+
+def test_damaged_metadata_is_one_line(cli, tmp_path, short):
+    bag, _ = _copy(short[0], "short_ros2", tmp_path)
+    damage.replace_bytes(bag / "metadata.yaml", b"type: geometry_msgs/msg/PoseStamped", b"type: []")
+    line = _fails(cli, tmp_path / "ws", bag, match=[str(bag), "not a readable ROS bag (ValueError: the topic", "has the message "
+                                                    "type [], not a name)"])
+    code, _, err = cli("bag-info", bag)
+    assert code == 2 and err.strip().splitlines()[-1] == line
+
+
+def test_tf_topic_of_another_type_is_one_line(cli, tmp_path, short):
+    bag = synth.write_mcap_ros1(short[1], tmp_path / "ros1.mcap")
+    damage.replace_bytes(bag, b"tf2_msgs/TFMessage", b"tf2_msgs/TF1essage")  # the schema of /tf_static, recorded first
+    _fails(cli, tmp_path / "ws", bag, "--icp", "tf:map->base_link",
+           match=[str(bag), "topic /tf_static has message type tf2_msgs/TF1essage, not tf2_msgs/TFMessage", "pass a pose topic"])

@@ -4,7 +4,8 @@ bags. Each gives the right numbers with a warning, or one error line (exit code 
 
 from __future__ import annotations
 
-import struct
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,10 +15,12 @@ from cobot_analysis.localisation import synth
 from cobot_analysis.localisation.report import RUNS
 from cobot_analysis.schema import read_table
 
+sys.path.insert(0, str(Path(__file__).parent))
+import damage  # noqa: E402
+
 SHORT = synth.SynthParams(n_goals=2, stop=3.0, speed=0.3)  # a 2-goal run of about 30 s
 # Level frame (x forward, y left, z up) -> camera optical frame (x right, y down, z forward).
 CAMERA = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
-POSE_TOPICS = ("/mocap/pose", "/icp/pose", "/goal")
 
 
 def _one_line(err: str) -> str:
@@ -36,24 +39,6 @@ def _fails(cli, out, *args, match):
 
 def _runs(out):
     return read_table(out / "localisation" / "localisation.parquet", RUNS).set_index("run")
-
-
-def _pose_edit(fn):
-    """A ``write_ros1`` edit replacing ``(xyz, quat) -> fn(topic, xyz, quat)`` on the PoseStamped topics."""
-    def edit(msgs, store):
-        T = store.types
-        out = []
-        for ts, topic, msgtype, m in msgs:
-            if topic in POSE_TOPICS:
-                p, q = m.pose.position, m.pose.orientation
-                xyz, quat = fn(topic, np.array([p.x, p.y, p.z]), np.array([q.x, q.y, q.z, q.w]))
-                m = T[msgtype](header=m.header, pose=T["geometry_msgs/msg/Pose"](
-                    position=T["geometry_msgs/msg/Point"](x=float(xyz[0]), y=float(xyz[1]), z=float(xyz[2])),
-                    orientation=T["geometry_msgs/msg/Quaternion"](x=float(quat[0]), y=float(quat[1]), z=float(quat[2]),
-                                                                  w=float(quat[3]))))
-            out.append((ts, topic, msgtype, m))
-        return out
-    return edit
 
 
 @pytest.fixture(scope="module")
@@ -79,8 +64,8 @@ def level(short, tmp_path_factory):
 def test_camera_frame_run_is_levelled_with_a_warning(cli, tmp_path, short, level):
     d, run = short
     rot = Rotation.from_matrix(CAMERA)
-    bag = synth.write_ros1(run, tmp_path / "camera.bag", edit=_pose_edit(
-        lambda topic, xyz, q: (CAMERA @ xyz, (rot * Rotation.from_quat(q) * rot.inv()).as_quat())))
+    bag = synth.write_ros1(run, tmp_path / "camera.bag", edit=damage.edit_poses(
+        lambda topic, i, xyz, q: (CAMERA @ xyz, (rot * Rotation.from_quat(q) * rot.inv()).as_quat())))
     code, _, err = cli("localisation", bag, "--out", tmp_path / "auto", "--no-figures")
     assert code == 0, err
     flat = " ".join(err.split())
@@ -170,11 +155,9 @@ def test_option_values_are_checked_before_any_work(cli, tmp_path, short, args, m
 # ---- 10. damaged bags ---------------------------------------------------------------------------------
 @pytest.mark.parametrize("name", ["level.bag", "level.mcap"])
 def test_overwritten_block_is_one_line(cli, tmp_path, short, name):
-    data = bytearray((short[0] / name).read_bytes())
-    mid = len(data) // 3
-    data[mid:mid + 4096] = np.random.default_rng(3).integers(0, 256, 4096, dtype=np.uint8).tobytes()
-    bad = tmp_path / name
-    bad.write_bytes(bytes(data))
+    src = short[0] / name
+    noise = np.random.default_rng(3).integers(0, 256, 4096, dtype=np.uint8).tobytes()
+    bad = damage.overwrite(src, src.stat().st_size // 3, noise, tmp_path / name)
     line = _fails(cli, tmp_path / "ws", bad, match=[str(bad), "truncated or damaged"])
     assert ("rosbag reindex" if name.endswith(".bag") else "mcap recover") in line
     code, _, err = cli("bag-info", bad)
@@ -184,13 +167,8 @@ def test_overwritten_block_is_one_line(cli, tmp_path, short, name):
 @pytest.mark.parametrize("name", ["level.bag", "level.mcap"])
 def test_overwritten_quaternion_is_dropped_with_a_warning(cli, tmp_path, short, name):
     d, run = short
-    data = bytearray((d / name).read_bytes())
-    target = struct.pack("<4d", *run.mocap_quat[1000])
-    at = data.find(target)
-    assert at > 0 and data.find(target, at + 1) < 0
-    data[at:at + 8] = struct.pack("<d", 0.5)  # qx: the quaternion is no longer a rotation
-    bad = tmp_path / name
-    bad.write_bytes(bytes(data))
+    bad, before = damage.set_pose_field(d / name, "/mocap/pose", 1000, "qx", 0.5, tmp_path / name)  # no longer a rotation
+    assert [before[f] for f in ("qx", "qy", "qz", "qw")] == pytest.approx(run.mocap_quat[1000], abs=1e-12)
     code, _, err = cli("localisation", bad, "--out", tmp_path / "ws", "--no-figures")
     assert code == 0, err
     n = len(run.t_mocap)
@@ -206,16 +184,15 @@ def test_nan_and_zero_poses_name_the_topic_and_the_cause(cli, tmp_path):
     bag = synth.write_ros1(run, tmp_path / "nan.bag")
     _fails(cli, tmp_path / "ws", bag, match=[f"nan.bag: /mocap/pose: no usable pose in {n_truth} message(s) "
                                              f"({n_truth} with NaN/inf values)"])
-    zero = synth.write_ros1(synth.make_run(SHORT), tmp_path / "zero.bag", edit=_pose_edit(
-        lambda topic, xyz, q: (xyz, np.zeros(4) if topic == "/icp/pose" else q)))
+    zero = synth.write_ros1(synth.make_run(SHORT), tmp_path / "zero.bag", edit=damage.edit_poses(
+        lambda topic, i, xyz, q: (xyz, np.zeros(4) if topic == "/icp/pose" else q)))
     _fails(cli, tmp_path / "ws", zero, match=[f"zero.bag: /icp/pose: no usable pose in {n_icp} message(s) ({n_icp} with a "
                                               "zero orientation quaternion (orientation unset))"])
 
 
 def test_bag_info_prints_long_topic_names_whole(cli, tmp_path):
     long = "/robot/localization/lidar_icp_node_with_a_really_long_name/pose_in_map_frame_estimated"
-    bag = synth.write_ros1(synth.make_run(SHORT), tmp_path / "long.bag",
-                           edit=lambda msgs, store: [(t, long if tp == "/icp/pose" else tp, mt, m) for t, tp, mt, m in msgs])
+    bag = synth.write_ros1(synth.make_run(SHORT), tmp_path / "long.bag", edit=damage.rename_topic("/icp/pose", long))
     code, out, err = cli("bag-info", bag)
     assert code == 0
     assert any(long in line for line in err.splitlines())  # the table, wider than 80 columns

@@ -237,26 +237,11 @@ def test_tf_chain_with_inverse_static_and_interpolated_edges(tmp_path):
 
 def test_mcap_with_ros1_encoding_reads_like_the_ros1_bag(tmp_path):
     """MCAP files recorded with ROS1 encoding (mcap-ros1-support) go through the mcap library."""
-    from mcap.writer import Writer
-
     from cobot_analysis.localisation import synth
     from cobot_analysis.localisation.bags import PoseSpec, bag_info, open_bag, read_streams
 
     run = synth.make_run(synth.SynthParams(n_goals=1, stop=3.0, speed=0.3))
-    store = synth._typestore(ros1=True)
-    msgs = synth._messages(run, store, ros1=True)
-    path = tmp_path / "ros1.mcap"
-    with open(path, "wb") as fh:
-        w = Writer(fh)
-        w.start(profile="ros1", library="test")
-        channels = {}
-        for ts, topic, msgtype, msg in msgs:
-            if topic not in channels:
-                name = msgtype.replace("/msg/", "/")
-                sid = w.register_schema(name, "ros1msg", store.generate_msgdef(msgtype, ros_version=1)[0].encode())
-                channels[topic] = w.register_channel(topic, "ros1", sid)
-            w.add_message(channels[topic], log_time=ts, data=bytes(store.serialize_ros1(msg, msgtype)), publish_time=ts)
-        w.finish()
+    path = synth.write_mcap_ros1(run, tmp_path / "ros1.mcap")
     synth.write_ros1(run, tmp_path / "ros1.bag")
     specs = {"truth": PoseSpec.parse("/mocap/pose"), "icp": PoseSpec.parse("/icp/odom"), "tf": PoseSpec.parse("tf:map->os_sensor")}
     a, b = read_streams(path, specs), read_streams(tmp_path / "ros1.bag", specs)
@@ -376,3 +361,36 @@ def test_zero_orientation_quaternions_are_dropped_with_a_warning(capsys):
     stream = _stream(Path("run.bag"), "/icp/pose", rows)
     assert stream.t.tolist() == [0.0, 0.2]
     assert "/icp/pose: 1 of 3 message(s) dropped: 1 with a zero orientation quaternion" in capsys.readouterr().err
+
+
+def test_isolated_spikes_and_stray_stamps_are_refused_and_a_jump_at_an_end_is_warned(capsys):
+    from pathlib import Path
+
+    from cobot_analysis.errors import InputError
+    from cobot_analysis.localisation.bags import _stream
+
+    t = np.arange(200) * 0.01
+    rows = np.column_stack([t, 0.3 * t, np.zeros((200, 2)), np.tile([0.0, 0.0, 0.0, 1.0], (200, 1))])  # 0.3 m/s along x
+
+    def refused(where, value, record=None):
+        r = rows.copy()
+        r[where] = value
+        with pytest.raises(InputError) as exc:
+            _stream(Path("run.bag"), "/icp/pose", r, record=record)
+        return str(exc.value)
+
+    assert "/icp/pose: a position spike (to and from its neighbours faster than 10 m/s) in message 101 of 200 (stamp 1.000 s)" \
+        in refused((100, 2), 1.0)
+    assert "an orientation spike" in refused((100, slice(4, 8)), [0.0, 0.0, 0.5 ** 0.5, 0.5 ** 0.5])  # 90 degrees for 10 ms
+    assert "a stamp out of place" in refused((100, 0), 1.8)
+    assert "a stamp far from all others (further from them than they span) in message 200 of 200 (stamp 101.990 s)" \
+        in refused((199, 0), 101.99)
+    block = refused((slice(150, None), 0), t[150:] + 3600, record=t)  # 50 stamps an hour off
+    assert "a stamp that jumps by more than 10 s against the bag's record times in message 151 of 200" in block
+    assert "--time record" in block
+    first = rows.copy()
+    first[0, 1] = -1.0  # the first pose 1 m off: a damaged message, or a real first fix before a relocalisation
+    s = _stream(Path("run.bag"), "/icp/pose", first)
+    assert len(s) == 200 and s.xyz[0, 0] == -1.0
+    assert "1 jump(s) between consecutive poses faster than 10 m/s or 10 rad/s (up to 100 m/s" in s.meta["notes"][0]
+    assert "1 jump(s)" in capsys.readouterr().err

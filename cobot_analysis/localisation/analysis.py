@@ -44,7 +44,7 @@ def analyse_run(task: tuple[str, str, str, Options]) -> dict:
     specs = {"truth": PoseSpec.parse(o.truth), "icp": PoseSpec.parse(o.icp)}
     if o.goals is None and o.goal_topic:
         specs["goals"] = PoseSpec.parse(o.goal_topic)
-    streams = read_streams(path, specs, o.time, optional=("goals",))
+    streams = read_streams(path, specs, o.time, optional=("goals",), sparse=("goals",))
     goal_from_bag = "goals" in streams
     truth, icp = streams["truth"], streams["icp"]
     for spec, s in ((o.truth, truth), (o.icp, icp)):

@@ -102,6 +102,8 @@ class _RosbagsSource(_Source):
         self.reader = reader
         self.ros1 = not reader.is2
         for c in reader.connections:
+            if not isinstance(c.topic, str) or not isinstance(c.msgtype, str):  # a damaged metadata.yaml
+                raise ValueError(f"the topic {c.topic!r} has the message type {c.msgtype!r}, not a name")
             t = self.topics.setdefault(c.topic, Topic(c.topic, c.msgtype, 0))
             t.count += c.msgcount
 
@@ -285,8 +287,15 @@ def bag_info(path: str | os.PathLike) -> tuple[list[dict], list[dict]]:
 
 
 def _checked(src: _Source, topics, raw: bool = False) -> Iterator[tuple[str, str, int, object]]:
+    """The messages of ``topics``; a reader's failure, or a record whose time is not an integer or
+    whose data are not bytes (a damaged SQLite record), is an ``InputError``."""
     try:
-        yield from (src.raw(topics) if raw else src.messages(topics))
+        for item in (src.raw(topics) if raw else src.messages(topics)):
+            if not isinstance(item[2], int) or (raw and not isinstance(item[3], (bytes, bytearray, memoryview))):
+                raise InputError(f"cannot read the messages (a damaged record of {item[0]}: its time is "
+                                 f"{type(item[2]).__name__}, its data {type(item[3]).__name__})", path=src.path,
+                                 remedy=_repair(src.path))
+            yield item
     except InputError:
         raise
     except Exception as exc:  # noqa: BLE001
@@ -295,8 +304,9 @@ def _checked(src: _Source, topics, raw: bool = False) -> Iterator[tuple[str, str
 
 # ---- pose streams -----------------------------------------------------------------------------
 def _stamp(msg) -> float:
+    """``sec + nanosec 1e-9``; NaN for a nanosec outside 0..1e9 (not a time: a damaged stamp)."""
     s = msg.header.stamp
-    return s.sec + s.nanosec * 1e-9
+    return s.sec + s.nanosec * 1e-9 if 0 <= s.nanosec < 1_000_000_000 else float("nan")
 
 
 def _pose_of(msg, msgtype: str):
@@ -310,9 +320,10 @@ def _pose_of(msg, msgtype: str):
 
 
 def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str = "header",
-                 optional: tuple[str, ...] = ()) -> dict[str, PoseStream]:
+                 optional: tuple[str, ...] = (), sparse: tuple[str, ...] = ()) -> dict[str, PoseStream]:
     """Read several pose streams in one pass over the bag: ``{name: PoseStream}``; the names in
-    ``optional`` are left out (instead of an error) when their topic is not in the bag."""
+    ``optional`` are left out (instead of an error) when their topic is not in the bag; those in
+    ``sparse`` (commands such as goals) are not checked for continuity (``_stream``)."""
     if time not in ("header", "record"):
         raise ValueError("time must be 'header' or 'record'")
     path = Path(path)
@@ -325,6 +336,12 @@ def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str 
                 if not present:
                     raise InputError(f"no /tf or /tf_static topic for {spec}", path=path,
                                      remedy=f"topics in the bag: {_topic_list(src)}")
+                for t in present:
+                    if src.topics[t].msgtype != TF_TYPE:
+                        raise InputError(f"topic {t} has message type {src.topics[t].msgtype.replace('/msg/', '/')}, "
+                                         f"not {TF_TYPE.replace('/msg/', '/')}", path=path,
+                                         remedy="a damaged bag, or tf recorded in another type: re-export it, or pass a pose "
+                                                "topic (e.g. --icp /icp/pose)")
                 need.update(present)
             else:
                 if spec.topic not in src.topics:
@@ -350,7 +367,7 @@ def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str 
                     if topic == "/tf_static":
                         static[key] = pose
                     else:
-                        tf[key].append((_stamp(tr) if time == "header" else ts * 1e-9, *pose[0], *pose[1]))
+                        tf[key].append((_stamp(tr) if time == "header" else ts * 1e-9, *pose[0], *pose[1], ts * 1e-9))
             else:
                 raws[topic].append(raw)
                 stamps[topic].append(ts)
@@ -363,18 +380,20 @@ def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str 
                 rows = np.array([(_stamp(m), *_pose_of(m, msgtype)[0], *_pose_of(m, msgtype)[1]) for m in msgs], dtype=float)
             else:
                 frame_ids[topic] = _frame(_decode(src, items[0], msgtype).header.frame_id)
+            record = np.asarray(stamps[topic], dtype=np.int64) * 1e-9
             if time == "record":
-                rows[:, 0] = np.asarray(stamps[topic], dtype=np.int64) * 1e-9
-            data[topic] = rows
+                rows[:, 0] = record
+            data[topic] = np.column_stack([rows, record])  # the record time beside each pose
     out = {}
     for name, spec in specs.items():
         if spec.is_tf:
             out[name] = _chain(path, spec, tf, static)
         else:
-            rows = np.asarray(data.get(spec.topic, []), dtype=float).reshape(-1, 8)
+            rows = np.asarray(data.get(spec.topic, []), dtype=float).reshape(-1, 9)
             if len(rows) == 0:
                 raise InputError(f"topic {spec.topic} has no messages", path=path, remedy=f"topics in the bag: {_topic_list_from(data)}")
-            out[name] = _stream(path, str(spec), rows, frame_ids.get(spec.topic, ""))
+            out[name] = _stream(path, str(spec), rows[:, :8], frame_ids.get(spec.topic, ""), continuous=name not in sparse,
+                                record=rows[:, 8])
     return out
 
 
@@ -425,7 +444,7 @@ def _fast_rows(raws: list, msgtype: str, ros1: bool) -> np.ndarray | None:
     sec = np.ascontiguousarray(buf[:, stamp:stamp + 4]).view("<u4" if ros1 else "<i4")[:, 0].astype(float)
     nsec = np.ascontiguousarray(buf[:, stamp + 4:stamp + 8]).view("<u4")[:, 0].astype(float)
     pose = np.ascontiguousarray(buf[:, pos:pos + 56]).view("<f8")
-    return np.column_stack([sec + nsec * 1e-9, pose])
+    return np.column_stack([np.where(nsec < 1e9, sec + nsec * 1e-9, np.nan), pose])  # as _stamp
 
 
 def _topic_list(src: _Source) -> str:
@@ -437,20 +456,66 @@ def _topic_list_from(data) -> str:
 
 
 QUAT_TOL = 0.01  # |norm - 1| of a stored orientation quaternion beyond which the message is damaged
+POSITION_LIMIT = 1000.0  # m: largest |x|, |y|, |z| of a pose in a lab or building frame
 MAX_SPEED = 10.0  # m/s between consecutive poses: beyond this a pose is a jump (damage, tracking loss, relocalisation)
+MAX_TURN = 10.0  # rad/s between consecutive orientations: beyond this likewise
+STAMP_STEP = 0.5  # s: a stamp this far from the stamps before and after it in the bag (which agree) is out of place
+CLOCK_JUMP = 10.0  # s: stamps of consecutive messages whose offsets to the bag's record times differ by more jump
+DAMAGED = ("a damaged bag: re-export it or record it again (a stream that really glitched there: leave that message "
+           "out of the bag, e.g. with rosbag filter)")
 
 
-def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "") -> PoseStream:
-    """Sorted, de-duplicated stream from rows ``(t, x, y, z, qx, qy, qz, qw)``. Messages with
-    NaN/inf, a zero quaternion (unset orientation) or a quaternion far from unit norm (damaged) are
-    dropped; stamps sorted; jumps faster than ``MAX_SPEED`` reported. Each of these is a warning,
-    kept in ``meta["notes"]``; a stream left without any pose is an ``InputError`` naming why."""
+def _at(order: np.ndarray, n: int, t: np.ndarray, bad: np.ndarray) -> str:
+    """'message 18 of 2813 (stamp 1634300000.085 s) and 2 more' for the first of the ``bad`` rows."""
+    k = np.flatnonzero(bad)
+    stamp = f" (stamp {t[k[0]]:.3f} s)" if np.isfinite(t[k[0]]) else ""
+    return f"message {order[k[0]] + 1} of {n}{stamp}" + (f" and {len(k) - 1} more" if len(k) > 1 else "")
+
+
+def _isolated(fast: np.ndarray, fast_over: np.ndarray) -> np.ndarray:
+    """Interior samples whose steps to both neighbours are ``fast`` while the step over them is not
+    (``fast[k]``: the step k -> k + 1, ``fast_over[k]``: k -> k + 2)."""
+    out = np.zeros(len(fast) + 1, bool)
+    out[1:-1] = fast[:-1] & fast[1:] & ~fast_over
+    return out
+
+
+def _turn(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rotation angle (rad) between unit quaternions, row by row."""
+    return 2 * np.arccos(np.clip(np.abs(np.sum(a * b, axis=1)), 0.0, 1.0))
+
+
+def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continuous: bool = True,
+            record: np.ndarray | None = None) -> PoseStream:
+    """Sorted, de-duplicated stream from rows ``(t, x, y, z, qx, qy, qz, qw)`` in the order read
+    (``record``: the bag's record time of each, s).
+
+    Dropped with a warning (kept in ``meta["notes"]``): messages with NaN/inf (a lost rigid body), a
+    zero quaternion (orientation unset) or a quaternion far from unit norm; repeated stamps. Sorted
+    with a warning: unsorted stamps. Warned about: jumps faster than ``MAX_SPEED`` / ``MAX_TURN``
+    (a relocalisation, or damage at an end of the stream). Refused (``InputError`` naming the
+    message), as values no recording holds: a stamp whose nanosec is not below 1e9, a position
+    beyond ``POSITION_LIMIT``; in a ``continuous`` stream (not the goals) a stamp whose offset to the
+    record time jumps by more than ``CLOCK_JUMP`` from the message before, a stamp ``STAMP_STEP`` away
+    from both its neighbours in the bag, an end stamp further from the others than they span, and
+    an isolated spike (a pose leaving both neighbours faster than the limits while they agree).
+    """
     notes, n_msgs = [], len(rows)
+    order = np.arange(n_msgs)  # message index in the bag, through drops and sorting
 
     def note(text: str) -> None:
         notes.append(f"{name}: {text}")
         warn(f"{path}: {name}: {text}")
 
+    def refuse(what: str, bad: np.ndarray, remedy: str = DAMAGED) -> None:
+        if bad.any():
+            raise InputError(f"{name}: {what} in {_at(order, n_msgs, rows[:, 0], bad)}", path=path, remedy=remedy)
+
+    refuse("a stamp whose nanosec is not below 1e9", np.isnan(rows[:, 0]))
+    if continuous and record is not None and len(rows) > 1:
+        refuse(f"a stamp that jumps by more than {CLOCK_JUMP:g} s against the bag's record times",
+               np.concatenate([[False], np.abs(np.diff(rows[:, 0] - record)) > CLOCK_JUMP]),
+               remedy=f"{DAMAGED}; or a clock that jumped: analyse with the record times (--time record)")
     drops = []
     finite = np.isfinite(rows).all(axis=1)
     norm = np.linalg.norm(np.where(np.isfinite(rows[:, 4:8]), rows[:, 4:8], 0.0), axis=1)
@@ -467,24 +532,45 @@ def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "") -> Pose
             raise InputError(f"{name}: no usable pose in {n_msgs} message(s) ({'; '.join(drops)})", path=path,
                              remedy="check the topic with `cobot-analysis bag-info` and the recording (or pick another topic)")
         note(f"{n_msgs - int(keep.sum())} of {n_msgs} message(s) dropped: {'; '.join(drops)}")
-        rows = rows[keep]
+        rows, order = rows[keep], order[keep]
+    refuse(f"a position beyond {POSITION_LIMIT:g} m from the frame origin ({np.abs(rows[:, 1:4]).max():.3g} m)",
+           (np.abs(rows[:, 1:4]) > POSITION_LIMIT).any(axis=1))
     t = rows[:, 0]
+    if continuous and len(rows) > 2:
+        gap = np.abs(np.diff(t)) > STAMP_STEP
+        refuse(f"a stamp out of place (more than {STAMP_STEP:g} s from the stamps of the messages before and after it)",
+               _isolated(gap, np.abs(t[2:] - t[:-2]) > STAMP_STEP))
     if np.any(np.diff(t) < 0):
         note("stamps are not monotonic; sorted by stamp")
-        rows = rows[np.argsort(t, kind="stable")]
+        sort = np.argsort(t, kind="stable")
+        rows, order = rows[sort], order[sort]
         t = rows[:, 0]
     dup = np.concatenate([[False], np.diff(t) == 0])
     if dup.any():
         note(f"{int(dup.sum())} message(s) with a repeated stamp dropped")
-        rows = rows[~dup]
+        rows, order = rows[~dup], order[~dup]
+        t = rows[:, 0]
+    xyz, quat = rows[:, 1:4], normalise(rows[:, 4:8])
+    if continuous and len(rows) > 2:
+        lone = np.zeros(len(rows), bool)
+        lone[0] = t[1] - t[0] > max(STAMP_STEP, t[-1] - t[1])
+        lone[-1] = t[-1] - t[-2] > max(STAMP_STEP, t[-2] - t[0])
+        refuse("a stamp far from all others (further from them than they span)", lone)
+        dt, dt2 = np.diff(t), t[2:] - t[:-2]
+        refuse(f"a position spike (to and from its neighbours faster than {MAX_SPEED:g} m/s)",
+               _isolated(np.linalg.norm(np.diff(xyz, axis=0), axis=1) / dt > MAX_SPEED,
+                         np.linalg.norm(xyz[2:] - xyz[:-2], axis=1) / dt2 > MAX_SPEED))
+        refuse(f"an orientation spike (to and from its neighbours faster than {MAX_TURN:g} rad/s)",
+               _isolated(_turn(quat[1:], quat[:-1]) / dt > MAX_TURN, _turn(quat[2:], quat[:-2]) / dt2 > MAX_TURN))
     if len(rows) > 1:
-        step = np.linalg.norm(np.diff(rows[:, 1:4], axis=0), axis=1) / np.diff(rows[:, 0])
-        fast = step > MAX_SPEED
+        speed = np.linalg.norm(np.diff(xyz, axis=0), axis=1) / np.diff(t)
+        turn = _turn(quat[1:], quat[:-1]) / np.diff(t)
+        fast = (speed > MAX_SPEED) | (turn > MAX_TURN)
         if fast.any():
-            note(f"{int(fast.sum())} jump(s) between consecutive poses faster than {MAX_SPEED:g} m/s (up to {step.max():.3g} m/s): "
-                 "a damaged bag, lost tracking or a relocalisation; check the poses (poses.parquet)")
-    return PoseStream(rows[:, 0].copy(), rows[:, 1:4].copy(), normalise(rows[:, 4:8]), name=name, frame_id=frame_id,
-                      meta={"notes": notes})
+            note(f"{int(fast.sum())} jump(s) between consecutive poses faster than {MAX_SPEED:g} m/s or {MAX_TURN:g} rad/s "
+                 f"(up to {speed.max():.3g} m/s, {turn.max():.3g} rad/s): a relocalisation, lost tracking or a damaged bag; "
+                 "check the poses (poses.parquet)")
+    return PoseStream(t.copy(), xyz.copy(), quat, name=name, frame_id=frame_id, meta={"notes": notes})
 
 
 def _chain(path: Path, spec: PoseSpec, tf: dict, static: dict) -> PoseStream:
@@ -523,7 +609,7 @@ def _chain(path: Path, spec: PoseSpec, tf: dict, static: dict) -> PoseStream:
         key = (a, b) if (a, b) in edges else (b, a)
         if key in tf:
             rows = np.asarray(tf[key], dtype=float)
-            dynamic[key] = _stream(path, f"tf:{key[0]}->{key[1]}", rows)
+            dynamic[key] = _stream(path, f"tf:{key[0]}->{key[1]}", rows[:, :8], record=rows[:, 8])
     if not dynamic:
         raise InputError(f"tf:{spec.parent}->{spec.child} is static (only /tf_static edges)", path=path,
                          remedy="pick a frame pair that moves, e.g. map->base_link")

@@ -16,7 +16,9 @@ localisation and of the commanded goals):
   planted error within the controller's tolerances) so goal accuracy has a known answer.
 
 The run is written as a ROS1 bag, a ROS2 bag (sqlite3 storage) and a standalone MCAP file with the
-rosbags writers; ``truth.json`` and ``goals.csv`` beside them hold the planted values.
+rosbags writers; ``truth.json`` and ``goals.csv`` beside them hold the planted values. Every writer
+takes an ``edit`` of the message list (tests and ``benchmarks/fuzz_inputs.py`` make defective bags
+with it, see ``tests/damage.py``); ``write_mcap_ros1`` writes MCAP with ROS1-encoded channels.
 """
 
 from __future__ import annotations
@@ -307,12 +309,14 @@ def write_ros1(run: SynthRun, path: Path, edit=None, compression: str | None = N
     return path
 
 
-def write_ros2(run: SynthRun, path: Path, storage: str = "sqlite3") -> Path:
-    """ROS2 bag directory (rosbag2 format 9), sqlite3 or mcap storage."""
+def write_ros2(run: SynthRun, path: Path, storage: str = "sqlite3", edit=None) -> Path:
+    """ROS2 bag directory (rosbag2 format 9), sqlite3 or mcap storage; ``edit`` as for ``write_ros1``."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
     store = _typestore(ros1=False)
     msgs = _messages(run, store, ros1=False)
+    if edit is not None:
+        msgs = edit(msgs, store)
     plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
     with Writer(path, version=9, storage_plugin=plugin) as writer:
         conns = {}
@@ -323,15 +327,39 @@ def write_ros2(run: SynthRun, path: Path, storage: str = "sqlite3") -> Path:
     return path
 
 
-def write_mcap(run: SynthRun, path: Path) -> Path:
-    """A standalone MCAP file (ros2msg schemas, CDR messages), as ``ros2 bag record -s mcap`` makes."""
+def write_mcap(run: SynthRun, path: Path, edit=None) -> Path:
+    """A standalone MCAP file (ros2msg schemas, CDR messages), as ``ros2 bag record -s mcap`` makes;
+    ``edit`` as for ``write_ros1``."""
     tmp = Path(tempfile.mkdtemp(prefix=".mcap-", dir=path.parent))
     try:
-        write_ros2(run, tmp / "bag", storage="mcap")
+        write_ros2(run, tmp / "bag", storage="mcap", edit=edit)
         (mcap,) = (tmp / "bag").glob("*.mcap")
         shutil.move(mcap, path)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+    return path
+
+
+def write_mcap_ros1(run: SynthRun, path: Path, edit=None) -> Path:
+    """A standalone MCAP file with ROS1-encoded channels (ros1msg schemas), as ``mcap-ros1-support``
+    writes it; ``edit`` as for ``write_ros1``."""
+    from mcap.writer import Writer
+
+    store = _typestore(ros1=True)
+    msgs = _messages(run, store, ros1=True)
+    if edit is not None:
+        msgs = edit(msgs, store)
+    with open(path, "wb") as fh:
+        writer = Writer(fh)
+        writer.start(profile="ros1", library="cobot-analysis synth")
+        channels = {}
+        for ts, topic, msgtype, msg in msgs:
+            if topic not in channels:
+                schema = writer.register_schema(msgtype.replace("/msg/", "/"), "ros1msg",
+                                                store.generate_msgdef(msgtype, ros_version=1)[0].encode())
+                channels[topic] = writer.register_channel(topic, "ros1", schema)
+            writer.add_message(channels[topic], log_time=ts, data=bytes(store.serialize_ros1(msg, msgtype)), publish_time=ts)
+        writer.finish()
     return path
 
 
