@@ -173,6 +173,19 @@ def comparison_switches(ws: Path) -> dict[str, float] | None:
 def accounts(ws: Path, study: str) -> dict[str, str]:
     """The one-line accounts of the study's rows, with the numbers measured in ``ws`` where a switch
     of one convention element shows what it explains."""
+    if study == "pair-carriage-2022":
+        out = dict(ACCOUNTS[study])
+        dist = ws / "fit-ioc-published" / "distances.parquet"
+        if dist.is_file():
+            df = pd.read_parquet(dist)
+            v = df.loc[df["model"] == "table OC (published)", "d_theta"].dropna()
+            seam = v[v > np.pi]
+            if len(v):
+                out[PAIRS[1].what] = (f"means, not trials; the authors' comparison wraps each angle on its own, so a heading "
+                                      f"near +-pi counts the seam as up to 2 pi: {len(seam)} of {len(v)} means above pi "
+                                      f"(up to {v.max():.2f}); without them {v[v <= np.pi].mean():.3f}, median of all "
+                                      f"{v.median():.3f}")
+        return out
     if study != "walking-2020":
         return dict(ACCOUNTS.get(study, {}))
     out = dict(ACCOUNTS["walking-2020"])
