@@ -240,12 +240,13 @@ def test_compiled_library_is_reused_and_a_failing_compiler_falls_back(tmp_path, 
     monkeypatch.setenv("COBOT_ANALYSIS_CACHE", str(tmp_path))
     WalkerOCP(OCPShape(8))
     (lib,) = (tmp_path / "ocp").glob("walker_ocp_*.so")
-    built = lib.stat().st_mtime_ns
-    again = WalkerOCP(OCPShape(8))  # same problem: the cached library is loaded, not rebuilt
-    assert lib.stat().st_mtime_ns == built and len(list((tmp_path / "ocp").iterdir())) == 1
+    (saved,) = (tmp_path / "ocp").glob("walker_ocp_*_fatrop_*.casadi")  # the fatrop solver, serialised
+    built = lib.stat().st_mtime_ns, saved.stat().st_mtime_ns
+    again = WalkerOCP(OCPShape(8))  # same problem: the cached library and solver are loaded, not rebuilt
+    assert (lib.stat().st_mtime_ns, saved.stat().st_mtime_ns) == built and len(list((tmp_path / "ocp").iterdir())) == 2
     monkeypatch.setenv("CC", "false")  # a "compiler" that always fails
     fallback = WalkerOCP(OCPShape(8))
-    assert len(list((tmp_path / "ocp").iterdir())) == 1  # nothing half-written left behind
+    assert len(list((tmp_path / "ocp").iterdir())) == 2  # nothing half-written left behind
     monkeypatch.setenv("CC", "cc")
     (tmp_path / "file").write_text("")
     monkeypatch.setenv("COBOT_ANALYSIS_CACHE", str(tmp_path / "file"))  # cache not creatable
@@ -254,6 +255,35 @@ def test_compiled_library_is_reused_and_a_failing_compiler_falls_back(tmp_path, 
         assert getattr(ocp, "_nlp", None) is not None and getattr(again, "_nlp", None) is None  # SX NLP built: VM in use
         a, b = again.solve((-1.0, -1.0, 0.0), GOAL, PUBLISHED, 2.0), ocp.solve((-1.0, -1.0, 0.0), GOAL, PUBLISHED, 2.0)
         assert a.success and b.success and a.cost == pytest.approx(b.cost, rel=1e-10)
+
+
+def test_saved_solver_is_checked_and_a_damaged_one_rebuilt(tmp_path, monkeypatch):
+    """The serialised fatrop solver beside the library carries the SHA-256 of its text: a damaged file is
+    not loaded but rebuilt, and every variant solves to the same optimum."""
+    monkeypatch.setenv("COBOT_ANALYSIS_CACHE", str(tmp_path))
+    built = WalkerOCP(OCPShape(12))
+    (saved,) = (tmp_path / "ocp").glob("*.casadi")
+    good = saved.read_bytes()
+    loaded = WalkerOCP(OCPShape(12))
+    damaged = bytearray(good)
+    damaged[len(good) // 2] ^= 0x01  # one flipped bit in the serialised text
+    import casadi as ca
+
+    calls = []
+    real = ca.Function.deserialize
+    monkeypatch.setattr(ca.Function, "deserialize", lambda *a: calls.append(1) or real(*a))
+    for content in (bytes(damaged), good[:len(good) // 3], b"", b"\xff\xfe not utf-8"):
+        saved.write_bytes(content)
+        rebuilt = WalkerOCP(OCPShape(12))
+        assert not calls  # the damaged text never reaches casadi
+        assert saved.read_bytes() == good  # rewritten whole
+        for ocp in (built, loaded, rebuilt):
+            sol = ocp.solve((-1.0, -1.0, 0.0), GOAL, PUBLISHED, 2.0).check()
+            ref = built.solve((-1.0, -1.0, 0.0), GOAL, PUBLISHED, 2.0)
+            assert sol.solver == "fatrop" and sol.iterations == ref.iterations and np.array_equal(sol.X, ref.X)
+    WalkerOCP(OCPShape(12))
+    assert calls == [1]  # the intact file is loaded
+    assert not list((tmp_path / "ocp").glob("*.tmp"))
 
 
 def test_guesses_rest_and_line():

@@ -99,20 +99,34 @@ def capacity(T: int) -> int:
     return n
 
 
+def _warp(k: np.ndarray, n: int, T: int) -> tuple[np.ndarray, np.ndarray]:
+    """Node positions ``k`` of horizon ``T`` mapped onto horizon ``n``, and the time-scale ratio at
+    each: the first and last B = min(n, T) // 4 nodes kept node for node (s = k, s = n - (T - k)),
+    the middle mapped linearly, s = B + (k - B) (n - 2B) / (T - 2B)."""
+    B = min(n, T) // 4
+    r = (n - 2 * B) / (T - 2 * B)
+    middle = (k > B) & (k < T - B)
+    s = np.where(k <= B, k, np.where(k >= T - B, n - (T - k), B + (k - B) * r))
+    return s, np.where(middle, r, 1.0)
+
+
 def stretched(ocp: WalkerOCP, sol: OCPSolution, T: int) -> np.ndarray:
-    """A guess of horizon ``T`` on ``ocp`` from a solution of another horizon: poses interpolated in
-    normalised time, velocities scaled by T_sol / T, controls by (T_sol / T)^2, frozen nodes at rest
-    on the last pose."""
-    n_sol = sol.U.shape[0]
-    r = n_sol / T
+    """A guess of horizon ``T`` on ``ocp`` from a solution of another horizon n (``_warp``): the start
+    turn and the final approach have their own time scale, independent of the horizon, so the first
+    and last quarter are kept node for node and only the middle is resampled, its velocities scaled
+    by n_middle / T_middle and its controls by the square; frozen nodes at rest on the last pose.
+    (A uniform stretch of the whole path needs about 2.5 times the solver iterations: those
+    boundary layers come out too slow or too fast; docs/benchmarks.md.)"""
+    n = sol.U.shape[0]
     w = np.zeros(ocp.n_vars)
-    s_new, s_old = np.linspace(0.0, 1.0, T + 1), np.linspace(0.0, 1.0, n_sol + 1)
-    X = np.column_stack([np.interp(s_new, s_old, sol.X[:, i]) for i in range(6)])
-    X[:, 3:] *= r
+    k = np.arange(T + 1, dtype=float)
+    s, r = _warp(k, n, T)
+    X = np.column_stack([np.interp(s, np.arange(n + 1), sol.X[:, i]) for i in range(6)])
+    X[:, 3:] *= r[:, None]
     w[ocp._xi[:T + 1, :6]] = X
     w[ocp._xi[T + 1:, :3]] = X[-1, :3]
-    m_new, m_old = (s_new[:-1] + s_new[1:]) / 2, (s_old[:-1] + s_old[1:]) / 2
-    w[ocp._ui[:T]] = np.column_stack([np.interp(m_new, m_old, sol.U[:, i]) for i in range(3)]) * r**2
+    s, r = _warp(k[:-1] + 0.5, n, T)  # interval midpoints
+    w[ocp._ui[:T]] = np.column_stack([np.interp(s, np.arange(n) + 0.5, sol.U[:, i]) for i in range(3)]) * r[:, None]**2
     return w
 
 
