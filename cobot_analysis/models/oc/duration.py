@@ -22,7 +22,8 @@ fixed node step and a variable horizon of T intervals (``horizon_solver``):
   then a T replaces it when |phi_r(X_T, U_{T-1})| (the running cost at the last node) is smaller
   and the solver needed fewer than 80 iterations.
 Every T is solved from rest on the start pose (the authors' DDP started at rest), or, with
-``warm=True``, from the solution at the nearest T already solved, stretched in time.
+``warm=True``, from the solution at the nearest T already solved, its middle stretched in time
+(``stretched``: the start turn and the final approach kept node for node).
 """
 
 from __future__ import annotations
