@@ -495,3 +495,18 @@ def add_static_tf(parent: str, child: str, stamp: float):
                 rotation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)))
         return [(int(stamp * 1e9), "/tf_static", "tf2_msgs/msg/TFMessage", T["tf2_msgs/msg/TFMessage"](transforms=[tr]))] + list(msgs)
     return edit
+
+
+def c3d_parameter_offset(src, group: str, name: str) -> int:
+    """Byte offset of the first value of parameter ``group:name`` in a C3D file (for damage aimed at one value)."""
+    data = _bytes(src)
+    records = c3d_parameter_records(data)
+    gid = next(-r["gid"] for r in records if r["gid"] < 0 and r["name"].strip().upper() == group.upper())
+    rec = next(r for r in records if r["gid"] == gid and r["name"].strip().upper() == name.upper())
+    body = rec["structure"][3] + 1  # after the next-record pointer
+    return body + 2 + data[body + 1]  # type, number of dimensions, dimensions
+
+
+def c3d_set_parameter(src, group: str, name: str, payload: bytes, dst=None) -> Path:
+    """Overwrite the first value(s) of parameter ``group:name`` with ``payload`` (e.g. ``struct.pack('<f', 0.0)``)."""
+    return overwrite(src, c3d_parameter_offset(src, group, name), payload, dst)

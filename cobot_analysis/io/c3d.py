@@ -71,8 +71,10 @@ def to_metres_factor(units: str, path: str | os.PathLike) -> float:
     return _TO_METRES[key]
 
 
-def check_c3d_header(path: str | os.PathLike) -> dict[str, int | bool]:
-    """Validate the header of a C3D file without ezc3d; return its point and frame counts.
+def check_c3d_header(path: str | os.PathLike) -> dict[str, int | bool | float | None]:
+    """Validate the header of a C3D file without ezc3d; return its point and frame counts, its
+    declared POINT:RATE (``rate``, None when not an IEEE float) and the header's frame rate
+    (``header_rate``).
 
     Raises ``InputError`` for a file that is not C3D, is truncated, or has an inconsistent header.
     """
@@ -121,7 +123,7 @@ def check_c3d_header(path: str | os.PathLike) -> dict[str, int | bool]:
     with open(path, "rb") as fh:
         fh.seek(param_start)
         section = fh.read(pblock[2] * BLOCK)
-    params = _walk_parameters(section, order, path)
+    params = _walk_parameters(section, order, path, ieee=proc != 85)
     used = params.get(("POINT", "USED"), (1, None))[1]
     if used is not None and used != n_points:
         raise InputError(f"corrupt C3D file (header announces {n_points} points, POINT:USED {used})", path=path,
@@ -130,19 +132,64 @@ def check_c3d_header(path: str | os.PathLike) -> dict[str, int | bool]:
         if params.get(("POINT", name), (1, None))[0] < 1:
             raise InputError(f"corrupt C3D parameter section (POINT:{name} holds no value)", path=path,
                              remedy="re-export the trial from the capture software")
+    _check_consistency(params, n_points, n_analog, first, last, data_start, is_float, path)
     channels = params.get(("ANALOG", "USED"), (1, None))[1]
     for name in ("SCALE", "OFFSET") if n_analog and channels and channels > 0 else ():  # ezc3d crashed without them
         count = params.get(("ANALOG", name), (0, None))[0]
         if count < channels:
             raise InputError(f"corrupt C3D parameter section (ANALOG:{name} holds {count} values for {channels} analog channels)",
                              path=path, remedy="re-export the trial from the capture software")
-    return {"points": n_points, "frames": n_frames, "float": is_float}
+    header_rate = struct.unpack(order + "f", head[20:24])[0] if proc != 85 else None
+    rate = params.get(("POINT", "RATE"), (1, None))[1]
+    if rate is not None and np.isnan(rate):  # ezc3d fails on it (vector::_M_default_append): nothing to read
+        raise InputError(f"invalid sampling rate: POINT:RATE is NaN (the header says {header_rate:g} Hz)", path=path,
+                         remedy="re-export the trial from the capture software")
+    return {"points": n_points, "frames": n_frames, "float": is_float, "rate": rate, "header_rate": header_rate}
 
 
-def _walk_parameters(section: bytes, order: str, path: Path) -> dict[tuple[str, str], tuple[int, int | None]]:
+def _check_consistency(params: dict, n_points: int, n_analog: int, first: int, last: int, data_start: int, is_float: bool,
+                       path: Path) -> None:
+    """The header words against the parameter section (C3D User Guide): the analog values per frame
+    are ANALOG:USED x (ANALOG:RATE / POINT:RATE), the frame count is POINT:FRAMES, the data start
+    block is POINT:DATA_START and the data are floats when POINT:SCALE is negative. A mismatch
+    means one of the two is damaged: the data would be read with a wrong stride (positions of one
+    marker read as another's, y = 0 everywhere), so the file is refused here, before the
+    plausibility checks could blame the units."""
+    def value(group: str, name: str):
+        return params.get((group, name), (0, None))[1]
+
+    def refuse(what: str) -> InputError:
+        return InputError(f"inconsistent C3D file: {what}", path=path, remedy="re-export the trial from the capture software")
+
+    channels = value("ANALOG", "USED")
+    if n_analog and not channels:
+        raise refuse(f"the header announces {n_analog} analog values per frame but ANALOG:USED is {channels or 0} (or absent): "
+                     f"the marker data would be read with a wrong stride")
+    if channels and channels > 0 and n_analog % channels:
+        raise refuse(f"the header announces {n_analog} analog values per frame, not a multiple of ANALOG:USED {channels}")
+    point_rate, analog_rate = value("POINT", "RATE"), value("ANALOG", "RATE")
+    if channels and channels > 0 and n_analog and point_rate and analog_rate and point_rate > 0 and analog_rate > 0:
+        per_frame = analog_rate / point_rate
+        if abs(n_analog / channels - per_frame) > 1e-3 * per_frame:
+            raise refuse(f"the header announces {n_analog} analog values per frame for {channels} channels "
+                         f"({n_analog // channels} samples per frame), ANALOG:RATE / POINT:RATE is {analog_rate:g} / {point_rate:g}")
+    frames = value("POINT", "FRAMES")
+    if frames is not None and last < 65535 and 0 < frames < 65535 and frames != last - first + 1:  # larger counts overflow
+        raise refuse(f"the header announces frames {first}-{last} ({last - first + 1}), POINT:FRAMES {frames:g}")
+    start = value("POINT", "DATA_START")
+    if start is not None and start > 0 and start != data_start:
+        raise refuse(f"the header's data start block is {data_start}, POINT:DATA_START {start:g}")
+    scale = value("POINT", "SCALE")
+    if scale is not None and scale != 0 and n_points and (scale < 0) != is_float:
+        raise refuse(f"the header's scale factor says {'float' if is_float else 'integer'} data, POINT:SCALE {scale:g} "
+                     f"says {'float' if scale < 0 else 'integer'}")
+
+
+def _walk_parameters(section: bytes, order: str, path: Path, ieee: bool = True) -> dict[tuple[str, str], tuple[int, float | None]]:
     """Walk the parameter records (C3D User Guide, "The parameter section") and check that each
     one lies inside the section, so that ezc3d never follows a corrupt pointer. Returns, keyed
-    (GROUP, NAME), the number of values of each parameter and its value when it is an integer scalar."""
+    (GROUP, NAME), the number of values of each parameter and its first value when it is a number
+    (16-bit integer, or a float when ``ieee``: DEC floats are another format)."""
     def corrupt(what: str) -> InputError:
         return InputError(f"corrupt C3D parameter section ({what})", path=path, remedy="re-export the trial from the capture software")
 
@@ -179,7 +226,11 @@ def _walk_parameters(section: bytes, order: str, path: Path) -> dict[tuple[str, 
             count = int(np.prod(list(dims))) if ndims else 1
             data = body + 2 + ndims
             desc = data + abs(dtype) * count
-            scalar = struct.unpack(order + "h", section[data:data + 2])[0] if ndims == 0 and dtype == 2 and data + 2 <= limit else None
+            scalar = None
+            if count >= 1 and dtype == 2 and data + 2 <= limit:
+                scalar = struct.unpack(order + "h", section[data:data + 2])[0]
+            elif count >= 1 and dtype == 4 and ieee and data + 4 <= limit:
+                scalar = struct.unpack(order + "f", section[data:data + 4])[0]
             found.append((gid, name.strip().upper(), count, scalar))
         if desc >= limit:
             raise corrupt("parameter data past its record")
@@ -249,7 +300,7 @@ def read_c3d(path: str | os.PathLike, units: str | None = None) -> RawMarkers:
     import ezc3d
 
     path = Path(path)
-    check_c3d_header(path)
+    head = check_c3d_header(path)
     try:
         c3d = ezc3d.c3d(str(path), extract_forceplat_data=False)
         point = c3d["parameters"]["POINT"]
@@ -285,8 +336,9 @@ def read_c3d(path: str | os.PathLike, units: str | None = None) -> RawMarkers:
     if partial.any():
         notes += (f"{path.name}: {int(partial.sum())} samples with a NaN coordinate counted as occluded",)
     xyz = occlude(xyz)
-    try:
-        rate = float((_values(point, "RATE") or [header_rate])[0])
-    except (TypeError, ValueError):
-        rate = header_rate
+    # POINT:RATE as the file declares it (ezc3d replaces a zero one by the header's rate silently).
+    rate = head["rate"] if head["rate"] is not None else float((_values(point, "RATE") or [header_rate])[0])
+    if head["header_rate"] is not None and rate != head["header_rate"] and rate > 0 and head["header_rate"] > 0:
+        notes += (f"{path.name}: POINT:RATE {rate:g} Hz differs from the header's frame rate {head['header_rate']:g} Hz; "
+                  f"using POINT:RATE",)
     return RawMarkers([labels[j] for j in keep], xyz, rate, source_units, notes)

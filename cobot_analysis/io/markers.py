@@ -39,7 +39,7 @@ import pandas as pd
 from cobot_analysis.console import info, warn
 from cobot_analysis.errors import InputError
 from cobot_analysis.io.c3d import RawMarkers, is_c3d, read_c3d
-from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, MAX_SPIKE, check_positions, check_rate
+from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, MAX_SPIKE, check_positions, trial_rate
 from cobot_analysis.io.protocol import (ENTITIES, KEPT_SUBJECT_MARKERS, PELVIS_DEFINITIONS, PELVIS_MARKERS, SACRUM, TABLE_MARKERS,
                                         Protocol, load_protocol, pelvis_definition, read_yaml)
 from cobot_analysis.io.text_exports import read_qualisys_tsv, read_vicon_csv, sniff_text_format
@@ -47,6 +47,8 @@ from cobot_analysis.schema import MARKERS, TRIAL_COLUMNS, TRIALS, write_table
 
 READERS = {"c3d": read_c3d, "vicon-csv": read_vicon_csv, "qualisys-tsv": read_qualisys_tsv}
 UNITS = ("auto", "mm", "m")
+#: where each format declares its sampling rate, for messages.
+RATE_SOURCES = {"c3d": "POINT:RATE", "vicon-csv": "the rate line after 'Trajectories'", "qualisys-tsv": "FREQUENCY"}
 ASIS_RANGE = (0.15, 0.40)  # m, median |LASI - RASI| of adults
 TABLE_SIDE_RANGE = (0.5, 2.5)  # m, |TAB1 - TAB2| (a long side of the table)
 MAP_REMEDY = "map the lab's labels with --map LAB=CANON (repeatable), --marker-map FILE.yaml or marker_map in the protocol"
@@ -96,6 +98,7 @@ class TrialTask:
     lab_extent: float = LAB_EXTENT
     max_speed: float = MAX_SPEED
     max_spike: float = MAX_SPIKE
+    invalid_rate: str = "refuse"
 
 
 @dataclass
@@ -169,13 +172,8 @@ def import_trial(task: TrialTask) -> ImportedTrial:
     fmt, raw = read_markers(path, task.units)
     if raw.xyz.shape[0] == 0:
         raise InputError("empty trial (no frames)", path=path, remedy="remove the trial from the protocol or re-export it")
-    rate = raw.rate if raw.rate and np.isfinite(raw.rate) and raw.rate > 0 else task.protocol_rate
-    if not rate:
-        raise InputError("no sampling rate in the file", path=path, remedy="give 'rate' (Hz) in the protocol")
-    check_rate(float(rate), path)
-    notes = list(raw.notes)
-    if task.protocol_rate and abs(rate - task.protocol_rate) > 1e-6:
-        notes.append(f"{path.name}: file rate {rate:g} Hz differs from the protocol rate {task.protocol_rate:g} Hz; using the file's")
+    rate, rate_notes = trial_rate(raw.rate, RATE_SOURCES[fmt], task.protocol_rate, task.invalid_rate, path)
+    notes = list(raw.notes) + rate_notes
     resolver = Protocol(path=path, study="", trials=pd.DataFrame(), entities=task.entities, marker_map=task.marker_map)
     resolved = [_resolve(resolver, lab, task) for lab in raw.labels]
     keep, seen = [], {}
@@ -406,7 +404,7 @@ def run_import(protocol_path: str | os.PathLike, out: str | os.PathLike, *, unit
     files = [protocol.trial_file(row) for _, row in protocol.trials.iterrows()]
     pair_study = "pair" in protocol.trials.columns and protocol.trials["pair"].notna().any()
     tasks = [TrialTask(str(row["trial"]), f, bool(pair_study), units, dict(protocol.entities), mapping, keep_all, protocol.rate,
-                       lab_extent, max_speed, max_spike) for (_, row), f in zip(protocol.trials.iterrows(), files)]
+                       lab_extent, max_speed, max_spike, protocol.invalid_rate) for (_, row), f in zip(protocol.trials.iterrows(), files)]
     limits = {"lab_extent": lab_extent, "max_speed": max_speed, "max_spike": max_spike}
     params = {"units": units, "marker_map": mapping, "keep_all_markers": keep_all, "entities": protocol.entities,
               "skip_bad": skip_bad, **limits}

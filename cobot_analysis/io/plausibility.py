@@ -19,6 +19,10 @@ sample of the markers kept:
   from the midpoint is ``a / (2 rate^2)``; in real gait recordings (BTKData, pyomeca) it is
   at most 2.2 cm (a shank marker at 120 Hz), 0.5 to 9.5 mm for the pelvis markers.
 
+Rates (``trial_rate``): the rate a file declares wins when it is valid; a protocol ``rate`` that
+differs is a warning naming both; an invalid declared rate (0, negative, NaN) is refused unless
+the protocol says ``invalid_rate: protocol``, never replaced silently.
+
 The limits are options of ``import`` (``--lab-extent``, ``--max-speed``, ``--max-spike``) and are
 stored in the metadata of ``markers.parquet`` so that ``preprocess`` applies the same ones
 (docs/methods.md sec. 2).
@@ -27,6 +31,7 @@ stored in the metadata of ``markers.parquet`` so that ``preprocess`` applies the
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import numpy as np
 
@@ -53,6 +58,41 @@ def check_rate(rate: float, path: str | os.PathLike, what: str = "") -> None:
     if not lo <= rate <= hi:
         raise InputError(f"{what}sampling rate {rate:.6g} Hz is not a motion-capture rate ({lo:g} to {hi:g} Hz)", path=path,
                          remedy="re-export the trial from the capture software (or give 'rate' in the protocol for a file without one)")
+
+
+#: protocol ``invalid_rate`` values: refuse a file whose declared rate is invalid, or use the protocol's ``rate``.
+INVALID_RATE_POLICIES = ("refuse", "protocol")
+
+
+def trial_rate(declared: float | None, source: str, protocol_rate: float | None, invalid_rate: str,
+               path: str | os.PathLike) -> tuple[float, list[str]]:
+    """The sampling rate of a trial and the notes (warnings) it gives: ``(rate, notes)``.
+
+    A valid rate the file declares (finite, > 0) wins; a protocol ``rate`` that differs is one
+    note naming both. A declared rate that is invalid (0, negative, NaN: a damaged header) is
+    refused, unless the protocol says ``invalid_rate: protocol`` (with its ``rate``): then the
+    protocol's rate is used and said. A file that declares no rate (``declared`` None) takes the
+    protocol's rate, said too. The rate used is checked against ``RATE_RANGE``.
+    """
+    name = Path(path).name
+    if declared is not None and np.isfinite(declared) and declared > 0:
+        check_rate(float(declared), path)
+        if protocol_rate and abs(declared - protocol_rate) > 1e-9 * protocol_rate:
+            return float(declared), [f"{name}: the file's rate {declared:g} Hz ({source}) differs from the protocol's rate "
+                                     f"{protocol_rate:g} Hz; using the file's"]
+        return float(declared), []
+    if declared is None:
+        if not protocol_rate:
+            raise InputError("no sampling rate in the file", path=path, remedy="give 'rate' (Hz) in the protocol")
+        check_rate(protocol_rate, path, "protocol ")
+        return float(protocol_rate), [f"{name}: the file states no rate; using the protocol's rate {protocol_rate:g} Hz"]
+    if invalid_rate == "protocol" and protocol_rate:
+        check_rate(protocol_rate, path, "protocol ")
+        return float(protocol_rate), [f"{name}: invalid rate {declared:g} Hz ({source}) replaced by the protocol's rate "
+                                      f"{protocol_rate:g} Hz (invalid_rate: protocol)"]
+    raise InputError(f"invalid sampling rate {declared:g} Hz ({source})", path=path,
+                     remedy="re-export the trial from the capture software, or state its true rate in the protocol "
+                            "('rate: HZ' and 'invalid_rate: protocol')")
 
 
 def _where(labels: list[str], bad: np.ndarray, rate: float, limit: int = 3) -> str:

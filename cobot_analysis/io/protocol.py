@@ -3,7 +3,8 @@
 A protocol is a YAML file::
 
     study: synthetic-walking
-    rate: 200                  # Hz, optional (the raw file's own rate wins when it has one)
+    rate: 200                  # Hz, optional (the raw file's own rate wins when it is valid)
+    invalid_rate: protocol     # optional: use ``rate`` where a file declares an invalid rate (default: refuse)
     entities:                  # label prefix in the raw files ("S1:LASI") -> entity
       S1: subject1
       S2: subject2
@@ -39,6 +40,7 @@ from typing import Any
 import pandas as pd
 
 from cobot_analysis.errors import InputError
+from cobot_analysis.io.plausibility import INVALID_RATE_POLICIES
 
 PELVIS_MARKERS = ("LASI", "RASI", "LPSI", "RPSI")
 SACRUM = "SACR"
@@ -54,7 +56,7 @@ TABLE_MARKERS = ("TAB1", "TAB2", "TAB3")
 KEPT_SUBJECT_MARKERS = SUBJECT_MARKERS + (SACRUM,)
 ENTITIES = ("walker", "subject1", "subject2", "table")
 DEFAULT_ENTITIES = {"S1": "subject1", "S2": "subject2", "Table": "table", "TABLE": "table"}
-PROTOCOL_KEYS = ("study", "rate", "entities", "marker_map", "subjects", "pairs", "trials")
+PROTOCOL_KEYS = ("study", "rate", "invalid_rate", "entities", "marker_map", "subjects", "pairs", "trials")
 
 
 def pelvis_definition(present) -> tuple[str, ...] | None:
@@ -76,6 +78,7 @@ class Protocol:
     subjects: pd.DataFrame = field(default_factory=pd.DataFrame)
     pairs: pd.DataFrame = field(default_factory=pd.DataFrame)
     rate: float | None = None
+    invalid_rate: str = "refuse"
     entities: dict[str, str] = field(default_factory=lambda: dict(DEFAULT_ENTITIES))
     marker_map: dict[str, str] = field(default_factory=dict)
 
@@ -169,6 +172,11 @@ def load_protocol(path: str | os.PathLike) -> Protocol:
         raise InputError(f"unknown protocol key(s) {unknown}", path=path, remedy=f"use only {', '.join(PROTOCOL_KEYS)}")
     base = path.parent
     rate = _rate(doc, path)
+    invalid_rate = doc.get("invalid_rate", "refuse")
+    if invalid_rate not in INVALID_RATE_POLICIES or (invalid_rate == "protocol" and rate is None):
+        raise InputError(f"'invalid_rate' must be {' or '.join(INVALID_RATE_POLICIES)} ('protocol' with a 'rate'), "
+                         f"not {invalid_rate!r:.40}", path=path,
+                         remedy="write 'invalid_rate: protocol' with 'rate: HZ' to replace a file's invalid rate, or leave it out")
     entities = _mapping(doc, "entities", path, "S1: subject1, Table: table")
     bad = sorted({e for e in entities.values() if e not in ENTITIES})
     if bad:
@@ -193,6 +201,7 @@ def load_protocol(path: str | os.PathLike) -> Protocol:
         subjects=_table(doc.get("subjects"), base, "subjects", path),
         pairs=_table(doc.get("pairs"), base, "pairs", path),
         rate=rate,
+        invalid_rate=invalid_rate,
         entities={**DEFAULT_ENTITIES, **entities},
         marker_map=marker_map,
     )

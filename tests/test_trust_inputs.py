@@ -1,0 +1,137 @@
+"""Issue 21: what is read is trusted only when it is consistent: declared rates, C3D headers
+against their parameter section, byte-order marks, duplicate labels, bounded inputs."""
+
+from __future__ import annotations
+
+import struct
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from cobot_analysis.errors import InputError
+from cobot_analysis.io.c3d import read_c3d
+from cobot_analysis.io.protocol import save_protocol
+import pyarrow.parquet as pq
+
+sys.path.insert(0, str(Path(__file__).parent))
+import damage  # noqa: E402
+from test_import import assert_rejected, person, write_c3d, write_c3d_with_analogs, write_qtm_tsv, write_vicon_csv  # noqa: E402
+
+
+def one_trial_protocol(tmp_path, f, rate=None, invalid_rate=None):
+    trials = pd.DataFrame({"trial": ["t1"], "file": [Path(f).name]})
+    p = save_protocol(tmp_path / "protocol.yaml", "rates", trials, rate=rate)
+    if invalid_rate:
+        p.write_text(p.read_text() + f"invalid_rate: {invalid_rate}\n")
+    return p
+
+
+def _c3d_rate(value):
+    def make(d):
+        return damage.c3d_set_parameter(write_c3d(d / "a.c3d", person(60)), "POINT", "RATE", struct.pack("<f", value))
+    return make
+
+
+def _vicon_rate(text):
+    def make(d):
+        f = write_vicon_csv(d / "a.csv", person(60))
+        f.write_text(f.read_text().replace("Trajectories\n200\n", f"Trajectories\n{text}\n"))
+        return f
+    return make
+
+
+def _qtm_rate(text):
+    def make(d):
+        f = write_qtm_tsv(d / "a.tsv", person(60))
+        f.write_text(f.read_text().replace("FREQUENCY\t200\n", f"FREQUENCY\t{text}\n"))
+        return f
+    return make
+
+
+#: the seven invalid declared rates of the issue: file maker, what the refusal says.
+INVALID_RATES = {
+    "c3d-zero": (_c3d_rate(0.0), "a.c3d: invalid sampling rate 0 Hz (POINT:RATE)"),
+    "c3d-negative": (_c3d_rate(-200.0), "a.c3d: invalid sampling rate -200 Hz (POINT:RATE)"),
+    "vicon-zero": (_vicon_rate("0"), "a.csv: invalid sampling rate 0 Hz (the rate line after 'Trajectories')"),
+    "vicon-negative": (_vicon_rate("-200"), "a.csv: invalid sampling rate -200 Hz (the rate line after 'Trajectories')"),
+    "vicon-nan": (_vicon_rate("NaN"), "a.csv: invalid sampling rate nan Hz (the rate line after 'Trajectories')"),
+    "qtm-zero": (_qtm_rate("0"), "a.tsv: invalid sampling rate 0 Hz (FREQUENCY)"),
+    "qtm-nan": (_qtm_rate("NaN"), "a.tsv: invalid sampling rate nan Hz (FREQUENCY)"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(INVALID_RATES))
+def test_an_invalid_declared_rate_is_refused_not_replaced(tmp_path, cli, case):
+    """With 'rate: 150' in the protocol the data were stored as 150 Hz, exit 0: now refused, one line, a remedy."""
+    make, expected = INVALID_RATES[case]
+    f = make(tmp_path)
+    msg = assert_rejected(cli, tmp_path / "ws", [one_trial_protocol(tmp_path, f, rate=150)], expected, "invalid_rate: protocol")
+    assert len(msg.splitlines()) == 1
+
+
+@pytest.mark.parametrize("case", sorted(INVALID_RATES))
+def test_an_invalid_rate_is_replaced_only_by_the_explicit_protocol_option(tmp_path, cli, case):
+    make, _ = INVALID_RATES[case]
+    f = make(tmp_path)
+    code, _, err = cli("import", one_trial_protocol(tmp_path, f, rate=150, invalid_rate="protocol"), "--out", tmp_path / "ws", "--jobs", "1")
+    assert code == 0, err
+    assert "replaced by the protocol's rate 150 Hz (invalid_rate: protocol)" in " ".join(err.split())
+    assert pq.read_table(tmp_path / "ws" / "import" / "trials.parquet").to_pandas()["rate"].tolist() == [150.0]
+    assert "replaced by the protocol's rate 150 Hz" in (tmp_path / "ws" / "import" / "results.md").read_text()
+
+
+def test_invalid_rate_protocol_needs_a_rate(tmp_path, cli):
+    f = write_c3d(tmp_path / "a.c3d", person(30))
+    assert_rejected(cli, tmp_path / "ws", [one_trial_protocol(tmp_path, f, invalid_rate="protocol")],
+                    "protocol.yaml: 'invalid_rate' must be refuse or protocol ('protocol' with a 'rate'), not 'protocol'")
+
+
+@pytest.mark.parametrize("writer, name", [(write_c3d, "a.c3d"), (write_vicon_csv, "a.csv"), (write_qtm_tsv, "a.tsv")])
+def test_a_valid_file_rate_wins_with_one_warning_naming_both(tmp_path, cli, writer, name):
+    f = writer(tmp_path / name, person(60))
+    code, _, err = cli("import", one_trial_protocol(tmp_path, f, rate=150), "--out", tmp_path / "ws", "--jobs", "1")
+    assert code == 0, err
+    warnings = [w for w in err.splitlines() if "differs from the protocol's rate" in w]
+    assert len(warnings) == 1 and "rate 200 Hz" in warnings[0] and "150 Hz" in warnings[0], err
+    assert pq.read_table(tmp_path / "ws" / "import" / "trials.parquet").to_pandas()["rate"].tolist() == [200.0]
+
+
+def test_c3d_nan_point_rate_is_refused_before_ezc3d(tmp_path):
+    """ezc3d fails on a NaN POINT:RATE (vector::_M_default_append): refused with the true reason."""
+    f = _c3d_rate(float("nan"))(tmp_path)
+    with pytest.raises(InputError, match=r"a.c3d: invalid sampling rate: POINT:RATE is NaN \(the header says 200 Hz\)"):
+        read_c3d(f)
+
+
+# ---- C3D header against the parameter section -------------------------------------------------
+def _set_int(group, name, value):
+    return lambda f: damage.c3d_set_parameter(f, group, name, struct.pack("<h", value))
+
+
+@pytest.mark.parametrize("edit, expected", [
+    # the two clinical files: analog values announced by the header, ANALOG:USED 0 (y = 0 everywhere, "check the units")
+    (_set_int("ANALOG", "USED", 0), "the header announces 10 analog values per frame but ANALOG:USED is 0 (or absent): "
+                                    "the marker data would be read with a wrong stride"),
+    (_set_int("ANALOG", "USED", 3), "the header announces 10 analog values per frame, not a multiple of ANALOG:USED 3"),
+    (lambda f: damage.c3d_set_parameter(f, "ANALOG", "RATE", struct.pack("<f", 2000.0)),
+     "the header announces 10 analog values per frame for 2 channels (5 samples per frame), ANALOG:RATE / POINT:RATE is 2000 / 200"),
+    (_set_int("POINT", "FRAMES", 25), "the header announces frames 1-20 (20), POINT:FRAMES 25"),
+    (_set_int("POINT", "DATA_START", 9), "the header's data start block is"),
+    (lambda f: damage.c3d_set_parameter(f, "POINT", "SCALE", struct.pack("<f", 0.1)),
+     "the header's scale factor says float data, POINT:SCALE 0.1 says integer"),
+])
+def test_c3d_header_disagreeing_with_its_parameters_is_refused(tmp_path, edit, expected):
+    f = write_c3d_with_analogs(tmp_path / "a.c3d", person(20))
+    assert read_c3d(f).xyz.shape == (20, 5, 3)
+    edit(f)
+    with pytest.raises(InputError, match="a.c3d: inconsistent C3D file: " + expected.replace("(", r"\(").replace(")", r"\)")):
+        read_c3d(f)
+
+
+def test_c3d_point_rate_disagreeing_with_the_header_is_a_note(tmp_path):
+    f = damage.c3d_set_parameter(write_c3d(tmp_path / "a.c3d", person(30)), "POINT", "RATE", struct.pack("<f", 100.0))
+    raw = read_c3d(f)
+    assert raw.rate == 100.0
+    assert any("POINT:RATE 100 Hz differs from the header's frame rate 200 Hz" in n for n in raw.notes)
