@@ -135,3 +135,73 @@ def test_c3d_point_rate_disagreeing_with_the_header_is_a_note(tmp_path):
     raw = read_c3d(f)
     assert raw.rate == 100.0
     assert any("POINT:RATE 100 Hz differs from the header's frame rate 200 Hz" in n for n in raw.notes)
+
+
+# ---- duplicate labels ---------------------------------------------------------------------------
+def test_a_required_label_given_twice_gets_a_remedy_that_works(tmp_path, cli):
+    """Two markers named 'sacrum': 'fix the marker map' could not work; an occurrence key does."""
+    m = person(60)
+    lasi, rasi, lpsi, rpsi = (m[k] for k in ("LASI", "RASI", "LPSI", "RPSI"))
+    sacrum = (lpsi + rpsi) / 2
+    import ezc3d
+    import numpy as np
+
+    c3d = ezc3d.c3d()
+    c3d["parameters"]["POINT"]["RATE"]["value"] = [200.0]
+    c3d["parameters"]["POINT"]["LABELS"]["value"] = ("LASI", "RASI", "sacrum", "sacrum")
+    c3d["parameters"]["POINT"]["UNITS"]["value"] = ["mm"]
+    xyz = np.stack([lasi, rasi, sacrum, sacrum + [0.0, 0.0, 0.3]], axis=1) * 1000.0
+    points = np.ones((4, 4, 60))
+    points[:3] = xyz.transpose(2, 1, 0)
+    c3d["data"]["points"] = points
+    c3d.write(str(tmp_path / "a.c3d"))
+    proto = one_trial_protocol(tmp_path, tmp_path / "a.c3d")
+    msg = assert_rejected(cli, tmp_path / "ws", [proto, "--map", "sacrum=SACR"],
+                          "a.c3d: label 'sacrum' is given twice (points 3 and 4 of the file), both walker SACR",
+                          "--map 'sacrum#2=sacrum_2'")
+    assert "fix the marker map" not in msg
+    code, _, err = cli("import", proto, "--map", "sacrum=SACR", "--map", "sacrum#2=sacrum_2", "--out", tmp_path / "ws", "--jobs", "1")
+    assert code == 0, err
+    markers = pq.read_table(tmp_path / "ws" / "import" / "markers.parquet").to_pandas()
+    sacr = markers[markers["marker"] == "SACR"].sort_values("frame")
+    np.testing.assert_allclose(sacr["z"].to_numpy(), sacrum[:, 2], atol=1e-4)  # the first occurrence, not the second
+    assert set(markers["marker"]) == {"LASI", "RASI", "SACR"}
+
+
+# ---- text exports: byte-order mark, units row ---------------------------------------------------
+@pytest.mark.parametrize("writer, name", [(write_vicon_csv, "a.csv"), (write_qtm_tsv, "a.tsv")])
+def test_a_byte_order_mark_is_read(tmp_path, cli, writer, name):
+    ref = writer(tmp_path / f"ref{Path(name).suffix}", person(60))
+    f = tmp_path / name
+    f.write_bytes(b"\xef\xbb\xbf" + ref.read_bytes())
+    from cobot_analysis.io.markers import read_markers
+
+    import numpy as np
+
+    fmt, raw = read_markers(f)
+    np.testing.assert_array_equal(raw.xyz, read_markers(ref)[1].xyz)
+    code, _, err = cli("import", one_trial_protocol(tmp_path, f), "--out", tmp_path / "ws", "--jobs", "1")
+    assert code == 0, err
+
+
+def test_a_utf16_export_is_refused_with_the_true_reason(tmp_path, cli):
+    f = tmp_path / "a.csv"
+    f.write_bytes(write_vicon_csv(tmp_path / "ref.csv", person(30)).read_text().encode("utf-16"))
+    assert_rejected(cli, tmp_path / "ws", [one_trial_protocol(tmp_path, f)], "a.csv: UTF-16 text", "save the file as UTF-8")
+
+
+def test_a_vicon_export_without_its_units_row(tmp_path, cli):
+    """Was 'mixed length units ['-18.154', ...': now the true reason, and read when --units states them."""
+    ref = write_vicon_csv(tmp_path / "ref.csv", person(60))
+    lines = ref.read_text().split("\n")
+    f = tmp_path / "a.csv"
+    f.write_text("\n".join(ln for ln in lines if not ln.startswith(",,mm")))
+    proto = one_trial_protocol(tmp_path, f)
+    assert_rejected(cli, tmp_path / "ws", [proto], "a.csv: no units row in the Trajectories section", "--units mm")
+    from cobot_analysis.io.text_exports import read_vicon_csv
+
+    import numpy as np
+
+    np.testing.assert_array_equal(read_vicon_csv(f, units="mm").xyz, read_vicon_csv(ref).xyz)
+    code, _, err = cli("import", proto, "--units", "mm", "--out", tmp_path / "ws", "--jobs", "1")
+    assert code == 0, err

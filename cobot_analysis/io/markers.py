@@ -4,7 +4,8 @@ Each trial file named by the protocol is read by content (C3D header, Vicon CSV 
 section or Qualisys TSV header, whatever its name), converted to metres, and its labels are
 resolved to (entity, canonical marker) with ``Protocol.resolve_label`` after the marker map
 (protocol ``marker_map``, then ``--marker-map FILE``, then ``--map LAB=CANON``; a map key may be
-the whole label as the file lists it, ``Daphnee:ASISr``, or the label without its prefix). In a
+the whole label as the file lists it, ``Daphnee:ASISr``, or the label without its prefix; a label
+the file gives twice is addressed by its occurrence, ``sacrum#2``). In a
 single-person study a label prefix the protocol does not declare as an entity (Vicon writes the
 subject's name: ``Alice:LASI``) is ignored. Only the markers the pipeline uses are kept
 (``KEPT_SUBJECT_MARKERS`` per person, ``TABLE_MARKERS`` for the table) unless ``keep_all`` is
@@ -70,7 +71,10 @@ def detect_format(path: str | os.PathLike) -> str:
     if path.suffix.lower() == ".c3d":
         raise InputError("not a C3D file although named .c3d (no C3D header)", path=path,
                          remedy="re-export the trial as C3D, or give the file the name of its real format")
-    fmt = sniff_text_format(head.decode("utf-8", errors="replace"))
+    if head.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise InputError("UTF-16 text (a UTF-16 byte-order mark): the exports are read as UTF-8", path=path,
+                         remedy="save the file as UTF-8 (or re-export it from the capture software)")
+    fmt = sniff_text_format(head.decode("utf-8-sig", errors="replace"))
     if fmt is None:
         raise InputError("unrecognised marker file: not C3D, a Vicon Nexus CSV export or a Qualisys TSV export", path=path,
                          remedy="export the trial as C3D, Vicon CSV (Trajectories) or QTM TSV")
@@ -140,6 +144,18 @@ def _resolve(resolver: Protocol, label: str, task: TrialTask) -> tuple[str, str]
     return entity, marker
 
 
+def occurrence_keys(labels: list[str], marker_map: dict[str, str]) -> list[str]:
+    """The labels as the marker map addresses them: a label the file gives more than once is
+    ``LABEL#k`` (its k-th occurrence, from 1) where the map has that key, else the label itself."""
+    counts: dict[str, int] = {}
+    keys = []
+    for lab in labels:
+        counts[lab] = counts.get(lab, 0) + 1
+        key = f"{lab}#{counts[lab]}"
+        keys.append(key if key in marker_map and labels.count(lab) > 1 else lab)
+    return keys
+
+
 def _required(entity: str) -> set[str]:
     return set(TABLE_MARKERS) if entity == "table" else {m for d in PELVIS_DEFINITIONS for m in d}
 
@@ -175,13 +191,18 @@ def import_trial(task: TrialTask) -> ImportedTrial:
     rate, rate_notes = trial_rate(raw.rate, RATE_SOURCES[fmt], task.protocol_rate, task.invalid_rate, path)
     notes = list(raw.notes) + rate_notes
     resolver = Protocol(path=path, study="", trials=pd.DataFrame(), entities=task.entities, marker_map=task.marker_map)
-    resolved = [_resolve(resolver, lab, task) for lab in raw.labels]
+    resolved = [_resolve(resolver, key, task) for key in occurrence_keys(raw.labels, task.marker_map)]
     keep, seen = [], {}
     for j, (entity, marker) in enumerate(resolved):
         known = (entity == "table" and marker in TABLE_MARKERS) or (_is_person(entity) and marker in KEPT_SUBJECT_MARKERS)
         if not (known or task.keep_all):
             continue
         if (entity, marker) in seen:
+            if marker in _required(entity) and raw.labels[seen[entity, marker]] == raw.labels[j]:
+                lab, first = raw.labels[j], seen[entity, marker]
+                raise InputError(f"label {lab!r} is given twice (points {first + 1} and {j + 1} of the file), both {entity} {marker}",
+                                 path=path, remedy=f"name one occurrence by its number in the marker map, e.g. --map '{lab}#2={lab}_2' "
+                                                   f"to use the first as {marker} (or --map '{lab}#1={lab}_1' the second)")
             if marker in _required(entity):
                 raise InputError(f"labels {raw.labels[seen[entity, marker]]!r} and {raw.labels[j]!r} both map to {entity} {marker}",
                                  path=path, remedy=f"fix the marker map; {MAP_REMEDY}")

@@ -1,13 +1,13 @@
 """Text exports of marker trajectories: Vicon Nexus CSV ("Trajectories") and Qualisys TSV.
 
 Vicon Nexus CSV export (the "Trajectories" section; other sections such as "Devices" are
-skipped)::
+skipped; a byte-order mark at the start of either export is ignored)::
 
     Trajectories
     200                                   <- rate (Hz)
     ,,Subj:LASI,,,Subj:RASI,,,            <- one label per marker, over its X, Y, Z columns
     Frame,Sub Frame,X,Y,Z,X,Y,Z
-    ,,mm,mm,mm,mm,mm,mm                   <- units
+    ,,mm,mm,mm,mm,mm,mm                   <- units (without this row: refused unless --units states them)
     1,0,12.3,45.6,950.1,...               <- empty cells where the marker is occluded
 
 Qualisys QTM TSV export (3D data)::
@@ -44,6 +44,7 @@ _REEXPORT = "re-export the trial from the capture software"
 
 def sniff_text_format(head: str) -> str | None:
     """'vicon-csv' or 'qualisys-tsv' from the first lines of a text file, else None."""
+    head = head.removeprefix("\ufeff")  # a byte-order mark (Excel, Windows editors) is not part of the first line
     lines = [ln.strip().strip(",").strip() for ln in head.splitlines() if ln.strip().strip(",")]
     if not lines:
         return None
@@ -52,6 +53,14 @@ def sniff_text_format(head: str) -> str | None:
     if "Trajectories" in lines or lines[0] in ("Devices", "Model Outputs", "Joints", "Segments"):
         return "vicon-csv"
     return None
+
+
+def _is_number(cell: str) -> bool:
+    try:
+        float(cell)
+        return True
+    except ValueError:
+        return False
 
 
 def _complete(text: str, path: Path) -> str:
@@ -136,16 +145,22 @@ def read_vicon_csv(path: str | os.PathLike, units: str | None = None) -> RawMark
     if stray or any([a.strip() for a in axes[j + 1:j + 3]] != ["Y", "Z"] for j in cols):
         raise InputError(f"labels and X, Y, Z columns do not line up{f' (label {stray[0]!r} above no X column)' if stray else ''}",
                          path=path, remedy=_REEXPORT)
+    first_data = s + 5
+    if unit_row and _is_number(unit_row[0]):  # the line after the axes is a data row: no units row
+        if units is None:
+            raise InputError("no units row in the Trajectories section (the line after 'Frame, Sub Frame, X, Y, Z' holds data)",
+                             path=path, remedy="re-export with the units row, or state the units with --units mm (or m)")
+        unit_row, first_data = [], s + 4
     stated = {unit_row[j].strip() for j in cols if j < len(unit_row) and unit_row[j].strip()}
     if len(stated) > 1:
         raise InputError(f"mixed length units {sorted(stated)}", path=path, remedy=REMEDY_UNITS)
     source_units = (units or (stated.pop() if stated else "mm")).lower()
     body = []
-    for r in rows[s + 5:]:
+    for r in rows[first_data:]:
         if not any(c.strip() for c in r):
             break  # a blank line ends the section
         body.append(r)
-    data = _numeric(body, path, s + 6)
+    data = _numeric(body, path, first_data + 1)
     if data.size == 0:
         raise InputError("empty trial (no data rows)", path=path, remedy="remove the trial from the protocol or re-export it")
     xyz_cols = np.array([[j, j + 1, j + 2] for j in cols])
