@@ -10,7 +10,8 @@ Task functions must be importable top-level functions and their arguments pickla
 
 Interrupts (``cobot_analysis.interrupt``): an in-process task runs through ``interruptible``; on
 any exception, Ctrl-C or SIGTERM leaving ``executor()``, the local workers are stopped at once
-(SIGTERM, then SIGKILL after ``STOP_GRACE`` s) and a Dask executor cancels its futures.
+(SIGTERM, then SIGKILL after ``STOP_GRACE`` s) and a Dask executor cancels its futures. A scheduler address that nothing answers is refused in
+``CONNECT_TIMEOUT`` s with one line (``check_scheduler``).
 """
 
 from __future__ import annotations
@@ -22,11 +23,14 @@ from contextlib import contextmanager
 from typing import Any, TypeVar
 
 from cobot_analysis.console import progress
+from cobot_analysis.errors import InputError
 from cobot_analysis.interrupt import Interrupted, blocked, deferred, interruptible, seen, worker_init
 
 T = TypeVar("T")
 R = TypeVar("R")
 STOP_GRACE = 1.0  # s between SIGTERM and SIGKILL of a worker that is still alive
+CONNECT_TIMEOUT = 5.0  # s to reach a Dask scheduler (Dask's own default waits 30 s, then an OSError)
+DASK_PORT = 8786  # the scheduler's default port
 
 
 class _InlineExecutor(Executor):
@@ -53,7 +57,12 @@ def executor(jobs: int | None = None, scheduler: str | None = None) -> Iterator[
     if scheduler:
         from distributed import Client
 
-        with Client(scheduler) as client:
+        check_scheduler(scheduler)
+        try:
+            client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT * 2:g}s")
+        except OSError as exc:
+            raise InputError(f"--scheduler {scheduler}: cannot connect to the Dask scheduler ({exc})", remedy=SCHEDULER_REMEDY) from None
+        with client:
             ex = client.get_executor()
             try:
                 yield ex
@@ -79,6 +88,33 @@ def executor(jobs: int | None = None, scheduler: str | None = None) -> Iterator[
         stop(pool)
         raise
     pool.shutdown(wait=True)
+
+
+SCHEDULER_REMEDY = "start it (`dask scheduler`), check the address, or leave --scheduler out to run on this machine"
+
+
+def check_scheduler(address: str, timeout: float = CONNECT_TIMEOUT) -> None:
+    """Fail fast, with one line, when a TCP scheduler address (``tcp://host:port`` or ``host:port``)
+    is malformed or nothing listens there (a closed port took Dask 30 s and ended in an OSError).
+    Other protocols (``tls://``, ``inproc://``, ...) are left to Dask."""
+    import socket
+
+    scheme, sep, rest = address.rpartition("://")
+    if sep and scheme != "tcp":
+        return
+    host, colon, port = rest.rpartition(":") if ":" in rest else (rest, "", str(DASK_PORT))
+    try:
+        number = int(port)
+        if not 0 < number < 65536 or not host.strip("[]"):
+            raise ValueError
+    except ValueError:
+        raise InputError(f"--scheduler {address!r} is not a scheduler address", remedy="give it as tcp://HOST:PORT") from None
+    try:
+        socket.create_connection((host.strip("[]"), number), timeout=timeout).close()
+    except OSError as exc:
+        reason = exc.strerror or ("timed out" if isinstance(exc, TimeoutError) else type(exc).__name__)
+        raise InputError(f"--scheduler {address}: no Dask scheduler answers at {host}:{number} ({reason})",
+                         remedy=SCHEDULER_REMEDY) from None
 
 
 def stop(pool: ProcessPoolExecutor) -> None:

@@ -157,6 +157,8 @@ def read_yaml(path: Path, what: str, remedy: str) -> Any:
         return yaml.load(path.read_text(), Loader=Strict)  # noqa: S506 - a SafeLoader subclass
     except (yaml.YAMLError, UnicodeDecodeError, TypeError) as exc:  # TypeError: an unhashable key
         raise InputError(f"not a valid YAML {what} ({type(exc).__name__})", path=path, remedy=remedy) from exc
+    except RecursionError:  # PyYAML composes nested collections recursively
+        raise InputError(f"not a {what}: its YAML is nested too deeply", path=path, remedy=remedy) from None
 
 
 def load_protocol(path: str | os.PathLike) -> Protocol:

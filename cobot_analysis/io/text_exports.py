@@ -21,7 +21,8 @@ Qualisys QTM TSV export (3D data)::
 QTM exports are in millimetres (the file does not state it). Frames must be strictly increasing
 (so must Time in QTM files), and the file must end with an end of line (a truncated file would
 end in a cut number); missing frame numbers are kept as occluded frames (up to as many as
-the rows: a larger jump is a damaged frame number). Labels and
+the rows: a larger jump is a damaged frame number); no line may be longer than 1 MiB
+(``MAX_LINE_BYTES``, checked before reading) and no data row wider than its header. Labels and
 columns must line up (a damaged label row would give one marker's data another's name): Vicon
 labels only above X columns followed by Y and Z; QTM MARKER_NAMES as many as NO_OF_MARKERS and
 as the header row's "<label> X/Y/Z" columns, and no data beyond them. Both readers
@@ -40,6 +41,35 @@ from cobot_analysis.errors import InputError
 from cobot_analysis.io.c3d import REMEDY_UNITS, RawMarkers, occlude, to_metres_factor
 
 _REEXPORT = "re-export the trial from the capture software"
+#: bytes: longest line of an export read (a Vicon or QTM row of 1,000 markers is about 40 kB).
+MAX_LINE_BYTES = 1 << 20
+#: cells a data row may hold beyond its header (trailing separators).
+EXTRA_CELLS = 4
+
+
+def check_line_lengths(path: Path, limit: int = MAX_LINE_BYTES, chunk: int = 1 << 20) -> None:
+    """Refuse a text export with a line longer than ``limit`` bytes before reading it (a 20 MB line
+    took 66 s and then all the memory: a damaged or foreign file, not an export)."""
+    run, line = 0, 1
+    with open(path, "rb") as fh:
+        while block := fh.read(chunk):
+            parts = block.replace(b"\r", b"\n").split(b"\n")
+            lengths = [run + len(parts[0])] + [len(x) for x in parts[1:]]
+            longest = max(lengths[:-1], default=0) if len(parts) > 1 else 0
+            if max(longest, lengths[-1]) > limit:
+                k = next(i for i, n in enumerate(lengths) if n > limit)
+                raise InputError(f"line {line + k} is longer than {limit // 1024} kB: not a marker export", path=path,
+                                 remedy=_REEXPORT)
+            line += len(parts) - 1
+            run = lengths[-1]
+
+
+def _check_width(rows: list[list[str]], header: int, path: Path, first_line: int) -> None:
+    """Refuse a data row with more cells than its header allows (before a table of that width is allocated)."""
+    wide = next((i for i, r in enumerate(rows) if len(r) > header + EXTRA_CELLS), None)
+    if wide is not None:
+        raise InputError(f"data row at line {first_line + wide} has {len(rows[wide])} cells, the header {header}", path=path,
+                         remedy=_REEXPORT)
 
 
 def sniff_text_format(head: str) -> str | None:
@@ -120,6 +150,7 @@ def read_vicon_csv(path: str | os.PathLike, units: str | None = None) -> RawMark
     import csv
 
     path = Path(path)
+    check_line_lengths(path)
     with open(path, newline="", encoding="utf-8-sig", errors="replace") as fh:
         text = _complete(fh.read(), path)
     rows = list(csv.reader(io.StringIO(text, newline=""), quoting=csv.QUOTE_NONE))  # Nexus never quotes: a stray '"' is a character
@@ -160,6 +191,7 @@ def read_vicon_csv(path: str | os.PathLike, units: str | None = None) -> RawMark
         if not any(c.strip() for c in r):
             break  # a blank line ends the section
         body.append(r)
+    _check_width(body, len(axes), path, first_data + 1)
     data = _numeric(body, path, first_data + 1)
     if data.size == 0:
         raise InputError("empty trial (no data rows)", path=path, remedy="remove the trial from the protocol or re-export it")
@@ -175,6 +207,7 @@ def read_vicon_csv(path: str | os.PathLike, units: str | None = None) -> RawMark
 def read_qualisys_tsv(path: str | os.PathLike, units: str | None = None) -> RawMarkers:
     """Read a Qualisys QTM TSV 3D export (see module docstring); lengths in mm unless ``units``."""
     path = Path(path)
+    check_line_lengths(path)
     with open(path, encoding="utf-8-sig", errors="replace") as fh:
         lines = _complete(fh.read(), path).splitlines()
     header: dict[str, list[str]] = {}
@@ -201,6 +234,7 @@ def read_qualisys_tsv(path: str | os.PathLike, units: str | None = None) -> RawM
         columns = [c.strip() for c in lines[i].split("\t")]
         i += 1
     rows = [ln.split("\t") for ln in lines[i:] if ln.strip()]
+    _check_width(rows, len(columns) if columns else 2 + 3 * len(labels), path, i + 1)
     data = _numeric(rows, path, i + 1)
     if data.size == 0:
         raise InputError("empty trial (no data rows)", path=path, remedy="remove the trial from the protocol or re-export it")

@@ -89,6 +89,67 @@ class Params:
     orientation_markers: str = "pelvis"  # "pelvis": theta needs all the pelvis markers used; "asis": LASI and RASI
     skip_bad: bool = False  # skip (and list) the refused recordings instead of refusing the run
 
+    def __post_init__(self) -> None:
+        """Bounded before any work: durations, rates and thresholds finite and >= 0 (``inf`` overflowed
+        in ``round(max_gap * rate)``), at least 2 samples and an order >= 1."""
+        for name in ("max_gap", "cutoff", "lift_threshold", "floor_window", "speed_threshold", "rest_speed", "min_duration",
+                     "gamma_min_speed"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value < 0:
+                raise InputError(f"{option_name(name)} {value!r} is not a finite number >= 0",
+                                 remedy=f"give {option_name(name)} a finite value (default {getattr(Params, name):g})")
+        for name, low in (("n_samples", 2), ("order", 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+                raise InputError(f"{option_name(name)} {value!r} is not an integer >= {low}",
+                                 remedy=f"give {option_name(name)} an integer (default {getattr(Params, name)})")
+
+    def memory_bytes(self, n_trajectories: int) -> int:
+        """Estimated peak memory of the trajectories table: ``n_samples x trajectories x`` its columns
+        (8 bytes each) ``x 3`` (the per-trajectory frames, their concatenation and the Parquet writer)."""
+        return int(self.n_samples) * n_trajectories * (len(NUMERIC) + len(META_COLUMNS) + 8) * 8 * 3
+
+
+def option_name(field_name: str) -> str:
+    """The command-line option of a ``Params`` field (``n_samples`` -> ``--samples``)."""
+    return "--samples" if field_name == "n_samples" else "--" + field_name.replace("_", "-")
+
+
+def available_memory() -> int | None:
+    """Bytes of memory the machine can still give (``MemAvailable`` of /proc/meminfo), None when unknown."""
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemAvailable:"):
+                return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        import os
+
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_AVPHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def check_memory(p: Params, trials_path: Path) -> None:
+    """Refuse, before any work, a ``--samples`` whose trajectories table would not fit in memory:
+    ``Params.memory_bytes`` for the largest number of trajectories the recordings can give (one per
+    walking recording; pair recordings: 3 entities x 2 carriages, + 2 approaches with
+    ``keep_approach``) against the memory available."""
+    import pyarrow.parquet as pq
+
+    try:
+        table = pq.read_table(trials_path, columns=None)
+    except Exception:  # noqa: BLE001 - unreadable: load_recordings names the problem
+        return
+    pair = "pair" in table.column_names and table.column("pair").null_count < len(table)
+    n_traj = len(table) * ((8 if p.keep_approach else 6) if pair else 1)
+    need, have = p.memory_bytes(n_traj), available_memory()
+    if have is not None and need > have:
+        raise InputError(f"--samples {p.n_samples} would need about {need / 1e9:.3g} GB for {n_traj} trajectories "
+                         f"({have / 1e9:.3g} GB of memory available)", path=trials_path,
+                         remedy=f"use fewer samples per trajectory (default {Params.n_samples})")
+
 
 @dataclass
 class Recording:
@@ -504,6 +565,7 @@ def run(out: Path, markers_path: Path, trials_path: Path, p: Params, *, force: b
     from cobot_analysis.parallel import chunked, default_jobs, map_tasks
     from cobot_analysis.workspace import Stage
 
+    check_memory(p, trials_path)
     with Stage(out, "preprocess", inputs=[markers_path, trials_path], params=asdict(p), force=force) as stage:
         if stage.skipped:
             return stage.final_dir
