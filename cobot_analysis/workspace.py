@@ -6,6 +6,18 @@ replaces ``DIR/<stage>`` only when the stage succeeds, so a failed run leaves no
 their content hashes, the parameters, package versions, the git commit and the timing. A stage
 whose inputs, parameters and package version are unchanged is skipped unless ``force``.
 
+Reuse is verified: a skip checks every output against the manifest (size and modification time,
+then the SHA-256 when either differs); an output changed since the stage wrote it (edited by hand,
+damaged) makes the stage run again, and says so, as a changed input would. A stage whose input
+is another stage's output checks it against that stage's manifest the same way: an edited table
+is refused, naming the file, rather than computed from (to use an edited table on purpose, pass
+it from outside the workspace).
+
+One run per stage and workspace at a time: a stage holds the lock ``DIR/.<stage>.lock``
+(``flock``; the file is removed when the stage ends) from its start to its commit; a second run of that stage into the same workspace is
+refused with one line (never a silent last-writer-wins). The lock is released by the system when
+the process ends, however it ends.
+
 Interrupted or killed runs: the temporary directory ``.<stage>.<random>.tmp`` holds a lock file
 that its process keeps locked (``flock``); an interrupt (Ctrl-C, SIGTERM) removes it, and the next
 run of the stage removes those a killed process left (their lock is free). Directories are created
@@ -19,6 +31,7 @@ with the user's umask.
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import json
 import os
@@ -46,6 +59,7 @@ except ImportError:  # not POSIX: leftovers are left alone
 DEFAULT_OUT = Path("cobot-out")
 MANIFEST = "manifest.json"
 LOCK = ".lock"  # in a running stage's temporary directory, locked by its process
+STAGE_LOCK = ".{}.lock"  # in the workspace: held by the run of that stage
 PREVIOUS = ".previous"  # the replaced output, moved into the new one while it is committed
 STALE_AFTER = 60.0  # s: a temporary directory without a lock file (older versions) older than this is abandoned
 COMMAND: list[str] = []  # the command line being run (set by cli.run; sys.argv otherwise), for the manifests
@@ -154,6 +168,49 @@ def _abandoned(d: Path) -> bool:
         os.close(fd)
 
 
+def changed_outputs(stage_dir: Path, manifest: dict[str, Any]) -> list[str]:
+    """The outputs of a stage (relative paths) that are missing or differ from its manifest: size
+    and modification time first, the SHA-256 when either differs (or the manifest has no time)."""
+    changed = []
+    for o in manifest.get("outputs", []):
+        f = stage_dir / o["path"]
+        try:
+            st = f.stat()
+        except OSError:
+            changed.append(o["path"])
+            continue
+        if st.st_size != o.get("bytes") or (st.st_mtime_ns != o.get("mtime_ns") and file_sha256(f) != o.get("sha256")):
+            changed.append(o["path"])
+    return changed
+
+
+def check_upstream(inputs: list[dict[str, Any]]) -> None:
+    """Refuse an input that is another stage's output changed since that stage wrote it (its
+    SHA-256 differs from the one in the manifest beside it, or one directory up)."""
+    manifests: dict[Path, dict | None] = {}
+    for i in inputs:
+        f = Path(i["path"])
+        for d in (f.parent, f.parent.parent):
+            if d not in manifests:
+                try:
+                    manifests[d] = json.loads((d / MANIFEST).read_text())
+                except (OSError, ValueError):
+                    manifests[d] = None
+            m = manifests[d]
+            if not isinstance(m, dict) or f.name == MANIFEST:
+                continue
+            rel = str(f.relative_to(d))
+            listed = next((o for o in m.get("outputs", []) if isinstance(o, dict) and o.get("path") == rel), None)
+            if listed is None:
+                continue
+            if listed.get("sha256") != i["sha256"]:
+                stage = m.get("stage", d.name)
+                raise InputError(f"changed since stage {stage} wrote it (its SHA-256 differs from {d.name}/{MANIFEST})", path=f,
+                                 remedy=f"re-run `cobot-analysis {stage}` (it redoes the stage), or copy the edited file out of "
+                                        f"the workspace and pass it as an option to use it on purpose")
+            break
+
+
 def _canonical(params: dict[str, Any]) -> Any:
     return json.loads(json.dumps(params, sort_keys=True, default=str))
 
@@ -175,6 +232,7 @@ class Stage:
         self._t0 = 0.0
         self._started = ""
         self._lock: int | None = None
+        self._stage_lock: int | None = None
 
     # -- skip logic -----------------------------------------------------------------------------
     def _previous_manifest(self) -> dict[str, Any] | None:
@@ -192,7 +250,14 @@ class Stage:
             and old.get("versions", {}).get("cobot_analysis") == __version__
             and [(i["path"], i["sha256"]) for i in old.get("inputs", [])] == [(i["path"], i["sha256"]) for i in self._inputs]
         )
-        return same and all((self.final_dir / o["path"]).is_file() for o in old.get("outputs", []))
+        if not same:
+            return False
+        changed = changed_outputs(self.final_dir, old)
+        if changed:
+            info(f"[yellow]{self.name}[/yellow]: {', '.join(changed[:3])}{' ...' if len(changed) > 3 else ''} changed since the stage "
+                 f"wrote {'them' if len(changed) > 1 else 'it'} (not as its manifest records): running it again")
+            return False
+        return True
 
     # -- context --------------------------------------------------------------------------------
     def __enter__(self) -> "Stage":
@@ -203,7 +268,15 @@ class Stage:
         self._t0 = time.perf_counter()
         self._started = datetime.now(timezone.utc).isoformat(timespec="seconds")
         self._inputs = describe_inputs(self.input_paths)
-        if not self.force and self._up_to_date():
+        check_upstream(self._inputs)
+        self._acquire()
+        try:
+            up_to_date = not self.force and self._up_to_date()
+        except BaseException:
+            self._release()
+            raise
+        if up_to_date:
+            self._release()
             self.skipped = True
             info(f"[green]{self.name}[/green]: up to date, skipped (--force redoes it) -> {self.final_dir}")
             return self
@@ -214,6 +287,7 @@ class Stage:
                 self.dir = self._temporary()
             except OSError as exc:
                 self._unlock()
+                self._release()
                 raise InputError(f"cannot write the workspace ({exc.strerror or type(exc).__name__})", path=exc.filename or self.out,
                                  remedy="pass a writable directory with --out") from None
         return self
@@ -233,7 +307,49 @@ class Stage:
                 with deferred():
                     shutil.rmtree(self.dir, ignore_errors=True)
                     self._unlock()
+            self._release()
         return False
+
+    def _acquire(self) -> None:
+        """Take the stage's workspace lock, or refuse (one line) when another run holds it. The lock
+        file is removed on release; a lock taken on a file removed meanwhile is taken again."""
+        if fcntl is None:
+            return
+        path = self.out / STAGE_LOCK.format(self.name)
+        while True:
+            try:
+                self.out.mkdir(parents=True, exist_ok=True)
+                fd = os.open(path, os.O_CREAT | os.O_RDWR, 0o666)
+            except OSError as exc:
+                raise InputError(f"cannot write the workspace ({exc.strerror or type(exc).__name__})", path=exc.filename or self.out,
+                                 remedy="pass a writable directory with --out") from None
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as exc:
+                if exc.errno not in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):  # no locks on this file system
+                    os.close(fd)
+                    return
+                holder = os.read(fd, 64).decode(errors="replace").strip()
+                os.close(fd)
+                raise InputError(f"stage {self.name} is being run into this workspace by another process"
+                                 f"{f' (pid {holder})' if holder else ''}", path=self.out,
+                                 remedy="wait for it to finish, or pass another --out") from None
+            try:
+                same = os.stat(path).st_ino == os.fstat(fd).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
+            os.close(fd)  # released and removed by its holder between our open and our lock: again
+        os.ftruncate(fd, 0)
+        os.write(fd, str(os.getpid()).encode())
+        self._stage_lock = fd
+
+    def _release(self) -> None:
+        fd, self._stage_lock = self._stage_lock, None
+        if fd is not None:
+            (self.out / STAGE_LOCK.format(self.name)).unlink(missing_ok=True)
+            os.close(fd)
 
     def _temporary(self) -> Path:
         """A new hidden directory beside the stage's, created with the umask and locked by this process."""
@@ -306,7 +422,8 @@ class Stage:
 
     def _write_manifest(self) -> None:
         outputs = [
-            {"path": str(f.relative_to(self.dir)), "sha256": file_sha256(f), "bytes": f.stat().st_size}
+            {"path": str(f.relative_to(self.dir)), "sha256": file_sha256(f), "bytes": f.stat().st_size,
+             "mtime_ns": f.stat().st_mtime_ns}
             for f in sorted(self.dir.rglob("*")) if f.is_file() and f.name != LOCK
         ]
         manifest = {
