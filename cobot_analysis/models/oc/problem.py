@@ -51,7 +51,8 @@ fatrop calls are assembled from ``map`` of the stage functions and of their exac
     hess L = blockdiag_k(hess_z (sigma c_k - lambda_{k+1}' F(z_k)), sigma hess c_N),
 
 then generated as C (a loop over the stages, not the unrolled NLP), compiled once per machine
-with the system C compiler and cached on disk (``cache_dir()``, keyed by a hash of the C source).
+with the system C compiler and cached on disk (``cache_dir()``, keyed by a hash of the C source;
+loaded only from a private directory and when it matches its recorded digest: ``cache.py``).
 Without a compiler, or with ``COBOT_ANALYSIS_OCP_COMPILE=0``, the same NLP is expanded into
 casadi's SX virtual machine (about 2x slower per solve, the same iterates).
 """
@@ -469,18 +470,41 @@ def cache_dir() -> Path:
 
 _CFLAGS = ("-O2", "-fPIC", "-shared")
 _compile_failed: set[tuple[str, Path]] = set()  # (compiler, cache) pairs that failed in this process: not retried
+_untrusted_warned: set[Path] = set()  # caches refused in this process (warned once)
+
+
+def _trusted_cache() -> Path | None:
+    """``cache_dir()`` when it may hold code to load (``cache.untrusted_reason``), else None (warned once)."""
+    from cobot_analysis.models.oc.cache import untrusted_reason
+
+    directory = cache_dir()
+    reason = untrusted_reason(directory)
+    if reason is None:
+        return directory
+    if directory not in _untrusted_warned:
+        from cobot_analysis.console import warn
+
+        _untrusted_warned.add(directory)
+        warn(f"the solver cache {directory} is not used: {reason}, so another user could plant code in it; solving with "
+             f"casadi's virtual machine (about 2x slower). Make it private (chmod 700, owned by you) or set "
+             f"COBOT_ANALYSIS_CACHE to a private directory (docs/cache.md)")
+    return None
 
 
 def _compiled_library(ocp: WalkerOCP) -> Path | None:
     """Path of the shared library with ``ocp``'s NLP functions, compiled on first use and cached
-    (file name = hash of the C source, compiler and flags). None when compilation is disabled
-    (``COBOT_ANALYSIS_OCP_COMPILE=0``), no C compiler is found, or it failed."""
+    (file name = hash of the C source, compiler and flags). A cached library is returned only from a
+    private cache and when it matches the digest recorded when it was built (``cache.py``); else it
+    is rebuilt. None when compilation is disabled (``COBOT_ANALYSIS_OCP_COMPILE=0``), no C compiler
+    is found, it failed, or the cache is not private."""
     import casadi as ca
+
+    from cobot_analysis.models.oc import cache
 
     if os.environ.get("COBOT_ANALYSIS_OCP_COMPILE", "1") == "0":
         return None
     cc = shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
-    if cc is None or (cc, cache_dir()) in _compile_failed:
+    if cc is None or (cc, cache_dir()) in _compile_failed or _trusted_cache() is None:
         return None
     gen = ca.CodeGenerator("walker_ocp.c", {"with_header": False})
     for f in ocp._nlp_functions().values():
@@ -488,17 +512,16 @@ def _compiled_library(ocp: WalkerOCP) -> Path | None:
     source = gen.dump()
     key = hashlib.sha256("\n".join([source, cc, *_CFLAGS, ca.__version__]).encode()).hexdigest()[:24]
     target = cache_dir() / f"walker_ocp_{key}.so"
-    if target.exists():
+    if cache.verified(target):
         return target
     try:
-        target.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
             c_file, so_file = Path(tmp) / "walker_ocp.c", Path(tmp) / "walker_ocp.so"
             c_file.write_text(source)
-            run = subprocess.run([cc, *_CFLAGS, str(c_file), "-o", str(so_file), "-lm"], capture_output=True, text=True)
+            run = subprocess.run([cc, *_CFLAGS, c_file.name, "-o", so_file.name, "-lm"], capture_output=True, text=True, cwd=tmp)
             if run.returncode != 0:
                 raise OSError(run.stderr.strip().splitlines()[-1] if run.stderr.strip() else f"exit code {run.returncode}")
-            os.replace(so_file, target)  # atomic: concurrent builders of the same key write the same file
+            cache.install(so_file, target)  # atomic; a library planted or damaged at ``target`` is replaced
     except OSError as e:
         from cobot_analysis.console import warn
 
@@ -514,26 +537,28 @@ def _fatrop_solver(library: Path, opts: dict):
 
     Building it sets up fatrop's block structure, which in casadi's interface costs about N^2
     (0.6 s at 930 intervals, 1.4 s at 1395, in every process that needs the shape); loading the
-    serialised solver (``Function.serialize`` / ``deserialize``) takes about 0.04 s. The file holds
-    the SHA-256 of the serialised text on its first line: a damaged, stale or unreadable file is
-    ignored and rewritten (atomically), never loaded.
+    serialised solver (``Function.serialize`` / ``deserialize``) takes about 0.04 s. It is loaded
+    only when it matches the digest recorded when it was written (``cache.verified``, a file
+    outside it; ``library`` was verified by ``_compiled_library``): an absent, damaged, planted or
+    unreadable file is ignored and rewritten (atomically), never loaded.
     """
     import casadi as ca
+
+    from cobot_analysis.models.oc import cache
 
     key = hashlib.sha256(repr(sorted(opts.items())).encode()).hexdigest()[:16]
     path = library.with_name(f"{library.stem}_fatrop_{key}.casadi")
     try:
-        digest, _, text = path.read_text(encoding="utf-8").partition("\n")
-        if hashlib.sha256(text.encode("utf-8")).hexdigest() == digest:
-            return ca.Function.deserialize(text)
+        if cache.verified(path):
+            return ca.Function.deserialize(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, RuntimeError):
-        pass  # absent, damaged or from a library that is gone: rebuilt below
+        pass  # damaged or from a library that is gone: rebuilt below
     solver = ca.nlpsol("walker_fatrop", "fatrop", str(library), opts)
     text = solver.serialize()
     tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
     try:
-        tmp.write_text(hashlib.sha256(text.encode("utf-8")).hexdigest() + "\n" + text, encoding="utf-8")
-        os.replace(tmp, path)  # atomic: concurrent writers of the same key write the same file
+        tmp.write_text(text, encoding="utf-8")
+        cache.install(tmp, path)  # atomic: concurrent writers of the same key write the same file
     except OSError:
         tmp.unlink(missing_ok=True)  # a read-only or full cache: the solver is built again next time
     return solver
