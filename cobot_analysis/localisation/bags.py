@@ -330,6 +330,9 @@ def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str 
     with open_bag(path) as src:
         need = set()
         specs = {k: v for k, v in specs.items() if k not in optional or v.is_tf or v.topic in src.topics}
+        missing = {k: v for k, v in specs.items() if not v.is_tf and v.topic not in src.topics}
+        if missing:
+            raise missing_topics(path, src, missing)
         for spec in specs.values():
             if spec.is_tf:
                 present = [t for t in TF_TOPICS if t in src.topics]
@@ -344,8 +347,6 @@ def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str 
                                                 "topic (e.g. --icp /icp/pose)")
                 need.update(present)
             else:
-                if spec.topic not in src.topics:
-                    raise InputError(f"no topic {spec.topic}", path=path, remedy=f"topics in the bag: {_topic_list(src)}")
                 mt = src.topics[spec.topic].msgtype
                 if mt not in POSE_TYPES and mt != TF_TYPE:
                     raise InputError(f"topic {spec.topic} has message type {mt.replace('/msg/', '/')}, which holds no pose",
@@ -445,6 +446,36 @@ def _fast_rows(raws: list, msgtype: str, ros1: bool) -> np.ndarray | None:
     nsec = np.ascontiguousarray(buf[:, stamp + 4:stamp + 8]).view("<u4")[:, 0].astype(float)
     pose = np.ascontiguousarray(buf[:, pos:pos + 56]).view("<f8")
     return np.column_stack([np.where(nsec < 1e9, sec + nsec * 1e-9, np.nan), pose])  # as _stamp
+
+
+#: the localisation options of each stream read from a bag, for messages.
+STREAM_OPTIONS = {"truth": "--truth", "icp": "--icp", "goals": "--goal-topic"}
+TRUTH_HINTS = ("mocap", "vicon", "qualisys", "optitrack", "truth", "ground", "/gt")
+
+
+def missing_topics(path: Path, src: _Source, missing: dict[str, PoseSpec]) -> InputError:
+    """The error for stream topics absent from a bag: it names the options (``--truth``, ``--icp``),
+    lists the topics whose message type holds a pose, points at ``tf:PARENT->CHILD`` when the bag
+    has tf, and, when exactly one (truth, ICP) pair is plausible (two pose topics besides goals, one of
+    them named like motion capture: mocap, vicon, qualisys, optitrack, truth, ground, gt), the command
+    line that uses it."""
+    what = "; ".join(f"no topic {spec.topic} for {STREAM_OPTIONS.get(name, name)}" for name, spec in missing.items())
+    poses = sorted((t for t in src.topics.values() if t.msgtype in POSE_TYPES), key=lambda t: t.name)
+    found = ", ".join(f"{t.name} ({t.msgtype.replace('/msg/', '/')}, {t.count})" for t in poses) or "none"
+    tf = [t for t in TF_TOPICS if t in src.topics]
+    hints = [f"pose topics in the bag: {found}"]
+    if tf:
+        hints.append(f"the bag has {' and '.join(tf)}: a frame pair is given as tf:PARENT->CHILD (`cobot-analysis bag-info {path}` "
+                     f"lists them)")
+    candidates = [t.name for t in poses if "goal" not in t.name.lower()]  # commanded goals are poses, not a trajectory
+    truth_like = [name for name in candidates if any(h in name.lower() for h in TRUTH_HINTS)]
+    if len(candidates) == 2 and len(truth_like) == 1 and set(missing) <= {"truth", "icp"}:
+        icp = next(name for name in candidates if name != truth_like[0])
+        hints.append(f"run `cobot-analysis localisation {path} --truth {truth_like[0]} --icp {icp}`")
+    else:
+        hints.append("pass the streams with " + " and ".join(f"{STREAM_OPTIONS.get(n, n)} TOPIC" for n in missing))
+    hints.append(f"all topics: {_topic_list(src)}")
+    return InputError(what, path=path, remedy="; ".join(hints))
 
 
 def _topic_list(src: _Source) -> str:
