@@ -479,7 +479,7 @@ def real_protocol(tmp_path, realdata, name):
     """A one-trial protocol naming a file of ../shared/realdata in place (never copied)."""
     f = realdata / name
     proto = tmp_path / f"{f.stem}.yaml"
-    proto.write_text(f"study: realdata\ntrials:\n  - {{trial: t1, file: {f}, condition: c1}}\n")
+    proto.write_text(f"study: realdata\nallow_outside: true\ntrials:\n  - {{trial: t1, file: {f}, condition: c1}}\n")
     return proto
 
 
@@ -689,7 +689,7 @@ def test_c3d_without_frame_data_is_an_empty_trial(tmp_path, cli):
     ("entities: [S1, S2]\n", "'entities' must map labels to names"),
     ("entities: {S1: person1}\n", "'entities' names unknown entities ['person1']"),
     ("marker_map: LASI\n", "'marker_map' must map labels to names, not 'LASI'"),
-    ("subjetcs: subjects.csv\n", "unknown protocol key(s) ['subjetcs']; use only study, rate, invalid_rate, entities, marker_map, subjects, pairs, trials"),
+    ("subjetcs: subjects.csv\n", "unknown protocol key(s) ['subjetcs']; use only study, rate, invalid_rate, allow_outside, entities, marker_map, subjects, pairs, trials"),
 ])
 def test_bad_protocol_entries(tmp_path, cli, edit, expected):
     proto = protocol(tmp_path, [write_c3d(tmp_path / "a.c3d", person(10))])

@@ -565,7 +565,7 @@ def test_realdata_walks(realdata, tmp_path, cli):
     for name, (pelvis_markers, travel_time) in expected.items():
         ws = tmp_path / name
         proto = tmp_path / f"{name}.yaml"
-        proto.write_text(f"study: realdata\ntrials:\n  - {{trial: t1, file: {realdata / 'c3d' / name}.c3d, condition: c1}}\n")
+        proto.write_text(f"study: realdata\nallow_outside: true\ntrials:\n  - {{trial: t1, file: {realdata / 'c3d' / name}.c3d, condition: c1}}\n")
         assert cli("import", proto, "--out", ws, "--jobs", "1")[0] == 0
         code, _, err = cli("preprocess", "--out", ws, "--jobs", "1")
         assert code == 0, err
@@ -576,7 +576,7 @@ def test_realdata_walks(realdata, tmp_path, cli):
 
 def test_realdata_static_recording_is_reported_as_such(realdata, tmp_path, cli):
     proto = tmp_path / "static.yaml"
-    proto.write_text(f"study: realdata\ntrials:\n  - {{trial: static, file: {realdata / 'c3d/pyomeca_markers_analogs.c3d'}, condition: c1}}\n"
+    proto.write_text(f"study: realdata\nallow_outside: true\ntrials:\n  - {{trial: static, file: {realdata / 'c3d/pyomeca_markers_analogs.c3d'}, condition: c1}}\n"
                      "marker_map: {'Daphnee:ASISr': RASI, 'Daphnee:ASISl': LASI, 'Daphnee:PSISr': RPSI, 'Daphnee:PSISl': LPSI}\n")
     assert cli("import", proto, "--out", tmp_path / "ws", "--jobs", "1")[0] == 0
     code, _, err = cli("preprocess", "--out", tmp_path / "ws", "--jobs", "1")

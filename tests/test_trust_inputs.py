@@ -205,3 +205,51 @@ def test_a_vicon_export_without_its_units_row(tmp_path, cli):
     np.testing.assert_array_equal(read_vicon_csv(f, units="mm").xyz, read_vicon_csv(ref).xyz)
     code, _, err = cli("import", proto, "--units", "mm", "--out", tmp_path / "ws", "--jobs", "1")
     assert code == 0, err
+
+
+# ---- protocol paths -----------------------------------------------------------------------------
+def _outside_study(tmp_path, how):
+    """A protocol in tmp/study whose trial file lies outside its folder: via '..', an absolute path, or a symlink."""
+    study, elsewhere = tmp_path / "study", tmp_path / "elsewhere"
+    study.mkdir()
+    elsewhere.mkdir()
+    f = write_c3d(elsewhere / "a.c3d", person(60))
+    if how == "dotdot":
+        name = "../elsewhere/a.c3d"
+    elif how == "absolute":
+        name = str(f)
+    else:
+        (study / "link.c3d").symlink_to(f)
+        name = "link.c3d"
+    p = save_protocol(study / "protocol.yaml", "paths", pd.DataFrame({"trial": ["t1"], "file": [name]}))
+    return p, f, name
+
+
+@pytest.mark.parametrize("how", ["dotdot", "absolute", "symlink"])
+def test_a_trial_file_outside_the_protocols_folder_is_refused(tmp_path, cli, how):
+    p, f, name = _outside_study(tmp_path, how)
+    assert_rejected(cli, tmp_path / "ws", [p], f"protocol.yaml: trial t1 names file {name}, outside the protocol's folder ({f})",
+                    "'allow_outside: true'")
+
+
+@pytest.mark.parametrize("how", ["dotdot", "symlink"])
+def test_allow_outside_accepts_and_records_them(tmp_path, cli, how):
+    import json
+
+    p, f, _ = _outside_study(tmp_path, how)
+    p.write_text(p.read_text() + "allow_outside: true\n")
+    code, _, err = cli("import", p, "--out", tmp_path / "ws", "--jobs", "1")
+    assert code == 0, err
+    manifest = json.loads((tmp_path / "ws" / "import" / "manifest.json").read_text())
+    assert manifest["params"]["allow_outside"] is True and manifest["params"]["outside_files"] == [str(f)]
+    assert f"Files outside the protocol's folder (allow_outside: true): {f}." in (tmp_path / "ws" / "import" / "results.md").read_text()
+
+
+def test_a_csv_table_outside_the_protocols_folder_is_refused(tmp_path, cli):
+    study = tmp_path / "study"
+    study.mkdir()
+    write_c3d(study / "a.c3d", person(60))
+    pd.DataFrame({"trial": ["t1"], "file": ["a.c3d"]}).to_csv(tmp_path / "trials.csv", index=False)
+    p = study / "protocol.yaml"
+    p.write_text("study: x\ntrials: ../trials.csv\n")
+    assert_rejected(cli, tmp_path / "ws", [p], "protocol.yaml: the trials file ../trials.csv is outside the protocol's folder")

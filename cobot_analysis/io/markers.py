@@ -42,7 +42,7 @@ from cobot_analysis.errors import InputError
 from cobot_analysis.io.c3d import RawMarkers, is_c3d, read_c3d
 from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, MAX_SPIKE, check_positions, trial_rate
 from cobot_analysis.io.protocol import (ENTITIES, KEPT_SUBJECT_MARKERS, PELVIS_DEFINITIONS, PELVIS_MARKERS, SACRUM, TABLE_MARKERS,
-                                        Protocol, load_protocol, pelvis_definition, read_yaml)
+                                        Protocol, load_protocol, outside, pelvis_definition, read_yaml)
 from cobot_analysis.io.text_exports import read_qualisys_tsv, read_vicon_csv, sniff_text_format
 from cobot_analysis.schema import MARKERS, TRIAL_COLUMNS, TRIALS, write_table
 
@@ -418,17 +418,16 @@ def run_import(protocol_path: str | os.PathLike, out: str | os.PathLike, *, unit
         mapping.update(load_marker_map(marker_map_file))
         inputs.append(marker_map_file)
     mapping.update(marker_map or {})
-    for key in ("trials", "subjects", "pairs"):
-        ref = _protocol_csv(protocol.path, key)
-        if ref is not None:
-            inputs.append(ref)
+    tables = [ref for key in ("trials", "subjects", "pairs") if (ref := _protocol_csv(protocol.path, key)) is not None]
+    inputs += tables
     files = [protocol.trial_file(row) for _, row in protocol.trials.iterrows()]
     pair_study = "pair" in protocol.trials.columns and protocol.trials["pair"].notna().any()
     tasks = [TrialTask(str(row["trial"]), f, bool(pair_study), units, dict(protocol.entities), mapping, keep_all, protocol.rate,
                        lab_extent, max_speed, max_spike, protocol.invalid_rate) for (_, row), f in zip(protocol.trials.iterrows(), files)]
     limits = {"lab_extent": lab_extent, "max_speed": max_speed, "max_spike": max_spike}
+    outside_files = [str(Path(f).resolve()) for f in [*tables, *files] if outside(protocol.path.parent, Path(f))]  # allow_outside
     params = {"units": units, "marker_map": mapping, "keep_all_markers": keep_all, "entities": protocol.entities,
-              "skip_bad": skip_bad, **limits}
+              "skip_bad": skip_bad, "allow_outside": protocol.allow_outside, "outside_files": outside_files, **limits}
     with Stage(out, "import", inputs=inputs + files, params=params, force=force) as stage:
         if stage.skipped:
             return stage.final_dir
@@ -451,7 +450,10 @@ def run_import(protocol_path: str | os.PathLike, out: str | os.PathLike, *, unit
                 "source_format": {t.trial: t.source_format for t in imported},
                 "pelvis_markers": {t.trial: {e: list(m) for e, m in t.pelvis.items()} for t in imported},
                 "skipped": {r.trial: r.reason for r in refused}, **limits}
-        stage.path("results.md").write_text(import_summary(protocol, imported, refused, limits))
+        summary = import_summary(protocol, imported, refused, limits)
+        if outside_files:
+            summary += f"\nFiles outside the protocol's folder (allow_outside: true): {', '.join(outside_files)}.\n"
+        stage.path("results.md").write_text(summary)
         markers = long_table(imported)
         del imported, results  # the per-trial arrays: the long table holds a copy
         write_table(markers, stage.path("markers.parquet"), MARKERS, **meta)

@@ -15,7 +15,9 @@ A protocol is a YAML file::
     pairs: pairs.csv           # pair study: id, subject1, subject2
     trials: trials.csv         # or an inline list; columns below
 
-Trials columns: ``trial`` (unique id), ``file`` (relative to the protocol file), and the trial
+Trials columns: ``trial`` (unique id), ``file`` (relative to the protocol file, inside its folder
+unless ``allow_outside: true``: ``..``, absolute paths and symbolic links that lead out of it are
+refused by default), and the trial
 metadata of ``schema.TRIAL_COLUMNS`` that apply (subject or pair, condition, direction, scenario,
 configuration, end_orientation, repetition). CSV paths are relative to the protocol file.
 
@@ -56,7 +58,7 @@ TABLE_MARKERS = ("TAB1", "TAB2", "TAB3")
 KEPT_SUBJECT_MARKERS = SUBJECT_MARKERS + (SACRUM,)
 ENTITIES = ("walker", "subject1", "subject2", "table")
 DEFAULT_ENTITIES = {"S1": "subject1", "S2": "subject2", "Table": "table", "TABLE": "table"}
-PROTOCOL_KEYS = ("study", "rate", "invalid_rate", "entities", "marker_map", "subjects", "pairs", "trials")
+PROTOCOL_KEYS = ("study", "rate", "invalid_rate", "allow_outside", "entities", "marker_map", "subjects", "pairs", "trials")
 
 
 def pelvis_definition(present) -> tuple[str, ...] | None:
@@ -79,6 +81,7 @@ class Protocol:
     pairs: pd.DataFrame = field(default_factory=pd.DataFrame)
     rate: float | None = None
     invalid_rate: str = "refuse"
+    allow_outside: bool = False
     entities: dict[str, str] = field(default_factory=lambda: dict(DEFAULT_ENTITIES))
     marker_map: dict[str, str] = field(default_factory=dict)
 
@@ -96,7 +99,20 @@ class Protocol:
         return entity, name
 
 
-def _table(value: Any, base: Path, what: str, protocol_path: Path) -> pd.DataFrame:
+OUTSIDE_REMEDY = ("move it into the protocol's folder, or write 'allow_outside: true' in the protocol to accept files outside it "
+                  "(the import then lists them in its manifest and results.md)")
+
+
+def outside(base: Path, path: Path) -> bool:
+    """True when ``path`` (after ``..`` and symbolic links) lies outside the folder ``base``."""
+    try:
+        path.resolve().relative_to(base.resolve())
+        return False
+    except ValueError:
+        return True
+
+
+def _table(value: Any, base: Path, what: str, protocol_path: Path, allow_outside: bool = False) -> pd.DataFrame:
     """A protocol section given inline (a list of mappings) or as a CSV path."""
     if value is None:
         return pd.DataFrame()
@@ -111,6 +127,9 @@ def _table(value: Any, base: Path, what: str, protocol_path: Path) -> pd.DataFra
     csv = base / value
     if not csv.is_file():
         raise InputError(f"{what} file {value} not found", path=protocol_path, remedy="fix the path (relative to the protocol file)")
+    if not allow_outside and outside(base, csv):
+        raise InputError(f"the {what} file {value} is outside the protocol's folder ({csv.resolve()})", path=protocol_path,
+                         remedy=OUTSIDE_REMEDY)
     try:
         return pd.read_csv(csv)
     except (UnicodeDecodeError, ValueError, pd.errors.ParserError) as exc:  # binary, empty or malformed CSV
@@ -174,6 +193,10 @@ def load_protocol(path: str | os.PathLike) -> Protocol:
         raise InputError(f"unknown protocol key(s) {unknown}", path=path, remedy=f"use only {', '.join(PROTOCOL_KEYS)}")
     base = path.parent
     rate = _rate(doc, path)
+    allow_outside = doc.get("allow_outside", False)
+    if not isinstance(allow_outside, bool):
+        raise InputError(f"'allow_outside' must be true or false, not {allow_outside!r:.40}", path=path,
+                         remedy="write 'allow_outside: true' to accept files outside the protocol's folder, or leave it out")
     invalid_rate = doc.get("invalid_rate", "refuse")
     if invalid_rate not in INVALID_RATE_POLICIES or (invalid_rate == "protocol" and rate is None):
         raise InputError(f"'invalid_rate' must be {' or '.join(INVALID_RATE_POLICIES)} ('protocol' with a 'rate'), "
@@ -184,7 +207,7 @@ def load_protocol(path: str | os.PathLike) -> Protocol:
     if bad:
         raise InputError(f"'entities' names unknown entities {bad}", path=path, remedy=f"map label prefixes to {', '.join(ENTITIES)}")
     marker_map = _mapping(doc, "marker_map", path, "L_ASIS: LASI")
-    trials = _table(doc["trials"], base, "trials", path)
+    trials = _table(doc["trials"], base, "trials", path, allow_outside)
     for col in ("trial", "file"):
         if col not in trials.columns:
             raise InputError(f"trials table has no '{col}' column", path=path, remedy="add it (see docs/protocol.md)")
@@ -200,10 +223,11 @@ def load_protocol(path: str | os.PathLike) -> Protocol:
         path=path.resolve(),
         study=str(doc.get("study", path.parent.name)),
         trials=trials,
-        subjects=_table(doc.get("subjects"), base, "subjects", path),
-        pairs=_table(doc.get("pairs"), base, "pairs", path),
+        subjects=_table(doc.get("subjects"), base, "subjects", path, allow_outside),
+        pairs=_table(doc.get("pairs"), base, "pairs", path, allow_outside),
         rate=rate,
         invalid_rate=invalid_rate,
+        allow_outside=allow_outside,
         entities={**DEFAULT_ENTITIES, **entities},
         marker_map=marker_map,
     )
@@ -212,6 +236,9 @@ def load_protocol(path: str | os.PathLike) -> Protocol:
         if not f.is_file():
             raise InputError(f"trial {row['trial']} names file {row['file']}, which does not exist", path=path,
                              remedy="fix the 'file' column or restore the file")
+        if not allow_outside and outside(base, f):
+            raise InputError(f"trial {row['trial']} names file {row['file']}, outside the protocol's folder ({f})", path=path,
+                             remedy=OUTSIDE_REMEDY)
     return proto
 
 
