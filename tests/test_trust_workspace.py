@@ -169,3 +169,22 @@ def test_the_tmp_of_a_killed_stage_is_removed_by_the_next_run(tmp_path, capsys):
         stage.path("out.txt").write_text("again")
     assert not left.exists() and (ws / "demo" / "out.txt").read_text() == "again"
     assert "left by an interrupted run" in " ".join(capsys.readouterr().err.split())
+
+
+def test_edited_means_are_not_reused_by_average_nor_read_by_compare(study, tmp_path, cli):
+    """The issue's second case: average/means.parquet shifted by 5 m by hand."""
+    import shutil
+
+    ws = tmp_path / "ws"
+    shutil.copytree(study, ws, symlinks=True)
+    assert cli("preprocess", "--out", ws, "--jobs", "1")[0] == 0
+    assert cli("average", "--out", ws)[0] == 0
+    means = ws / "average" / "means.parquet"
+    original = pq.read_table(means).to_pandas()["x"].to_numpy()
+    _shift_x(means, 5.0)
+    code, _, err = cli("compare", "--out", ws)
+    assert code == 2 and f"{means}: changed since stage average wrote it" in " ".join(err.split()), err
+    code, _, err = cli("average", "--out", ws)
+    assert code == 0 and "average: means.parquet changed since the stage wrote it" in " ".join(err.split()), err
+    assert (pq.read_table(means).to_pandas()["x"].to_numpy() == original).all()
+    assert cli("compare", "--out", ws)[0] == 0
