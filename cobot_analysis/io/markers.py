@@ -375,8 +375,10 @@ def _pelvis_text(pelvis: dict[str, tuple[str, ...]]) -> str:
     return ";".join(f"{e}={','.join(m)}" for e, m in sorted(pelvis.items()))
 
 
-def import_summary(protocol: Protocol, imported: list[ImportedTrial], refused: list[Refused], limits: dict[str, float]) -> str:
-    """The stage's results.md: what was imported, with which pelvis markers, what was left out or skipped."""
+def import_summary(protocol: Protocol, imported: list[ImportedTrial], refused: list[Refused], limits: dict[str, float],
+                   outside_files: list[str] = ()) -> str:
+    """The stage's results.md: what was imported, with which pelvis markers, what was left out or
+    skipped, and the files outside the protocol's folder (``allow_outside``)."""
     from collections import Counter
 
     pelvis = Counter(" ".join(m) for t in imported for m in t.pelvis.values())
@@ -394,6 +396,8 @@ def import_summary(protocol: Protocol, imported: list[ImportedTrial], refused: l
     if refused:
         lines += [f"Skipped (--skip-bad): {len(refused)} trials.", "", "| trial | reason |", "|---|---|",
                   *[f"| {r.trial} | {r.reason.replace('|', '/')} |" for r in refused], ""]
+    if outside_files:
+        lines += [f"Files outside the protocol's folder (allow_outside: true): {', '.join(outside_files)}.", ""]
     return "\n".join(lines)
 
 
@@ -450,10 +454,7 @@ def run_import(protocol_path: str | os.PathLike, out: str | os.PathLike, *, unit
                 "source_format": {t.trial: t.source_format for t in imported},
                 "pelvis_markers": {t.trial: {e: list(m) for e, m in t.pelvis.items()} for t in imported},
                 "skipped": {r.trial: r.reason for r in refused}, **limits}
-        summary = import_summary(protocol, imported, refused, limits)
-        if outside_files:
-            summary += f"\nFiles outside the protocol's folder (allow_outside: true): {', '.join(outside_files)}.\n"
-        stage.path("results.md").write_text(summary)
+        stage.path("results.md").write_text(import_summary(protocol, imported, refused, limits, outside_files))
         markers = long_table(imported)
         del imported, results  # the per-trial arrays: the long table holds a copy
         write_table(markers, stage.path("markers.parquet"), MARKERS, **meta)
