@@ -14,7 +14,8 @@ is refused, naming the file, rather than computed from (to use an edited table o
 it from outside the workspace).
 
 One run per stage and workspace at a time: a stage holds the lock ``DIR/.<stage>.lock``
-(``flock``; the file is removed when the stage ends) from its start to its commit; a second run of that stage into the same workspace is
+(``flock``; the file is removed when the stage ends, and a killed run's is reused) from its start
+to its commit; a second run of that stage into the same workspace is
 refused with one line (never a silent last-writer-wins). The lock is released by the system when
 the process ends, however it ends.
 
