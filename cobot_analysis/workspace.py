@@ -48,7 +48,7 @@ from pathlib import Path
 from typing import Any
 
 from cobot_analysis import __version__
-from cobot_analysis.console import info
+from cobot_analysis.console import info, warn
 from cobot_analysis.errors import InputError
 from cobot_analysis.interrupt import deferred, keep, seen
 
@@ -255,7 +255,7 @@ class Stage:
             return False
         changed = changed_outputs(self.final_dir, old)
         if changed:
-            info(f"[yellow]{self.name}[/yellow]: {', '.join(changed[:3])}{' ...' if len(changed) > 3 else ''} changed since the stage "
+            warn(f"{self.name}: {', '.join(changed[:3])}{' ...' if len(changed) > 3 else ''} changed since the stage "
                  f"wrote {'them' if len(changed) > 1 else 'it'} (not as its manifest records): running it again")
             return False
         return True
