@@ -18,7 +18,9 @@ trials.parquet and in the metadata of markers.parquet) and counted in ``import/r
 Checks (each an ``InputError`` naming the file and the remedy): unreadable or truncated file,
 empty trial, two labels mapped to one pelvis or table marker, missing pelvis markers of a person
 (walker / subject1 / subject2) or table corners (TAB1..TAB3), a required marker never visible,
-a sampling rate outside 1 Hz-10 kHz, implausible positions (``plausibility.check_positions``:
+a sampling rate outside 1 Hz-10 kHz, an invalid declared rate (0, negative, NaN: refused unless the protocol says
+``invalid_rate: protocol``; ``plausibility.trial_rate``), a trial file outside the protocol's folder (unless
+``allow_outside``), implausible positions (``plausibility.check_positions``:
 infinite, outside the lab, jumps, single-sample spikes), and an implausible length scale. Scale check: the median inter-ASIS distance |LASI - RASI| of adults is
 0.15-0.40 m (for a table-only recording, |TAB1 - TAB2| is 0.5-2.5 m); a value 1000 times too
 large or too small means mm and m were confused. Pelvis heights are not used: labs differ in
