@@ -15,6 +15,11 @@ segfault or hang in our tests, so the file is checked here first (C3D User Guide
   POINT:SCALE and POINT:RATE hold a value, POINT:USED must equal the header's point count, and ANALOG:SCALE and ANALOG:OFFSET must hold a value per analog channel (ezc3d
   crashed or hung without them). Names may hold any bytes, as
   ezc3d reads them (Vicon Nexus writes names with spaces, e.g. PROCESSING:Marker Diameter).
+- consistency (``_check_consistency``): the header's analog values per frame equal ANALOG:USED x
+  ANALOG:RATE / POINT:RATE, its frame range POINT:FRAMES, its data start POINT:DATA_START and its
+  scale's sign POINT:SCALE's (else the data would be read with a wrong stride); POINT:RATE is read
+  as the file declares it (ezc3d replaces 0 by the header's rate and fails on NaN): a NaN is refused
+  here, 0 and negative rates by ``plausibility.trial_rate``.
 The byte order follows the processor type stored in the parameter section (84 Intel, 85 DEC,
 86 MIPS big-endian).
 
