@@ -18,7 +18,7 @@ from cobot_analysis.averaging import mean_trajectories
 from cobot_analysis.compare import any_vs_any, compare_sets, individual_vs_mean, pivot
 
 sys.path.insert(0, str(Path(__file__).parent))
-from synthetic_tables import pair_table, walking_table  # noqa: E402
+from cobot_analysis.synth.tables import pair_table, walking_table  # noqa: E402
 
 N = 12
 coords = arrays(np.float64, (3, N), elements=st.floats(-5, 5, allow_nan=False))

@@ -17,7 +17,7 @@ from cobot_analysis.regression.extract import stage_convention, stage_metrics, w
 from cobot_analysis.schema import TRAJECTORIES, write_table
 
 sys.path.insert(0, str(Path(__file__).parent))
-from synthetic_tables import pair_table, walking_table  # noqa: E402
+from cobot_analysis.synth.tables import pair_table, walking_table  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 BASELINES = ROOT / "tests" / "baselines"

@@ -289,13 +289,13 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
     """
     from scipy.optimize import minimize
 
-    from cobot_analysis.parallel import _InlineExecutor
+    from cobot_analysis.parallel import InlineExecutor
 
     if not targets:
         raise InputError("no trajectory with orientation to fit", remedy="check the input table (orientation missing everywhere?)")
     if spec.optimizer not in OPTIMIZERS:
         raise InputError(f"unknown optimizer {spec.optimizer!r}", remedy=f"use one of {', '.join(OPTIMIZERS)}")
-    pool = pool or _InlineExecutor()
+    pool = pool or InlineExecutor()
     n_chunks = max(1, min(chunks, len(targets)))
     parts = [list(range(i, len(targets), n_chunks)) for i in range(n_chunks)]  # interleaved: balanced lengths
 
