@@ -6,7 +6,7 @@ them, keyword-only options with the command line's names and defaults, and retur
 that carries its tables (and ``summary()``). Nothing is written to disk: ``cobot_analysis.stages``
 runs the same functions into a workspace, which is what the command line does.
 
-    import cobot_analysis as ca
+    import cobot_analysis.api as ca
 
     walks = ca.import_published("walking-2020", "datasets/walking-2020").trajectories
     means = ca.average(walks).means

@@ -43,7 +43,7 @@ import pandas as pd
 
 from cobot_analysis.conventions import CONTINUOUS, Convention
 from cobot_analysis.errors import InputError
-from cobot_analysis.models.prediction.metrics import summarise, window_errors
+from cobot_analysis.models.prediction.errors import summarise, window_errors
 from cobot_analysis.models.prediction.base import check_setting
 from cobot_analysis.models.prediction.predictor import PREDICTORS, make_predictor
 from cobot_analysis.schema import Column, TableSchema
