@@ -337,10 +337,10 @@ def code_digest() -> str:
     from cobot_analysis import __version__
     from cobot_analysis.models import dynamics, presets
     from cobot_analysis.models.oc import problem
-    from cobot_analysis.models.prediction import baselines, metrics, predictor
+    from cobot_analysis.models.prediction import base, baselines, errors, predictor
 
     h = hashlib.sha256(__version__.encode())
-    for mod in (baselines, dynamics, problem, predictor, metrics, presets):
+    for mod in (base, baselines, dynamics, problem, predictor, errors, presets):
         h.update(Path(mod.__file__).read_bytes())
     return h.hexdigest()[:12]
 
