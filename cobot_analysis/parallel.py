@@ -33,7 +33,7 @@ CONNECT_TIMEOUT = 5.0  # s to reach a Dask scheduler (Dask's own default waits 3
 DASK_PORT = 8786  # the scheduler's default port
 
 
-class _InlineExecutor(Executor):
+class InlineExecutor(Executor):
     """Runs each task at submission, in this process (interruptible)."""
 
     def submit(self, fn, /, *args, **kwargs):  # type: ignore[override]
@@ -73,7 +73,7 @@ def executor(jobs: int | None = None, scheduler: str | None = None) -> Iterator[
         return
     jobs = default_jobs() if jobs is None else jobs
     if jobs <= 1:
-        yield _InlineExecutor()
+        yield InlineExecutor()
         return
     # BLAS threads would oversubscribe the cores: one per worker process.
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
