@@ -1,0 +1,340 @@
+"""Pose topics read straight through a bag's own index, vectorised: ROS1 ``.bag`` (v2.0) and MCAP.
+
+Both containers index every message: ROS1 per chunk and connection ``(time, offset)`` in the
+decompressed chunk, MCAP per chunk and channel ``(log_time, offset)`` in the decompressed chunk
+records. A topic's messages are then gathered with numpy at those offsets instead of being iterated
+one by one. Only what is exactly as expected is read here: one message record layout and one
+message size per topic, known compressions, the CRCs MCAP gives matching; anything else returns
+None and the general reader (``bags.open_bag``, rosbags and mcap) reads the bag and reports on it.
+"""
+
+from __future__ import annotations
+
+import mmap
+import struct
+import zlib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+ROS1_MAGIC = b"#ROSBAG V2.0\n"
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+_U32 = struct.Struct("<I").unpack_from
+_U64 = struct.Struct("<Q").unpack_from
+_U16 = struct.Struct("<H").unpack_from
+_BLOCK = 16384  # rows gathered at a time (bounds the index arrays numpy builds)
+
+
+class Unexpected(Exception):
+    """The bag is not laid out as this reader expects: let the general reader have it."""
+
+
+@dataclass
+class Messages:
+    """One topic's messages: record (log) times in ns, and the serialised messages, one per row."""
+
+    record_ns: np.ndarray
+    data: np.ndarray  # (n, size) uint8
+
+
+@dataclass
+class IndexedBag:
+    path: Path
+    ros1: bool  # message encoding: ROS1 serialisation (else CDR)
+    topics: dict[str, str] = field(default_factory=dict)  # topic -> msgtype (pkg/msg/Name)
+    _buf: object = None
+    _conns: dict[str, list[int]] = field(default_factory=dict)  # topic -> connection / channel ids
+    _chunks: list = field(default_factory=list)  # per chunk: (data reader, {id: (times_ns, offsets)})
+
+    def read(self, topic: str) -> Messages | None:
+        """The messages of ``topic`` in record order (file order for ROS1, log-time order for MCAP),
+        or None when they do not share one size and record layout."""
+        try:
+            return self._read(topic)
+        except Exception:  # noqa: BLE001 - anything unexpected: the general reader reads and reports
+            return None
+
+    def _read(self, topic: str) -> Messages | None:
+        ids = self._conns[topic]
+        times, blocks, size = [], [], None
+        for chunk, index in self._chunks:
+            entries = [index[i] for i in ids if i in index]
+            if not entries:
+                continue
+            t = np.concatenate([e[0] for e in entries])
+            off = np.concatenate([e[1] for e in entries])
+            order = np.argsort(off, kind="stable")
+            t, off = t[order], off[order]
+            arr = np.frombuffer(chunk(), dtype=np.uint8)
+            start, n = self._starts(arr, off, ids)
+            if size is None:
+                size = n
+            if n != size or len(start) and int(start.max()) + size > len(arr):
+                return None
+            times.append(t)
+            blocks.append(_gather(arr, start, size))
+        if not blocks:
+            return None
+        t = np.concatenate(times)
+        data = np.concatenate(blocks)
+        if not self.ros1:  # the general reader merges MCAP chunks by log time
+            order = np.argsort(t, kind="stable")
+            t, data = t[order], data[order]
+        return Messages(t.astype(np.int64), data)
+
+    def _starts(self, arr: np.ndarray, off: np.ndarray, ids: list[int]) -> tuple[np.ndarray, int]:
+        """Start of each message's data and the one data size (``Unexpected`` if they differ)."""
+        if len(off) == 0 or int(off.max()) + 16 > len(arr):
+            raise Unexpected
+        if self.ros1:
+            hl = _u32s(arr, off)
+            if np.any(hl != hl[0]):
+                raise Unexpected
+            hl0 = int(hl[0])
+            first = _fields(bytes(arr[int(off[0]) + 4:int(off[0]) + 4 + hl0]))  # also checks its syntax
+            if first.get("op") != b"\x02" or "conn" not in first:
+                raise Unexpected
+            header = bytes(arr[int(off[0]) + 4:int(off[0]) + 4 + hl0])
+            for name in ("op", "conn"):  # every message record's op and connection as the first's
+                a, b = _field_span(header, name)
+                if not np.all(_gather(arr, off + 4 + a, b - a) == np.frombuffer(header[a:b], np.uint8)):
+                    raise Unexpected
+            if _U32(first["conn"])[0] not in ids:
+                raise Unexpected
+            dl = _u32s(arr, off + 4 + hl0)
+            if np.any(dl != dl[0]):
+                raise Unexpected
+            return off + 8 + hl0, int(dl[0])
+        # MCAP message record: opcode 0x05, u64 length, u16 channel, u32 sequence, u64 log and publish times
+        op = arr[off]
+        length = _u64s(arr, off + 1)
+        channel = arr[off + 9].astype(np.int64) | (arr[off + 10].astype(np.int64) << 8)
+        if np.any(op != 0x05) or np.any(length != length[0]) or not np.isin(channel, ids).all() or int(length[0]) < 22:
+            raise Unexpected
+        return off + 31, int(length[0]) - 22
+
+
+def _u32s(arr: np.ndarray, at: np.ndarray) -> np.ndarray:
+    b = _gather(arr, at, 4).astype(np.uint32)
+    return b[:, 0] | (b[:, 1] << 8) | (b[:, 2] << 16) | (b[:, 3] << 24)
+
+
+def _u64s(arr: np.ndarray, at: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(_gather(arr, at, 8)).view("<u8")[:, 0]
+
+
+def _gather(arr: np.ndarray, start: np.ndarray, width: int) -> np.ndarray:
+    """Rows ``arr[start[i]:start[i] + width]`` as an ``(n, width)`` array."""
+    out = np.empty((len(start), width), np.uint8)
+    cols = np.arange(width)
+    for k in range(0, len(start), _BLOCK):
+        s = start[k:k + _BLOCK]
+        out[k:k + len(s)] = arr[s[:, None] + cols]
+    return out
+
+
+def _fields(header: bytes) -> dict[str, bytes]:
+    """ROS1 record header: ``u32 length, name=value`` fields."""
+    out, pos = {}, 0
+    while pos < len(header):
+        (n,) = _U32(header, pos)
+        pos += 4
+        if n > len(header) - pos:
+            raise Unexpected
+        name, sep, value = header[pos:pos + n].partition(b"=")
+        if not sep:
+            raise Unexpected
+        out[name.decode("ascii")] = value
+        pos += n
+    return out
+
+
+def _field_span(header: bytes, name: str) -> tuple[int, int]:
+    """Byte range of the value of field ``name`` in a ROS1 record header ((0, 0) if absent)."""
+    pos, key = 0, name.encode() + b"="
+    while pos < len(header):
+        (n,) = _U32(header, pos)
+        if header[pos + 4:pos + 4 + len(key)] == key:
+            return pos + 4 + len(key), pos + 4 + n
+        pos += 4 + n
+    return 0, 0
+
+
+def open_indexed(path: Path) -> IndexedBag | None:
+    """The bag at ``path`` with its index read, or None (not ROS1/MCAP, or not as expected)."""
+    path = Path(path)
+    if not path.is_file() or path.suffix not in (".bag", ".mcap"):
+        return None
+    try:
+        with open(path, "rb") as fh:
+            buf = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ)
+    except (OSError, ValueError):
+        return None
+    try:
+        if buf[:len(ROS1_MAGIC)] == ROS1_MAGIC:
+            return _ros1(path, buf)
+        if buf[:len(MCAP_MAGIC)] == MCAP_MAGIC:
+            return _mcap(path, buf)
+    except Exception:  # noqa: BLE001 - anything unexpected: the general reader reads and reports
+        pass
+    return None
+
+
+def _ros2_name(name: str) -> str:
+    parts = name.split("/")
+    return name if len(parts) == 3 or len(parts) < 2 else f"{parts[0]}/msg/{parts[1]}"
+
+
+# ---- ROS1 -------------------------------------------------------------------------------------
+def _record(buf, pos: int) -> tuple[dict[str, bytes], int, int]:
+    """ROS1 record at ``pos``: header fields, data start and end."""
+    (hl,) = _U32(buf, pos)
+    if pos + 8 + hl > len(buf):
+        raise Unexpected
+    header = _fields(bytes(buf[pos + 4:pos + 4 + hl]))
+    (dl,) = _U32(buf, pos + 4 + hl)
+    start = pos + 8 + hl
+    if start + dl > len(buf):
+        raise Unexpected
+    return header, start, start + dl
+
+
+def _op(header: dict[str, bytes], op: int) -> None:
+    if header.get("op") != bytes([op]):
+        raise Unexpected
+
+
+_INDEX = np.dtype([("sec", "<u4"), ("nsec", "<u4"), ("offset", "<u4")])
+
+
+def _ros1(path: Path, buf) -> IndexedBag:
+    header, _, _ = _record(buf, len(ROS1_MAGIC))
+    _op(header, 0x03)
+    (index_pos,) = _U64(header["index_pos"])
+    (n_conns,) = _U32(header["conn_count"])
+    (n_chunks,) = _U32(header["chunk_count"])
+    if index_pos < len(ROS1_MAGIC) or index_pos >= len(buf):
+        raise Unexpected
+    bag = IndexedBag(path, ros1=True, _buf=buf)
+    pos = index_pos
+    for _ in range(n_conns):
+        header, start, pos = _record(buf, pos)
+        _op(header, 0x07)
+        conn = _U32(header["conn"])[0]
+        topic = header["topic"].decode()
+        msgtype = _ros2_name(_fields(bytes(buf[start:pos]))["type"].decode())
+        if bag.topics.setdefault(topic, msgtype) != msgtype:
+            raise Unexpected
+        bag._conns.setdefault(topic, []).append(conn)
+    chunk_pos = []
+    for _ in range(n_chunks):
+        header, _, pos = _record(buf, pos)
+        _op(header, 0x06)
+        if _U32(header["ver"])[0] != 1:
+            raise Unexpected
+        chunk_pos.append((_U64(header["chunk_pos"])[0], _U32(header["count"])[0]))
+    for cpos, n_index in sorted(chunk_pos):
+        header, start, end = _record(buf, cpos)
+        _op(header, 0x05)
+        size = _U32(header["size"])[0]
+        index, pos = {}, end
+        for _ in range(n_index):
+            ih, istart, pos = _record(buf, pos)
+            _op(ih, 0x04)
+            count = _U32(ih["count"])[0]
+            if _U32(ih["ver"])[0] != 1 or pos - istart != 12 * count:
+                raise Unexpected
+            e = np.frombuffer(buf, dtype=_INDEX, count=count, offset=istart)
+            t = e["sec"].astype(np.int64) * 1_000_000_000 + e["nsec"]
+            index[_U32(ih["conn"])[0]] = (t, e["offset"].astype(np.int64))
+        bag._chunks.append((_ros1_chunk(buf, header["compression"].decode(), start, end, size), index))
+    return bag
+
+
+def _ros1_chunk(buf, compression: str, start: int, end: int, size: int):
+    def data():
+        if compression == "none":
+            out = memoryview(buf)[start:end]
+        elif compression == "bz2":
+            import bz2
+
+            out = bz2.decompress(buf[start:end])
+        elif compression == "lz4":
+            import lz4.frame
+
+            out = lz4.frame.decompress(buf[start:end])
+        else:
+            raise Unexpected
+        if len(out) != size:
+            raise Unexpected
+        return out
+
+    return data
+
+
+# ---- MCAP -------------------------------------------------------------------------------------
+_MINDEX = np.dtype([("t", "<u8"), ("offset", "<u8")])
+
+
+def _mcap(path: Path, buf) -> IndexedBag:
+    from mcap.reader import SeekingReader
+
+    with open(path, "rb") as fh:
+        summary = SeekingReader(fh, validate_crcs=True).get_summary()
+    if summary is None or not summary.chunk_indexes or not summary.channels:
+        raise Unexpected
+    encodings = {ch.message_encoding for ch in summary.channels.values()}
+    if len(encodings) != 1 or not encodings <= {"cdr", "ros1"}:
+        raise Unexpected
+    bag = IndexedBag(path, ros1=encodings == {"ros1"}, _buf=buf)
+    for cid, ch in summary.channels.items():
+        msgtype = _ros2_name(summary.schemas[ch.schema_id].name)
+        if bag.topics.setdefault(ch.topic, msgtype) != msgtype:
+            raise Unexpected
+        bag._conns.setdefault(ch.topic, []).append(cid)
+    for ci in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):
+        index = {}
+        for cid, at in ci.message_index_offsets.items():
+            if buf[at] != 0x07:
+                raise Unexpected
+            (length,) = _U64(buf, at + 1)
+            (n,) = _U32(buf, at + 11)
+            if n % 16 or 15 + n > 9 + length or at + 9 + length > len(buf) or _U16(buf, at + 9)[0] != cid:
+                raise Unexpected
+            e = np.frombuffer(buf, dtype=_MINDEX, count=n // 16, offset=at + 15)
+            index[cid] = (e["t"].astype(np.int64), e["offset"].astype(np.int64))
+        bag._chunks.append((_mcap_chunk(buf, ci), index))
+    return bag
+
+
+def _mcap_chunk(buf, ci):
+    def data():
+        at = ci.chunk_start_offset
+        if buf[at] != 0x06:
+            raise Unexpected
+        (usize,) = _U64(buf, at + 25)
+        (crc,) = _U32(buf, at + 33)
+        (clen,) = _U32(buf, at + 37)
+        compression = bytes(buf[at + 41:at + 41 + clen]).decode()
+        (rlen,) = _U64(buf, at + 41 + clen)
+        start = at + 49 + clen
+        if start + rlen > len(buf) or usize != ci.uncompressed_size:
+            raise Unexpected
+        if compression == "":
+            out = memoryview(buf)[start:start + rlen]
+        elif compression == "zstd":
+            import zstandard
+
+            out = zstandard.ZstdDecompressor().decompress(buf[start:start + rlen], max_output_size=usize)
+        elif compression == "lz4":
+            import lz4.frame
+
+            out = lz4.frame.decompress(buf[start:start + rlen])
+        else:
+            raise Unexpected
+        if len(out) != usize or (crc and zlib.crc32(out) != crc):
+            raise Unexpected
+        return out
+
+    return data
