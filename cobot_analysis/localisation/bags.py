@@ -421,6 +421,7 @@ def _indexed_streams(path: Path, specs: dict[str, PoseSpec], time: str, optional
             return None
         rows, frame_id = got
         record = msgs.record_ns * 1e-9
+        msgs = None  # the serialised messages are no longer needed
         if time == "record":
             rows[:, 0] = record
         read[name] = (rows, frame_id, record)
@@ -478,14 +479,16 @@ def _layout_rows(buf: np.ndarray, msgtype: str, ros1: bool) -> tuple[np.ndarray,
     for k in strings:  # every message must carry strings of the same lengths
         if not np.all(buf[:, k:k + 4] == buf[0, k:k + 4]):
             return None
-    sec = np.ascontiguousarray(buf[:, stamp:stamp + 4]).view("<u4" if ros1 else "<i4")[:, 0].astype(float)
-    nsec = np.ascontiguousarray(buf[:, stamp + 4:stamp + 8]).view("<u4")[:, 0].astype(float)
-    pose = np.ascontiguousarray(buf[:, pos:pos + 56]).view("<f8")
     try:
         frame_id = first[strings[0] + 4:strings[0] + 4 + u32(first, strings[0])].decode().rstrip("\x00")
     except UnicodeDecodeError:
         return None
-    return np.column_stack([np.where(nsec < 1e9, sec + nsec * 1e-9, np.nan), pose]), frame_id  # as _stamp
+    rows = np.empty((len(buf), 8))
+    rows[:, 1:] = buf[:, pos:pos + 56].view("<f8")  # (unaligned) views of the rows' bytes: no copies
+    sec = buf[:, stamp:stamp + 4].view("<u4" if ros1 else "<i4")[:, 0]
+    nsec = buf[:, stamp + 4:stamp + 8].view("<u4")[:, 0]
+    rows[:, 0] = np.where(nsec < 1e9, sec + nsec * 1e-9, np.nan)  # as _stamp
+    return rows, frame_id
 
 
 def _topic_list(src: _Source) -> str:

@@ -63,7 +63,7 @@ class PoseStream:
             "x": self.xyz[:, 0], "y": self.xyz[:, 1], "z": self.xyz[:, 2],
             "qx": self.quat[:, 0], "qy": self.quat[:, 1], "qz": self.quat[:, 2], "qw": self.quat[:, 3],
             "yaw": self.yaw,
-        })
+        }, copy=False)  # views of the stream's arrays (no consolidated copy)
 
 
 # ---- quaternions (scalar-last, arrays of shape (..., 4)), in numpy -----------------------------
