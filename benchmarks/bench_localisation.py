@@ -10,7 +10,8 @@ alike (the order inside a pair alternates too):
 - evo: `evo_ape bag|mcap BAG /mocap/pose /icp/pose -a --sync_method interpolation --t_offset -DELAY`
   (reads the bag, associates with the delay given, Umeyama, APE statistics; no delay estimation).
 Prints, per bag, the median of the per-pair wall-time ratios ours / evo (the figure to quote:
-robust to load that changes between pairs), the median wall and CPU times, each command's peak
+robust to load that changes between pairs) and of the CPU-time ratios (user + system: the steadier
+figure on a shared machine), the median wall and CPU times, each command's peak
 resident memory (max over the pairs, from wait4) and their ratio, and the load average before
 and after.
 """
@@ -83,19 +84,21 @@ def main() -> None:
                       f"ratio {ours[-1][0] / theirs[-1][0]:.2f}", file=sys.stderr)
             figs = run([*cli, "-q", "localisation", bag, "--out", str(tmp / "ws"), "--force"])[0] if args.figures else None
             ratio = statistics.median(o[0] / e[0] for o, e in zip(ours, theirs))
+            cpu_ratio = statistics.median(o[1] / e[1] for o, e in zip(ours, theirs))
             med = lambda v, i: statistics.median(x[i] for x in v)  # noqa: E731
             mem_o, mem_e = max(x[2] for x in ours), max(x[2] for x in theirs)
-            rows.append((name, ratio, med(ours, 0), med(theirs, 0), med(ours, 1), med(theirs, 1), mem_o, mem_e, figs))
+            rows.append((name, ratio, cpu_ratio, med(ours, 0), med(theirs, 0), med(ours, 1), med(theirs, 1), mem_o, mem_e, figs))
         load1 = os.getloadavg()
         print(f"\n{started:%Y-%m-%d %H:%M} UTC, {platform.machine()}, {os.cpu_count()} cores, Python "
               f"{platform.python_version()}; load average (1, 5, 15 min) {load0[0]:.1f}, {load0[1]:.1f}, {load0[2]:.1f} "
               f"before and {load1[0]:.1f}, {load1[1]:.1f}, {load1[2]:.1f} after; {truth['duration']:.0f} s run; "
               f"{args.pairs} alternating pairs per bag; whole processes (imports included).\n")
-        print("| bag | wall ratio ours / evo (median of pairs) | ours wall (s) | evo wall (s) | ours CPU (s) | evo CPU (s) "
-              "| ours peak RSS (MiB) | evo peak RSS (MiB) | memory ratio |" + (" ours with figures (s) |" if args.figures else ""))
-        print("|---|---|---|---|---|---|---|---|---|" + ("---|" if args.figures else ""))
-        for name, ratio, ow, ew, oc, ec, mo, me, f in rows:
-            print(f"| {name} | **{ratio:.2f}** | {ow:.2f} | {ew:.2f} | {oc:.2f} | {ec:.2f} | {mo:.0f} | {me:.0f} | "
+        print("| bag | wall ratio ours / evo (median of pairs) | CPU ratio (median of pairs) | ours wall (s) | evo wall (s) "
+              "| ours CPU (s) | evo CPU (s) | ours peak RSS (MiB) | evo peak RSS (MiB) | memory ratio |"
+              + (" ours with figures (s) |" if args.figures else ""))
+        print("|---|---|---|---|---|---|---|---|---|---|" + ("---|" if args.figures else ""))
+        for name, ratio, cpu_ratio, ow, ew, oc, ec, mo, me, f in rows:
+            print(f"| {name} | **{ratio:.2f}** | {cpu_ratio:.2f} | {ow:.2f} | {ew:.2f} | {oc:.2f} | {ec:.2f} | {mo:.0f} | {me:.0f} | "
                   f"{mo / me:.2f} |" + (f" {f:.2f} |" if args.figures else ""))
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
