@@ -170,7 +170,8 @@ class _File:
         self.size = os.fstat(self.fd).st_size
 
     def __del__(self):
-        os.close(self.fd)
+        if hasattr(self, "fd"):
+            os.close(self.fd)
 
     def __len__(self) -> int:
         return self.size
