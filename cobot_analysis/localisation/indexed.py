@@ -75,6 +75,8 @@ class IndexedBag:
                 data = np.empty((total, size), np.uint8)
             if size != data.shape[1] or int(start.max()) + size > len(arr):
                 return None
+            if self.container == "mcap" and np.any(_u64s(arr, off + 15).astype(np.int64) != ct):
+                return None  # the general reader takes the log time from the message record itself
             t[k:k + len(ct)] = ct
             data[k:k + len(ct)] = _gather(arr, start, size)
             k += len(ct)
@@ -345,7 +347,20 @@ def _mcap_summary(buf: _File) -> tuple[dict, dict, list[_ChunkIndex]]:
     return schemas, channels, chunks
 
 
+def _mcap_header(buf: _File) -> None:
+    """The Header record after the magic: opcode 0x01, u64 length, profile and library strings."""
+    head = buf.read(len(MCAP_MAGIC), 9)
+    (length,) = _U64(head, 1)
+    data = buf.read(len(MCAP_MAGIC) + 9, length)
+    (n,) = _U32(data, 0)
+    (m,) = _U32(data, 4 + n)
+    if head[0] != 0x01 or 8 + n + m != length:
+        raise Unexpected
+    data[4:4 + n].decode(), data[8 + n:8 + n + m].decode()
+
+
 def _mcap(path: Path, buf: _File) -> IndexedBag:
+    _mcap_header(buf)
     schemas, channels, chunks = _mcap_summary(buf)
     if not chunks or not channels:
         raise Unexpected
