@@ -46,7 +46,7 @@ def _return_freed_memory() -> None:
 
     try:
         ctypes.CDLL(None).mallopt(-3, 128 * 1024)  # M_MMAP_THRESHOLD, in the C library the process has loaded
-    except (OSError, AttributeError):
+    except (OSError, AttributeError, TypeError):  # no glibc (macOS, musl: no mallopt; Windows: no CDLL(None))
         pass
 
 
