@@ -94,10 +94,10 @@ class IndexedBag:
             if np.any(hl != hl[0]):
                 raise Unexpected
             hl0 = int(hl[0])
-            first = _fields(bytes(arr[int(off[0]) + 4:int(off[0]) + 4 + hl0]))  # also checks its syntax
+            header = bytes(arr[int(off[0]) + 4:int(off[0]) + 4 + hl0])
+            first = _fields(header)  # also checks its syntax
             if first.get("op") != b"\x02" or "conn" not in first:
                 raise Unexpected
-            header = bytes(arr[int(off[0]) + 4:int(off[0]) + 4 + hl0])
             for name in ("op", "conn"):  # every message record's op and connection as the first's
                 a, b = _field_span(header, name)
                 if not np.all(_gather(arr, off + 4 + a, b - a) == np.frombuffer(header[a:b], np.uint8)):
