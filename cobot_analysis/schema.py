@@ -161,6 +161,7 @@ def to_arrow(df: pd.DataFrame, schema: TableSchema, **metadata: Any):
 def write_table(df: pd.DataFrame | Any, path: str | os.PathLike, schema: TableSchema | None = None, **metadata: Any) -> Path:
     """Write ``df`` as the Parquet table ``schema`` at ``path`` (atomic: temp file then rename); ``df`` may be
     an Arrow table already made by ``to_arrow`` (then ``schema`` and ``metadata`` are not needed)."""
+    import pyarrow as pa
     import pyarrow.parquet as pq
 
     table = df if schema is None else to_arrow(df, schema, **metadata)
