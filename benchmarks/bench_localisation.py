@@ -1,15 +1,19 @@
-"""Localisation end to end on a 10-minute synthetic run, side by side with evo_ape (issue 5).
+"""Localisation end to end on a 10-minute synthetic run, side by side with evo_ape (issues 5, 22).
 
-    python benchmarks/bench_localisation.py [--repeats 3] [--laps 4] [--speed 0.105]
+    python benchmarks/bench_localisation.py [--pairs 7] [--laps 4] [--speed 0.105] [--figures]
 
-Writes the run (motion capture 200 Hz, ICP 10 Hz) as a ROS1 bag and an MCAP file, then times, as
-separate processes and alternating so that machine load hits both alike:
-- `cobot-analysis localisation BAG --no-figures` (reads the bag, estimates the delay, offset,
+Writes the run (`synth localisation`: motion capture 200 Hz, ICP 10 Hz) as a ROS1 bag and an MCAP
+file, then runs, as separate processes, alternating in pairs so that the machine's load hits both
+alike (the order inside a pair alternates too):
+- ours: `cobot-analysis localisation BAG --no-figures` (reads the bag, estimates the delay, offset,
   errors, drift, goals, writes the tables and results.md);
-- `evo_ape bag|mcap BAG /mocap/pose /icp/pose -a --sync_method interpolation --t_offset -DELAY`
-  (reads the bag, associates with the delay given, Umeyama, APE statistics; no delay estimation);
-- `cobot-analysis localisation BAG` with figures, for information.
-Prints a Markdown table of the median wall times and the ratio ours / evo.
+- evo: `evo_ape bag|mcap BAG /mocap/pose /icp/pose -a --sync_method interpolation --t_offset -DELAY`
+  (reads the bag, associates with the delay given, Umeyama, APE statistics; no delay estimation).
+Prints, per bag, the median of the per-pair wall-time ratios ours / evo (the figure to quote:
+robust to load that changes between pairs) and of the CPU-time ratios (user + system: the steadier
+figure on a shared machine), the median wall and CPU times, each command's peak
+resident memory (max over the pairs, from wait4) and their ratio, and the load average before
+and after.
 """
 
 from __future__ import annotations
@@ -18,68 +22,84 @@ import argparse
 import json
 import os
 import platform
-import resource
 import shutil
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
-from datetime import date
+from datetime import datetime, timezone
 from pathlib import Path
 
 
-def wall(cmd: list[str]) -> float:
-    return timed(cmd)[0]
-
-
-def timed(cmd: list[str]) -> tuple[float, float]:
-    """Wall time and CPU time (user + system) of a child process, s."""
-    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+def run(cmd: list[str]) -> tuple[float, float, float]:
+    """Wall time (s), CPU time (user + system, s) and peak resident memory (MiB) of one process."""
     t0 = time.perf_counter()
-    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    t = time.perf_counter() - t0
-    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return t, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    err = proc.stderr.read().decode(errors="replace")
+    proc.stderr.close()
+    if proc.returncode != 0:
+        raise SystemExit(f"{' '.join(cmd)} failed ({proc.returncode}):\n{err}")
+    return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--pairs", type=int, default=7, help="alternating (ours, evo) pairs per bag")
     ap.add_argument("--laps", type=int, default=4)
     ap.add_argument("--speed", type=float, default=0.105)
+    ap.add_argument("--figures", action="store_true", help="also time ours with figures once (information)")
     args = ap.parse_args()
     evo = shutil.which("evo_ape")
+    if evo is None:
+        raise SystemExit("evo_ape not found: pip install evo (a test-only extra of this project)")
     cli = [sys.executable, "-m", "cobot_analysis"]
     tmp = Path(tempfile.mkdtemp(prefix="bench-loc-"))
+    load0 = os.getloadavg()
+    started = datetime.now(timezone.utc)
     try:
-        t_synth = wall([*cli, "-q", "synth", "localisation", "--out", str(tmp), "--laps", str(args.laps),
-                        "--speed", str(args.speed), "--formats", "ros1,mcap"])
+        t_synth = run([*cli, "-q", "synth", "localisation", "--out", str(tmp), "--laps", str(args.laps),
+                       "--speed", str(args.speed), "--formats", "ros1,mcap"])[0]
         truth = json.loads((tmp / "synth-localisation" / "truth.json").read_text())
         print(f"synthetic run: {truth['duration']:.0f} s, {truth['n_mocap']} mocap + {truth['n_icp']} ICP poses, "
               f"written (ROS1 + MCAP) in {t_synth:.1f} s", file=sys.stderr)
         rows = []
         for name, sub in (("run.bag", "bag"), ("run.mcap", "mcap")):
             bag = str(tmp / "synth-localisation" / name)
+            ours_cmd = [*cli, "-q", "localisation", bag, "--out", str(tmp / "ws"), "--no-figures", "--force"]
+            evo_cmd = [evo, sub, bag, "/mocap/pose", "/icp/pose", "-a", "--sync_method", "interpolation",
+                       "--t_offset", str(-truth["delay"]), "--no_warnings"]
             ours, theirs = [], []
-            for _ in range(args.repeats):
-                ours.append(timed([*cli, "-q", "localisation", bag, "--out", str(tmp / "ws"), "--no-figures", "--force"]))
-                if evo:
-                    theirs.append(timed([evo, sub, bag, "/mocap/pose", "/icp/pose", "-a", "--sync_method", "interpolation",
-                                         "--t_offset", str(-truth["delay"]), "--no_warnings"]))
-            figs = wall([*cli, "-q", "localisation", bag, "--out", str(tmp / "ws"), "--force"])
-            med = [statistics.median(v) for v in zip(*ours)]
-            med_evo = [statistics.median(v) for v in zip(*theirs)] if theirs else [float("nan")] * 2
-            rows.append((name, *med, *med_evo, figs))
-            print(f"{name}: ours {ours}, evo {theirs}, ours with figures {figs}", file=sys.stderr)
-        print(f"\nMeasured {date.today().isoformat()} on {platform.machine()}, {os.cpu_count()} cores, Python "
-              f"{platform.python_version()}, load average {os.getloadavg()[0]:.1f}; {args.repeats} alternating repeats, "
-              "medians of the whole process (wall and CPU = user + system).\n")
-        print("| bag | ours wall (s) | evo wall (s) | wall ratio ours / evo | ours CPU (s) | evo CPU (s) | CPU ratio | ours with figures, wall (s) |")
-        print("|---|---|---|---|---|---|---|---|")
-        for name, ow, oc, ew, ec, f in rows:
-            print(f"| {name} ({truth['duration']:.0f} s run) | {ow:.2f} | {ew:.2f} | {ow / ew:.2f} | {oc:.2f} | {ec:.2f} | "
-                  f"{oc / ec:.2f} | {f:.2f} |")
+            for k in range(args.pairs):
+                if k % 2 == 0:
+                    ours.append(run(ours_cmd))
+                    theirs.append(run(evo_cmd))
+                else:
+                    theirs.append(run(evo_cmd))
+                    ours.append(run(ours_cmd))
+                print(f"{name} pair {k + 1}: ours {ours[-1][0]:.2f} s, evo {theirs[-1][0]:.2f} s, "
+                      f"ratio {ours[-1][0] / theirs[-1][0]:.2f}", file=sys.stderr)
+            figs = run([*cli, "-q", "localisation", bag, "--out", str(tmp / "ws"), "--force"])[0] if args.figures else None
+            ratio = statistics.median(o[0] / e[0] for o, e in zip(ours, theirs))
+            cpu_ratio = statistics.median(o[1] / e[1] for o, e in zip(ours, theirs))
+            med = lambda v, i: statistics.median(x[i] for x in v)  # noqa: E731
+            mem_o, mem_e = max(x[2] for x in ours), max(x[2] for x in theirs)
+            rows.append((name, ratio, cpu_ratio, med(ours, 0), med(theirs, 0), med(ours, 1), med(theirs, 1), mem_o, mem_e, figs))
+        load1 = os.getloadavg()
+        print(f"\n{started:%Y-%m-%d %H:%M} UTC, {platform.machine()}, {os.cpu_count()} cores, Python "
+              f"{platform.python_version()}; load average (1, 5, 15 min) {load0[0]:.1f}, {load0[1]:.1f}, {load0[2]:.1f} "
+              f"before and {load1[0]:.1f}, {load1[1]:.1f}, {load1[2]:.1f} after; {truth['duration']:.0f} s run; "
+              f"{args.pairs} alternating pairs per bag; whole processes (imports included).\n")
+        print("| bag | wall ratio ours / evo (median of pairs) | CPU ratio (median of pairs) | ours wall (s) | evo wall (s) "
+              "| ours CPU (s) | evo CPU (s) | ours peak RSS (MiB) | evo peak RSS (MiB) | memory ratio |"
+              + (" ours with figures (s) |" if args.figures else ""))
+        print("|---|---|---|---|---|---|---|---|---|---|" + ("---|" if args.figures else ""))
+        for name, ratio, cpu_ratio, ow, ew, oc, ec, mo, me, f in rows:
+            print(f"| {name} | **{ratio:.2f}** | {cpu_ratio:.2f} | {ow:.2f} | {ew:.2f} | {oc:.2f} | {ec:.2f} | {mo:.0f} | {me:.0f} | "
+                  f"{mo / me:.2f} |" + (f" {f:.2f} |" if args.figures else ""))
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 

@@ -5,6 +5,9 @@
         50-node measured past plus the zero-control coast, see OCPredictor), and the baselines, on n trial
         trajectories. Continuous convention (default): warm-started (the previous window shifted) and
         cold; published: cold from rest, 0.1 s Euler nodes (the convention's own rule).
+    python benchmarks/bench_predict.py published-floor TRAJECTORIES.parquet [--n 6]
+        CPU per trajectory of the published (50, 100) sweep split into the fatrop solves and the rest
+        (issue 22), extrapolated to the 400 walking-2020 trials on 2 cores against the 60 s target.
     python benchmarks/bench_predict.py sweep TRAJECTORIES.parquet --out DIR [--convention NAME] [--dask] [--every K] [--limit N]
         Wall time of `cobot-analysis predict --settings 50:100 --kind trial --convention NAME` from an
         empty work directory: local pool of 2 processes, or a 2-worker local Dask cluster (--dask).
@@ -72,6 +75,44 @@ def bench_windows(path: Path, n: int, convention: str) -> None:
         print(f"{name}: {count / (time.process_time() - s):.0f} windows/s")
 
 
+def bench_published_floor(path: Path, n: int, target: float = 60.0) -> None:
+    """Issue 22: CPU per trajectory of the published (50, 100) sweep, split into the fatrop solves and
+    the rest, in one process; extrapolated to the 400 walking-2020 trials on 2 fully used cores and
+    compared with the 60 s target (the solves alone are the floor local edits cannot go below)."""
+    from cobot_analysis import conventions
+    from cobot_analysis.models.oc import problem
+    from cobot_analysis.models.prediction.sweep import SweepConfig, predict_trajectory
+
+    config = SweepConfig(settings=((50, 100),), convention=conventions.get("published"))
+    trajs = load(path, n + 1)
+    solve = {"cpu": 0.0, "calls": 0}
+    call = problem._BufferedCall.__call__
+
+    def timed(self, *args):
+        s = time.process_time()
+        try:
+            return call(self, *args)
+        finally:
+            solve["cpu"] += time.process_time() - s
+            solve["calls"] += 1
+
+    predict_trajectory(trajs[0], config)  # NLP set-up and the compiled functions loaded once, outside the timing
+    problem._BufferedCall.__call__ = timed
+    try:
+        s = time.process_time()
+        for t in trajs[1:]:
+            predict_trajectory(t, config)
+        total = (time.process_time() - s) / (len(trajs) - 1)
+    finally:
+        problem._BufferedCall.__call__ = call
+    fatrop = solve["cpu"] / (len(trajs) - 1)
+    print(f"published (50, 100), {len(trajs) - 1} trajectories, {solve['calls'] / (len(trajs) - 1):.0f} OC windows each: "
+          f"{total:.3f} s CPU per trajectory, of which fatrop (with stats) {fatrop:.3f} s ({100 * fatrop / total:.0f} %), "
+          f"the rest {total - fatrop:.3f} s")
+    print(f"400 trials on 2 cores, start-up and tables left out: {400 * total / 2:.0f} s wall at best; the solves alone "
+          f"{400 * fatrop / 2:.0f} s: {400 * fatrop / 2 / target:.2f} of the {target:.0f} s target")
+
+
 def bench_sweep(path: Path, out: Path, dask: bool, limit: int | None, every: int = 1, convention: str = "continuous") -> None:
     from cobot_analysis.cli import run
 
@@ -101,6 +142,9 @@ def main() -> None:
     w.add_argument("trajectories", type=Path)
     w.add_argument("--n", type=int, default=6)
     w.add_argument("--convention", choices=("continuous", "published"), default="continuous")
+    f = sub.add_parser("published-floor")
+    f.add_argument("trajectories", type=Path)
+    f.add_argument("--n", type=int, default=6)
     s = sub.add_parser("sweep")
     s.add_argument("trajectories", type=Path)
     s.add_argument("--out", type=Path, required=True)
@@ -113,6 +157,8 @@ def main() -> None:
           f"{', '.join(f'{v:.1f}' for v in os.getloadavg())}")
     if a.what == "windows":
         bench_windows(a.trajectories, a.n, a.convention)
+    elif a.what == "published-floor":
+        bench_published_floor(a.trajectories, a.n)
     else:
         bench_sweep(a.trajectories, a.out, a.dask, a.limit, a.every, a.convention)
 

@@ -161,6 +161,7 @@ def to_arrow(df: pd.DataFrame, schema: TableSchema, **metadata: Any):
 def write_table(df: pd.DataFrame | Any, path: str | os.PathLike, schema: TableSchema | None = None, **metadata: Any) -> Path:
     """Write ``df`` as the Parquet table ``schema`` at ``path`` (atomic: temp file then rename); ``df`` may be
     an Arrow table already made by ``to_arrow`` (then ``schema`` and ``metadata`` are not needed)."""
+    import pyarrow as pa
     import pyarrow.parquet as pq
 
     table = df if schema is None else to_arrow(df, schema, **metadata)
@@ -168,7 +169,10 @@ def write_table(df: pd.DataFrame | Any, path: str | os.PathLike, schema: TableSc
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp")
     try:
-        pq.write_table(table, tmp, compression="zstd")
+        # No dictionary for float columns: they rarely repeat, and trying it costs memory (+36 MB on
+        # 125,000 rows x 9 floats) and time before Parquet falls back to plain encoding.
+        pq.write_table(table, tmp, compression="zstd",
+                       use_dictionary=[f.name for f in table.schema if not pa.types.is_floating(f.type)])
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)

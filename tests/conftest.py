@@ -58,3 +58,12 @@ def realdata() -> Path:
     if path is None:
         pytest.skip("real lab recordings not found: set $COBOT_REALDATA or place them in ../shared/realdata")
     return path
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(items):
+    """Tests on the published datasets (the ``datasets`` fixture or marker) are slow: they run in
+    ``python -m pytest -m slow`` and ``.ci/run``, not in the default selection (before it is applied)."""
+    for item in items:
+        if "datasets" in getattr(item, "fixturenames", ()) or item.get_closest_marker("datasets"):
+            item.add_marker(pytest.mark.slow)

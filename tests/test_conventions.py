@@ -255,6 +255,7 @@ def walking_means(datasets):
     return df[(df["kind"] == "mean") & df["condition"].isin(PUBLISHED_CONDITIONS)]
 
 
+@pytest.mark.slow
 def test_published_models_on_three_published_conditions(walking_means):
     """The improved, Mombaur-form and clothoid models under the published convention on three
     walking-2020 means (short, medium, long), against the values this implementation gives (a change
@@ -277,6 +278,7 @@ def test_published_models_on_three_published_conditions(walking_means):
     assert got == pytest.approx(PUBLISHED_D_XY, abs=2e-3)
 
 
+@pytest.mark.slow
 def test_published_fit_ioc_holds_the_rule_horizons_and_checks_them(walking_means, cli, tmp_path):
     """fit-ioc --convention published on three means: its own stage, the convention recorded, every
     horizon on the rule's bound, the rule re-run at the fitted weights and reported."""

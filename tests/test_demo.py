@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import pandas as pd
+import pytest
 
 from cobot_analysis.schema import TRAJECTORIES, read_table
 
 
+@pytest.mark.slow
 def test_small_demo_runs_every_stage_and_writes_the_report(cli, tmp_path):
     out = tmp_path / "demo"
     code, _, err = cli("-q", "demo", "--out", out, "--size", "small", "--jobs", "1")

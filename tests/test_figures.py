@@ -368,6 +368,7 @@ def test_walking_report_figures_from_synthetic_tables(tmp_path):
     assert ticks == [f"S{j:02d}\n(n = 40)" for j in range(1, 5)]
 
 
+@pytest.mark.slow
 def test_report_figures_of_the_published_data(datasets, tmp_path, cli):
     """walking-2020 and pair-carriage-2022 as the pipeline reads them: every report figure passes."""
     for study, dataset, builder, n_paths in (("walking", "walking-2020", builders._walking, {"paths": 40}),

@@ -67,6 +67,7 @@ def _rerun_works(ws) -> None:
 
 
 @pytest.mark.parametrize("sig, group, code", [(signal.SIGINT, True, 130), (signal.SIGTERM, False, 143)])
+@pytest.mark.slow
 def test_interrupt_ends_every_process_and_writes_nothing(imported, tmp_path, sig, group, code):
     """SIGINT to the process group (what Ctrl-C in a terminal does), SIGTERM to the command only."""
     p, workers = _preprocess(imported, tmp_path)
@@ -80,6 +81,7 @@ def test_interrupt_ends_every_process_and_writes_nothing(imported, tmp_path, sig
     _rerun_works(ws)
 
 
+@pytest.mark.slow
 def test_leftovers_of_a_killed_run_are_removed_by_the_next(imported, tmp_path):
     p, workers = _preprocess(imported, tmp_path)
     os.kill(p.pid, signal.SIGKILL)
@@ -112,6 +114,7 @@ LONG_SOLVE = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow
 def test_a_long_solve_in_c_is_interrupted(tmp_path):
     p = subprocess.Popen([sys.executable, "-c", LONG_SOLVE], stdout=subprocess.PIPE, text=True)
     assert p.stdout.readline().strip() == "solving"

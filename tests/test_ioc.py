@@ -91,6 +91,7 @@ def test_resumed_fit_equals_uninterrupted_fit(planted_paths, tmp_path):
     assert resumed.evaluations == full.evaluations
 
 
+@pytest.mark.slow
 def test_fit_ioc_command_end_to_end_and_per_subject(planted_paths, tmp_path, cli):
     paths = {c: planted_paths[c] for c in CONDITIONS[:2]}
     src = write_table(_table(paths, subjects=2), tmp_path / "trajectories.parquet", TRAJECTORIES)

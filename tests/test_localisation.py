@@ -122,6 +122,7 @@ def test_other_streams_tf_chain_record_time_and_alignments(ws, cli, truth):
     assert abs(r["delay"] - (truth["delay"] - 0.001)) < 0.005 and r["time_base"] == "record"
 
 
+@pytest.mark.slow
 def test_figures_and_manifest(ws, cli):
     out = ws / "figs"
     code, _, err = cli("-q", "localisation", ws / "synth-localisation" / "run.mcap", "--out", out)

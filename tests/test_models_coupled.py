@@ -101,6 +101,7 @@ def _pair_means(sols):
     return pd.concat(frames, ignore_index=True)
 
 
+@pytest.mark.slow
 def test_coupled_fit_has_its_own_stage_and_every_report_flags_T_at_its_bound(tmp_path, cli):
     src = write_table(_pair_means(_planted(W)), tmp_path / "means.parquet", TRAJECTORIES)
     out = tmp_path / "ws"

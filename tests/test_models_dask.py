@@ -6,6 +6,7 @@ import pandas as pd
 import pytest
 
 
+@pytest.mark.slow
 def test_generate_study_on_dask_equals_local_run(cli, tmp_path):
     distributed = pytest.importorskip("distributed")
     args = ("generate", "--study", "walking-2020", "--convention", "continuous", "--intervals", "20", "--samples", "40")

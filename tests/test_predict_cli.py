@@ -49,6 +49,7 @@ def traj_file(tmp_path):
 FAST = ["--settings", "8:20,10:30", "-j", "1", "--convention", "continuous"]
 
 
+@pytest.mark.slow
 def test_predict_command_writes_tables_figures_and_results(cli, tmp_path, traj_file):
     path = traj_file(travel_time=3.0)
     out = tmp_path / "ws"
@@ -92,6 +93,7 @@ def test_predict_command_writes_tables_figures_and_results(cli, tmp_path, traj_f
     assert code == 0 and "up to date" in err
 
 
+@pytest.mark.slow
 def test_nan_samples_skip_windows_and_are_counted(cli, tmp_path, traj_file):
     path = traj_file(nan_at=[20, 21])
     out = tmp_path / "ws"
@@ -239,6 +241,7 @@ def test_flagged_orientation_is_not_tracked(tmp_path):
 
 
 @pytest.mark.datasets
+@pytest.mark.slow
 def test_published_walking_trajectories(cli, tmp_path, datasets):
     out = tmp_path / "ws"
     assert cli("-q", "import-published", "walking-2020", datasets / "walking-2020", "--out", out)[0] == 0
@@ -258,6 +261,7 @@ def test_published_walking_trajectories(cli, tmp_path, datasets):
     assert 0.002 < per["delta_xy"].median() < 0.05 and (per["fde"] > per["ade"]).all()
 
 
+@pytest.mark.slow
 def test_fitted_weights_file_is_used_and_recorded(cli, tmp_path, traj_file):
     weights = tmp_path / "weights.json"
     weights.write_text(json.dumps({"weights": {"a0": 7.87, "a1": 4.0, "a2": 20.15, "a3": 1e-6, "a4": 10.0,
@@ -287,6 +291,7 @@ def test_settings_sharing_n0_equal_separate_runs():
     assert set(shared_windows["n_oc"]) == {20, 30}
 
 
+@pytest.mark.slow
 def test_second_sweep_with_other_weights_sits_beside_the_first(cli, tmp_path, traj_file):
     weights = tmp_path / "weights.json"
     weights.write_text(json.dumps({"weights": {"a0": 1.0, "a1": 0.2, "a2": 0.5, "a3": 1e-6, "a4": 0.0,
@@ -320,6 +325,7 @@ def test_unknown_convention_exits_2_before_any_work(cli, tmp_path, traj_file):
     assert not out.exists() or not any(out.iterdir())
 
 
+@pytest.mark.slow
 def test_default_convention_is_that_of_the_weights(cli, tmp_path, traj_file):
     """Presets are published weights: predict-published; a fit-ioc weights.json names its own
     convention; a weights file that does not: continuous."""
@@ -349,6 +355,7 @@ def test_default_convention_is_that_of_the_weights(cli, tmp_path, traj_file):
     assert code == 0 and "published-convention weights" in err  # said, then done as asked
 
 
+@pytest.mark.slow
 def test_both_conventions_sit_side_by_side_and_name_themselves(cli, tmp_path, traj_file):
     out = tmp_path / "ws"
     args = ["--trajectories", traj_file(), "--settings", "8:20", "--stage-name", "predict-arcs", "-j", "1"]
@@ -386,6 +393,7 @@ def test_both_conventions_sit_side_by_side_and_name_themselves(cli, tmp_path, tr
 
 
 @pytest.mark.datasets
+@pytest.mark.slow
 def test_published_walking_trajectories_under_both_conventions(cli, tmp_path, datasets):
     """Five walking-2020 trials (every 80th) at (50, 100): the OC predictor loses to constant
     velocity under both conventions; starting each window from rest at 0.1 s per node (published)

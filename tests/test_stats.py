@@ -192,6 +192,7 @@ def test_planted_effects_are_detected(seed):
     assert s.loc["Q2.1", "significant"]  # table returns closer to reversed forward paths than subjects'
 
 
+@pytest.mark.slow
 def test_no_effect_reported_where_none_was_planted():
     """Null study: no scenario effect, random configuration choices, no pair effect. The pair effect
     (Q4.2) is checked on a balanced design (every pair makes the same choices): with random choices,

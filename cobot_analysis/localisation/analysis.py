@@ -37,8 +37,22 @@ class Options:
     rule: StopRule = field(default_factory=StopRule)
 
 
+def _return_freed_memory() -> None:
+    """Have glibc give freed large arrays back to the system at once: its dynamic mmap threshold
+    otherwise rises to the size of the arrays freed and keeps them in the heap of the thread that
+    freed them, where the tables written afterwards cannot reuse them (peak memory of a 10-minute
+    run: 205 -> 183 MiB). A fixed threshold of 128 KiB (glibc's initial one); no-op elsewhere."""
+    import ctypes
+
+    try:
+        ctypes.CDLL(None).mallopt(-3, 128 * 1024)  # M_MMAP_THRESHOLD, in the C library the process has loaded
+    except (OSError, AttributeError, TypeError):  # no glibc (macOS, musl: no mallopt; Windows: no CDLL(None))
+        pass
+
+
 def analyse_run(task: tuple[str, str, str, Options]) -> dict:
     """``(path, run label, map label, options)`` -> poses, comparison, goals and the per-run row."""
+    _return_freed_memory()
     path, run, map_label, o = task
     path = Path(path)
     specs = {"truth": PoseSpec.parse(o.truth), "icp": PoseSpec.parse(o.icp)}

@@ -327,6 +327,9 @@ def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str 
     if time not in ("header", "record"):
         raise ValueError("time must be 'header' or 'record'")
     path = Path(path)
+    fast = _indexed_streams(path, specs, time, optional, sparse)
+    if fast is not None:
+        return fast
     with open_bag(path) as src:
         need = set()
         specs = {k: v for k, v in specs.items() if k not in optional or v.is_tf or v.topic in src.topics}
@@ -398,6 +401,35 @@ def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str 
     return out
 
 
+def _indexed_streams(path: Path, specs: dict[str, PoseSpec], time: str, optional: tuple[str, ...],
+                     sparse: tuple[str, ...]) -> dict[str, PoseStream] | None:
+    """``read_streams`` through the bag's own index (``indexed``) when every stream is a pose topic of
+    the bag whose messages share one layout; None otherwise (the general path then reads the bag)."""
+    if any(spec.is_tf for spec in specs.values()):
+        return None
+    from cobot_analysis.localisation import indexed
+
+    bag = indexed.open_indexed(path)
+    if bag is None:
+        return None
+    specs = {k: v for k, v in specs.items() if k not in optional or v.topic in bag.topics}
+    read = {}
+    for name, spec in specs.items():
+        msgtype = bag.topics.get(spec.topic)
+        msgs = bag.read(spec.topic) if msgtype in POSE_TYPES else None
+        got = _layout_rows(msgs.data, msgtype, bag.ros1) if msgs is not None and len(msgs.record_ns) else None
+        if got is None:
+            return None
+        rows, frame_id = got
+        record = msgs.record_ns * 1e-9
+        msgs = None  # the serialised messages are no longer needed
+        if time == "record":
+            rows[:, 0] = record
+        read[name] = (rows, frame_id, record)
+    return {name: _stream(path, str(spec), read[name][0], _frame(read[name][1]), continuous=name not in sparse,
+                          record=read[name][2]) for name, spec in specs.items()}
+
+
 def _decode(src: _Source, raw, msgtype: str):
     try:
         return src.deserialize(raw, msgtype)
@@ -414,11 +446,18 @@ _CHILD = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/TransformStamped")
 def _fast_rows(raws: list, msgtype: str, ros1: bool) -> np.ndarray | None:
     """``(n, 8)`` rows ``(t, x, y, z, qx, qy, qz, qw)`` decoded from the serialised messages when
     they all share one layout (ROS1 or little-endian CDR), else None."""
-    n = len(raws)
     size = len(raws[0])
     if any(len(r) != size for r in raws):
         return None
-    first = bytes(raws[0])
+    got = _layout_rows(np.frombuffer(b"".join(raws), dtype=np.uint8).reshape(len(raws), size), msgtype, ros1)
+    return None if got is None else got[0]
+
+
+def _layout_rows(buf: np.ndarray, msgtype: str, ros1: bool) -> tuple[np.ndarray, str] | None:
+    """``_fast_rows`` of the messages as the rows of ``buf`` ``(n, size)``, with the header's frame id
+    (as read, before ``_frame``); None when they do not share one layout or the frame id is not text."""
+    size = buf.shape[1]
+    first = bytes(buf[0])
     base = 0 if ros1 else 4
     if not ros1 and first[1] != 1:  # CDR encapsulation: 0x0001 = little endian
         return None
@@ -438,14 +477,19 @@ def _fast_rows(raws: list, msgtype: str, ros1: bool) -> np.ndarray | None:
         pos = base + -(-(pos - base) // 8) * 8  # doubles are 8-aligned from the CDR origin
     if pos + 56 > size:
         return None
-    buf = np.frombuffer(b"".join(raws), dtype=np.uint8).reshape(n, size)
     for k in strings:  # every message must carry strings of the same lengths
         if not np.all(buf[:, k:k + 4] == buf[0, k:k + 4]):
             return None
-    sec = np.ascontiguousarray(buf[:, stamp:stamp + 4]).view("<u4" if ros1 else "<i4")[:, 0].astype(float)
-    nsec = np.ascontiguousarray(buf[:, stamp + 4:stamp + 8]).view("<u4")[:, 0].astype(float)
-    pose = np.ascontiguousarray(buf[:, pos:pos + 56]).view("<f8")
-    return np.column_stack([np.where(nsec < 1e9, sec + nsec * 1e-9, np.nan), pose])  # as _stamp
+    try:
+        frame_id = first[strings[0] + 4:strings[0] + 4 + u32(first, strings[0])].decode().rstrip("\x00")
+    except UnicodeDecodeError:
+        return None
+    rows = np.empty((len(buf), 8))
+    rows[:, 1:] = buf[:, pos:pos + 56].view("<f8")  # (unaligned) views of the rows' bytes: no copies
+    sec = buf[:, stamp:stamp + 4].view("<u4" if ros1 else "<i4")[:, 0]
+    nsec = buf[:, stamp + 4:stamp + 8].view("<u4")[:, 0]
+    rows[:, 0] = np.where(nsec < 1e9, sec + nsec * 1e-9, np.nan)  # as _stamp
+    return rows, frame_id
 
 
 #: the localisation options of each stream read from a bag, for messages.

@@ -25,9 +25,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from cobot_analysis.localisation.poses import PoseStream
+from cobot_analysis.localisation.poses import PoseStream, conjugate, from_matrix, multiply
 
 RATIO = 0.2  # the vertical spread must be below this fraction of the next smallest one
 CHOICES = ("x", "y", "z", "-x", "-y", "-z")
@@ -79,8 +78,8 @@ def level(stream: PoseStream, vertical: Vertical) -> PoseStream:
     if vertical.axis == "z":
         return stream
     r = vertical.rotation
-    rot = Rotation.from_matrix(r)
-    quat = (rot * Rotation.from_quat(stream.quat) * rot.inv()).as_quat()
+    rot = from_matrix(r)
+    quat = multiply(multiply(rot, stream.quat), conjugate(rot))
     return PoseStream(stream.t, stream.xyz @ r.T, quat, stream.name, stream.frame_id, {**stream.meta, "up": vertical.axis})
 
 
