@@ -69,7 +69,7 @@ def generate_command(
     duration: Annotated[Optional[Duration], typer.Option("--duration", help="Duration T: free (decision variable), search (1-D Brent), grid (Mombaur); default per model.")] = None,
     v_nominal: Annotated[float, typer.Option("--v-nominal", min=0.01, help="Nominal speed for the initial duration d / v + 1 s (m/s); clothoid speed.")] = 1.0,
     max_iter: Annotated[int, typer.Option("--max-iter", min=1, help="Iteration limit of the OC solver (a solve that hits it is an error).")] = 500,
-    means: Annotated[Optional[Path], typer.Option("--means", help="With --study and --convention published: the mean trajectories whose measured starts and ends the authors used, one path per condition they hold (default: the kind=mean rows of OUT/import-published/).")] = None,
+    means: Annotated[Optional[Path], typer.Option("--means", help="With --study: the mean trajectories whose starts (and, published, ends) the paths take, one path per condition they hold, as fit-ioc compares them (default: OUT/average/ (continuous), else the kind=mean rows of OUT/import-published/; continuous without means: the design's starts).")] = None,
     convention: ConventionOpt = None,
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
@@ -91,11 +91,12 @@ def generate_command(
     import pandas as pd
 
     from cobot_analysis import conventions
-    from cobot_analysis.design import WALKING_CONDITIONS, WALKING_GOAL, walking_condition
+    from cobot_analysis.design import WALKING_GOAL
     from cobot_analysis.errors import InputError
     from cobot_analysis.models import MODELS, check_endpoints
     from cobot_analysis.models.outputs import GENERATED
     from cobot_analysis.models.presets import load_weights, weights_convention
+    from cobot_analysis.models.report import generated_section
     from cobot_analysis.parallel import map_tasks
     from cobot_analysis.schema import write_table
     from cobot_analysis.workspace import Stage
@@ -122,64 +123,68 @@ def generate_command(
     if study is not None:
         if study != "walking-2020":
             raise InputError(f"unknown study {study!r}", remedy="use --study walking-2020 or give --start")
-        if conv.name == "published":
-            cases = _published_walking_cases(out, means)
+        cases = _walking_cases(out, means, conv, goal)
+        if isinstance(cases[-1], Path):
             inputs.append(cases.pop())
-        else:
-            cases = [(c, walking_condition(c).start, goal) for c in WALKING_CONDITIONS]
     elif start is not None:
-        cases = [("", tuple(start), goal)]
+        cases = [("", tuple(start), goal, math.nan, math.nan)]
     else:
         raise InputError("nothing to generate", remedy="give --start X Y THETA or --study walking-2020")
-    for _, s, g in cases:
+    for _, s, g, *_ in cases:
         check_endpoints(s, g)
     kw = {"n_samples": samples, "n_intervals": intervals, "duration": duration.value if duration else None,
-          "v_nominal": v_nominal, "max_iter": max_iter, "convention": conv.name}
-    params = {"models": models, "weights": weights, "cases": cases, **kw}
+          "v_nominal": v_nominal, "max_iter": max_iter, "convention": conv.name, "on_failure": "flag"}
+    params = {"models": models, "weights": weights, "cases": [c[:3] for c in cases], **kw}
     with Stage(out, conventions.stage_name("generate", conv), inputs=inputs, params=params, force=force) as stage:
         if stage.skipped:
             return
         tasks = [(m, s, g, weights if m != "clothoid" else None,
                   {**kw, "trial": f"{m}_{c}" if c else m, "condition": c, "study": study or "model"})
-                 for m in models for c, s, g in cases]
+                 for m in models for c, s, g, *_ in cases]
         frames = map_tasks(_generate_task, tasks, jobs=jobs, scheduler=scheduler, description="generate")
         df = pd.concat(frames, ignore_index=True)
         write_table(df, stage.path("generated.parquet"), GENERATED, n_samples=samples, n_intervals=intervals,
                     convention=conv.name)
-        ends = df.groupby("trial").tail(1)
         grid = (f"OC grid {intervals} intervals resampled to {samples} samples" if conv.name == "continuous" else
                 "the authors' node step and duration rule, paths at their nodes")
-        goals = sorted({tuple(round(v, 3) for v in g) for _, _, g in cases})
+        goals = sorted({tuple(round(v, 3) for v in c[2]) for c in cases})
         lines = [f"## Generated trajectories ({conv.name} convention)", "",
                  f"Models {', '.join(models)}; weights {weights or 'model presets'}; "
                  f"goal{'s' if len(goals) > 1 else ''} {goals[0] if len(goals) == 1 else f'of the {len(goals)} measured means'}; "
                  f"{grid} (docs/methods.md sec. 11: {conv.summary}).", "",
-                 "| trial | T (s) | cost | end error (m) |", "|---|---|---|---|"]
-        goal_of = {f"{m}_{c}" if c else m: g for m in models for c, _, g in cases}
-        for _, r in ends.iterrows():
-            g = goal_of[r.trial]
-            lines.append(f"| {r.trial} | {r.travel_time:.2f} | {r.cost:.3f} | {math.hypot(r.x - g[0], r.y - g[1]):.3f} |")
+                 *generated_section(df, conv, {f"{m}_{c}" if c else m: (T, v) for m in models for c, _, _, T, v in cases})]
         stage.path("results.md").write_text("\n".join(lines) + "\n")
-    finished(f"generate ({conv.name})", count(df["trial"].nunique(), "trajectory", "trajectories"), stage.final_dir / "generated.parquet")
+    ends = df.groupby("trial").tail(1)
+    missed = int((~ends["goal_reached"].astype(bool)).sum())
+    finished(f"generate ({conv.name})", count(len(ends), "trajectory", "trajectories")
+             + (f", {missed} not reaching their goal (results.md)" if missed else ", all at their goal")
+             + f", mean speed {ends['mean_speed'].min():.2f}-{ends['mean_speed'].max():.2f} m/s", stage.final_dir / "generated.parquet")
 
 
-def _published_walking_cases(out: Path, means: Path | None) -> list:
-    """The 40 walking conditions with the authors' start and goal poses (``ioc.targets.published_endpoints``),
-    from the measured means; the last item is the means file read."""
-    from cobot_analysis.design import WALKING_CONDITIONS
+def _walking_cases(out: Path, means: Path | None, conv, goal) -> list:
+    """The walking conditions with the start and goal poses of the fit-ioc model comparison
+    (``models.report.study_cases``), from the means (--means, else OUT/average/ under the continuous
+    convention, else the kind=mean rows of OUT/import-published/); the last item is the file read.
+    Continuous convention without any means: the design's start poses."""
+    import math
+
+    from cobot_analysis.design import WALKING_CONDITIONS, walking_condition
     from cobot_analysis.errors import InputError
-    from cobot_analysis.models.ioc.targets import published_endpoints
+    from cobot_analysis.models.report import study_cases
     from cobot_analysis.workspace import find_input
 
-    path = means or find_input(out, "trajectories.parquet", ["import-published"], "--means")
-    df = _read_trajectories(path)
-    df = df[(df["kind"] == "mean") & (df["entity"] == "walker")] if "kind" in df else df
-    cases = []
-    for c in WALKING_CONDITIONS:  # the conditions the means have
-        g = df[df["condition"] == c].sort_values("sample")
-        if len(g):
-            start, goal = published_endpoints(c, g["x"].to_numpy(float), g["y"].to_numpy(float))
-            cases.append((c, start, goal))
+    path = means
+    for name, stages in ((("means.parquet", ["average"]),) if conv.name == "continuous" else ()) + \
+            (("trajectories.parquet", ["import-published"]),):
+        if path is None:
+            try:
+                path = find_input(out, name, stages, "--means")
+            except InputError:
+                if conv.name == "published" and name == "trajectories.parquet":
+                    raise
+    if path is None:
+        return [(c, walking_condition(c).start, goal, math.nan, math.nan) for c in WALKING_CONDITIONS]
+    cases = study_cases(_read_trajectories(path), conv, goal, path=path)
     if not cases:
         raise InputError("no mean trajectory of a walking-study condition", path=path,
                          remedy="pass the walking-2020 means (import-published walking-2020, or average) with --means")
@@ -211,7 +216,7 @@ def fit_ioc_command(
     trajectories: Annotated[Optional[Path], typer.Option("--trajectories", help="trajectories.parquet (default: OUT/import-published/ or OUT/preprocess/); its trials serve --per subject and the subjects-vs-mean statistics.")] = None,
     model: Annotated[str, typer.Option("--model", "-m", help="improved (walkers, D = d_xy + 0.5 d_gamma), table (D = d_xy + 0.5 d_theta) or coupled (two carriers, scenario-3 means, roles swapped on returns).")] = "improved",
     start_weights: Annotated[Optional[str], typer.Option("--start-weights", help="Preset or weights.json to start from; 'ones' = neutral start (every fitted weight 1).")] = None,
-    fit_names: Annotated[Optional[str], typer.Option("--fit", help="Comma-separated weights to fit, the others stay at their start value (default: all but b0, which fixes the scale; coupled: also a0, the time cost).")] = None,
+    fit_names: Annotated[Optional[str], typer.Option("--fit", help="Comma-separated weights to fit, the others stay at their start value (default: all but the scale weight and the weights no path depends on: continuous, a0 and b0..b3; published, a0 and b0).")] = None,
     optimizer: Annotated[Optional[Optimizer], typer.Option("--optimizer", help="Upper-level derivative-free method.")] = Optimizer.powell,
     max_evaluations: Annotated[int, typer.Option("--max-evaluations", min=1, help="Budget of upper-level evaluations per fit.")] = 2000,
     per: Annotated[Per, typer.Option("--per", help="all: one fit over the means; subject: one fit per subject over its trials.")] = Per.all,
@@ -244,7 +249,7 @@ def fit_ioc_command(
     from cobot_analysis.console import progress
     from cobot_analysis.design import WALKING_GOAL, walking_condition
     from cobot_analysis.errors import InputError
-    from cobot_analysis.models.ioc import IOCSpec, fit, pair_targets_from_table, targets_from_table
+    from cobot_analysis.models.ioc import IOCSpec, fit, held_weights, pair_targets_from_table, targets_from_table
     from cobot_analysis.models.outputs import IOC_DISTANCES
     from cobot_analysis.models.presets import DEFAULT_PRESET, load_weights, names_for, weights_vector
     from cobot_analysis.models.report import (compare_models, compared_models, duration_flag, weight_limit_flag, figure_boxplots, figure_paths,
@@ -260,11 +265,7 @@ def fit_ioc_command(
     conv = conventions.get(convention or "continuous")
     conv.oc_rule(model)
     all_names = names_for(model)
-    # b0 fixes the scale; a5, a6 of the walker belong to the Mombaur model; the coupled time cost a0 is
-    # not identifiable from time-normalised paths (fitted, it goes to ~0 and every T to its bound); under
-    # the published convention a0 is a per-node constant: it adds a0 N to J on a held horizon and a0 / dt
-    # to the duration rule's J / T, so it moves no path and is not identifiable either (docs/methods.md 11)
-    held = ("a0", "b0") if model == "coupled" else ("a5", "a6", "b0") + (("a0",) if conv.name == "published" else ())
+    held = held_weights(model, conv)  # the scale weight and the weights no path depends on (docs/methods.md 6, 11)
     fit_names = fit_names or ",".join(n for n in all_names if n not in held)
     names = tuple(n.strip() for n in fit_names.split(",") if n.strip())
     bad = [n for n in names if n not in all_names]

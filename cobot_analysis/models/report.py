@@ -37,6 +37,70 @@ def orientation_of(condition: str) -> str:
         return ""
 
 
+def study_cases(means: pd.DataFrame, convention, goal, *, path=None) -> list[tuple[str, tuple, tuple, float, float]]:
+    """(condition, start, goal, measured travel time, measured mean speed) of every walking-study mean
+    in ``means``, in the order of the design (NaN where the data hold no travel time): the start and
+    goal poses the model comparison of ``fit-ioc`` takes (``targets_from_table(..., unoriented=True)``),
+    so ``generate --study`` then ``compare`` answers with the same paths (continuous: the measured
+    start pose and ``goal`` on the branch of the last measured heading; published: the authors'
+    endpoints, docs/methods.md sec. 11)."""
+    from cobot_analysis import conventions
+    from cobot_analysis.design import WALKING_CONDITIONS
+    from cobot_analysis.models import mean_speed
+    from cobot_analysis.models.ioc import targets_from_table
+
+    conv = conventions.get(convention)
+    means = means[(means["kind"] == "mean") & (means["entity"] == "walker")] if "kind" in means else means
+    means = means[means["condition"].isin(WALKING_CONDITIONS)]
+    targets = targets_from_table(means, path=path, goal=goal, convention=conv, unoriented=True)
+    tt = means.groupby("trial")["travel_time"].first() if "travel_time" in means else pd.Series(dtype=float)
+    order = {c: i for i, c in enumerate(WALKING_CONDITIONS)}
+    out = []
+    for t in sorted(targets, key=lambda t: order[t.condition]):
+        T = float(tt.get(t.trial, math.nan))
+        out.append((t.condition, t.start, t.goal, T, mean_speed(t.x, t.y, T) if np.isfinite(T) else math.nan))
+    return out
+
+
+def generated_section(df: pd.DataFrame, convention, measured: dict[str, tuple[float, float]] | None = None) -> list[str]:
+    """results.md lines of ``generate``: per path its duration T, mean speed (the time law), the
+    subjects' own where the data hold them (``measured``: trial -> (travel time, mean speed)), the
+    end's distance to the goal and whether it reached it (``models.goal_check``), and a summary."""
+    from cobot_analysis import conventions
+    from cobot_analysis.models import GOAL_TOLERANCE
+
+    conv = conventions.get(convention)
+    measured = {k: v for k, v in (measured or {}).items() if np.isfinite(v[0])}
+    ends = df.groupby("trial", sort=False).tail(1).set_index("trial")
+    cols = " subjects' T (s) | subjects' mean speed (m/s) |" if measured else ""
+    lines = [f"| trial | T (s) | mean speed (m/s) |{cols} cost | end error (m) | heading error (rad) | goal reached | status |",
+             "|---|---|---|" + ("---|---|" if measured else "") + "---|---|---|---|---|"]
+    for trial, r in ends.iterrows():
+        mine = ""
+        if measured:
+            mine = " {:.2f} | {:.2f} |".format(*measured[trial]) if trial in measured else " – | – |"
+        lines.append(f"| {trial} | {r.travel_time:.2f} | {r.mean_speed:.2f} |{mine} {r.cost:.3f} | {r.end_position_error:.3f} | "
+                     f"{r.end_heading_error:.3f} | {'yes' if r.goal_reached else 'no'} | {r.status} |")
+    n, reached = len(ends), int(ends["goal_reached"].sum())
+    v = ends["mean_speed"]
+    missed = ends.index[~ends["goal_reached"].astype(bool)].tolist()
+    summary = [
+        f"Goal reached (end within {GOAL_TOLERANCE[0] * 100:g} cm and {GOAL_TOLERANCE[1]:g} rad): {reached} of {n} paths"
+        + (f"; not reached: {', '.join(missed[:10])}{', ...' if len(missed) > 10 else ''} (status column)" if missed else "")
+        + (". Under the continuous convention the goal at rest is a constraint of the OC problem (docs/methods.md "
+           "sec. 5.5): a path that misses it did not converge." if conv.name == "continuous" else
+           ". Under the published convention the goal is the terminal cost of the authors' models: a path may end "
+           "near it, not on it."), "",
+        f"Time law: durations T from {ends['travel_time'].min():.2f} to {ends['travel_time'].max():.2f} s, mean speed "
+        f"(path length / T) from {v.min():.2f} to {v.max():.2f} m/s (median {v.median():.2f})"
+        + (". The authors' duration rule ends on its upper bound (20 s per metre of start-goal distance, docs/methods.md "
+           "sec. 11): the shape of the path is what the papers compare, its timing is no human pace; time-dependent "
+           "outputs (velocities, velocity-commands) need the continuous convention." if conv.name == "published" else ".")
+        + (" The subjects' own travel times are in the table." if measured else
+           " The input holds no subjects' travel times to compare with (the published walking-2020 means have none)."), ""]
+    return summary + lines + [""]
+
+
 def compare_task(task) -> list[dict]:
     """Worker task: every compared model on one target (top-level, picklable)."""
     from cobot_analysis.models import generate

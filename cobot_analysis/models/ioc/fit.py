@@ -80,6 +80,31 @@ class IOCSpec:
         return np.log10(np.maximum([w[names.index(n)] for n in self.fitted], 10.0 ** LOG_BOUNDS[0]))
 
 
+def held_weights(model: str, convention="continuous") -> tuple[str, ...]:
+    """The weights a fit holds at their start value by default (docs/methods.md sec. 6, 11).
+
+    Scaling every weight leaves the optimal path unchanged, so one weight fixes the scale. Under the
+    continuous convention the goal at rest is a terminal constraint, and then:
+    - b0..b3 weigh terms that are 0 on every feasible path: no path depends on them;
+    - a0, the price of one second, fixes the scale;
+    - a1 fixes the time scale: multiplying the acceleration weights by c^4 (a0 and the path terms
+      held) makes the time-scaled path X(t / c) optimal, since the time and path terms of J grow as
+      c and the acceleration terms as c^-3; the time-normalised paths D compares are the same, only
+      the duration changes (c T). The data cannot tell these weights apart, so a1 stays at its start
+      value and the fit leaves the pace of the start weights to it.
+    Under the published convention the goal is the terminal cost: b0 fixes the scale, and a0, a
+    constant per node, moves no path on a held horizon. The walker's a5, a6 belong to the Mombaur
+    model."""
+    from cobot_analysis import conventions
+
+    rule = conventions.get(convention).oc_rule(model)
+    if rule.goal == "constraint":
+        return ("a0", "a1", "b0", "b1", "b2", "b3") if model == "coupled" else ("a0", "a1", "a5", "a6", "b0", "b1", "b2", "b3")
+    if model == "coupled":
+        return ("a0", "b0")
+    return ("a0", "a5", "a6", "b0") if rule.scheme == "euler" else ("a5", "a6", "b0")
+
+
 # ---- lower level (runs on workers) -------------------------------------------------------------
 def distances(t: Target, x, y, theta, convention="continuous") -> dict[str, float]:
     """d_xy, d_theta, d_gamma of a path (x, y, theta) against target ``t`` under a convention
