@@ -63,7 +63,7 @@ def test_stiff_terminal_weights_end_at_the_goal_at_rest():
 def test_free_duration_equals_the_one_dimensional_search():
     start = (-1.5, -3.4, 0.0)
     free = solve_model("improved", start, GOAL, PUBLISHED, duration="free")
-    ocp = get_ocp(OCPShape(100))
+    ocp = get_ocp(OCPShape(100, goal="constraint"))  # the continuous convention's goal rule
     found = search_duration(ocp, start, GOAL, PUBLISHED, initial_duration(start, GOAL), xatol=1e-4)
     assert free.success and found.success
     assert free.T == pytest.approx(found.T, rel=5e-3)

@@ -93,7 +93,7 @@ def generate_command(
     from cobot_analysis import conventions
     from cobot_analysis.design import WALKING_GOAL
     from cobot_analysis.errors import InputError
-    from cobot_analysis.models import MODELS, check_endpoints
+    from cobot_analysis.models import MODELS, check_endpoints, refuse_unreached
     from cobot_analysis.models.outputs import GENERATED
     from cobot_analysis.models.presets import load_weights, weights_convention
     from cobot_analysis.models.report import generated_section
@@ -143,6 +143,8 @@ def generate_command(
                  for m in models for c, s, g, *_ in cases]
         frames = map_tasks(_generate_task, tasks, jobs=jobs, scheduler=scheduler, description="generate")
         df = pd.concat(frames, ignore_index=True)
+        if study is None:
+            refuse_unreached(df)  # one path asked for: exit 2, nothing written
         write_table(df, stage.path("generated.parquet"), GENERATED, n_samples=samples, n_intervals=intervals,
                     convention=conv.name)
         grid = (f"OC grid {intervals} intervals resampled to {samples} samples" if conv.name == "continuous" else
@@ -399,8 +401,8 @@ def fit_ioc_command(
             # every mean, those without orientation too (their d_xy; the authors compared all 40 walking means)
             compared = targets_from_table(mean_df, path=mean_src, entity=entity, goal=goal_for(mean_df), convention=conv,
                                           unoriented=True)
-            comparison = compare_models(compared, models, n_intervals=intervals, angle=angle, jobs=jobs, scheduler=scheduler,
-                                        convention=conv.name)
+            # generate's grid (not the lower level's): the same paths as generate --study then compare
+            comparison = compare_models(compared, models, angle=angle, jobs=jobs, scheduler=scheduler, convention=conv.name)
             if trial_df is not None and not trial_df.empty and model == "improved":
                 trials = targets_from_table(trial_df, path=traj_path, entity=entity)
                 comparison = pd.concat([comparison, subject_distances(trials, mean_targets, angle, conv.name)], ignore_index=True)
@@ -493,7 +495,7 @@ def fit_ioc_command(
                 for lab, w in (("published", "walking-2021" if model == "improved" else "table-2022"), ("fitted", fitted_w)):
                     try:
                         gen[lab].append(generate("table" if model == "table" else "improved", t.start, t.goal, weights=w,
-                                                 n_samples=len(t.x), n_intervals=intervals, convention=conv))
+                                                 n_samples=len(t.x), convention=conv))
                     except Exception:  # noqa: BLE001 - a failed model run is left out of the figure
                         gen[lab].append(None)
             stage.savefig(figure_paths(mean_targets, gen, "mean (black) vs improved OC: published, fitted"), "paths")
@@ -531,7 +533,7 @@ def velocity_commands_command(
 
     from cobot_analysis.errors import InputError
     from cobot_analysis.models.outputs import GENERATED, VELOCITY_COMMANDS
-    from cobot_analysis.models.velocity_commands import resample_path, velocity_commands
+    from cobot_analysis.models.velocity_commands import check_time_law, resample_path, velocity_commands
     from cobot_analysis.schema import read_table, write_table
     from cobot_analysis.workspace import Stage, find_input
 
@@ -547,6 +549,7 @@ def velocity_commands_command(
         raise InputError(f"no generated trajectory {trial!r}", path=path, remedy=f"use one of {', '.join(trials[:8])}")
     if g[["time", "x", "y", "theta"]].isna().any().any():
         raise InputError(f"trajectory {trial!r} has NaN time or pose", path=path, remedy="re-run generate")
+    check_time_law(g, path=path)
     params = {"trial": trial, "rate": rate, "v_max": v_max, "omega_max": omega_max, "format": fmt.value}
     with Stage(out, "velocity-commands", inputs=[path], params=params, force=force) as stage:
         if stage.skipped:
@@ -560,7 +563,8 @@ def velocity_commands_command(
             write_table(cmd, stage.path("commands.parquet"), VELOCITY_COMMANDS, rate=rate, v_max=v_max,
                         omega_max_deg_s=omega_max)
         stage.path("results.md").write_text(
-            f"## Velocity commands\n\nTrajectory {trial} at {rate:g} Hz: {len(cmd)} commands, saturated at "
+            f"## Velocity commands\n\nTrajectory {trial} ({g['convention'].iloc[0]} convention, mean speed "
+            f"{g['mean_speed'].iloc[0] if 'mean_speed' in g else float('nan'):.2f} m/s) at {rate:g} Hz: {len(cmd)} commands, saturated at "
             f"{v_max:g} m/s and {omega_max:g} deg/s; {cmd['saturated'].mean() * 100:.0f} % of the commands hit a limit.\n")
     finished("velocity-commands", f"{len(cmd)} commands of {trial} at {rate:g} Hz, {cmd['saturated'].mean() * 100:.0f} % saturated",
              stage.final_dir / f"commands.{fmt.value}")

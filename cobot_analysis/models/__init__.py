@@ -34,7 +34,8 @@ from cobot_analysis.models.presets import DEFAULT_PRESET, PRESETS, load_weights,
 MODELS = ("unicycle", "clothoid", "mombaur", "improved", "table")
 GOAL_TOLERANCE = (0.01, 0.05)  # m, rad: a path ends at its goal (docs/methods.md sec. 5.5)
 
-__all__ = ["GOAL_TOLERANCE", "MODELS", "OC_MODELS", "PRESETS", "generate", "check_endpoints", "goal_check", "mean_speed"]
+__all__ = ["GOAL_TOLERANCE", "MODELS", "OC_MODELS", "PRESETS", "generate", "check_endpoints", "goal_check", "mean_speed",
+           "refuse_unreached"]
 
 
 def goal_check(x, y, theta, goal) -> dict[str, float | bool]:
@@ -54,16 +55,34 @@ def mean_speed(x, y, T: float) -> float:
     return length / T if T > 0 else math.nan
 
 
-def check_endpoints(start, goal, *, path=None, min_distance: float = 0.01) -> None:
-    """Refuse NaN poses and a start equal to the goal (nothing to plan)."""
+def check_endpoints(start, goal, *, path=None, min_distance: float = 0.01, options=("--start", "--goal")) -> None:
+    """Refuse NaN poses, a start or goal outside the lab (|x|, |y| <= ``io.plausibility.LAB_EXTENT``)
+    and a start equal to the goal (nothing to plan); ``options`` name the two poses in the message."""
+    from cobot_analysis.io.plausibility import LAB_EXTENT
+
     start, goal = np.asarray(start, float), np.asarray(goal, float)
     if start.shape[-1] < 3 or goal.shape[-1] < 3:
         raise InputError("start and goal must be poses (x, y, theta)", path=path, remedy="give three numbers each")
     if not (np.all(np.isfinite(start[:3])) and np.all(np.isfinite(goal[:3]))):
         raise InputError("start or goal pose has NaN", path=path, remedy="check the trajectory's first and last samples")
+    for option, pose in zip(options, (start, goal)):
+        if max(abs(pose[0]), abs(pose[1])) > LAB_EXTENT:
+            raise InputError(f"{option} ({pose[0]:g}, {pose[1]:g}) lies outside the lab (|x|, |y| <= {LAB_EXTENT:g} m)",
+                             path=path, remedy=f"give {option} in metres in the lab frame (not millimetres)")
     if math.hypot(goal[0] - start[0], goal[1] - start[1]) < min_distance:
         raise InputError(f"start equals goal (closer than {min_distance * 100:.0f} cm)", path=path,
                          remedy="give a goal at least 1 cm away from the start")
+
+
+def refuse_unreached(df: pd.DataFrame, *, option: str = "--goal", max_iter_option: str = "--max-iter") -> None:
+    """An ``InputError`` naming ``option`` when a path asked for on its own (``generate`` with one start
+    and goal) did not converge or reach its goal: the output would hold no usable path."""
+    bad = df.groupby("trial", sort=False).tail(1)
+    bad = bad[~bad["converged"].astype(bool)]
+    if len(bad):
+        r = bad.iloc[0]
+        raise InputError(f"the {r.model} model does not reach {option} from the start: {r.status}",
+                         remedy=f"check {option} (metres, lab frame, heading on the branch meant) or raise {max_iter_option}")
 
 
 def _frame(arrays: dict[str, np.ndarray], *, model: str, weights_label: str, entity: str, trial: str,

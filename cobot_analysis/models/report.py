@@ -132,7 +132,8 @@ def compare_models(targets: list[Target], models: dict, *, n_intervals: int = 10
                    angle_weight: float = 0.5, jobs=None, scheduler=None, fit: str = "all",
                    convention: str = "continuous") -> pd.DataFrame:
     """Distances of every model in ``models`` (label -> (model, weights)) to every target, each model
-    generated and compared under ``convention``."""
+    generated and compared under ``convention``, on ``generate``'s grid by default: the same paths and
+    distances as ``generate --study`` (``study_cases``) then ``compare --against`` (tests/test_models_goal.py)."""
     from cobot_analysis.parallel import map_tasks
 
     tasks = [(t, models, n_intervals, angle_weight, angle, convention) for t in targets]
