@@ -71,7 +71,9 @@ def test_free_duration_equals_the_one_dimensional_search():
 
 
 def test_fatrop_and_ipopt_reach_the_same_optimum():
-    start = (-4.0, 0.6, math.pi)
+    # facing the goal's side: with the goal a constraint a start facing away (theta0 = pi) has several
+    # local minima (fatrop and IPOPT end in different ones from the same guess, costs 48.7-53.3)
+    start = (-4.0, 0.6, math.pi / 2)
     a = solve_model("improved", start, GOAL, PUBLISHED, solver="fatrop", guess="rest")
     b = solve_model("improved", start, GOAL, PUBLISHED, solver="ipopt", guess="rest")
     assert a.solver == "fatrop" and b.solver == "ipopt"
