@@ -149,7 +149,7 @@ def generate_command(
                     convention=conv.name)
         grid = (f"OC grid {intervals} intervals resampled to {samples} samples" if conv.name == "continuous" else
                 "the authors' node step and duration rule, paths at their nodes")
-        goals = sorted({tuple(round(v, 3) for v in c[2]) for c in cases})
+        goals = sorted({(round(c[2][0], 3), round(c[2][1], 3), round(math.remainder(c[2][2], 2 * math.pi), 3)) for c in cases})
         lines = [f"## Generated trajectories ({conv.name} convention)", "",
                  f"Models {', '.join(models)}; weights {weights or 'model presets'}; "
                  f"goal{'s' if len(goals) > 1 else ''} {goals[0] if len(goals) == 1 else f'of the {len(goals)} measured means'}; "

@@ -462,8 +462,9 @@ def coupled_section(result, coupled, targets, stage, durations: pd.DataFrame | N
              f"iterations); lower levels not converged at the fitted weights: {result.failed} of {len(targets)} "
              f"(each counted as D = {FAILED_D:g}, never averaged in silently).", "",
              "Weights (the fit starts from the model preset unless --start-weights says otherwise"
-             + ("; the time cost a0 is held: D compares time-normalised paths and does not identify it, a free a0 "
-                "goes to ~0 and puts every duration on its upper bound" if "a0" not in spec.fitted else "") + "):", "",
+             + ("; a0 (the price of a second) and a1 are held: D compares time-normalised paths, and scaling the "
+                "acceleration weights by c^4 only makes every path c times slower (docs/methods.md sec. 6); b0..b3 are "
+                "held because both carriers end on their goals at rest, a constraint" if "a0" not in spec.fitted else "") + "):", "",
              weights_table(COUPLED_WEIGHTS, {"published (pair-2022)": PRESETS["pair-2022"],
                                              "start": dict(zip(COUPLED_WEIGHTS, spec.start_weights)),
                                              "fitted": result.weights}, spec.fitted),

@@ -11,7 +11,9 @@ D_n = d_xy + 0.5 d_gamma (walker) or d_xy + 0.5 d_theta (table), with the distan
 
 Speed and reproducibility:
 - every lower-level solve is warm-started from the solution at the best weights found so far
-  (at first: the starting weights, best of a 'rest' and a 'line' initial guess); the sequence of
+  (at first: the starting weights, best of a 'rest' and a 'line' initial guess) and, under the
+  continuous convention, also solved from those two cold guesses, the least cost kept (the rule of
+  ``generate``, so both find the same local minimum); the sequence of
   evaluations is deterministic, so the result is the same on a local pool and on a Dask cluster;
 - the lower levels of one evaluation run in parallel (``cobot_analysis.parallel.executor``: local
   processes or ``--scheduler``), in chunks, on processes that keep their NLP built;
@@ -195,9 +197,10 @@ def solve_target(spec: IOCSpec, w: np.ndarray, t: Target, guess):
         d["success"] = True
         return d, sol
     kw = {"n_intervals": spec.n_intervals, "duration": "free", "max_iter": spec.max_iter, "v_nominal": spec.v_nominal}
-    sol = solve_model(model, t.start, t.goal, w, guess=guess, **kw)
-    if not sol.success and not isinstance(guess, str):
-        sol = solve_model(model, t.start, t.goal, w, guess=("rest", "line"), **kw)
+    # the warm start and generate's two cold guesses, the least cost kept: a start facing away from the goal
+    # has several local minima (turn left or right), and a warm start alone follows the one it came from
+    cold = ("rest", "line")
+    sol = solve_model(model, t.start, t.goal, w, guess=cold if isinstance(guess, str | tuple) else [guess, *cold], **kw)
     if not sol.success:
         return _failed(), sol
     r = resample(sol, len(t.x))
