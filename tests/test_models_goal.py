@@ -89,14 +89,16 @@ def _means(conditions) -> pd.DataFrame:
     for c in conditions:
         x0, y0, th0 = walking_condition(c).start
         df = generate("clothoid", (x0 + 0.05, y0 - 0.04, th0 + 0.1), WALKING_GOAL, n_samples=500)
+        # a mean's recorded gamma (the mean of its trials' gammas) is not the gamma of the mean path
         rows.append(df.assign(study="walking-2020", trial=f"mean:{c}", kind="mean", condition=c, entity="walker",
-                              n_trials=10, subject="", travel_time=np.nan))
+                              n_trials=10, subject="", travel_time=np.nan, gamma=df["gamma"] + 0.2))
     return pd.concat(rows, ignore_index=True)
 
 
 def test_fit_ioc_comparison_equals_generate_then_compare(tmp_path):
     """compare_models (inside fit-ioc) and generate --study + compare --against give the same d_xy,
-    d_theta, d_gamma: same starts (study_cases), grid, goal and distances."""
+    d_theta, d_gamma: same starts (study_cases), grid, goal and distances (a measured gamma from the
+    path under the continuous convention, both ways)."""
     from cobot_analysis import conventions
     from cobot_analysis.compare import against_set, against_vs_mean, pivot
     from cobot_analysis.models.ioc import targets_from_table
