@@ -161,7 +161,7 @@ def generate_command(
     missed = int((~ends["goal_reached"].astype(bool)).sum())
     finished(f"generate ({conv.name})", count(len(ends), "trajectory", "trajectories")
              + (f", {missed} not reaching their goal (results.md)" if missed else ", all at their goal")
-             + f", mean speed {ends['mean_speed'].min():.2f}-{ends['mean_speed'].max():.2f} m/s", stage.final_dir / "generated.parquet")
+             + f", mean speed {ends['mean_speed'].min():.3g}-{ends['mean_speed'].max():.3g} m/s", stage.final_dir / "generated.parquet")
 
 
 def _walking_cases(out: Path, means: Path | None, conv, goal) -> list:

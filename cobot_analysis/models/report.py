@@ -92,7 +92,7 @@ def generated_section(df: pd.DataFrame, convention, measured: dict[str, tuple[fl
            ". Under the published convention the goal is the terminal cost of the authors' models: a path may end "
            "near it, not on it."), "",
         f"Time law: durations T from {ends['travel_time'].min():.2f} to {ends['travel_time'].max():.2f} s, mean speed "
-        f"(path length / T) from {v.min():.2f} to {v.max():.2f} m/s (median {v.median():.2f})"
+        f"(path length / T) from {v.min():.3g} to {v.max():.3g} m/s (median {v.median():.3g})"
         + (". The authors' duration rule ends on its upper bound (20 s per metre of start-goal distance, docs/methods.md "
            "sec. 11): the shape of the path is what the papers compare, its timing is no human pace; time-dependent "
            "outputs (velocities, velocity-commands) need the continuous convention." if conv.name == "published" else ".")
