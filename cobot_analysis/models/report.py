@@ -93,6 +93,9 @@ def generated_section(df: pd.DataFrame, convention, measured: dict[str, tuple[fl
            "near it, not on it."), "",
         f"Time law: durations T from {ends['travel_time'].min():.2f} to {ends['travel_time'].max():.2f} s, mean speed "
         f"(path length / T) from {v.min():.3g} to {v.max():.3g} m/s (median {v.median():.3g})"
+        + (" (" + "; ".join(f"{m}: T {g['travel_time'].min():.2f}-{g['travel_time'].max():.2f} s, {g['mean_speed'].min():.3g}-"
+                            f"{g['mean_speed'].max():.3g} m/s" for m, g in ends.groupby("model", sort=False)) + ")"
+           if ends["model"].nunique() > 1 else "")
         + (". The authors' duration rule ends on its upper bound (20 s per metre of start-goal distance, docs/methods.md "
            "sec. 11): the shape of the path is what the papers compare, its timing is no human pace; time-dependent "
            "outputs (velocities, velocity-commands) need the continuous convention." if conv.name == "published" else ".")
