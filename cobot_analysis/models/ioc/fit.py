@@ -52,7 +52,7 @@ class IOCSpec:
 
     model: str = "improved"  # improved (walker, d_gamma) or table (d_theta)
     start_weights: tuple[float, ...] = ()  # the 11-vector a0..a6, b0..b3 the fit starts from
-    fitted: tuple[str, ...] = ("a0", "a1", "a2", "a3", "a4", "b1", "b2", "b3")
+    fitted: tuple[str, ...] = ("a2", "a3", "a4")  # the continuous walker's default: all but held_weights("improved")
     optimizer: str = "powell"
     max_evaluations: int = 2000
     xtol: float = 1e-2  # log10 units
