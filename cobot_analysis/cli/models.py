@@ -473,6 +473,14 @@ def fit_ioc_command(
                 lines += [f"{'' if per is Per.all else f'Fit {k}: '}with the horizons held, D = {r.held_objective:.4f} at the "
                           f"fitted weights; the duration rule run again there moves the horizon of {r.horizons_changed} of "
                           f"{len(fits[k])} paths (D = {r.objective:.4f}).", ""]
+        if conv.name == "continuous" and model != "coupled" and per is Per.all:
+            from cobot_analysis.models.report import pace_lines
+
+            try:
+                durations = pd.read_parquet(find_input(out, "durations.parquet", ["import-published"], "--means"))
+            except InputError:
+                durations = None  # walking study: no published durations (the line says so)
+            lines += pace_lines(mean_df, fits["all"], results["all"].per_target, durations)
         if coupled is not None:
             from cobot_analysis.models.report import coupled_section
 

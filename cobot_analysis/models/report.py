@@ -104,6 +104,34 @@ def generated_section(df: pd.DataFrame, convention, measured: dict[str, tuple[fl
     return summary + lines + [""]
 
 
+def pace_lines(mean_df: pd.DataFrame, targets, per_target: list[dict], durations: pd.DataFrame | None) -> list[str]:
+    """Markdown: duration T and mean speed (path length / T) of the fitted paths (continuous convention),
+    beside the measured trials' (``durations``: the pair study's durations.parquet, mean over the trials
+    of the same scenario, goal and direction as each mean), and how many T sit on a bound."""
+    ok = [(t, d) for t, d in zip(targets, per_target) if d.get("success") and d.get("length") is not None]
+    if not ok:
+        return []
+    T = np.array([d["T"] for _, d in ok])
+    v = np.array([d["length"] / d["T"] for _, d in ok])
+    bound = sum(d.get("T_at_bound", 0) != 0 for _, d in ok)
+    line = (f"Time law of the fitted paths: T {T.min():.2f}-{T.max():.2f} s, mean speed (path length / T) "
+            f"{v.min():.3g}-{v.max():.3g} m/s (median {np.median(v):.3g}); {bound} of {len(ok)} durations on a bound")
+    keys = ["scenario", "condition", "direction"]
+    if durations is None or not set(keys + ["duration", "mean_velocity"]) <= set(durations.columns) or \
+            not set(keys) <= set(mean_df.columns):
+        return [line + ". The input holds no measured durations to compare with.", ""]
+    meta = mean_df.groupby("trial")[keys].first()
+    measured = durations.groupby(keys)[["duration", "mean_velocity"]].mean()
+    rows = [measured.loc[tuple(meta.loc[t.trial])] for t, _ in ok if t.trial in meta.index and tuple(meta.loc[t.trial]) in measured.index]
+    if not rows:
+        return [line + ". No measured duration matches these means.", ""]
+    m = pd.DataFrame(rows)
+    return [line + f"; the measured trials of the same scenario, goal and direction (durations.parquet, {len(m)} means): "
+            f"T {m['duration'].mean():.2f} ± {m['duration'].std():.2f} s, mean speed {m['mean_velocity'].mean():.3g} ± "
+            f"{m['mean_velocity'].std():.3g} m/s. D compares time-normalised paths: the pace comes from the held a0 and a1 "
+            "(docs/methods.md sec. 6).", ""]
+
+
 def compare_task(task) -> list[dict]:
     """Worker task: every compared model on one target (top-level, picklable)."""
     from cobot_analysis.models import generate

@@ -207,6 +207,7 @@ def solve_target(spec: IOCSpec, w: np.ndarray, t: Target, guess):
     d = distances(t, r["x"], r["y"], r["theta"])
     d["D"] = d["d_xy"] + spec.angle_weight * d[f"d_{spec.angle}"]
     d.update(duration_terms(sol.T, initial_duration(t.start, t.goal, spec.v_nominal)))
+    d["length"] = float(np.hypot(np.diff(r["x"]), np.diff(r["y"])).sum())  # m: the time law is length / T
     d["success"] = True
     return d, sol
 
