@@ -103,7 +103,7 @@ def test_fit_ioc_comparison_equals_generate_then_compare(tmp_path):
     from cobot_analysis.compare import against_set, against_vs_mean, pivot
     from cobot_analysis.models.ioc import targets_from_table
     from cobot_analysis.models.outputs import GENERATED
-    from cobot_analysis.models.report import compare_models, study_cases
+    from cobot_analysis.models.comparison import compare_models, study_cases
     from cobot_analysis.schema import write_table
 
     conv = conventions.CONTINUOUS

@@ -1,194 +1,18 @@
-"""Comparison of the walking-path models against measured trajectories, and the fit report
-(docs/methods.md sec. 4-6): distances per model and trajectory, summary tables overall / by start
-orientation / by global distance, statistics of model error vs subject-to-mean distances, figures.
+"""The report of the model stages (docs/methods.md sec. 4-6): summary tables overall / by start
+orientation / by global distance, statistics of model error vs subject-to-mean distances, figures of
+generated vs measured paths, flags of durations and weights at a bound, and the coupled model's section.
 """
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from cobot_analysis.design import GLOBAL_DISTANCE_SPLIT
-from cobot_analysis.models.ioc import FAILED_D, Target, distances
-
-#: models of the comparison: label -> (model, weights). "fitted" is filled in by the caller.
-COMPARED = {
-    "unicycle": ("unicycle", "walking-2021"),
-    "clothoid": ("clothoid", None),
-    "Mombaur OC": ("mombaur", "mombaur-2010"),
-    "improved OC (published)": ("improved", "walking-2021"),
-}
-
-
-def compared_models(convention) -> dict:
-    """The models of the comparison that ``convention`` has (the published one has no unicycle)."""
-    return {k: v for k, v in COMPARED.items() if v[0] == "clothoid" or v[0] in convention.oc}
-
-
-def orientation_of(condition: str) -> str:
-    """Start orientation letter of a walking condition code ('' if not a walking code)."""
-    from cobot_analysis.design import walking_condition
-
-    try:
-        return walking_condition(condition).orientation
-    except ValueError:
-        return ""
-
-
-def study_cases(means: pd.DataFrame, convention, goal, *, path=None) -> list[tuple[str, tuple, tuple, float, float]]:
-    """(condition, start, goal, measured travel time, measured mean speed) of every walking-study mean
-    in ``means``, in the order of the design (NaN where the data hold no travel time): the start and
-    goal poses the model comparison of ``fit-ioc`` takes (``targets_from_table(..., unoriented=True)``),
-    so ``generate --study`` then ``compare`` answers with the same paths (continuous: the measured
-    start pose and ``goal`` on the branch of the last measured heading; published: the authors'
-    endpoints, docs/methods.md sec. 11)."""
-    from cobot_analysis import conventions
-    from cobot_analysis.design import WALKING_CONDITIONS
-    from cobot_analysis.models import mean_speed
-    from cobot_analysis.models.ioc import targets_from_table
-
-    conv = conventions.get(convention)
-    means = means[(means["kind"] == "mean") & (means["entity"] == "walker")] if "kind" in means else means
-    means = means[means["condition"].isin(WALKING_CONDITIONS)]
-    targets = targets_from_table(means, path=path, goal=goal, convention=conv, unoriented=True)
-    tt = means.groupby("trial")["travel_time"].first() if "travel_time" in means else pd.Series(dtype=float)
-    order = {c: i for i, c in enumerate(WALKING_CONDITIONS)}
-    out = []
-    for t in sorted(targets, key=lambda t: order[t.condition]):
-        T = float(tt.get(t.trial, math.nan))
-        out.append((t.condition, t.start, t.goal, T, mean_speed(t.x, t.y, T) if np.isfinite(T) else math.nan))
-    return out
-
-
-def generated_section(df: pd.DataFrame, convention, measured: dict[str, tuple[float, float]] | None = None) -> list[str]:
-    """results.md lines of ``generate``: per path its duration T, mean speed (the time law), the
-    subjects' own where the data hold them (``measured``: trial -> (travel time, mean speed)), the
-    end's distance to the goal and whether it reached it (``models.goal_check``), and a summary."""
-    from cobot_analysis import conventions
-    from cobot_analysis.models import GOAL_TOLERANCE
-
-    conv = conventions.get(convention)
-    measured = {k: v for k, v in (measured or {}).items() if np.isfinite(v[0])}
-    ends = df.groupby("trial", sort=False).tail(1).set_index("trial")
-    cols = " subjects' T (s) | subjects' mean speed (m/s) |" if measured else ""
-    lines = [f"| trial | T (s) | mean speed (m/s) |{cols} cost | end error (m) | heading error (rad) | goal reached | status |",
-             "|---|---|---|" + ("---|---|" if measured else "") + "---|---|---|---|---|"]
-    for trial, r in ends.iterrows():
-        mine = ""
-        if measured:
-            mine = " {:.2f} | {:.2f} |".format(*measured[trial]) if trial in measured else " – | – |"
-        lines.append(f"| {trial} | {r.travel_time:.2f} | {r.mean_speed:.2f} |{mine} {r.cost:.3f} | {r.end_position_error:.3f} | "
-                     f"{r.end_heading_error:.3f} | {'yes' if r.goal_reached else 'no'} | {r.status} |")
-    n, reached = len(ends), int(ends["goal_reached"].sum())
-    v = ends["mean_speed"]
-    missed = ends.index[~ends["goal_reached"].astype(bool)].tolist()
-    summary = [
-        f"Goal reached (end within {GOAL_TOLERANCE[0] * 100:g} cm and {GOAL_TOLERANCE[1]:g} rad): {reached} of {n} paths"
-        + (f"; not reached: {', '.join(missed[:10])}{', ...' if len(missed) > 10 else ''} (status column)" if missed else "")
-        + (". Under the continuous convention the goal at rest is a constraint of the OC problem (docs/methods.md "
-           "sec. 5.5): a path that misses it did not converge." if conv.name == "continuous" else
-           ". Under the published convention the goal is the terminal cost of the authors' models: a path may end "
-           "near it, not on it."), "",
-        f"Time law: durations T from {ends['travel_time'].min():.2f} to {ends['travel_time'].max():.2f} s, mean speed "
-        f"(path length / T) from {v.min():.3g} to {v.max():.3g} m/s (median {v.median():.3g})"
-        + (" (" + "; ".join(f"{m}: T {g['travel_time'].min():.2f}-{g['travel_time'].max():.2f} s, {g['mean_speed'].min():.3g}-"
-                            f"{g['mean_speed'].max():.3g} m/s" for m, g in ends.groupby("model", sort=False)) + ")"
-           if ends["model"].nunique() > 1 else "")
-        + (". The authors' duration rule ends on its upper bound (20 s per metre of start-goal distance, docs/methods.md "
-           "sec. 11): the shape of the path is what the papers compare, its timing is no human pace; time-dependent "
-           "outputs (velocities, velocity-commands) need the continuous convention." if conv.name == "published" else ".")
-        + (" The subjects' own travel times are in the table." if measured else
-           " The input holds no subjects' travel times to compare with (the published walking-2020 means have none)."), ""]
-    return summary + lines + [""]
-
-
-def pace_lines(mean_df: pd.DataFrame, targets, per_target: list[dict], durations: pd.DataFrame | None) -> list[str]:
-    """Markdown: duration T and mean speed (path length / T) of the fitted paths (continuous convention),
-    beside the measured trials' (``durations``: the pair study's durations.parquet, mean over the trials
-    of the same scenario, goal and direction as each mean), and how many T sit on a bound."""
-    ok = [(t, d) for t, d in zip(targets, per_target) if d.get("success") and d.get("length") is not None]
-    if not ok:
-        return []
-    T = np.array([d["T"] for _, d in ok])
-    v = np.array([d["length"] / d["T"] for _, d in ok])
-    bound = sum(d.get("T_at_bound", 0) != 0 for _, d in ok)
-    line = (f"Time law of the fitted paths: T {T.min():.2f}-{T.max():.2f} s, mean speed (path length / T) "
-            f"{v.min():.3g}-{v.max():.3g} m/s (median {np.median(v):.3g}); {bound} of {len(ok)} durations on a bound")
-    keys = ["scenario", "condition", "direction"]
-    if durations is None or not set(keys + ["duration", "mean_velocity"]) <= set(durations.columns) or \
-            not set(keys) <= set(mean_df.columns):
-        return [line + ". The input holds no measured durations to compare with.", ""]
-    meta = mean_df.groupby("trial")[keys].first()
-    measured = durations.groupby(keys)[["duration", "mean_velocity"]].mean()
-    rows = [measured.loc[tuple(meta.loc[t.trial])] for t, _ in ok if t.trial in meta.index and tuple(meta.loc[t.trial]) in measured.index]
-    if not rows:
-        return [line + ". No measured duration matches these means.", ""]
-    m = pd.DataFrame(rows)
-    return [line + f"; the measured trials of the same scenario, goal and direction (durations.parquet, {len(m)} means): "
-            f"T {m['duration'].mean():.2f} ± {m['duration'].std():.2f} s, mean speed {m['mean_velocity'].mean():.3g} ± "
-            f"{m['mean_velocity'].std():.3g} m/s. D compares time-normalised paths: the pace comes from the held a0 and a1 "
-            "(docs/methods.md sec. 6).", ""]
-
-
-def compare_task(task) -> list[dict]:
-    """Worker task: every compared model on one target (top-level, picklable)."""
-    from cobot_analysis.models import generate
-    from cobot_analysis.models.presets import weights_vector
-
-    target, models, n_intervals, angle_weight, angle, convention = task
-    rows = []
-    for label, (model, weights) in models.items():
-        w = weights if isinstance(weights, str | None) else dict(zip(
-            ("a0", "a1", "a2", "a3", "a4", "a5", "a6", "b0", "b1", "b2", "b3"), weights_vector(weights)))
-        try:
-            df = generate(model, target.start, target.goal, weights=w, n_samples=len(target.x), n_intervals=n_intervals,
-                          convention=convention)
-            d = distances(target, df["x"].to_numpy(), df["y"].to_numpy(), df["theta"].to_numpy(), convention)
-            ok = True
-        except Exception as exc:  # noqa: BLE001 - a failed model is a flagged row, not a crash
-            from cobot_analysis.errors import SolverError
-
-            if not isinstance(exc, SolverError):
-                raise
-            d, ok = {"d_xy": math.nan, "d_theta": math.nan, "d_gamma": math.nan}, False
-        rows.append({"model": label, "trial": target.trial, "condition": target.condition, "subject": target.subject,
-                     "orientation": orientation_of(target.condition), "global_distance": target.global_distance,
-                     **d, "D": d["d_xy"] + angle_weight * d[f"d_{angle}"], "converged": ok})
-    return rows
-
-
-def compare_models(targets: list[Target], models: dict, *, n_intervals: int = 100, angle: str = "gamma",
-                   angle_weight: float = 0.5, jobs=None, scheduler=None, fit: str = "all",
-                   convention: str = "continuous") -> pd.DataFrame:
-    """Distances of every model in ``models`` (label -> (model, weights)) to every target, each model
-    generated and compared under ``convention``, on ``generate``'s grid by default: the same paths and
-    distances as ``generate --study`` (``study_cases``) then ``compare --against`` (tests/test_models_goal.py)."""
-    from cobot_analysis.parallel import map_tasks
-
-    tasks = [(t, models, n_intervals, angle_weight, angle, convention) for t in targets]
-    rows = map_tasks(compare_task, tasks, jobs=jobs, scheduler=scheduler, description="model comparison")
-    df = pd.DataFrame([r for rs in rows for r in rs])
-    df.insert(1, "fit", fit)
-    return df
-
-
-def subject_distances(trials: list[Target], means: list[Target], angle: str = "gamma",
-                      convention: str = "continuous") -> pd.DataFrame:
-    """Distance of each subject trajectory to the mean of its condition (docs/methods.md sec. 4), under
-    ``convention`` (published: both paths resampled by arc length)."""
-    by_condition = {m.condition: m for m in means}
-    rows = []
-    for t in trials:
-        m = by_condition.get(t.condition)
-        if m is None or len(m.x) != len(t.x):
-            continue
-        d = distances(m, t.x, t.y, t.theta, convention)
-        rows.append({"model": "subjects vs mean", "fit": "", "trial": t.trial, "condition": t.condition, "subject": t.subject,
-                     "orientation": orientation_of(t.condition), "global_distance": m.global_distance, **d,
-                     "D": d["d_xy"] + 0.5 * d[f"d_{angle}"], "converged": True})
-    return pd.DataFrame(rows)
+from cobot_analysis.models.ioc import FAILED_D, Target
 
 
 def _ms(v: pd.Series, digits: int = 3, ddof: int = 1) -> str:
@@ -325,9 +149,9 @@ def figure_paths(targets: list[Target], generated: dict[str, list[pd.DataFrame]]
 def figure_boxplots(df: pd.DataFrame, angle: str = "gamma"):
     """Box plots (median, quartiles, whiskers to 1.5 IQR, outliers) of d_xy and d_angle per model,
     the number of trajectories under each box."""
-    from cobot_analysis.reports.figures import _plt
+    from cobot_analysis.plotting import pyplot
 
-    plt = _plt()
+    plt = pyplot()
     models = list(dict.fromkeys(df["model"]))
     fig, axes = plt.subplots(1, 2, figsize=(max(8.0, 2.2 * len(models) + 2), 4.2), layout="constrained")
     for ax, metric, unit in zip(axes, ("d_xy", f"d_{angle}"), ("m", "rad")):
@@ -374,46 +198,6 @@ def weight_limit_flag(weights: dict[str, float], fitted: tuple[str, ...]) -> str
         return f"Fitted weights inside the search limits 1e{LOG_BOUNDS[0]:g}..1e{LOG_BOUNDS[1]:g}."
     return (f"**Warning: fitted weights at a search limit** (1e{LOG_BOUNDS[0]:g}..1e{LOG_BOUNDS[1]:g}): {', '.join(near)}; "
             "the optimum may lie beyond the limit, so these values bound the estimate rather than estimate it.")
-
-
-# ---- coupled model (two carriers) ----------------------------------------------------------------
-def coupled_task(task) -> tuple[dict, list[dict] | None]:
-    """Worker task: the coupled model at ``w`` on one pair target, best of a 'rest' and a 'line'
-    guess; returns the distance terms and the resampled paths of both carriers (None if not converged)."""
-    from cobot_analysis.models.oc import resample
-    from cobot_analysis.models.ioc import solve_pair_target
-    from cobot_analysis.models.oc.problem import OCPSolution
-
-    spec, w, t = task
-    d, sol = solve_pair_target(spec, np.asarray(w, float), t, ("rest", "line"))
-    if not d["success"]:
-        return d, None
-    paths = []
-    for i, c in enumerate(t.carriers):
-        part = OCPSolution(sol.X[:, 6 * i:6 * i + 6], sol.U[:, 3 * i:3 * i + 3], sol.T, sol.cost, True, "", "", 0, sol.primal)
-        paths.append(resample(part, len(c.x)))
-    return d, paths
-
-
-def coupled_distances(spec, targets, weights: dict[str, np.ndarray], *, jobs=None, scheduler=None):
-    """Per-carrier distances of the coupled model at each weight set (label -> 15-vector) to every
-    pair target: (long table, one row per label x target x carrier; paths label -> [per target])."""
-    from cobot_analysis.parallel import map_tasks
-
-    labels = list(weights)
-    tasks = [(spec, tuple(weights[lab]), t) for lab in labels for t in targets]
-    res = map_tasks(coupled_task, tasks, jobs=jobs, scheduler=scheduler, description="coupled model runs")
-    rows, paths = [], {lab: [] for lab in labels}
-    for (_, _, t), lab, (d, p) in zip(tasks, [lab for lab in labels for _ in targets], res):
-        paths[lab].append(p)
-        for i, c in enumerate(t.carriers):
-            k = f"_{i + 1}"
-            dxy, dth, dga = (d.get(f"d_xy{k}", math.nan), d.get(f"d_theta{k}", math.nan), d.get(f"d_gamma{k}", math.nan))
-            rows.append({"model": lab, "fit": "all", "trial": t.trial, "condition": t.condition, "subject": c.trial,
-                         "orientation": "", "global_distance": c.global_distance, "direction": t.direction, "carrier": i + 1,
-                         "d_xy": dxy, "d_theta": dth, "d_gamma": dga, "D": dxy + spec.angle_weight * dth,
-                         "T": d["T"], "T_at_bound": int(d["T_at_bound"]), "converged": bool(d["success"])})
-    return pd.DataFrame(rows), paths
 
 
 def coupled_summary(df: pd.DataFrame) -> str:
@@ -553,3 +337,161 @@ def duration_lines(df: pd.DataFrame, targets, durations: pd.DataFrame | None, v_
     else:
         lines += ["", "No published trial durations in this workspace (import-published/durations.parquet)."]
     return lines + [""]
+
+
+# ---- the stages' results fragments ---------------------------------------------------------------
+def generate_markdown(result, summary: str) -> str:
+    """Generated paths: per trajectory the duration T, the mean speed (its time law), the subjects' own
+    where the data hold them, the cost and the end's distance to the goal (``generated_section``)."""
+    grid = (f"OC grid {result.n_intervals} intervals resampled to {result.n_samples} samples" if result.convention == "continuous" else
+            "the authors' node step and duration rule, paths at their nodes")
+    goals = sorted({(round(g[0], 3), round(g[1], 3), round(math.remainder(g[2], 2 * math.pi), 3)) for _, _, g in result.cases})
+    measured = {f"{m}_{c}" if c else m: result.measured[c] for m in result.models for c, _, _ in result.cases
+                if c in (result.measured or {})}
+    lines = [f"## Generated trajectories ({result.convention} convention)", "",
+             f"Models {', '.join(result.models)}; weights {result.weights or 'model presets'}; "
+             f"goal{'s' if len(goals) > 1 else ''} {goals[0] if len(goals) == 1 else f'of the {len(goals)} measured means'}; "
+             f"{grid} (docs/methods.md sec. 11: {summary}).", "",
+             *generated_section(result.generated, result.convention, measured)]
+    return "\n".join(lines) + "\n"
+
+
+def generated_section(df: pd.DataFrame, convention, measured: dict[str, tuple[float, float]] | None = None) -> list[str]:
+    """results.md lines of ``generate``: per path its duration T, mean speed (the time law), the
+    subjects' own where the data hold them (``measured``: trial -> (travel time, mean speed)), the
+    end's distance to the goal and whether it reached it (``models.goal_check``), and a summary."""
+    from cobot_analysis import conventions
+    from cobot_analysis.models import GOAL_TOLERANCE
+
+    conv = conventions.get(convention)
+    measured = {k: v for k, v in (measured or {}).items() if np.isfinite(v[0])}
+    ends = df.groupby("trial", sort=False).tail(1).set_index("trial")
+    cols = " subjects' T (s) | subjects' mean speed (m/s) |" if measured else ""
+    lines = [f"| trial | T (s) | mean speed (m/s) |{cols} cost | end error (m) | heading error (rad) | goal reached | status |",
+             "|---|---|---|" + ("---|---|" if measured else "") + "---|---|---|---|---|"]
+    for trial, r in ends.iterrows():
+        mine = ""
+        if measured:
+            mine = " {:.2f} | {:.2f} |".format(*measured[trial]) if trial in measured else " – | – |"
+        lines.append(f"| {trial} | {r.travel_time:.2f} | {r.mean_speed:.2f} |{mine} {r.cost:.3f} | {r.end_position_error:.3f} | "
+                     f"{r.end_heading_error:.3f} | {'yes' if r.goal_reached else 'no'} | {r.status} |")
+    n, reached = len(ends), int(ends["goal_reached"].sum())
+    v = ends["mean_speed"]
+    missed = ends.index[~ends["goal_reached"].astype(bool)].tolist()
+    summary = [
+        f"Goal reached (end within {GOAL_TOLERANCE[0] * 100:g} cm and {GOAL_TOLERANCE[1]:g} rad): {reached} of {n} paths"
+        + (f"; not reached: {', '.join(missed[:10])}{', ...' if len(missed) > 10 else ''} (status column)" if missed else "")
+        + (". Under the continuous convention the goal at rest is a constraint of the OC problem (docs/methods.md "
+           "sec. 5.5): a path that misses it did not converge." if conv.name == "continuous" else
+           ". Under the published convention the goal is the terminal cost of the authors' models: a path may end "
+           "near it, not on it."), "",
+        f"Time law: durations T from {ends['travel_time'].min():.2f} to {ends['travel_time'].max():.2f} s, mean speed "
+        f"(path length / T) from {v.min():.3g} to {v.max():.3g} m/s (median {v.median():.3g})"
+        + (" (" + "; ".join(f"{m}: T {g['travel_time'].min():.2f}-{g['travel_time'].max():.2f} s, {g['mean_speed'].min():.3g}-"
+                            f"{g['mean_speed'].max():.3g} m/s" for m, g in ends.groupby("model", sort=False)) + ")"
+           if ends["model"].nunique() > 1 else "")
+        + (". The authors' duration rule ends on its upper bound (20 s per metre of start-goal distance, docs/methods.md "
+           "sec. 11): the shape of the path is what the papers compare, its timing is no human pace; time-dependent "
+           "outputs (velocities, velocity-commands) need the continuous convention." if conv.name == "published" else ".")
+        + (" The subjects' own travel times are in the table." if measured else
+           " The input holds no subjects' travel times to compare with (the published walking-2020 means have none)."), ""]
+    return summary + lines + [""]
+
+
+def pace_lines(mean_keys: pd.DataFrame | None, targets, per_target: list[dict], durations: pd.DataFrame | None) -> list[str]:
+    """Markdown: duration T and mean speed (path length / T) of the fitted paths (continuous convention),
+    beside the measured trials' (``durations``: the pair study's durations.parquet, mean over the trials
+    of the same scenario, goal and direction as each mean; ``mean_keys``: those columns per mean trial),
+    and how many T sit on a bound."""
+    ok = [(t, d) for t, d in zip(targets, per_target) if d.get("success") and d.get("length") is not None]
+    if not ok:
+        return []
+    T = np.array([d["T"] for _, d in ok])
+    v = np.array([d["length"] / d["T"] for _, d in ok])
+    bound = sum(d.get("T_at_bound", 0) != 0 for _, d in ok)
+    line = (f"Time law of the fitted paths: T {T.min():.2f}-{T.max():.2f} s, mean speed (path length / T) "
+            f"{v.min():.3g}-{v.max():.3g} m/s (median {np.median(v):.3g}); {bound} of {len(ok)} durations on a bound")
+    keys = ["scenario", "condition", "direction"]
+    if durations is None or mean_keys is None or not set(keys + ["duration", "mean_velocity"]) <= set(durations.columns) or \
+            not set(keys) <= set(mean_keys.columns):
+        return [line + ". The input holds no measured durations to compare with.", ""]
+    meta = mean_keys[keys]
+    measured = durations.groupby(keys)[["duration", "mean_velocity"]].mean()
+    rows = [measured.loc[tuple(meta.loc[t.trial])] for t, _ in ok if t.trial in meta.index and tuple(meta.loc[t.trial]) in measured.index]
+    if not rows:
+        return [line + ". No measured duration matches these means.", ""]
+    m = pd.DataFrame(rows)
+    return [line + f"; the measured trials of the same scenario, goal and direction (durations.parquet, {len(m)} means): "
+            f"T {m['duration'].mean():.2f} ± {m['duration'].std():.2f} s, mean speed {m['mean_velocity'].mean():.3g} ± "
+            f"{m['mean_velocity'].std():.3g} m/s. D compares time-normalised paths: the pace comes from the held a0 and a1 "
+            "(docs/methods.md sec. 6).", ""]
+
+
+def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal: float, durations: pd.DataFrame | None) -> str:
+    """The IOC's results fragment: the fits (D, evaluations, weights at the start and fitted), their flags,
+    the model comparison with its statistics and figures (drawn into ``stage``)."""
+    from cobot_analysis import conventions
+
+    conv = conventions.get(result.convention)
+    model, names, per = result.model, result.names, result.per
+    spec, results, fits = result.spec, result.results, result.fits
+    angle = spec.angle
+    if conv.name == "published":
+        lower = ("lower level: the published convention (docs/methods.md sec. 11): explicit Euler at the authors' node "
+                 "step, costs summed per node, the authors' start and goal poses; each path's horizon chosen by the authors' "
+                 "duration rule (Nelder-Mead on J/T) at the start weights and held during the fit, then the rule run again "
+                 "at the fitted weights (the D fitted below); distances after arc-length resampling of both paths, to "
+                 + ("the authors' mean block" if Path(result.means_source).parent.name == "import-published" else "the means")
+                 + f" ({result.means_source})")
+    else:
+        lower = (f"lower level: OC with free duration on {intervals} intervals, the goal at rest a constraint (continuous "
+                 "convention, docs/methods.md sec. 5.5, 11), from the solution at the best weights so far and from a rest "
+                 "and a straight-line guess, the least cost kept")
+    start_weights = result.start_label
+    lines = [f"## Inverse optimal control ({model} model{', one fit per subject' if per == 'subject' else ''}, "
+             f"{conv.name} convention)", "",
+             f"Bi-level IOC (docs/methods.md sec. 6): upper level {optimizer} over log10 of ({', '.join(names)}), "
+             f"bounds 1e-7..1e3, the other weights held at their start value "
+             f"({'neutral start: fitted weights 1' if start_weights == 'ones' else start_weights}); "
+             f"{lower}; objective D = d_xy + 0.5 d_{angle} averaged over the trajectories (orientation required; "
+             f"goal: {result.goal if conv.name == 'continuous' else 'the authors'})"
+             + ((". gamma of the measured path: " + ("recorded in the data" if conv.comparison.measured_gamma == "data" else
+                                                       "from the path (distances.gamma_from_path)") + "; of the model's path: from the path.")
+                if angle == "gamma" else "; pair study: per-scenario means (the pooled 'all' means left out).")
+             + (" Coupled model: scenario-3 forward and return means, Subject 2 as carrier 1 on returns." if model == "coupled" else ""),
+             "",
+             "| fit | paths | D start | D fitted | evaluations | not converged | " + " | ".join(names) + " |",
+             "|---|---|---|---|---|---|" + "---|" * len(names)]
+    w0, all_names = result.start_weights, result.all_names
+    for k, r in results.items():
+        lines.append(f"| {k}: start weights ({start_weights}) | {len(fits[k])} | {r.start_objective:.4f} |  |  |  | "
+                     + " | ".join(f"{w0[all_names.index(n)]:.3g}" for n in names) + " |")
+        lines.append(f"| {k}: fitted | {len(fits[k])} | {r.start_objective:.4f} | {r.objective:.4f} | {r.evaluations} | {r.failed} | "
+                     + " | ".join(f"{r.weights[n]:.3g}" for n in names) + " |")
+    lines.append("")
+    for k, r in results.items():
+        lines += [("" if per == "all" else f"Fit {k}: ") + duration_flag(r.per_target, v_nominal, conv.name)
+                  + " " + weight_limit_flag(r.weights, names)
+                  + (f" Optimiser: {r.message.strip()}" if per == "all" else ""), ""]
+    if conv.name == "published" and "a0" not in names and model != "coupled":
+        lines += ["a0 is held at its start value under the published convention: a constant per node, it adds a0 N to J "
+                  "on a held horizon and a0 / dt to the duration rule's J / T, so no path depends on it (docs/methods.md "
+                  "sec. 11).", ""]
+        if r.held_objective is not None:
+            lines += [f"{'' if per == 'all' else f'Fit {k}: '}with the horizons held, D = {r.held_objective:.4f} at the "
+                      f"fitted weights; the duration rule run again there moves the horizon of {r.horizons_changed} of "
+                      f"{len(fits[k])} paths (D = {r.objective:.4f}).", ""]
+    if conv.name == "continuous" and model != "coupled" and per == "all":
+        lines += pace_lines(result.mean_keys, fits["all"], results["all"].per_target, durations)
+    if result.coupled is not None:
+        lines += coupled_section(results["all"], result.coupled, result.mean_targets, stage, durations)
+    if result.comparison is not None:
+        comparison = result.comparison
+        lines += [f"### Model comparison on the mean trajectories ({conv.name} convention)", "",
+                  summary_table(comparison, angle, ddof=conv.comparison.sd_ddof),
+                  "### Statistics", "", statistics(comparison, list(result.compared)[-1], angle)]
+        stage.savefig(figure_boxplots(comparison, angle), "distances_boxplot")
+        lines += ["![distances per model](distances_boxplot.png)", ""]
+        stage.savefig(figure_paths(result.mean_targets, result.paths, "mean (black) vs improved OC: published, fitted"), "paths")
+        lines += ["![generated vs mean paths](paths.png)", ""]
+    return "\n".join(lines) + "\n"
