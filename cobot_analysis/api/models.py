@@ -38,7 +38,13 @@ class GenerateResult:
         n, missed = len(ends), int((~ends["goal_reached"].astype(bool)).sum())
         return (f"{n} {'trajectory' if n == 1 else 'trajectories'}"
                 + (f", {missed} not reaching their goal (results.md)" if missed else ", all at their goal")
-                + f", mean speed {ends['mean_speed'].min():.3g}-{ends['mean_speed'].max():.3g} m/s")
+                + f", mean speed {_span(ends['mean_speed'])} m/s")
+
+
+def _span(v: pd.Series) -> str:
+    """'a-b' (3 significant digits), or 'a' when both ends print alike."""
+    lo, hi = f"{v.min():.3g}", f"{v.max():.3g}"
+    return lo if lo == hi else f"{lo}-{hi}"
 
 
 def _generate_task(task):
