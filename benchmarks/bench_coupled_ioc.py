@@ -38,7 +38,7 @@ def main() -> None:
     w = weights_vector(PRESETS["pair-2022"], "coupled")
     spec = IOCSpec(model="coupled", start_weights=tuple(w), n_intervals=a.intervals)
     t0 = time.perf_counter()
-    get_coupled_ocp(OCPShape(a.intervals, free_time=True))
+    get_coupled_ocp(OCPShape(a.intervals, free_time=True, goal="constraint"))  # the shape solve_pair uses
     build = time.perf_counter() - t0
     cold, warm, primals, failed = [], [], [], 0
     w2 = w * 1.1

@@ -83,14 +83,19 @@ class TrajectorySet:
     def compared_as(self, comparison) -> "TrajectorySet":
         """The set as a ``conventions.Comparison`` compares it: with ``arclength`` (and both paths
         resampled) every path resampled by arc length to its N samples (``distances.resample_arclength``;
-        angles stay on the time samples), angles compared with ``comparison.angle_difference``."""
-        from cobot_analysis.distances import resample_arclength
+        angles stay on the time samples), angles compared with ``comparison.angle_difference``; gamma
+        as recorded (``measured_gamma`` "data") or from the path (``distances.gamma_from_path``, "path":
+        a mean's gamma is then the one of the mean path, not the mean of its trials' gammas, as fit-ioc's
+        model comparison takes it)."""
+        from cobot_analysis.distances import gamma_from_path, resample_arclength
 
-        x, y = self.x, self.y
+        x, y, gamma = self.x, self.y, self.gamma
         if comparison.resample == "arclength" and comparison.both_resampled and len(self):
             xy = [resample_arclength(xi, yi, self.n_samples) for xi, yi in zip(self.x, self.y)]
             x, y = np.array([v[0] for v in xy]), np.array([v[1] for v in xy])
-        return TrajectorySet(self.meta, x, y, self.theta, self.gamma, comparison.angle_difference)
+        if comparison.measured_gamma == "path" and len(self):
+            gamma = gamma_from_path(x, y, self.theta)
+        return TrajectorySet(self.meta, x, y, self.theta, gamma, comparison.angle_difference)
 
 
 def plain_dtypes(df: pd.DataFrame) -> pd.DataFrame:

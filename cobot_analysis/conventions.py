@@ -6,8 +6,9 @@ OC problems are discretised and timed, how paths are compared and how prediction
   start moved to the origin, the authors' duration rules, paths compared after arc-length
   resampling, one prediction node per sample at 0.1 s starting at rest, population sd.
 - ``continuous``: our own reading of the formulas: integrated costs on an exact-in-time step, the
-  duration a decision variable, psi wrapped and regularised at the goal, time-normalised pointwise
-  distances, predictions at the real sampling period from an estimated velocity, sample sd.
+  duration a decision variable, the goal pose at rest a terminal constraint (the b weights unused),
+  psi wrapped and regularised at the goal, time-normalised pointwise distances, predictions at the
+  real sampling period from an estimated velocity, sample sd.
 
 Stages take ``--convention NAME`` (``get``), pass the ``Convention`` down, and write its name into
 their Parquet metadata, manifest and results (their directories: ``registry.directory``). Mixing outputs of two conventions is refused
@@ -33,6 +34,7 @@ class OCRule:
     psi: str = "wrapped"  # "wrapped" (body-frame bearing in (-pi, pi], regularised at the goal) | "raw" (atan2 - theta)
     heading: str = "raw"  # heading error of the terminal cost: "raw" (thf - theta) | "wrap-once" (+-2 pi once)
     psi_eps: float = 0.05  # m, psi^2 r^2 / (r^2 + eps^2) near the goal
+    goal: str = "cost"  # "cost": goal and rest weighted by the terminal cost (b0..b3) | "constraint": X(T) = (goal, at rest)
 
 
 @dataclass(frozen=True)
@@ -94,15 +96,16 @@ PUBLISHED = Convention(
 
 CONTINUOUS = Convention(
     name="continuous",
-    summary=("integrated costs on an exact-in-time step, the duration a decision variable, psi wrapped and "
+    summary=("integrated costs on an exact-in-time step, the duration a decision variable, the goal pose at rest a "
+             "terminal constraint, psi wrapped and "
              "regularised at the goal, time-normalised pointwise distances, prediction at the real sampling period "
              "from an estimated velocity, sample sd"),
     oc={
-        "unicycle": OCRule("midpoint", "free"),
-        "improved": OCRule("midpoint", "free"),
-        "table": OCRule("midpoint", "free"),
-        "mombaur": OCRule("midpoint", "grid"),
-        "coupled": OCRule("midpoint", "free"),
+        "unicycle": OCRule("midpoint", "free", goal="constraint"),
+        "improved": OCRule("midpoint", "free", goal="constraint"),
+        "table": OCRule("midpoint", "free", goal="constraint"),
+        "mombaur": OCRule("midpoint", "grid", goal="constraint"),
+        "coupled": OCRule("midpoint", "free", goal="constraint"),
     },
     comparison=Comparison(resample="time", both_resampled=False, angle_difference="wrapped", measured_gamma="path", sd_ddof=1),
     prediction=PredictionRule(node_dt=None, start="estimated", warm_start=True, table_weights="table-2022"),

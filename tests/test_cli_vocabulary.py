@@ -130,7 +130,8 @@ def test_generate_start_reads_x_y_theta_either_way(cli, tmp_path, monkeypatch):
         ws = tmp_path / f"ws{i}"
         code, _, err = cli("generate", "--out", ws, "--model", "clothoid", "--start", *pose)
         assert code == 0, err
-        assert err.strip().splitlines()[-1] == f"generate (continuous): 1 trajectory -> {ws / 'generate' / 'generated.parquet'}"
+        assert err.strip().splitlines()[-1] == (f"generate (continuous): 1 trajectory, all at their goal, mean speed 1 m/s -> "
+                                                f"{ws / 'generate' / 'generated.parquet'}")
         tables.append(pd.read_parquet(ws / "generate" / "generated.parquet"))
     first = tables[0].sort_values("sample").iloc[0]
     assert (first["x"], first["y"], first["theta"]) == pytest.approx((2.0, 3.0, 0.5))

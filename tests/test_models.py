@@ -63,7 +63,7 @@ def test_stiff_terminal_weights_end_at_the_goal_at_rest():
 def test_free_duration_equals_the_one_dimensional_search():
     start = (-1.5, -3.4, 0.0)
     free = solve_model("improved", start, GOAL, PUBLISHED, duration="free")
-    ocp = get_ocp(OCPShape(100))
+    ocp = get_ocp(OCPShape(100, goal="constraint"))  # the continuous convention's goal rule
     found = search_duration(ocp, start, GOAL, PUBLISHED, initial_duration(start, GOAL), xatol=1e-4)
     assert free.success and found.success
     assert free.T == pytest.approx(found.T, rel=5e-3)
@@ -71,7 +71,9 @@ def test_free_duration_equals_the_one_dimensional_search():
 
 
 def test_fatrop_and_ipopt_reach_the_same_optimum():
-    start = (-4.0, 0.6, math.pi)
+    # facing the goal's side: with the goal a constraint a start facing away (theta0 = pi) has several
+    # local minima (fatrop and IPOPT end in different ones from the same guess, costs 48.7-53.3)
+    start = (-4.0, 0.6, math.pi / 2)
     a = solve_model("improved", start, GOAL, PUBLISHED, solver="fatrop", guess="rest")
     b = solve_model("improved", start, GOAL, PUBLISHED, solver="ipopt", guess="rest")
     assert a.solver == "fatrop" and b.solver == "ipopt"
@@ -194,7 +196,7 @@ def test_coupled_carriers_start_at_rest_and_mirror_problems_give_mirrored_paths(
 
 # -- the compiled NLP functions (ocp._nlp_functions, ocp._compiled_library) ------------------------
 
-@pytest.mark.parametrize("shape", [OCPShape(7), OCPShape(6, "unicycle", free_time=True)])
+@pytest.mark.parametrize("shape", [OCPShape(7), OCPShape(6, "unicycle", free_time=True), OCPShape(5, free_time=True, goal="constraint")])
 def test_hand_assembled_derivatives_equal_casadi_ad_of_the_nlp(shape, monkeypatch):
     """f, g, grad f, jac g and the Lagrangian's gradient and Hessian that fatrop gets (assembled
     from per-stage derivatives) equal casadi's AD of the whole NLP, values and sparsity."""

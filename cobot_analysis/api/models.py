@@ -31,10 +31,20 @@ class GenerateResult:
     convention: str
     n_samples: int
     n_intervals: int
+    measured: dict[str, tuple[float, float]] | None = None  # condition -> the subjects' (travel time, mean speed)
 
     def summary(self) -> str:
-        n = self.generated["trial"].nunique()
-        return f"{n} {'trajectory' if n == 1 else 'trajectories'}"
+        ends = self.generated.groupby("trial").tail(1)
+        n, missed = len(ends), int((~ends["goal_reached"].astype(bool)).sum())
+        return (f"{n} {'trajectory' if n == 1 else 'trajectories'}"
+                + (f", {missed} not reaching their goal (results.md)" if missed else ", all at their goal")
+                + f", mean speed {_span(ends['mean_speed'])} m/s")
+
+
+def _span(v: pd.Series) -> str:
+    """'a-b' (3 significant digits), or 'a' when both ends print alike."""
+    lo, hi = f"{v.min():.3g}", f"{v.max():.3g}"
+    return lo if lo == hi else f"{lo}-{hi}"
 
 
 def _generate_task(task):
@@ -66,29 +76,36 @@ def generate(model: str = "improved", *, start: tuple[float, float, float] | Non
              goal: tuple[float, float, float] | None = None, cases: list[tuple[str, tuple, tuple]] | None = None,
              study: str | None = None, weights: Any = None, samples: int = 500, intervals: int = 100,
              duration: str | None = None, v_nominal: float = 1.0, max_iter: int = 500, convention: str | None = None,
-             jobs: int | None = None, scheduler: str | None = None) -> GenerateResult:
+             measured: dict | None = None, jobs: int | None = None, scheduler: str | None = None) -> GenerateResult:
     """Paths of a walking-path model (``unicycle``, ``clothoid``, ``mombaur``, ``improved``, ``table`` or
     ``all``) from ``start`` to ``goal`` (default: the walking goal (0, 0, pi/2)), or for every ``(condition,
     start, goal)`` of ``cases`` (``walking_cases``). ``weights``: a preset, a fit-ioc weights.json or a
-    mapping; ``convention``: default, the one the weights were made under (docs/methods.md sec. 11). A solve
-    that does not converge raises ``SolverError``.
+    mapping; ``convention``: default, the one the weights were made under (docs/methods.md sec. 11). Every
+    path says whether it reached its goal and its mean speed (``models.goal_check``, ``mean_speed``); with
+    a ``study``, a path that does not converge or reach its goal is flagged (``converged`` false, ``status``);
+    one path alone is an ``InputError`` naming ``--goal``. ``measured``: condition -> the subjects'
+    (travel time, mean speed), reported beside the model's (``comparison.measured_pace``).
 
         >>> from cobot_analysis.api import generate
         >>> path = generate("clothoid", start=(-1.5, -3.4, 0.0)).generated
         >>> round(float(path["x"].iloc[-1]), 6), round(float(path["y"].iloc[-1]), 6)
         (0.0, 0.0)
     """
+    from cobot_analysis.models import refuse_unreached
     from cobot_analysis.parallel import map_tasks
 
     models, conv, cases = plan_generate(model, weights=weights, start=start, goal=goal, cases=cases, duration=duration,
                                         convention=convention)
     kw = {"n_samples": samples, "n_intervals": intervals, "duration": duration, "v_nominal": v_nominal,
-          "max_iter": max_iter, "convention": conv.name}
+          "max_iter": max_iter, "convention": conv.name, "on_failure": "flag"}
     tasks = [(m, s, g, weights if m != "clothoid" else None,
               {**kw, "trial": f"{m}_{c}" if c else m, "condition": c, "study": study or "model"})
              for m in models for c, s, g in cases]
     frames = map_tasks(_generate_task, tasks, jobs=jobs, scheduler=scheduler, description="generate")
-    return GenerateResult(pd.concat(frames, ignore_index=True), models, weights, cases, conv.name, samples, intervals)
+    df = pd.concat(frames, ignore_index=True)
+    if study is None and len(cases) == 1:
+        refuse_unreached(df)  # one path asked for: exit 2, nothing written
+    return GenerateResult(df, models, weights, cases, conv.name, samples, intervals, measured)
 
 
 def plan_generate(model: str, *, weights: Any = None, start: tuple | None = None, goal: tuple | None = None,
@@ -120,20 +137,17 @@ def plan_generate(model: str, *, weights: Any = None, start: tuple | None = None
 
 
 def walking_cases(convention: str, means: pd.DataFrame | None = None, *, goal: tuple | None = None, path=None) -> list:
-    """The (condition, start, goal) of the walking study's 40 conditions: the design starts (continuous), or
-    the authors' start and goal poses from the measured ``means`` (published; ``ioc.targets.published_endpoints``)."""
+    """The (condition, start, goal) of the walking study's conditions, as the model comparison of ``fit-ioc``
+    takes them (``models.comparison.study_cases``): from the measured ``means`` (continuous: their start
+    poses, the design goal; published: the authors' start and goal poses), or, without means under the
+    continuous convention, the design's starts."""
     from cobot_analysis.design import WALKING_CONDITIONS, WALKING_GOAL, walking_condition
-    from cobot_analysis.models.ioc.targets import published_endpoints
+    from cobot_analysis.models.comparison import study_cases
 
-    if convention != "published":
-        return [(c, walking_condition(c).start, tuple(goal) if goal is not None else WALKING_GOAL) for c in WALKING_CONDITIONS]
-    df = means[(means["kind"] == "mean") & (means["entity"] == "walker")] if "kind" in means else means
-    cases = []
-    for c in WALKING_CONDITIONS:  # the conditions the means have
-        g = df[df["condition"] == c].sort_values("sample")
-        if len(g):
-            start, end = published_endpoints(c, g["x"].to_numpy(float), g["y"].to_numpy(float))
-            cases.append((c, start, end))
+    goal = tuple(goal) if goal is not None else WALKING_GOAL
+    if means is None and convention != "published":
+        return [(c, walking_condition(c).start, goal) for c in WALKING_CONDITIONS]
+    cases = study_cases(means, convention, goal, path=path)
     if not cases:
         raise InputError("no mean trajectory of a walking-study condition", path=path,
                          remedy="pass the walking-2020 means (import-published walking-2020, or average) with --means")
@@ -161,7 +175,7 @@ def velocity_commands(generated: pd.DataFrame, *, trial: str | None = None, rate
     ``omega_max`` (deg/s, yaw)."""
     import math
 
-    from cobot_analysis.models.velocity_commands import resample_path, velocity_commands as commands
+    from cobot_analysis.models.velocity_commands import check_time_law, resample_path, velocity_commands as commands
 
     trials = list(dict.fromkeys(generated["trial"]))
     if trial is None:
@@ -173,6 +187,7 @@ def velocity_commands(generated: pd.DataFrame, *, trial: str | None = None, rate
         raise InputError(f"no generated trajectory {trial!r}", path=path, remedy=f"use one of {', '.join(trials[:8])}")
     if g[["time", "x", "y", "theta"]].isna().any().any():
         raise InputError(f"trajectory {trial!r} has NaN time or pose", path=path, remedy="re-run generate")
+    check_time_law(g, path=path)
     sim = resample_path(g["time"], g["x"], g["y"], g["theta"], rate)
     cmd = commands(sim, rate, v_max=v_max, omega_max=math.radians(omega_max))
     cmd.insert(0, "trial", trial)
@@ -204,6 +219,7 @@ class FitResult:
     coupled: Any = None  # (distances, paths) of the coupled model at the published and fitted weights
     paths: dict | None = None  # "published" / "fitted" -> generated path per mean target (figure)
     means_source: str = ""
+    mean_keys: pd.DataFrame | None = None  # scenario, condition, direction per mean trial (pair study: the pace beside durations)
 
     def summary(self) -> str:
         n_paths = sum(len(self.fits[k]) for k in self.results)
@@ -224,14 +240,11 @@ class FitResult:
 
 
 def held_weights(model: str, convention: str) -> tuple[str, ...]:
-    """The weights an IOC holds at their start value by default (docs/methods.md sec. 6, 11): b0 fixes the
-    scale; a5, a6 of the walker belong to the Mombaur model; the coupled time cost a0 is not identifiable
-    from time-normalised paths (fitted, it goes to ~0 and every T to its bound); under the published
-    convention a0 is a per-node constant: it adds a0 N to J on a held horizon and a0 / dt to the duration
-    rule's J / T, so it moves no path and is not identifiable either."""
-    if model == "coupled":
-        return ("a0", "b0")
-    return ("a5", "a6", "b0") + (("a0",) if convention == "published" else ())
+    """The weights an IOC holds at their start value by default (``models.ioc.held_weights``,
+    docs/methods.md sec. 6, 11)."""
+    from cobot_analysis.models.ioc import held_weights as held
+
+    return held(model, convention)
 
 
 def goal_rule(goal: str, df: pd.DataFrame) -> tuple | None:
@@ -365,22 +378,24 @@ def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: s
         # every mean, those without orientation too (their d_xy; the authors compared all 40 walking means)
         compared = targets_from_table(mean_df, path=means_source, entity=entity, goal=goal_rule(goal, mean_df), convention=conv,
                                       unoriented=True)
-        comparison = compare_models(compared, models, n_intervals=intervals, angle=spec.angle, jobs=jobs, scheduler=scheduler,
-                                    convention=conv.name)
+        # generate's grid (not the lower level's): the same paths as generate --study then compare
+        comparison = compare_models(compared, models, angle=spec.angle, jobs=jobs, scheduler=scheduler, convention=conv.name)
         if trial_df is not None and not trial_df.empty and model == "improved":
             trial_targets = targets_from_table(trial_df, path=trials_source, entity=entity)
             comparison = pd.concat([comparison, subject_distances(trial_targets, mean_targets, spec.angle, conv.name)], ignore_index=True)
         dist = pd.concat([dist[dist["fit"] != "all"], comparison], ignore_index=True)
-        paths = _figure_paths(model, mean_targets, results["all"].weights, intervals, conv)
+        paths = _figure_paths(model, mean_targets, results["all"].weights, conv)
     dist["orientation"] = [orientation_of(c) for c in dist["condition"]]
     dist["subject"] = dist["subject"].fillna("")
     dist["convention"] = conv.name
     dist = dist.drop(columns=["converged"]).assign(converged=dist["converged"].astype(bool))
     return FitResult(model, conv.name, all_names, names, w0, start_weights or DEFAULT_PRESET[model], spec, per, goal, fits,
-                     results, dist, mean_targets, comparison, models, coupled, paths, str(means_source))
+                     results, dist, mean_targets, comparison, models, coupled, paths, str(means_source),
+                     mean_df.groupby("trial")[["scenario", "condition", "direction"]].first()
+                     if {"scenario", "condition", "direction"} <= set(mean_df.columns) else None)
 
 
-def _figure_paths(model: str, targets: list, fitted: dict, intervals: int, conv) -> dict:
+def _figure_paths(model: str, targets: list, fitted: dict, conv) -> dict:
     """The model's path at the published and the fitted weights for each mean target (None where a solve fails)."""
     from cobot_analysis.models import generate
 
@@ -389,7 +404,7 @@ def _figure_paths(model: str, targets: list, fitted: dict, intervals: int, conv)
         for lab, w in (("published", "walking-2021" if model == "improved" else "table-2022"), ("fitted", fitted)):
             try:
                 gen[lab].append(generate("table" if model == "table" else "improved", t.start, t.goal, weights=w,
-                                         n_samples=len(t.x), n_intervals=intervals, convention=conv))
+                                         n_samples=len(t.x), convention=conv))
             except Exception:  # noqa: BLE001 - a failed model run is left out of the figure
                 gen[lab].append(None)
     return gen

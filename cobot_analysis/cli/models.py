@@ -60,8 +60,8 @@ def generate_command(
     intervals: Annotated[int, typer.Option("--intervals", min=10, help="Intervals of the OC grid (solution resampled to --samples).")] = 100,
     duration: Annotated[Optional[Duration], typer.Option("--duration", help="Duration T: free (decision variable), search (1-D Brent), grid (Mombaur); default per model.")] = None,
     v_nominal: Annotated[float, typer.Option("--v-nominal", min=0.01, help="Nominal speed for the initial duration d / v + 1 s (m/s); clothoid speed.")] = 1.0,
-    max_iter: Annotated[int, typer.Option("--max-iter", min=1, help="Iteration limit of the OC solver (a solve that hits it is an error).")] = 500,
-    means: Annotated[Optional[Path], typer.Option("--means", help="With --study and --convention published: the mean trajectories whose measured starts and ends the authors used, one path per condition they hold (default: the kind=mean rows of OUT/import-published/).")] = None,
+    max_iter: Annotated[int, typer.Option("--max-iter", min=1, help="Iteration limit of the OC solver (a path that hits it is flagged with --study, refused alone).")] = 500,
+    means: Annotated[Optional[Path], typer.Option("--means", help="With --study: the mean trajectories whose starts (and, published, ends) the paths take, one path per condition they hold, as fit-ioc compares them (default: OUT/average/ (continuous), else the kind=mean rows of OUT/import-published/; continuous without means: the design's starts).")] = None,
     convention: ConventionOpt = None,
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
@@ -70,7 +70,8 @@ def generate_command(
     """Generate trajectories with a walking-path model (one start/goal, or every condition of a study).
 
     Writes OUT/generate/generated.parquet (the columns of measured trajectories plus the model's
-    velocities, controls and cost) and results.md. A solve that does not converge is an error.
+    velocities, controls and cost, whether each reached its goal and its mean speed) and results.md. A path
+    that does not converge or reach its goal is flagged (status column, summary); alone, it is an error.
 
     --convention (docs/methods.md sec. 11): default, the convention the weights were made under: published
     for the presets (the papers' weights only mean what they mean under it) and the convention recorded in a
@@ -100,7 +101,7 @@ def fit_ioc_command(
     trajectories: Annotated[Optional[Path], typer.Option("--trajectories", help="trajectories.parquet (default: OUT/import-published/ or OUT/preprocess/); its trials serve --per subject and the subjects-vs-mean statistics.")] = None,
     model: Annotated[str, typer.Option("--model", "-m", help="improved (walkers, D = d_xy + 0.5 d_gamma), table (D = d_xy + 0.5 d_theta) or coupled (two carriers, scenario-3 means, roles swapped on returns).")] = "improved",
     start_weights: Annotated[Optional[str], typer.Option("--start-weights", help="Preset or weights.json to start from; 'ones' = neutral start (every fitted weight 1).")] = None,
-    fit_names: Annotated[Optional[str], typer.Option("--fit", help="Comma-separated weights to fit, the others stay at their start value (default: all but b0, which fixes the scale; coupled: also a0, the time cost).")] = None,
+    fit_names: Annotated[Optional[str], typer.Option("--fit", help="Comma-separated weights to fit, the others stay at their start value (default: all but the scale weight and the weights no path depends on: continuous, a0 (scale), a1 (time scale) and b0..b3 (goal constraint); published, a0 and b0).")] = None,
     optimizer: Annotated[Optional[Optimizer], typer.Option("--optimizer", help="Upper-level derivative-free method.")] = Optimizer.powell,
     max_evaluations: Annotated[int, typer.Option("--max-evaluations", min=1, help="Budget of upper-level evaluations per fit.")] = 2000,
     per: Annotated[Per, typer.Option("--per", help="all: one fit over the means; subject: one fit per subject over its trials.")] = Per.all,

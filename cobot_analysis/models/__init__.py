@@ -11,6 +11,12 @@ and ``table`` (the improved model with the table preset); ``coupled`` lives in `
 OC models are solved on a grid of ``n_intervals`` (default 100) and resampled to ``n_samples``
 with cubic Hermite interpolation of the positions (the node velocities are the derivatives) and of
 theta (omega): the difference to a 500-interval solve is measured in tests/test_models.py.
+
+Every path says whether it reached its goal (``goal_check``: end position within ``GOAL_TOLERANCE``
+[0] m and heading within [1] rad; columns ``end_position_error``, ``end_heading_error``,
+``goal_reached``) and the time law it implies (``mean_speed`` = path length / T, m/s). Under the
+continuous convention the goal at rest is a constraint (docs/methods.md sec. 5.5, 11): a path that
+misses it is never ``converged``.
 """
 
 from __future__ import annotations
@@ -26,24 +32,62 @@ from cobot_analysis.models.oc import OC_MODELS, resample, solve_model
 from cobot_analysis.models.presets import DEFAULT_PRESET, PRESETS, load_weights, weights_vector
 
 MODELS = ("unicycle", "clothoid", "mombaur", "improved", "table")
+GOAL_TOLERANCE = (0.01, 0.05)  # m, rad: a path ends at its goal (docs/methods.md sec. 5.5)
 
-__all__ = ["MODELS", "OC_MODELS", "PRESETS", "generate", "check_endpoints"]
+__all__ = ["GOAL_TOLERANCE", "MODELS", "OC_MODELS", "PRESETS", "generate", "check_endpoints", "goal_check", "mean_speed",
+           "refuse_unreached"]
 
 
-def check_endpoints(start, goal, *, path=None, min_distance: float = 0.01) -> None:
-    """Refuse NaN poses and a start equal to the goal (nothing to plan)."""
+def goal_check(x, y, theta, goal) -> dict[str, float | bool]:
+    """End position error |p_N - p_f| (m), end heading error |wrap(theta_N - theta_f)| (rad) and
+    whether both are within ``GOAL_TOLERANCE``."""
+    from cobot_analysis.angles import angle_diff
+
+    ep = math.hypot(float(x[-1]) - goal[0], float(y[-1]) - goal[1])
+    eh = abs(float(angle_diff(float(theta[-1]), goal[2])))
+    ok = bool(np.isfinite(ep) and np.isfinite(eh) and ep <= GOAL_TOLERANCE[0] and eh <= GOAL_TOLERANCE[1])
+    return {"end_position_error": ep, "end_heading_error": eh, "goal_reached": ok}
+
+
+def mean_speed(x, y, T: float) -> float:
+    """Path length over duration, sum |p_{i+1} - p_i| / T (m/s): the time law a path implies."""
+    length = float(np.hypot(np.diff(np.asarray(x, float)), np.diff(np.asarray(y, float))).sum())
+    return length / T if T > 0 else math.nan
+
+
+def check_endpoints(start, goal, *, path=None, min_distance: float = 0.01, options=("--start", "--goal")) -> None:
+    """Refuse NaN poses, a start or goal outside the lab (|x|, |y| <= ``io.plausibility.LAB_EXTENT``)
+    and a start equal to the goal (nothing to plan); ``options`` name the two poses in the message."""
+    from cobot_analysis.io.plausibility import LAB_EXTENT
+
     start, goal = np.asarray(start, float), np.asarray(goal, float)
     if start.shape[-1] < 3 or goal.shape[-1] < 3:
         raise InputError("start and goal must be poses (x, y, theta)", path=path, remedy="give three numbers each")
     if not (np.all(np.isfinite(start[:3])) and np.all(np.isfinite(goal[:3]))):
         raise InputError("start or goal pose has NaN", path=path, remedy="check the trajectory's first and last samples")
+    for option, pose in zip(options, (start, goal)):
+        if max(abs(pose[0]), abs(pose[1])) > LAB_EXTENT:
+            raise InputError(f"{option} ({pose[0]:g}, {pose[1]:g}) lies outside the lab (|x|, |y| <= {LAB_EXTENT:g} m)",
+                             path=path, remedy=f"give {option} in metres in the lab frame (not millimetres)")
     if math.hypot(goal[0] - start[0], goal[1] - start[1]) < min_distance:
         raise InputError(f"start equals goal (closer than {min_distance * 100:.0f} cm)", path=path,
                          remedy="give a goal at least 1 cm away from the start")
 
 
+def refuse_unreached(df: pd.DataFrame, *, option: str = "--goal", max_iter_option: str = "--max-iter") -> None:
+    """An ``InputError`` naming ``option`` when a path asked for on its own (``generate`` with one start
+    and goal) did not converge or reach its goal: the output would hold no usable path."""
+    bad = df.groupby("trial", sort=False).tail(1)
+    bad = bad[~bad["converged"].astype(bool)]
+    if len(bad):
+        r = bad.iloc[0]
+        raise InputError(f"the {r.model} model does not reach {option} from the start: {r.status}",
+                         remedy=f"check {option} (metres, lab frame, heading on the branch meant) or raise {max_iter_option}")
+
+
 def _frame(arrays: dict[str, np.ndarray], *, model: str, weights_label: str, entity: str, trial: str,
-           condition: str, study: str, cost: float, convention: str) -> pd.DataFrame:
+           condition: str, study: str, cost: float, convention: str, goal, converged: bool = True,
+           status: str = "") -> pd.DataFrame:
     from cobot_analysis.distances import gamma_from_path
 
     n = len(arrays["x"])
@@ -59,7 +103,17 @@ def _frame(arrays: dict[str, np.ndarray], *, model: str, weights_label: str, ent
     df["model"] = model
     df["weights"] = weights_label
     df["cost"] = cost
-    df["converged"] = True
+    reached = goal_check(arrays["x"], arrays["y"], arrays["theta"], goal)
+    for k, v in reached.items():
+        df[k] = v
+    df["mean_speed"] = mean_speed(arrays["x"], arrays["y"], T)
+    # continuous convention: the goal is a constraint, a path that misses it did not converge
+    df["converged"] = bool(converged and (reached["goal_reached"] or convention != "continuous"))
+    if not status:
+        status = "ok" if reached["goal_reached"] else (
+            f"ends {reached['end_position_error']:.3f} m and {reached['end_heading_error']:.3f} rad from its goal"
+            + (" (terminal cost, published convention)" if convention == "published" else ""))
+    df["status"] = status
     df["convention"] = convention
     return df
 
@@ -67,7 +121,8 @@ def _frame(arrays: dict[str, np.ndarray], *, model: str, weights_label: str, ent
 def generate(model: str, start: Sequence[float], goal: Sequence[float], weights=None, n_samples: int = 500, *,
              convention=None, n_intervals: int = 100, duration: str | None = None, v_nominal: float = 1.0,
              solver: str = "fatrop", guesses=("rest", "line"), trial: str | None = None, condition: str = "",
-             study: str = "model", entity: str | None = None, max_iter: int = 500) -> pd.DataFrame:
+             study: str = "model", entity: str | None = None, max_iter: int = 500,
+             on_failure: str = "raise") -> pd.DataFrame:
     """A trajectory of ``model`` from ``start`` to ``goal`` (poses (x, y, theta), goal heading on the
     branch wanted) with the columns of measured trajectories; see the module docstring.
 
@@ -76,8 +131,10 @@ def generate(model: str, start: Sequence[float], goal: Sequence[float], weights=
     command line (``presets.weights_convention``; ``continuous`` when unknown or when that convention has
     no rule for the model): ``continuous``, the OC solution resampled to
     ``n_samples`` in time; ``published``, the solution's nodes (one per step of the authors' node
-    step; ``n_samples`` is ignored for OC models). Raises ``SolverError`` when the OC problem does
-    not converge (never a silent result).
+    step; ``n_samples`` is ignored for OC models). When the OC problem does not converge: raises
+    ``SolverError`` (``on_failure="raise"``) or returns the solver's last iterate with
+    ``converged`` false and the reason in ``status`` (``"flag"``; never a silent result). The goal
+    columns are described in the module docstring.
     """
     from cobot_analysis import conventions
     from cobot_analysis.models.oc import node_arrays
@@ -106,12 +163,14 @@ def generate(model: str, start: Sequence[float], goal: Sequence[float], weights=
                   "v_orth": zeros, "omega": np.gradient(theta, s / v_nominal) if T > 0 else zeros,
                   "vx": v_nominal * np.cos(theta), "vy": v_nominal * np.sin(theta), "u1": zeros, "u2": zeros, "u3": zeros}
         return _frame(arrays, model=model, weights_label="", entity=entity, trial=trial, condition=condition,
-                      study=study, cost=float("nan"), convention=conv.name)
+                      study=study, cost=float("nan"), convention=conv.name, goal=goal)
     label = weights if isinstance(weights, str) else (DEFAULT_PRESET[model] if weights is None else "custom")
     w = weights_vector(load_weights(weights if weights is not None else DEFAULT_PRESET[model], "improved"))
     sol = solve_model(model, start, goal, w, convention=conv, n_intervals=n_intervals, duration=duration,
                       v_nominal=v_nominal, solver=solver, guess=guesses, max_iter=max_iter, warm=True)
-    sol.check(f"{model} model from {tuple(np.round(start, 3))} to {tuple(np.round(goal, 3))}")
+    what = f"{model} model from {tuple(np.round(start, 3))} to {tuple(np.round(goal, 3))}"
+    if on_failure == "raise" or not np.all(np.isfinite(sol.X)):
+        sol.check(what)
     kind = "unicycle" if model == "unicycle" else "walker"
     if conv.name == "published":
         arrays = node_arrays(sol, kind)
@@ -125,5 +184,6 @@ def generate(model: str, start: Sequence[float], goal: Sequence[float], weights=
             warn(f"{trial}: the optimal duration lies at a bound of the search interval (T = {sol.T:.2f} s = "
                  f"{sol.T / T0:.2f} x T0): the weights favour a duration outside [0.4, 2.5] x T0")
         arrays = resample(sol, n_samples, kind)
+    status = "" if sol.success else f"solver did not converge ({sol.solver}: {sol.status}, {sol.iterations} iterations)"
     return _frame(arrays, model=model, weights_label=str(label), entity=entity, trial=trial, condition=condition,
-                  study=study, cost=sol.cost, convention=conv.name)
+                  study=study, cost=sol.cost, convention=conv.name, goal=goal, converged=sol.success, status=status)

@@ -65,11 +65,52 @@ def compare_task(task) -> list[dict]:
     return rows
 
 
+def study_cases(means: pd.DataFrame, convention, goal, *, path=None) -> list[tuple[str, tuple, tuple]]:
+    """(condition, start, goal) of every walking-study mean in ``means``, in the order of the design: the
+    start and goal poses the model comparison of ``fit-ioc`` takes (``targets_from_table(...,
+    unoriented=True)``), so ``generate --study`` then ``compare`` answers with the same paths
+    (continuous: the measured start pose and ``goal`` on the branch of the last measured heading;
+    published: the authors' endpoints, docs/methods.md sec. 11)."""
+    from cobot_analysis import conventions
+    from cobot_analysis.design import WALKING_CONDITIONS
+    from cobot_analysis.models.ioc import targets_from_table
+
+    conv = conventions.get(convention)
+    means = _walking_means(means)
+    targets = targets_from_table(means, path=path, goal=goal, convention=conv, unoriented=True)
+    order = {c: i for i, c in enumerate(WALKING_CONDITIONS)}
+    return [(t.condition, t.start, t.goal) for t in sorted(targets, key=lambda t: order[t.condition])]
+
+
+def measured_pace(means: pd.DataFrame) -> dict[str, tuple[float, float]]:
+    """condition -> (travel time (s), mean speed = path length / travel time (m/s)) of the walking means
+    whose data hold a travel time (the published walking-2020 means do not)."""
+    from cobot_analysis.models import mean_speed
+
+    out = {}
+    if "travel_time" not in means:
+        return out
+    for _, g in _walking_means(means).groupby("trial", sort=False):
+        g = g.sort_values("sample")
+        T = float(g["travel_time"].iloc[0])
+        if np.isfinite(T) and T > 0:
+            out[str(g["condition"].iloc[0])] = (T, mean_speed(g["x"].to_numpy(float), g["y"].to_numpy(float), T))
+    return out
+
+
+def _walking_means(means: pd.DataFrame) -> pd.DataFrame:
+    from cobot_analysis.design import WALKING_CONDITIONS
+
+    means = means[(means["kind"] == "mean") & (means["entity"] == "walker")] if "kind" in means else means
+    return means[means["condition"].isin(WALKING_CONDITIONS)]
+
+
 def compare_models(targets: list[Target], models: dict, *, n_intervals: int = 100, angle: str = "gamma",
                    angle_weight: float = 0.5, jobs=None, scheduler=None, fit: str = "all",
                    convention: str = "continuous") -> pd.DataFrame:
     """Distances of every model in ``models`` (label -> (model, weights)) to every target, each model
-    generated and compared under ``convention``."""
+    generated and compared under ``convention``, on ``generate``'s grid by default: the same paths and
+    distances as ``generate --study`` (``study_cases``) then ``compare --against`` (tests/test_models_goal.py)."""
     from cobot_analysis.parallel import map_tasks
 
     tasks = [(t, models, n_intervals, angle_weight, angle, convention) for t in targets]

@@ -14,7 +14,13 @@ MODEL_COLUMNS = {
     "u2": Column("float", "m/s^2", "orthogonal acceleration (control)"),
     "u3": Column("float", "rad/s^2", "angular acceleration (control)"),
     "cost": Column("float", "-", "optimal cost J of the OC problem (NaN for the clothoid)"),
-    "converged": Column("bool", "", "the solver reported convergence (always true in written tables)"),
+    "converged": Column("bool", "", "the solver converged and, under the continuous convention, the path reached its "
+                                    "goal (end_position_error <= 0.01 m, end_heading_error <= 0.05 rad)"),
+    "goal_reached": Column("bool", "", "the path ends within 0.01 m and 0.05 rad of its goal", required=False),
+    "end_position_error": Column("float", "m", "distance of the path's last point to the goal", required=False),
+    "end_heading_error": Column("float", "rad", "|wrap(theta_end - theta_goal)|", required=False),
+    "mean_speed": Column("float", "m/s", "time law of the path: path length / duration", required=False),
+    "status": Column("string", "", "ok, or why the path did not converge or reach its goal", required=False),
     "convention": Column("string", "", "published or continuous (docs/methods.md sec. 11)"),
 }
 

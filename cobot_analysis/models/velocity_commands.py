@@ -17,9 +17,23 @@ import numpy as np
 import pandas as pd
 
 from cobot_analysis.angles import angle_diff
+from cobot_analysis.errors import InputError
 
 V_MAX = 0.1  # m/s, x and y
 OMEGA_MAX = math.radians(7.0)  # rad/s
+
+
+def check_time_law(path_df: pd.DataFrame, *, path=None) -> None:
+    """Refuse a path made under the published convention: its timing is the authors' duration rule
+    (20 s per metre of start-goal distance, docs/methods.md sec. 11), no pace to command a robot at."""
+    conv = str(path_df["convention"].iloc[0]) if "convention" in path_df and len(path_df) else ""
+    if conv == "published":
+        trial = str(path_df["trial"].iloc[0])
+        t, x, y = (path_df[c].to_numpy(float) for c in ("time", "x", "y"))
+        speed = np.hypot(np.diff(x), np.diff(y)).sum() / t[-1] if t[-1] > 0 else math.nan
+        raise InputError(f"trajectory {trial!r} was generated under the published convention, whose duration rule "
+                         f"implies a mean speed of {speed:.3f} m/s (no human or robot pace)", path=path,
+                         remedy="generate it with --convention continuous and export that path")
 
 
 def resample_path(time, x, y, theta, rate: float) -> pd.DataFrame:

@@ -277,8 +277,9 @@ def coupled_section(result, coupled, targets, stage, durations: pd.DataFrame | N
              f"iterations); lower levels not converged at the fitted weights: {result.failed} of {len(targets)} "
              f"(each counted as D = {FAILED_D:g}, never averaged in silently).", "",
              "Weights (the fit starts from the model preset unless --start-weights says otherwise"
-             + ("; the time cost a0 is held: D compares time-normalised paths and does not identify it, a free a0 "
-                "goes to ~0 and puts every duration on its upper bound" if "a0" not in spec.fitted else "") + "):", "",
+             + ("; a0 (the price of a second) and a1 are held: D compares time-normalised paths, and scaling the "
+                "acceleration weights by c^4 only makes every path c times slower (docs/methods.md sec. 6); b0..b3 are "
+                "held because both carriers end on their goals at rest, a constraint" if "a0" not in spec.fitted else "") + "):", "",
              weights_table(COUPLED_WEIGHTS, {"published (pair-2022)": PRESETS["pair-2022"],
                                              "start": dict(zip(COUPLED_WEIGHTS, spec.start_weights)),
                                              "fitted": result.weights}, spec.fitted),
@@ -340,22 +341,90 @@ def duration_lines(df: pd.DataFrame, targets, durations: pd.DataFrame | None, v_
 
 # ---- the stages' results fragments ---------------------------------------------------------------
 def generate_markdown(result, summary: str) -> str:
-    """Generated paths: per trajectory, the duration T, the optimal cost and the end error to the goal."""
-    df = result.generated
-    ends = df.groupby("trial").tail(1)
+    """Generated paths: per trajectory the duration T, the mean speed (its time law), the subjects' own
+    where the data hold them, the cost and the end's distance to the goal (``generated_section``)."""
     grid = (f"OC grid {result.n_intervals} intervals resampled to {result.n_samples} samples" if result.convention == "continuous" else
             "the authors' node step and duration rule, paths at their nodes")
-    goals = sorted({tuple(round(v, 3) for v in g) for _, _, g in result.cases})
+    goals = sorted({(round(g[0], 3), round(g[1], 3), round(math.remainder(g[2], 2 * math.pi), 3)) for _, _, g in result.cases})
+    measured = {f"{m}_{c}" if c else m: result.measured[c] for m in result.models for c, _, _ in result.cases
+                if c in (result.measured or {})}
     lines = [f"## Generated trajectories ({result.convention} convention)", "",
              f"Models {', '.join(result.models)}; weights {result.weights or 'model presets'}; "
              f"goal{'s' if len(goals) > 1 else ''} {goals[0] if len(goals) == 1 else f'of the {len(goals)} measured means'}; "
              f"{grid} (docs/methods.md sec. 11: {summary}).", "",
-             "| trial | T (s) | cost | end error (m) |", "|---|---|---|---|"]
-    goal_of = {f"{m}_{c}" if c else m: g for m in result.models for c, _, g in result.cases}
-    for _, r in ends.iterrows():
-        g = goal_of[r.trial]
-        lines.append(f"| {r.trial} | {r.travel_time:.2f} | {r.cost:.3f} | {math.hypot(r.x - g[0], r.y - g[1]):.3f} |")
+             *generated_section(result.generated, result.convention, measured)]
     return "\n".join(lines) + "\n"
+
+
+def generated_section(df: pd.DataFrame, convention, measured: dict[str, tuple[float, float]] | None = None) -> list[str]:
+    """results.md lines of ``generate``: per path its duration T, mean speed (the time law), the
+    subjects' own where the data hold them (``measured``: trial -> (travel time, mean speed)), the
+    end's distance to the goal and whether it reached it (``models.goal_check``), and a summary."""
+    from cobot_analysis import conventions
+    from cobot_analysis.models import GOAL_TOLERANCE
+
+    conv = conventions.get(convention)
+    measured = {k: v for k, v in (measured or {}).items() if np.isfinite(v[0])}
+    ends = df.groupby("trial", sort=False).tail(1).set_index("trial")
+    cols = " subjects' T (s) | subjects' mean speed (m/s) |" if measured else ""
+    lines = [f"| trial | T (s) | mean speed (m/s) |{cols} cost | end error (m) | heading error (rad) | goal reached | status |",
+             "|---|---|---|" + ("---|---|" if measured else "") + "---|---|---|---|---|"]
+    for trial, r in ends.iterrows():
+        mine = ""
+        if measured:
+            mine = " {:.2f} | {:.2f} |".format(*measured[trial]) if trial in measured else " – | – |"
+        lines.append(f"| {trial} | {r.travel_time:.2f} | {r.mean_speed:.2f} |{mine} {r.cost:.3f} | {r.end_position_error:.3f} | "
+                     f"{r.end_heading_error:.3f} | {'yes' if r.goal_reached else 'no'} | {r.status} |")
+    n, reached = len(ends), int(ends["goal_reached"].sum())
+    v = ends["mean_speed"]
+    missed = ends.index[~ends["goal_reached"].astype(bool)].tolist()
+    summary = [
+        f"Goal reached (end within {GOAL_TOLERANCE[0] * 100:g} cm and {GOAL_TOLERANCE[1]:g} rad): {reached} of {n} paths"
+        + (f"; not reached: {', '.join(missed[:10])}{', ...' if len(missed) > 10 else ''} (status column)" if missed else "")
+        + (". Under the continuous convention the goal at rest is a constraint of the OC problem (docs/methods.md "
+           "sec. 5.5): a path that misses it did not converge." if conv.name == "continuous" else
+           ". Under the published convention the goal is the terminal cost of the authors' models: a path may end "
+           "near it, not on it."), "",
+        f"Time law: durations T from {ends['travel_time'].min():.2f} to {ends['travel_time'].max():.2f} s, mean speed "
+        f"(path length / T) from {v.min():.3g} to {v.max():.3g} m/s (median {v.median():.3g})"
+        + (" (" + "; ".join(f"{m}: T {g['travel_time'].min():.2f}-{g['travel_time'].max():.2f} s, {g['mean_speed'].min():.3g}-"
+                            f"{g['mean_speed'].max():.3g} m/s" for m, g in ends.groupby("model", sort=False)) + ")"
+           if ends["model"].nunique() > 1 else "")
+        + (". The authors' duration rule ends on its upper bound (20 s per metre of start-goal distance, docs/methods.md "
+           "sec. 11): the shape of the path is what the papers compare, its timing is no human pace; time-dependent "
+           "outputs (velocities, velocity-commands) need the continuous convention." if conv.name == "published" else ".")
+        + (" The subjects' own travel times are in the table." if measured else
+           " The input holds no subjects' travel times to compare with (the published walking-2020 means have none)."), ""]
+    return summary + lines + [""]
+
+
+def pace_lines(mean_keys: pd.DataFrame | None, targets, per_target: list[dict], durations: pd.DataFrame | None) -> list[str]:
+    """Markdown: duration T and mean speed (path length / T) of the fitted paths (continuous convention),
+    beside the measured trials' (``durations``: the pair study's durations.parquet, mean over the trials
+    of the same scenario, goal and direction as each mean; ``mean_keys``: those columns per mean trial),
+    and how many T sit on a bound."""
+    ok = [(t, d) for t, d in zip(targets, per_target) if d.get("success") and d.get("length") is not None]
+    if not ok:
+        return []
+    T = np.array([d["T"] for _, d in ok])
+    v = np.array([d["length"] / d["T"] for _, d in ok])
+    bound = sum(d.get("T_at_bound", 0) != 0 for _, d in ok)
+    line = (f"Time law of the fitted paths: T {T.min():.2f}-{T.max():.2f} s, mean speed (path length / T) "
+            f"{v.min():.3g}-{v.max():.3g} m/s (median {np.median(v):.3g}); {bound} of {len(ok)} durations on a bound")
+    keys = ["scenario", "condition", "direction"]
+    if durations is None or mean_keys is None or not set(keys + ["duration", "mean_velocity"]) <= set(durations.columns) or \
+            not set(keys) <= set(mean_keys.columns):
+        return [line + ". The input holds no measured durations to compare with.", ""]
+    meta = mean_keys[keys]
+    measured = durations.groupby(keys)[["duration", "mean_velocity"]].mean()
+    rows = [measured.loc[tuple(meta.loc[t.trial])] for t, _ in ok if t.trial in meta.index and tuple(meta.loc[t.trial]) in measured.index]
+    if not rows:
+        return [line + ". No measured duration matches these means.", ""]
+    m = pd.DataFrame(rows)
+    return [line + f"; the measured trials of the same scenario, goal and direction (durations.parquet, {len(m)} means): "
+            f"T {m['duration'].mean():.2f} ± {m['duration'].std():.2f} s, mean speed {m['mean_velocity'].mean():.3g} ± "
+            f"{m['mean_velocity'].std():.3g} m/s. D compares time-normalised paths: the pace comes from the held a0 and a1 "
+            "(docs/methods.md sec. 6).", ""]
 
 
 def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal: float, durations: pd.DataFrame | None) -> str:
@@ -375,8 +444,9 @@ def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal
                  + ("the authors' mean block" if Path(result.means_source).parent.name == "import-published" else "the means")
                  + f" ({result.means_source})")
     else:
-        lower = (f"lower level: OC with free duration on {intervals} intervals (continuous convention, docs/methods.md "
-                 "sec. 11), warm-started from the solution at the best weights so far")
+        lower = (f"lower level: OC with free duration on {intervals} intervals, the goal at rest a constraint (continuous "
+                 "convention, docs/methods.md sec. 5.5, 11), from the solution at the best weights so far and from a rest "
+                 "and a straight-line guess, the least cost kept")
     start_weights = result.start_label
     lines = [f"## Inverse optimal control ({model} model{', one fit per subject' if per == 'subject' else ''}, "
              f"{conv.name} convention)", "",
@@ -411,6 +481,8 @@ def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal
             lines += [f"{'' if per == 'all' else f'Fit {k}: '}with the horizons held, D = {r.held_objective:.4f} at the "
                       f"fitted weights; the duration rule run again there moves the horizon of {r.horizons_changed} of "
                       f"{len(fits[k])} paths (D = {r.objective:.4f}).", ""]
+    if conv.name == "continuous" and model != "coupled" and per == "all":
+        lines += pace_lines(result.mean_keys, fits["all"], results["all"].per_target, durations)
     if result.coupled is not None:
         lines += coupled_section(results["all"], result.coupled, result.mean_targets, stage, durations)
     if result.comparison is not None:

@@ -33,23 +33,24 @@ def generate(out: str | os.PathLike, *, model: str = "improved", weights: Any = 
              convention: str | None = None, jobs: int | None = None, scheduler: str | None = None, force: bool = False) -> Outcome:
     """``generate`` (``generate-published``): ``generated.parquet`` and its results fragment."""
     from cobot_analysis import conventions
+    from cobot_analysis.models.comparison import measured_pace
     from cobot_analysis.models.outputs import GENERATED
     from cobot_analysis.reports.models import generate_markdown
 
     inputs = [Path(weights)] if weights and Path(weights).is_file() else []
     _, conv, _ = plan_generate(model, weights=weights, cases=[], duration=duration, convention=convention)  # options first
-    cases = None
+    cases, measured = None, None
     if study is None and start is None:
         raise InputError("nothing to generate", remedy="give --start X Y THETA or --study walking-2020")
     if study is not None:
         if study != "walking-2020":
             raise InputError(f"unknown study {study!r}", remedy="use --study walking-2020 or give --start")
-        means_df = None
-        if conv.name == "published":
-            path = Path(means) if means is not None else find_input(out, "trajectories.parquet", ["import-published"], "--means")
+        means_df, path = None, _walking_means(out, means, conv.name)
+        if path is not None:
             means_df = read_trajectories(path)
             inputs.append(path)
-        cases = api.walking_cases(conv.name, means_df, goal=goal, path=means)
+            measured = measured_pace(means_df)
+        cases = api.walking_cases(conv.name, means_df, goal=goal, path=path)
     models, conv, cases = plan_generate(model, weights=weights, start=start, goal=goal, cases=cases, duration=duration,
                                         convention=convention)
     kw = {"n_samples": samples, "n_intervals": intervals, "duration": duration, "v_nominal": v_nominal, "max_iter": max_iter,
@@ -60,11 +61,27 @@ def generate(out: str | os.PathLike, *, model: str = "improved", weights: Any = 
             return Outcome.skip(stage)
         result = api.generate(model, start=start, goal=goal, cases=cases, study=study, weights=weights, samples=samples,
                               intervals=intervals, duration=duration, v_nominal=v_nominal, max_iter=max_iter,
-                              convention=conv.name, jobs=jobs, scheduler=scheduler)
+                              convention=conv.name, measured=measured, jobs=jobs, scheduler=scheduler)
         stage.write_table("generated.parquet", result.generated, GENERATED, n_samples=samples, n_intervals=intervals,
                     convention=conv.name)
         stage.path("results.md").write_text(generate_markdown(result, conventions.get(conv.name).summary))
     return Outcome(stage.final_dir, result)
+
+
+def _walking_means(out, means, convention: str) -> Path | None:
+    """The means ``generate --study`` takes its start (and, published, goal) poses from: ``means``, else
+    OUT/average/means.parquet (continuous), else the kind=mean rows of OUT/import-published/; None
+    under the continuous convention when there are none (the design's starts)."""
+    if means is not None:
+        return Path(means)
+    looked = ([("means.parquet", ["average"])] if convention != "published" else []) + [("trajectories.parquet", ["import-published"])]
+    for name, stages in looked:
+        try:
+            return find_input(out, name, stages, "--means")
+        except InputError:
+            if convention == "published":
+                raise
+    return None
 
 
 def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, trajectories: str | os.PathLike | None = None,

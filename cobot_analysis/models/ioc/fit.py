@@ -11,7 +11,9 @@ D_n = d_xy + 0.5 d_gamma (walker) or d_xy + 0.5 d_theta (table), with the distan
 
 Speed and reproducibility:
 - every lower-level solve is warm-started from the solution at the best weights found so far
-  (at first: the starting weights, best of a 'rest' and a 'line' initial guess); the sequence of
+  (at first: the starting weights, best of a 'rest' and a 'line' initial guess) and, under the
+  continuous convention, also solved from those two cold guesses, the least cost kept (the rule of
+  ``generate``, so both find the same local minimum); the sequence of
   evaluations is deterministic, so the result is the same on a local pool and on a Dask cluster;
 - the lower levels of one evaluation run in parallel (``cobot_analysis.parallel.executor``: local
   processes or ``--scheduler``), in chunks, on processes that keep their NLP built;
@@ -50,7 +52,7 @@ class IOCSpec:
 
     model: str = "improved"  # improved (walker, d_gamma) or table (d_theta)
     start_weights: tuple[float, ...] = ()  # the 11-vector a0..a6, b0..b3 the fit starts from
-    fitted: tuple[str, ...] = ("a0", "a1", "a2", "a3", "a4", "b1", "b2", "b3")
+    fitted: tuple[str, ...] = ("a2", "a3", "a4")  # the continuous walker's default: all but held_weights("improved")
     optimizer: str = "powell"
     max_evaluations: int = 2000
     xtol: float = 1e-2  # log10 units
@@ -78,6 +80,31 @@ class IOCSpec:
         w = np.array(self.start_weights, dtype=float)
         names = names_for(self.model)
         return np.log10(np.maximum([w[names.index(n)] for n in self.fitted], 10.0 ** LOG_BOUNDS[0]))
+
+
+def held_weights(model: str, convention="continuous") -> tuple[str, ...]:
+    """The weights a fit holds at their start value by default (docs/methods.md sec. 6, 11).
+
+    Scaling every weight leaves the optimal path unchanged, so one weight fixes the scale. Under the
+    continuous convention the goal at rest is a terminal constraint, and then:
+    - b0..b3 weigh terms that are 0 on every feasible path: no path depends on them;
+    - a0, the price of one second, fixes the scale;
+    - a1 fixes the time scale: multiplying the acceleration weights by c^4 (a0 and the path terms
+      held) makes the time-scaled path X(t / c) optimal, since the time and path terms of J grow as
+      c and the acceleration terms as c^-3; the time-normalised paths D compares are the same, only
+      the duration changes (c T). The data cannot tell these weights apart, so a1 stays at its start
+      value and the fit leaves the pace of the start weights to it.
+    Under the published convention the goal is the terminal cost: b0 fixes the scale, and a0, a
+    constant per node, moves no path on a held horizon. The walker's a5, a6 belong to the Mombaur
+    model."""
+    from cobot_analysis import conventions
+
+    rule = conventions.get(convention).oc_rule(model)
+    if rule.goal == "constraint":
+        return ("a0", "a1", "b0", "b1", "b2", "b3") if model == "coupled" else ("a0", "a1", "a5", "a6", "b0", "b1", "b2", "b3")
+    if model == "coupled":
+        return ("a0", "b0")
+    return ("a0", "a5", "a6", "b0") if rule.scheme == "euler" else ("a5", "a6", "b0")
 
 
 # ---- lower level (runs on workers) -------------------------------------------------------------
@@ -170,15 +197,17 @@ def solve_target(spec: IOCSpec, w: np.ndarray, t: Target, guess):
         d["success"] = True
         return d, sol
     kw = {"n_intervals": spec.n_intervals, "duration": "free", "max_iter": spec.max_iter, "v_nominal": spec.v_nominal}
-    sol = solve_model(model, t.start, t.goal, w, guess=guess, **kw)
-    if not sol.success and not isinstance(guess, str):
-        sol = solve_model(model, t.start, t.goal, w, guess=("rest", "line"), **kw)
+    # the warm start and generate's two cold guesses, the least cost kept: a start facing away from the goal
+    # has several local minima (turn left or right), and a warm start alone follows the one it came from
+    cold = ("rest", "line")
+    sol = solve_model(model, t.start, t.goal, w, guess=cold if isinstance(guess, str | tuple) else [guess, *cold], **kw)
     if not sol.success:
         return _failed(), sol
     r = resample(sol, len(t.x))
     d = distances(t, r["x"], r["y"], r["theta"])
     d["D"] = d["d_xy"] + spec.angle_weight * d[f"d_{spec.angle}"]
     d.update(duration_terms(sol.T, initial_duration(t.start, t.goal, spec.v_nominal)))
+    d["length"] = float(np.hypot(np.diff(r["x"]), np.diff(r["y"])).sum())  # m: the time law is length / T
     d["success"] = True
     return d, sol
 

@@ -19,7 +19,8 @@ def solve_model(model: str, start, goal, weights, *, convention="continuous", n_
     """Solve the OC model for one start/goal under a convention (``conventions.get``); returns an
     ``problem.OCPSolution`` (check ``success``).
 
-    ``weights``: the 11-vector (a0..a6, b0..b3). Continuous convention: ``n_intervals`` intervals,
+    ``weights``: the 11-vector (a0..a6, b0..b3). Continuous convention: the goal pose at rest is a
+    terminal constraint (``OCRule.goal``; b0..b3 unused), ``n_intervals`` intervals,
     ``duration`` (default the convention's rule: free, grid for the Mombaur form, or "search" /
     "fixed" at ``T``), ``guess``: "rest", "line", a previous primal vector (warm start) or a sequence of
     those (the best converged solution is kept). Published convention: the authors' node step and
@@ -47,9 +48,9 @@ def solve_model(model: str, start, goal, weights, *, convention="continuous", n_
     best = None
     for g in guesses:
         if duration == "free":
-            sol = get_ocp(OCPShape(n_intervals, dyn, free_time=True, solver=solver, max_iter=max_iter)).solve(start, goal, weights, T0, guess=g)
+            sol = get_ocp(OCPShape(n_intervals, dyn, free_time=True, solver=solver, max_iter=max_iter, goal=rule.goal)).solve(start, goal, weights, T0, guess=g)
         else:
-            ocp = get_ocp(OCPShape(n_intervals, dyn, free_time=False, solver=solver, max_iter=max_iter))
+            ocp = get_ocp(OCPShape(n_intervals, dyn, free_time=False, solver=solver, max_iter=max_iter, goal=rule.goal))
             if duration == "search":
                 sol = search_duration(ocp, start, goal, weights, T0, guess=g)
             elif duration == "grid":

@@ -21,7 +21,8 @@ exactly, without kinks, with three slack controls per interval (s, t1, t2 >= 0):
 
 exp(.) - 1 increases, so at the optimum s = max(0, d - 2.1, 1.6 - d) and t_i = max(0, g_i - pi/3):
 the published chi and xi (when a9, a10 > 0). T is a decision variable (free duration), bounded to
-[0.4, 2.5] x T0. For return paths the roles of the subjects are swapped by the caller (Subject 2
+[0.4, 2.5] x T0. With ``OCPShape.goal == "constraint"`` (the continuous convention) both carriers
+end on their goal poses at rest (12 terminal equalities) and phi_t, zero there, is left out. For return paths the roles of the subjects are swapped by the caller (Subject 2
 is carrier 1).
 """
 
@@ -96,7 +97,12 @@ class CoupledOCP(WalkerOCP):
             J += dt * L(Xk[k][:ns], Uk[k], W, goal)
             g += [Xk[k + 1] - ca.vertcat(F(Xk[k][:ns], Uk[k], dt), Xk[k][ns]), G(Xk[k][:ns], Uk[k])]
             equality += [True] * nx + [False] * self.N_PATH
-        J += Lf(Xk[N][:ns], W, goal)
+        if shape.goal == "constraint":  # both carriers end on their goal poses at rest; the b terms are 0 there
+            zero = ca.SX.zeros(3)
+            g.append(Xk[N][:ns] - ca.vertcat(goal[:3], zero, goal[3:], zero))
+            equality += [True] * ns
+        else:
+            J += Lf(Xk[N][:ns], W, goal)
         w = ca.vertcat(*[v for k in range(N) for v in (Xk[k], Uk[k])], Xk[N])
         g = ca.vertcat(*g)
         self._nlp = {"x": w, "p": p, "f": J, "g": g}
@@ -173,19 +179,24 @@ def initial_pair_duration(start, goal, v_nominal: float = 1.0) -> float:
 
 def solve_pair(start, goal, weights, *, n_intervals: int = 100, v_nominal: float = 1.0, guess=("rest", "line"),
                solver: str = "auto", max_iter: int = 500) -> OCPSolution:
-    """Best converged solution over the initial guesses; T bounded to [0.4, 2.5] x T0 (``initial_pair_duration``).
+    """Best converged solution over the initial guesses; T bounded to [0.4, 2.5] x T0 (``initial_pair_duration``);
+    the goal rule of the continuous convention (``OCRule.goal``: both carriers end on their goal at rest).
 
     ``solver="auto"``: IPOPT from the cold guesses ('rest', 'line'), fatrop (IPOPT as fallback) from a
     warm start. Measured: from a cold 'line' guess fatrop 1.1.8 looped without end inside one iteration
     (growing regularisation) on a published scenario-3 mean, where IPOPT converged in 33 iterations
     (0.35 s); warm-started fatrop solves (37 000 in two fits) all terminated, in about 30 ms.
     """
+    from cobot_analysis.conventions import CONTINUOUS
+
+    rule = CONTINUOUS.oc_rule("coupled")
     start, goal = np.asarray(start, float).reshape(2, 3), np.asarray(goal, float).reshape(2, 3)
     T0 = initial_pair_duration(start, goal, v_nominal)
     best = None
     for g in [guess] if isinstance(guess, str | np.ndarray) else guess:
         name = solver if solver != "auto" else ("ipopt" if isinstance(g, str) else "fatrop")
-        s = get_coupled_ocp(OCPShape(n_intervals, free_time=True, solver=name, max_iter=max_iter)).solve(start, goal, weights, T0, guess=g)
+        s = get_coupled_ocp(OCPShape(n_intervals, free_time=True, solver=name, max_iter=max_iter, goal=rule.goal)).solve(
+            start, goal, weights, T0, guess=g)
         if best is None or (s.success and (not best.success or s.cost < best.cost)):
             best = s
     return best

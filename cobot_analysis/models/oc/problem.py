@@ -92,6 +92,7 @@ class OCPShape:
     psi: str = "wrapped"  # "wrapped" (body-frame bearing) or "raw" (atan2 - theta)
     heading: str = "raw"  # heading error of the a6 and b1 terms: "raw", "wrap-once" or "fmod-pi"
     terminal_running: bool = False  # the terminal cost also holds the running cost at X_N with zero control
+    goal: str = "cost"  # "cost": the b0..b3 terminal cost | "constraint": X_N = (goal pose, at rest), b0..b3 unused
     solver: str = "fatrop"  # first solver tried; IPOPT is the fallback
     tol: float = 1e-8
     max_iter: int = 500
@@ -130,7 +131,8 @@ class WalkerOCP:
         self.nx, self.nu, self.N = nx, nu, N
         self.n_params = N_STATE + _N_COMMON + 4 * (N + 1) + N
         self._T_index = N_STATE + 3
-        self.n_vars, self.n_cons = N * (nx + nu) + nx, N_STATE + N * nx
+        self.n_goal = N_STATE if shape.goal == "constraint" else 0  # terminal equalities X_N = (goal, 0, 0, 0)
+        self.n_vars, self.n_cons = N * (nx + nu) + nx, N_STATE + N * nx + self.n_goal
         # index of state k / control k in the primal vector
         stride = nx + nu
         self._xi = np.array([[k * stride + i for i in range(nx)] for k in range(N + 1)])
@@ -145,7 +147,9 @@ class WalkerOCP:
         from ``map`` of the stage functions over the N intervals (see the module docstring).
 
         Variables w = [z_0; ...; z_{N-1}; x_N], z_k = (x_k, u_k); constraints
-        g = [x_0 - X0; x_1 - F(z_0); ...; x_N - F(z_{N-1})]; parameters as ``parameters``.
+        g = [x_0 - X0; x_1 - F(z_0); ...; x_N - F(z_{N-1})] and, with ``goal="constraint"``, the
+        terminal equalities [x_N - (goal, 0, 0, 0)] (linear: no term in the Hessian); parameters as
+        ``parameters``.
         """
         import casadi as ca
 
@@ -168,26 +172,30 @@ class WalkerOCP:
         rk, mk, rN, mN = ref[:, :N], mask[:N].T, ref[:, N], mask[N]
 
         f = Mc(Z, Pc, rk, mk, ak) + st["c_N"](xN, Pc, rN, mN)
-        g = ca.vertcat(Xs[:N_STATE, 0] - X0, ca.vec(Xnext - MF(Z, Pc, ak)))
+        ng = self.n_goal
+        g_goal = xN[:N_STATE] - ca.vertcat(Pc[:3], ca.MX.zeros(3)) if ng else ca.MX(0, 1)
+        g = ca.vertcat(Xs[:N_STATE, 0] - X0, ca.vec(Xnext - MF(Z, Pc, ak)), g_goal)
         grad_f = ca.vertcat(ca.vec(Mgc(Z, Pc, rk, mk, ak)), st["grad_c_N"](xN, Pc, rN, mN))
         # Jacobian of g: nonzeros listed stage by stage, then permuted to casadi's column-major order
         Fk, JF = MJ(Z, Pc, ak)
-        g_again = ca.vertcat(Xs[:N_STATE, 0] - X0, ca.vec(Xnext - Fk))  # g from the same stage calls
+        g_again = ca.vertcat(Xs[:N_STATE, 0] - X0, ca.vec(Xnext - Fk), g_goal)  # g from the same stage calls
         jr, jc = st["jac_F_sp"].get_triplet()
+        n_dyn = N_STATE + N * nx
         rows = [*range(N_STATE)] + [N_STATE + k * nx + i for k in range(N) for i in jr] + \
-               [N_STATE + k * nx + i for k in range(N) for i in range(nx)]
+               [N_STATE + k * nx + i for k in range(N) for i in range(nx)] + [n_dyn + i for i in range(ng)]
         cols = [*range(N_STATE)] + [k * nz + j for k in range(N) for j in jc] + \
-               [(k + 1) * nz + i for k in range(N) for i in range(nx)]
+               [(k + 1) * nz + i for k in range(N) for i in range(nx)] + [N * nz + i for i in range(ng)]
         Asp = ca.Sparsity.triplet(self.n_cons, self.n_vars, rows, cols)
         order = np.lexsort((np.asarray(rows), np.asarray(cols)))
-        values = ca.vertcat(ca.DM.ones(N_STATE), -ca.vec(JF), ca.DM.ones(N * nx))
+        values = ca.vertcat(ca.DM.ones(N_STATE), -ca.vec(JF), ca.DM.ones(N * nx), ca.DM.ones(ng))
         jac_g = ca.MX(Asp, values[order.tolist()])
         # Hessian of the Lagrangian sigma f + lambda' g: block diagonal (column-major = stage order)
-        Lam = ca.reshape(lam_g[N_STATE:], nx, N)  # multiplier of x_{k+1} - F(z_k)
+        Lam = ca.reshape(lam_g[N_STATE:n_dyn], nx, N)  # multiplier of x_{k+1} - F(z_k)
+        lam_goal = ca.vertcat(lam_g[n_dyn:], ca.MX.zeros(nx - ng)) if ng else ca.MX.zeros(nx)  # of x_N - goal
         gL, HL = MH(Z, Pc, rk, mk, ak, lam_f, Lam)
         lam_x = ca.horzcat(ca.vertcat(lam_g[:N_STATE], ca.MX.zeros(nx - N_STATE)), Lam[:, :N - 1])
         gLN, HLN = st["hess_L_N"](xN, Pc, rN, mN, lam_f)
-        grad_L = ca.vertcat(ca.vec(gL + ca.vertcat(lam_x, ca.MX.zeros(nu, N))), gLN + Lam[:, N - 1])
+        grad_L = ca.vertcat(ca.vec(gL + ca.vertcat(lam_x, ca.MX.zeros(nu, N))), gLN + Lam[:, N - 1] + lam_goal)
         Hb, HbN = st["hess_L_sp"], st["hess_L_N_sp"]
         Hsp = ca.diagcat(*([ca.DM(Hb, 1)] * N + [ca.DM(HbN, 1)])).sparsity()
         hess_L = ca.MX(Hsp, ca.vertcat(ca.vec(HL), HLN))
@@ -442,7 +450,9 @@ def _stage_functions(shape: OCPShape) -> dict[str, object]:
     if free:
         F = ca.vertcat(F, x[N_STATE])  # log T is carried along
     r2, _, dth, track, dt = terms(xN)
-    c_N = (1 if euler else dt) * m * track + ws[7] * r2 + ws[8] * dth**2 + ws[9] * (xN[3]**2 + xN[4]**2) + ws[10] * xN[5]**2
+    c_N = (1 if euler else dt) * m * track
+    if shape.goal == "cost":  # with goal="constraint" X_N is the goal at rest: these terms are 0 and left out
+        c_N = c_N + ws[7] * r2 + ws[8] * dth**2 + ws[9] * (xN[3]**2 + xN[4]**2) + ws[10] * xN[5]**2
     if shape.terminal_running:
         c_N = c_N + running(xN, ca.DM.zeros(N_CONTROL))
     H, gL = ca.hessian(sigma * c - ca.dot(lam, F), z)

@@ -1,0 +1,122 @@
+"""Generated paths reach their goal at rest at a stated pace (docs/methods.md sec. 5.5, 11), a path
+that misses is flagged, and fit-ioc's model comparison is the same answer as generate + compare."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from cobot_analysis.design import WALKING_CONDITIONS, WALKING_GOAL, walking_condition
+from cobot_analysis.errors import InputError
+from cobot_analysis.models import GOAL_TOLERANCE, generate, goal_check, refuse_unreached, resample, solve_model
+from cobot_analysis.models.presets import PRESETS, weights_vector
+
+#: walking starts: every start orientation, near and far, facing the goal and facing away from it
+STARTS = [walking_condition(c).start for c in ("N1500", "S1500", "O-0615", "E4015", "S4040", "O0640", "N-0640", "E1540")]
+
+
+@pytest.mark.parametrize("model", ["improved", "unicycle", "mombaur", "table"])
+def test_continuous_paths_start_and_end_at_rest_on_their_poses(model):
+    for start in STARTS:
+        df = generate(model, start, WALKING_GOAL, convention="continuous")
+        first, last = df.iloc[0], df.iloc[-1]
+        assert (first.x, first.y, first.theta) == pytest.approx(start, abs=1e-9)
+        assert (first.v_forw, first.v_orth, first.omega) == pytest.approx((0, 0, 0), abs=1e-9)
+        assert math.hypot(last.x - WALKING_GOAL[0], last.y - WALKING_GOAL[1]) < GOAL_TOLERANCE[0]
+        assert abs(last.theta - WALKING_GOAL[2]) < GOAL_TOLERANCE[1]
+        assert (last.v_forw, last.v_orth, last.omega) == pytest.approx((0, 0, 0), abs=1e-6)
+        assert bool(last.goal_reached) and bool(last.converged) and last.status == "ok"
+        assert last.end_position_error < 1e-6 and last.end_heading_error < 1e-6  # a constraint, not a cost
+
+
+def test_published_convention_keeps_the_terminal_cost():
+    """The published convention reproduces the papers: the goal stays a weighted terminal cost."""
+    df = generate("improved", (-1.5, -3.4, 0.0), WALKING_GOAL, weights="walking-2021", convention="published")
+    last = df.iloc[-1]
+    assert 1e-5 < last.end_position_error < 0.01  # near the goal, not on it
+    assert last.mean_speed < 0.1  # the authors' duration rule: 20 s per metre
+
+
+def test_published_weights_walk_at_a_human_pace_under_the_continuous_convention():
+    """Mean speed (path length / T) between 0.5 and 2 m/s on the starts farther than 2 m; the
+    shortest walks (under 1 m, with a turn of up to pi) are slower, above 0.3 m/s."""
+    for c in WALKING_CONDITIONS[::3]:
+        start = walking_condition(c).start
+        last = generate("improved", start, WALKING_GOAL, weights="walking-2021", convention="continuous").iloc[-1]
+        d = math.hypot(start[0], start[1])
+        assert (0.5 if d > 2 else 0.3) < last.mean_speed < 2.0, (c, last.mean_speed)
+
+
+def test_a_path_that_misses_its_goal_is_flagged_never_converged():
+    df = generate("improved", (-4.0, 1.2, math.pi), WALKING_GOAL, weights="walking-2021", convention="continuous",
+                  max_iter=2, on_failure="flag")
+    last = df.iloc[-1]
+    assert not last.converged and "did not converge" in last.status
+    with pytest.raises(InputError, match="does not reach --goal"):
+        refuse_unreached(df)
+    # the check itself: 2 cm or 0.06 rad from the goal is a miss; the heading compared modulo 2 pi
+    assert not goal_check([0.0, 0.02], [0.0, 0.0], [0.0, 2 * math.pi], (0.0, 0.0, 0.0))["goal_reached"]
+    assert not goal_check([0.0, 0.0], [0.0, 0.0], [0.0, 0.06], (0.0, 0.0, 0.0))["goal_reached"]
+    assert goal_check([0.0, 0.009], [0.0, 0.0], [0.0, 2 * math.pi + 0.04], (0.0, 0.0, 0.0))["goal_reached"]
+
+
+def test_goal_outside_the_lab_is_refused():
+    with pytest.raises(InputError, match="--goal .* outside the lab"):
+        generate("improved", (0.0, 0.0, 0.0), (4000.0, 0.0, 0.0))
+
+
+def test_acceleration_weights_scaled_by_c4_time_scale_the_path():
+    """Why the IOC holds a1 under the goal constraint: weights (a0, c^4 a1..a3, a4) give the same
+    time-normalised path, c times slower (time and path terms grow as c, accelerations as c^-3)."""
+    w = weights_vector(PRESETS["walking-2021"])
+    c = 1.5
+    w2 = w.copy()
+    w2[1:4] *= c**4
+    start = (-4.0, -1.4, 0.0)
+    a = solve_model("improved", start, WALKING_GOAL, w).check()
+    b = solve_model("improved", start, WALKING_GOAL, w2, guess=a.primal).check()
+    assert b.T == pytest.approx(c * a.T, rel=1e-5)
+    ra, rb = resample(a, 200), resample(b, 200)
+    assert np.abs(ra["x"] - rb["x"]).max() < 1e-5 and np.abs(ra["theta"] - rb["theta"]).max() < 1e-5
+
+
+def _means(conditions) -> pd.DataFrame:
+    """Mean-like walking trajectories: a clothoid from near the design start to the goal, 500 samples."""
+    rows = []
+    for c in conditions:
+        x0, y0, th0 = walking_condition(c).start
+        df = generate("clothoid", (x0 + 0.05, y0 - 0.04, th0 + 0.1), WALKING_GOAL, n_samples=500)
+        # a mean's recorded gamma (the mean of its trials' gammas) is not the gamma of the mean path
+        rows.append(df.assign(study="walking-2020", trial=f"mean:{c}", kind="mean", condition=c, entity="walker",
+                              n_trials=10, subject="", travel_time=np.nan, gamma=df["gamma"] + 0.2))
+    return pd.concat(rows, ignore_index=True)
+
+
+def test_fit_ioc_comparison_equals_generate_then_compare(tmp_path):
+    """compare_models (inside fit-ioc) and generate --study + compare --against give the same d_xy,
+    d_theta, d_gamma: same starts (study_cases), grid, goal and distances (a measured gamma from the
+    path under the continuous convention, both ways)."""
+    from cobot_analysis import conventions
+    from cobot_analysis.compare import against_set, against_vs_mean, pivot
+    from cobot_analysis.models.ioc import targets_from_table
+    from cobot_analysis.models.outputs import GENERATED
+    from cobot_analysis.models.comparison import compare_models, study_cases
+    from cobot_analysis.schema import write_table
+
+    conv = conventions.CONTINUOUS
+    means = _means(["N1500", "O-0615", "E4015", "S4040"])
+    targets = targets_from_table(means, goal=WALKING_GOAL, unoriented=True)
+    inside = compare_models(targets, {"improved OC": ("improved", "walking-2021")}, jobs=1, convention=conv.name)
+    frames = [generate("improved", s, g, weights="walking-2021", convention=conv, trial=f"improved_{c}", condition=c,
+                       study="walking-2020") for c, s, g, *_ in study_cases(means, conv, WALKING_GOAL)]
+    write_table(pd.concat(frames, ignore_index=True), tmp_path / "generated.parquet", GENERATED, convention=conv.name)
+    mts = pivot(means).compared_as(conv.comparison)
+    other = against_set(tmp_path / "generated.parquet", mts.n_samples, conv)
+    outside = against_vs_mean(other, mts, ["study", "condition", "entity"], "model")
+    a = inside.set_index("condition").sort_index()
+    b = outside.set_index("condition").sort_index()
+    for k in ("d_xy", "d_theta", "d_gamma"):
+        assert np.allclose(a[k].to_numpy(float), b[k].to_numpy(float), rtol=1e-9, atol=1e-12), k
