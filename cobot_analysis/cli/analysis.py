@@ -230,9 +230,12 @@ def stats_command(
     distances: Annotated[Optional[Path], typer.Option("--distances", help="distances.parquet (default: WS/compare/).")] = None,
     durations: Annotated[Optional[Path], typer.Option("--durations", help="Published per-trial durations (default: WS/import-published/durations.parquet if present).")] = None,
     anthropometrics: Annotated[Optional[Path], typer.Option("--anthropometrics", help="Directory with subjects.csv (id, weight, height) and pairs.csv (id, subject1, subject2).")] = None,
+    convention: ConventionOpt = None,
     force: ForceOpt = False,
 ) -> None:
-    """Every statistical question of the study's configuration (tests, effect sizes, Holm) -> stats/stats.parquet and stats.md."""
+    """Every statistical question of the study's configuration (tests, effect sizes, Holm) -> stats/stats.parquet and stats.md.
+
+    --convention published: on the distances of compare-published/ (the authors' comparison), writes stats-published/."""
     from cobot_analysis.compare import DISTANCES
     from cobot_analysis.console import track, warn
     from cobot_analysis.schema import read_table, write_table
@@ -248,7 +251,10 @@ def stats_command(
         config = default_config(study)
         study_cfg = cfg.load(config)
     cfg.check_study(study_cfg, study)
-    dist_path = distances or find_input(out, "distances.parquet", ["compare"], "--distances")
+    from cobot_analysis import conventions
+
+    conv = conventions.get(convention or "continuous")
+    dist_path = distances or find_input(out, "distances.parquet", [conventions.stage_name("compare", conv)], "--distances")
     dist = _plain(read_table(dist_path, DISTANCES))
     dur_path = durations or (out / "import-published" / "durations.parquet")
     dur = None
@@ -267,7 +273,8 @@ def stats_command(
     anthro = read_anthropometrics(anthro_dir)
     inputs = [p for p in (config, path, dist_path, dur_path if dur is not None else None) if p] + \
         ([anthro_dir / "subjects.csv", anthro_dir / "pairs.csv"] if anthro is not None else [])
-    with Stage(out, "stats", inputs=inputs, params={"config": str(config)}, force=force) as stage:
+    with Stage(out, conventions.stage_name("stats", conv), inputs=inputs, params={"config": str(config), "convention": conv.name},
+               force=force) as stage:
         if stage.skipped:
             return
         sources = build_sources(ts, dist, dur, anthro, study_cfg.alpha)
@@ -279,7 +286,7 @@ def stats_command(
         table = analyses.run(study_cfg, sources, progress=track)
         table["study"] = study  # the data's study (a configuration may serve several, e.g. synthetic-walking)
         write_table(table, stage.path("stats.parquet"), analyses.STATS, config=str(config))
-        md = analyses.markdown(table, f"Statistics: {study} ({Path(config).name})", study_cfg.alpha)
+        md = analyses.markdown(table, f"Statistics: {study} ({Path(config).name}, {conv.name} convention)", study_cfg.alpha)
         stage.path("stats.md").write_text(md)
         ok = table["status"].eq("ok")
         note = (f"{int(ok.sum())} tests run, {int((~ok).sum())} skipped (reason in the table); "
@@ -288,6 +295,7 @@ def stats_command(
             "Choices behind these numbers:",
             f"- Trajectories: {len(ts)} from `{path.name}`, {ts.n_samples} time-normalised samples each (as given; "
             "no further resampling); angle differences wrapped to [-pi, pi] before averaging (d_theta, d_gamma).",
+            f"- Distances: `{dist_path.parent.name}/{dist_path.name}` ({conv.name} convention, docs/methods.md sec. 11).",
             f"- Configuration `{Path(config).name}`: each row names its subset, test and grouping. Holm correction "
             f"(statsmodels) within each family; alpha = {study_cfg.alpha}; descriptive rows (describe, largest subset) "
             "are outside the families.",
@@ -300,7 +308,7 @@ def stats_command(
             "elimination above (the row says which).",
         ]
         stage.path("results.md").write_text(md + "\n" + note + "\n\n" + "\n".join(choices) + "\n")
-    finished("stats", note, stage.final_dir / "stats.parquet")
+    finished(f"stats ({conv.name})", note, stage.final_dir / "stats.parquet")
 
 
 # ---- reconstruct --------------------------------------------------------------------------------
