@@ -46,7 +46,7 @@ def assemble_results(workspaces: list[Path], title: str = "Results", preface: st
 
 #: the stages in the order data flows through them (io -> preprocess -> ... -> reports)
 STAGE_ORDER = ("synth-walking", "synth-pairs", "synth-localisation", "import-published", "import", "preprocess", "average",
-               "compare", "compare-published", "stats", "reconstruct", "fit-ioc", "fit-ioc-published", "fit-ioc-subjects",
+               "compare", "compare-published", "stats", "stats-published", "reconstruct", "fit-ioc", "fit-ioc-published", "fit-ioc-subjects",
                "fit-ioc-subjects-published", "fit-ioc-coupled", "generate", "generate-published", "predict", "predict-published",
                "predict-fitted", "predict-fitted-published", "localisation", "report")
 
