@@ -235,7 +235,8 @@ def stats_command(
 ) -> None:
     """Every statistical question of the study's configuration (tests, effect sizes, Holm) -> stats/stats.parquet and stats.md.
 
-    --convention published: on the distances of compare-published/ (the authors' comparison), writes stats-published/."""
+    --convention published: on the distances of compare-published/ (the authors' comparison); writes
+    stats-published/."""
     from cobot_analysis.compare import DISTANCES
     from cobot_analysis.console import track, warn
     from cobot_analysis.schema import read_table, write_table

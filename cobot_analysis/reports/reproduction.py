@@ -40,8 +40,9 @@ class Figure:
 
 
 #: walking thesis ch. 1 sec. 1.4.4: the subjects' variability and the model error vs the start-goal distance
-SUBJECTS_GAMMA = Figure("subjects vs their mean (trajectories with orientation): d_gamma", (0.4842, None), "rad", "compare", "distances.parquet",
-                        {"comparison": "individual-mean", "entity": "walker"}, "d_gamma", "thesis ch. 1 sec. 1.4.4")
+SUBJECTS_GAMMA = Figure("subjects vs their mean (trajectories with orientation): d_gamma", (0.4842, None), "rad", "compare",
+                        "distances.parquet", {"comparison": "individual-mean", "entity": "walker"}, "d_gamma",
+                        "thesis ch. 1 sec. 1.4.4")
 SUBJECTS_KRUSKAL = Figure("subjects vs their mean, d_gamma: Kruskal-Wallis across the 10 subjects, p", (1e-5, None), "-",
                           "stats", "stats.parquet", {"id": "W1.2"}, "p", "thesis ch. 1 sec. 1.4.4", kind="value", bound="<")
 SUBSET_SIZE = Figure("largest subset of indistinguishable subjects (d_xy): subjects", (6, None), "subjects", "stats",
@@ -327,9 +328,10 @@ def model_distance_accounts(ws: Path) -> dict[str, str]:
             continue
         r = lambda x, y: float(stats.pearsonr(x, y)[0])  # noqa: E731
         per = d.groupby("position").agg(v=(fig.column, "mean"), gd=("global_distance", "mean"), listed=("listed", "first"))
+        rho = float(stats.spearmanr(d["global_distance"], d[fig.column])[0])
         text = (f"published convention, switches: against the authors' listed start-goal distances r = "
                 f"{r(d['listed'], d[fig.column]):.3f}; over the 10 start positions' means (the scatter of their "
-                f"distance.py) r = {r(per['gd'], per['v']):.3f}; Spearman rho {stats.spearmanr(d['global_distance'], d[fig.column])[0]:.3f}")
+                f"distance.py) r = {r(per['gd'], per['v']):.3f}; Spearman rho {rho:.3f}")
         cmp = ws / "compare-published" / "distances.parquet"
         if fig is MODEL_R_GAMMA and cmp.is_file():
             c = pd.read_parquet(cmp)
