@@ -100,7 +100,7 @@ def test_walking_2020_subject_figures_on_the_published_data(datasets, cli, tmp_p
     assert "0.6308 over 400 (+30%)" in gamma[5] and "0.5409 (+12%)" in gamma[5]
     kw = next(v for k, v in lines.items() if k.startswith(rep.SUBJECTS_KRUSKAL.what))
     assert "Kruskal p = 1.9e-11, one-way ANOVA (the authors' public script's test) p = 6.1e-11" in kw[5]
-    assert "125 of S02's 40" not in kw[5] and "40 of S02's 40" in kw[5]
+    assert "40 of S02's 40" in kw[5]  # the subject whose marker was lost in every trajectory
     size = next(v for k, v in lines.items() if k.startswith(rep.SUBSET_SIZE.what))
     assert size[2:5] == ["6 of 10", "5 of 10", "yes"]
     assert "published: 6 subjects at p = 0.317, ours 8 at p = 0.0574" in size[5]
