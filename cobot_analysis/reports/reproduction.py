@@ -339,7 +339,7 @@ def model_distance_accounts(ws: Path) -> dict[str, str]:
             if len(c) >= 3:
                 text += (f"; with the gamma of our recomputed means (compare-published) r = "
                          f"{r(c['global_distance'], c['d_gamma']):.3f}")
-        out[fig.what] = text + "; none reaches the paper's value: the thesis's pairs are not in the public code or data"
+        out[fig.what] = text + "; none reaches the paper's value (the public code computes no correlation, so the thesis's definition is not known)"
     return out
 
 
