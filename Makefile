@@ -71,6 +71,7 @@ walking:
 	$(CLI) compare --out $(WALK) --against $(WALK)/generate/generated.parquet --comparison model
 	$(CLI) compare --out $(WALK) --against $(WALK)/generate-published/generated.parquet --comparison model --convention published
 	$(CLI) stats --out $(WALK)
+	$(CLI) stats --out $(WALK) --convention published
 	$(CLI) predict --out $(WALK) --kind trial --convention continuous --jobs $(JOBS) $(PREDICT_ARGS)
 	$(CLI) predict --out $(WALK) --kind trial --convention published --jobs $(JOBS) $(PUBLISHED_PREDICT_ARGS)
 	$(CLI) predict --out $(WALK) --kind trial --weights $(WALK)/fit-ioc/weights.json --stage-name predict-fitted --jobs $(JOBS) $(PREDICT_FITTED_ARGS)

@@ -42,7 +42,7 @@ STAGES: tuple[StageSpec, ...] = (
     StageSpec("preprocess", False, "data.preprocess"),
     StageSpec("average", False, "analysis.average"),
     StageSpec("compare", True, "analysis.compare"),
-    StageSpec("stats", False, "analysis.statistics"),
+    StageSpec("stats", True, "analysis.statistics"),  # on compare/ or compare-published/ distances
     StageSpec("reconstruct", False, "analysis.reconstruct"),
     StageSpec("fit-ioc", True, "models.fit_ioc"),
     StageSpec("fit-ioc-subjects", True, "models.fit_ioc"),

@@ -35,7 +35,8 @@ def test_stage_names_and_mixing():
 
     assert registry.directory("fit-ioc", conventions.CONTINUOUS.name) == "fit-ioc"
     assert registry.directory("fit-ioc", conventions.PUBLISHED.name) == "fit-ioc-published"
-    assert registry.directory("stats", conventions.PUBLISHED.name) == "stats"  # no convention twin
+    assert registry.directory("stats", conventions.PUBLISHED.name) == "stats-published"  # on compare-published/
+    assert registry.directory("average", conventions.PUBLISHED.name) == "average"  # no convention twin
     assert registry.base_stage("predict-fitted-published") == "predict-fitted"
     assert conventions.check_same({"a": "published", "b": None}) == "published"
     with pytest.raises(InputError, match="mix outputs of two conventions"):

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
+from scipy import stats
 
 from cobot_analysis.reports import reproduction as rep
 
@@ -39,4 +40,67 @@ def test_table_reads_each_convention_from_its_own_stage(tmp_path):
 @pytest.mark.parametrize("study", ["walking-2020", "pair-carriage-2022"])
 def test_every_figure_has_a_paper_value_and_a_source(study):
     for fig in rep.FIGURES[study]:
-        assert fig.paper[0] > 0 and fig.note and fig.unit in ("m", "rad")
+        assert fig.paper[0] != 0 and fig.note and fig.kind in ("mean", "value", "members", "pearson")
+        assert fig.unit in (("m", "rad") if fig.kind == "mean" else ("-", "r", "subjects"))
+
+
+def test_bound_verdict_and_negative_paper_values():
+    assert rep.verdict((1e-5, None), (2e-11, float("nan"), 400), "<") == "yes"
+    assert rep.verdict((1e-5, None), (0.42, float("nan"), 275), "<") == "no (4.2e+04 x the bound)"
+    assert rep.verdict((-0.81, None), (-0.70, float("nan"), 37)) == "yes"  # 14 % from -0.81
+    assert rep.verdict((-0.81, None), (-0.39, float("nan"), 37)) == "no (+52%)"
+
+
+def _stats(ws, stage: str, rows: list[dict]) -> None:
+    (ws / stage).mkdir(parents=True)
+    pd.DataFrame([{"status": "ok", "note": "", **r} for r in rows]).to_parquet(ws / stage / "stats.parquet")
+
+
+def test_statistics_rows_read_one_stats_row_per_convention(tmp_path):
+    _stats(tmp_path, "stats-published", [
+        {"id": "W1.2", "p": 0.42, "n": 275, "levels": "", "n_groups": ""},
+        {"id": "W1.3-pairwise", "p": 0.317, "n": 400, "levels": "S03, S04, S05, S06, S07, S08",
+         "n_groups": "; ".join(f"S{k:02d}: 40" for k in range(1, 11))}])
+    _stats(tmp_path, "stats", [{"id": "W1.2", "p": 0.405, "n": 275, "levels": "", "n_groups": ""}])
+    lines = rep.table(tmp_path, "walking-2020")
+    row = next(line for line in lines if "Kruskal-Wallis across the 10 subjects" in line).split(" | ")
+    assert row[1:5] == ["<1e-05", "0.42 (n = 275)", "0.405 (n = 275)", "no (4.2e+04 x the bound)"]
+    size = next(line for line in lines if "indistinguishable subjects (d_xy): subjects" in line).split(" | ")
+    assert size[2:5] == ["6 of 10", "not run", "yes"]
+    p = next(line for line in lines if "indistinguishable subjects (d_xy): Kruskal" in line).split(" | ")
+    assert p[2] == "0.317 (n = 400)" and p[4] == "yes"
+
+
+def test_pearson_rows_and_their_switches(tmp_path):
+    conds = [f"{o}{p}" for p in rep.AUTHORS_START_GOAL for o in "NESO"]
+    gd = np.array([rep.AUTHORS_START_GOAL[c[1:]] for c in conds]) * 1.1 + 0.05  # measured = listed, rescaled
+    d_xy = 0.02 * gd + 0.01 * np.sin(np.arange(40))
+    (tmp_path / "fit-ioc-published").mkdir()
+    pd.DataFrame({"model": "improved OC (published)", "condition": conds, "global_distance": gd, "d_xy": d_xy,
+                  "d_gamma": np.r_[-0.05 * gd[:37], [np.nan] * 3]}).to_parquet(tmp_path / "fit-ioc-published" / "distances.parquet")
+    lines = rep.table(tmp_path, "walking-2020", rep.accounts(tmp_path, "walking-2020"))
+    row = next(line for line in lines if "Pearson r of d_xy" in line).split(" | ")
+    r = stats.pearsonr(gd, d_xy)[0]
+    assert row[2] == f"r = {r:.3f} (n = 40)" and row[3] == "not run"
+    # a linear rescaling of the distance leaves r unchanged: the listed distances give the same r
+    assert f"listed start-goal distances r = {r:.3f}" in row[5]
+    g = next(line for line in lines if "Pearson r of d_gamma" in line).split(" | ")
+    assert g[2] == "r = -1.000 (n = 37)" and g[4] == "no (-23%)"
+
+
+def test_walking_2020_subject_figures_on_the_published_data(datasets, cli, tmp_path):
+    for args in (("import-published", "walking-2020", datasets / "walking-2020"), ("average",), ("compare",),
+                 ("compare", "--convention", "published"), ("stats",), ("stats", "--convention", "published")):
+        code, _, err = cli(*args, "--out", tmp_path)
+        assert code == 0, err
+    acc = rep.accounts(tmp_path, "walking-2020")
+    lines = {line.split(" | ")[0][2:]: line.split(" | ") for line in rep.table(tmp_path, "walking-2020", acc)[2:]}
+    gamma = next(v for k, v in lines.items() if k.startswith(rep.SUBJECTS_GAMMA.what))
+    assert gamma[2].startswith("0.7873 ± 0.2384 (n = 275)") and gamma[3].startswith("0.7513 ± 0.2003 (n = 275)")
+    assert "0.6308 over 400 (+30%)" in gamma[5] and "0.5409 (+12%)" in gamma[5]
+    kw = next(v for k, v in lines.items() if k.startswith(rep.SUBJECTS_KRUSKAL.what))
+    assert "Kruskal p = 1.9e-11, one-way ANOVA (the authors' public script's test) p = 6.1e-11" in kw[5]
+    assert "40 of S02's 40" in kw[5]  # the subject whose marker was lost in every trajectory
+    size = next(v for k, v in lines.items() if k.startswith(rep.SUBSET_SIZE.what))
+    assert size[2:5] == ["6 of 10", "5 of 10", "yes"]
+    assert "published: 6 subjects at p = 0.317, ours 8 at p = 0.0574" in size[5]

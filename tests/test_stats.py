@@ -19,8 +19,9 @@ from cobot_analysis.compare import compare_sets, pivot
 from cobot_analysis.errors import InputError
 from cobot_analysis.stats import analyses, config
 from cobot_analysis.stats import tests as T
-from cobot_analysis.stats.sources import build_sources, kruskal_rows
-from cobot_analysis.stats.subsets import largest_subset
+from cobot_analysis.compare import TrajectorySet
+from cobot_analysis.stats.sources import build_sources, gamma_as_files_source, kruskal_rows
+from cobot_analysis.stats.subsets import largest_subset, pairwise_cliques, pairwise_subset
 
 sys.path.insert(0, str(Path(__file__).parent))
 from cobot_analysis.synth.tables import pair_table  # noqa: E402
@@ -117,6 +118,69 @@ def test_largest_subset_exact_and_greedy_find_the_planted_outliers():
     greedy = largest_subset(groups, max_exact=3)
     assert greedy.method.startswith("greedy") and sorted(greedy.members) == sorted(exact.members)
     assert stats.kruskal(*[groups[k] for k in exact.members]).pvalue == pytest.approx(exact.p)
+
+
+def test_pairwise_subset_drops_the_most_atypical_median_until_every_pair_agrees():
+    a = np.arange(20.0)
+    groups = {"A": a, "B": a + 0.1, "C": a + 0.2, "D": a + 100}  # D differs from every other group
+    res = pairwise_subset(groups)
+    assert res.members == ["A", "B", "C"] and "dropped, most atypical median first: D" in res.method
+    assert res.p == pytest.approx(stats.kruskal(a, a + 0.1, a + 0.2).pvalue)
+    # a chain: A ~ B (Mann-Whitney p 0.14), B ~ C, but A !~ C (p 0.006): two largest sets of two
+    chain = {"A": a, "B": a + 3, "C": a + 6}
+    assert [c.members for c in pairwise_cliques(chain)] == [["A", "B"], ["B", "C"]]
+    assert pairwise_cliques(chain)[0].p == pytest.approx(stats.kruskal(a, a + 3).pvalue)
+    # A and C lie equally far from the pooled median: the first label goes first
+    assert pairwise_subset(chain).members == ["B", "C"]
+    # ours (Kruskal p > 0.05): not all three (p 0.017); of the two equal pairs, the first
+    assert largest_subset(chain).members == ["A", "B"] and stats.kruskal(a, a + 3, a + 6).pvalue < 0.05
+
+
+def _gamma_set(gammas: dict, n: int = 4) -> TrajectorySet:
+    """One walking condition: a published mean ("m") and subject trials, gamma as given (NaN: marker loss)."""
+    meta = pd.DataFrame([{"study": "walking-2020", "trial": k, "kind": "mean" if k == "m" else "trial", "entity": "walker",
+                          "subject": None if k == "m" else k, "condition": "N1500"} for k in gammas])
+    g = np.array([np.full(n, v, float) for v in gammas.values()])
+    z = np.zeros_like(g)
+    return TrajectorySet(meta, z, z, z, g)
+
+
+def test_gamma_as_files_keeps_marker_loss_as_zero_and_wraps_each_angle():
+    g = gamma_as_files_source(_gamma_set({"m": 0.5, "S01": 0.7, "S02": np.nan, "S03": -3.0}))
+    got = g.set_index("subject")
+    assert got.loc["S01", "d_gamma"] == pytest.approx(0.2)
+    assert got.loc["S02", "d_gamma"] == pytest.approx(0.5) and got.loc["S02", "d_gamma_loss_zero"] == 0.0
+    assert bool(got.loc["S02", "orientation_missing"]) and not got.loc["S01", "orientation_missing"]
+    # each angle wrapped on its own (the authors' normalizeAngle), not the difference: 3 vs -3 is 6 rad apart
+    g = gamma_as_files_source(_gamma_set({"m": 3.0, "S01": -3.0}))
+    assert g["d_gamma"].iloc[0] == pytest.approx(6.0)
+    no_mean = _gamma_set({"S01": 0.7})
+    assert gamma_as_files_source(no_mean).empty  # only data with the published mean blocks
+
+
+def test_walking_2020_thesis_statistics_by_the_authors_definitions(datasets, cli, tmp_path):
+    """The thesis's subject figures on the published data (docs/methods.md sec. 11): the authors'
+    subject-vs-mean d_gamma, its tests across subjects, and the 6-subject subset at p = 0.31."""
+    ws = tmp_path / "w"
+    for args in (("import-published", "walking-2020", datasets / "walking-2020"), ("average",),
+                 ("compare", "--convention", "published"), ("stats", "--convention", "published")):
+        code, _, err = cli(*args, "--out", ws)
+        assert code == 0, err
+    s = pd.read_parquet(ws / "stats-published" / "stats.parquet").set_index("id")
+    assert s.loc["W1.3-pairwise", "levels"] == "S03, S04, S05, S06, S07, S08"
+    assert s.loc["W1.3-pairwise", "p"] == pytest.approx(0.3172, abs=5e-4)  # the thesis: 6 subjects, p = 0.31
+    assert len(s.loc["W1.3", "levels"].split(", ")) == 8 and s.loc["W1.3", "p"] == pytest.approx(0.0574, abs=5e-4)
+    assert s.loc["W1.1", "p"] == pytest.approx(1.12e-6, rel=0.01)
+    assert s.loc["W1.2", "p"] == pytest.approx(0.420, abs=1e-3)  # without the marker-loss rows
+    assert s.loc["W1.2-files", "p"] == pytest.approx(1.94e-11, rel=0.01)  # kept as the files hold them
+    assert s.loc["W1.2-files-anova", "p"] == pytest.approx(6.11e-11, rel=0.01)
+    assert s.loc["W1.2-files", "n"] == 400 and s.loc["W1.2", "n"] == 275
+    from cobot_analysis.compare import read_trajectory_set
+
+    g = gamma_as_files_source(read_trajectory_set(ws / "import-published" / "trajectories.parquet", ("trajectories",)))
+    assert len(g) == 400 and int(g["orientation_missing"].sum()) == 125 and int((g["d_gamma"] == 0).sum()) == 30
+    assert g["d_gamma"].mean() == pytest.approx(0.6308, abs=1e-4)
+    assert g.loc[~g["orientation_missing"], "d_gamma"].mean() == pytest.approx(0.7868, abs=1e-4)
 
 
 # ---- configuration ---------------------------------------------------------------------------------

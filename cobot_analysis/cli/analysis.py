@@ -96,15 +96,19 @@ def stats_command(
     distances: Annotated[Optional[Path], typer.Option("--distances", help="distances.parquet (default: WS/compare/).")] = None,
     durations: Annotated[Optional[Path], typer.Option("--durations", help="Published per-trial durations (default: WS/import-published/durations.parquet if present).")] = None,
     anthropometrics: Annotated[Optional[Path], typer.Option("--anthropometrics", help="Directory with subjects.csv (id, weight, height) and pairs.csv (id, subject1, subject2).")] = None,
+    convention: ConventionOpt = None,
     force: ForceOpt = False,
 ) -> None:
-    """Every statistical question of the study's configuration (tests, effect sizes, Holm) -> stats/stats.parquet and stats.md."""
+    """Every statistical question of the study's configuration (tests, effect sizes, Holm) -> stats/stats.parquet and stats.md.
+
+    --convention published: on the distances of compare-published/ (the authors' comparison); writes
+    stats-published/."""
     from cobot_analysis.stages import analysis
 
     done = analysis.statistics(out, config=config, trajectories=trajectories, distances=distances, durations=durations,
-                               anthropometrics=anthropometrics, force=force)
+                               anthropometrics=anthropometrics, convention=convention, force=force)
     if not done.skipped:
-        finished("stats", done.result.summary(), done.directory / "stats.parquet")
+        finished(f"stats ({convention or 'continuous'})", done.result.summary(), done.directory / "stats.parquet")
 
 
 # ---- reconstruct --------------------------------------------------------------------------------

@@ -45,15 +45,19 @@ def compare_markdown(result, sd_ddof: int) -> str:
     return "\n".join(lines) + "\n"
 
 
-def statistics_markdown(result, config_path: Path, n_trajectories: int, n_samples: int, source: str) -> tuple[str, str]:
+def statistics_markdown(result, config_path: Path, n_trajectories: int, n_samples: int, source: str,
+                        distances: Path | None = None, convention: str = "continuous") -> tuple[str, str]:
     """(stats.md, results.md): the tests table, and the same with the choices behind the numbers."""
     from cobot_analysis.stats import analyses
 
-    md = analyses.markdown(result.table, f"Statistics: {result.study} ({Path(config_path).name})", result.config.alpha)
+    md = analyses.markdown(result.table, f"Statistics: {result.study} ({Path(config_path).name}, {convention} convention)",
+                           result.config.alpha)
     choices = [
         "Choices behind these numbers:",
         f"- Trajectories: {n_trajectories} from `{source}`, {n_samples} time-normalised samples each (as given; "
         "no further resampling); angle differences wrapped to [-pi, pi] before averaging (d_theta, d_gamma).",
+        *([f"- Distances: `{distances.parent.name}/{distances.name}` ({convention} convention, docs/methods.md sec. 11)."]
+          if distances is not None else []),
         f"- Configuration `{Path(config_path).name}`: each row names its subset, test and grouping. Holm correction "
         f"(statsmodels) within each family; alpha = {result.config.alpha}; descriptive rows (describe, largest subset) "
         "are outside the families.",
@@ -63,7 +67,8 @@ def statistics_markdown(result, config_path: Path, n_trajectories: int, n_sample
         "- Normality (Shapiro-Wilk for the pair study, Kolmogorov-Smirnov against N(mean, sd) for the walking study) "
         "only switches to the parametric test where the configuration names one.",
         "- Largest indistinguishable subset: exact search over all subsets up to 12 groups, greedy backward "
-        "elimination above (the row says which).",
+        "elimination above (the row says which); the walking thesis's definition beside it (pairwise_subset: every "
+        "pair Mann-Whitney p > 0.05, docs/methods.md sec. 4).",
     ]
     return md, md + "\n" + result.summary() + "\n\n" + "\n".join(choices) + "\n"
 

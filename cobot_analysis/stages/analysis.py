@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from cobot_analysis import api, registry
+from cobot_analysis import api, conventions, registry
 from cobot_analysis.console import warn
 from cobot_analysis.errors import InputError
 from cobot_analysis.stages import Outcome
@@ -97,8 +97,10 @@ def default_config(study: str) -> Path:
 
 def statistics(out: str | os.PathLike, *, config: str | os.PathLike | None = None, trajectories: str | os.PathLike | None = None,
                distances: str | os.PathLike | None = None, durations: str | os.PathLike | None = None,
-               anthropometrics: str | os.PathLike | None = None, force: bool = False) -> Outcome:
-    """``stats``: ``stats/stats.parquet``, ``stats.md`` and the results fragment."""
+               anthropometrics: str | os.PathLike | None = None, convention: str | None = None,
+               force: bool = False) -> Outcome:
+    """``stats``: ``stats/stats.parquet``, ``stats.md`` and the results fragment; under the published
+    convention on the distances of ``compare-published/``, into ``stats-published/``."""
     from cobot_analysis.console import track
     from cobot_analysis.compare import DISTANCES
     from cobot_analysis.reports.analysis import statistics_markdown
@@ -115,7 +117,9 @@ def statistics(out: str | os.PathLike, *, config: str | os.PathLike | None = Non
         config = default_config(study)
         study_cfg = cfg.load(config)
     cfg.check_study(study_cfg, study)
-    dist_path = Path(distances) if distances is not None else find_input(out, "distances.parquet", ["compare"], "--distances")
+    conv = conventions.get(convention or "continuous")
+    dist_path = Path(distances) if distances is not None else find_input(
+        out, "distances.parquet", [registry.directory("compare", conv.name)], "--distances")
     dist = read_table(dist_path, DISTANCES)
     dist.attrs = {}
     dur_path = Path(durations) if durations is not None else out / "import-published" / "durations.parquet"
@@ -136,7 +140,8 @@ def statistics(out: str | os.PathLike, *, config: str | os.PathLike | None = Non
     anthro = read_anthropometrics(anthro_dir)
     inputs = [p for p in (config, path, dist_path, dur_path if dur is not None else None) if p] + \
         ([anthro_dir / "subjects.csv", anthro_dir / "pairs.csv"] if anthro is not None else [])
-    with Stage(out, "stats", inputs=inputs, params={"config": str(config)}, force=force) as stage:
+    with Stage(out, registry.directory("stats", conv.name), inputs=inputs,
+               params={"config": str(config), "convention": conv.name}, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
         result = api.statistics(ts, dist, config=study_cfg, durations=dur, anthropometrics=anthro, progress=track)
@@ -144,7 +149,7 @@ def statistics(out: str | os.PathLike, *, config: str | os.PathLike | None = Non
             warn(f"{config}: {len(result.unmatched)} filter value(s) match no row, their analyses are skipped (stats.md says "
                  f"why): {'; '.join(result.unmatched)}")
         stage.write_table("stats.parquet", result.table, analyses.STATS, config=str(config))
-        md, fragment = statistics_markdown(result, Path(config), len(ts), ts.n_samples, path.name)
+        md, fragment = statistics_markdown(result, Path(config), len(ts), ts.n_samples, path.name, dist_path, conv.name)
         stage.path("stats.md").write_text(md)
         stage.path("results.md").write_text(fragment)
     return Outcome(stage.final_dir, result)

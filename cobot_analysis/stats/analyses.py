@@ -4,8 +4,8 @@ For each analysis: filter the source, split by the ``per`` columns, collect the 
 group level, check group sizes (too small -> a row with status "skipped: ..." and the reason),
 check normality where asked (every group normal -> the ``parametric`` test instead), run the
 test (stats.tests), and finally Holm-correct the p-values within each family
-(statsmodels ``multipletests(method="holm")``). Descriptive rows (describe, largest_subset) are
-not part of the Holm families.
+(statsmodels ``multipletests(method="holm")``). Descriptive rows (describe, largest_subset,
+pairwise_subset) are not part of the Holm families.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import pandas as pd
 from cobot_analysis.schema import Column, TableSchema
 from cobot_analysis.stats import tests as T
 from cobot_analysis.stats.config import Analysis, StudyConfig, match as _match, values_text
-from cobot_analysis.stats.subsets import largest_subset
+from cobot_analysis.stats.subsets import largest_subset, pairwise_cliques, pairwise_subset
 
 STATS = TableSchema(
     name="stats",
@@ -52,7 +52,7 @@ STATS = TableSchema(
         "note": Column("string", "", "details (e.g. the members of the largest indistinguishable subset)"),
     },
 )
-NOT_HOLM = ("describe", "largest_subset")
+NOT_HOLM = ("describe", "largest_subset", "pairwise_subset")
 
 
 def _label(v) -> str:
@@ -151,6 +151,14 @@ def _run_one(a: Analysis, df: pd.DataFrame, groups: dict, alpha: float) -> dict:
         row.update(statistic=res.statistic, p=res.p, levels=", ".join(map(str, res.members)),
                    note="; ".join(x for x in (row["note"], f"{len(res.members)} of {len(groups)} groups indistinguishable "
                                   f"(Kruskal p > {alpha}): {', '.join(map(str, res.members))}; {res.method}") if x))
+        return row
+    if test == "pairwise_subset":
+        res = pairwise_subset(groups, alpha)
+        sets = "; ".join(f"{', '.join(map(str, c.members))} (Kruskal p {c.p:.3g})" for c in pairwise_cliques(groups, alpha))
+        row.update(statistic=res.statistic, p=res.p, levels=", ".join(map(str, res.members)),
+                   note="; ".join(x for x in (row["note"], f"{len(res.members)} of {len(groups)} groups with every pair "
+                                  f"indistinguishable: {', '.join(map(str, res.members))}; {res.method}; largest such sets: "
+                                  f"{sets}") if x))
         return row
     if test in ("fisher", "binomial"):
         flag = {k: pd.Series(v).astype(bool).to_numpy() for k, v in groups.items()}

@@ -20,6 +20,12 @@ column across groups:
   the returns of the sample-wise distances to their mean (Q4.3).
 - ``pairs``: per pair and entity: mean individual-vs-mean d_xy, and weight/height differences
   when anthropometrics are given.
+- ``gamma_as_files``: walking study with the published mean blocks, one row per subject trajectory:
+  the subject-vs-mean angular distance as the authors' script computed it (docs/methods.md sec. 11):
+  d_gamma = 1/N sum_i |wrap(gamma_s,i) - wrap(gamma_m,i)| on the N time samples, against the
+  published mean block's gamma, with the marker-loss trajectories kept as their files hold them
+  (gamma = 0, so their distance is the mean |gamma_m|, and 0 where the mean has no orientation
+  either); ``d_gamma_loss_zero``: the same with the marker-loss rows at distance 0 (a switch).
 """
 
 from __future__ import annotations
@@ -50,6 +56,8 @@ SOURCE_COLUMNS: dict[str, list[str]] = {
     "closer": ["study", "pair", "condition", "entity", "d_s3_s1", "d_s3_s2", "closer_to", "closer_s1"],
     "return_variability": ["study", "pair", "condition", "entity", "p", "significant"],
     "pairs": ["study", "pair", "entity", "d_xy", "weight_diff", "height_diff"],
+    "gamma_as_files": ["study", "trial", "subject", "condition", "start_orientation", "orientation_missing", "d_gamma",
+                       "d_gamma_loss_zero"],
 }
 
 
@@ -264,6 +272,28 @@ def pairs_source(distances: pd.DataFrame, anthropometrics: pd.DataFrame | None) 
     return _conform(out, "pairs")
 
 
+def gamma_as_files_source(ts: TrajectorySet) -> pd.DataFrame:
+    """The authors' subject-vs-mean d_gamma, marker-loss rows kept as zero gamma (module doc)."""
+    m = ts.meta
+    if not len(ts) or not m["kind"].eq("mean").any():
+        return _empty("gamma_as_files")
+    walker = m["entity"].eq("walker")
+    means = m[m["kind"].eq("mean") & walker]
+    at = dict(zip(zip(means["study"], means["condition"]), means.index))
+    trials = m[m["kind"].eq("trial") & walker & pd.Series(list(zip(m["study"], m["condition"])), index=m.index).isin(at)]
+    if trials.empty:
+        return _empty("gamma_as_files")
+    i = trials.index.to_numpy()
+    j = np.array([at[k] for k in zip(trials["study"], trials["condition"])])
+    files = lambda g: wrap(np.nan_to_num(g, nan=0.0))  # noqa: E731 - the files hold 0 where the marker was lost
+    d = np.abs(files(ts.gamma[i]) - files(ts.gamma[j])).mean(axis=1)
+    lost = ~np.isfinite(ts.gamma[i]).all(axis=1)
+    out = trials[["study", "trial", "subject", "condition"]].reset_index(drop=True)
+    out["start_orientation"] = out["condition"].astype(str).str[0]
+    out["orientation_missing"], out["d_gamma"], out["d_gamma_loss_zero"] = lost, d, np.where(lost, 0.0, d)
+    return _conform(out, "gamma_as_files")
+
+
 def build_sources(ts: TrajectorySet | None, distances: pd.DataFrame | None, durations: pd.DataFrame | None = None,
                   anthropometrics: pd.DataFrame | None = None, alpha: float = 0.05,
                   only: set[str] | None = None) -> dict[str, pd.DataFrame]:
@@ -276,7 +306,8 @@ def build_sources(ts: TrajectorySet | None, distances: pd.DataFrame | None, dura
         make = {"trials": lambda: trials, "durations": lambda: durations_source(trials, durations),
                 "choices": lambda: choices_source(trials) if has_dir else _empty("choices"),
                 "patterns": lambda: patterns_source(trials) if has_dir else _empty("patterns"),
-                "return_variability": lambda: return_variability_source(ts, alpha) if ts_ok else _empty("return_variability")}
+                "return_variability": lambda: return_variability_source(ts, alpha) if ts_ok else _empty("return_variability"),
+                "gamma_as_files": lambda: gamma_as_files_source(ts) if ts_ok else _empty("gamma_as_files")}
         unknown = set(only) - set(make)
         if unknown:
             raise ValueError(f"build_sources(only=...) supports {sorted(make)}, not {sorted(unknown)}")
@@ -294,5 +325,6 @@ def build_sources(ts: TrajectorySet | None, distances: pd.DataFrame | None, dura
         "closer": closer_source(dist),
         "return_variability": return_variability_source(ts, alpha) if ts is not None else _empty("return_variability"),
         "pairs": pairs_source(dist, anthropometrics),
+        "gamma_as_files": gamma_as_files_source(ts) if ts is not None else _empty("gamma_as_files"),
     }
 

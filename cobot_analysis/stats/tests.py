@@ -24,11 +24,12 @@ import numpy as np
 
 #: smallest group size each test accepts (smaller groups are reported as skipped).
 MIN_SIZE = {"kruskal": 2, "mannwhitneyu": 2, "anova": 2, "ttest": 2, "wilcoxon": 2, "pearson": 3, "spearman": 3,
-            "fisher": 1, "chisquare": 1, "binomial": 1, "largest_subset": 2, "describe": 1}
+            "fisher": 1, "chisquare": 1, "binomial": 1, "largest_subset": 2, "pairwise_subset": 2,
+            "describe": 1}
 #: number of groups each test needs: (min, max); None = no limit.
 N_GROUPS = {"kruskal": (2, None), "anova": (2, None), "mannwhitneyu": (2, 2), "ttest": (2, 2), "wilcoxon": (2, 2),
             "pearson": (1, 1), "spearman": (1, 1), "fisher": (1, None), "chisquare": (1, 1), "binomial": (1, 1),
-            "largest_subset": (2, None), "describe": (1, None)}
+            "largest_subset": (2, None), "pairwise_subset": (2, None), "describe": (1, None)}
 TESTS = tuple(MIN_SIZE)
 
 
