@@ -1,0 +1,97 @@
+"""Single-level IOC (models/ioc/single_level.py) and recovery of known weights (models/ioc/recovery.py):
+small problems (20 intervals, 100 samples, 6-8 paths)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from cobot_analysis.errors import InputError
+from cobot_analysis.models.ioc import IOCSpec, solve_target
+from cobot_analysis.models.presets import load_weights, names_for, weights_vector
+
+W = weights_vector(load_weights("walking-2021", "improved"), "improved")
+SPEC = IOCSpec(model="improved", start_weights=tuple(W), n_intervals=20, fitted=("a1", "a2", "b1"))
+
+
+def _perturbed(spec, factor=2.0):
+    w = np.array(spec.start_weights)
+    for n in spec.fitted:
+        w[names_for(spec.model).index(n)] *= factor
+    return replace(spec, start_weights=tuple(w))
+
+
+def test_hermite_resampling_matches_oc_resample():
+    """The NLP's linear resampling reproduces oc.resample (cubic Hermite in time) to round-off."""
+    from cobot_analysis.models.oc import resample
+    from cobot_analysis.models.ioc.recovery import starts
+    from cobot_analysis.models.ioc.single_level import hermite_matrices
+    from cobot_analysis.models.dynamics import world_velocity
+    from cobot_analysis.models.ioc.targets import Target
+
+    s = starts(3)[1]
+    t = Target("t", "c", "", np.array([s[0], 0.0]), np.array([s[1], 0.0]), np.array([s[2], np.pi / 2]),
+               goal_pose=(0.0, 0.0, np.pi / 2), start_pose=s)
+    _, sol = solve_target(SPEC, W, t, ("rest", "line"))
+    r = resample(sol, 77)
+    H0, H1 = hermite_matrices(SPEC.n_intervals, 77)
+    vx, _ = world_velocity(sol.X[:, 2], sol.X[:, 3], sol.X[:, 4], "walker")
+    np.testing.assert_allclose(H0 @ sol.X[:, 0] + sol.T * (H1 @ vx), r["x"], atol=1e-12)
+    np.testing.assert_allclose(H0 @ sol.X[:, 2] + sol.T * (H1 @ sol.X[:, 5]), r["theta"], atol=1e-12)
+
+
+def test_kkt_holds_at_a_lower_level_solution():
+    """The KKT conditions built from the OC problem's own NLP vanish at its solution (least-squares
+    multipliers), and not at the same path under other weights."""
+    from cobot_analysis.models.dynamics import N_STATE
+    from cobot_analysis.models.ioc.recovery import synthetic_targets
+    from cobot_analysis.models.ioc.single_level import kkt_functions, lower_level, multipliers
+    from cobot_analysis.models.oc.duration import initial_duration
+
+    t = synthetic_targets(SPEC, W, 2)[0]
+    ocp = lower_level(SPEC)
+    kkt, grads = kkt_functions(ocp)
+    _, sol = solve_target(SPEC, W, t, ("rest", "line"))
+    p = ocp.parameters(t.start, t.goal, W, initial_duration(t.start, t.goal))
+    iT = int(ocp._xi[0, N_STATE])
+    lam, nu = multipliers(grads, sol.primal, W, p, iT)
+    r = np.asarray(kkt(sol.primal, lam, W, p)).ravel()
+    r[iT] += nu
+    assert np.abs(r).max() < 1e-6
+    w2 = W.copy()
+    w2[1] *= 3
+    lam2, nu2 = multipliers(grads, sol.primal, w2, p, iT)
+    r2 = np.asarray(kkt(sol.primal, lam2, w2, p)).ravel()
+    r2[iT] += nu2
+    assert np.abs(r2).max() > 1e-3
+
+
+def test_single_level_recovers_noise_free_weights():
+    """Noise-free paths of the model at known weights, the fit started at twice the fitted weights:
+    the weights come back within 1 %, D ~ 0 on the re-solved lower level."""
+    from cobot_analysis.models.ioc.recovery import synthetic_targets
+    from cobot_analysis.models.ioc.single_level import fit_single_level
+
+    targets = synthetic_targets(SPEC, W, 6)
+    r = fit_single_level(_perturbed(SPEC), targets)
+    assert r.success and r.failed == 0
+    for n in SPEC.fitted:
+        true = W[names_for("improved").index(n)]
+        assert abs(r.weights[n] / true - 1) < 0.01, (n, r.weights[n], true)
+    assert r.objective < 1e-4
+    assert r.start_objective > 1e-3  # the start was really off
+
+
+def test_bad_inputs_are_refused():
+    from cobot_analysis.models.ioc.recovery import synthetic_targets
+    from cobot_analysis.models.ioc.single_level import check_spec
+
+    with pytest.raises(InputError, match="not weights of the model"):
+        check_spec(replace(SPEC, fitted=("a1", "zz")), 10)
+    with pytest.raises(InputError, match="cannot determine 3 weights"):
+        check_spec(SPEC, 2)
+    with pytest.raises(InputError, match="--method bilevel"):
+        check_spec(replace(SPEC, convention="published"), 10)
+    assert synthetic_targets(SPEC, W, 1)  # one path is fine to generate
