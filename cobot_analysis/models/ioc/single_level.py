@@ -234,7 +234,7 @@ def fit_single_level(spec: IOCSpec, targets: list[Target], *, start: list | None
     nu_lo, nu_hi = ca.MX.sym("nu_lo", 1, n), ca.MX.sym("nu_hi", 1, n)
     wfull = ca.MX(ca.DM(w0))
     for j, i in enumerate(fi):
-        wfull[i] = wf[j]
+        wfull[i] = wf[j]  # linear: the KKT conditions are linear in w (log10 w made the NLP harder to solve)
     e = np.zeros((nz + nl, 1))
     e[iT] = 1.0
     K = kkt.map(n, "serial")(Z, Lam, ca.repmat(wfull, 1, n), ca.DM(P)) + ca.DM(e) @ (nu_hi - nu_lo)
@@ -250,13 +250,15 @@ def fit_single_level(spec: IOCSpec, targets: list[Target], *, start: list | None
         lb[idx], ub[idx] = lbT[i], ubT[i]
     lb[-2 * n:] = 0.0
     v0 = np.concatenate([w0[fi], Z0.ravel(order="F"), L0.ravel(order="F"), np.maximum(-nu0, 0), np.maximum(nu0, 0)])
-    v0 = np.clip(v0, lb, ub)
+    # log T off its bounds by 1 % (an interior point's start; an exact bound value jams the barrier)
+    v0 = np.clip(v0, np.where(np.isfinite(lb) & (lb != 0), lb + 0.01, lb), np.where(np.isfinite(ub), ub - 0.01, ub))
+    v0[:len(fi)] = np.clip(w0[fi], lb[:len(fi)], ub[:len(fi)])
     g = ca.vertcat(ca.vec(K), ca.vec(comp))
     lbg = np.concatenate([np.zeros(K.numel()), np.full(2 * n, -np.inf)])
     ubg = np.concatenate([np.zeros(K.numel()), np.full(2 * n, COMPLEMENTARITY)])
     solver = ca.nlpsol("single_level", "ipopt", {"x": V, "f": D, "g": g},
                        {"print_time": False, "ipopt": {"print_level": print_level, "sb": "yes", "tol": tol,
-                                                        "max_iter": max_iter, "mu_strategy": "adaptive",
+                                                        "max_iter": max_iter, "mu_strategy": os.environ.get("SL_MU", "monotone"),
                                                         "bound_push": 1e-10, "bound_frac": 1e-10,
                                                         "hessian_approximation": "limited-memory", **IPOPT_EXTRA, "print_timing_statistics": "yes" if print_level >= 5 else "no"}})
     if os.environ.get("SL_DEBUG"):
