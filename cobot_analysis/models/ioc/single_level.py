@@ -40,7 +40,16 @@ from cobot_analysis.models.presets import names_for
 
 METHODS = ("bilevel", "single-level")
 COMPLEMENTARITY = 1e-8  # nu (log T - bound) <= this: the relaxed complementarity of the duration bounds
-IPOPT_EXTRA = {k[6:].lower(): (float(v) if v.replace(".", "").replace("e-", "").isdigit() else v) for k, v in os.environ.items() if k.startswith("IPOPT_")}
+def _option(v: str):
+    for cast in (int, float):
+        try:
+            return cast(v)
+        except ValueError:
+            pass
+    return v
+
+
+IPOPT_EXTRA = {k[6:]: _option(v) for k, v in os.environ.items() if k.startswith("IPOPT_")}  # experiments only
 SMOOTHING = 1e-4  # eps of the smoothed |.| (rad) and norm (m) in the NLP's D: < 1e-4 per sample
 
 
@@ -260,7 +269,8 @@ def fit_single_level(spec: IOCSpec, targets: list[Target], *, start: list | None
                        {"print_time": False, "ipopt": {"print_level": print_level, "sb": "yes", "tol": tol,
                                                         "max_iter": max_iter, "mu_strategy": os.environ.get("SL_MU", "monotone"),
                                                         "bound_push": 1e-10, "bound_frac": 1e-10,
-                                                        "hessian_approximation": "limited-memory", **IPOPT_EXTRA, "print_timing_statistics": "yes" if print_level >= 5 else "no"}})
+                                                        "hessian_approximation": "limited-memory", "limited_memory_max_history": 20,
+                                                        **IPOPT_EXTRA, "print_timing_statistics": "yes" if print_level >= 5 else "no"}})
     if os.environ.get("SL_DEBUG"):
         print("built", time.perf_counter() - t0)
         gf = ca.Function("gf", [V], [ca.vec(K)])
