@@ -132,3 +132,14 @@ def test_identifiability_and_bootstrap_on_known_truth():
         lo, hi = b["intervals"][n]
         true = W[names_for("improved").index(n)]
         assert lo <= true * 1.01 and hi >= true * 0.99 and hi - lo < 0.02 * true
+
+
+def test_method_and_bootstrap_checks():
+    from cobot_analysis.models.ioc.single_level import check_method
+
+    check_method("bilevel")
+    check_method("single-level", 200)
+    with pytest.raises(InputError, match="unknown --method 'one-level'"):
+        check_method("one-level")
+    with pytest.raises(InputError, match="at least 2"):
+        check_method("single-level", 1)

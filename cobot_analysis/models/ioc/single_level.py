@@ -27,7 +27,6 @@ KKT point inside the box (``at_duration_bound`` counts the targets that end with
 from __future__ import annotations
 
 import math
-import os
 import time
 from dataclasses import asdict, dataclass, field
 
@@ -40,16 +39,6 @@ from cobot_analysis.models.presets import names_for
 
 METHODS = ("bilevel", "single-level")
 COMPLEMENTARITY = 1e-8  # nu (log T - bound) <= this: the relaxed complementarity of the duration bounds
-def _option(v: str):
-    for cast in (int, float):
-        try:
-            return cast(v)
-        except ValueError:
-            pass
-    return v
-
-
-IPOPT_EXTRA = {k[6:]: _option(v) for k, v in os.environ.items() if k.startswith("IPOPT_")}  # experiments only
 SMOOTHING = 1e-4  # eps of the smoothed |.| (rad) and norm (m) in the NLP's D: < 1e-4 per sample
 
 
@@ -231,8 +220,6 @@ def fit_single_level(spec: IOCSpec, targets: list[Target], *, start: list | None
             start.append(sol.primal)
             start_terms.append(d)
     Z0 = np.column_stack(start)
-    if os.environ.get("SL_DEBUG"):
-        print("lower levels", time.perf_counter() - t0)
     iT = int(ocp._xi[0, N_STATE])  # log T (first copy): the duration bounds' multipliers act on it
     lam_nu = [multipliers(grads, Z0[:, i], w0, P[:, i], iT) for i in range(n)]
     L0, nu0 = np.column_stack([a for a, _ in lam_nu]), np.array([b for _, b in lam_nu])
@@ -267,15 +254,12 @@ def fit_single_level(spec: IOCSpec, targets: list[Target], *, start: list | None
     ubg = np.concatenate([np.zeros(K.numel()), np.full(2 * n, COMPLEMENTARITY)])
     solver = ca.nlpsol("single_level", "ipopt", {"x": V, "f": D, "g": g},
                        {"print_time": False, "ipopt": {"print_level": print_level, "sb": "yes", "tol": tol,
-                                                        "max_iter": max_iter, "mu_strategy": os.environ.get("SL_MU", "monotone"),
+                                                        "max_iter": max_iter, "mu_strategy": "monotone",
                                                         "bound_push": 1e-10, "bound_frac": 1e-10,
-                                                        "hessian_approximation": "limited-memory", "limited_memory_max_history": 20,
-                                                        **IPOPT_EXTRA, "print_timing_statistics": "yes" if print_level >= 5 else "no"}})
-    if os.environ.get("SL_DEBUG"):
-        print("built", time.perf_counter() - t0)
-        gf = ca.Function("gf", [V], [ca.vec(K)])
-        g0 = np.asarray(gf(v0)).ravel()
-        print("start |KKT|", np.abs(g0).max(), np.argmax(np.abs(g0)) // (nz + nl), np.argmax(np.abs(g0)) % (nz + nl))
+                                                        # the exact Hessian (third derivatives of the OC problem) did
+                                                        # not converge even on noise-free synthetic paths
+                                                        "hessian_approximation": "limited-memory",
+                                                        "limited_memory_max_history": 20}})
     r = solver(x0=v0, lbx=lb, ubx=ub, lbg=lbg, ubg=ubg)
     st = solver.stats()
     v = np.asarray(r["x"]).ravel()
@@ -301,3 +285,21 @@ def fit_single_level(spec: IOCSpec, targets: list[Target], *, start: list | None
                              success=bool(st.get("success", False)), seconds=time.perf_counter() - t0, failed=failed,
                              at_duration_bound=at_bound, kkt_residual=kres, per_target=terms,
                              primals=[Zs[:, i].copy() for i in range(n)])
+
+
+def check_method(method: str, bootstrap: int = 0) -> None:
+    """The fit's method name and bootstrap count (bad input: one line, before anything is written)."""
+    if method not in METHODS:
+        raise InputError(f"unknown --method {method!r}", remedy=f"use one of {', '.join(METHODS)}")
+    if bootstrap and bootstrap < 2:
+        raise InputError(f"--bootstrap {bootstrap}: a bootstrap needs at least 2 resamples", remedy="use --bootstrap 200 (or 0 for none)")
+
+
+def as_ioc_result(r: SingleLevelResult):
+    """The single-level result in the bi-level fit's result type (``fit.IOCResult``: what the stage
+    writes): no upper-level evaluations, IPOPT's iterations and return status."""
+    from cobot_analysis.models.ioc.fit import IOCResult
+
+    return IOCResult(spec=r.spec, weights=r.weights, objective=r.objective, start_objective=r.start_objective, evaluations=0,
+                     iterations=r.iterations, failed=r.failed, per_target=r.per_target,
+                     message=f"single-level: {r.status} (smoothed D {r.nlp_objective:.4f}, {r.seconds:.1f} s)")
