@@ -121,7 +121,7 @@ def hermite_matrices(n_intervals: int, n_samples: int) -> tuple[np.ndarray, np.n
 
 def distance_function(ocp, n_samples: int, angle: str, angle_weight: float, eps: float = SMOOTHING):
     """casadi ``D(z, data)`` of one target, data = (x, y, theta, gamma) measured (M each):
-    smoothed d_xy + angle_weight d_angle (module docstring; gamma as ``metrics.gamma_from_path``)."""
+    smoothed d_xy + angle_weight d_angle (module docstring; gamma as ``distances.gamma_from_path``)."""
     import casadi as ca
 
     from cobot_analysis.models.dynamics import N_STATE
@@ -151,7 +151,7 @@ def distance_function(ocp, n_samples: int, angle: str, angle_weight: float, eps:
 
 def target_data(t: Target) -> np.ndarray:
     """(x, y, theta, gamma) of a target, gamma from the measured path (continuous convention)."""
-    from cobot_analysis.metrics import gamma_from_path
+    from cobot_analysis.distances import gamma_from_path
 
     return np.concatenate([t.x, t.y, t.theta, gamma_from_path(t.x, t.y, t.theta)])
 
