@@ -143,3 +143,10 @@ def test_method_and_bootstrap_checks():
         check_method("one-level")
     with pytest.raises(InputError, match="at least 2"):
         check_method("single-level", 1)
+
+
+def test_fit_ioc_refuses_an_unknown_method(cli, tmp_path):
+    code, out, err = cli("fit-ioc", "--out", tmp_path, "--method", "one-level", "--no-compare")
+    assert code == 2
+    assert "--method" in err and "single-level" in err and len(err.strip().splitlines()) == 1
+    assert not any(tmp_path.iterdir())
