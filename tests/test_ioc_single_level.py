@@ -150,3 +150,37 @@ def test_fit_ioc_refuses_an_unknown_method(cli, tmp_path):
     assert code == 2
     assert "--method" in err and "single-level" in err and len(err.strip().splitlines()) == 1
     assert not any(tmp_path.iterdir())
+
+
+def test_fit_ioc_single_level_end_to_end_and_too_few_paths(cli, tmp_path):
+    """fit-ioc --method single-level on 4 model paths (as means): the stage writes its weights and a report
+    that names the method; fitting more weights than paths is refused (exit 2, nothing written)."""
+    import json
+
+    import pandas as pd
+
+    from cobot_analysis.design import WALKING_GOAL, walking_condition
+    from cobot_analysis.models import generate
+    from cobot_analysis.schema import TRAJECTORIES, write_table
+
+    frames = []
+    for c in ("E4015", "O1515", "N-0615", "S4040"):
+        df = generate("improved", walking_condition(c).start, WALKING_GOAL, weights="walking-2021", n_samples=100,
+                      n_intervals=20, convention="continuous")
+        base = df[list(TRAJECTORIES.columns.keys() & set(df.columns))].copy()
+        frames.append(base.assign(study="test-walking", trial=f"mean_{c}", kind="mean", n_trials=1, subject=None))
+    src = write_table(pd.concat(frames, ignore_index=True), tmp_path / "trajectories.parquet", TRAJECTORIES)
+    bad = tmp_path / "bad"
+    code, _, err = cli("fit-ioc", "--out", bad, "--trajectories", src, "--method", "single-level",
+                       "--fit", "a0,a1,a2,a3,a4", "--intervals", "20", "--no-compare", "-j", "1")
+    assert code == 2 and "4 paths cannot determine 5 weights" in err and len(err.strip().splitlines()) == 1
+    assert not (bad / "fit-ioc").exists()
+    out = tmp_path / "ws"
+    start = tmp_path / "start.json"  # twice the true a1 and b1
+    start.write_text(json.dumps({"convention": "continuous", "weights": {**dict(zip(names_for("improved"), W)), "a1": 8.0, "b1": 20.0}}))
+    code, _, err = cli("fit-ioc", "--out", out, "--trajectories", src, "--method", "single-level",
+                       "--fit", "a1,b1", "--start-weights", start, "--intervals", "20", "--no-compare", "-j", "1")
+    assert code == 0, err
+    fit = json.loads((out / "fit-ioc" / "weights.json").read_text())["fits"]["all"]
+    assert fit["objective"] < fit["start_objective"], fit
+    assert "Single-level IOC (docs/methods.md sec. 6.1)" in (out / "fit-ioc" / "results.md").read_text()
