@@ -298,8 +298,12 @@ def check_method(method: str, bootstrap: int = 0) -> None:
 def as_ioc_result(r: SingleLevelResult):
     """The single-level result in the bi-level fit's result type (``fit.IOCResult``: what the stage
     writes): no upper-level evaluations, IPOPT's iterations and return status."""
+    from cobot_analysis.console import warn
     from cobot_analysis.models.ioc.fit import IOCResult
 
+    if not r.success or not r.objective < r.start_objective:
+        warn(f"single-level IOC: IPOPT {r.status}, D {r.objective:.4f} re-solved at the fitted weights against "
+             f"{r.start_objective:.4f} at the start: not a fit to report (use --method bilevel)")
     return IOCResult(spec=r.spec, weights=r.weights, objective=r.objective, start_objective=r.start_objective, evaluations=0,
                      iterations=r.iterations, failed=r.failed, per_target=r.per_target,
                      message=f"single-level: {r.status} (smoothed D {r.nlp_objective:.4f}, {r.seconds:.1f} s)")
