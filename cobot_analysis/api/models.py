@@ -297,19 +297,22 @@ def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: s
             resume: bool = False, checkpoint: str | os.PathLike | None = None, jobs: int | None = None,
             scheduler: str | None = None, means_source: str | os.PathLike = "", trials_source: str | os.PathLike | None = None,
             durations: pd.DataFrame | None = None,
-            on_evaluation: Callable[[str, int, float, float], None] | None = None) -> FitResult:
+            on_evaluation: Callable[[str, int, float, float], None] | None = None, method: str = "bilevel") -> FitResult:
     """Bi-level inverse optimal control (docs/methods.md sec. 6): fit the OC cost weights of ``model``
     (``improved``, ``table`` or ``coupled``) to the mean trajectories (``per="all"``) or to each subject's
     trials (``per="subject"``). ``fit``: the weights to fit (default: all but those ``held_weights`` holds);
     ``start_weights``: a preset, a weights.json, or ``"ones"`` (every fitted weight 1). ``checkpoint``: a
     directory where the upper level's evaluations are logged after every iteration (``resume`` continues).
-    ``on_evaluation(fit, n, D, best)`` reports progress."""
+    ``on_evaluation(fit, n, D, best)`` reports progress. ``method``: ``bilevel`` (the published method) or
+    ``single-level`` (docs/methods.md sec. 6.1; improved and table models, continuous convention)."""
     from cobot_analysis import conventions
     from cobot_analysis.models.comparison import compare_models, compared_models, coupled_distances, orientation_of, subject_distances
     from cobot_analysis.models.ioc import fit as ioc_fit, pair_targets_from_table, targets_from_table
     from cobot_analysis.models.presets import DEFAULT_PRESET, PRESETS, names_for, weights_vector
+    from cobot_analysis.models.ioc.single_level import as_ioc_result, check_method, check_spec, fit_single_level
     from cobot_analysis.parallel import default_jobs, executor
 
+    check_method(method)
     if model not in ("improved", "table", "coupled"):
         raise InputError(f"fit-ioc fits the improved, table or coupled model, not {model!r}", remedy="use --model improved, table or coupled")
     conv = conventions.get(convention or "continuous")
@@ -347,6 +350,9 @@ def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: s
             fits = dict(list(fits.items())[:subjects])
         if not fits:
             raise InputError("no subject trajectory with orientation", path=trials_source, remedy="check the input table")
+    if method == "single-level":  # its refusals (model, convention, fewer paths than weights) before any fit
+        for targets in fits.values():
+            check_spec(spec, len(targets))
     checkpoint = Path(checkpoint) if checkpoint is not None else None
     n_chunks = 4 * (default_jobs() if jobs is None else jobs) if scheduler is None else 8
     results = {}
@@ -354,6 +360,9 @@ def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: s
         for key, targets in fits.items():
             safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in key)
             report = (lambda n, f, best, key=key: on_evaluation(key, n, f, best)) if on_evaluation else None
+            if method == "single-level":
+                results[key] = as_ioc_result(fit_single_level(spec, targets))
+                continue
             results[key] = ioc_fit(spec, targets, pool=pool, chunks=n_chunks,
                                    checkpoint=checkpoint / f"{safe}.json" if checkpoint else None, resume=resume,
                                    on_evaluation=report)

@@ -112,6 +112,7 @@ def fit_ioc_command(
     compare: Annotated[bool, typer.Option("--compare/--no-compare", help="Compare unicycle, clothoid, Mombaur, published and fitted models.")] = True,
     resume: Annotated[bool, typer.Option("--resume", help="Continue from the checkpoint of an interrupted run with the same inputs and options.")] = False,
     convention: ConventionOpt = None,
+    method: Annotated[str, typer.Option("--method", help="bilevel (the published method) or single-level (one NLP with the lower level's KKT conditions; improved and table models, continuous convention; docs/methods.md 6.1).")] = "bilevel",
     seed: SeedOpt = 0,
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
@@ -148,7 +149,7 @@ def fit_ioc_command(
         done = models.fit_ioc(out, means=means, trajectories=trajectories, model=model, start_weights=start_weights, fit=fitted,
                               optimizer=optimizer.value, max_evaluations=max_evaluations, per=per.value, subjects=subjects,
                               goal=goal.value, intervals=intervals, v_nominal=v_nominal, compare=compare, resume=resume,
-                              convention=convention, seed=seed, jobs=jobs, scheduler=scheduler, force=force,
+                              convention=convention, seed=seed, jobs=jobs, scheduler=scheduler, force=force, method=method,
                               on_evaluation=on_evaluation)
         for key, task in tasks.items():
             evaluations = done.result.results[key].evaluations

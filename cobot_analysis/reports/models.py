@@ -448,10 +448,16 @@ def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal
                  "convention, docs/methods.md sec. 5.5, 11), from the solution at the best weights so far and from a rest "
                  "and a straight-line guess, the least cost kept")
     start_weights = result.start_label
+    single = any(r.message.startswith("single-level") for r in result.results.values())  # models.ioc.single_level.as_ioc_result
+    if single:
+        lower = lower.replace(", warm-started from the solution at the best weights so far", ", its KKT conditions constraints of the NLP")
     lines = [f"## Inverse optimal control ({model} model{', one fit per subject' if per == 'subject' else ''}, "
              f"{conv.name} convention)", "",
-             f"Bi-level IOC (docs/methods.md sec. 6): upper level {optimizer} over log10 of ({', '.join(names)}), "
-             f"bounds 1e-7..1e3, the other weights held at their start value "
+             (f"Single-level IOC (docs/methods.md sec. 6.1): one IPOPT NLP over ({', '.join(names)}), every path and the "
+              f"multipliers of its lower level's KKT conditions, the D reported from the lower level re-solved at the fitted weights; "
+              if single else
+              f"Bi-level IOC (docs/methods.md sec. 6): upper level {optimizer} over log10 of ({', '.join(names)}), ")
+             + f"bounds 1e-7..1e3, the other weights held at their start value "
              f"({'neutral start: fitted weights 1' if start_weights == 'ones' else start_weights}); "
              f"{lower}; objective D = d_xy + 0.5 d_{angle} averaged over the trajectories (orientation required; "
              f"goal: {result.goal if conv.name == 'continuous' else 'the authors'})"

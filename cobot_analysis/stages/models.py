@@ -88,7 +88,8 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
             model: str = "improved", start_weights: str | None = None, fit: list[str] | None = None, optimizer: str = "powell",
             max_evaluations: int = 2000, per: str = "all", subjects: int | None = None, goal: str = "auto", intervals: int = 50,
             v_nominal: float = 1.0, compare: bool = True, resume: bool = False, convention: str | None = None, seed: int = 0,
-            jobs: int | None = None, scheduler: str | None = None, force: bool = False, on_evaluation=None) -> Outcome:
+            jobs: int | None = None, scheduler: str | None = None, force: bool = False, on_evaluation=None,
+            method: str = "bilevel") -> Outcome:
     """``fit-ioc`` (``fit-ioc-subjects`` with ``per="subject"``, ``fit-ioc-coupled`` for the coupled model, each
     ``-published`` under the published convention): weights.json, weights/<fit>.json, distances.parquet,
     fits.csv, figures and results.md. The upper level's evaluations are checkpointed in
@@ -96,9 +97,11 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
     import pandas as pd
 
     from cobot_analysis import conventions
+    from cobot_analysis.models.ioc.single_level import check_method
     from cobot_analysis.models.outputs import ioc_distances_schema
     from cobot_analysis.reports.models import fit_ioc_markdown
 
+    check_method(method)
     conv = conventions.get(convention or "continuous")
     spec = ioc_spec(model, convention=conv.name, start_weights=start_weights, fit=fit, optimizer=optimizer,
                     max_evaluations=max_evaluations, intervals=intervals, v_nominal=v_nominal)  # options checked first
@@ -126,6 +129,8 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
     if start_weights and Path(start_weights).is_file():
         inputs.append(Path(start_weights))
     params = {"spec": spec.__dict__, "per": per, "subjects": subjects, "goal": goal, "compare": compare, "seed": seed}
+    if method != "bilevel":  # the bi-level stages keep their manifest (and are not re-run)
+        params["method"] = method
     # own stages: the coupled fit never replaces the table fit, nor per-subject fits the fit over the means
     name = registry.directory("fit-ioc-coupled" if model == "coupled" else "fit-ioc-subjects" if per == "subject" else "fit-ioc",
                               conv.name)
@@ -142,7 +147,7 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
                              max_evaluations=max_evaluations, per=per, subjects=subjects, goal=goal, intervals=intervals,
                              v_nominal=v_nominal, compare=compare, convention=conv.name, resume=resume,
                              checkpoint=Path(out) / f".{name}.checkpoint", jobs=jobs, scheduler=scheduler, means_source=mean_src,
-                             trials_source=traj_path or out, durations=durations, on_evaluation=on_evaluation)
+                             trials_source=traj_path or out, durations=durations, on_evaluation=on_evaluation, method=method)
         stage.write_json("weights.json", result.weights_json())
         for k, r in result.results.items():  # each fit also as a file usable with --weights
             stage.path(f"weights/{k}.json").write_text(json.dumps({"convention": conv.name, "weights": r.weights}, indent=2) + "\n")

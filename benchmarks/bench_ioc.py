@@ -1,0 +1,73 @@
+"""Benchmark: single-level against bi-level IOC on the same targets, in one run (docs/benchmarks.md).
+
+    python benchmarks/bench_ioc.py --means WS/average/means.parquet [--paths 37] [--intervals 50]
+    python benchmarks/bench_ioc.py --synthetic 8 --intervals 20 --fit a1,a2,b1
+
+``--means``: the walking means (improved model, goal (0, 0, pi/2), every weight but a5, a6, b0 fitted,
+from the walking-2021 preset, as ``fit-ioc``); ``--synthetic N``: N paths of the model at the
+walking-2021 weights (noise ``--noise`` m), the fit started at twice the fitted weights. Both methods
+in-process, one after the other, on one core (the bi-level fit's lower levels inline, ``--jobs 1``);
+prints wall time, the exact D (lower level re-solved) and the weights of each, and the time ratio.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import replace
+
+import numpy as np
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--means")
+    ap.add_argument("--synthetic", type=int)
+    ap.add_argument("--paths", type=int, default=0, help="first N targets (0: all)")
+    ap.add_argument("--intervals", type=int, default=50)
+    ap.add_argument("--fit", default="a0,a1,a2,a3,a4,b1,b2,b3")
+    ap.add_argument("--noise", type=float, default=0.0)
+    args = ap.parse_args()
+
+    import pandas as pd
+
+    from cobot_analysis.design import WALKING_GOAL
+    from cobot_analysis.models.ioc import IOCSpec, fit, targets_from_table
+    from cobot_analysis.models.ioc.recovery import synthetic_targets
+    from cobot_analysis.models.ioc.single_level import fit_single_level
+    from cobot_analysis.models.presets import load_weights, names_for, weights_vector
+
+    w = weights_vector(load_weights("walking-2021", "improved"), "improved")
+    spec = IOCSpec(model="improved", start_weights=tuple(w), n_intervals=args.intervals, fitted=tuple(args.fit.split(",")))
+    if args.synthetic:
+        targets = synthetic_targets(spec, w, args.synthetic, noise=args.noise)
+        ws = w.copy()
+        for n in spec.fitted:
+            ws[names_for("improved").index(n)] *= 2
+        spec = replace(spec, start_weights=tuple(ws))
+    else:
+        df = pd.read_parquet(args.means)
+        targets = targets_from_table(df[df["kind"] == "mean"] if "kind" in df else df, entity="walker", goal=WALKING_GOAL)
+    if args.paths:
+        targets = targets[:args.paths]
+    rows = []
+    t0 = time.perf_counter()
+    b = fit(spec, targets)
+    tb = time.perf_counter() - t0
+    rows.append(("bilevel", tb, b.objective, b.weights, f"{b.evaluations} evaluations"))
+    t0 = time.perf_counter()
+    s = fit_single_level(spec, targets)
+    ts = time.perf_counter() - t0
+    rows.append(("single-level", ts, s.objective, s.weights,
+                 f"{s.iterations} IPOPT iterations, {s.status}, smoothed D {s.nlp_objective:.4f}, failed {s.failed}"))
+    print(f"{len(targets)} paths, {args.intervals} intervals, fitted {','.join(spec.fitted)}")
+    print("| method | time (s) | D | " + " | ".join(spec.fitted) + " | notes |")
+    print("|---|---|---|" + "---|" * len(spec.fitted) + "---|")
+    for m, t, D, wd, note in rows:
+        print(f"| {m} | {t:.1f} | {D:.4f} | " + " | ".join(f"{wd[n]:.4g}" for n in spec.fitted) + f" | {note} |")
+    print(f"time ratio bilevel / single-level: {tb / ts:.2f}")
+
+
+if __name__ == "__main__":
+    np.set_printoptions(precision=4)
+    main()

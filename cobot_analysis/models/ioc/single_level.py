@@ -1,0 +1,309 @@
+"""Single-level inverse optimal control (docs/methods.md sec. 6.2), after Becanovic, Jovanovic and
+Bonnet (IEEE-RAS Humanoids 2024): the lower level is replaced by its first-order optimality
+conditions, and one NLP is solved over the fitted weights w and, for every target n, the lower
+level's primal vector z_n (states, controls, log T) and the multipliers lambda_n of its equality
+constraints g_n:
+
+    min_{w, z, lambda}  (1/N_traj) sum_n D_n(z_n)
+    s.t.  grad_z L_n(z_n, lambda_n; w) = 0,   g_n(z_n) = 0,   L_n = J_n(z_n; w) + lambda_n' g_n(z_n),
+          w_i in [1e-7, 1e3] (the bi-level search box), the held weights fixed (b0 fixes the scale).
+
+J_n and g_n are the lower level's own NLP (``oc.problem.WalkerOCP``, the one the bi-level fit
+solves), evaluated symbolically; casadi differentiates it, so a change of the OC problem (a cost term,
+a terminal constraint) carries over. The KKT conditions are linear in w and lambda.
+
+D_n = d_xy + 0.5 d_gamma (walker) or d_xy + 0.5 d_theta (table) of the path resampled to the measured
+samples as ``oc.resample`` does (cubic Hermite in time; the nodes sit at fixed fractions of T, so the
+resampling is linear in the nodes and in T times the node velocities), with |a| and the Euclidean
+norm smoothed to sqrt(a^2 + eps^2) - eps so IPOPT sees a twice differentiable objective. The D
+reported is never that one: the lower level is re-solved at the fitted weights with the bi-level
+fit's own solver (``fit.solve_target``, warm from the single-level path) and D computed exactly.
+
+The free duration's bounds (0.4, 2.5) x T0 stay bounds of log T; the stationarity conditions hold
+without bound multipliers, so a target whose lower-level optimum lies on a duration bound has no
+KKT point inside the box (``at_duration_bound`` counts the targets that end within 1e-3 of one).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from cobot_analysis.errors import InputError
+from cobot_analysis.models.ioc.fit import LOG_BOUNDS, T_BOUNDS, IOCSpec, solve_target
+from cobot_analysis.models.ioc.targets import Target
+from cobot_analysis.models.presets import names_for
+
+METHODS = ("bilevel", "single-level")
+COMPLEMENTARITY = 1e-8  # nu (log T - bound) <= this: the relaxed complementarity of the duration bounds
+SMOOTHING = 1e-4  # eps of the smoothed |.| (rad) and norm (m) in the NLP's D: < 1e-4 per sample
+
+
+@dataclass
+class SingleLevelResult:
+    spec: IOCSpec
+    weights: dict[str, float]
+    objective: float  # exact D of the lower level re-solved at the fitted weights (mean over targets)
+    nlp_objective: float  # the smoothed D at the NLP's solution
+    start_objective: float  # exact D at the starting weights
+    iterations: int
+    status: str
+    success: bool
+    seconds: float  # build + start + solve + verification
+    failed: int  # re-solved lower levels that did not converge
+    at_duration_bound: int
+    kkt_residual: float  # max |KKT| at the NLP's solution
+    per_target: list[dict] = field(default_factory=list)
+    primals: list = field(default_factory=list, repr=False)  # the single-level paths (warm starts)
+
+    def to_json(self) -> dict:
+        d = asdict(self)
+        d["spec"] = asdict(self.spec)
+        d.pop("primals")
+        return d
+
+
+# ---- the lower level's NLP, symbolically ---------------------------------------------------------
+def lower_level(spec: IOCSpec):
+    """The lower level's ``WalkerOCP`` (the shape ``solve_model`` builds for a free duration)."""
+    from cobot_analysis.models.oc.problem import OCPShape, get_ocp
+
+    return get_ocp(OCPShape(spec.n_intervals, "walker", free_time=True, max_iter=spec.max_iter))
+
+
+def weight_slots(ocp) -> np.ndarray:
+    """Indices of the 11 weights in the OC problem's parameter vector (found, not assumed)."""
+    probe = np.arange(11) + 1000.5
+    p = ocp.parameters((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), probe, 2.0)
+    return np.array([int(np.flatnonzero(p == v)[0]) for v in probe])
+
+
+def kkt_functions(ocp):
+    """casadi functions of one target: ``kkt(z, lam, w, p) = [grad_z L; g]`` and
+    ``grads(z, w, p) = (grad_z J, jac_z g)`` (for the least-squares multipliers), L = J + lam' g,
+    from the lower level's own NLP function ``nlp(z, p) -> (J, g)``."""
+    import casadi as ca
+
+    nlp = ocp._sx_nlp()
+    z, lam = ca.SX.sym("z", ocp.n_vars), ca.SX.sym("lam", ocp.n_cons)
+    w, p = ca.SX.sym("w", 11), ca.SX.sym("p", ocp.n_params)
+    slots = weight_slots(ocp)
+    pe = ca.SX(p)
+    for i, s in enumerate(slots):
+        pe[int(s)] = w[i]
+    out = nlp(x=z, p=pe)
+    J, g = out["f"], out["g"]
+    grad_L = ca.gradient(J + ca.dot(lam, g), z)
+    kkt = ca.Function("kkt", [z, lam, w, p], [ca.vertcat(grad_L, g)])
+    grads = ca.Function("grads", [z, w, p], [ca.gradient(J, z), ca.jacobian(g, z)])
+    return kkt, grads
+
+
+def hermite_matrices(n_intervals: int, n_samples: int) -> tuple[np.ndarray, np.ndarray]:
+    """(H0, H1) with path samples = H0 @ node values + T * H1 @ node time derivatives: the cubic
+    Hermite interpolant on nodes at s_k = k / N evaluated at s_j = j / (M - 1) (``oc.resample``)."""
+    N, M = n_intervals, n_samples
+    s = np.linspace(0.0, 1.0, M)
+    k = np.minimum((s * N).astype(int), N - 1)
+    h = 1.0 / N
+    tau = s * N - k
+    h00, h10 = 2 * tau**3 - 3 * tau**2 + 1, tau**3 - 2 * tau**2 + tau
+    h01, h11 = -2 * tau**3 + 3 * tau**2, tau**3 - tau**2
+    H0, H1 = np.zeros((M, N + 1)), np.zeros((M, N + 1))
+    rows = np.arange(M)
+    H0[rows, k], H0[rows, k + 1] = h00, h01
+    H1[rows, k], H1[rows, k + 1] = h10 * h, h11 * h
+    return H0, H1
+
+
+def distance_function(ocp, n_samples: int, angle: str, angle_weight: float, eps: float = SMOOTHING):
+    """casadi ``D(z, data)`` of one target, data = (x, y, theta, gamma) measured (M each):
+    smoothed d_xy + angle_weight d_angle (module docstring; gamma as ``distances.gamma_from_path``)."""
+    import casadi as ca
+
+    from cobot_analysis.models.dynamics import N_STATE
+
+    M = n_samples
+    z, data = ca.SX.sym("z", ocp.n_vars), ca.SX.sym("data", 4 * M)
+    col = lambda i: z[ocp._xi[:, i].tolist()]  # noqa: E731
+    x, y, th, vf, vo, om = (col(i) for i in range(N_STATE))
+    T = ca.exp(z[int(ocp._xi[0, N_STATE])])
+    H0, H1 = (ca.sparsify(ca.DM(H)) for H in hermite_matrices(ocp.N, M))
+    vx, vy = ca.cos(th) * vf - ca.sin(th) * vo, ca.sin(th) * vf + ca.cos(th) * vo
+    xs, ys, ths = H0 @ x + T * (H1 @ vx), H0 @ y + T * (H1 @ vy), H0 @ th + T * (H1 @ om)
+    mx, my, mth, mg = data[:M], data[M:2 * M], data[2 * M:3 * M], data[3 * M:]
+    sabs = lambda a: ca.sqrt(a**2 + eps**2) - eps  # noqa: E731
+    d_xy = ca.sum1(ca.sqrt((xs - mx)**2 + (ys - my)**2 + eps**2) - eps) / M
+    if angle == "gamma":  # wrap(mg - (heading - theta)), heading of the model's sample steps
+        dx, dy = xs[1:] - xs[:-1], ys[1:] - ys[:-1]
+        r = ca.sqrt(dx**2 + dy**2 + 1e-12)
+        ch, sh = dx / r, dy / r
+        a = mg[:-1] + ths[:-1]
+        diff = ca.atan2(ca.sin(a) * ch - ca.cos(a) * sh, ca.cos(a) * ch + ca.sin(a) * sh)
+        d_ang = ca.sum1(sabs(diff)) / (M - 1)
+    else:
+        d_ang = ca.sum1(sabs(ca.atan2(ca.sin(mth - ths), ca.cos(mth - ths)))) / M
+    return ca.Function("D", [z, data], [d_xy + angle_weight * d_ang])
+
+
+def target_data(t: Target) -> np.ndarray:
+    """(x, y, theta, gamma) of a target, gamma from the measured path (continuous convention)."""
+    from cobot_analysis.distances import gamma_from_path
+
+    return np.concatenate([t.x, t.y, t.theta, gamma_from_path(t.x, t.y, t.theta)])
+
+
+def multipliers(grads, z, w, p, i_T: int) -> tuple[np.ndarray, float]:
+    """(lambda, nu) = argmin |grad J + jac_g' lambda + nu e_T| (least squares) at a lower-level path
+    z; nu: the multiplier of the duration bounds on log T (index ``i_T``)."""
+    gJ, Jg = grads(z, w, p)
+    A = np.column_stack([Jg.full().T, np.eye(len(z))[:, i_T]])
+    sol = np.linalg.lstsq(A, -gJ.full().ravel(), rcond=None)[0]
+    return sol[:-1], float(sol[-1])
+
+
+# ---- the fit -------------------------------------------------------------------------------------
+def check_spec(spec: IOCSpec, n_targets: int) -> None:
+    """The bad inputs of a fit (one line each): unknown weights, fewer paths than fitted weights, a
+    convention or model the single-level fit does not cover."""
+    names = names_for(spec.model)
+    bad = [n for n in spec.fitted if n not in names]
+    if bad or not spec.fitted:
+        raise InputError(f"--fit names {bad or '(none)'} are not weights of the model ({', '.join(names)})", remedy="e.g. --fit a1,a2,a4")
+    if n_targets < len(spec.fitted):
+        raise InputError(f"{n_targets} paths cannot determine {len(spec.fitted)} weights",
+                         remedy="fit fewer weights (--fit) or add paths")
+    if spec.model not in ("improved", "table") or spec.convention != "continuous":
+        raise InputError(f"the single-level fit covers the improved and table models under the continuous convention, "
+                         f"not {spec.model!r} / {spec.convention!r}", remedy="use --method bilevel for this fit")
+
+
+def fit_single_level(spec: IOCSpec, targets: list[Target], *, start: list | None = None, start_weights=None,
+                     eps: float = SMOOTHING, max_iter: int = 300, tol: float = 1e-8, verify: bool = True,
+                     print_level: int = 0) -> SingleLevelResult:
+    """Fit ``spec.fitted`` to ``targets`` in one NLP (module docstring).
+
+    ``start``: lower-level primal vectors per target to start from (e.g. the bi-level fit's), else
+    the lower level solved at the starting weights (``start_weights`` or ``spec.start_weights``) as
+    the bi-level fit's reference step does; the multipliers by least squares at those paths."""
+    import casadi as ca
+
+    from cobot_analysis.models.dynamics import N_STATE
+    from cobot_analysis.models.oc.duration import initial_duration
+
+    t0 = time.perf_counter()
+    check_spec(spec, len(targets))
+    names = names_for(spec.model)
+    w0 = np.array(spec.start_weights if start_weights is None else start_weights, float)
+    fi = [names.index(n) for n in spec.fitted]
+    w0[fi] = np.clip(w0[fi], 10.0 ** LOG_BOUNDS[0], 10.0 ** LOG_BOUNDS[1])
+    ocp = lower_level(spec)
+    kkt, grads = kkt_functions(ocp)
+    n, nz, nl = len(targets), ocp.n_vars, ocp.n_cons
+    M = len(targets[0].x)
+    if any(len(t.x) != M for t in targets):
+        raise InputError("the targets have different numbers of samples", remedy="fit means or resampled trials (average)")
+    Dfun = distance_function(ocp, M, spec.angle, spec.angle_weight, eps)
+    T0 = [initial_duration(t.start, t.goal, spec.v_nominal) for t in targets]
+    P = np.column_stack([ocp.parameters(t.start, t.goal, w0, T) for t, T in zip(targets, T0)])
+    data = np.column_stack([target_data(t) for t in targets])
+
+    # starting point: lower-level paths and least-squares multipliers
+    start_terms = []
+    if start is None:
+        start = []
+        for t in targets:
+            d, sol = solve_target(spec, w0, t, ("rest", "line"))
+            start.append(sol.primal)
+            start_terms.append(d)
+    Z0 = np.column_stack(start)
+    iT = int(ocp._xi[0, N_STATE])  # log T (first copy): the duration bounds' multipliers act on it
+    lam_nu = [multipliers(grads, Z0[:, i], w0, P[:, i], iT) for i in range(n)]
+    L0, nu0 = np.column_stack([a for a, _ in lam_nu]), np.array([b for _, b in lam_nu])
+
+    # the NLP: V = [w_fitted; vec(Z); vec(Lambda); nu_lo; nu_hi]
+    wf = ca.MX.sym("wf", len(fi))
+    Z, Lam = ca.MX.sym("Z", nz, n), ca.MX.sym("L", nl, n)
+    nu_lo, nu_hi = ca.MX.sym("nu_lo", 1, n), ca.MX.sym("nu_hi", 1, n)
+    wfull = ca.MX(ca.DM(w0))
+    for j, i in enumerate(fi):
+        wfull[i] = wf[j]  # linear: the KKT conditions are linear in w (log10 w made the NLP harder to solve)
+    e = np.zeros((nz + nl, 1))
+    e[iT] = 1.0
+    K = kkt.map(n, "serial")(Z, Lam, ca.repmat(wfull, 1, n), ca.DM(P)) + ca.DM(e) @ (nu_hi - nu_lo)
+    lbT = np.log(T_BOUNDS[0] * np.array(T0))
+    ubT = np.log(T_BOUNDS[1] * np.array(T0))
+    comp = ca.vertcat(nu_lo * (Z[iT, :] - lbT[None, :]), nu_hi * (ubT[None, :] - Z[iT, :]))  # <= delta
+    D = ca.sum2(Dfun.map(n, "serial")(Z, ca.DM(data))) / n
+    V = ca.vertcat(wf, ca.vec(Z), ca.vec(Lam), nu_lo.T, nu_hi.T)
+    lb, ub = np.full(V.numel(), -np.inf), np.full(V.numel(), np.inf)
+    lb[:len(fi)], ub[:len(fi)] = 10.0 ** LOG_BOUNDS[0], 10.0 ** LOG_BOUNDS[1]
+    for i in range(n):  # log T within the lower level's bounds
+        idx = len(fi) + i * nz + ocp._xi[:, N_STATE]
+        lb[idx], ub[idx] = lbT[i], ubT[i]
+    lb[-2 * n:] = 0.0
+    v0 = np.concatenate([w0[fi], Z0.ravel(order="F"), L0.ravel(order="F"), np.maximum(-nu0, 0), np.maximum(nu0, 0)])
+    # log T off its bounds by 1 % (an interior point's start; an exact bound value jams the barrier)
+    v0 = np.clip(v0, np.where(np.isfinite(lb) & (lb != 0), lb + 0.01, lb), np.where(np.isfinite(ub), ub - 0.01, ub))
+    v0[:len(fi)] = np.clip(w0[fi], lb[:len(fi)], ub[:len(fi)])
+    g = ca.vertcat(ca.vec(K), ca.vec(comp))
+    lbg = np.concatenate([np.zeros(K.numel()), np.full(2 * n, -np.inf)])
+    ubg = np.concatenate([np.zeros(K.numel()), np.full(2 * n, COMPLEMENTARITY)])
+    solver = ca.nlpsol("single_level", "ipopt", {"x": V, "f": D, "g": g},
+                       {"print_time": False, "ipopt": {"print_level": print_level, "sb": "yes", "tol": tol,
+                                                        "max_iter": max_iter, "mu_strategy": "monotone",
+                                                        "bound_push": 1e-10, "bound_frac": 1e-10,
+                                                        # the exact Hessian (third derivatives of the OC problem) did
+                                                        # not converge even on noise-free synthetic paths
+                                                        "hessian_approximation": "limited-memory",
+                                                        "limited_memory_max_history": 20}})
+    r = solver(x0=v0, lbx=lb, ubx=ub, lbg=lbg, ubg=ubg)
+    st = solver.stats()
+    v = np.asarray(r["x"]).ravel()
+    w = w0.copy()
+    w[fi] = v[:len(fi)]
+    Zs = v[len(fi):len(fi) + nz * n].reshape((nz, n), order="F")
+    logT = Zs[ocp._xi[0, N_STATE]]
+    at_bound = int(np.sum((np.abs(logT - np.log(T_BOUNDS[0] * np.array(T0))) < 1e-3)
+                          | (np.abs(logT - np.log(T_BOUNDS[1] * np.array(T0))) < 1e-3)))
+    kres = float(np.max(np.abs(np.asarray(r["g"])[:K.numel()])))
+
+    terms, failed = [], 0
+    if verify:
+        for i, t in enumerate(targets):
+            d, _ = solve_target(spec, w, t, Zs[:, i])
+            terms.append(d)
+        failed = sum(not d["success"] for d in terms)
+    objective = float(np.mean([d["D"] for d in terms])) if terms else math.nan
+    start_objective = float(np.mean([d["D"] for d in start_terms])) if start_terms else math.nan
+    return SingleLevelResult(spec=spec, weights=dict(zip(names, map(float, w))), objective=objective,
+                             nlp_objective=float(r["f"]), start_objective=start_objective,
+                             iterations=int(st.get("iter_count", -1)), status=str(st.get("return_status", "?")),
+                             success=bool(st.get("success", False)), seconds=time.perf_counter() - t0, failed=failed,
+                             at_duration_bound=at_bound, kkt_residual=kres, per_target=terms,
+                             primals=[Zs[:, i].copy() for i in range(n)])
+
+
+def check_method(method: str, bootstrap: int = 0) -> None:
+    """The fit's method name and bootstrap count (bad input: one line, before anything is written)."""
+    if method not in METHODS:
+        raise InputError(f"unknown --method {method!r}", remedy=f"use one of {', '.join(METHODS)}")
+    if bootstrap and bootstrap < 2:
+        raise InputError(f"--bootstrap {bootstrap}: a bootstrap needs at least 2 resamples", remedy="use --bootstrap 200 (or 0 for none)")
+
+
+def as_ioc_result(r: SingleLevelResult):
+    """The single-level result in the bi-level fit's result type (``fit.IOCResult``: what the stage
+    writes): no upper-level evaluations, IPOPT's iterations and return status."""
+    from cobot_analysis.console import warn
+    from cobot_analysis.models.ioc.fit import IOCResult
+
+    if not r.success or not r.objective < r.start_objective:
+        warn(f"single-level IOC: IPOPT {r.status}, D {r.objective:.4f} re-solved at the fitted weights against "
+             f"{r.start_objective:.4f} at the start: not a fit to report (use --method bilevel)")
+    return IOCResult(spec=r.spec, weights=r.weights, objective=r.objective, start_objective=r.start_objective, evaluations=0,
+                     iterations=r.iterations, failed=r.failed, per_target=r.per_target,
+                     message=f"single-level: {r.status} (smoothed D {r.nlp_objective:.4f}, {r.seconds:.1f} s)")

@@ -1,0 +1,186 @@
+"""Single-level IOC (models/ioc/single_level.py) and recovery of known weights (models/ioc/recovery.py):
+small problems (20 intervals, 100 samples, 6-8 paths)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from cobot_analysis.errors import InputError
+from cobot_analysis.models.ioc import IOCSpec, solve_target
+from cobot_analysis.models.presets import load_weights, names_for, weights_vector
+
+W = weights_vector(load_weights("walking-2021", "improved"), "improved")
+SPEC = IOCSpec(model="improved", start_weights=tuple(W), n_intervals=20, fitted=("a1", "a2", "b1"))
+
+
+def _perturbed(spec, factor=2.0):
+    w = np.array(spec.start_weights)
+    for n in spec.fitted:
+        w[names_for(spec.model).index(n)] *= factor
+    return replace(spec, start_weights=tuple(w))
+
+
+def test_hermite_resampling_matches_oc_resample():
+    """The NLP's linear resampling reproduces oc.resample (cubic Hermite in time) to round-off."""
+    from cobot_analysis.models.oc import resample
+    from cobot_analysis.models.ioc.recovery import starts
+    from cobot_analysis.models.ioc.single_level import hermite_matrices
+    from cobot_analysis.models.dynamics import world_velocity
+    from cobot_analysis.models.ioc.targets import Target
+
+    s = starts(3)[1]
+    t = Target("t", "c", "", np.array([s[0], 0.0]), np.array([s[1], 0.0]), np.array([s[2], np.pi / 2]),
+               goal_pose=(0.0, 0.0, np.pi / 2), start_pose=s)
+    _, sol = solve_target(SPEC, W, t, ("rest", "line"))
+    r = resample(sol, 77)
+    H0, H1 = hermite_matrices(SPEC.n_intervals, 77)
+    vx, _ = world_velocity(sol.X[:, 2], sol.X[:, 3], sol.X[:, 4], "walker")
+    np.testing.assert_allclose(H0 @ sol.X[:, 0] + sol.T * (H1 @ vx), r["x"], atol=1e-12)
+    np.testing.assert_allclose(H0 @ sol.X[:, 2] + sol.T * (H1 @ sol.X[:, 5]), r["theta"], atol=1e-12)
+
+
+def test_kkt_holds_at_a_lower_level_solution():
+    """The KKT conditions built from the OC problem's own NLP vanish at its solution (least-squares
+    multipliers), and not at the same path under other weights."""
+    from cobot_analysis.models.dynamics import N_STATE
+    from cobot_analysis.models.ioc.recovery import synthetic_targets
+    from cobot_analysis.models.ioc.single_level import kkt_functions, lower_level, multipliers
+    from cobot_analysis.models.oc.duration import initial_duration
+
+    t = synthetic_targets(SPEC, W, 2)[0]
+    ocp = lower_level(SPEC)
+    kkt, grads = kkt_functions(ocp)
+    _, sol = solve_target(SPEC, W, t, ("rest", "line"))
+    p = ocp.parameters(t.start, t.goal, W, initial_duration(t.start, t.goal))
+    iT = int(ocp._xi[0, N_STATE])
+    lam, nu = multipliers(grads, sol.primal, W, p, iT)
+    r = np.asarray(kkt(sol.primal, lam, W, p)).ravel()
+    r[iT] += nu
+    assert np.abs(r).max() < 1e-6
+    w2 = W.copy()
+    w2[1] *= 3
+    lam2, nu2 = multipliers(grads, sol.primal, w2, p, iT)
+    r2 = np.asarray(kkt(sol.primal, lam2, w2, p)).ravel()
+    r2[iT] += nu2
+    assert np.abs(r2).max() > 1e-3
+
+
+def test_single_level_recovers_noise_free_weights():
+    """Noise-free paths of the model at known weights, the fit started at twice the fitted weights:
+    the weights come back within 1 %, D ~ 0 on the re-solved lower level."""
+    from cobot_analysis.models.ioc.recovery import synthetic_targets
+    from cobot_analysis.models.ioc.single_level import fit_single_level
+
+    targets = synthetic_targets(SPEC, W, 6)
+    r = fit_single_level(_perturbed(SPEC), targets)
+    assert r.success and r.failed == 0
+    for n in SPEC.fitted:
+        true = W[names_for("improved").index(n)]
+        assert abs(r.weights[n] / true - 1) < 0.01, (n, r.weights[n], true)
+    assert r.objective < 1e-4
+    assert r.start_objective > 1e-3  # the start was really off
+
+
+def test_bad_inputs_are_refused():
+    from cobot_analysis.models.ioc.recovery import synthetic_targets
+    from cobot_analysis.models.ioc.single_level import check_spec
+
+    with pytest.raises(InputError, match="not weights of the model"):
+        check_spec(replace(SPEC, fitted=("a1", "zz")), 10)
+    with pytest.raises(InputError, match="cannot determine 3 weights"):
+        check_spec(SPEC, 2)
+    with pytest.raises(InputError, match="--method bilevel"):
+        check_spec(replace(SPEC, convention="published"), 10)
+    assert synthetic_targets(SPEC, W, 1)  # one path is fine to generate
+
+
+def test_verdicts_on_known_curvatures():
+    """Analytic Hessians: a flat common-scale direction gives a ratio verdict, a flat axis 'not
+    determined', a curved axis 'determined'; a weight on the search limit says so."""
+    from cobot_analysis.models.ioc.uncertainty import verdicts
+
+    w = {"a1": 1.0, "a2": 2.0, "b1": 1e3}
+    H = np.array([[1.0, -1.0, 0.0], [-1.0, 1.0, 0.0], [0.0, 0.0, 0.0]]) + np.diag([0.0, 0.0, 0.0])
+    v = verdicts(("a1", "a2", "b1"), H, D=0.1, weights=w)
+    assert v["a1"] == "only its ratio to a2 is determined"
+    assert v["a2"] == "only its ratio to a1 is determined"
+    assert v["b1"] == "not determined by these data (at the search limit 1000)"
+    v = verdicts(("a1", "a2", "b1"), np.diag([1.0, 2.0, 3.0]), D=0.1, weights={**w, "b1": 3.0})
+    assert set(v.values()) == {"determined"}
+
+
+def test_identifiability_and_bootstrap_on_known_truth():
+    """Noise-free synthetic paths: the fitted weights are determined (curvature of the re-solved D),
+    and every bootstrap resample returns the truth."""
+    from cobot_analysis.models.ioc.recovery import synthetic_targets
+    from cobot_analysis.models.ioc.single_level import fit_single_level
+    from cobot_analysis.models.ioc.uncertainty import bootstrap, log_hessian, verdicts
+
+    spec = replace(SPEC, fitted=("a1", "b1"))
+    targets = synthetic_targets(spec, W, 4)
+    r = fit_single_level(spec, targets)
+    D, H = log_hessian(spec, targets, r.weights, r.primals)
+    assert D < 1e-6 and np.all(np.linalg.eigvalsh(H) > 0)
+    # at D ~ 0 any curvature is large relative to D: judge against a real noise level of D instead
+    assert set(verdicts(spec.fitted, H, D=0.05, weights=r.weights).values()) == {"determined"}
+    b = bootstrap(spec, targets, r.weights, r.primals, n_resamples=3)
+    assert b["failed"] == 0
+    for j, n in enumerate(spec.fitted):
+        lo, hi = b["intervals"][n]
+        true = W[names_for("improved").index(n)]
+        assert lo <= true * 1.01 and hi >= true * 0.99 and hi - lo < 0.02 * true
+
+
+def test_method_and_bootstrap_checks():
+    from cobot_analysis.models.ioc.single_level import check_method
+
+    check_method("bilevel")
+    check_method("single-level", 200)
+    with pytest.raises(InputError, match="unknown --method 'one-level'"):
+        check_method("one-level")
+    with pytest.raises(InputError, match="at least 2"):
+        check_method("single-level", 1)
+
+
+def test_fit_ioc_refuses_an_unknown_method(cli, tmp_path):
+    code, out, err = cli("fit-ioc", "--out", tmp_path, "--method", "one-level", "--no-compare")
+    assert code == 2
+    assert "--method" in err and "single-level" in err and len(err.strip().splitlines()) == 1
+    assert not any(tmp_path.iterdir())
+
+
+def test_fit_ioc_single_level_end_to_end_and_too_few_paths(cli, tmp_path):
+    """fit-ioc --method single-level on 4 model paths (as means): the stage writes its weights and a report
+    that names the method; fitting more weights than paths is refused (exit 2, nothing written)."""
+    import json
+
+    import pandas as pd
+
+    from cobot_analysis.design import WALKING_GOAL, walking_condition
+    from cobot_analysis.models import generate
+    from cobot_analysis.schema import TRAJECTORIES, write_table
+
+    frames = []
+    for c in ("E4015", "O1515", "N-0615", "S4040"):
+        df = generate("improved", walking_condition(c).start, WALKING_GOAL, weights="walking-2021", n_samples=100,
+                      n_intervals=20, convention="continuous")
+        base = df[list(TRAJECTORIES.columns.keys() & set(df.columns))].copy()
+        frames.append(base.assign(study="test-walking", trial=f"mean_{c}", kind="mean", n_trials=1, subject=None))
+    src = write_table(pd.concat(frames, ignore_index=True), tmp_path / "trajectories.parquet", TRAJECTORIES)
+    bad = tmp_path / "bad"
+    code, _, err = cli("fit-ioc", "--out", bad, "--trajectories", src, "--method", "single-level",
+                       "--fit", "a0,a1,a2,a3,a4", "--intervals", "20", "--no-compare", "-j", "1")
+    assert code == 2 and "4 paths cannot determine 5 weights" in err and len(err.strip().splitlines()) == 1
+    assert not (bad / "fit-ioc").exists()
+    out = tmp_path / "ws"
+    start = tmp_path / "start.json"  # twice the true a1 and b1
+    start.write_text(json.dumps({"convention": "continuous", "weights": {**dict(zip(names_for("improved"), W)), "a1": 8.0, "b1": 20.0}}))
+    code, _, err = cli("fit-ioc", "--out", out, "--trajectories", src, "--method", "single-level",
+                       "--fit", "a1,b1", "--start-weights", start, "--intervals", "20", "--no-compare", "-j", "1")
+    assert code == 0, err
+    fit = json.loads((out / "fit-ioc" / "weights.json").read_text())["fits"]["all"]
+    assert fit["objective"] < fit["start_objective"], fit
+    assert "Single-level IOC (docs/methods.md sec. 6.1)" in (out / "fit-ioc" / "results.md").read_text()
