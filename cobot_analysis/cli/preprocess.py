@@ -49,7 +49,7 @@ def preprocess_command(
         "--orientation-markers",
         help="pelvis: a long gap on any pelvis marker used (LASI RASI LPSI RPSI, or LASI RASI SACR) makes theta/gamma "
              "missing for the trajectory; asis: only a gap on LASI or RASI does (theta needs only them).")] = OrientationMarkers.pelvis,
-    skip_bad: Annotated[bool, typer.Option("--skip-bad", help="Process the good recordings and skip the refused ones (e.g. a static recording where nobody walks), listed on the console and in OUT/preprocess/results.md (default: refuse the run, naming every bad recording).")] = False,
+    skip_bad: Annotated[bool, typer.Option("--skip-bad/--strict", help="--skip-bad (default): the good recordings go on, the refused ones are listed (raw file, reason, remedy) on the console, in OUT/preprocess/results.md and manifest.json, and the exit code is 3; --strict: refuse the run (exit 2, nothing written).")] = True,
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
     force: ForceOpt = False,
@@ -62,6 +62,7 @@ def preprocess_command(
     runs off the start or end of its recording is flagged 'truncated'.
     """
     from cobot_analysis.preprocess.stage import Params, run
+    from cobot_analysis.refusals import exit_code
     from cobot_analysis.workspace import find_input
 
     markers_path = markers if markers is not None else find_input(out, "markers.parquet", ["import"], "--markers")
@@ -70,4 +71,6 @@ def preprocess_command(
                     lift_threshold=lift_threshold, floor_window=floor_window, speed_threshold=speed_threshold,
                     rest_speed=rest_speed, min_duration=min_duration, gamma_min_speed=gamma_min_speed, keep_approach=keep_approach,
                     orientation_markers=orientation_markers.value, skip_bad=skip_bad)
-    run(out, markers_path, trials_path, params, force=force, jobs=jobs, scheduler=scheduler)
+    code = exit_code(run(out, markers_path, trials_path, params, force=force, jobs=jobs, scheduler=scheduler))
+    if code:
+        raise typer.Exit(code)  # done, some recordings refused (cobot_analysis.refusals)

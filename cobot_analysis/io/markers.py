@@ -37,12 +37,14 @@ import numpy as np
 import pandas as pd
 
 from cobot_analysis.console import info, warn
+from cobot_analysis import refusals
 from cobot_analysis.errors import InputError
 from cobot_analysis.io.c3d import RawMarkers, is_c3d, read_c3d
 from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, MAX_SPIKE, check_positions, check_rate
 from cobot_analysis.io.protocol import (ENTITIES, KEPT_SUBJECT_MARKERS, PELVIS_DEFINITIONS, PELVIS_MARKERS, SACRUM, TABLE_MARKERS,
                                         Protocol, load_protocol, pelvis_definition, read_yaml)
 from cobot_analysis.io.text_exports import read_qualisys_tsv, read_vicon_csv, sniff_text_format
+from cobot_analysis.refusals import Refused
 from cobot_analysis.schema import MARKERS, TRIAL_COLUMNS, TRIALS, write_table
 
 READERS = {"c3d": read_c3d, "vicon-csv": read_vicon_csv, "qualisys-tsv": read_qualisys_tsv}
@@ -110,15 +112,6 @@ class ImportedTrial:
     sha256: str
     notes: list[str] = field(default_factory=list)
     pelvis: dict[str, tuple[str, ...]] = field(default_factory=dict)  # person -> pelvis markers used
-
-
-@dataclass(frozen=True)
-class Refused:
-    """A trial the import refused: its id, file and the one-line reason (``InputError`` text)."""
-
-    trial: str
-    path: Path
-    reason: str
 
 
 def _is_person(entity: str) -> bool:
@@ -246,17 +239,12 @@ def import_or_refuse(task: TrialTask) -> ImportedTrial | Refused:
     try:
         return import_trial(task)
     except InputError as exc:
-        return Refused(task.trial, task.path, str(exc))
+        return Refused.of(task.trial, task.path, exc)
 
 
 def refusal_error(refused: list[Refused], n_trials: int, where: str | os.PathLike, stage: str) -> InputError:
-    """One ``InputError`` naming every refused trial of a stage (the error itself when it is the only trial)."""
-    if n_trials == 1 and len(refused) == 1:
-        return InputError(refused[0].reason)
-    listing = " | ".join(f"[{r.trial}] {r.reason}" for r in refused)
-    return InputError(f"{len(refused)} of {n_trials} trials refused, nothing written: {listing}", path=where,
-                      remedy=f"fix these trials or leave them out of the protocol, or pass --skip-bad to {stage} the others "
-                             f"(the skipped trials are listed in {stage}/results.md)")
+    """One ``InputError`` naming every refused trial of a stage (``refusals.error``)."""
+    return refusals.error(refused, n_trials, stage)
 
 
 def long_table(trials: list[ImportedTrial]) -> pd.DataFrame:
@@ -372,20 +360,19 @@ def import_summary(protocol: Protocol, imported: list[ImportedTrial], refused: l
     notes = [n for t in imported for n in t.notes]
     if notes:
         lines += ["Notes:", "", *[f"- {n}" for n in notes], ""]
-    if refused:
-        lines += [f"Skipped (--skip-bad): {len(refused)} trials.", "", "| trial | reason |", "|---|---|",
-                  *[f"| {r.trial} | {r.reason.replace('|', '/')} |" for r in refused], ""]
+    lines += refusals.markdown(refused, len(protocol.trials))
     return "\n".join(lines)
 
 
 def run_import(protocol_path: str | os.PathLike, out: str | os.PathLike, *, units: str = "auto",
                marker_map: dict[str, str] | None = None, marker_map_file: str | os.PathLike | None = None,
-               keep_all: bool = False, skip_bad: bool = False, lab_extent: float = LAB_EXTENT, max_speed: float = MAX_SPEED,
+               keep_all: bool = False, skip_bad: bool = True, lab_extent: float = LAB_EXTENT, max_speed: float = MAX_SPEED,
                max_spike: float = MAX_SPIKE, jobs: int | None = None, scheduler: str | None = None, force: bool = False) -> Path:
     """Import every trial of a protocol into ``out/import`` (Stage "import"); returns the stage directory.
 
-    Every trial is read before anything is written: the refused ones are named together in one
-    ``InputError``, or, with ``skip_bad``, left out and listed (console and ``import/results.md``).
+    Every trial is read before anything is written. With ``skip_bad`` (the default) the refused
+    ones are left out and listed (``refusals``: console, ``import/results.md``, the manifest's
+    ``refused``); without it, or when every trial is refused, one ``InputError`` names them all.
     """
     from cobot_analysis.parallel import map_tasks
     from cobot_analysis.workspace import Stage
@@ -421,8 +408,10 @@ def run_import(protocol_path: str | os.PathLike, out: str | os.PathLike, *, unit
         for t in imported:
             for note in t.notes:
                 warn(note)
-        for r in refused:
-            warn(f"skipped trial {r.trial}: {r.reason}")
+        if refused:
+            stage.manifest_extra["refused"] = refusals.records(refused)
+            for line in refusals.summary(refused, len(tasks), "import"):
+                warn(line)
         kept = protocol.trials[protocol.trials["trial"].astype(str).isin({t.trial for t in imported})]
         trials = trials_table(Protocol(protocol.path, protocol.study, kept, rate=protocol.rate), imported)
         rates = {t.trial: t.rate for t in imported}
@@ -438,7 +427,7 @@ def run_import(protocol_path: str | os.PathLike, out: str | os.PathLike, *, unit
         write_table(markers, stage.path("markers.parquet"), MARKERS, **meta)
         write_table(trials, stage.path("trials.parquet"), TRIALS, study=protocol.study)
         n_occ = int(markers["occluded"].sum())
-        skipped = f", {len(refused)} skipped (listed in results.md)" if refused else ""
+        skipped = f", {len(refused)} refused (listed above and in results.md)" if refused else ""
         info(f"[green]import[/green]: {len(trials)} trials{skipped}, {len(markers)} marker samples "
              f"({n_occ / max(len(markers), 1):.1%} occluded) -> {stage.final_dir}")
     return stage.final_dir

@@ -22,8 +22,9 @@ Order of operations, per recording:
    flags, time normalisation to N samples (``normalisation.py``) -> ``trajectories.parquet``, with
    the pelvis markers used (``pelvis_markers``, e.g. 'LASI,RASI,SACR'; empty for the table).
 
-Every recording is processed before anything is written: the refused ones are named together in
-one error, or skipped and listed (console and results.md) with ``skip_bad``.
+Every recording is processed before anything is written: by default (``skip_bad``) the refused
+ones are left out and listed (``cobot_analysis.refusals``: console, results.md, manifest), without it
+they are named together in one error.
 
 Orientation with a long pelvis-marker gap: by default (``orientation_markers="pelvis"``) a long
 gap on any of the 4 pelvis markers makes the trajectory's orientation missing, as in the walking
@@ -56,6 +57,7 @@ import pandas as pd
 from cobot_analysis import kinematics as kin
 from cobot_analysis.angles import wrap
 from cobot_analysis.errors import InputError
+from cobot_analysis import refusals
 from cobot_analysis.io.markers import Refused, refusal_error
 from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, MAX_SPIKE, check_positions
 from cobot_analysis.io.protocol import PELVIS_MARKERS, SACRUM, TABLE_MARKERS, pelvis_definition, pelvis_requirement
@@ -87,7 +89,7 @@ class Params:
     gamma_min_speed: float = kin.GAMMA_MIN_SPEED  # m/s
     keep_approach: bool = False
     orientation_markers: str = "pelvis"  # "pelvis": theta needs all the pelvis markers used; "asis": LASI and RASI
-    skip_bad: bool = False  # skip (and list) the refused recordings instead of refusing the run
+    skip_bad: bool = True  # skip (and list) the refused recordings (cobot_analysis.refusals); False: refuse the run
 
 
 @dataclass
@@ -98,7 +100,7 @@ class Recording:
     rate: float
     meta: dict[str, Any]
     markers: dict[tuple[str, str], np.ndarray] = field(default_factory=dict)
-    source: str = ""  # markers file, for error messages
+    source: str = ""  # the raw file (else the markers file), for error messages
     limits: dict[str, float] = field(default_factory=dict)  # plausibility limits of the import (lab_extent, max_speed, max_spike)
 
 
@@ -149,7 +151,8 @@ def load_recordings(markers_path: Path, trials_path: Path) -> list[Recording]:
         if not rate > 0:
             raise InputError(f"trial {trial} has no valid sampling rate ({row.get('rate')})", path=trials_path,
                              remedy="re-run `cobot-analysis import` (the rate comes from the raw file or the protocol)")
-        rec = Recording(trial, rate, {c: row.get(c) for c in TRIAL_COLUMNS}, source=str(markers_path), limits=limits)
+        rec = Recording(trial, rate, {c: row.get(c) for c in TRIAL_COLUMNS}, source=str(row.get("file") if isinstance(row.get("file"), str) and row.get("file") else markers_path),
+                        limits=limits)
         i = where.get(trial)
         a, b = (bounds[i], bounds[i + 1]) if i is not None else (0, 0)
         if a == b:
@@ -351,7 +354,7 @@ def process_or_refuse(rec: Recording, p: Params) -> dict[str, Any] | Refused:
     try:
         return process_recording(rec, p)
     except InputError as exc:
-        return Refused(rec.trial, Path(rec.source), str(exc))
+        return Refused.of(rec.trial, rec.source, exc)
 
 
 def _segments(rec: Recording, p: Params, entities: list[str], has_table: bool, mk: dict, kinem: dict) -> list[tuple]:
@@ -368,11 +371,10 @@ def _segments(rec: Recording, p: Params, entities: list[str], has_table: bool, m
             with np.errstate(invalid="ignore"):
                 spread = float(np.nanmax(np.hypot(*(xy - np.nanmedian(xy, axis=0)).T))) if np.isfinite(xy).any() else float("nan")
                 top = float(np.nanmax(speed)) if np.isfinite(speed).any() else float("nan")
-            raise InputError(f"trial {rec.trial}: nobody walks in this recording (static recording? the pelvis CoM stays within "
-                             f"{spread:.3f} m of its median position over {len(speed) / rate:.3g} s, top speed {top:.3f} m/s; a walk "
-                             f"is a CoM speed above {p.speed_threshold:g} m/s for {p.min_duration:g} s)", path=rec.source,
-                             remedy="leave it out of the protocol (or pass --skip-bad), or lower --speed-threshold / --min-duration "
-                                    "for a slow walk")
+            raise InputError(f"trial {rec.trial}: nobody walks (static recording?): the pelvis CoM stays within {spread:.3f} m "
+                             f"over {len(speed) / rate:.3g} s, top speed {top:.2f} m/s; a walk is above {p.speed_threshold:g} m/s "
+                             f"for {p.min_duration:g} s", path=rec.source,
+                             remedy="leave it out of the protocol; for a slow walk lower --speed-threshold / --min-duration")
         return [(None, bounds[0], bounds[1], subjects, segmentation.cut_off(speed, *bounds))]
     height = kin.table_height(*(mk[("table", m)] for m in TABLE_MARKERS))
     found, h0 = segmentation.carriages(height, rate, p.lift_threshold, p.floor_window, p.min_duration)
@@ -492,8 +494,7 @@ def summary_markdown(traj: pd.DataFrame, gap_df: pd.DataFrame, p: Params, n_reco
         lines.append(f"| {ent} | {dirn} | {len(g)} | {q[1]:.2f} [{q[0]:.2f}, {q[2]:.2f}] | "
                      f"{g['travelled_distance'].median():.2f} |")
     if refused:
-        lines += ["", f"Skipped (--skip-bad): {len(refused)} recordings.", "", "| recording | reason |", "|---|---|",
-                  *[f"| {r.trial} | {r.reason.replace('|', '/')} |" for r in refused]]
+        lines += ["", *refusals.markdown(list(refused), n_recordings + len(refused))]
     return "\n".join(lines) + "\n"
 
 
@@ -526,8 +527,10 @@ def run(out: Path, markers_path: Path, trials_path: Path, p: Params, *, force: b
         results = [r for r in done if not isinstance(r, Refused)]
         if refused and (not p.skip_bad or not results):
             raise refusal_error(refused, len(done), markers_path, "preprocess")
-        for r in refused:
-            warn(f"skipped recording {r.trial}: {r.reason}")
+        if refused:
+            stage.manifest_extra["refused"] = refusals.records(refused)
+            for line in refusals.summary(refused, len(done), "preprocess"):
+                warn(line)
         traj, gap_df = assemble(results, p.n_samples)
         params = asdict(p)
         write_table(traj, stage.path("trajectories.parquet"), TRAJECTORIES, stage="preprocess", **params)

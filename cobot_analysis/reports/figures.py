@@ -5,7 +5,8 @@
   start position x start orientation grid.
 - ``boxplots``: distances by group; box = quartiles, line = median, whiskers to the most extreme
   value within 1.5 IQR, outliers shown (docs/methods.md sec. 4); n under each box.
-- ``pies``: shares of categories (configuration patterns, optimal choices).
+- ``proportions``: shares of categories (configuration patterns, optimal choices) as bars with
+  95 % Wilson intervals, panels on one 0-100 % axis.
 - ``scatter_r``: a distance against the global distance with Pearson r and its p.
 - ``check_figure``: what a reviewer would refuse in any Figure (axis labels without units, several
   series without a legend naming them).
@@ -269,18 +270,45 @@ def boxplots(groups: dict, ylabel: str, title: str = "", colors: list | None = N
     return fig
 
 
-def pies(charts: dict, title: str = ""):
-    """One pie per chart: ``{name: {category: count}}``."""
+def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """Wilson score interval of a proportion k / n (95 % with z = 1.96):
+    (p + z^2/2n -+ z sqrt(p(1-p)/n + z^2/4n^2)) / (1 + z^2/n)."""
+    if n == 0:
+        return (math.nan, math.nan)
+    p = k / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return (max(0.0, centre - half), min(1.0, centre + half))
+
+
+def proportions(charts: dict, title: str = "", chance: dict | None = None):
+    """One panel per chart ``{name: {category: count}}``: the share of each category as a bar with its
+    95 % Wilson interval and "k / n" on it; panels share the 0-100 % axis; ``chance[name]`` (a share)
+    is drawn as a dashed line."""
     plt = _plt()
-    fig, axes = plt.subplots(1, len(charts), figsize=(3.2 * len(charts), 3.4), squeeze=False)
+    widths = [max(2.2, 0.75 * len(c) + 1.0) for c in charts.values()]
+    fig, axes = plt.subplots(1, len(charts), figsize=(sum(widths) + 0.6, 3.6), squeeze=False, sharey=True,
+                             gridspec_kw={"width_ratios": widths}, layout="constrained")
     for ax, (name, counts) in zip(axes.ravel(), charts.items()):
-        vals = [v for v in counts.values() if v > 0]
-        labels = [k for k, v in counts.items() if v > 0]
-        if vals:
-            ax.pie(vals, labels=labels, autopct=lambda p: f"{p:.0f} %", startangle=90, textprops={"fontsize": 8})
-        ax.set_title(f"{name} (n = {sum(vals)})")
-    if title:
-        fig.suptitle(title)
+        n = sum(counts.values())
+        cats = list(counts)
+        share = [100 * counts[c] / n if n else math.nan for c in cats]
+        ci = [wilson(counts[c], n) for c in cats]
+        err = np.array([[s - 100 * lo, 100 * hi - s] for s, (lo, hi) in zip(share, ci)]).T
+        ax.bar(range(len(cats)), share, yerr=err, capsize=4, color="#9ecae1", edgecolor="k", lw=0.6,
+               error_kw={"lw": 1, "label": "95 % interval (Wilson)"}, label="share")
+        for i, c in enumerate(cats):
+            ax.text(i, 2, f"{counts[c]} / {n}", ha="center", va="bottom", fontsize=7)
+        if chance and name in chance:
+            ax.axhline(100 * chance[name], color="0.3", ls="--", lw=1, label="chance")
+        ax.set_xticks(range(len(cats)), [str(c).replace(" ", "\n", 1) if len(str(c)) > 12 else str(c) for c in cats], fontsize=8)
+        ax.set_title(f"{name} (n = {n})")
+        ax.set_ylim(0, 100)
+        ax.set_xlabel("category")
+    axes[0][0].set_ylabel("share of the trials or goals (%)")
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside upper center", ncols=3, title=title or None, frameon=False,
+               title_fontproperties={"size": 10})
     return fig
 
 
