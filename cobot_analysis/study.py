@@ -127,9 +127,10 @@ class Study:
         return f"{' / '.join(ids[:3])}: {text}" if ids else text
 
     def abbreviations(self) -> list[str]:
-        """Every abbreviation the figures may use, with its one meaning."""
-        out = [f"{s} = {ENTITY_SHORT_MEANING[e]}" for e, s in ENTITY_SHORT.items() if s != e]
-        out += ["fwd = forward carriage (to the goal)", "ret = return carriage (back to the start)"]
+        """Every abbreviation the figures of this study use, with its one meaning."""
+        out = [f"{s} = {ENTITY_SHORT_MEANING[e]}" for e, s in ENTITY_SHORT.items() if s != e and e in self.entities]
+        if any(f.column == "direction" for f in self.factors):
+            out += ["fwd = forward carriage (to the goal)", "ret = return carriage (back to the start)"]
         for f in self.factors:
             if f.short or f.levels:
                 out.append(f.legend())
@@ -154,7 +155,8 @@ def _factor(raw, path: Path, n: int) -> Factor:
     for key in ("label", "meaning", "short"):
         if key in raw and not isinstance(raw[key], str):
             raise InputError(f"factor {raw['column']}: {key} must be a string", path=path, remedy=f'e.g. {key} = "..."')
-    return Factor(raw["column"], raw.get("label", base.label), raw.get("meaning", base.meaning), raw.get("short", base.short),
+    meaning = raw.get("meaning", "" if "label" in raw else base.meaning)  # a relabelled column is another factor
+    return Factor(raw["column"], raw.get("label", base.label), meaning, raw.get("short", base.short),
                   {str(k): str(v) for k, v in levels.items()})
 
 
@@ -324,3 +326,18 @@ def write(path: Path, study: str, title: str, entities: list[str], factors: list
     path.write_text("\n".join(lines) + ("\n" + questions.strip() + "\n" if questions.strip() else ""))
     load(path)
     return path
+
+
+def derive(template: Path, dest: Path, study: str, header: str = "") -> Path:
+    """Write the study file ``dest`` for study ``study`` from the study file ``template`` (its factors
+    and questions, e.g. the synthetic walking study from walking-2020's), ``header`` as comments on top."""
+    import re
+
+    text = Path(template).read_text(encoding="utf-8")
+    text, n = re.subn(r'(?m)^study\s*=.*$', f"study = {json.dumps(study)}", text, count=1)
+    if not n:
+        text = f"study = {json.dumps(study)}\n" + text
+    dest = Path(dest)
+    dest.write_text("".join(f"# {line}\n" for line in header.splitlines()) + text, encoding="utf-8")
+    load(dest)
+    return dest

@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from cobot_analysis.reports import figures
+from cobot_analysis.study import level_text
 
 ENTITY_ORDER = ["walker", "subject1", "subject2", "table"]
 
@@ -66,6 +67,7 @@ def _load(inputs: dict) -> dict:
 
 
 def _fig(stage, fig, stem: str, caption: str, lines: list[str]) -> None:
+    caption = caption[:1].upper() + caption[1:]
     stage.savefig(fig, stem)
     lines += [f"![{caption}]({stem}.png)", "", f"*{caption}* ([PDF]({stem}.pdf))", ""]
 
@@ -146,8 +148,7 @@ def _data_section(study, data: dict, lines: list[str], results: list[str]) -> No
     if ts is None:
         return
     tr = ts.meta[ts.meta["kind"].eq("trial")]
-    txt = [f"{len(tr)} trajectories: " + ", ".join(f"{study.factor('entity').levels.get(e, e)} {n}"
-                                                  for e, n in tr["entity"].value_counts().sort_index().items()) + "."]
+    txt = [f"{len(tr)} trajectories (" + ", ".join(f"{e}: {n}" for e, n in tr["entity"].value_counts().sort_index().items()) + ")."]
     missing = ~np.isfinite(ts.theta).all(axis=1)
     if "subject" in tr.columns and tr["subject"].notna().any():
         per_subject = pd.Series(missing[tr.index]).groupby(tr["subject"].to_numpy()).sum()
@@ -179,7 +180,9 @@ def _paths_section(study, data: dict, stage, lines: list[str]) -> None:
                      f"paths_{direction}", f"{direction.capitalize()} paths per {study.label('condition')} and end orientation: "
                      "individual trials, means and orientation arrows" + (f" ({goal.label}: {legend})" if legend else ""), lines)
         return
-    panels = _path_panels(ts, means, ["condition"], lambda k: figures.walking_title(str(k[0])))
+    cond = study.factor("condition")
+    panels = _path_panels(ts, means, ["condition"], lambda k: figures.walking_title(str(k[0])) if figures.walking_grid([k[0]])
+                          else cond.level(k[0]) + (f" ({cond.levels[level_text(k[0])]})" if level_text(k[0]) in cond.levels else ""))
     grid = figures.walking_grid([p["key"][0] for p in panels])
     names = {"means": "mean of the trials (recomputed)"}
     if grid is not None:  # start positions (rows, by distance to the goal) x start orientations (columns)
@@ -205,7 +208,9 @@ def _distance_section(study, data: dict, stage, lines: list[str]) -> None:
     dist = data.get("distances")
     if dist is None or not len(dist):
         return
-    d = distances_source(dist)
+    from cobot_analysis.compare import DISTANCES
+
+    d = distances_source(dist.assign(**{c: np.nan for c in DISTANCES.columns if c not in dist.columns}))
     ind = d[d["comparison"].eq("individual-mean") & d["kind"].fillna("trial").eq("trial")]
     if not len(ind):
         return
@@ -225,7 +230,7 @@ def _distance_section(study, data: dict, stage, lines: list[str]) -> None:
                                          xlabel=(("entity, " if several else "") + f.label)),
                  f"box_{col}_{f.column}", study.cite(f"individual vs mean {col} by {f.label}" + (f" ({f.legend()})" if f.levels else ""),
                                                      source="distances", value=col, group=f.column), lines)
-    if ind["global_distance"].notna().any():
+    if ind["global_distance"].dropna().nunique() > 1:
         _fig(stage, figures.scatter_r({e: (v["global_distance"], v["d_xy"]) for e, v in ind.groupby("entity")},
                                       "global distance (m)", "d_xy (m)"), "scatter_d_xy_global",
              study.cite("individual vs mean d_xy against the global distance (start-goal distance)", source="distances",
@@ -260,6 +265,8 @@ def _carriage_section(study, data: dict, stage, lines: list[str]) -> None:
     ts, dist = data.get("ts"), data.get("distances")
     if dist is None or ts is None and "durations" not in data:
         return
+    if not ("direction" in dist.columns and dist["direction"].notna().any()) and "durations" not in data:
+        return  # no carriage in these data
     sources = build_sources(ts, dist, data.get("durations"), only={"durations", "choices", "patterns", "return_variability"})
     dur = sources["durations"]
     sc = study.factor("scenario")

@@ -283,7 +283,7 @@ def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
 
 def proportions(charts: dict, title: str = "", chance: dict | None = None):
     """One panel per chart ``{name: {category: count}}``: the share of each category as a bar with its
-    95 % Wilson interval and "k / n" on it; panels share the 0-100 % axis; ``chance[name]`` (a share)
+    95 % Wilson interval, "k / n" under it; panels share the 0-100 % axis; ``chance[name]`` (a share)
     is drawn as a dashed line."""
     plt = _plt()
     widths = [max(2.2, 0.75 * len(c) + 1.0) for c in charts.values()]
@@ -297,11 +297,9 @@ def proportions(charts: dict, title: str = "", chance: dict | None = None):
         err = np.array([[s - 100 * lo, 100 * hi - s] for s, (lo, hi) in zip(share, ci)]).T
         ax.bar(range(len(cats)), share, yerr=err, capsize=4, color="#9ecae1", edgecolor="k", lw=0.6,
                error_kw={"lw": 1, "label": "95 % interval (Wilson)"}, label="share")
-        for i, c in enumerate(cats):
-            ax.text(i, 2, f"{counts[c]} / {n}", ha="center", va="bottom", fontsize=7)
         if chance and name in chance:
             ax.axhline(100 * chance[name], color="0.3", ls="--", lw=1, label="chance")
-        ax.set_xticks(range(len(cats)), [str(c).replace(" ", "\n", 1) if len(str(c)) > 12 else str(c) for c in cats], fontsize=8)
+        ax.set_xticks(range(len(cats)), [f"{c}\n{counts[c]} / {n}" for c in cats], fontsize=8)
         ax.set_title(f"{name} (n = {n})")
         ax.set_ylim(0, 100)
         ax.set_xlabel("category")
