@@ -75,11 +75,13 @@ def _fig(stage, fig, stem: str, caption: str, lines: list[str]) -> None:
 SCENARIO_STYLE = {1: "-", 2: "--", 3: ":"}
 
 
-def _path_panels(ts, means, keys: list[str], title_of, select=None) -> list[dict]:
+def _path_panels(ts, means, keys: list[str], title_of, select=None, scenario=None) -> list[dict]:
     """Path panels, one per distinct ``keys`` (sorted): trials as thin lines, means bold; a forward pair
-    mean is drawn in its scenario's line style and named after the scenario."""
-    from cobot_analysis.design import SCENARIOS
+    mean is drawn in its scenario's line style and named after the scenario (``scenario``: the
+    study's scenario factor, for the level names)."""
+    from cobot_analysis.study import COLUMNS
 
+    scenario = scenario or COLUMNS["scenario"]
     panels = {}
     order = []
     for src, kind in ((ts, "lines"), (means, "means")):
@@ -99,7 +101,9 @@ def _path_panels(ts, means, keys: list[str], title_of, select=None) -> list[dict
                 panels[key]["lines"].append((src.x[i], src.y[i], ent))
             else:
                 sc = m["scenario"].iloc[i] if "scenario" in m.columns and m["direction"].iloc[i] == "forward" else None
-                name = f"mean of scenario {sc:g} ({SCENARIOS.get(int(sc), '')})" if sc is not None and sc == sc else None
+                meaning = scenario.levels.get(level_text(sc), "") if sc is not None and sc == sc else ""
+                name = (f"mean of {scenario.level(sc, short=True)}" + (f" ({meaning})" if meaning else "")
+                        if sc is not None and sc == sc else None)
                 panels[key]["means"].append((src.x[i], src.y[i], src.theta[i], ent, SCENARIO_STYLE.get(sc, "-"), name))
     return [panels[k] for k in sorted(order, key=lambda k: tuple(str(v) for v in k))]
 
@@ -171,7 +175,8 @@ def _paths_section(study, data: dict, stage, lines: list[str]) -> None:
         legend = "; ".join(f"{k} = {v}" for k, v in goal.levels.items())
         for direction in ("forward", "return"):
             panels = _path_panels(ts, means, ["condition", "end_orientation"], _end_title,
-                                  select=lambda m, d=direction: (m["direction"].eq(d) & m["scenario"].notna()).to_numpy())
+                                  select=lambda m, d=direction: (m["direction"].eq(d) & m["scenario"].notna()).to_numpy(),
+                                  scenario=study.factor("scenario"))
             if panels:
                 what = "scenarios in line styles" if direction == "forward" else "scenario 3"
                 _fig(stage, figures.paths(panels, ncols=6, arrows=6, size=2.8,

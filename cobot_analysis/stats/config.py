@@ -228,6 +228,32 @@ def filter_problems(config: StudyConfig, sources: dict) -> list[str]:
     return out
 
 
+#: comparisons ``compare`` writes by itself; any other value of ``comparison`` comes from
+#: ``compare --against TABLE --comparison NAME`` (e.g. model rows, after a model stage).
+OWN_COMPARISONS = ("individual-mean", "any-any", "symmetry", "symmetry-mean", "scenario-scenario",
+                   "scenario-scenario-mean", "mean-published")
+
+
+def awaited(config: StudyConfig, sources: dict) -> tuple[list[str], dict[str, list[str]]]:
+    """``filter_problems`` split into the unexpected ones (a typo: to warn about) and the questions
+    whose rows these data cannot have yet, by why: ``comparison = "model"`` before
+    ``compare --against TABLE --comparison model``, ``"mean-published"`` without published means.
+    Returns (unexpected texts, {why: [question ids]})."""
+    wait: dict[str, list[str]] = {}
+    other = []
+    for a in config.analyses:
+        for text in filter_problems(StudyConfig(config.study, config.alpha, [a]), sources):
+            wanted = a.filter.get("comparison") if text.startswith(f"{a.id}: comparison = ") else None
+            names = [str(v) for v in (wanted if isinstance(wanted, list) else [wanted])] if wanted is not None else []
+            if names and all(n == "mean-published" or n not in OWN_COMPARISONS for n in names):
+                why = ("the data hold no published means to compare ours with" if names == ["mean-published"] else
+                       f"no {'/'.join(names)} rows yet (`compare --against TABLE --comparison {names[0]}` adds them)")
+                wait.setdefault(why, []).append(a.id)
+            else:
+                other.append(text)
+    return other, wait
+
+
 def values_text(series, limit: int = 12) -> str:
     vals = sorted({str(int(v)) if isinstance(v, float) and v.is_integer() else str(v) for v in series})
     return ", ".join(vals[:limit]) + (f", ... ({len(vals)} values)" if len(vals) > limit else "")
