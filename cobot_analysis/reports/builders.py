@@ -183,7 +183,8 @@ def _paths_section(study, data: dict, stage, lines: list[str]) -> None:
                                           title=f"{direction.capitalize()} carriage paths per goal and end orientation of the table "
                                                 f"({what})", names={"lines": "individual trials"}),
                      f"paths_{direction}", f"{direction.capitalize()} paths per {study.label('condition')} and end orientation: "
-                     "individual trials, means and orientation arrows" + (f" ({goal.label}: {legend})" if legend else ""), lines)
+                     "individual trials, means and orientation arrows" + (f" (goal code dK_pJ_<{goal.label}>: start K, goal "
+                                                                         f"position J, then {' or '.join(goal.levels)}, see the codes above)" if legend else ""), lines)
         return
     cond = study.factor("condition")
     panels = _path_panels(ts, means, ["condition"], lambda k: figures.walking_title(str(k[0])) if figures.walking_grid([k[0]])
@@ -233,7 +234,7 @@ def _distance_section(study, data: dict, stage, lines: list[str]) -> None:
                 colors.append(figures.COLORS.get(k[0] if several else entities[0], "#9ecae1"))
             _fig(stage, figures.boxplots(g, f"{col} individual vs mean ({unit})", f"{col} by {f.label}", colors,
                                          xlabel=(("entity, " if several else "") + f.label)),
-                 f"box_{col}_{f.column}", study.cite(f"individual vs mean {col} by {f.label}" + (f" ({f.legend()})" if f.levels else ""),
+                 f"box_{col}_{f.column}", study.cite(f"individual vs mean {col} by {f.label}",
                                                      source="distances", value=col, group=f.column), lines)
     if ind["global_distance"].dropna().nunique() > 1:
         _fig(stage, figures.scatter_r({e: (v["global_distance"], v["d_xy"]) for e, v in ind.groupby("entity")},
@@ -279,7 +280,7 @@ def _carriage_section(study, data: dict, stage, lines: list[str]) -> None:
         g = {_ticks(study, k, ["direction", "scenario"]): v["duration"].to_numpy() for k, v in dur.groupby(["direction", "scenario"])}
         _fig(stage, figures.boxplots(g, "travel time (s)", "Travel time by direction and scenario",
                                      xlabel="direction (fwd forward, ret return), scenario"), "box_travel_time",
-             study.cite(f"travel time by direction and scenario ({sc.legend()})", source="durations", value="duration"), lines)
+             study.cite("travel time by direction and scenario", source="durations", value="duration"), lines)
     ind = dist[dist["comparison"].eq("individual-mean") & dist["kind"].eq("trial")]
     if len(ind) and ind["scenario"].notna().any():
         g, colors = {}, []
@@ -314,14 +315,22 @@ def _carriage_section(study, data: dict, stage, lines: list[str]) -> None:
     charts, chance = {}, {}
     if len(sources["patterns"]):
         counts = sources["patterns"]["pattern"].value_counts()
-        charts["same end configuration in"] = {k.replace("S", "sc").replace("&sc", "&sc"): int(n) for k, n in counts.items()}
+        expected = next((a.expected for a in (study.config.analyses if study.config else [])
+                         if a.source == "patterns" and a.expected), {})
+        cats = list(expected) + [k for k in counts.index if k not in expected]  # every declared pattern, also when absent
+        name = "same end configuration in"
+        charts[name] = {k.replace("S", "sc"): int(counts.get(k, 0)) for k in cats}
+        if expected and len(set(expected.values())) == 1:
+            chance[name] = float(next(iter(expected.values())))
     ch = sources["choices"]
     for who, name in (("s1", "optimal for Subj. 1"), ("s2", "optimal for Subj. 2"), ("pair", "optimal for the pair")):
         if len(ch):
             v = ch[f"optimal_{who}"].astype(bool)
             charts[name] = {"optimal": int(v.sum()), "not optimal": int((~v).sum())}
+            chance[name] = float(pd.to_numeric(ch[f"chance_{who}"], errors="coerce").mean())
     if charts:
-        _fig(stage, figures.proportions(charts, "End configuration choices (share with its 95 % interval)"), "bars_configuration",
+        _fig(stage, figures.proportions(charts, "End configuration choices (share with its 95 % interval; dashed: the share "
+                                                "expected by chance)", chance), "bars_configuration",
              study.cite("configuration patterns across scenarios (scK = scenario K) and optimality of the chosen end "
                         "configuration, shares with 95 % Wilson intervals", source="choices"), lines)
     rv = sources["return_variability"]
@@ -344,7 +353,8 @@ def build_report(study, inputs: dict, stage, out: Path) -> None:
              f"files: {', '.join(f'`{p.parent.name}/{p.name}`' for p in inputs.values())}. Study description: {where}; "
              + ("questions declared there." if study.declared else "no questions declared: default descriptive statistics."), ""]
     abbreviations = study.abbreviations()
-    lines += ["Abbreviations (one meaning each in this report): " + "; ".join(abbreviations) + ".", ""]
+    if abbreviations:
+        lines += ["Abbreviations and codes (one meaning each in this report):", "", *[f"- {a}" for a in abbreviations], ""]
     results: list[str] = []
     refused = refused_section(out)
     lines += refused
