@@ -96,6 +96,16 @@ def refused_trials(stage_dir: Path) -> list[dict]:
         return []
 
 
+def record(stage, refused: list[Refused], n_trials: int, name: str) -> None:
+    """Put the refused trials in the manifest of ``stage`` (a ``workspace.Stage``) and print the summary."""
+    from cobot_analysis.console import warn
+
+    if refused:
+        stage.manifest_extra["refused"] = records(refused)
+        for line in summary(refused, n_trials, name):
+            warn(line)
+
+
 def records(refused: list[Refused]) -> list[dict]:
     """The manifest's ``refused`` list."""
     return [r.record() for r in refused]

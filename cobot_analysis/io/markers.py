@@ -408,10 +408,7 @@ def run_import(protocol_path: str | os.PathLike, out: str | os.PathLike, *, unit
         for t in imported:
             for note in t.notes:
                 warn(note)
-        if refused:
-            stage.manifest_extra["refused"] = refusals.records(refused)
-            for line in refusals.summary(refused, len(tasks), "import"):
-                warn(line)
+        refusals.record(stage, refused, len(tasks), "import")
         kept = protocol.trials[protocol.trials["trial"].astype(str).isin({t.trial for t in imported})]
         trials = trials_table(Protocol(protocol.path, protocol.study, kept, rate=protocol.rate), imported)
         rates = {t.trial: t.rate for t in imported}

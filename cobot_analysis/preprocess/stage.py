@@ -501,7 +501,7 @@ def summary_markdown(traj: pd.DataFrame, gap_df: pd.DataFrame, p: Params, n_reco
 def run(out: Path, markers_path: Path, trials_path: Path, p: Params, *, force: bool = False, jobs: int | None = None,
         scheduler: str | None = None) -> Path:
     """Run the stage into ``out/preprocess`` (skipped when up to date); returns its directory."""
-    from cobot_analysis.console import info, warn
+    from cobot_analysis.console import info
     from cobot_analysis.parallel import chunked, default_jobs, map_tasks
     from cobot_analysis.workspace import Stage
 
@@ -527,10 +527,7 @@ def run(out: Path, markers_path: Path, trials_path: Path, p: Params, *, force: b
         results = [r for r in done if not isinstance(r, Refused)]
         if refused and (not p.skip_bad or not results):
             raise refusal_error(refused, len(done), markers_path, "preprocess")
-        if refused:
-            stage.manifest_extra["refused"] = refusals.records(refused)
-            for line in refusals.summary(refused, len(done), "preprocess"):
-                warn(line)
+        refusals.record(stage, refused, len(done), "preprocess")
         traj, gap_df = assemble(results, p.n_samples)
         params = asdict(p)
         write_table(traj, stage.path("trajectories.parquet"), TRAJECTORIES, stage="preprocess", **params)
