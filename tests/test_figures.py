@@ -401,7 +401,7 @@ def foreign_study_data():
     ts = SimpleNamespace(meta=pd.DataFrame(rows), x=np.array(xs), y=np.array(ys), theta=np.array(ths))
     n = len(rows)
     dist = pd.DataFrame({"comparison": "individual-mean", "kind": "trial", "study": "lab-gait", "entity": "walker",
-                         "subject": ts.meta["subject"], "condition": ts.meta["condition"], "global_distance": 4.0,
+                         "subject": ts.meta["subject"], "condition": ts.meta["condition"], "global_distance": rng.uniform(3, 5, n),
                          "d_xy": rng.gamma(2, 0.05, n), "d_theta": rng.gamma(2, 0.05, n), "d_gamma": rng.gamma(2, 0.1, n)})
     return foreign, ts, dist
 
@@ -412,7 +412,8 @@ def test_report_figures_of_a_study_that_is_not_ours(tmp_path):
     foreign, ts, dist = foreign_study_data()
     stage = FakeStage(tmp_path)
     lines = _sections(foreign, {"ts": ts, "distances": dist}, stage)
-    assert set(stage.figs) == {"paths", "box_d_xy_subject", "box_d_xy_condition", "box_d_theta_subject", "box_d_gamma_subject"}
+    assert set(stage.figs) == {"paths", "box_d_xy_subject", "box_d_xy_condition", "box_d_theta_subject", "box_d_gamma_subject",
+                               "scatter_d_xy_global"}
     for stem, fig in stage.figs.items():
         assert check_figure(fig) == [], stem
     ticks = [t.get_text().split("\n")[0] for t in stage.figs["box_d_xy_condition"].axes[0].get_xticklabels()]

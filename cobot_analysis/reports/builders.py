@@ -99,6 +99,9 @@ def _path_panels(ts, means, keys: list[str], title_of, select=None, scenario=Non
             ent = m["entity"].iloc[i]
             if kind == "lines":
                 panels[key]["lines"].append((src.x[i], src.y[i], ent))
+            elif "frames_differ" in str(m["quality"].iloc[i] if "quality" in m.columns else ""):
+                if "mean not drawn" not in panels[key]["title"]:  # averaging.frame_spread: no path anyone walked
+                    panels[key]["title"] += "\n(mean not drawn: trials in different frames)"
             else:
                 sc = m["scenario"].iloc[i] if "scenario" in m.columns and m["direction"].iloc[i] == "forward" else None
                 meaning = scenario.levels.get(level_text(sc), "") if sc is not None and sc == sc else ""
