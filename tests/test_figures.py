@@ -420,7 +420,8 @@ def test_report_figures_of_a_study_that_is_not_ours(tmp_path):
     assert ticks == ["fl1", "fl2", "fl3"]
     assert stage.figs["box_d_xy_condition"].axes[0].get_xlabel() == "floor"
     text = "\n".join(lines)
-    assert "fl1 = carpet" in text and "W1" not in text and "Q1" not in text
+    assert "W1" not in text and "Q1" not in text
+    assert foreign.abbreviations() == ["floor: fl1 = carpet; fl2 = wood; fl3 = tiles"]  # listed once at the top of the report
     bars = figures.proportions({"optimal for Subj. 1": {"optimal": 7, "not optimal": 3}, "patterns": {"a": 1, "b": 2, "c": 9}},
                                "choices", chance={"optimal for Subj. 1": 0.5})
     reviewable(bars)
