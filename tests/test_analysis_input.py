@@ -93,14 +93,14 @@ family = "f"
 
 
 def test_filter_value_matching_nothing_names_the_value_and_the_values(ws, tmp_path, cli):
-    cfg = _config(tmp_path, 'study = "walking-2020"\n' + QUESTION.format(comparison="individual-maen"))
+    cfg = _config(tmp_path, 'study = "synthetic-walking"\n' + QUESTION.format(comparison="individual-maen"))
     code, _, err = cli("stats", "--out", ws, "--config", cfg)
     assert code == 0, err
     assert ("1 filter value(s) match no row, their analyses are skipped (stats.md says why): T1: comparison = "
             "'individual-maen' (values of distances.comparison: individual-mean)") in " ".join(err.split())
     row = read_table(ws / "stats" / "stats.parquet", STATS).set_index("id").loc["T1"]
     assert row["status"] == "skipped: no row with comparison = 'individual-maen' (values of comparison there: individual-mean)"
-    cfg.write_text('study = "walking-2020"\n' + QUESTION.format(comparison="individual-mean"))
+    cfg.write_text('study = "synthetic-walking"\n' + QUESTION.format(comparison="individual-mean"))
     code, _, err = cli("stats", "--out", ws, "--config", cfg)
     assert code == 0 and "warning" not in err
     assert read_table(ws / "stats" / "stats.parquet", STATS).set_index("id").loc["T1", "status"] == "ok"
@@ -110,8 +110,8 @@ def test_configuration_of_another_study_is_refused(ws, cli):
     cfg = ROOT / "pipelines" / "pair-carriage-2022.toml"
     code, _, err = cli("stats", "--out", ws, "--config", cfg, "--force")
     assert code == 2 and _line(err) == (f"error: {cfg}: configuration for study 'pair-carriage-2022', but the trajectories "
-                                        "are of study 'synthetic-walking'; pass the configuration of the data's study "
-                                        "(pipelines/<study>.toml), or omit --config to use it")
+                                        "are of study 'synthetic-walking'; pass the study file of the data's study, or set "
+                                        "study = \"synthetic-walking\" in this one")
 
 
 @pytest.mark.parametrize("text, message", [
