@@ -378,7 +378,8 @@ def test_walking_report_figures_from_synthetic_tables(tmp_path):
     ticks = [t.get_text() for t in stage.figs["box_d_xy_subject"].axes[0].get_xticklabels()]
     assert ticks == [f"S{j:02d}\n(n = 40)" for j in range(1, 5)]
     text = "\n".join(lines)  # captions cite the study file's questions and explain the letters
-    assert "W1.1" in text and "W1.5" in text and "N = facing north" in text
+    assert "W1.1" in text and "W1.5" in text
+    assert any("N = facing north" in a for a in study.abbreviations())  # the letters, explained at the top of the report
 
 
 def foreign_study_data():
@@ -505,3 +506,14 @@ def test_motion_capture_line_stays_visible_over_the_icp(loc_results):
         assert truth.get_zorder() > icp.get_zorder()
         assert pixels_of(fig, ax, truth.get_color()) > 300, ax.get_ylabel()
         assert pixels_of(fig, ax, icp.get_color(), alpha=icp.get_alpha(), tol=0.2) > 100, ax.get_ylabel()
+
+
+def test_checker_finds_overlapping_tick_labels():
+    fig, ax = plt.subplots(figsize=(3, 2))
+    labels = [f"condition number {i}" for i in range(12)]
+    ax.bar(range(12), np.arange(12.0))
+    ax.set_xticks(range(12), labels)
+    ax.set(xlabel="condition", ylabel="d_xy (m)")
+    assert any("x tick labels 'condition number 0' and 'condition number 1' overlap" in p for p in check_figure(fig))
+    ax.set_xticks(range(12), labels, rotation=90)
+    assert check_figure(fig) == []

@@ -255,12 +255,12 @@ def boxplots(groups: dict, ylabel: str, title: str = "", colors: list | None = N
     values = [np.asarray(groups[k], float) for k in labels]
     values = [v[np.isfinite(v)] for v in values]
     per = max(0.6, 0.075 * max((len(line) for k in labels for line in str(k).split("\n")), default=0))  # inches per box
-    rotate = per * len(labels) > 20
-    fig, ax = plt.subplots(figsize=(max(4.0, min(per, 0.6 if rotate else per) * len(labels) + 1.5), 3.8))
+    rotate = per * len(labels) > 20  # many boxes: one vertical line per label, 0.3 in apart (no overlap)
+    fig, ax = plt.subplots(figsize=(max(4.0, (0.3 if rotate else per) * len(labels) + 1.5), 3.8))
     bp = ax.boxplot(values, whis=1.5, showfliers=True, patch_artist=True, widths=0.6,
                     medianprops={"color": "k", "lw": 1.5}, flierprops={"marker": "o", "ms": 3, "mfc": "none", "alpha": 0.7})
-    ax.set_xticks(range(1, len(labels) + 1), [f"{k}\n(n = {len(v)})" for k, v in zip(labels, values)],
-                  rotation=45 if rotate else 0, ha="right" if rotate else "center", rotation_mode="anchor", fontsize=8)
+    ticks = [f"{k} (n = {len(v)})".replace("\n", " ") if rotate else f"{k}\n(n = {len(v)})" for k, v in zip(labels, values)]
+    ax.set_xticks(range(1, len(labels) + 1), ticks, rotation=90 if rotate else 0, ha="center", fontsize=8)
     for patch, c in zip(bp["boxes"], colors or ["#9ecae1"] * len(labels)):
         patch.set_facecolor(c)
         patch.set_alpha(0.7)
@@ -394,6 +394,21 @@ def _axis_label(ax, which: str) -> str:
     return sup.get_text() if sup is not None else ""
 
 
+def overlapping_ticks(ax) -> list[str]:
+    """Tick labels of ``ax`` that overlap a neighbour on the page (after drawing), per axis."""
+    out = []
+    renderer = ax.figure.canvas.get_renderer()
+    for which, axis in (("x", ax.xaxis), ("y", ax.yaxis)):
+        boxes = [(t.get_text(), t.get_window_extent(renderer)) for t in axis.get_ticklabels()
+                 if t.get_visible() and t.get_text().strip()]
+        for (a, ba), (b, bb) in zip(boxes, boxes[1:]):
+            if ba.overlaps(bb) and ba.intersection(ba, bb) is not None and \
+                    ba.intersection(ba, bb).width * ba.intersection(ba, bb).height > 1.0:
+                out.append(f"{which} tick labels {a!r} and {b!r} overlap")
+                break
+    return out
+
+
 def check_figure(fig) -> list[str]:
     """What a reviewer would refuse in ``fig``, one line each (empty: nothing).
 
@@ -401,7 +416,8 @@ def check_figure(fig) -> list[str]:
     unit in parentheses or brackets ("x (m)", "time [s]"), a categorical axis (text ticks, e.g. one box
     per group) needs non-empty tick labels. Every axes with more than one series (artists that differ
     in kind, colour, line style, marker or width) needs each of them named by a legend of the axes or
-    of the figure, except on a categorical axis, whose ticks name its series. Pies are exempt."""
+    of the figure, except on a categorical axis, whose ticks name its series. Tick labels must not
+    overlap their neighbours. Pies are exempt."""
     from matplotlib.patches import Wedge
 
     fig.canvas.draw()
@@ -431,6 +447,7 @@ def check_figure(fig) -> list[str]:
                 problems.append(f"{where}: {which} label {label!r} gives no unit in parentheses or brackets")
             if not numeric and any(not t.get_text().strip() for t in ticks):
                 problems.append(f"{where}: empty {which} tick label on a categorical axis")
+        problems += [f"{where}: {p}" for p in overlapping_ticks(ax)]
         if categorical:
             continue
         styles = {_style(a) for a in data}
