@@ -29,7 +29,7 @@ STUDY_FILE = "study.toml"
 PIPELINES = Path(__file__).resolve().parents[1] / "pipelines"
 ENTITIES = ("walker", "subject1", "subject2", "table")
 #: top-level keys of a study file (``analysis`` and ``factor`` are arrays of tables).
-KEYS = ("study", "title", "entities", "alpha", "factor", "analysis")
+KEYS = ("study", "title", "entities", "alpha", "based_on", "factor", "analysis")
 FACTOR_KEYS = ("column", "label", "meaning", "short", "levels")
 
 
@@ -194,8 +194,9 @@ def parse(data: dict, path: Path | None = None) -> Study:
     return Study(name, title or name, list(entities), factors, config, path, alpha)
 
 
-def load(path: str | Path) -> Study:
-    """Read and validate a study file."""
+def load(path: str | Path, _seen: tuple = ()) -> Study:
+    """Read and validate a study file; ``based_on = "other.toml"`` (relative to it) takes the
+    entities, factors, alpha and questions of that file unless this one declares them."""
     path = Path(path)
     try:
         data = tomllib.loads(path.read_bytes().decode("utf-8"))
@@ -206,6 +207,19 @@ def load(path: str | Path) -> Study:
                          remedy="pass the study's TOML file (docs/statistics.md)") from None
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"not valid TOML ({exc})", path=path, remedy="fix the syntax") from None
+    base = data.get("based_on")
+    if base is not None:
+        if not isinstance(base, str):
+            raise InputError("based_on must be the path of another study file", path=path, remedy='e.g. based_on = "walking-2020.toml"')
+        other = (path.parent / base).resolve()
+        if other in _seen:
+            raise InputError(f"based_on makes a cycle through {other.name}", path=path, remedy="remove one based_on")
+        parent = load(other, (*_seen, path.resolve()))
+        own = parse({k: v for k, v in data.items() if k != "based_on"}, path)
+        return Study(own.name or parent.name, data.get("title") or parent.title,
+                     own.entities or parent.entities, own.factors or parent.factors,
+                     own.config if own.declared else parent.config, path,
+                     own.alpha if "alpha" in data else parent.alpha)
     return parse(data, path)
 
 
@@ -300,7 +314,7 @@ def questions(study: Study, sources: dict):
     from cobot_analysis.stats.config import StudyConfig
 
     if study.declared:
-        return study.config
+        return StudyConfig(study.name, study.config.alpha, study.config.analyses, study.path)
     return StudyConfig(study.name, study.alpha, default_analyses(study, sources), study.path)
 
 

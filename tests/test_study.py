@@ -77,12 +77,24 @@ def test_study_file_is_found_beside_the_protocol_and_must_name_the_data(tmp_path
 
 
 def test_our_studies_use_the_same_mechanism():
-    for name in ("walking-2020", "pair-carriage-2022", "synthetic-pairs"):
+    for name in ("walking-2020", "pair-carriage-2022", "synthetic-pairs", "synthetic-walking"):
         s = st.load(st.PIPELINES / f"{name}.toml")
         assert s.name == name and s.declared and s.factors
     pairs = st.load(st.PIPELINES / "synthetic-pairs.toml")
-    assert pairs.factor("configuration").levels["gris"].startswith("grey") and pairs.factor("scenario").short == "sc"
+    assert pairs.factor("configuration").levels["gris"] == "the table ends at 0 or pi (grey marks)" and pairs.factor("scenario").short == "sc"
     assert any(a.startswith("Subj. 1 = Subject 1") for a in pairs.abbreviations())
+
+
+def test_a_study_file_based_on_another(tmp_path):
+    s = st.load(st.PIPELINES / "synthetic-walking.toml")
+    walking = st.load(st.PIPELINES / "walking-2020.toml")
+    assert s.name == "synthetic-walking" and s.factors == walking.factors
+    assert [a.id for a in st.questions(s, {}).analyses] == [a.id for a in walking.config.analyses]
+    assert st.questions(s, {}).study == "synthetic-walking"
+    (tmp_path / "a.toml").write_text('based_on = "b.toml"\n')
+    (tmp_path / "b.toml").write_text('based_on = "a.toml"\n')
+    with pytest.raises(InputError, match="based_on makes a cycle"):
+        st.load(tmp_path / "a.toml")
 
 
 def test_synth_writes_a_study_file(tmp_path):
