@@ -8,7 +8,7 @@ descriptive set (distances and travel times by each factor, and the tests the de
 
 Where the file is found (``locate``), first match wins:
 
-1. the file given on the command line (``--study``);
+1. the file given on the command line (``stats --config``, ``report --study-file``);
 2. ``study.toml`` beside the protocol imported into the workspace (``import/manifest.json``);
 3. ``pipelines/<study>.toml`` in the current directory or the source tree, ``<study>`` being the
    data's ``study`` column (how the published datasets, imported without a protocol, find theirs);
@@ -202,8 +202,11 @@ def load(path: str | Path, _seen: tuple = ()) -> Study:
         data = tomllib.loads(path.read_bytes().decode("utf-8"))
     except FileNotFoundError:
         raise InputError("study file not found", path=path, remedy="pass the study's TOML file (docs/statistics.md)") from None
-    except (OSError, UnicodeDecodeError):
-        raise InputError("not a readable UTF-8 text file (a study file is TOML)", path=path,
+    except UnicodeDecodeError:
+        raise InputError("not a text file (a study file is UTF-8 TOML)", path=path,
+                         remedy="pass the study's TOML file (docs/statistics.md)") from None
+    except OSError as exc:
+        raise InputError(f"cannot read the study file ({exc.strerror or type(exc).__name__})", path=path,
                          remedy="pass the study's TOML file (docs/statistics.md)") from None
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"not valid TOML ({exc})", path=path, remedy="fix the syntax") from None
@@ -259,7 +262,7 @@ def resolve(out: Path, study_name: str, given: Path | None = None) -> Study:
     study = load(path)
     if study.name and study.name != study_name:
         raise InputError(f"study file of study {study.name!r}, but the trajectories are of study {study_name!r}", path=path,
-                         remedy=f'set study = "{study_name}" in it, or pass the study file of the data (--study / --config)')
+                         remedy=f'set study = "{study_name}" in it, or pass the study file of the data (stats --config, report --study-file)')
     study.name = study.name or study_name
     return study
 
@@ -340,6 +343,14 @@ def write(path: Path, study: str, title: str, entities: list[str], factors: list
     path.write_text("\n".join(lines) + ("\n" + questions.strip() + "\n" if questions.strip() else ""))
     load(path)
     return path
+
+
+def write_synthetic(directory: Path, study: str, template: str) -> Path:
+    """``synth walking`` / ``synth pairs``: the study file beside the protocol, from the study file of
+    the design the synthetic study imitates (``pipelines/<template>.toml``)."""
+    header = (f"Study file of the synthetic study {study}, written by `cobot-analysis synth`: the factors and\n"
+              f"questions of {template} (docs/statistics.md). `report` and `stats` find it beside protocol.yaml.")
+    return derive(PIPELINES / f"{template}.toml", Path(directory) / STUDY_FILE, study, header)
 
 
 def derive(template: Path, dest: Path, study: str, header: str = "") -> Path:

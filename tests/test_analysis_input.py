@@ -13,7 +13,7 @@ from cobot_analysis.schema import TRAJECTORIES, read_table, write_table
 from cobot_analysis.stats.analyses import STATS
 
 sys.path.insert(0, str(Path(__file__).parent))
-from synthetic_tables import walking_table  # noqa: E402
+from cobot_analysis.synth.tables import walking_table  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -109,9 +109,9 @@ def test_filter_value_matching_nothing_names_the_value_and_the_values(ws, tmp_pa
 def test_configuration_of_another_study_is_refused(ws, cli):
     cfg = ROOT / "pipelines" / "pair-carriage-2022.toml"
     code, _, err = cli("stats", "--out", ws, "--config", cfg, "--force")
-    assert code == 2 and _line(err) == (f"error: {cfg}: configuration for study 'pair-carriage-2022', but the trajectories "
-                                        "are of study 'synthetic-walking'; pass the study file of the data's study, or set "
-                                        "study = \"synthetic-walking\" in this one")
+    assert code == 2 and _line(err) == (f"error: {cfg}: study file of study 'pair-carriage-2022', but the trajectories "
+                                        "are of study 'synthetic-walking'; set study = \"synthetic-walking\" in it, or pass the "
+                                        "study file of the data (stats --config, report --study-file)")
 
 
 @pytest.mark.parametrize("text, message", [
@@ -135,7 +135,7 @@ def test_binary_configuration_is_one_line(ws, tmp_path, cli):
     cfg = tmp_path / "stats.toml"
     cfg.write_bytes(bytes(range(256)) * 4)
     code, _, err = cli("stats", "--out", ws, "--config", cfg)
-    assert code == 2 and _line(err) == (f"error: {cfg}: not a text file (a stats configuration is UTF-8 TOML); pass a TOML "
-                                        "file, e.g. --config pipelines/walking-2020.toml")
+    assert code == 2 and _line(err) == (f"error: {cfg}: not a text file (a study file is UTF-8 TOML); pass the study's "
+                                        "TOML file (docs/statistics.md)")
     code, _, err = cli("stats", "--out", ws, "--config", tmp_path)
-    assert code == 2 and "cannot read the stats configuration" in _line(err)
+    assert code == 2 and "cannot read the study file" in _line(err)

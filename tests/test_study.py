@@ -98,10 +98,10 @@ def test_a_study_file_based_on_another(tmp_path):
 
 
 def test_synth_writes_a_study_file(tmp_path):
-    from cobot_analysis.synth import walking
+    from cobot_analysis.stages.data import synth_walking
 
-    walking.generate(tmp_path, n_subjects=1, n_trials=1, conditions=["E4015"], write_raw=False)
-    s = st.load(tmp_path / "study.toml")
+    synth_walking(tmp_path, subjects=1, repetitions=1, conditions=["E4015"], jobs=1)
+    s = st.load(tmp_path / "synth-walking" / "study.toml")
     assert s.name == "synthetic-walking" and [a.id for a in s.config.analyses] == [a.id for a in st.load(
         st.PIPELINES / "walking-2020.toml").config.analyses]
 

@@ -29,6 +29,7 @@ the question; so does a configuration of another study than the data's (``check_
 
 from __future__ import annotations
 
+import difflib
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -237,7 +238,8 @@ OWN_COMPARISONS = ("individual-mean", "any-any", "symmetry", "symmetry-mean", "s
 def awaited(config: StudyConfig, sources: dict) -> tuple[list[str], dict[str, list[str]]]:
     """``filter_problems`` split into the unexpected ones (a typo: to warn about) and the questions
     whose rows these data cannot have yet, by why: ``comparison = "model"`` before
-    ``compare --against TABLE --comparison model``, ``"mean-published"`` without published means.
+    ``compare --against TABLE --comparison model``, ``"mean-published"`` without published means; a value
+    close to one of ``OWN_COMPARISONS`` ("individual-maen") is a typo.
     Returns (unexpected texts, {why: [question ids]})."""
     wait: dict[str, list[str]] = {}
     other = []
@@ -245,7 +247,8 @@ def awaited(config: StudyConfig, sources: dict) -> tuple[list[str], dict[str, li
         for text in filter_problems(StudyConfig(config.study, config.alpha, [a]), sources):
             wanted = a.filter.get("comparison") if text.startswith(f"{a.id}: comparison = ") else None
             names = [str(v) for v in (wanted if isinstance(wanted, list) else [wanted])] if wanted is not None else []
-            if names and all(n == "mean-published" or n not in OWN_COMPARISONS for n in names):
+            typo = [n for n in names if n not in OWN_COMPARISONS and difflib.get_close_matches(n, OWN_COMPARISONS, 1, 0.8)]
+            if names and not typo and all(n == "mean-published" or n not in OWN_COMPARISONS for n in names):
                 why = ("the data hold no published means to compare ours with" if names == ["mean-published"] else
                        f"no {'/'.join(names)} rows yet (`compare --against TABLE --comparison {names[0]}` adds them)")
                 wait.setdefault(why, []).append(a.id)

@@ -48,7 +48,6 @@ import pandas as pd
 from cobot_analysis.angles import wrap
 from cobot_analysis.design import PAIR_GOALS, SCENARIOS, TABLE_SIZE
 from cobot_analysis.io.protocol import PELVIS_MARKERS, SUBJECT_MARKERS, TABLE_MARKERS
-from cobot_analysis.study import PIPELINES, STUDY_FILE, derive
 from cobot_analysis.synth import body as bd
 from cobot_analysis.synth import paths
 from cobot_analysis.synth.c3d import write_c3d
@@ -84,8 +83,6 @@ _SUBJECT_KEY, _RECORDING_KEY, _NOISE_KEY = 4, 3, 5
 _ENTITIES = ("subject1", "subject2", "table")
 _PREFIX = {"subject1": "S1", "subject2": "S2", "table": "Table"}
 _N_SUBJECT_MARKERS = len(SUBJECT_MARKERS)
-STUDY_HEADER = ("Study file of the synthetic study, written by `cobot-analysis synth`: the factors and\n"
-                "questions of pair-carriage-2022 (per-trial) (docs/statistics.md).\n`report` and `stats` find it beside protocol.yaml.")
 PROTOCOL_HEADER = ("Protocol of a synthetic pair-carriage study, written by `cobot-analysis synth pairs`. Import it "
                    "with `cobot-analysis import protocol.yaml`; every key is documented in docs/protocol.md.")
 PROTOCOL_NOTES = {
@@ -454,7 +451,6 @@ def generate(directory, seed: int = 0, n_pairs: int = N_PAIRS, goals: Sequence[s
                           "subject2": [subjects[2 * i + 1].id for i in range(n_pairs)]})
     trials = pd.DataFrame([r[2] for r in results])
     (directory / "results.md").write_text(summary(trials_truth))
-    derive(PIPELINES / "synthetic-pairs.toml", directory / STUDY_FILE, STUDY, header=STUDY_HEADER)
     return write_protocol(directory / "protocol.yaml", STUDY, trials, subjects=subj, pairs=pairs, rate=bd.RATE,
                           entities={_PREFIX[e]: e for e in _ENTITIES}, header=PROTOCOL_HEADER, notes=PROTOCOL_NOTES)
 

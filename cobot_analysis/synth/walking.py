@@ -32,7 +32,6 @@ import pandas as pd
 from cobot_analysis.angles import wrap
 from cobot_analysis.design import WALKING_CONDITIONS, WALKING_GOAL, walking_condition
 from cobot_analysis.io.protocol import PELVIS_MARKERS, SUBJECT_MARKERS
-from cobot_analysis.study import PIPELINES, STUDY_FILE, derive
 from cobot_analysis.synth import body as bd
 from cobot_analysis.synth import paths
 from cobot_analysis.synth.c3d import write_c3d
@@ -52,8 +51,6 @@ P_LONG_GAP = 0.28
 START_SHIFT = (0.0, 0.145)
 START_BEHIND = 0.12
 _PELVIS_COLS = tuple(SUBJECT_MARKERS.index(m) for m in PELVIS_MARKERS)
-STUDY_HEADER = ("Study file of the synthetic study, written by `cobot-analysis synth`: the factors and\n"
-                "questions of walking-2020 (docs/statistics.md).\n`report` and `stats` find it beside protocol.yaml.")
 PROTOCOL_HEADER = ("Protocol of a synthetic walking study, written by `cobot-analysis synth walking`. Import it with "
                    "`cobot-analysis import protocol.yaml`; every key is documented in docs/protocol.md.")
 PROTOCOL_NOTES = {
@@ -281,7 +278,6 @@ def generate(directory, seed: int = 0, n_subjects: int = N_SUBJECTS, n_trials: i
                            "condition": [r[1]["condition"] for r in results],
                            "repetition": [t[4] for t in tasks]})
     (directory / "results.md").write_text(summary(trials_truth))
-    derive(PIPELINES / "walking-2020.toml", directory / STUDY_FILE, STUDY, header=STUDY_HEADER)
     return write_protocol(directory / "protocol.yaml", STUDY, trials, subjects=subj, rate=bd.RATE,
                           header=PROTOCOL_HEADER, notes=PROTOCOL_NOTES)
 
