@@ -201,3 +201,23 @@ def test_default_report_questions_run(tmp_path):
     assert isinstance(cfg, StudyConfig) and [a.id for a in cfg.analyses] == ["D0", "D1", "D1-test"]
     table = analyses.run(cfg, sources)
     assert table.loc[table["id"].str.startswith("D1-test"), "status"].eq("ok").all()
+
+
+def test_progress_prints_plain_lines_when_the_output_is_not_a_terminal(monkeypatch):
+    import io
+
+    from rich.console import Console
+
+    from cobot_analysis import console as c
+
+    buffer = io.StringIO()
+    monkeypatch.setattr(c, "console", Console(file=buffer, force_terminal=False, width=200))
+    monkeypatch.setattr(c, "PLAIN_EVERY", 0.0)
+    assert list(c.track(range(3), "IOC all")) == [0, 1, 2]
+    lines = buffer.getvalue().splitlines()
+    assert [line.split(",")[0] for line in lines] == ["IOC all: 0/3 (0 %)", "IOC all: 1/3 (33 %)", "IOC all: 2/3 (67 %)",
+                                                      "IOC all: 3/3 (100 %)"]
+    monkeypatch.setattr(c, "PLAIN_EVERY", 3600.0)  # slow items: the start and the end only
+    buffer.truncate(0), buffer.seek(0)
+    list(c.track(range(50), "preprocess"))
+    assert [line.split(",")[0] for line in buffer.getvalue().splitlines()] == ["preprocess: 0/50 (0 %)", "preprocess: 50/50 (100 %)"]
