@@ -581,4 +581,6 @@ def test_realdata_static_recording_is_reported_as_such(realdata, tmp_path, cli):
                      "marker_map: {'Daphnee:ASISr': RASI, 'Daphnee:ASISl': LASI, 'Daphnee:PSISr': RPSI, 'Daphnee:PSISl': LPSI}\n")
     assert cli("import", proto, "--out", tmp_path / "ws", "--jobs", "1")[0] == 0
     code, _, err = cli("preprocess", "--out", tmp_path / "ws", "--jobs", "1")
-    assert code == 2 and "trial static: nobody walks in this recording (static recording?" in " ".join(err.split())
+    line = " ".join(err.split())  # the only trial: the run is refused, naming the raw file and the remedy once
+    assert code == 2 and "pyomeca_markers_analogs.c3d: trial static: nobody walks (static recording?)" in line
+    assert "markers.parquet" not in line and line.count("leave it out") == 1
