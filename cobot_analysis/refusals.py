@@ -28,6 +28,7 @@ class Refused:
     path: Path
     reason: str
     remedy: str = ""
+    text: str = ""  # the whole one-line error, as a run of this trial alone reports it
 
     @classmethod
     def of(cls, trial: str, path, exc: InputError) -> "Refused":
@@ -37,7 +38,8 @@ class Refused:
             if reason.startswith(prefix):
                 reason = reason[len(prefix):]
                 break
-        return cls(str(trial), Path(path) if path else Path(""), " ".join(reason.split()), getattr(exc, "remedy", "") or "")
+        return cls(str(trial), Path(path) if path else Path(""), " ".join(reason.split()), getattr(exc, "remedy", "") or "",
+                   str(exc))
 
     def record(self) -> dict:
         return {"trial": self.trial, "file": str(self.path), "reason": self.reason, "remedy": self.remedy}
@@ -73,9 +75,9 @@ def markdown(refused: list[Refused], n_trials: int) -> list[str]:
 def error(refused: list[Refused], n_trials: int, stage: str) -> InputError:
     """The one error of a run that refuses (``--strict``, or every trial bad): the trials, their raw
     files and reasons, the remedy once."""
-    if n_trials == 1 and len(refused) == 1:
+    if n_trials == 1 and len(refused) == 1:  # the error itself
         r = refused[0]
-        return InputError(f"trial {r.trial}: {r.reason}", path=r.path, remedy=r.remedy or None)
+        return InputError(r.text) if r.text else InputError(r.reason, path=r.path, remedy=r.remedy or None)
     shared = _shared_remedy(refused)
     listing = "; ".join(f"{r.trial} ({r.path.name}): {r.reason}" + ("" if shared is not None or not r.remedy else f" ({r.remedy})")
                         for r in refused)

@@ -213,6 +213,7 @@ def test_progress_prints_plain_lines_when_the_output_is_not_a_terminal(monkeypat
     buffer = io.StringIO()
     monkeypatch.setattr(c, "console", Console(file=buffer, force_terminal=False, width=200))
     monkeypatch.setattr(c, "PLAIN_EVERY", 0.0)
+    monkeypatch.setattr(c, "_level", 1)  # normal verbosity (an earlier -q run may have lowered it)
     assert list(c.track(range(3), "IOC all")) == [0, 1, 2]
     lines = buffer.getvalue().splitlines()
     assert [line.split(",")[0] for line in lines] == ["IOC all: 0/3 (0 %)", "IOC all: 1/3 (33 %)", "IOC all: 2/3 (67 %)",
