@@ -350,10 +350,11 @@ def write_synthetic(directory: Path, study: str, template: str) -> Path:
     the design the synthetic study imitates (``pipelines/<template>.toml``)."""
     header = (f"Study file of the synthetic study {study}, written by `cobot-analysis synth`: the factors and\n"
               f"questions of {template} (docs/statistics.md). `report` and `stats` find it beside protocol.yaml.")
-    return derive(PIPELINES / f"{template}.toml", Path(directory) / STUDY_FILE, study, header)
+    return derive(PIPELINES / f"{template}.toml", Path(directory) / STUDY_FILE, study, header,
+                  title=f"Synthetic study {study} ({template} design)")
 
 
-def derive(template: Path, dest: Path, study: str, header: str = "") -> Path:
+def derive(template: Path, dest: Path, study: str, header: str = "", title: str | None = None) -> Path:
     """Write the study file ``dest`` for study ``study`` from the study file ``template`` (its factors
     and questions, e.g. the synthetic walking study from walking-2020's), ``header`` as comments on top."""
     import re
@@ -362,6 +363,8 @@ def derive(template: Path, dest: Path, study: str, header: str = "") -> Path:
     text, n = re.subn(r'(?m)^study\s*=.*$', f"study = {json.dumps(study)}", text, count=1)
     if not n:
         text = f"study = {json.dumps(study)}\n" + text
+    if title is not None:
+        text = re.sub(r'(?m)^title\s*=.*$', f"title = {json.dumps(title)}", text, count=1)
     dest = Path(dest)
     dest.write_text("".join(f"# {line}\n" for line in header.splitlines()) + text, encoding="utf-8")
     load(dest)
