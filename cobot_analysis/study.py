@@ -351,7 +351,7 @@ def write_synthetic(directory: Path, study: str, template: str) -> Path:
     header = (f"Study file of the synthetic study {study}, written by `cobot-analysis synth`: the factors and\n"
               f"questions of {template} (docs/statistics.md). `report` and `stats` find it beside protocol.yaml.")
     return derive(PIPELINES / f"{template}.toml", Path(directory) / STUDY_FILE, study, header,
-                  title=f"Synthetic study {study} ({template} design)")
+                  title=None if study == template else f"Synthetic study ({template} design)")
 
 
 def derive(template: Path, dest: Path, study: str, header: str = "", title: str | None = None) -> Path:
