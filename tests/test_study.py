@@ -165,6 +165,8 @@ def test_means_of_trials_in_different_frames_are_flagged_and_not_compared():
     one_lab = trajectory_set([(0, 0), (0.1, 0.1), (-0.1, 0)])
     labs = trajectory_set([(0, 0), (4, 1), (-2, 3)], condition="far")
     assert averaging.spread_warnings(one_lab, ["condition", "entity"]) == []
+    assert averaging.spread_warnings(labs, ["condition"], max_spread=5.0) == []  # a stated limit, --max-spread
+    assert set(averaging.mean_trajectories(labs, ["condition", "entity"], max_spread=5.0)["quality"]) == {"ok"}
     (warning,) = averaging.spread_warnings(labs, ["condition", "entity"])
     assert "far|walker of 3 trajectories: starts spread" in warning and "> 1 m" in warning
     sp = averaging.frame_spread(labs, ["condition"])

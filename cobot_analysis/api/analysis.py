@@ -64,7 +64,7 @@ class AverageResult:
         return f"{self.means.drop_duplicates(['trial', 'entity']).shape[0]} means"
 
 
-def average(trajectories: Any, *, by: list[str] | None = None) -> AverageResult:
+def average(trajectories: Any, *, by: list[str] | None = None, max_spread: float | None = None) -> AverageResult:
     """Mean trajectory per condition (sample-wise mean of positions; circular mean of angles, trajectories
     without orientation left out of the angle means only), with counts, sd and the 95 % band
     (docs/methods.md sec. 2.9). ``by``: grouping columns (default: the study's design,
@@ -77,7 +77,7 @@ def average(trajectories: Any, *, by: list[str] | None = None) -> AverageResult:
         >>> result.means.drop_duplicates("trial")[["condition", "n_trials"]].to_string(index=False)
         'condition  n_trials\n    E4015         6\n    E4030         6'
     """
-    from cobot_analysis.averaging import MEANS, check_groups, mean_trajectories, spread_warnings
+    from cobot_analysis.averaging import MAX_FRAME_SPREAD, MEANS, check_groups, mean_trajectories, spread_warnings
     from cobot_analysis.compare import default_groups
     from cobot_analysis.schema import TRAJECTORIES, read_table
 
@@ -87,12 +87,13 @@ def average(trajectories: Any, *, by: list[str] | None = None) -> AverageResult:
     trials = ts.subset(ts.meta["kind"].eq("trial").to_numpy())
     if len(trials):
         check_groups(trials.meta, groups, path)
-        means = mean_trajectories(trials, groups)
+        spread = MAX_FRAME_SPREAD if max_spread is None else max_spread
+        means = mean_trajectories(trials, groups, max_spread=spread)
         cut = 0
         if "quality" in trials.meta.columns:
             cut = int(trials.meta["quality"].fillna("").str.split(";").map(lambda f: "truncated" in f).sum())
         return AverageResult(means, groups, f"recomputed from {len(trials)} trajectories", study_of(ts), len(trials), cut,
-                             spread_warnings(trials, groups))
+                             spread_warnings(trials, groups, spread))
     long = trajectories.copy() if isinstance(trajectories, pd.DataFrame) else read_table(path, TRAJECTORIES)
     long.attrs = {}
     means = long[long["kind"].eq("mean")].copy()

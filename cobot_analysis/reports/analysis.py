@@ -20,7 +20,7 @@ def average_markdown(result, source: str) -> str:
              f"- Means without any orientation: {int((first['n_theta'] == 0).sum())}."]
     if result.spread:
         lines.append(f"- {len(result.spread)} mean(s) average trajectories that do not share a frame (start or end points "
-                     "spread beyond 1 m around the group's median): flagged `frames_differ`, not drawn in the report and "
+                     "spread beyond the limit around the group's median, `average --max-spread`): flagged `frames_differ`, not drawn in the report and "
                      "not compared with their trials. " + "; ".join(result.spread))
     if result.truncated:
         lines.append(f"- {result.truncated} of the {result.n_averaged} trajectories averaged are flagged `truncated` (they run "

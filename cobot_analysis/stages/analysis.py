@@ -26,7 +26,7 @@ def trajectories_input(out: str | os.PathLike, path: str | os.PathLike | None):
 
 
 def average(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = None, by: list[str] | None = None,
-            force: bool = False) -> Outcome:
+            max_spread: float | None = None, force: bool = False) -> Outcome:
     """``average``: ``average/means.parquet`` and its results fragment."""
     from cobot_analysis.averaging import MEANS, check_groups
     from cobot_analysis.compare import default_groups
@@ -37,10 +37,10 @@ def average(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
     trials = ts.subset(ts.meta["kind"].eq("trial").to_numpy())
     if len(trials):
         check_groups(trials.meta, groups, path)
-    with Stage(out, "average", inputs=[path], params={"by": groups}, force=force) as stage:
+    with Stage(out, "average", inputs=[path], params={"by": groups, **({"max_spread": max_spread} if max_spread is not None else {})}, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
-        result = api.average(path if not len(trials) else ts, by=groups)
+        result = api.average(path if not len(trials) else ts, by=groups, max_spread=max_spread)
         if not result.n_averaged:
             warn(f"{path}: no per-trial trajectories; the published means are carried over unchanged")
         for line in result.spread:
