@@ -23,6 +23,10 @@ from cobot_analysis.errors import InputError
 from cobot_analysis.schema import TRIAL_COLUMNS, Column, TableSchema
 
 Z95 = 1.959963984540054
+#: largest spread (m) of the members' start or end points around the group's median start or end:
+#: beyond it the trials were not recorded in one frame (e.g. three labs), or are not one condition,
+#: and their mean is no path anyone walked (flag ``frames_differ``, left out of the comparisons).
+MAX_FRAME_SPREAD = 1.0
 
 MEANS = TableSchema(
     name="means",
@@ -57,6 +61,15 @@ MEANS = TableSchema(
 )
 
 
+def spread_warnings(ts: TrajectorySet, by: list[str], max_spread: float = MAX_FRAME_SPREAD) -> list[str]:
+    """One line per group whose members do not share a frame (``frame_spread`` beyond ``max_spread``)."""
+    sp = frame_spread(ts, by)
+    far = sp[np.fmax(sp["start_spread"], sp["end_spread"]) > max_spread]
+    return [f"mean {r.group} of {r.n} trajectories: starts spread {r.start_spread:.2f} m, ends {r.end_spread:.2f} m "
+            f"(> {max_spread:g} m: not one frame or not one condition); flagged frames_differ, left out of the comparisons"
+            for r in far.itertuples()]
+
+
 def check_groups(meta: pd.DataFrame, by: list[str], path=None) -> None:
     """Refuse a grouping under which trials without a value would be averaged together.
 
@@ -81,18 +94,35 @@ def check_groups(meta: pd.DataFrame, by: list[str], path=None) -> None:
                                 f"over all {c}s)")
 
 
+def frame_spread(ts: TrajectorySet, by: list[str]) -> pd.DataFrame:
+    """Per group of ``by``: trajectories, start spread and end spread (m): the largest distance of a
+    member's first (last) point from the median first (last) point of the group."""
+    keys = group_keys(ts.meta, by).to_numpy()
+    rows = []
+    for key in pd.unique(keys):
+        idx = np.flatnonzero(keys == key)
+        spread = []
+        for k in (0, -1):
+            p = np.column_stack([ts.x[idx, k], ts.y[idx, k]])
+            p = p[np.isfinite(p).all(axis=1)]
+            spread.append(float(np.max(np.hypot(*(p - np.median(p, axis=0)).T))) if len(p) else 0.0)
+        rows.append({"group": key, "n": len(idx), "start_spread": spread[0], "end_spread": spread[1]})
+    return pd.DataFrame(rows, columns=["group", "n", "start_spread", "end_spread"])
+
+
 def _group_sums(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
     """Sums of consecutive row blocks starting at ``starts`` (rows sorted by group), NaN as 0."""
     return np.add.reduceat(np.where(np.isfinite(values), values, 0.0), starts, axis=0)
 
 
-def mean_trajectories(ts: TrajectorySet, by: list[str] | None = None) -> pd.DataFrame:
+def mean_trajectories(ts: TrajectorySet, by: list[str] | None = None, max_spread: float = MAX_FRAME_SPREAD) -> pd.DataFrame:
     """Mean trajectory of every group of ``ts`` defined by the ``by`` columns -> MEANS long table.
 
     Vectorised over groups, trajectories and samples: trajectories are sorted by group and summed
     block-wise (``np.add.reduceat``). Means: ``sum x / n``; sd with ddof = 1 (0 for a single
     trajectory); circular mean ``atan2(S, C)`` and circular sd ``sqrt(-2 ln R)``, R = |(C, S)| / n_theta,
-    over the trajectories whose orientation is complete.
+    over the trajectories whose orientation is complete. A group whose start or end points spread
+    beyond ``max_spread`` (``frame_spread``) is flagged ``frames_differ`` in ``quality``.
     """
     by = by or default_groups(ts.meta)
     keys = group_keys(ts.meta, by).to_numpy()
@@ -145,6 +175,10 @@ def mean_trajectories(ts: TrajectorySet, by: list[str] | None = None) -> pd.Data
         meta["travel_time"] = np.nan
     meta["travelled_distance"] = np.hypot(out["x"][:, -1] - out["x"][:, 0], out["y"][:, -1] - out["y"][:, 0])
     meta["quality"] = np.where(out["n_theta"][:, 0] > 0, "ok", "orientation_missing")
+    spread = frame_spread(ts, by).set_index("group").reindex(sorted_keys[starts])
+    far = (np.fmax(spread["start_spread"], spread["end_spread"]) > max_spread).to_numpy()
+    meta.loc[far, "quality"] = meta.loc[far, "quality"].where(meta.loc[far, "quality"].ne("ok"), "") + ";frames_differ"
+    meta["quality"] = meta["quality"].str.lstrip(";")
     long = meta.loc[np.repeat(np.arange(n_groups), n)].reset_index(drop=True)
     phase = 100.0 * np.arange(n) / max(n - 1, 1)
     long["sample"] = np.tile(np.arange(n), n_groups)

@@ -284,7 +284,30 @@ def individual_vs_mean(trials: TrajectorySet, means: TrajectorySet, by: list[str
     tkey = group_keys(trials.meta, by)
     ib = lookup.reindex(tkey.to_numpy()).to_numpy()
     ok = ~np.isnan(ib)
+    ok[ok] = comparable_means(means.meta)[ib[ok].astype(int)]
     return _rows("individual-mean", trials, means, np.flatnonzero(ok), ib[ok].astype(int))
+
+
+def comparable_means(meta: pd.DataFrame) -> np.ndarray:
+    """Means a trial may be compared with: of at least two trajectories (a mean of one trial is that
+    trial: its distance 0 says nothing) and whose members share a frame (no ``frames_differ`` flag,
+    ``averaging.frame_spread``). Published means (no count) are comparable."""
+    n = pd.to_numeric(meta["n_trials"], errors="coerce") if "n_trials" in meta.columns else pd.Series(np.nan, index=meta.index)
+    flags = meta["quality"].fillna("").astype(str) if "quality" in meta.columns else pd.Series("", index=meta.index)
+    return ((n.isna() | (n >= 2)) & ~flags.str.contains("frames_differ")).to_numpy()
+
+
+def excluded_means(trials: TrajectorySet, means: TrajectorySet, by: list[str] | None = None) -> dict[str, int]:
+    """How many trials ``individual_vs_mean`` leaves out, by reason: "single" (their mean is of one
+    trial, itself) and "frames" (the members of their mean do not share a frame)."""
+    by = by or default_groups(trials.meta)
+    if any(c not in means.meta.columns for c in by) or not len(means):
+        return {"single": 0, "frames": 0}
+    m = means.meta.assign(_key=group_keys(means.meta, by).to_numpy()).drop_duplicates("_key").set_index("_key")
+    hit = m.reindex(group_keys(trials.meta, by).to_numpy())
+    n = pd.to_numeric(hit["n_trials"], errors="coerce")
+    frames = hit["quality"].fillna("").astype(str).str.contains("frames_differ") if "quality" in hit else n * 0
+    return {"single": int((n.eq(1) & ~frames).sum()), "frames": int(frames.sum())}
 
 
 def against_vs_mean(other: TrajectorySet, means: TrajectorySet, by: list[str], label: str, path=None) -> pd.DataFrame:

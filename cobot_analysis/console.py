@@ -76,9 +76,62 @@ def warn(message: str) -> None:
     logger.warning(message)
 
 
+#: seconds between two progress lines when stderr is not a terminal (a log file, CI, a pipe).
+PLAIN_EVERY = 5.0
+
+
+class PlainProgress(Progress):
+    """A rich ``Progress`` that, when the console is not a terminal (where rich would print the bars
+    only at the end), prints one plain line per task when it starts, at most every ``PLAIN_EVERY``
+    seconds while it advances, and when it completes: "IOC all: 12/50 (24 %), 0:01:10, about 0:03:40 left; D = 0.41"."""
+
+    def __init__(self, *columns, plain: bool = False, **kwargs):
+        super().__init__(*columns, **kwargs)
+        self._plain = plain
+        self._last: dict = {}
+
+    def add_task(self, description: str, *args, **kwargs):
+        task = super().add_task(description, *args, **kwargs)
+        if self._plain:
+            self._say(task, force=True)
+        return task
+
+    def update(self, task_id, **kwargs) -> None:
+        super().update(task_id, **kwargs)
+        if self._plain:
+            self._say(task_id)
+
+    def advance(self, task_id, advance: float = 1) -> None:
+        super().advance(task_id, advance)
+        if self._plain:
+            self._say(task_id)
+
+    def _say(self, task_id, force: bool = False) -> None:
+        import time
+        from datetime import timedelta
+
+        task = self._tasks[task_id]
+        now = time.monotonic()
+        done = task.total is not None and task.completed >= task.total
+        if not force and not done and now - self._last.get(task_id, -1e9) < PLAIN_EVERY:
+            return
+        if done and self._last.get(task_id) == "done":
+            return
+        self._last[task_id] = "done" if done else now
+        total = f"/{task.total:g} ({100 * task.completed / task.total:.0f} %)" if task.total else ""
+        elapsed = timedelta(seconds=round(task.elapsed or 0))
+        left = task.time_remaining
+        eta = f", about {timedelta(seconds=round(left))} left" if left is not None and not done and task.completed else ""
+        status = task.fields.get("status") or ""
+        console.print(f"{task.description}: {task.completed:g}{total}, {elapsed}{eta}" + (f"; {status}" if status else ""),
+                      soft_wrap=True, markup=False)
+
+
 def progress() -> Progress:
-    """A rich progress display (disabled under --quiet); use ``with progress() as p: p.add_task(...)``."""
-    return Progress(
+    """A rich progress display (disabled under --quiet); use ``with progress() as p: p.add_task(...)``.
+    When stderr is not a terminal, plain lines instead (``PlainProgress``)."""
+    plain = _level >= 1 and not console.is_terminal
+    return PlainProgress(
         TextColumn("[progress.description]{task.description}"),
         BarColumn(),
         MofNCompleteColumn(),
@@ -86,8 +139,9 @@ def progress() -> Progress:
         TimeRemainingColumn(),
         TextColumn("{task.fields[status]}"),
         console=console,
-        disable=_level < 1,
+        disable=_level < 1 or plain,
         transient=False,
+        plain=plain,
     )
 
 

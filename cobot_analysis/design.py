@@ -56,6 +56,14 @@ def walking_condition(code: str) -> WalkingCondition:
     return WalkingCondition(code, letter, a, float(f"{b1}.{b2}"))
 
 
+def start_orientation(code) -> str | None:
+    """The start orientation letter (N, E, S, O) of a walking start-condition code, None for any other label."""
+    try:
+        return walking_condition(str(code)).orientation
+    except ValueError:
+        return None
+
+
 # ---- pair-carriage-2022 ---------------------------------------------------------------------------
 SCENARIOS = {1: "S1 leader", 2: "S2 leader", 3: "both know the goal"}
 TABLE_SIZE = (1.22, 0.80, 0.77)  # length (x, long axis), width, height (m)

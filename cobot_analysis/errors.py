@@ -4,6 +4,7 @@ Exit-code convention of every command:
   0  success (or stage skipped because it is up to date)
   1  internal failure (a bug, or a numerical failure that is not the user's input)
   2  bad usage or bad input (``InputError``): the message names the file and the remedy
+  3  done, but some trials were refused and left out (``import``, ``preprocess``; ``refusals``)
   130 / 143  interrupted by Ctrl-C / SIGTERM (``interrupt.py``): nothing partial kept
 """
 

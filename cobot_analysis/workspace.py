@@ -193,6 +193,7 @@ class Stage:
         self.params = _canonical(params or {})
         self.force = force
         self.skipped = False
+        self.manifest_extra: dict[str, Any] = {}  # further manifest keys (e.g. "refused": the trials left out)
         self.dir: Path = self.final_dir
         self._inputs: list[dict[str, Any]] = []
         self._t0 = 0.0
@@ -420,5 +421,6 @@ class Stage:
             "versions": package_versions(),
             "git_commit": git_commit(),
             "machine": {"platform": platform.platform(), "cpus": os.cpu_count()},
+            **self.manifest_extra,
         }
         (self.dir / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")

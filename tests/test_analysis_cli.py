@@ -45,8 +45,9 @@ def test_pair_study_every_question_has_a_row_and_figures(pair_ws):
     assert stats.loc[stats["question"].str.startswith("A."), "status"].str.startswith("skipped").all()  # no weight/height
     assert stats.loc[stats["test"].eq("kruskal"), "effect_name"].eq("epsilon^2").all()
     report = (pair_ws.parent / "report" / "README.md").read_text()
-    for stem in ("paths_forward", "paths_return", "box_d_xy", "box_symmetry", "box_travel_time", "pies_configuration",
-                 "scatter_d_xy_global", "box_scenarios", "box_d_xy_pair", "scatter_d_xy_turn", "pies_returns"):
+    for stem in ("paths_forward", "paths_return", "box_d_xy", "box_symmetry", "box_travel_time", "bars_configuration",
+                 "scatter_d_xy_global", "box_scenarios", "box_d_xy_pair", "scatter_d_xy_turn", "bars_returns",
+                 "box_d_xy_scenario", "box_d_xy_direction"):
         assert f"({stem}.png)" in report
         assert (pair_ws.parent / "report" / f"{stem}.png").stat().st_size > 1000
         assert (pair_ws.parent / "report" / f"{stem}.pdf").is_file()
@@ -66,7 +67,9 @@ def test_means_and_distances_tables(pair_ws):
     assert fwd.groupby("entity")["n_trials"].sum().eq(5 * 4 * 3).all()
     d = read_table(pair_ws / "compare" / "distances.parquet", DISTANCES)
     ind = d[d["comparison"].eq("individual-mean")]
-    assert len(ind) == 5 * 4 * 3 * 2 * 3 and ind["d_xy"].ge(0).all()
+    single = int(first["n_trials"].eq(1).sum())  # a mean of one trial is not compared with that trial
+    assert single > 0 and len(ind) == 5 * 4 * 3 * 2 * 3 - single and ind["d_xy"].gt(0).all()
+    assert f"{single} trial(s) whose mean is of that trial alone" in (pair_ws / "compare" / "results.md").read_text()
     assert {"symmetry", "scenario-scenario", "scenario-scenario-mean", "symmetry-mean"} <= set(d["comparison"])
 
 
@@ -75,16 +78,19 @@ def test_second_run_is_skipped_and_force_redoes(pair_ws, cli):
     assert code == 0 and "up to date" in err
 
 
-def test_report_takes_the_study_name_and_the_old_short_one_with_a_warning(pair_ws, cli):
-    to = pair_ws.parent / "report-old"
-    code, _, err = cli("report", "pairs", "--out", pair_ws, "--to", to)
+def test_report_takes_the_workspace_study_and_checks_a_given_name(pair_ws, cli):
+    to = pair_ws.parent / "report-again"
+    code, _, err = cli("report", "--out", pair_ws, "--to", to, "--force")  # no name: the workspace's study
     assert code == 0, err
     lines = err.strip().splitlines()
-    assert lines[0] == "warning: pairs is deprecated in `report`: use pair-carriage-2022"
-    assert sum("warning" in line for line in lines) == 1
+    assert not any("warning" in line for line in lines)
     figures = sorted(p.name for p in to.glob("*.png"))
     assert figures == sorted(p.name for p in (pair_ws.parent / "report").glob("*.png")) and len(figures) > 5
-    assert lines[-1] == f"report (pair-carriage-2022): {len(figures)} figures -> {to / 'README.md'}"
+    assert lines[-1] == f"report: {len(figures)} figures -> {to / 'README.md'}"
+    code, _, err = cli("report", "pairs", "--out", pair_ws, "--to", to)  # the old short name, then the check
+    lines = err.strip().splitlines()
+    assert code == 2 and lines[0] == "warning: pairs is deprecated in `report`: use pair-carriage-2022"
+    assert "the workspace's study is 'synthetic-pairs', not 'pair-carriage-2022'" in lines[-1]
 
 
 def test_compare_against_another_table_and_walking_questions(tmp_path, cli):
@@ -156,8 +162,7 @@ def test_bad_options_and_config(tmp_path, cli):
     code, _, err = cli("reconstruct", "--out", ws)
     assert code == 2 and "no table trajectories" in err and _no_stage(ws, "reconstruct")
     code, _, err = cli("report", "lizards", "--out", ws)
-    assert code == 2 and "unknown study 'lizards'" in err
-    assert "use one of walking-2020, synthetic-walking, pair-carriage-2022, synthetic-pairs" in err
+    assert code == 2 and "the workspace's study is 'synthetic-walking', not 'lizards'" in err
     (tmp_path / "nope.parquet").write_text("x")
     code, _, err = cli("compare", "--out", ws, "--force", "--against", tmp_path / "nope.parquet")
     assert code == 2 and "nope.parquet: not a readable trajectory table" in err

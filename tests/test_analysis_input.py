@@ -93,14 +93,14 @@ family = "f"
 
 
 def test_filter_value_matching_nothing_names_the_value_and_the_values(ws, tmp_path, cli):
-    cfg = _config(tmp_path, 'study = "walking-2020"\n' + QUESTION.format(comparison="individual-maen"))
+    cfg = _config(tmp_path, 'study = "synthetic-walking"\n' + QUESTION.format(comparison="individual-maen"))
     code, _, err = cli("stats", "--out", ws, "--config", cfg)
     assert code == 0, err
     assert ("1 filter value(s) match no row, their analyses are skipped (stats.md says why): T1: comparison = "
             "'individual-maen' (values of distances.comparison: individual-mean)") in " ".join(err.split())
     row = read_table(ws / "stats" / "stats.parquet", STATS).set_index("id").loc["T1"]
     assert row["status"] == "skipped: no row with comparison = 'individual-maen' (values of comparison there: individual-mean)"
-    cfg.write_text('study = "walking-2020"\n' + QUESTION.format(comparison="individual-mean"))
+    cfg.write_text('study = "synthetic-walking"\n' + QUESTION.format(comparison="individual-mean"))
     code, _, err = cli("stats", "--out", ws, "--config", cfg)
     assert code == 0 and "warning" not in err
     assert read_table(ws / "stats" / "stats.parquet", STATS).set_index("id").loc["T1", "status"] == "ok"
@@ -109,9 +109,9 @@ def test_filter_value_matching_nothing_names_the_value_and_the_values(ws, tmp_pa
 def test_configuration_of_another_study_is_refused(ws, cli):
     cfg = ROOT / "pipelines" / "pair-carriage-2022.toml"
     code, _, err = cli("stats", "--out", ws, "--config", cfg, "--force")
-    assert code == 2 and _line(err) == (f"error: {cfg}: configuration for study 'pair-carriage-2022', but the trajectories "
-                                        "are of study 'synthetic-walking'; pass the configuration of the data's study "
-                                        "(pipelines/<study>.toml), or omit --config to use it")
+    assert code == 2 and _line(err) == (f"error: {cfg}: study file of study 'pair-carriage-2022', but the trajectories "
+                                        "are of study 'synthetic-walking'; set study = \"synthetic-walking\" in it, or pass the "
+                                        "study file of the data (stats --config, report --study-file)")
 
 
 @pytest.mark.parametrize("text, message", [
@@ -135,7 +135,7 @@ def test_binary_configuration_is_one_line(ws, tmp_path, cli):
     cfg = tmp_path / "stats.toml"
     cfg.write_bytes(bytes(range(256)) * 4)
     code, _, err = cli("stats", "--out", ws, "--config", cfg)
-    assert code == 2 and _line(err) == (f"error: {cfg}: not a text file (a stats configuration is UTF-8 TOML); pass a TOML "
-                                        "file, e.g. --config pipelines/walking-2020.toml")
+    assert code == 2 and _line(err) == (f"error: {cfg}: not a text file (a study file is UTF-8 TOML); pass the study's "
+                                        "TOML file (docs/statistics.md)")
     code, _, err = cli("stats", "--out", ws, "--config", tmp_path)
-    assert code == 2 and "cannot read the stats configuration" in _line(err)
+    assert code == 2 and "cannot read the study file" in _line(err)

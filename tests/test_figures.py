@@ -348,37 +348,109 @@ def trajectory_set(panels) -> SimpleNamespace:
     return trials, means
 
 
+def _sections(study, data, stage) -> list[str]:
+    lines: list[str] = []
+    builders._data_section(study, data, lines, [])
+    builders._paths_section(study, data, stage, lines)
+    builders._distance_section(study, data, stage, lines)
+    builders._carriage_section(study, data, stage, lines)
+    return lines
+
+
 def test_walking_report_figures_from_synthetic_tables(tmp_path):
+    from cobot_analysis import study as st
+
     panels = walking_panels(np.random.default_rng(3))
     ts, means = trajectory_set(panels)
     rng = np.random.default_rng(4)
     n = len(ts.meta)
-    dist = pd.DataFrame({"comparison": ["individual-mean"] * n + ["model"] * 40, "subject": list(ts.meta["subject"]) + [None] * 40,
+    dist = pd.DataFrame({"comparison": ["individual-mean"] * n + ["model"] * 40, "kind": "trial", "study": "walking-2020",
+                         "entity": "walker", "subject": list(ts.meta["subject"]) + [None] * 40,
                          "condition": list(ts.meta["condition"]) + [p["key"][0] for p in panels],
                          "global_distance": rng.uniform(0.9, 5.2, n + 40), "d_xy": rng.gamma(2, 0.05, n + 40),
                          "d_gamma": rng.gamma(2, 0.1, n + 40)})
     stage = FakeStage(tmp_path)
-    builders._walking({"ts": ts, "means": means, "distances": dist}, stage, [], [])
-    assert set(stage.figs) == {"paths", "box_d_xy_subject", "box_d_gamma_subject", "box_d_xy_orientation", "scatter_d_xy_global",
-                               "box_model", "box_model_conditions"}
+    study = st.load(Path(st.PIPELINES) / "walking-2020.toml")
+    lines = _sections(study, {"ts": ts, "means": means, "distances": dist}, stage)
+    assert set(stage.figs) == {"paths", "box_d_xy_subject", "box_d_gamma_subject", "box_d_xy_condition", "box_d_xy_start_orientation",
+                               "scatter_d_xy_global", "box_model", "box_model_conditions"}
     for stem, fig in stage.figs.items():
         assert check_figure(fig) == [], stem
     assert len(data_axes(stage.figs["paths"])) == 40
     ticks = [t.get_text() for t in stage.figs["box_d_xy_subject"].axes[0].get_xticklabels()]
     assert ticks == [f"S{j:02d}\n(n = 40)" for j in range(1, 5)]
+    text = "\n".join(lines)  # captions cite the study file's questions and explain the letters
+    assert "W1.1" in text and "W1.5" in text
+    assert any("N = facing north" in a for a in study.abbreviations())  # the letters, explained at the top of the report
+
+
+def foreign_study_data():
+    """A study that is not ours: 3 participants x 3 floors x 3 repetitions, and its study file."""
+    from cobot_analysis import study as st
+
+    foreign = st.parse({"study": "lab-gait", "title": "Gait on three floors", "entities": ["walker"], "factor": [
+        {"column": "subject", "label": "participant"},
+        {"column": "condition", "label": "floor", "short": "fl", "levels": {"1": "carpet", "2": "wood", "3": "tiles"}}]})
+    rng = np.random.default_rng(0)
+    s = np.linspace(0, 1, 60)
+    rows, xs, ys, ths = [], [], [], []
+    for subj in ("P1", "P2", "P3"):
+        for floor in ("1", "2", "3"):
+            for _ in range(3):
+                rows.append({"kind": "trial", "condition": floor, "entity": "walker", "subject": subj, "study": "lab-gait"})
+                xs.append(4 * s + rng.normal(0, 0.05))
+                ys.append(0.3 * np.sin(np.pi * s) * rng.normal(1, 0.2))
+                ths.append(0 * s)
+    ts = SimpleNamespace(meta=pd.DataFrame(rows), x=np.array(xs), y=np.array(ys), theta=np.array(ths))
+    n = len(rows)
+    dist = pd.DataFrame({"comparison": "individual-mean", "kind": "trial", "study": "lab-gait", "entity": "walker",
+                         "subject": ts.meta["subject"], "condition": ts.meta["condition"], "global_distance": rng.uniform(3, 5, n),
+                         "d_xy": rng.gamma(2, 0.05, n), "d_theta": rng.gamma(2, 0.05, n), "d_gamma": rng.gamma(2, 0.1, n)})
+    return foreign, ts, dist
+
+
+def test_report_figures_of_a_study_that_is_not_ours(tmp_path):
+    """Its labels on the figures, no CoBot question, every figure kind a reviewer accepts (paths,
+    boxes by each factor, proportions with intervals)."""
+    foreign, ts, dist = foreign_study_data()
+    stage = FakeStage(tmp_path)
+    lines = _sections(foreign, {"ts": ts, "distances": dist}, stage)
+    assert set(stage.figs) == {"paths", "box_d_xy_subject", "box_d_xy_condition", "box_d_theta_subject", "box_d_gamma_subject",
+                               "scatter_d_xy_global"}
+    for stem, fig in stage.figs.items():
+        assert check_figure(fig) == [], stem
+    ticks = [t.get_text().split("\n")[0] for t in stage.figs["box_d_xy_condition"].axes[0].get_xticklabels()]
+    assert ticks == ["fl1", "fl2", "fl3"]
+    assert stage.figs["box_d_xy_condition"].axes[0].get_xlabel() == "floor"
+    text = "\n".join(lines)
+    assert "W1" not in text and "Q1" not in text
+    assert foreign.abbreviations() == ["floor: fl1 = carpet; fl2 = wood; fl3 = tiles"]  # listed once at the top of the report
+    bars = figures.proportions({"optimal for Subj. 1": {"optimal": 7, "not optimal": 3}, "patterns": {"a": 1, "b": 2, "c": 9}},
+                               "choices", chance={"optimal for Subj. 1": 0.5})
+    reviewable(bars)
+    assert bars.axes[0].get_shared_y_axes().joined(bars.axes[0], bars.axes[1])  # one 0-100 % axis
+    bars.savefig(tmp_path / "bars.png")
+
+
+def test_wilson_interval_by_hand():
+    lo, hi = figures.wilson(7, 10)  # Wilson 1927: 0.3968, 0.8922 for 7 of 10
+    assert abs(lo - 0.3968) < 1e-3 and abs(hi - 0.8922) < 1e-3
+    assert figures.wilson(0, 5)[0] == 0.0 and figures.wilson(5, 5)[1] == 1.0
 
 
 @pytest.mark.slow
 def test_report_figures_of_the_published_data(datasets, tmp_path, cli):
     """walking-2020 and pair-carriage-2022 as the pipeline reads them: every report figure passes."""
-    for study, dataset, builder, n_paths in (("walking", "walking-2020", builders._walking, {"paths": 40}),
-                                             ("pairs", "pair-carriage-2022", builders._pairs, {"paths_forward": 18, "paths_return": 18})):
+    from cobot_analysis import study as st
+
+    for study, dataset, n_paths in (("walking", "walking-2020", {"paths": 40}),
+                                    ("pairs", "pair-carriage-2022", {"paths_forward": 18, "paths_return": 18})):
         ws = tmp_path / study
         for args in (["import-published", dataset, datasets / dataset], ["average"], ["compare"]):
             code, _, err = cli("-q", *args, "--out", ws)
             assert code == 0, err
         stage = FakeStage(tmp_path)
-        builder(builders._load(builders.report_inputs(ws)), stage, [], [])
+        _sections(st.load(Path(st.PIPELINES) / f"{dataset}.toml"), builders._load(builders.report_inputs(ws)), stage)
         for stem, fig in stage.figs.items():
             assert check_figure(fig) == [], stem
         for stem, count in n_paths.items():
@@ -437,3 +509,14 @@ def test_motion_capture_line_stays_visible_over_the_icp(loc_results):
         assert truth.get_zorder() > icp.get_zorder()
         assert pixels_of(fig, ax, truth.get_color()) > 300, ax.get_ylabel()
         assert pixels_of(fig, ax, icp.get_color(), alpha=icp.get_alpha(), tol=0.2) > 100, ax.get_ylabel()
+
+
+def test_checker_finds_overlapping_tick_labels():
+    fig, ax = plt.subplots(figsize=(3, 2))
+    labels = [f"condition number {i}" for i in range(12)]
+    ax.bar(range(12), np.arange(12.0))
+    ax.set_xticks(range(12), labels)
+    ax.set(xlabel="condition", ylabel="d_xy (m)")
+    assert any("x tick labels 'condition number 0' and 'condition number 1' overlap" in p for p in check_figure(fig))
+    ax.set_xticks(range(12), labels, rotation=90)
+    assert check_figure(fig) == []

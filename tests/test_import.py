@@ -652,29 +652,36 @@ def test_realdata_prefixed_labels_and_vicon_csv(realdata, tmp_path, cli):
     np.testing.assert_allclose(out["csv/pyomeca_markers.csv"], out["c3d/pyomeca_markers_analogs.c3d"], atol=1e-5)
 
 
-def test_every_bad_file_is_named_in_one_error_or_skipped(tmp_path, cli):
+def test_bad_files_are_skipped_and_listed_or_named_in_one_error_with_strict(tmp_path, cli):
     good = write_c3d(tmp_path / "good.c3d", person(40))
     short = damage.truncate(write_c3d(tmp_path / "short.c3d", person(40)), -1500)
     (tmp_path / "notc3d.c3d").write_bytes(b"PK\x03\x04" + bytes(600))
     nopelvis = {k: v for k, v in person(40).items() if k != "RPSI"}
     files = [good, short, tmp_path / "notc3d.c3d", write_c3d(tmp_path / "nopelvis.c3d", nopelvis)]
     proto = protocol(tmp_path, files)
-    msg = assert_rejected(cli, tmp_path / "ws", [proto], "protocol.yaml: 3 of 4 trials refused, nothing written:",
-                          "[t2] ", "short.c3d: truncated C3D file", "[t3] ", "notc3d.c3d: not a C3D file",
-                          "[t4] ", "nopelvis.c3d: required markers missing: walker:RPSI", "--skip-bad")
-    assert "[t1]" not in msg
-    code, _, err = cli("import", proto, "--out", tmp_path / "ws", "--jobs", "2", "--skip-bad")
-    assert code == 0, err
+    msg = assert_rejected(cli, tmp_path / "ws", [proto, "--strict"], "3 of 4 trials refused (--strict), nothing written:",
+                          "t2 (short.c3d): truncated C3D file", "t3 (notc3d.c3d): not a C3D file",
+                          "t4 (nopelvis.c3d): required markers missing: walker:RPSI")
+    assert "t1 (" not in msg
+    code, _, err = cli("import", proto, "--out", tmp_path / "ws", "--jobs", "2")  # default: the good trial goes on
+    assert code == 3, err
     text = " ".join(err.split())
-    assert all(f"skipped trial {t}: " in text for t in ("t2", "t3", "t4"))
+    assert "import: 3 of 4 trials refused and left out, the other 1 went on (exit code 3" in text
+    assert all(f"{t} ({f}): " in text for t, f in (("t2", "short.c3d"), ("t3", "notc3d.c3d"), ("t4", "nopelvis.c3d")))
     trials = read_table(tmp_path / "ws" / "import" / "trials.parquet", TRIALS)
     assert trials["trial"].tolist() == ["t1"]
     assert set(read_table(tmp_path / "ws" / "import" / "markers.parquet", MARKERS)["trial"]) == {"t1"}
     results = (tmp_path / "ws" / "import" / "results.md").read_text()
-    assert "1 of 4 trials" in results and "Skipped (--skip-bad): 3 trials." in results
-    assert "| t2 |" in results and "short.c3d: truncated C3D file" in results
+    assert "1 of 4 trials" in results and "Refused and left out: 3 of 4 trials" in results
+    assert "| t2 | `short.c3d` | truncated C3D file" in results
+    import json
+
+    manifest = json.loads((tmp_path / "ws" / "import" / "manifest.json").read_text())
+    assert [r["trial"] for r in manifest["refused"]] == ["t2", "t3", "t4"] and manifest["refused"][0]["file"] == str(short)
+    code, _, _ = cli("import", proto, "--out", tmp_path / "ws", "--jobs", "2")  # skipped as up to date: still exit 3
+    assert code == 3
     bad_only = protocol(tmp_path, files[1:])
-    assert_rejected(cli, tmp_path / "ws2", [bad_only, "--skip-bad"], "3 of 3 trials refused")  # nothing left to import
+    assert_rejected(cli, tmp_path / "ws2", [bad_only], "every trial refused, nothing written")  # nothing left to import
 
 
 def test_c3d_without_frame_data_is_an_empty_trial(tmp_path, cli):

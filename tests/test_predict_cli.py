@@ -160,6 +160,8 @@ def test_prediction_figures_are_reviewable(tmp_path):
         for stem, fig in figs.items():
             assert check_figure(fig) == [], stem
         overlay = figs["prediction_overlay"]
+        assert all(overlay.axes[0].get_shared_x_axes().joined(overlay.axes[0], ax) for ax in overlay.axes)  # one scale
+        assert len({ax.get_ylim() for ax in overlay.axes}) == 1
         assert [[t.get_text() for t in ax.get_legend().get_texts()] for ax in overlay.axes] == [
             ["recorded", f"{p}: prediction from each k"] for p in config.predictors]
         assert [ax.get_title() for ax in overlay.axes] == [f"{p}: all {N - 8 + 1} predictions" for p in config.predictors]

@@ -386,7 +386,7 @@ def _bad(tmp_path, cli, parts, rows, expected):
     lines = [ln for ln in err.splitlines() if ln.startswith("error:")]
     assert len(lines) == 1 and expected in lines[0], err
     line = lines[0]
-    assert "markers.parquet" in line or "trials.parquet" in line
+    assert ".c3d: " in line or "markers.parquet" in line or "trials.parquet" in line  # the raw file when the trial has one
     assert not (ws / "preprocess").exists()
     assert not [p for p in ws.iterdir() if p.name.startswith(".preprocess")]
 
@@ -421,8 +421,7 @@ def test_bad_units_in_millimetres(tmp_path, cli):
 
 def test_bad_no_walk_and_wrong_number_of_carriages(tmp_path, cli):
     _bad(tmp_path, cli, walking_trial("W1", length=0.0), [trials_row("W1")],
-         "trial W1: nobody walks in this recording (static recording? the pelvis CoM stays within 0.000 m of its median "
-         "position over 5 s, top speed 0.000 m/s")
+         "trial W1: nobody walks (static recording?): the pelvis CoM stays within 0.000 m over 5 s, top speed 0.00 m/s")
 
 
 def test_bad_pair_recording_with_one_carriage(tmp_path, cli):
@@ -530,23 +529,24 @@ def test_cut_off_at_the_edges_and_next_to_missing_samples():
     assert segmentation.cut_off(s[1:], 0, 1)  # starts at the first sample
 
 
-def test_every_bad_recording_is_named_in_one_error_or_skipped(tmp_path, cli):
+def test_bad_recordings_are_skipped_and_listed_or_named_in_one_error_with_strict(tmp_path, cli):
     ws = tmp_path / "ws"
     parts = walking_trial("W1") + walking_trial("W2", length=0.0) + walking_trial("W3")[:3]
     write_workspace(ws, parts, [trials_row("W1"), trials_row("W2"), trials_row("W3")])
-    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1")
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1", "--strict")
     assert code == 2
     line = " ".join(err.split())
-    assert "markers.parquet: 2 of 3 trials refused, nothing written: [W2] " in line and "trial W2: nobody walks" in line
-    assert "[W3] " in line and "trial W3: walker lacks markers ['RPSI'] (or SACR instead of LPSI and RPSI)" in line
-    assert "--skip-bad" in line and not (ws / "preprocess").exists()
-    code, _, err = cli("preprocess", "--out", ws, "--jobs", "2", "--skip-bad")
-    assert code == 0, err
-    assert "skipped recording W2: " in " ".join(err.split())
+    assert "2 of 3 trials refused (--strict), nothing written: W2 (" in line and "): nobody walks" in line
+    assert "W3 (" in line and "): walker lacks markers ['RPSI'] (or SACR instead of LPSI and RPSI)" in line
+    assert not (ws / "preprocess").exists()
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "2")
+    assert code == 3, err
+    text = " ".join(err.split())
+    assert "preprocess: 2 of 3 trials refused and left out, the other 1 went on" in text and "W2 (" in text
     traj = read_table(ws / "preprocess" / "trajectories.parquet", TRAJECTORIES)
     assert set(traj["trial"]) == {"W1"}
     results = (ws / "preprocess" / "results.md").read_text()
-    assert "Skipped (--skip-bad): 2 recordings." in results and "| W2 |" in results and "| W3 |" in results
+    assert "Refused and left out: 2 of 3 trials" in results and "| W2 |" in results and "| W3 |" in results
 
 
 @pytest.mark.parametrize("value, expected", [(np.inf, "trial W1: infinite marker coordinates: walker:RASI (frame 300"),
@@ -580,4 +580,6 @@ def test_realdata_static_recording_is_reported_as_such(realdata, tmp_path, cli):
                      "marker_map: {'Daphnee:ASISr': RASI, 'Daphnee:ASISl': LASI, 'Daphnee:PSISr': RPSI, 'Daphnee:PSISl': LPSI}\n")
     assert cli("import", proto, "--out", tmp_path / "ws", "--jobs", "1")[0] == 0
     code, _, err = cli("preprocess", "--out", tmp_path / "ws", "--jobs", "1")
-    assert code == 2 and "trial static: nobody walks in this recording (static recording?" in " ".join(err.split())
+    line = " ".join(err.split())  # the only trial: the run is refused, naming the raw file and the remedy once
+    assert code == 2 and "pyomeca_markers_analogs.c3d: trial static: nobody walks (static recording?)" in line
+    assert "markers.parquet" not in line and line.count("leave it out") == 1

@@ -58,12 +58,13 @@ class AverageResult:
     study: str
     n_averaged: int  # trajectories averaged (0: published means carried over)
     truncated: int = 0  # of them, flagged truncated
+    spread: list[str] = field(default_factory=list)  # means whose trials do not share a frame (flagged frames_differ)
 
     def summary(self) -> str:
         return f"{self.means.drop_duplicates(['trial', 'entity']).shape[0]} means"
 
 
-def average(trajectories: Any, *, by: list[str] | None = None) -> AverageResult:
+def average(trajectories: Any, *, by: list[str] | None = None, max_spread: float | None = None) -> AverageResult:
     """Mean trajectory per condition (sample-wise mean of positions; circular mean of angles, trajectories
     without orientation left out of the angle means only), with counts, sd and the 95 % band
     (docs/methods.md sec. 2.9). ``by``: grouping columns (default: the study's design,
@@ -76,7 +77,7 @@ def average(trajectories: Any, *, by: list[str] | None = None) -> AverageResult:
         >>> result.means.drop_duplicates("trial")[["condition", "n_trials"]].to_string(index=False)
         'condition  n_trials\n    E4015         6\n    E4030         6'
     """
-    from cobot_analysis.averaging import MEANS, check_groups, mean_trajectories
+    from cobot_analysis.averaging import MAX_FRAME_SPREAD, MEANS, check_groups, mean_trajectories, spread_warnings
     from cobot_analysis.compare import default_groups
     from cobot_analysis.schema import TRAJECTORIES, read_table
 
@@ -86,11 +87,13 @@ def average(trajectories: Any, *, by: list[str] | None = None) -> AverageResult:
     trials = ts.subset(ts.meta["kind"].eq("trial").to_numpy())
     if len(trials):
         check_groups(trials.meta, groups, path)
-        means = mean_trajectories(trials, groups)
+        spread = MAX_FRAME_SPREAD if max_spread is None else max_spread
+        means = mean_trajectories(trials, groups, max_spread=spread)
         cut = 0
         if "quality" in trials.meta.columns:
             cut = int(trials.meta["quality"].fillna("").str.split(";").map(lambda f: "truncated" in f).sum())
-        return AverageResult(means, groups, f"recomputed from {len(trials)} trajectories", study_of(ts), len(trials), cut)
+        return AverageResult(means, groups, f"recomputed from {len(trials)} trajectories", study_of(ts), len(trials), cut,
+                             spread_warnings(trials, groups, spread))
     long = trajectories.copy() if isinstance(trajectories, pd.DataFrame) else read_table(path, TRAJECTORIES)
     long.attrs = {}
     means = long[long["kind"].eq("mean")].copy()
@@ -110,6 +113,7 @@ class CompareResult:
     distances: pd.DataFrame
     groups: list[str]
     convention: str
+    excluded: dict = field(default_factory=dict)  # trials not compared with their mean, by reason (compare.excluded_means)
 
     def summary(self) -> str:
         return f"{len(self.distances)} compared pairs"
@@ -132,7 +136,7 @@ def compare(trajectories: Any, means: Any, *, against: Any = None, comparison: s
     """
     from cobot_analysis import conventions
     from cobot_analysis.compare import WALKING_GROUPS, against_set, against_vs_mean, any_vs_any as any_any, compare_sets
-    from cobot_analysis.compare import default_groups
+    from cobot_analysis.compare import default_groups, excluded_means
     from cobot_analysis.schema import table_metadata
 
     conv = conventions.get(convention)
@@ -166,7 +170,7 @@ def compare(trajectories: Any, means: Any, *, against: Any = None, comparison: s
         parts.append(against_vs_mean(other, mts, groups, comparison, against))
     d = pd.concat([p for p in parts if len(p)] or parts[:1], ignore_index=True)
     d["convention"] = conv.name
-    return CompareResult(d, groups, conv.name)
+    return CompareResult(d, groups, conv.name, excluded_means(trials, mts, groups) if len(trials) else {})
 
 
 # ---- statistics ---------------------------------------------------------------------------------
@@ -179,7 +183,9 @@ class StatisticsResult:
     config: Any
     config_path: Path | None
     study: str
-    unmatched: list[str] = field(default_factory=list)  # filter values that match no row
+    unmatched: list[str] = field(default_factory=list)  # filter values that match no row (a typo?)
+    waiting: dict = field(default_factory=dict)  # why -> questions whose rows these data cannot have yet
+    declared: bool = True  # False: no questions declared, the default descriptive ones (cobot_analysis.study)
 
     def summary(self) -> str:
         ok = self.table["status"].eq("ok")
@@ -187,35 +193,43 @@ class StatisticsResult:
                 f"{int(self.table['significant'].sum())} significant after Holm within each family.")
 
 
-def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *, config: Any,
+def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *, config: Any = None,
                durations: pd.DataFrame | None = None, anthropometrics: pd.DataFrame | None = None,
                progress=None) -> StatisticsResult:
-    """Every statistical question of a study's configuration (``stats.config``: a TOML file or a loaded
-    ``StudyConfig``): Kruskal-Wallis, Mann-Whitney, Fisher, ANOVA, Pearson, ..., with effect sizes and Holm
-    correction within each family (docs/methods.md sec. 4)."""
+    """Every statistical question of a study (Kruskal-Wallis, Mann-Whitney, Fisher, ANOVA, Pearson, ...,
+    with effect sizes and Holm correction within each family; docs/methods.md sec. 4). ``config``: a study
+    file (``cobot_analysis.study``, docs/statistics.md) as a path, a loaded ``Study`` or ``StudyConfig``;
+    None or a file without questions: the default descriptive questions (each distance and travel time
+    by each factor, and the tests the design allows)."""
+    from cobot_analysis import study as st
     from cobot_analysis.compare import DISTANCES
     from cobot_analysis.schema import read_table
     from cobot_analysis.stats import analyses
     from cobot_analysis.stats import config as cfg
     from cobot_analysis.stats.sources import build_sources
 
-    path = None
-    if not isinstance(config, cfg.StudyConfig):
-        path = Path(config)
-        config = cfg.load(path)
     ts = trajectory_set(trajectories, ("trajectories",))
-    study = study_of(ts)
-    cfg.check_study(config, study)
+    name = study_of(ts)
+    path = None
+    if isinstance(config, cfg.StudyConfig):
+        cfg.check_study(config, name)
+        study = st.Study(name, name, [], [], config, config.path, config.alpha)
+    elif isinstance(config, st.Study):
+        study = config
+    else:
+        study = st.resolve(Path("."), name, Path(config)) if config is not None else st.Study(name, name, [], [], None)
+    path = study.path
     if not isinstance(distances, pd.DataFrame):
         distances = read_table(Path(distances), DISTANCES)
     distances = distances.copy()
     distances.attrs = {}
-    sources = build_sources(ts, distances, durations, anthropometrics, config.alpha)
-    cfg.check_levels(config, sources)
-    unmatched = cfg.filter_problems(config, sources)
-    table = analyses.run(config, sources, progress=progress)
-    table["study"] = study  # the data's study (a configuration may serve several, e.g. synthetic-walking)
-    return StatisticsResult(table, config, path, study, list(unmatched))
+    sources = build_sources(ts, distances, durations, anthropometrics, study.alpha)
+    questions = st.questions(study, sources)
+    cfg.check_levels(questions, sources)
+    unmatched, waiting = cfg.awaited(questions, sources)
+    table = analyses.run(questions, sources, progress=progress)
+    table["study"] = name
+    return StatisticsResult(table, questions, path, name, list(unmatched), waiting, study.declared)
 
 
 # ---- reconstruct --------------------------------------------------------------------------------

@@ -34,22 +34,23 @@ class ImportResult:
 
     def summary(self) -> str:
         n_occ = int(self.markers["occluded"].sum())
-        skipped = f", {len(self.refused)} skipped (listed in results.md)" if self.refused else ""
+        skipped = f", {len(self.refused)} refused (listed above and in results.md)" if self.refused else ""
         return (f"{len(self.trials)} trials{skipped}, {len(self.markers)} marker samples "
                 f"({n_occ / max(len(self.markers), 1):.1%} occluded)")
 
 
 def import_markers(protocol: str | os.PathLike | ImportPlan, *, units: str = "auto", marker_map: dict[str, str] | None = None,
-                   marker_map_file: str | os.PathLike | None = None, keep_all_markers: bool = False, skip_bad: bool = False,
+                   marker_map_file: str | os.PathLike | None = None, keep_all_markers: bool = False, skip_bad: bool = True,
                    lab_extent: float = LAB_EXTENT, max_speed: float = MAX_SPEED, max_spike: float = MAX_SPIKE,
                    jobs: int | None = None, scheduler: str | None = None) -> ImportResult:
     """Import every trial of a protocol (C3D, Vicon Nexus CSV, Qualisys TSV; docs/protocol.md).
 
-    Every trial is read and checked before anything is returned: the refused ones are named together in
-    one ``InputError``, or, with ``skip_bad``, left out and listed in ``result.refused``.
+    Every trial is read and checked before anything is returned: with ``skip_bad`` (the default) the
+    refused ones are left out and listed in ``result.refused`` (``cobot_analysis.refusals``); without
+    it, or when every trial is refused, they are named together in one ``InputError``.
 
         >>> from cobot_analysis.api import import_markers                      # doctest: +SKIP
-        >>> result = import_markers("study/protocol.yaml", skip_bad=True)     # doctest: +SKIP
+        >>> result = import_markers("study/protocol.yaml")                    # doctest: +SKIP
         >>> result.trials[["trial", "rate", "n_frames"]]                      # doctest: +SKIP
     """
     from cobot_analysis.io.markers import import_or_refuse, imported_tables, plan_import, refusal_error

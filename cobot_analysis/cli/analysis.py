@@ -36,6 +36,7 @@ def average_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     trajectories: TrajOpt = None,
     by: ByOpt = None,
+    max_spread: Annotated[Optional[float], typer.Option("--max-spread", min=0.0, help="Largest spread (m) of a group's start or end points around their median; beyond it the trials do not share a frame and their mean is flagged frames_differ, not compared (default 1 m).")] = None,
     force: ForceOpt = False,
 ) -> None:
     """Mean trajectory per condition (circular means for angles) with counts, sd and 95 % band -> average/means.parquet.
@@ -47,7 +48,7 @@ def average_command(
     """
     from cobot_analysis.stages import analysis
 
-    done = analysis.average(out, trajectories=trajectories, by=_columns(by), force=force)
+    done = analysis.average(out, trajectories=trajectories, by=_columns(by), max_spread=max_spread, force=force)
     if not done.skipped:
         finished("average", done.result.summary(), done.directory / "means.parquet")
 
@@ -88,10 +89,11 @@ def compare_command(
 # ---- stats --------------------------------------------------------------------------------------
 @app.command("stats", rich_help_panel=PANEL_ANALYSIS, epilog=examples(
     "cobot-analysis stats --out walking",
-    "cobot-analysis stats --out walking --config pipelines/walking-2020.toml"))
+    "cobot-analysis stats --out walking \\",
+    "    --config walking/synth-walking/study.toml"))
 def stats_command(
     out: OutOpt = DEFAULT_OUT_PATH,
-    config: Annotated[Optional[Path], typer.Option("--config", help="Declarative analyses (default: pipelines/<study>.toml).")] = None,
+    config: Annotated[Optional[Path], typer.Option("--config", help="Study file with the questions (docs/statistics.md; default: study.toml beside the protocol, else pipelines/<study>.toml, else descriptive statistics).")] = None,
     trajectories: TrajOpt = None,
     distances: Annotated[Optional[Path], typer.Option("--distances", help="distances.parquet (default: WS/compare/).")] = None,
     durations: Annotated[Optional[Path], typer.Option("--durations", help="Published per-trial durations (default: WS/import-published/durations.parquet if present).")] = None,
@@ -99,7 +101,7 @@ def stats_command(
     convention: ConventionOpt = None,
     force: ForceOpt = False,
 ) -> None:
-    """Every statistical question of the study's configuration (tests, effect sizes, Holm) -> stats/stats.parquet and stats.md.
+    """Every statistical question of the study file (tests, effect sizes, Holm) -> stats/stats.parquet and stats.md.
 
     --convention published: on the distances of compare-published/ (the authors' comparison); writes
     stats-published/."""
@@ -131,17 +133,18 @@ def reconstruct_command(
 
 # ---- report -------------------------------------------------------------------------------------
 @app.command("report", rich_help_panel=PANEL_REPORT, epilog=examples(
-    "cobot-analysis report synthetic-walking --out walking --to walking-report",
+    "cobot-analysis report --out walking --to walking-report",
     "cobot-analysis report synthetic-pairs --out pairs --to pairs-report"))
 def report_command(
-    study: Annotated[str, typer.Argument(help="The workspace's study: walking-2020, synthetic-walking, pair-carriage-2022, synthetic-pairs.")],
+    study: Annotated[Optional[str], typer.Argument(help="The workspace's study, checked when given (default: the study of the data).")] = None,
     out: OutOpt = DEFAULT_OUT_PATH,
     to: Annotated[Optional[Path], typer.Option("--to", help="Report directory (default: reports/STUDY).")] = None,
+    study_file: Annotated[Optional[Path], typer.Option("--study-file", help="Study file: labels, abbreviations, questions (docs/statistics.md; default: study.toml beside the protocol, else pipelines/<study>.toml).")] = None,
     force: ForceOpt = False,
 ) -> None:
     """Markdown report with tables and figures (PNG + PDF) of a study's workspace -> --to (and report/ in the workspace)."""
     from cobot_analysis.stages import analysis
 
-    done = analysis.report(out, study, to=to, force=force)
+    done = analysis.report(out, study, to=to, study_file=study_file, force=force)
     figures = len(list(done.result.glob("*.png")))
-    finished(f"report ({study})", count(figures, "figure"), done.result / "README.md")
+    finished(f"report ({study})" if study else "report", count(figures, "figure"), done.result / "README.md")

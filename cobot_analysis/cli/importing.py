@@ -20,7 +20,7 @@ class Units(str, Enum):
 @app.command("import", rich_help_panel=PANEL_DATA, epilog=examples(
     "cobot-analysis import walking/synth-walking/protocol.yaml --out walking",
     "cobot-analysis import walking/synth-walking/protocol.yaml --out walking \\",
-    "    --map L_ASIS=LASI --skip-bad",
+    "    --map L_ASIS=LASI --strict",
     "cobot-analysis import pairs/synth-pairs/protocol.yaml --out pairs"))
 def import_command(
     protocol: Annotated[Path, typer.Argument(help="Protocol YAML naming each trial's file, subject/pair and condition.")],
@@ -29,7 +29,7 @@ def import_command(
     map_: Annotated[Optional[list[str]], typer.Option("--map", help="Map a lab label to a canonical one: LAB=CANON (repeatable).")] = None,
     units: Annotated[Units, typer.Option("--units", help="Length unit of the raw files; auto = as the file states (C3D POINT:UNITS, CSV header), checked for plausibility.")] = Units.auto,
     keep_all_markers: Annotated[bool, typer.Option("--keep-all-markers", help="Keep markers the pipeline does not use (model outputs stored as C3D points, e.g. Plug-in-Gait angles and moments, are never markers).")] = False,
-    skip_bad: Annotated[bool, typer.Option("--skip-bad", help="Import the good trials and skip the refused ones, listed on the console and in OUT/import/results.md (default: refuse the run, naming every bad file).")] = False,
+    skip_bad: Annotated[bool, typer.Option("--skip-bad/--strict", help="--skip-bad (default): the good trials go on, the refused ones are listed (raw file, reason, remedy) on the console, in OUT/import/results.md and manifest.json, and the exit code is 3; --strict: refuse the run (exit 2, nothing written).")] = True,
     lab_extent: Annotated[float, typer.Option("--lab-extent", min=0.0, help="Largest |coordinate| of a marker from the lab origin (m); farther positions are refused as corrupt (docs/methods.md sec. 2).")] = 100.0,
     max_speed: Annotated[float, typer.Option("--max-speed", min=0.0, help="Largest marker speed between consecutive visible samples (m/s); faster jumps are refused as corrupt or mislabelled (docs/methods.md sec. 2).")] = 20.0,
     max_spike: Annotated[float, typer.Option("--max-spike", min=0.0, help="Largest distance of a sample from the midpoint of its two neighbours (m; raised below 100 Hz to what 100 g allows); larger single-sample spikes are refused as corrupt (docs/methods.md sec. 2).")] = 0.05,
@@ -44,11 +44,12 @@ def import_command(
     (subject1, LASI) through the protocol's entities and marker map (--map accepts labels as the
     file lists them, e.g. Daphnee:ASISr=RASI). Every person needs a pelvis: LASI RASI LPSI RPSI, or
     LASI RASI and one sacrum marker SACR (VSAC is read as SACR); a table needs TAB1-TAB3. Every
-    trial is checked before anything is written: the bad ones are named together (or skipped with
-    --skip-bad).
+    trial is checked before anything is written: the bad ones are left out and listed, exit code 3
+    (or, with --strict, named together and nothing written).
     """
     from cobot_analysis.console import info
     from cobot_analysis.io.markers import parse_map_options
+    from cobot_analysis.refusals import exit_code
     from cobot_analysis.stages import data
 
     done = data.import_markers(out, protocol, units=units.value, marker_map=parse_map_options(map_ or []),
@@ -57,3 +58,6 @@ def import_command(
                                force=force)
     if not done.skipped:
         info(f"[green]import[/green]: {done.result.summary()} -> {done.directory}")
+    code = exit_code(done.directory)
+    if code:
+        raise typer.Exit(code)  # done, some trials refused (cobot_analysis.refusals)

@@ -49,7 +49,7 @@ def preprocess_command(
         "--orientation-markers",
         help="pelvis: a long gap on any pelvis marker used (LASI RASI LPSI RPSI, or LASI RASI SACR) makes theta/gamma "
              "missing for the trajectory; asis: only a gap on LASI or RASI does (theta needs only them).")] = OrientationMarkers.pelvis,
-    skip_bad: Annotated[bool, typer.Option("--skip-bad", help="Process the good recordings and skip the refused ones (e.g. a static recording where nobody walks), listed on the console and in OUT/preprocess/results.md (default: refuse the run, naming every bad recording).")] = False,
+    skip_bad: Annotated[bool, typer.Option("--skip-bad/--strict", help="--skip-bad (default): the good recordings go on, the refused ones are listed (raw file, reason, remedy) on the console, in OUT/preprocess/results.md and manifest.json, and the exit code is 3; --strict: refuse the run (exit 2, nothing written).")] = True,
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
     force: ForceOpt = False,
@@ -62,6 +62,7 @@ def preprocess_command(
     runs off the start or end of its recording is flagged 'truncated'.
     """
     from cobot_analysis.console import info
+    from cobot_analysis.refusals import exit_code
     from cobot_analysis.stages import data
 
     done = data.preprocess(out, markers=markers, trials=trials, max_gap=max_gap, cutoff=cutoff, order=order,
@@ -72,3 +73,6 @@ def preprocess_command(
                            force=force)
     if not done.skipped:
         info(f"[green]preprocess[/green]: {done.result.summary()} -> {done.directory}")
+    code = exit_code(done.directory)
+    if code:
+        raise typer.Exit(code)  # done, some trials refused (cobot_analysis.refusals)

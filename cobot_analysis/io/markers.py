@@ -39,12 +39,14 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from cobot_analysis import refusals
 from cobot_analysis.errors import InputError
 from cobot_analysis.io.c3d import RawMarkers, is_c3d, read_c3d
 from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, MAX_SPIKE, check_positions, trial_rate
 from cobot_analysis.io.protocol import (ENTITIES, KEPT_SUBJECT_MARKERS, PELVIS_DEFINITIONS, PELVIS_MARKERS, SACRUM, TABLE_MARKERS,
                                         Protocol, load_protocol, outside, pelvis_definition, read_yaml)
 from cobot_analysis.io.text_exports import read_qualisys_tsv, read_vicon_csv, sniff_text_format
+from cobot_analysis.refusals import Refused
 from cobot_analysis.schema import TRIAL_COLUMNS, TRIALS
 
 READERS = {"c3d": read_c3d, "vicon-csv": read_vicon_csv, "qualisys-tsv": read_qualisys_tsv}
@@ -118,15 +120,6 @@ class ImportedTrial:
     sha256: str
     notes: list[str] = field(default_factory=list)
     pelvis: dict[str, tuple[str, ...]] = field(default_factory=dict)  # person -> pelvis markers used
-
-
-@dataclass(frozen=True)
-class Refused:
-    """A trial the import refused: its id, file and the one-line reason (``InputError`` text)."""
-
-    trial: str
-    path: Path
-    reason: str
 
 
 def _is_person(entity: str) -> bool:
@@ -266,17 +259,12 @@ def import_or_refuse(task: TrialTask) -> ImportedTrial | Refused:
     try:
         return import_trial(task)
     except InputError as exc:
-        return Refused(task.trial, task.path, str(exc))
+        return Refused.of(task.trial, task.path, exc)
 
 
 def refusal_error(refused: list[Refused], n_trials: int, where: str | os.PathLike, stage: str) -> InputError:
-    """One ``InputError`` naming every refused trial of a stage (the error itself when it is the only trial)."""
-    if n_trials == 1 and len(refused) == 1:
-        return InputError(refused[0].reason)
-    listing = " | ".join(f"[{r.trial}] {r.reason}" for r in refused)
-    return InputError(f"{len(refused)} of {n_trials} trials refused, nothing written: {listing}", path=where,
-                      remedy=f"fix these trials or leave them out of the protocol, or pass --skip-bad to {stage} the others "
-                             f"(the skipped trials are listed in {stage}/results.md)")
+    """One ``InputError`` naming every refused trial of a stage (``refusals.error``)."""
+    return refusals.error(refused, n_trials, stage)
 
 
 def long_table(trials: list[ImportedTrial]) -> pd.DataFrame:
@@ -389,7 +377,7 @@ class ImportPlan:
 
 
 def plan_import(protocol_path: str | os.PathLike, *, units: str = "auto", marker_map: dict[str, str] | None = None,
-                marker_map_file: str | os.PathLike | None = None, keep_all: bool = False, skip_bad: bool = False,
+                marker_map_file: str | os.PathLike | None = None, keep_all: bool = False, skip_bad: bool = True,
                 lab_extent: float = LAB_EXTENT, max_speed: float = MAX_SPEED, max_spike: float = MAX_SPIKE) -> ImportPlan:
     """Read the protocol (and marker map) and list what importing it means; bad options and a bad protocol
     raise ``InputError`` here, before any raw file is read."""

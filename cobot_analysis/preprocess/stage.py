@@ -22,8 +22,9 @@ Order of operations, per recording:
    flags, time normalisation to N samples (``normalisation.py``) -> ``trajectories.parquet``, with
    the pelvis markers used (``pelvis_markers``, e.g. 'LASI,RASI,SACR'; empty for the table).
 
-Every recording is processed before anything is written: the refused ones are named together in
-one error, or skipped and listed (console and results.md) with ``skip_bad``.
+Every recording is processed before anything is written: by default (``skip_bad``) the refused
+ones are left out and listed (``cobot_analysis.refusals``: console, results.md, manifest), without it
+they are named together in one error.
 
 Orientation with a long pelvis-marker gap: by default (``orientation_markers="pelvis"``) a long
 gap on any of the 4 pelvis markers makes the trajectory's orientation missing, as in the walking
@@ -87,7 +88,7 @@ class Params:
     gamma_min_speed: float = kin.GAMMA_MIN_SPEED  # m/s
     keep_approach: bool = False
     orientation_markers: str = "pelvis"  # "pelvis": theta needs all the pelvis markers used; "asis": LASI and RASI
-    skip_bad: bool = False  # skip (and list) the refused recordings instead of refusing the run
+    skip_bad: bool = True  # skip (and list) the refused recordings (cobot_analysis.refusals); False: refuse the run
 
     def __post_init__(self) -> None:
         """Bounded before any work: durations, rates and thresholds finite and >= 0 (``inf`` overflowed
@@ -159,7 +160,7 @@ class Recording:
     rate: float
     meta: dict[str, Any]
     markers: dict[tuple[str, str], np.ndarray] = field(default_factory=dict)
-    source: str = ""  # markers file, for error messages
+    source: str = ""  # the raw file (else the markers file), for error messages
     limits: dict[str, float] = field(default_factory=dict)  # plausibility limits of the import (lab_extent, max_speed, max_spike)
 
 
@@ -209,7 +210,8 @@ def load_recordings(markers_path: Path, trials_path: Path) -> list[Recording]:
         if not rate > 0:
             raise InputError(f"trial {trial} has no valid sampling rate ({row.get('rate')})", path=trials_path,
                              remedy="re-run `cobot-analysis import` (the rate comes from the raw file or the protocol)")
-        rec = Recording(trial, rate, {c: row.get(c) for c in TRIAL_COLUMNS}, source=str(markers_path), limits=limits)
+        rec = Recording(trial, rate, {c: row.get(c) for c in TRIAL_COLUMNS}, source=str(row.get("file") if isinstance(row.get("file"), str) and row.get("file") else markers_path),
+                        limits=limits)
         i = where.get(trial)
         a, b = (bounds[i], bounds[i + 1]) if i is not None else (0, 0)
         if a == b:
@@ -411,7 +413,7 @@ def process_or_refuse(rec: Recording, p: Params) -> dict[str, Any] | Refused:
     try:
         return process_recording(rec, p)
     except InputError as exc:
-        return Refused(rec.trial, Path(rec.source), str(exc))
+        return Refused.of(rec.trial, rec.source, exc)
 
 
 def _segments(rec: Recording, p: Params, entities: list[str], has_table: bool, mk: dict, kinem: dict) -> list[tuple]:
@@ -428,11 +430,10 @@ def _segments(rec: Recording, p: Params, entities: list[str], has_table: bool, m
             with np.errstate(invalid="ignore"):
                 spread = float(np.nanmax(np.hypot(*(xy - np.nanmedian(xy, axis=0)).T))) if np.isfinite(xy).any() else float("nan")
                 top = float(np.nanmax(speed)) if np.isfinite(speed).any() else float("nan")
-            raise InputError(f"trial {rec.trial}: nobody walks in this recording (static recording? the pelvis CoM stays within "
-                             f"{spread:.3f} m of its median position over {len(speed) / rate:.3g} s, top speed {top:.3f} m/s; a walk "
-                             f"is a CoM speed above {p.speed_threshold:g} m/s for {p.min_duration:g} s)", path=rec.source,
-                             remedy="leave it out of the protocol (or pass --skip-bad), or lower --speed-threshold / --min-duration "
-                                    "for a slow walk")
+            raise InputError(f"trial {rec.trial}: nobody walks (static recording?): the pelvis CoM stays within {spread:.3f} m "
+                             f"over {len(speed) / rate:.3g} s, top speed {top:.2f} m/s; a walk is above {p.speed_threshold:g} m/s "
+                             f"for {p.min_duration:g} s", path=rec.source,
+                             remedy="leave it out of the protocol; for a slow walk lower --speed-threshold / --min-duration")
         return [(None, bounds[0], bounds[1], subjects, segmentation.cut_off(speed, *bounds))]
     height = kin.table_height(*(mk[("table", m)] for m in TABLE_MARKERS))
     found, h0 = segmentation.carriages(height, rate, p.lift_threshold, p.floor_window, p.min_duration)

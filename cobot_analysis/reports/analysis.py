@@ -18,6 +18,10 @@ def average_markdown(result, source: str) -> str:
              "- Positions: sample-wise arithmetic mean; angles: circular mean (theta unwrapped along the path), "
              "trajectories without orientation excluded from the angle means only; band = mean +- 1.96 sd.",
              f"- Means without any orientation: {int((first['n_theta'] == 0).sum())}."]
+    if result.spread:
+        lines.append(f"- {len(result.spread)} mean(s) average trajectories that do not share a frame (start or end points "
+                     "spread beyond the limit around the group's median, `average --max-spread`): flagged `frames_differ`, not drawn in the report and "
+                     "not compared with their trials. " + "; ".join(result.spread))
     if result.truncated:
         lines.append(f"- {result.truncated} of the {result.n_averaged} trajectories averaged are flagged `truncated` (they run "
                      "off their recording: travel time and path cover only the recorded part).")
@@ -42,6 +46,11 @@ def compare_markdown(result, sd_ddof: int) -> str:
         fmt = [f"{r[(k, 'mean')]:.3f} +- {r[(k, 'std')]:.3f} (n={int(r[(k, 'count')])})" if r[(k, "count")] else "n/a"
                for k in ("d_xy", "d_theta", "d_gamma")]
         lines.append(f"| {comp} | {ent} | {int(r[('d_xy', 'count')])} | " + " | ".join(fmt) + " |")
+    single, frames = (getattr(result, "excluded", {}) or {}).get("single", 0), (getattr(result, "excluded", {}) or {}).get("frames", 0)
+    if single or frames:
+        lines += ["", f"Not compared with their mean (left out of the individual-mean rows and of the statistics): {single} "
+                      "trial(s) whose mean is of that trial alone (the distance would be 0), "
+                      f"{frames} trial(s) whose mean mixes trajectories that do not share a frame (`frames_differ`)."]
     return "\n".join(lines) + "\n"
 
 
@@ -50,15 +59,17 @@ def statistics_markdown(result, config_path: Path, n_trajectories: int, n_sample
     """(stats.md, results.md): the tests table, and the same with the choices behind the numbers."""
     from cobot_analysis.stats import analyses
 
-    md = analyses.markdown(result.table, f"Statistics: {result.study} ({Path(config_path).name}, {convention} convention)",
-                           result.config.alpha)
+    what = Path(config_path).name if config_path else "no study file"
+    if not result.declared:
+        what += ": default descriptive questions"
+    md = analyses.markdown(result.table, f"Statistics: {result.study} ({what}, {convention} convention)", result.config.alpha)
     choices = [
         "Choices behind these numbers:",
         f"- Trajectories: {n_trajectories} from `{source}`, {n_samples} time-normalised samples each (as given; "
         "no further resampling); angle differences wrapped to [-pi, pi] before averaging (d_theta, d_gamma).",
         *([f"- Distances: `{distances.parent.name}/{distances.name}` ({convention} convention, docs/methods.md sec. 11)."]
           if distances is not None else []),
-        f"- Configuration `{Path(config_path).name}`: each row names its subset, test and grouping. Holm correction "
+        f"- Questions of `{what}`: each row names its subset, test and grouping. Holm correction "
         f"(statsmodels) within each family; alpha = {result.config.alpha}; descriptive rows (describe, largest subset) "
         "are outside the families.",
         "- Trial-level tests treat every trial as independent; `pair-level` rows first average each pair; "
@@ -70,6 +81,9 @@ def statistics_markdown(result, config_path: Path, n_trajectories: int, n_sample
         "elimination above (the row says which); the walking thesis's definition beside it (pairwise_subset: every "
         "pair Mann-Whitney p > 0.05, docs/methods.md sec. 4).",
     ]
+    waiting = [f"- Waiting ({why}): {', '.join(ids)} (skipped, expected)." for why, ids in (result.waiting or {}).items()]
+    if waiting:
+        choices += ["Questions these data cannot answer yet:", *waiting]
     return md, md + "\n" + result.summary() + "\n\n" + "\n".join(choices) + "\n"
 
 

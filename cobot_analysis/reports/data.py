@@ -8,7 +8,9 @@ from typing import Any
 import pandas as pd
 
 from cobot_analysis.design import POSITION_CODES
-from cobot_analysis.io.markers import ImportedTrial, Refused
+from cobot_analysis import refusals
+from cobot_analysis.io.markers import ImportedTrial
+from cobot_analysis.refusals import Refused
 from cobot_analysis.io.published import END_ORIENTATION_TOLERANCE, GAMMA_CONSISTENCY, GAMMA_LIMIT
 from cobot_analysis.io.protocol import Protocol
 from cobot_analysis.preprocess.stage import Params
@@ -32,9 +34,7 @@ def import_summary(protocol: Protocol, imported: list[ImportedTrial], refused: l
     notes = [n for t in imported for n in t.notes]
     if notes:
         lines += ["Notes:", "", *[f"- {n}" for n in notes], ""]
-    if refused:
-        lines += [f"Skipped (--skip-bad): {len(refused)} trials.", "", "| trial | reason |", "|---|---|",
-                  *[f"| {r.trial} | {r.reason.replace('|', '/')} |" for r in refused], ""]
+    lines += refusals.markdown(refused, len(protocol.trials))
     if outside_files:
         lines += [f"Files outside the protocol's folder (allow_outside: true): {', '.join(outside_files)}.", ""]
     return "\n".join(lines)
@@ -155,6 +155,5 @@ def preprocess_summary(traj: pd.DataFrame, gap_df: pd.DataFrame, p: Params, n_re
         lines.append(f"| {ent} | {dirn} | {len(g)} | {q[1]:.2f} [{q[0]:.2f}, {q[2]:.2f}] | "
                      f"{g['travelled_distance'].median():.2f} |")
     if refused:
-        lines += ["", f"Skipped (--skip-bad): {len(refused)} recordings.", "", "| recording | reason |", "|---|---|",
-                  *[f"| {r.trial} | {r.reason.replace('|', '/')} |" for r in refused]]
+        lines += ["", *refusals.markdown(list(refused), n_recordings + len(refused))]
     return "\n".join(lines) + "\n"

@@ -5,7 +5,8 @@
   start position x start orientation grid.
 - ``boxplots``: distances by group; box = quartiles, line = median, whiskers to the most extreme
   value within 1.5 IQR, outliers shown (docs/methods.md sec. 4); n under each box.
-- ``pies``: shares of categories (configuration patterns, optimal choices).
+- ``proportions``: shares of categories (configuration patterns, optimal choices) as bars with
+  95 % Wilson intervals, panels on one 0-100 % axis.
 - ``scatter_r``: a distance against the global distance with Pearson r and its p.
 - ``check_figure``: what a reviewer would refuse in any Figure (axis labels without units, several
   series without a legend naming them).
@@ -241,12 +242,12 @@ def boxplots(groups: dict, ylabel: str, title: str = "", colors: list | None = N
     values = [np.asarray(groups[k], float) for k in labels]
     values = [v[np.isfinite(v)] for v in values]
     per = max(0.6, 0.075 * max((len(line) for k in labels for line in str(k).split("\n")), default=0))  # inches per box
-    rotate = per * len(labels) > 20
-    fig, ax = plt.subplots(figsize=(max(4.0, min(per, 0.6 if rotate else per) * len(labels) + 1.5), 3.8))
+    rotate = per * len(labels) > 20  # many boxes: one vertical line per label, 0.3 in apart (no overlap)
+    fig, ax = plt.subplots(figsize=(max(4.0, (0.3 if rotate else per) * len(labels) + 1.5), 3.8))
     bp = ax.boxplot(values, whis=1.5, showfliers=True, patch_artist=True, widths=0.6,
                     medianprops={"color": "k", "lw": 1.5}, flierprops={"marker": "o", "ms": 3, "mfc": "none", "alpha": 0.7})
-    ax.set_xticks(range(1, len(labels) + 1), [f"{k}\n(n = {len(v)})" for k, v in zip(labels, values)],
-                  rotation=45 if rotate else 0, ha="right" if rotate else "center", rotation_mode="anchor", fontsize=8)
+    ticks = [f"{k} (n = {len(v)})".replace("\n", " ") if rotate else f"{k}\n(n = {len(v)})" for k, v in zip(labels, values)]
+    ax.set_xticks(range(1, len(labels) + 1), ticks, rotation=90 if rotate else 0, ha="center", fontsize=8)
     for patch, c in zip(bp["boxes"], colors or ["#9ecae1"] * len(labels)):
         patch.set_facecolor(c)
         patch.set_alpha(0.7)
@@ -256,18 +257,43 @@ def boxplots(groups: dict, ylabel: str, title: str = "", colors: list | None = N
     return fig
 
 
-def pies(charts: dict, title: str = ""):
-    """One pie per chart: ``{name: {category: count}}``."""
+def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """Wilson score interval of a proportion k / n (95 % with z = 1.96):
+    (p + z^2/2n -+ z sqrt(p(1-p)/n + z^2/4n^2)) / (1 + z^2/n)."""
+    if n == 0:
+        return (math.nan, math.nan)
+    p = k / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return (max(0.0, centre - half), min(1.0, centre + half))
+
+
+def proportions(charts: dict, title: str = "", chance: dict | None = None):
+    """One panel per chart ``{name: {category: count}}``: the share of each category as a bar with its
+    95 % Wilson interval, "k / n" under it; panels share the 0-100 % axis; ``chance[name]`` (a share)
+    is drawn as a dashed line."""
     plt = pyplot()
-    fig, axes = plt.subplots(1, len(charts), figsize=(3.2 * len(charts), 3.4), squeeze=False)
+    widths = [max(2.2, 0.75 * len(c) + 1.0) for c in charts.values()]
+    fig, axes = plt.subplots(1, len(charts), figsize=(sum(widths) + 0.6, 3.6), squeeze=False, sharey=True,
+                             gridspec_kw={"width_ratios": widths}, layout="constrained")
     for ax, (name, counts) in zip(axes.ravel(), charts.items()):
-        vals = [v for v in counts.values() if v > 0]
-        labels = [k for k, v in counts.items() if v > 0]
-        if vals:
-            ax.pie(vals, labels=labels, autopct=lambda p: f"{p:.0f} %", startangle=90, textprops={"fontsize": 8})
-        ax.set_title(f"{name} (n = {sum(vals)})")
-    if title:
-        fig.suptitle(title)
+        n = sum(counts.values())
+        cats = list(counts)
+        share = [100 * counts[c] / n if n else math.nan for c in cats]
+        ci = [wilson(counts[c], n) for c in cats]
+        err = np.array([[s - 100 * lo, 100 * hi - s] for s, (lo, hi) in zip(share, ci)]).T
+        ax.bar(range(len(cats)), share, yerr=err, capsize=4, color="#9ecae1", edgecolor="k", lw=0.6,
+               error_kw={"lw": 1, "label": "95 % interval (Wilson)"}, label="share")
+        if chance and name in chance:
+            ax.axhline(100 * chance[name], color="0.3", ls="--", lw=1, label="chance")
+        ax.set_xticks(range(len(cats)), [f"{c}\n{counts[c]} / {n}" for c in cats], fontsize=8)
+        ax.set_title(f"{name} (n = {n})")
+        ax.set_ylim(0, 100)
+        ax.set_xlabel("category")
+    axes[0][0].set_ylabel("share of the trials or goals (%)")
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside upper center", ncols=3, title=title or None, frameon=False,
+               title_fontproperties={"size": 10})
     return fig
 
 
@@ -355,6 +381,21 @@ def _axis_label(ax, which: str) -> str:
     return sup.get_text() if sup is not None else ""
 
 
+def overlapping_ticks(ax) -> list[str]:
+    """Tick labels of ``ax`` that overlap a neighbour on the page (after drawing), per axis."""
+    out = []
+    renderer = ax.figure.canvas.get_renderer()
+    for which, axis in (("x", ax.xaxis), ("y", ax.yaxis)):
+        boxes = [(t.get_text(), t.get_window_extent(renderer)) for t in axis.get_ticklabels()
+                 if t.get_visible() and t.get_text().strip()]
+        for (a, ba), (b, bb) in zip(boxes, boxes[1:]):
+            if ba.overlaps(bb) and ba.intersection(ba, bb) is not None and \
+                    ba.intersection(ba, bb).width * ba.intersection(ba, bb).height > 1.0:
+                out.append(f"{which} tick labels {a!r} and {b!r} overlap")
+                break
+    return out
+
+
 def check_figure(fig) -> list[str]:
     """What a reviewer would refuse in ``fig``, one line each (empty: nothing).
 
@@ -362,7 +403,8 @@ def check_figure(fig) -> list[str]:
     unit in parentheses or brackets ("x (m)", "time [s]"), a categorical axis (text ticks, e.g. one box
     per group) needs non-empty tick labels. Every axes with more than one series (artists that differ
     in kind, colour, line style, marker or width) needs each of them named by a legend of the axes or
-    of the figure, except on a categorical axis, whose ticks name its series. Pies are exempt."""
+    of the figure, except on a categorical axis, whose ticks name its series. Tick labels must not
+    overlap their neighbours. Pies are exempt."""
     from matplotlib.patches import Wedge
 
     fig.canvas.draw()
@@ -392,6 +434,7 @@ def check_figure(fig) -> list[str]:
                 problems.append(f"{where}: {which} label {label!r} gives no unit in parentheses or brackets")
             if not numeric and any(not t.get_text().strip() for t in ticks):
                 problems.append(f"{where}: empty {which} tick label on a categorical axis")
+        problems += [f"{where}: {p}" for p in overlapping_ticks(ax)]
         if categorical:
             continue
         styles = {_style(a) for a in data}

@@ -217,7 +217,9 @@ def figures(metrics, traj, config) -> dict:
     aspect = float(np.clip(span[1] / max(span[0], 1e-9), 0.3, 1.5))  # of the equal-aspect path panels
     out = {}
 
-    fig, axes = plt.subplots(1, len(preds), figsize=(4.2 * len(preds), 4.2 * aspect + 1.2), squeeze=False, layout="constrained")
+    # the predictors' panels compared side by side: one scale (shared axes)
+    fig, axes = plt.subplots(1, len(preds), figsize=(4.2 * len(preds), 4.2 * aspect + 1.2), squeeze=False, sharex=True,
+                             sharey=True, layout="constrained")
     for ax, (name, P) in zip(axes[0], preds.items()):
         ok = np.isfinite(P[:, 0, 0])
         ax.plot(*xy.T, color="0.6", lw=2.5, label="recorded", zorder=1)

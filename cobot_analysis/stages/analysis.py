@@ -17,9 +17,6 @@ from cobot_analysis.workspace import Stage, find_input
 
 #: where a study's trajectories come from in a workspace, in order of preference
 TRAJ_STAGES = ["preprocess", "import-published"]
-PIPELINES = Path(__file__).resolve().parents[2] / "pipelines"
-#: Study names (the 'study' column of the data) -> the design their report follows.
-STUDY_DESIGNS = {"walking-2020": "walking", "synthetic-walking": "walking", "pair-carriage-2022": "pairs", "synthetic-pairs": "pairs"}
 
 
 def trajectories_input(out: str | os.PathLike, path: str | os.PathLike | None):
@@ -29,7 +26,7 @@ def trajectories_input(out: str | os.PathLike, path: str | os.PathLike | None):
 
 
 def average(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = None, by: list[str] | None = None,
-            force: bool = False) -> Outcome:
+            max_spread: float | None = None, force: bool = False) -> Outcome:
     """``average``: ``average/means.parquet`` and its results fragment."""
     from cobot_analysis.averaging import MEANS, check_groups
     from cobot_analysis.compare import default_groups
@@ -40,12 +37,14 @@ def average(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
     trials = ts.subset(ts.meta["kind"].eq("trial").to_numpy())
     if len(trials):
         check_groups(trials.meta, groups, path)
-    with Stage(out, "average", inputs=[path], params={"by": groups}, force=force) as stage:
+    with Stage(out, "average", inputs=[path], params={"by": groups, **({"max_spread": max_spread} if max_spread is not None else {})}, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
-        result = api.average(path if not len(trials) else ts, by=groups)
+        result = api.average(path if not len(trials) else ts, by=groups, max_spread=max_spread)
         if not result.n_averaged:
             warn(f"{path}: no per-trial trajectories; the published means are carried over unchanged")
+        for line in result.spread:
+            warn(line)
         stage.write_table("means.parquet", result.means, MEANS, grouping=groups, source=result.source)
         stage.path("results.md").write_text(average_markdown(result, path.name))
     return Outcome(stage.final_dir, result)
@@ -81,42 +80,28 @@ def compare(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
     return Outcome(stage.final_dir, result)
 
 
-def default_config(study: str) -> Path:
-    """``pipelines/<study>.toml`` in the current directory or the source tree; walking / pair fallbacks."""
-    names = [study]
-    if "walking" in study:
-        names.append("walking-2020")
-    elif "pair" in study:
-        names += ["synthetic-pairs", "pair-carriage-2022"] if "synth" in study else ["pair-carriage-2022"]
-    for base in (Path.cwd() / "pipelines", PIPELINES):
-        for n in names:
-            if (base / f"{n}.toml").is_file():
-                return base / f"{n}.toml"
-    raise InputError(f"no statistics configuration for study {study!r}", path=PIPELINES, remedy="pass --config FILE.toml")
-
-
 def statistics(out: str | os.PathLike, *, config: str | os.PathLike | None = None, trajectories: str | os.PathLike | None = None,
                distances: str | os.PathLike | None = None, durations: str | os.PathLike | None = None,
                anthropometrics: str | os.PathLike | None = None, convention: str | None = None,
                force: bool = False) -> Outcome:
-    """``stats``: ``stats/stats.parquet``, ``stats.md`` and the results fragment; under the published
-    convention on the distances of ``compare-published/``, into ``stats-published/``."""
-    from cobot_analysis.console import track
+    """``stats``: ``stats/stats.parquet``, ``stats.md`` and the results fragment. The questions are those of
+    the study file (``config``, else ``study.locate``: beside the protocol, else ``pipelines/<study>.toml``),
+    or the default descriptive ones (docs/statistics.md). Under the published convention on the distances of
+    ``compare-published/``, into ``stats-published/``."""
+    from cobot_analysis import study as st
+    from cobot_analysis.console import info, track
     from cobot_analysis.compare import DISTANCES
     from cobot_analysis.reports.analysis import statistics_markdown
     from cobot_analysis.schema import read_table
     from cobot_analysis.stats import analyses
-    from cobot_analysis.stats import config as cfg
     from cobot_analysis.stats.sources import read_anthropometrics
 
     out = Path(out)
-    study_cfg = cfg.load(config) if config else None  # validate a given configuration before anything else
+    if config is not None:
+        st.load(config)  # validate a given study file before anything else
     path, ts = trajectories_input(out, trajectories)
-    study = api.study_of(ts)
-    if study_cfg is None:
-        config = default_config(study)
-        study_cfg = cfg.load(config)
-    cfg.check_study(study_cfg, study)
+    study = st.resolve(out, api.study_of(ts), Path(config) if config is not None else None)
+    config = study.path
     conv = conventions.get(convention or "continuous")
     dist_path = Path(distances) if distances is not None else find_input(
         out, "distances.parquet", [registry.directory("compare", conv.name)], "--distances")
@@ -144,12 +129,17 @@ def statistics(out: str | os.PathLike, *, config: str | os.PathLike | None = Non
                params={"config": str(config), "convention": conv.name}, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
-        result = api.statistics(ts, dist, config=study_cfg, durations=dur, anthropometrics=anthro, progress=track)
-        if result.unmatched:  # a typo, or data not there yet (e.g. no model compared): either way, said once
+        result = api.statistics(ts, dist, config=study, durations=dur, anthropometrics=anthro, progress=track)
+        if result.unmatched:  # a typo, or data not there yet: said once
             warn(f"{config}: {len(result.unmatched)} filter value(s) match no row, their analyses are skipped (stats.md says "
                  f"why): {'; '.join(result.unmatched)}")
+        for why, ids in result.waiting.items():  # expected: e.g. no model compared yet
+            info(f"stats: {', '.join(ids)} skipped as expected: {why}")
+        if not result.declared:
+            info(f"stats: {'no study file' if config is None else config} declares no questions: the default descriptive "
+                 "statistics (docs/statistics.md)")
         stage.write_table("stats.parquet", result.table, analyses.STATS, config=str(config))
-        md, fragment = statistics_markdown(result, Path(config), len(ts), ts.n_samples, path.name, dist_path, conv.name)
+        md, fragment = statistics_markdown(result, config, len(ts), ts.n_samples, path.name, dist_path, conv.name)
         stage.path("stats.md").write_text(md)
         stage.path("results.md").write_text(fragment)
     return Outcome(stage.final_dir, result)
@@ -187,21 +177,30 @@ def reconstruct(out: str | os.PathLike, *, trajectories: str | os.PathLike | Non
     return Outcome(stage.final_dir, result)
 
 
-def report(out: str | os.PathLike, study: str, *, to: str | os.PathLike | None = None, force: bool = False) -> Outcome:
+def report(out: str | os.PathLike, study: str | None = None, *, to: str | os.PathLike | None = None,
+           study_file: str | os.PathLike | None = None, force: bool = False) -> Outcome:
     """``report``: the study's Markdown report with its figures in ``report/``, copied to ``to``
-    (default ``reports/STUDY``); the outcome's result is the report directory."""
+    (default ``reports/STUDY``); the outcome's result is the report directory. Labels, abbreviations and
+    questions come from the study file (``study_file``, else ``study.locate``); ``study``, when given,
+    must be the workspace's study."""
+    from cobot_analysis import study as st
     from cobot_analysis.reports.builders import build_report, report_inputs
 
-    if study not in STUDY_DESIGNS:
-        raise InputError(f"unknown study {study!r}", remedy=f"use one of {', '.join(STUDY_DESIGNS)}")
-    design = STUDY_DESIGNS[study]
     inputs = report_inputs(Path(out))
     if not inputs:
         raise InputError("nothing to report in this workspace", path=out, remedy="run average, compare and stats first")
-    to = Path(to) if to is not None else Path("reports") / study
-    with Stage(out, "report", inputs=list(inputs.values()), params={"study": design}, force=force) as stage:
+    source = inputs.get("trajectories") or inputs.get("means")
+    name = api.study_of(api.trajectory_set(source, ("trajectories", "means"))) if source else (study or "")
+    if study is not None and study != name:
+        raise InputError(f"the workspace's study is {name!r}, not {study!r}", path=out,
+                         remedy=f"omit the study name (the report takes the workspace's) or pass --out of a {study} workspace")
+    described = st.resolve(Path(out), name, Path(study_file) if study_file is not None else None)
+    if described.path is not None:
+        inputs = {**inputs, "study_file": described.path}
+    to = Path(to) if to is not None else Path("reports") / name
+    with Stage(out, "report", inputs=list(inputs.values()), params={"study": name}, force=force) as stage:
         if not stage.skipped:
-            build_report(design, inputs, stage, Path(out))
+            build_report(described, {k: v for k, v in inputs.items() if k != "study_file"}, stage, Path(out))
     tmp = to.with_name(f".{to.name}.tmp")
     shutil.rmtree(tmp, ignore_errors=True)
     shutil.copytree(stage.final_dir, tmp, ignore=shutil.ignore_patterns("manifest.json"))

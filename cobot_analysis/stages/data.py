@@ -8,7 +8,7 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-from cobot_analysis import api
+from cobot_analysis import api, refusals, study
 from cobot_analysis.console import warn
 from cobot_analysis.stages import Outcome
 from cobot_analysis.workspace import Stage, find_input
@@ -28,6 +28,7 @@ def synth_walking(out: str | os.PathLike, *, seed: int = 0, subjects: int = 10, 
             return Outcome.skip(stage)
         walking.generate(stage.dir, seed=seed, n_subjects=subjects, n_trials=repetitions, conditions=codes,
                          jobs=jobs, scheduler=scheduler)
+        study.write_synthetic(stage.dir, walking.STUDY, "walking-2020")
     return Outcome(stage.final_dir, f"{subjects * len(codes) * repetitions} trials")
 
 
@@ -46,6 +47,7 @@ def synth_pairs(out: str | os.PathLike, *, seed: int = 0, pairs: int = 20, goals
         if stage.skipped:
             return Outcome.skip(stage)
         synth.generate(stage.dir, seed=seed, n_pairs=pairs, goals=stems, scenarios=scens, jobs=jobs, scheduler=scheduler)
+        study.write_synthetic(stage.dir, synth.STUDY, "synthetic-pairs")
     return Outcome(stage.final_dir, f"{pairs * len(stems) * len(scens)} recordings")
 
 
@@ -65,8 +67,7 @@ def import_markers(out: str | os.PathLike, protocol: str | os.PathLike, *, jobs:
         result = api.import_markers(plan, jobs=jobs, scheduler=scheduler)
         for note in result.notes:
             warn(note)
-        for r in result.refused:
-            warn(f"skipped trial {r.trial}: {r.reason}")
+        refusals.record(stage, result.refused, len(plan.tasks), "import")
         stage.path("results.md").write_text(import_summary(plan.protocol, result.imported, result.refused, plan.limits,
                                                            plan.params["outside_files"]))
         stage.write_table("markers.parquet", result.markers, MARKERS, **result.meta)
@@ -130,8 +131,7 @@ def preprocess(out: str | os.PathLike, *, markers: str | os.PathLike | None = No
         if stage.skipped:
             return Outcome.skip(stage)
         result = api.preprocess(markers_path, trials_path, jobs=jobs, scheduler=scheduler, **options)
-        for r in result.refused:
-            warn(f"skipped recording {r.trial}: {r.reason}")
+        refusals.record(stage, result.refused, result.n_recordings + len(result.refused), "preprocess")
         params = asdict(p)
         stage.write_table("trajectories.parquet", result.trajectories, TRAJECTORIES, stage="preprocess", **params)
         stage.write_table("gaps.parquet", result.gaps, gaps.GAPS, stage="preprocess", max_gap=p.max_gap)

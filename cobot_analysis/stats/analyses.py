@@ -138,7 +138,9 @@ def _run_one(a: Analysis, df: pd.DataFrame, groups: dict, alpha: float) -> dict:
     if test == "describe":
         vals = {k: pd.Series(v) for k, v in groups.items()}
         numeric = all(pd.api.types.is_numeric_dtype(v) and not pd.api.types.is_bool_dtype(v) for v in vals.values())
-        if numeric and pd.concat(list(vals.values())).nunique() > 10:  # a measurement: distribution; else counts
+        allv = pd.concat(list(vals.values())).dropna() if numeric else None
+        codes = numeric and len(allv) and bool((allv == allv.round()).all()) and allv.nunique() <= 10
+        if numeric and not codes:  # a measurement: distribution; categories and integer codes (scenario 1-3): counts
             row["summary"] = _summary({k: v.dropna().to_numpy(float) for k, v in vals.items()})
             missing = sum(int(v.isna().sum()) for v in vals.values())
             row["note"] = f"{missing} missing values left out" if missing else row["note"]

@@ -1,4 +1,5 @@
-"""Declarative statistics: ``pipelines/<study>.toml`` lists the questions of a study.
+"""Declarative statistics: the ``[[analysis]]`` tables of a study file (``cobot_analysis.study``;
+docs/statistics.md has one complete example per test) list the questions of a study.
 
     study = "pair-carriage-2022"
     alpha = 0.05
@@ -28,6 +29,7 @@ the question; so does a configuration of another study than the data's (``check_
 
 from __future__ import annotations
 
+import difflib
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -120,13 +122,14 @@ class StudyConfig:
     path: Path | None = None
 
 
-def parse(data: dict, path: Path | None = None) -> StudyConfig:
-    """Validate a parsed TOML document (see module doc) -> ``StudyConfig``."""
+def parse(data: dict, path: Path | None = None, require: bool = True) -> StudyConfig:
+    """Validate a parsed TOML document (see module doc) -> ``StudyConfig``; ``require``: at least one
+    ``[[analysis]]`` (a study file, ``cobot_analysis.study``, may have none)."""
     def fail(msg: str, remedy: str = "fix the stats configuration") -> InputError:
         return InputError(msg, path=path, remedy=remedy)
 
-    if "analysis" not in data or not isinstance(data["analysis"], list) or not data["analysis"]:
-        raise fail("no [[analysis]] entries", "declare at least one [[analysis]] table")
+    if not isinstance(data.get("analysis", []), list) or (require and not data.get("analysis")):
+        raise fail("no [[analysis]] entries", "declare at least one [[analysis]] table (docs/statistics.md)")
     alpha = data.get("alpha", 0.05)
     if isinstance(alpha, bool) or not isinstance(alpha, (int, float)):
         raise fail(f"alpha must be a number, not {_kind(alpha)} {alpha!r}", "e.g. alpha = 0.05")
@@ -136,7 +139,7 @@ def parse(data: dict, path: Path | None = None) -> StudyConfig:
         raise fail(f"study must be a string, not {data['study']!r}", 'e.g. study = "walking-2020"')
     alpha = float(alpha)
     out, seen = [], set()
-    for n, raw in enumerate(data["analysis"], 1):
+    for n, raw in enumerate(data.get("analysis", []), 1):
         if not isinstance(raw, dict):
             raise fail(f"analysis #{n} is not a table", "declare each analysis as an [[analysis]] table")
         qid = str(raw.get("id", f"#{n}"))
@@ -206,18 +209,11 @@ def load(path: str | Path) -> StudyConfig:
     return parse(data, path)
 
 
-def _family(study: str) -> str:
-    return "walking" if "walking" in study else "pairs" if "pair" in study else study
-
-
 def check_study(config: StudyConfig, study: str) -> None:
-    """The data must be of the configuration's study, or of the same kind of study (walking, pair
-    carriage: e.g. synthetic-walking data with walking-2020.toml). A configuration without ``study``
-    is not checked."""
-    if config.study and config.study != study and _family(config.study) != _family(study):
+    """The data must be of the configuration's study (a configuration without ``study`` is not checked)."""
+    if config.study and config.study != study:
         raise InputError(f"configuration for study {config.study!r}, but the trajectories are of study {study!r}",
-                         path=config.path, remedy="pass the configuration of the data's study (pipelines/<study>.toml), "
-                                                  "or omit --config to use it")
+                         path=config.path, remedy=f'pass the study file of the data\'s study, or set study = "{study}" in this one')
 
 
 def filter_problems(config: StudyConfig, sources: dict) -> list[str]:
@@ -231,6 +227,34 @@ def filter_problems(config: StudyConfig, sources: dict) -> list[str]:
             if len(present) and not match(df[col], wanted).any():
                 out.append(f"{a.id}: {col} = {wanted!r} (values of {a.source}.{col}: {values_text(present)})")
     return out
+
+
+#: comparisons ``compare`` writes by itself; any other value of ``comparison`` comes from
+#: ``compare --against TABLE --comparison NAME`` (e.g. model rows, after a model stage).
+OWN_COMPARISONS = ("individual-mean", "any-any", "symmetry", "symmetry-mean", "scenario-scenario",
+                   "scenario-scenario-mean", "mean-published")
+
+
+def awaited(config: StudyConfig, sources: dict) -> tuple[list[str], dict[str, list[str]]]:
+    """``filter_problems`` split into the unexpected ones (a typo: to warn about) and the questions
+    whose rows these data cannot have yet, by why: ``comparison = "model"`` before
+    ``compare --against TABLE --comparison model``, ``"mean-published"`` without published means; a value
+    close to one of ``OWN_COMPARISONS`` ("individual-maen") is a typo.
+    Returns (unexpected texts, {why: [question ids]})."""
+    wait: dict[str, list[str]] = {}
+    other = []
+    for a in config.analyses:
+        for text in filter_problems(StudyConfig(config.study, config.alpha, [a]), sources):
+            wanted = a.filter.get("comparison") if text.startswith(f"{a.id}: comparison = ") else None
+            names = [str(v) for v in (wanted if isinstance(wanted, list) else [wanted])] if wanted is not None else []
+            typo = [n for n in names if n not in OWN_COMPARISONS and difflib.get_close_matches(n, OWN_COMPARISONS, 1, 0.8)]
+            if names and not typo and all(n == "mean-published" or n not in OWN_COMPARISONS for n in names):
+                why = ("the data hold no published means to compare ours with" if names == ["mean-published"] else
+                       f"no {'/'.join(names)} rows yet (`compare --against TABLE --comparison {names[0]}` adds them)")
+                wait.setdefault(why, []).append(a.id)
+            else:
+                other.append(text)
+    return other, wait
 
 
 def values_text(series, limit: int = 12) -> str:

@@ -37,7 +37,7 @@ import pandas as pd
 
 from cobot_analysis.angles import wrap
 from cobot_analysis.compare import TrajectorySet, plain_dtypes
-from cobot_analysis.design import GLOBAL_DISTANCE_SPLIT
+from cobot_analysis.design import GLOBAL_DISTANCE_SPLIT, start_orientation
 from cobot_analysis.distances import optimal_configurations
 
 _META = ["study", "trial", "kind", "subject", "pair", "condition", "direction", "scenario", "configuration",
@@ -111,7 +111,7 @@ def distances_source(distances: pd.DataFrame | None) -> pd.DataFrame:
         return _empty("distances")
     d = plain_dtypes(distances)
     d["carrier"] = d["entity"].map({"subject1": "subject", "subject2": "subject", "table": "table", "walker": "walker"})
-    d["start_orientation"] = d["condition"].astype(str).str[0].where(d["study"].astype(str).str.contains("walking"))
+    d["start_orientation"] = d["condition"].map(start_orientation)
     gd = d["global_distance"].astype(float)
     d["distance_class"] = np.where(gd.isna(), None, np.where(gd < GLOBAL_DISTANCE_SPLIT, "< 3 m", "> 3 m"))
     sa = pd.to_numeric(d.get("scenario"), errors="coerce")
