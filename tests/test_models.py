@@ -245,10 +245,10 @@ def test_compiled_library_is_reused_and_a_failing_compiler_falls_back(tmp_path, 
     (saved,) = (tmp_path / "ocp").glob("walker_ocp_*_fatrop_*.casadi")  # the fatrop solver, serialised
     built = lib.stat().st_mtime_ns, saved.stat().st_mtime_ns
     again = WalkerOCP(OCPShape(8))  # same problem: the cached library and solver are loaded, not rebuilt
-    assert (lib.stat().st_mtime_ns, saved.stat().st_mtime_ns) == built and len(list((tmp_path / "ocp").iterdir())) == 2
+    assert (lib.stat().st_mtime_ns, saved.stat().st_mtime_ns) == built and len([p for p in (tmp_path / "ocp").iterdir() if p.name != "digests"]) == 2
     monkeypatch.setenv("CC", "false")  # a "compiler" that always fails
     fallback = WalkerOCP(OCPShape(8))
-    assert len(list((tmp_path / "ocp").iterdir())) == 2  # nothing half-written left behind
+    assert len([p for p in (tmp_path / "ocp").iterdir() if p.name != "digests"]) == 2  # nothing half-written left behind
     monkeypatch.setenv("CC", "cc")
     (tmp_path / "file").write_text("")
     monkeypatch.setenv("COBOT_ANALYSIS_CACHE", str(tmp_path / "file"))  # cache not creatable

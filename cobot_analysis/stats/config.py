@@ -289,8 +289,12 @@ def check_levels(config: StudyConfig, sources: dict) -> None:
             wanted = a.filter.get(a.group, [])
             expected = {str(v) for v in (wanted if isinstance(wanted, list) else [wanted])}
             # a level also named in the filter is declared data that may be absent (e.g. model rows
-            # before a model was compared): its test is skipped with the reason instead
-            absent = [lv for lv in a.levels if not match(df[a.group], lv).any() and str(lv) not in expected]
+            # before a model was compared), and so is a level the source holds outside this subset (e.g.
+            # forward trials whose means had one trial each, not compared with them): their tests are
+            # skipped with the reason instead; a level found nowhere is a typo
+            whole = sources[a.source][a.group] if a.group in sources[a.source] else df[a.group]
+            absent = [lv for lv in a.levels if not match(df[a.group], lv).any() and str(lv) not in expected
+                      and not match(whole, lv).any()]
             if absent:
                 raise InputError(f"analysis {a.id}: group level(s) {absent} not found in column {a.group!r} "
                                  f"(found {present})", path=config.path, remedy="fix 'levels'")

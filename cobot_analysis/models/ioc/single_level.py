@@ -68,10 +68,13 @@ class SingleLevelResult:
 
 # ---- the lower level's NLP, symbolically ---------------------------------------------------------
 def lower_level(spec: IOCSpec):
-    """The lower level's ``WalkerOCP`` (the shape ``solve_model`` builds for a free duration)."""
+    """The lower level's ``WalkerOCP`` (the shape ``solve_model`` builds for a free duration, with the
+    convention's goal rule: under the continuous convention the goal pose at rest is a constraint)."""
+    from cobot_analysis import conventions
     from cobot_analysis.models.oc.problem import OCPShape, get_ocp
 
-    return get_ocp(OCPShape(spec.n_intervals, "walker", free_time=True, max_iter=spec.max_iter))
+    rule = conventions.get(spec.convention).oc_rule(spec.model)
+    return get_ocp(OCPShape(spec.n_intervals, "walker", free_time=True, max_iter=spec.max_iter, goal=rule.goal))
 
 
 def weight_slots(ocp) -> np.ndarray:
