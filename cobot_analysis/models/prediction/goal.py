@@ -62,7 +62,7 @@ def check_goal(goal, option: str = "--goal") -> tuple[float, float, float]:
 
 def check_candidates(candidates, option: str = "--candidates") -> np.ndarray:
     """Candidate goal positions (M, 2), M >= 1, each inside the lab."""
-    cands = [check_goal(c, option)[:2] for c in (candidates or ())]
+    cands = [check_goal(c, option)[:2] for c in (() if candidates is None else candidates)]
     if not cands:
         raise InputError(f"{option}: the candidate-goal set is empty", remedy="give at least one candidate goal x,y (or use the goal-known predictor 'goal')")
     return np.array(cands, dtype=float)
@@ -76,11 +76,12 @@ def quadratic_fit(n: int, dt: float) -> np.ndarray:
     return pinv[:2]
 
 
-def state_estimate(past: np.ndarray, filt: np.ndarray) -> np.ndarray:
-    """X_k = (x, y, theta, v_forw, v_orth, omega) at the last sample of ``past`` (see module docstring)."""
+def state_estimate(past: np.ndarray, filt: np.ndarray, travel: bool = False) -> np.ndarray:
+    """X_k = (x, y, theta, v_forw, v_orth, omega) at the last sample of ``past`` (see module docstring);
+    ``travel``: theta is the direction of travel (v_orth = 0) even where it was measured."""
     m = filt.shape[1]
     p = past[-m:]
-    if np.isfinite(p[:, 2]).all():
+    if np.isfinite(p[:, 2]).all() and not travel:
         angles = np.unwrap(p[:, 2])
     else:  # direction of travel
         angles = np.unwrap(np.arctan2(np.gradient(p[:, 1]), np.gradient(p[:, 0])))
@@ -178,7 +179,7 @@ class GoalPredictor(Predictor):
         self.planner.reset()
 
     def predict(self, past: np.ndarray) -> np.ndarray | None:
-        x0 = state_estimate(past, self.filter)
+        x0 = state_estimate(past, self.filter, travel=True)
         return plan_path(self.planner, x0, self.goal, self.horizon)
 
 
@@ -229,7 +230,7 @@ class GoalInferencePredictor(Predictor):
 
     def predict(self, past: np.ndarray) -> np.ndarray | None:
         k = self._k
-        x0 = state_estimate(past, self.filter)
+        x0 = state_estimate(past, self.filter, travel=True)
         paths = [plan_path(p, x0, (g[0], g[1], float("nan")), self._length) for p, g in zip(self.planners, self.candidates)]
         ok = np.array([p is not None for p in paths])
         if not ok.any():
