@@ -116,7 +116,12 @@ def test_nan_samples_skip_windows_and_are_counted(cli, tmp_path, traj_file):
     (["--settings", "70:90"], "has 60 samples, fewer than N0 = 70"),
     (["--settings", "ten:20"], "bad setting 'ten:20'"),
     (["--weights", "no-such-preset"], "unknown preset or missing weights file 'no-such-preset'"),
-    (["--predictors", "oc,kalman"], "unknown predictor(s) ['kalman']"),
+    (["--predictors", "oc,kalman"], "--predictors: unknown predictor(s) kalman; use some of oc, cv, ctrv, goal, goal-inferred"),
+    (["--predictors", "goal-inferred", "--candidates", " ; "], "--candidates: the candidate-goal set is empty"),
+    (["--predictors", "goal", "--goal", "25,0,1.57"], "--goal (25, 0) lies outside the lab"),
+    (["--predictors", "goal", "--goal", "north"], "--goal 'north' is not x,y[,theta]"),
+    (["--predictors", "goal", "--convention", "published"], "goal and goal-inferred are defined under the continuous convention only"),
+    (["--horizons", "0,all"], "--horizons: bad horizon '0'"),
     (["--kind", "average"], "unknown --kind 'average'"),
 ])
 def test_bad_options_exit_2_without_output(cli, tmp_path, traj_file, args, message):

@@ -70,7 +70,10 @@ def predict_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     trajectories: Annotated[Optional[Path], typer.Option("--trajectories", help="trajectories.parquet (default: from preprocess or import-published in OUT).")] = None,
     settings: Annotated[str, typer.Option("--settings", help="(N0, N_OC) pairs in samples, as N0:N_OC,...")] = "25:100,50:100,75:100,50:200",
-    predictors: Annotated[str, typer.Option("--predictors", help="Comma-separated: oc (receding-horizon OC), cv (constant velocity), ctrv (constant turn rate and velocity).")] = "oc,cv,ctrv",
+    predictors: Annotated[str, typer.Option("--predictors", help="Comma-separated: oc (receding-horizon OC), cv (constant velocity), ctrv (constant turn rate and velocity), goal (goal-aware OC, the goal known), goal-inferred (goal-aware OC, the goal inferred among --candidates); docs/methods.md sec. 7.1.")] = "oc,cv,ctrv",
+    goal: Annotated[Optional[str], typer.Option("--goal", help="Goal x,y[,theta] of the goal predictor (study frame). Default: each trajectory's design goal.")] = None,
+    candidates: Annotated[Optional[str], typer.Option("--candidates", help="Candidate goals of goal-inferred, as x,y;x,y;... Default: the study's goals.")] = None,
+    horizons: Annotated[Optional[str], typer.Option("--horizons", help="Also sweep the horizon at the first setting's N0: samples ahead and/or 'all' (the whole remaining path), e.g. 5,10,25,50,100,200,all (docs/methods.md sec. 7.2).")] = None,
     weights: Annotated[Optional[str], typer.Option("--weights", "-w", help="OC cost weights a0..a3: a preset (walking-2021, table-2022, ...) or a fitted weights.json. Default: walking-2021, and for tables the convention's table preset (published: table-prediction-2022, the authors' predictor; continuous: table-2022).")] = None,
     convention: Annotated[Optional[str], typer.Option("--convention", help="published (the authors' code: one node of 0.1 s per sample, every window from rest, explicit Euler, costs summed per node, cold solves, population sd) or continuous (the real sample period, the start velocity estimated, warm starts, sample sd); docs/methods.md sec. 11. Default: the convention of the weights: published for a preset, the \"convention\" key of a fit-ioc weights.json, else continuous. Stage directory: STAGE-NAME (continuous) or STAGE-NAME-published.")] = None,
     g0: Annotated[float, typer.Option("--g0", min=0.0, help="Weight of the position tracking of the measured past.")] = 10.0,
@@ -116,9 +119,14 @@ def predict_command(
         warn(f"predict: the weights {weights} are {of_weights}-convention weights, predicting under --convention {conv.name}")
     directory = stage_dir_name(stage_name, conv.name)
 
+    from cobot_analysis.models.prediction.goal import parse_candidates, parse_goal
+    from cobot_analysis.models.prediction.horizons import parse_horizons, write_horizons
+
     config = SweepConfig(settings=parse_settings(settings), predictors=tuple(p.strip() for p in predictors.split(",") if p.strip()),
                          weights=weights, g0=g0, g1=g1, t_oc=t_oc, nominal_speed=nominal_speed, orientation=orientation,
-                         convention=conv)
+                         convention=conv, goal=None if goal is None else parse_goal(goal),
+                         candidates=None if candidates is None else parse_candidates(candidates))
+    horizon_list = None if horizons is None else parse_horizons(horizons)
     if kind not in ("trial", "mean", "all"):
         raise InputError(f"unknown --kind {kind!r}", remedy="use trial, mean or all")
     inputs = []
@@ -190,6 +198,8 @@ def predict_command(
                 warn(f"predict: no table of both conventions ({exc})")
             else:
                 text += "\n" + "\n".join(conventions_markdown(both) + [f"", f"From this stage and `{other.name}`."]) + "\n"
+        if horizon_list:
+            text += "\n" + "\n".join(write_horizons(stage, trajs, config, horizon_list, jobs=jobs, scheduler=scheduler)) + "\n"
         stage.path("results.md").write_text(text)
     n_windows = int(metrics.drop_duplicates(["study", "trial", "entity", "n0", "n_oc"])["n_windows"].sum())
     finished(f"predict ({conv.name})", f"{count(len(trajs), 'trajectory', 'trajectories')} x {count(len(config.settings), 'setting')} x "

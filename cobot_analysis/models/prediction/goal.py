@@ -279,3 +279,18 @@ def study_candidates(study: str) -> np.ndarray:
     if study.startswith("walking"):
         return np.array([WALKING_GOAL[:2]])
     return np.array([(0.0, 0.0), *GOAL_POSITIONS.values()])
+
+
+def parse_goal(text: str, option: str = "--goal") -> tuple[float, float, float]:
+    """``"x,y[,theta]"`` -> a checked goal (``check_goal``)."""
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise InputError(f"{option} {text!r} is not x,y[,theta]", remedy=f"write {option} as numbers, e.g. 0,0,1.5708") from None
+    return check_goal(values, option)
+
+
+def parse_candidates(text: str, option: str = "--candidates") -> tuple[tuple[float, float], ...]:
+    """``"x,y;x,y;..."`` -> checked candidate positions (``check_candidates``)."""
+    parts = [p for p in (q.strip() for q in text.split(";")) if p]
+    return tuple(tuple(c) for c in check_candidates([parse_goal(p, option)[:2] for p in parts], option))

@@ -52,6 +52,21 @@ HORIZON_ERRORS = TableSchema(
         "n_windows": Column("int", "-", "windows behind delta_xy"),
     },
 )
+HORIZON_SUMMARY = TableSchema(
+    name="horizon_summary",
+    version=1,
+    description="Mean horizon errors over trajectories per study, predictor and horizon (docs/methods.md sec. 7.2).",
+    columns={
+        "study": Column("string", "", "study name"),
+        "predictor": Column("string", "", "oc, goal, goal-inferred, cv or ctrv"),
+        "horizon": Column("int", "-", "samples ahead h; -1 = the whole remaining path"),
+        "n": Column("int", "-", "trajectories with a value"),
+        "delta_xy": Column("float", "m", "mean over trajectories of delta_xy(h)"),
+        "fde": Column("float", "m", "mean over trajectories of fde(h)"),
+        "ratio_cv": Column("float", "-", "delta_xy over constant velocity's at the same horizon (< 1: better)", required=False),
+        "ratio_cv_fde": Column("float", "-", "fde over constant velocity's at the same horizon", required=False),
+    },
+)
 GOAL_INFERENCE = TableSchema(
     name="goal_inference",
     version=1,
@@ -243,3 +258,18 @@ def horizon_figure(summary: pd.DataFrame):
         axes[0, j].legend()
     fig.tight_layout()
     return fig
+
+
+def write_horizons(stage, trajectories, config, horizons, *, jobs: int | None = None, scheduler: str | None = None) -> list[str]:
+    """The horizon sweep at the first setting's N0 written into ``stage`` (``horizon_errors.parquet``,
+    ``horizon_summary.parquet``, ``goal_inference.parquet``, figure ``horizons``); returns the results fragment."""
+    from cobot_analysis.schema import write_table
+
+    n0 = config.settings[0][0]
+    errors, inference = horizon_sweep(trajectories, config, n0, horizons, jobs=jobs, scheduler=scheduler)
+    summary = horizon_summary(errors)
+    write_table(errors, stage.path("horizon_errors.parquet"), HORIZON_ERRORS, convention=config.convention.name)
+    write_table(summary, stage.path("horizon_summary.parquet"), HORIZON_SUMMARY, convention=config.convention.name)
+    write_table(inference, stage.path("goal_inference.parquet"), GOAL_INFERENCE, convention=config.convention.name)
+    stage.savefig(horizon_figure(summary), "horizons")
+    return horizon_markdown(summary, inference)

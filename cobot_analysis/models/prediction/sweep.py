@@ -43,6 +43,7 @@ import pandas as pd
 
 from cobot_analysis.conventions import CONTINUOUS, Convention
 from cobot_analysis.errors import InputError
+from cobot_analysis.models.prediction.goal import check_candidates, check_goal
 from cobot_analysis.models.prediction.metrics import summarise, window_errors
 from cobot_analysis.models.prediction.predictor import PREDICTORS, check_setting, make_predictor
 from cobot_analysis.schema import Column, TableSchema
@@ -130,6 +131,8 @@ class SweepConfig:
     nominal_speed: float = NOMINAL_SPEED
     orientation: str = "auto"  # track theta: "auto" (unless flagged), "track" (wherever present), "ignore"
     convention: Convention = CONTINUOUS  # docs/methods.md sec. 11
+    goal: tuple[float, float, float] | None = None  # goal of the goal predictor; None: each trajectory's design goal
+    candidates: tuple[tuple[float, float], ...] | None = None  # goal-inferred's candidates; None: the study's goals
 
     def __post_init__(self) -> None:
         for n0, n_oc in self.settings:
@@ -141,6 +144,10 @@ class SweepConfig:
         if {"goal", "goal-inferred"} & set(self.predictors) and self.convention.name != "continuous":
             raise InputError("--predictors: goal and goal-inferred are defined under the continuous convention only",
                              remedy="pass --convention continuous or leave them out of --predictors")
+        if self.goal is not None:
+            check_goal(self.goal)
+        if self.candidates is not None:
+            check_candidates(self.candidates)
         if self.t_oc is not None and not self.t_oc > 0:
             raise InputError(f"T_OC must be positive (got {self.t_oc})", remedy="pass a positive --t-oc")
         if self.orientation not in ORIENTATION_MODES:
@@ -284,12 +291,15 @@ def predictor_options(name: str, traj: Trajectory, config: SweepConfig) -> dict:
     if name == "oc":
         return {"weights": config.weights_for(traj.entity), "g0": config.g0, "g1": config.g1}
     if name == "goal":
+        if config.goal is not None:
+            return {"weights": config.weights_for(traj.entity), "goal": config.goal}
         if traj.goal is None:
             raise InputError(f"trajectory {traj.label} has no design goal for the goal-aware predictor",
                              remedy="leave 'goal' out of --predictors for this study, or use goal-inferred")
         return {"weights": config.weights_for(traj.entity), "goal": traj.goal}
     if name == "goal-inferred":
-        return {"weights": config.weights_for(traj.entity), "candidates": study_candidates(traj.study)}
+        cands = config.candidates if config.candidates is not None else study_candidates(traj.study)
+        return {"weights": config.weights_for(traj.entity), "candidates": cands}
     return {}
 
 
