@@ -428,3 +428,26 @@ def test_paper_rows_put_ours_beside_the_paper():
     assert f"{np.std(oc, ddof=1):.3f}" in row
     assert paper_rows(metrics.assign(study="synthetic-walking"), PUBLISHED) == []  # no paper for it
     assert paper_rows(metrics.assign(n0=25), PUBLISHED) == []  # the papers' setting only
+
+
+def test_goal_predictors_and_horizon_sweep_from_the_command_line(cli, tmp_path, traj_file):
+    """goal (the goal given), goal-inferred (two candidates) and cv, with the horizon sweep: its
+    tables, figure and results section; the goal-aware predictions start on the walker."""
+    from cobot_analysis.models.prediction.horizons import GOAL_INFERENCE, HORIZON_ERRORS
+
+    out = tmp_path / "ws"
+    path = traj_file(n_traj=2)
+    code, _, err = cli("predict", "--out", out, "--trajectories", path, "--predictors", "goal,goal-inferred,cv",
+                       "--goal", "1.5,1.5", "--candidates", "1.5,1.5;-3,-3", "--horizons", "5,20,all", *FAST)
+    assert code == 0, err
+    stage = out / "predict"
+    errors = read_table(stage / "horizon_errors.parquet", HORIZON_ERRORS)
+    assert set(errors["predictor"]) == {"goal", "goal-inferred", "cv"} and set(errors["horizon"]) == {5, 20, -1}
+    assert (errors["n_windows"] > 0).all() and errors["delta_xy"].notna().all()
+    inference = read_table(stage / "goal_inference.parquet", GOAL_INFERENCE)
+    assert len(inference) == 0  # a synthetic study has no design goal to score the inference against
+    assert (stage / "horizons.png").is_file()
+    text = (stage / "results.md").read_text()
+    assert "Prediction error against the horizon" in text and "| whole path |" in text
+    windows = pd.read_parquet(stage / "prediction_windows.parquet")
+    assert set(windows["predictor"].astype(str)) == {"goal", "goal-inferred", "cv"}
