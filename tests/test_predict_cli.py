@@ -118,8 +118,7 @@ def test_nan_samples_skip_windows_and_are_counted(cli, tmp_path, traj_file):
     (["--weights", "no-such-preset"], "unknown preset or missing weights file 'no-such-preset'"),
     (["--predictors", "oc,kalman"], "--predictors: unknown predictor(s) kalman; use some of oc, cv, ctrv, goal, goal-inferred"),
     (["--predictors", "goal-inferred", "--candidates", " ; "], "--candidates: the candidate-goal set is empty"),
-    (["--predictors", "goal", "--goal", "25,0,1.57"], "--goal (25, 0) lies outside the lab"),
-    (["--predictors", "goal", "--goal", "north"], "--goal 'north' is not x,y[,theta]"),
+    (["--predictors", "goal", "--goal", "25", "0", "1.57"], "--goal (25, 0) lies outside the lab"),
     (["--predictors", "goal", "--convention", "published"], "goal and goal-inferred are defined under the continuous convention only"),
     (["--horizons", "0,all"], "--horizons: bad horizon '0'"),
     (["--kind", "average"], "unknown --kind 'average'"),
@@ -438,7 +437,7 @@ def test_goal_predictors_and_horizon_sweep_from_the_command_line(cli, tmp_path, 
     out = tmp_path / "ws"
     path = traj_file(n_traj=2)
     code, _, err = cli("predict", "--out", out, "--trajectories", path, "--predictors", "goal,goal-inferred,cv",
-                       "--goal", "1.5,1.5", "--candidates", "1.5,1.5;-3,-3", "--horizons", "5,20,all", *FAST)
+                       "--goal", "1.5", "1.5", "0", "--candidates", "1.5,1.5;-3,-3", "--horizons", "5,20,all", *FAST)
     assert code == 0, err
     stage = out / "predict"
     errors = read_table(stage / "horizon_errors.parquet", HORIZON_ERRORS)

@@ -71,7 +71,7 @@ def predict_command(
     trajectories: Annotated[Optional[Path], typer.Option("--trajectories", help="trajectories.parquet (default: from preprocess or import-published in OUT).")] = None,
     settings: Annotated[str, typer.Option("--settings", help="(N0, N_OC) pairs in samples, as N0:N_OC,...")] = "25:100,50:100,75:100,50:200",
     predictors: Annotated[str, typer.Option("--predictors", help="Comma-separated: oc (receding-horizon OC), cv (constant velocity), ctrv (constant turn rate and velocity), goal (goal-aware OC, the goal known), goal-inferred (goal-aware OC, the goal inferred among --candidates); docs/methods.md sec. 7.1.")] = "oc,cv,ctrv",
-    goal: Annotated[Optional[str], typer.Option("--goal", help="Goal x,y[,theta] of the goal predictor (study frame). Default: each trajectory's design goal.")] = None,
+    goal: Annotated[Optional[tuple[float, float, float]], typer.Option("--goal", metavar="X Y THETA", help="Goal pose (m, m, rad) of the goal predictor, in the study frame, as generate --goal. Default: each trajectory's design goal.")] = None,
     candidates: Annotated[Optional[str], typer.Option("--candidates", help="Candidate goals of goal-inferred, as x,y;x,y;... Default: the study's goals.")] = None,
     horizons: Annotated[Optional[str], typer.Option("--horizons", help="Also sweep the horizon at the first setting's N0: samples ahead and/or 'all' (the whole remaining path), e.g. 5,10,25,50,100,200,all (docs/methods.md sec. 7.2).")] = None,
     weights: Annotated[Optional[str], typer.Option("--weights", "-w", help="OC cost weights a0..a3: a preset (walking-2021, table-2022, ...) or a fitted weights.json. Default: walking-2021, and for tables the convention's table preset (published: table-prediction-2022, the authors' predictor; continuous: table-2022).")] = None,
@@ -119,12 +119,12 @@ def predict_command(
         warn(f"predict: the weights {weights} are {of_weights}-convention weights, predicting under --convention {conv.name}")
     directory = stage_dir_name(stage_name, conv.name)
 
-    from cobot_analysis.models.prediction.goal import parse_candidates, parse_goal
+    from cobot_analysis.models.prediction.goal import check_goal, parse_candidates
     from cobot_analysis.models.prediction.horizons import parse_horizons, write_horizons
 
     config = SweepConfig(settings=parse_settings(settings), predictors=tuple(p.strip() for p in predictors.split(",") if p.strip()),
                          weights=weights, g0=g0, g1=g1, t_oc=t_oc, nominal_speed=nominal_speed, orientation=orientation,
-                         convention=conv, goal=None if goal is None else parse_goal(goal),
+                         convention=conv, goal=None if goal is None else check_goal(goal),
                          candidates=None if candidates is None else parse_candidates(candidates))
     horizon_list = None if horizons is None else parse_horizons(horizons)
     if kind not in ("trial", "mean", "all"):
