@@ -9,8 +9,7 @@ Window at sample k (the measured past ``C_{k-N0+1} .. C_k``):
    ``v_forw = cos(th) x' + sin(th) y'``, ``v_orth = -sin(th) x' + cos(th) y'``, ``omega = th'``. The
    heading is the direction of travel (so v_orth = 0), even where theta was measured: the measured
    pelvis orientation of walking-2020 swings with the gait at up to 50 rad/s, which put into the
-   start state curls the plan (measured: whole-path delta_xy 0.190 m with it, 0.126 m without, on
-   20 trials).
+   start state (omega) curls the plan.
 2. Plan: the improved OC of docs/methods.md sec. 5.5 (continuous convention: integrated running cost,
    exact-in-time step, free duration, ``models.oc.problem``) on ``N_INTERVALS`` intervals from that
    state (pose *and* velocity: the path starts at the measured speed) to the goal; warm-started from the
