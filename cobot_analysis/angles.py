@@ -3,19 +3,23 @@
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
+
+ArrayLike = npt.ArrayLike
+FloatArray = npt.NDArray[np.float64]
 
 
-def wrap(angle):
+def wrap(angle: ArrayLike) -> FloatArray:
     """Wrap to (-pi, pi]: ``pi - ((pi - a) mod 2 pi)``."""
     return np.pi - np.mod(np.pi - np.asarray(angle, dtype=float), 2 * np.pi)
 
 
-def angle_diff(a, b):
+def angle_diff(a: ArrayLike, b: ArrayLike) -> FloatArray:
     """Smallest signed difference ``a - b`` wrapped to (-pi, pi]."""
     return wrap(np.asarray(a, dtype=float) - np.asarray(b, dtype=float))
 
 
-def circular_mean(angles, axis=0, weights=None):
+def circular_mean(angles: ArrayLike, axis: int = 0, weights: ArrayLike | None = None) -> FloatArray:
     """Circular mean ``atan2(sum w sin a, sum w cos a)`` along ``axis``, ignoring NaN.
 
     Returns NaN where every value is NaN.
@@ -29,7 +33,7 @@ def circular_mean(angles, axis=0, weights=None):
     return np.where(valid.any(axis=axis), out, np.nan)
 
 
-def circular_std(angles, axis=0):
+def circular_std(angles: ArrayLike, axis: int = 0) -> FloatArray:
     """Circular standard deviation ``sqrt(-2 ln R)``, R the mean resultant length (NaN ignored)."""
     a = np.asarray(angles, dtype=float)
     with np.errstate(invalid="ignore"):

@@ -1,11 +1,16 @@
-"""Terminal output of the pipeline: one rich console on stderr, a verbosity level, progress bars.
+"""Messages and progress of the pipeline.
 
-Stages print through ``info``/``debug``/``warn`` and wrap every loop over trials in ``track`` so
-that ``--quiet`` silences everything but errors and ``-v`` adds details.
+Library code reports through ``info`` / ``debug`` / ``warn``, which log to the ``cobot_analysis``
+logger (``logging``): what is shown, and where, is the caller's choice. The command line installs
+``ConsoleHandler`` with ``set_verbosity`` (one rich console on stderr: ``--quiet`` shows errors only,
+``-v`` adds details); a notebook or script configures ``logging`` as it likes (without any
+configuration, Python shows the warnings on stderr). Loops over trials are wrapped in ``track`` (a
+progress bar, silent under ``--quiet``).
 """
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Iterable, Iterator
 from typing import TypeVar
 
@@ -22,12 +27,34 @@ from rich.progress import (
 T = TypeVar("T")
 
 console = Console(stderr=True, highlight=False)
-_level = 1  # 0 quiet, 1 normal, 2 verbose
+logger = logging.getLogger("cobot_analysis")
+_level = 1  # 0 quiet, 1 normal, 2 verbose (progress bars are shown from 1)
+_LOGGING_LEVEL = {0: logging.ERROR, 1: logging.INFO, 2: logging.DEBUG}
+
+
+class ConsoleHandler(logging.Handler):
+    """The command line's output of the log records: one line each on the rich console (markup allowed),
+    warnings prefixed ``warning:``, details dimmed."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        message = record.getMessage()
+        if record.levelno >= logging.WARNING:
+            console.print(f"[yellow]warning:[/yellow] {message}", soft_wrap=True)  # one line, like errors
+        elif record.levelno >= logging.INFO:
+            console.print(message, soft_wrap=True)  # a message is one line, whatever the terminal's width
+        else:
+            console.print(f"[dim]{message}[/dim]")
 
 
 def set_verbosity(level: int) -> None:
+    """Show the pipeline's messages on the console at ``level`` (0 quiet, 1 normal, 2 verbose): the command
+    line's ``-q`` / ``-v``."""
     global _level
     _level = level
+    logger.setLevel(_LOGGING_LEVEL[level])
+    if not any(isinstance(h, ConsoleHandler) for h in logger.handlers):
+        logger.addHandler(ConsoleHandler())
+    logger.propagate = False
 
 
 def verbosity() -> int:
@@ -35,19 +62,18 @@ def verbosity() -> int:
 
 
 def info(message: str) -> None:
-    if _level >= 1:
-        console.print(message, soft_wrap=True)  # a message is one line, whatever the terminal's width
+    """What a stage did (shown by the command line unless --quiet)."""
+    logger.info(message)
 
 
 def debug(message: str) -> None:
-    if _level >= 2:
-        console.print(f"[dim]{message}[/dim]")
+    """Details (shown with -v)."""
+    logger.debug(message)
 
 
 def warn(message: str) -> None:
-    """Warnings are shown unless --quiet; they never stop a stage."""
-    if _level >= 1:
-        console.print(f"[yellow]warning:[/yellow] {message}", soft_wrap=True)  # one line, like errors
+    """Something to read with care; it never stops a stage (shown unless --quiet)."""
+    logger.warning(message)
 
 
 def progress() -> Progress:

@@ -10,7 +10,7 @@ OC problems are discretised and timed, how paths are compared and how prediction
   distances, predictions at the real sampling period from an estimated velocity, sample sd.
 
 Stages take ``--convention NAME`` (``get``), pass the ``Convention`` down, and write its name into
-their Parquet metadata, manifest and results. Mixing outputs of two conventions is refused
+their Parquet metadata, manifest and results (their directories: ``registry.directory``). Mixing outputs of two conventions is refused
 (``check_same``).
 """
 
@@ -118,11 +118,6 @@ def get(name: str | Convention, option: str = "--convention") -> Convention:
     if name not in CONVENTIONS:
         raise InputError(f"{option} {name!r} is not a convention", remedy=f"use one of {', '.join(NAMES)}")
     return CONVENTIONS[name]
-
-
-def stage_name(base: str, convention: Convention) -> str:
-    """The stage directory of ``base`` under ``convention``: ``base`` (continuous) or ``base-published``."""
-    return base if convention.name == "continuous" else f"{base}-{convention.name}"
 
 
 def check_same(found: dict[str, str | None], what: str = "these inputs") -> str | None:

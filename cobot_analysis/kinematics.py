@@ -17,8 +17,11 @@ instead of inventing values, except the rigid-body reconstruction of the pelvis 
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 
 from cobot_analysis.angles import wrap
+
+FloatArray = npt.NDArray[np.float64]
 
 #: default speed (m/s) below which the path tangent, hence gamma, is taken as ill-defined.
 GAMMA_MIN_SPEED = 0.1
@@ -42,7 +45,7 @@ def unwrap_nan(angle: np.ndarray, axis: int = -1) -> np.ndarray:
 
 
 # ---- pelvis ---------------------------------------------------------------------------------------
-def pelvis_com(lasi, rasi, lpsi, rpsi) -> tuple[np.ndarray, np.ndarray]:
+def pelvis_com(lasi: FloatArray, rasi: FloatArray, lpsi: FloatArray, rpsi: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Horizontal pelvis centre ``c = (LASI + RASI + LPSI + RPSI) / 4`` -> ``(xy (T, 2), rigid (T,))``.
 
     Where exactly one of the four markers is missing (NaN), ``c`` is reconstructed rigidly from the
@@ -73,7 +76,7 @@ def pelvis_com(lasi, rasi, lpsi, rpsi) -> tuple[np.ndarray, np.ndarray]:
     return com[..., :2], rigid
 
 
-def sacrum_pelvis_com(lasi, rasi, sacr) -> tuple[np.ndarray, np.ndarray]:
+def sacrum_pelvis_com(lasi: FloatArray, rasi: FloatArray, sacr: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Horizontal pelvis centre from the two ASIS and one sacrum marker -> ``(xy (T, 2), rigid (T,))``.
 
     ``c = (LASI + RASI + 2 SACR) / 4``: the barycentre of the 4-marker pelvis with the sacrum marker
@@ -97,7 +100,7 @@ def _frame3(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return points.mean(axis=-2), np.stack([e1, e2, e3], axis=-1)
 
 
-def pelvis_theta(lasi, rasi) -> np.ndarray:
+def pelvis_theta(lasi: FloatArray, rasi: FloatArray) -> FloatArray:
     """Global pelvis orientation ``theta = atan2(-l_x, l_y)``, ``l = LASI - RASI``, unwrapped over time.
 
     ``n = (l_y, -l_x)`` is the horizontal normal to RASI-LASI that points forward (``l`` points to
@@ -116,7 +119,7 @@ def velocity(xy: np.ndarray, rate: float) -> np.ndarray:
     return np.gradient(xy, 1.0 / rate, axis=-2)
 
 
-def gamma(theta, v, min_speed: float = GAMMA_MIN_SPEED) -> np.ndarray:
+def gamma(theta: FloatArray, v: FloatArray, min_speed: float = GAMMA_MIN_SPEED) -> FloatArray:
     """Local orientation ``gamma = wrap(theta - atan2(v_y, v_x))`` in (-pi, pi].
 
     The tangent ``atan2(v_y, v_x)`` is ill-defined where the speed ``|v|`` is below
@@ -145,7 +148,7 @@ def _hold(values: np.ndarray, defined: np.ndarray) -> np.ndarray:
 
 
 # ---- table ---------------------------------------------------------------------------------------
-def table_pose(tab1, tab2, tab3) -> tuple[np.ndarray, np.ndarray]:
+def table_pose(tab1: FloatArray, tab2: FloatArray, tab3: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Table centre and orientation from its corner markers -> ``(xy (T, 2), theta (T,))``.
 
     TAB1->TAB2 runs along a long side and TAB1->TAB3 along a short side, so TAB2 and TAB3 are
@@ -158,7 +161,7 @@ def table_pose(tab1, tab2, tab3) -> tuple[np.ndarray, np.ndarray]:
     return ((t2 + t3) / 2.0)[..., :2], unwrap_nan(np.arctan2(u[..., 1], u[..., 0]))
 
 
-def table_height(tab1, tab2, tab3) -> np.ndarray:
+def table_height(tab1: FloatArray, tab2: FloatArray, tab3: FloatArray) -> FloatArray:
     """Table-top height ``h = mean z`` of the visible corner markers (NaN only if all three are missing).
 
     Averaging the visible corners keeps ``h`` defined through a gap of one marker, so a gap does not

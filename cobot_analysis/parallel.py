@@ -29,7 +29,7 @@ R = TypeVar("R")
 STOP_GRACE = 1.0  # s between SIGTERM and SIGKILL of a worker that is still alive
 
 
-class _InlineExecutor(Executor):
+class InlineExecutor(Executor):
     """Runs each task at submission, in this process (interruptible)."""
 
     def submit(self, fn, /, *args, **kwargs):  # type: ignore[override]
@@ -64,7 +64,7 @@ def executor(jobs: int | None = None, scheduler: str | None = None) -> Iterator[
         return
     jobs = default_jobs() if jobs is None else jobs
     if jobs <= 1:
-        yield _InlineExecutor()
+        yield InlineExecutor()
         return
     # BLAS threads would oversubscribe the cores: one per worker process.
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):

@@ -19,13 +19,11 @@ with the user's umask.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import platform
 import secrets
 import shutil
-import subprocess
 import sys
 import time
 from collections.abc import Iterable
@@ -37,6 +35,7 @@ from cobot_analysis import __version__
 from cobot_analysis.console import info
 from cobot_analysis.errors import InputError
 from cobot_analysis.interrupt import deferred, keep, seen
+from cobot_analysis.provenance import file_sha256, git_commit, package_versions
 
 try:
     import fcntl
@@ -49,15 +48,6 @@ LOCK = ".lock"  # in a running stage's temporary directory, locked by its proces
 PREVIOUS = ".previous"  # the replaced output, moved into the new one while it is committed
 STALE_AFTER = 60.0  # s: a temporary directory without a lock file (older versions) older than this is abandoned
 COMMAND: list[str] = []  # the command line being run (set by cli.run; sys.argv otherwise), for the manifests
-_VERSIONED = ("numpy", "scipy", "pandas", "pyarrow", "casadi", "ezc3d", "rosbags", "statsmodels", "dask", "matplotlib")
-
-
-def file_sha256(path: Path, chunk: int = 1 << 20) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        while block := fh.read(chunk):
-            h.update(block)
-    return h.hexdigest()
 
 
 def describe_inputs(paths: Iterable[str | os.PathLike]) -> list[dict[str, Any]]:
@@ -84,31 +74,6 @@ def _rerun_remedy(path: Path) -> str:
         return f"re-run the command that wrote it: `{' '.join(['cobot-analysis', *command[1:]])}`"
     except (OSError, ValueError, KeyError, TypeError):
         return "check the path, or re-run the stage that writes it"
-
-
-def package_versions() -> dict[str, str]:
-    from importlib.metadata import PackageNotFoundError, version
-
-    versions = {"python": platform.python_version(), "cobot_analysis": __version__}
-    for name in _VERSIONED:
-        try:
-            versions[name] = version(name)
-        except PackageNotFoundError:
-            pass
-    return versions
-
-
-def git_commit() -> str | None:
-    """Commit of the source tree the package runs from, with '-dirty' if it has local changes."""
-    src = Path(__file__).resolve().parent
-    try:
-        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=src, capture_output=True, text=True, timeout=5)
-        if sha.returncode != 0:
-            return None
-        dirty = subprocess.run(["git", "status", "--porcelain", "--", "."], cwd=src, capture_output=True, text=True, timeout=5)
-        return sha.stdout.strip() + ("-dirty" if dirty.stdout.strip() else "")
-    except (OSError, subprocess.SubprocessError):
-        return None
 
 
 def find_input(out: str | os.PathLike, filename: str, stages: Iterable[str], option: str) -> Path:

@@ -13,7 +13,7 @@ from cobot_analysis.schema import TRAJECTORIES, read_table, write_table
 from cobot_analysis.stats.analyses import STATS
 
 sys.path.insert(0, str(Path(__file__).parent))
-from synthetic_tables import walking_table  # noqa: E402
+from cobot_analysis.synth.tables import walking_table  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -11,7 +11,7 @@ from cobot_analysis.averaging import MEANS
 from cobot_analysis.schema import TRAJECTORIES, read_table, write_table
 
 sys.path.insert(0, str(Path(__file__).parent))
-from synthetic_tables import walking_table  # noqa: E402
+from cobot_analysis.synth.tables import walking_table  # noqa: E402
 
 
 def _workspace(tmp_path, df) -> Path:

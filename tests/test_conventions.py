@@ -11,7 +11,7 @@ import pytest
 
 from cobot_analysis import conventions
 from cobot_analysis.errors import InputError
-from cobot_analysis.metrics import path_distances, resample_arclength, resample_time
+from cobot_analysis.distances import path_distances, resample_arclength, resample_time
 
 WALKING_2021 = np.array([7.87, 4.00, 20.15, 1.00e-6, 10.00, 0, 0, 10.0, 10.0, 0.38, 3.36])
 
@@ -31,8 +31,12 @@ def test_published_convention_refuses_the_models_it_does_not_have():
 
 
 def test_stage_names_and_mixing():
-    assert conventions.stage_name("fit-ioc", conventions.CONTINUOUS) == "fit-ioc"
-    assert conventions.stage_name("fit-ioc", conventions.PUBLISHED) == "fit-ioc-published"
+    from cobot_analysis import registry
+
+    assert registry.directory("fit-ioc", conventions.CONTINUOUS.name) == "fit-ioc"
+    assert registry.directory("fit-ioc", conventions.PUBLISHED.name) == "fit-ioc-published"
+    assert registry.directory("stats", conventions.PUBLISHED.name) == "stats"  # no convention twin
+    assert registry.base_stage("predict-fitted-published") == "predict-fitted"
     assert conventions.check_same({"a": "published", "b": None}) == "published"
     with pytest.raises(InputError, match="mix outputs of two conventions"):
         conventions.check_same({"a": "published", "b": "continuous"})
@@ -163,7 +167,7 @@ def test_published_paths_do_not_depend_on_a0():
 
 
 def test_weights_at_the_search_limits_are_named():
-    from cobot_analysis.models.report import weight_limit_flag
+    from cobot_analysis.reports.models import weight_limit_flag
 
     assert weight_limit_flag({"a1": 1.5, "a2": 999.0}, ("a1",)).startswith("Fitted weights inside")
     line = weight_limit_flag({"a1": 1.5, "a2": 950.0, "a3": 1.05e-7}, ("a1", "a2", "a3"))

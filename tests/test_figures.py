@@ -16,7 +16,9 @@ import pytest
 from cobot_analysis.reports import builders, figures
 from cobot_analysis.reports.figures import check_figure
 
-plt = figures._plt()
+from cobot_analysis.plotting import pyplot
+
+plt = pyplot()
 
 
 @pytest.fixture(autouse=True)
@@ -248,7 +250,7 @@ def test_boxplots_show_n_and_the_tukey_whiskers():
 
 
 def test_model_boxplots_count_each_metric():
-    from cobot_analysis.models.report import figure_boxplots
+    from cobot_analysis.reports.models import figure_boxplots
 
     df = pd.DataFrame({"model": ["unicycle"] * 5 + ["improved OC (fitted)"] * 4,
                        "d_xy": [0.1, 0.2, 0.3, 0.2, 0.1, 0.2, 0.25, 0.3, np.nan],
@@ -274,7 +276,7 @@ def walking_targets():
 
 
 def test_model_paths_figure():
-    from cobot_analysis.models.report import figure_paths
+    from cobot_analysis.reports.models import figure_paths
 
     targets = walking_targets()
     shift = lambda t, d: pd.DataFrame({"x": t.x + d, "y": t.y, "theta": t.theta})  # noqa: E731
@@ -298,7 +300,7 @@ def test_model_paths_figure():
 
 def test_coupled_pair_paths_figure():
     from cobot_analysis.models.ioc.targets import PairTarget, Target
-    from cobot_analysis.models.report import figure_pair_paths
+    from cobot_analysis.reports.models import figure_pair_paths
 
     s = np.linspace(0, 1, 150)
     targets = []
@@ -403,7 +405,7 @@ def loc_results(tmp_path_factory):
 
 
 def test_localisation_figures_are_reviewable(loc_results):
-    from cobot_analysis.localisation import report
+    from cobot_analysis.reports import localisation as report
 
     figs = {"paths": report.figure_paths(loc_results), "error_time": report.figure_error_time(loc_results),
             "error_distribution": report.figure_error_distribution(loc_results), "delay": report.figure_delay(loc_results),
@@ -424,7 +426,7 @@ def test_localisation_figures_are_reviewable(loc_results):
 
 def test_motion_capture_line_stays_visible_over_the_icp(loc_results):
     """Pixels of both sources in every panel of the time series: the truth line is drawn above the dots."""
-    from cobot_analysis.localisation import report
+    from cobot_analysis.reports import localisation as report
 
     fig = report.figure_timeseries(loc_results[0])
     fig.set_dpi(100)

@@ -11,7 +11,7 @@ import pytest
 
 from cobot_analysis.cli import run as cli_run
 from cobot_analysis.localisation.poses import POSES
-from cobot_analysis.localisation.report import ERRORS, GOALS, RUNS
+from cobot_analysis.localisation.tables import ERRORS, GOALS, RUNS
 from cobot_analysis.schema import read_table
 
 AXES = ("x", "y", "z", "yaw")

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from cobot_analysis.localisation import synth
-from cobot_analysis.localisation.report import RUNS
+from cobot_analysis.localisation.tables import RUNS
 from cobot_analysis.schema import read_table
 
 sys.path.insert(0, str(Path(__file__).parent))

@@ -150,7 +150,7 @@ def test_bad_trajectories_exit_2_without_output(cli, tmp_path, traj_file):
 def test_prediction_figures_are_reviewable(tmp_path):
     """The three figures of the stage as a reviewer checks them (``check_figure``: axis labels with
     units, every series of an axes named by a legend), and what each legend names."""
-    from cobot_analysis.cli.predict import figures
+    from cobot_analysis.reports.prediction import figures
     from cobot_analysis.reports.figures import check_figure
 
     config = SweepConfig(settings=((8, 20),), predictors=("oc", "cv", "ctrv"))
@@ -412,7 +412,7 @@ def test_published_walking_trajectories_under_both_conventions(cli, tmp_path, da
 
 def test_paper_rows_put_ours_beside_the_paper():
     from cobot_analysis.conventions import CONTINUOUS, PUBLISHED
-    from cobot_analysis.models.prediction.report import paper_rows
+    from cobot_analysis.reports.prediction import paper_rows
 
     oc, cv = [0.05, 0.07, 0.12], [0.02, 0.01, 0.03]
     rows = [{"study": "walking-2020", "entity": "walker", "kind": "trial", "n0": 50, "n_oc": 100, "predictor": p,

@@ -9,7 +9,7 @@ import pytest
 from cobot_analysis.errors import InputError
 from cobot_analysis.models.prediction.goal import check_candidates, check_goal, parse_candidates, quadratic_fit, state_estimate
 from cobot_analysis.models.prediction.horizons import WHOLE, parse_horizons, wins_from
-from cobot_analysis.models.prediction.metrics import summarise, window_errors
+from cobot_analysis.models.prediction.errors import summarise, window_errors
 from cobot_analysis.models.prediction.predictor import make_predictor
 
 DT = 0.01

@@ -14,7 +14,7 @@ from cobot_analysis.errors import InputError
 from cobot_analysis.reconstruct import accuracy, read_wrt_table, reconstruct, relative_pose
 
 sys.path.insert(0, str(Path(__file__).parent))
-from synthetic_tables import pair_table  # noqa: E402
+from cobot_analysis.synth.tables import pair_table  # noqa: E402
 
 
 def test_reconstruct_is_the_rigid_transform_of_the_relative_pose():

@@ -17,7 +17,7 @@ from cobot_analysis.regression.extract import stage_convention, stage_metrics, w
 from cobot_analysis.schema import TRAJECTORIES, write_table
 
 sys.path.insert(0, str(Path(__file__).parent))
-from synthetic_tables import pair_table, walking_table  # noqa: E402
+from cobot_analysis.synth.tables import pair_table, walking_table  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 BASELINES = ROOT / "tests" / "baselines"
@@ -87,7 +87,7 @@ def test_unchanged_run_passes(checked, cli):
 
 def test_scaled_distance_fails_and_update_prints_the_diff(checked, cli, monkeypatch):
     """A planted regression in the code: every d_xy 10 % larger, through the real compare stage."""
-    import cobot_analysis.metrics as metrics
+    import cobot_analysis.distances as metrics
 
     ws, baseline = checked
     before = baseline_metrics(load_baseline(baseline))[D_XY_KEY].value

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 
-from cobot_analysis.pipeline import assemble_results
+from cobot_analysis.reports.results import assemble_results
 
 
 def test_fragments_follow_the_pipeline_order(tmp_path):

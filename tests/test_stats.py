@@ -23,7 +23,7 @@ from cobot_analysis.stats.sources import build_sources, kruskal_rows
 from cobot_analysis.stats.subsets import largest_subset
 
 sys.path.insert(0, str(Path(__file__).parent))
-from synthetic_tables import pair_table  # noqa: E402
+from cobot_analysis.synth.tables import pair_table  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 A = [1.1, 2.3, 2.9, 4.0, 5.2]

@@ -47,7 +47,13 @@ def import_command(
     trial is checked before anything is written: the bad ones are named together (or skipped with
     --skip-bad).
     """
-    from cobot_analysis.io.markers import parse_map_options, run_import
+    from cobot_analysis.console import info
+    from cobot_analysis.io.markers import parse_map_options
+    from cobot_analysis.stages import data
 
-    run_import(protocol, out, units=units.value, marker_map=parse_map_options(map_ or []), marker_map_file=marker_map,
-               keep_all=keep_all_markers, skip_bad=skip_bad, lab_extent=lab_extent, max_speed=max_speed, max_spike=max_spike, jobs=jobs, scheduler=scheduler, force=force)
+    done = data.import_markers(out, protocol, units=units.value, marker_map=parse_map_options(map_ or []),
+                               marker_map_file=marker_map, keep_all_markers=keep_all_markers, skip_bad=skip_bad,
+                               lab_extent=lab_extent, max_speed=max_speed, max_spike=max_spike, jobs=jobs, scheduler=scheduler,
+                               force=force)
+    if not done.skipped:
+        info(f"[green]import[/green]: {done.result.summary()} -> {done.directory}")

@@ -22,7 +22,7 @@ def results_command(
     """Assemble docs/results.md from the results.md fragments of the given workspaces (generated, never typed)."""
     import os
 
-    from cobot_analysis.pipeline import assemble_results
+    from cobot_analysis.reports.results import assemble_results
 
     text = assemble_results(workspaces, title=title, preface=" ".join(preface.split()))
     to.parent.mkdir(parents=True, exist_ok=True)
@@ -102,7 +102,7 @@ def demo_command(
     runs every stage on each, then writes OUT/report.md. Each study has its own workspace under
     OUT; stages already up to date are skipped.
     """
-    from cobot_analysis.pipeline import assemble_results, run_steps
+    from cobot_analysis.reports.results import DEMO_PREFACE, assemble_results
 
     if size not in DEMO_SIZES:
         raise typer.BadParameter(f"--size must be one of {', '.join(DEMO_SIZES)}", param_hint="--size")
@@ -110,12 +110,20 @@ def demo_command(
     for steps in studies.values():
         run_steps(steps)
     report = out / "report.md"
-    preface = "\n".join([
-        "Study reports with their figures:",
-        f"- [walking]({Path('reports') / 'walking' / 'README.md'}), [pair carriage]({Path('reports') / 'pairs' / 'README.md'}),",
-        f"  localisation figures in `{Path('localisation') / 'localisation'}`.",
-        "Below: what each stage computed, in the order the stages ran.",
-    ])
     report.write_text(assemble_results([out / s for s in studies], title="cobot-analysis demo report (synthetic studies)",
-                                       preface=preface))
+                                       preface=DEMO_PREFACE))
     finished("demo", f"{len(studies)} studies, Parquet outputs under {', '.join(str(out / s) for s in studies)}", report)
+
+
+def run_steps(steps: list[list[str]]) -> None:
+    """Run CLI steps in-process, at the verbosity of this run (-q, -v); stop at the first failing one
+    with its exit code."""
+    from cobot_analysis.cli import run
+    from cobot_analysis.console import info, verbosity
+
+    level = {0: ["-q"], 2: ["-v"]}.get(verbosity(), [])
+    for argv in steps:
+        info(f"[bold]$ cobot-analysis {' '.join(argv)}[/bold]")
+        code = run([*level, *argv])
+        if code != 0:
+            raise SystemExit(code)

@@ -61,13 +61,14 @@ def preprocess_command(
     the pelvis and table markers) and results.md (gap and quality summary). A walk or carriage that
     runs off the start or end of its recording is flagged 'truncated'.
     """
-    from cobot_analysis.preprocess.stage import Params, run
-    from cobot_analysis.workspace import find_input
+    from cobot_analysis.console import info
+    from cobot_analysis.stages import data
 
-    markers_path = markers if markers is not None else find_input(out, "markers.parquet", ["import"], "--markers")
-    trials_path = trials if trials is not None else markers_path.with_name("trials.parquet")
-    params = Params(max_gap=max_gap, cutoff=cutoff, order=order, order_convention=order_convention.value, n_samples=samples,
-                    lift_threshold=lift_threshold, floor_window=floor_window, speed_threshold=speed_threshold,
-                    rest_speed=rest_speed, min_duration=min_duration, gamma_min_speed=gamma_min_speed, keep_approach=keep_approach,
-                    orientation_markers=orientation_markers.value, skip_bad=skip_bad)
-    run(out, markers_path, trials_path, params, force=force, jobs=jobs, scheduler=scheduler)
+    done = data.preprocess(out, markers=markers, trials=trials, max_gap=max_gap, cutoff=cutoff, order=order,
+                           order_convention=order_convention.value, n_samples=samples, lift_threshold=lift_threshold,
+                           floor_window=floor_window, speed_threshold=speed_threshold, rest_speed=rest_speed,
+                           min_duration=min_duration, gamma_min_speed=gamma_min_speed, keep_approach=keep_approach,
+                           orientation_markers=orientation_markers.value, skip_bad=skip_bad, jobs=jobs, scheduler=scheduler,
+                           force=force)
+    if not done.skipped:
+        info(f"[green]preprocess[/green]: {done.result.summary()} -> {done.directory}")

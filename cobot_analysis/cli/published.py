@@ -32,6 +32,9 @@ def import_published_command(
     trajectories; pairs: also durations.parquet and subject_wrt_table.parquet) and report its
     data-quality facts (missing orientation, implausible gamma, trial counts) in results.md.
     """
-    from cobot_analysis.io.published import run_import_published
+    from cobot_analysis.console import info
+    from cobot_analysis.stages import data
 
-    run_import_published(dataset.value, path, out, gamma_limit=gamma_limit, force=force)
+    done = data.import_published(out, dataset.value, path, gamma_limit=gamma_limit, force=force)
+    if not done.skipped:
+        info(f"[green]import-published[/green]: {done.result.summary()} -> {done.directory}")

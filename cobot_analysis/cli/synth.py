@@ -57,18 +57,14 @@ def walking_command(
     pelvis orientation per frame), truth_trials.parquet.
     """
     from cobot_analysis.design import WALKING_CONDITIONS
-    from cobot_analysis.synth import GENERATOR_VERSION, walking
-    from cobot_analysis.workspace import Stage
+    from cobot_analysis.stages import data
 
     check_seed(seed)
     codes = select(conditions, WALKING_CONDITIONS, "--conditions")
-    params = {"seed": seed, "subjects": subjects, "trials": repetitions, "conditions": codes, "generator": GENERATOR_VERSION}
-    with Stage(out, walking.STAGE, params=params, force=force) as stage:
-        if stage.skipped:
-            return
-        walking.generate(stage.dir, seed=seed, n_subjects=subjects, n_trials=repetitions, conditions=codes,
-                         jobs=jobs, scheduler=scheduler)
-    finished(walking.STAGE, f"{subjects * len(codes) * repetitions} trials", stage.final_dir)
+    done = data.synth_walking(out, seed=seed, subjects=subjects, repetitions=repetitions, conditions=codes, jobs=jobs,
+                              scheduler=scheduler, force=force)
+    if not done.skipped:
+        finished("synth-walking", done.result, done.directory)
 
 
 @synth_app.command("pairs", epilog=examples(
@@ -93,17 +89,12 @@ def pairs_command(
     truth_trials.parquet (with the planted effects).
     """
     from cobot_analysis.design import PAIR_GOALS, SCENARIOS
-    from cobot_analysis.synth import GENERATOR_VERSION
-    from cobot_analysis.synth import pairs as synth_pairs
-    from cobot_analysis.workspace import Stage
+    from cobot_analysis.stages import data
 
     check_seed(seed)
     stems = select(goals, [g.stem for g in PAIR_GOALS], "--goals")
     scens = select(scenarios, sorted(SCENARIOS), "--scenarios", counts=False)
-    params = {"seed": seed, "pairs": pairs, "goals": stems, "scenarios": scens, "generator": GENERATOR_VERSION}
-    with Stage(out, synth_pairs.STAGE, params=params, force=force) as stage:
-        if stage.skipped:
-            return
-        synth_pairs.generate(stage.dir, seed=seed, n_pairs=pairs, goals=stems, scenarios=scens, jobs=jobs,
-                             scheduler=scheduler)
-    finished(synth_pairs.STAGE, f"{pairs * len(stems) * len(scens)} recordings", stage.final_dir)
+    done = data.synth_pairs(out, seed=seed, pairs=pairs, goals=stems, scenarios=scens, jobs=jobs, scheduler=scheduler,
+                            force=force)
+    if not done.skipped:
+        finished("synth-pairs", done.result, done.directory)

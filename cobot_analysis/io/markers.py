@@ -1,4 +1,4 @@
-"""The import stage: protocol -> ``markers.parquet`` (tidy long markers) + ``trials.parquet``.
+"""Raw marker import: protocol -> tidy long markers (``markers.parquet``) + the trials table (``trials.parquet``).
 
 Each trial file named by the protocol is read by content (C3D header, Vicon CSV "Trajectories"
 section or Qualisys TSV header, whatever its name), converted to metres, and its labels are
@@ -36,14 +36,13 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from cobot_analysis.console import info, warn
 from cobot_analysis.errors import InputError
 from cobot_analysis.io.c3d import RawMarkers, is_c3d, read_c3d
 from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, MAX_SPIKE, check_positions, check_rate
 from cobot_analysis.io.protocol import (ENTITIES, KEPT_SUBJECT_MARKERS, PELVIS_DEFINITIONS, PELVIS_MARKERS, SACRUM, TABLE_MARKERS,
                                         Protocol, load_protocol, pelvis_definition, read_yaml)
 from cobot_analysis.io.text_exports import read_qualisys_tsv, read_vicon_csv, sniff_text_format
-from cobot_analysis.schema import MARKERS, TRIAL_COLUMNS, TRIALS, write_table
+from cobot_analysis.schema import TRIAL_COLUMNS, TRIALS
 
 READERS = {"c3d": read_c3d, "vicon-csv": read_vicon_csv, "qualisys-tsv": read_qualisys_tsv}
 UNITS = ("auto", "mm", "m")
@@ -163,7 +162,7 @@ def _scale_check(path: Path, units: str, pairs: list[tuple[np.ndarray, np.ndarra
 
 def import_trial(task: TrialTask) -> ImportedTrial:
     """Read one trial file, resolve its labels and check it (see module docstring)."""
-    from cobot_analysis.workspace import file_sha256
+    from cobot_analysis.provenance import file_sha256
 
     path = task.path
     fmt, raw = read_markers(path, task.units)
@@ -356,48 +355,31 @@ def _pelvis_text(pelvis: dict[str, tuple[str, ...]]) -> str:
     return ";".join(f"{e}={','.join(m)}" for e, m in sorted(pelvis.items()))
 
 
-def import_summary(protocol: Protocol, imported: list[ImportedTrial], refused: list[Refused], limits: dict[str, float]) -> str:
-    """The stage's results.md: what was imported, with which pelvis markers, what was left out or skipped."""
-    from collections import Counter
+@dataclass
+class ImportPlan:
+    """A protocol's import, before any file is read: the trials' tasks, the stage's input files (protocol,
+    marker map, trial tables, raw files) and parameters (recorded in the manifest)."""
 
-    pelvis = Counter(" ".join(m) for t in imported for m in t.pelvis.values())
-    formats = Counter(t.source_format for t in imported)
-    lines = ["## Import (raw markers)", "",
-             f"{len(imported)} of {len(protocol.trials)} trials of `{protocol.path.name}` imported "
-             f"({', '.join(f'{n} {k}' for k, n in sorted(formats.items()))}); positions checked against the lab extent "
-             f"{limits['lab_extent']:g} m, the marker speed limit {limits['max_speed']:g} m/s and the spike limit "
-             f"{limits['max_spike']:g} m.", "",
-             "| pelvis markers | pelvis trajectories |", "|---|---|",
-             *[f"| {k} | {n} |" for k, n in sorted(pelvis.items())], ""]
-    notes = [n for t in imported for n in t.notes]
-    if notes:
-        lines += ["Notes:", "", *[f"- {n}" for n in notes], ""]
-    if refused:
-        lines += [f"Skipped (--skip-bad): {len(refused)} trials.", "", "| trial | reason |", "|---|---|",
-                  *[f"| {r.trial} | {r.reason.replace('|', '/')} |" for r in refused], ""]
-    return "\n".join(lines)
+    protocol: Protocol
+    tasks: list[TrialTask]
+    inputs: list[Path]
+    params: dict[str, Any]
+    limits: dict[str, float]
 
 
-def run_import(protocol_path: str | os.PathLike, out: str | os.PathLike, *, units: str = "auto",
-               marker_map: dict[str, str] | None = None, marker_map_file: str | os.PathLike | None = None,
-               keep_all: bool = False, skip_bad: bool = False, lab_extent: float = LAB_EXTENT, max_speed: float = MAX_SPEED,
-               max_spike: float = MAX_SPIKE, jobs: int | None = None, scheduler: str | None = None, force: bool = False) -> Path:
-    """Import every trial of a protocol into ``out/import`` (Stage "import"); returns the stage directory.
-
-    Every trial is read before anything is written: the refused ones are named together in one
-    ``InputError``, or, with ``skip_bad``, left out and listed (console and ``import/results.md``).
-    """
-    from cobot_analysis.parallel import map_tasks
-    from cobot_analysis.workspace import Stage
-
+def plan_import(protocol_path: str | os.PathLike, *, units: str = "auto", marker_map: dict[str, str] | None = None,
+                marker_map_file: str | os.PathLike | None = None, keep_all: bool = False, skip_bad: bool = False,
+                lab_extent: float = LAB_EXTENT, max_speed: float = MAX_SPEED, max_spike: float = MAX_SPIKE) -> ImportPlan:
+    """Read the protocol (and marker map) and list what importing it means; bad options and a bad protocol
+    raise ``InputError`` here, before any raw file is read."""
     if units not in UNITS:
         raise InputError(f"unknown --units {units!r}", remedy=f"use one of {', '.join(UNITS)}")
     protocol = load_protocol(protocol_path)
     mapping = dict(protocol.marker_map)
-    inputs: list[Any] = [protocol.path]
+    inputs: list[Path] = [protocol.path]
     if marker_map_file is not None:
         mapping.update(load_marker_map(marker_map_file))
-        inputs.append(marker_map_file)
+        inputs.append(Path(marker_map_file))
     mapping.update(marker_map or {})
     for key in ("trials", "subjects", "pairs"):
         ref = _protocol_csv(protocol.path, key)
@@ -410,38 +392,22 @@ def run_import(protocol_path: str | os.PathLike, out: str | os.PathLike, *, unit
     limits = {"lab_extent": lab_extent, "max_speed": max_speed, "max_spike": max_spike}
     params = {"units": units, "marker_map": mapping, "keep_all_markers": keep_all, "entities": protocol.entities,
               "skip_bad": skip_bad, **limits}
-    with Stage(out, "import", inputs=inputs + files, params=params, force=force) as stage:
-        if stage.skipped:
-            return stage.final_dir
-        results = map_tasks(import_or_refuse, tasks, jobs=jobs, scheduler=scheduler, description="import")
-        refused = [r for r in results if isinstance(r, Refused)]
-        imported = [r for r in results if isinstance(r, ImportedTrial)]
-        if refused and (not skip_bad or not imported):
-            raise refusal_error(refused, len(tasks), protocol.path, "import")
-        for t in imported:
-            for note in t.notes:
-                warn(note)
-        for r in refused:
-            warn(f"skipped trial {r.trial}: {r.reason}")
-        kept = protocol.trials[protocol.trials["trial"].astype(str).isin({t.trial for t in imported})]
-        trials = trials_table(Protocol(protocol.path, protocol.study, kept, rate=protocol.rate), imported)
-        rates = {t.trial: t.rate for t in imported}
-        unique_rates = sorted(set(rates.values()))
-        meta = {"study": protocol.study, "rate": unique_rates[0] if len(unique_rates) == 1 else None, "rates": rates,
-                "source_units": {t.trial: t.source_units for t in imported},
-                "source_format": {t.trial: t.source_format for t in imported},
-                "pelvis_markers": {t.trial: {e: list(m) for e, m in t.pelvis.items()} for t in imported},
-                "skipped": {r.trial: r.reason for r in refused}, **limits}
-        stage.path("results.md").write_text(import_summary(protocol, imported, refused, limits))
-        markers = long_table(imported)
-        del imported, results  # the per-trial arrays: the long table holds a copy
-        write_table(markers, stage.path("markers.parquet"), MARKERS, **meta)
-        write_table(trials, stage.path("trials.parquet"), TRIALS, study=protocol.study)
-        n_occ = int(markers["occluded"].sum())
-        skipped = f", {len(refused)} skipped (listed in results.md)" if refused else ""
-        info(f"[green]import[/green]: {len(trials)} trials{skipped}, {len(markers)} marker samples "
-             f"({n_occ / max(len(markers), 1):.1%} occluded) -> {stage.final_dir}")
-    return stage.final_dir
+    return ImportPlan(protocol, tasks, inputs + [Path(f) for f in files], params, limits)
+
+
+def imported_tables(plan: ImportPlan, imported: list[ImportedTrial], refused: list[Refused]) -> tuple[pd.DataFrame, pd.DataFrame, dict[str, Any]]:
+    """(markers long table, trials table, the markers file's metadata) of the trials imported."""
+    protocol = plan.protocol
+    kept = protocol.trials[protocol.trials["trial"].astype(str).isin({t.trial for t in imported})]
+    trials = trials_table(Protocol(protocol.path, protocol.study, kept, rate=protocol.rate), imported)
+    rates = {t.trial: t.rate for t in imported}
+    unique_rates = sorted(set(rates.values()))
+    meta = {"study": protocol.study, "rate": unique_rates[0] if len(unique_rates) == 1 else None, "rates": rates,
+            "source_units": {t.trial: t.source_units for t in imported},
+            "source_format": {t.trial: t.source_format for t in imported},
+            "pelvis_markers": {t.trial: {e: list(m) for e, m in t.pelvis.items()} for t in imported},
+            "skipped": {r.trial: r.reason for r in refused}, **plan.limits}
+    return long_table(imported), trials, meta
 
 
 def _protocol_csv(protocol_path: Path, key: str) -> Path | None:

@@ -48,7 +48,7 @@ import pandas as pd
 
 from cobot_analysis.angles import angle_diff, wrap
 from cobot_analysis.console import track
-from cobot_analysis.design import POSITION_CODES, WALKING_CONDITIONS, WALKING_GOAL
+from cobot_analysis.design import WALKING_CONDITIONS, WALKING_GOAL
 from cobot_analysis.errors import InputError
 from cobot_analysis.schema import TRAJECTORIES, Column, TableSchema
 
@@ -247,48 +247,6 @@ def read_walking_2020(directory: str | os.PathLike, gamma_limit: float = GAMMA_L
     return df, facts
 
 
-def walking_results_markdown(facts: dict[str, Any]) -> str:
-    """results.md fragment of the walking-2020 import (counts found next to the README's)."""
-    f = facts
-    per_subject = " | ".join(f"{s}: {n}" for s, n in f["orientation_missing_per_subject"].items())
-    implausible = " | ".join(f"{s}: {n}" for s, n in f["implausible_per_subject"].items())
-    order = ("confirmed: each row matches the first/last sample of its condition's mean block "
-             f"(largest difference {f['start_end_max_error'] * 1000:.3f} mm; the next-best condition is at least "
-             f"{f['start_end_next_best'] * 1000:.0f} mm away)") if f["start_end_order_ok"] else \
-        f"NOT confirmed: rows match other conditions: {f['start_end_mismatches']}"
-    return "\n".join([
-        "## Published data: walking-2020 (import)",
-        "",
-        "| fact | found by the pipeline | README |",
-        "|---|---|---|",
-        f"| subject trajectories | {f['n_subject']} | 400 |",
-        f"| published means | {f['n_mean']} | 40 |",
-        f"| subject trajectories without orientation (rows 4-5 all zero) | {f['orientation_missing_subject']} | 125 |",
-        f"| means without orientation | {f['orientation_missing_mean']} ({', '.join(f['orientation_missing_means'])}) | 3 (O1500, O4000, O4015) |",
-        f"| mean x, y = plain mean of the 10 subjects (max difference) | {f['mean_xy_is_plain_mean']:.2e} m | yes |",
-        f"| mean &#124;gamma&#124; of subjects with orientation | {f['mean_abs_gamma_subject']:.2f} rad | about 0.86 rad |",
-        "",
-        f"Subject trajectories without orientation, per subject: {per_subject}.",
-        "",
-        f"StartAndEnd.dat order (position codes {', '.join(POSITION_CODES)}, each N, E, S, O): {order}.",
-        "",
-        f"Implausible gamma (flag `implausible_gamma`, values kept): over 20-80 % of the path, median "
-        f"|gamma| > {f['gamma_limit']} rad, or gamma disagreeing with theta minus the CoM-path heading by a median "
-        f"> {GAMMA_CONSISTENCY} rad. Flagged: {f['implausible_subject']} of {f['with_orientation_subject']} subject "
-        f"trajectories with orientation ({f['implausible_too_large']} too large, {f['implausible_inconsistent']} "
-        f"inconsistent with the path) and {f['implausible_mean']} of the means ({', '.join(f['implausible_means']) or 'none'}). "
-        f"Median |gamma| over 20-80 % of the subject paths: {f['median_abs_gamma_subject']:.2f} rad. Per subject: {implausible}.",
-        "",
-        f"Gamma agrees with theta minus the heading of the CoM path in {f['with_orientation_subject'] - f['implausible_inconsistent']} "
-        f"of {f['with_orientation_subject']} subject trajectories, so the large values come from theta (the pelvis orientation) "
-        f"itself, not from how gamma was derived; consistently, the final theta of {f['end_heading_off']} of them is more than "
-        f"{GAMMA_LIMIT} rad away from the goal heading pi/2. Analyses of orientation should treat flagged trajectories "
-        "with caution (they are kept, and can be filtered on `quality`).",
-        "",
-    ])
-
-
-# ---- pair-carriage-2022 ---------------------------------------------------------------------------
 _KEY = re.compile(r"^Orientation_Table_(End|Init)\s*:\s*(-?[0-9.]+(?:e-?\d+)?)$")
 
 
@@ -456,7 +414,6 @@ def _start_end_facts(directory: Path, meta: pd.DataFrame, arrays: dict[str, np.n
     doc = _load_json(path)
     index = {(r.condition, r.direction, r.source_scenario, r.entity, round(r.end_orientation, 9)): i
              for i, r in enumerate(meta.itertuples())}
-    entity_keys = {v: k for k, v in PAIR_ENTITIES.items()}
     checked = matched = 0
     worst = 0.0
     for stem, by_entity in doc.items():
@@ -477,78 +434,3 @@ def _start_end_facts(directory: Path, meta: pd.DataFrame, arrays: dict[str, np.n
                     worst = max(worst, err)
                     matched += err < 1e-9
     return {"start_end_checked": checked, "start_end_matched": int(matched), "start_end_worst": worst}
-
-
-def pair_results_markdown(facts: dict[str, Any]) -> str:
-    """results.md fragment of the pair-carriage-2022 import (counts found next to the README's)."""
-    f = facts
-    fwd_total = f["forward_sc1"] + f["forward_sc2"] + f["forward_sc3"]
-    dur_fwd = f["durations_forward"]
-    offsets = "; ".join(f"{g} {e} ({k}): {o:.3f} rad" for g, e, k, o in f["all_data_angle_offsets"]) or "none"
-    return "\n".join([
-        "## Published data: pair-carriage-2022 (import)",
-        "",
-        "| fact | found by the pipeline | README |",
-        "|---|---|---|",
-        f"| forward trials in the means (nb), scenarios 1 / 2 / 3 | {f['forward_sc1']} / {f['forward_sc2']} / {f['forward_sc3']} "
-        f"(total {fwd_total}; All data {f['forward_all']}) | 179 / 180 / 180 (539) |",
-        f"| return trials in the means (nb) | {f['return_all']} of 540 | 522 of 540 |",
-        f"| mean paths per entity: forward sc1 / sc2 / sc3 / All data, return | {f['n_means']['forward_sc1']} / "
-        f"{f['n_means']['forward_sc2']} / {f['n_means']['forward_sc3']} / {f['n_means']['forward_all']}, {f['n_means']['return']} | "
-        "sc3: 13, return: 18 (docs/methods.md sec. 6) |",
-        f"| pairs in the durations tables | {f['durations_pairs']} | 20 |",
-        f"| forward durations, scenarios 1 / 2 / 3 | {dur_fwd.get(1, 0)} / {dur_fwd.get(2, 0)} / {dur_fwd.get(3, 0)} | 180 / 180 / 180 |",
-        f"| return durations | {f['durations_return']} of 180 | 172 of 180 |",
-        f"| durations on the 200 Hz grid (multiples of 0.005 s) | {'yes' if f['durations_on_200hz_grid'] else 'no'} | yes |",
-        f"| All data x, y = nb-weighted mean of the scenario means (max difference) | {f['all_data_weighted_xy_error']:.1e} m | exactly |",
-        f"| start_and_end.json leaves equal to the first/last sample of their mean | {f['start_end_matched']} of {f['start_end_checked']} "
-        f"(max difference {f['start_end_worst']:.1e} m) | all |",
-        "",
-        f"Angles were averaged as plain numbers. Means whose table orientation at the end (forward) or start (return) is "
-        f"more than {END_ORIENTATION_TOLERANCE} rad from their configuration key, modulo 2 pi, are flagged "
-        f"`plain_angle_mean` (all three entities, values kept): {len(f['plain_angle_means'])} means: "
-        f"{', '.join(f['plain_angle_means']) or 'none'}.",
-        "",
-        f"Global orientation of the pooled All data means vs the nb-weighted mean of the scenario means, modulo 2 pi: {offsets}.",
-        "",
-    ])
-
-
-# ---- the stage ------------------------------------------------------------------------------------
-def run_import_published(dataset: str, path: str | os.PathLike, out: str | os.PathLike, *, gamma_limit: float = GAMMA_LIMIT,
-                         force: bool = False) -> Path:
-    """Stage "import-published": trajectories.parquet (+ durations, subject_wrt_table for the pairs) and results.md."""
-    from cobot_analysis.console import info, warn
-    from cobot_analysis.schema import write_table
-    from cobot_analysis.workspace import Stage
-
-    if dataset not in DATASETS:
-        raise InputError(f"unknown dataset {dataset!r}", remedy=f"use one of {', '.join(DATASETS)}")
-    path = Path(path)
-    if not path.is_dir():
-        raise InputError("dataset folder not found", path=path, remedy=REMEDY_DATASET)
-    params = {"dataset": dataset, "gamma_limit": gamma_limit, "gamma_consistency": GAMMA_CONSISTENCY,
-              "end_orientation_tolerance": END_ORIENTATION_TOLERANCE}
-    with Stage(out, "import-published", inputs=[path], params=params, force=force) as stage:
-        if stage.skipped:
-            return stage.final_dir
-        if dataset == WALKING:
-            traj, facts = read_walking_2020(path, gamma_limit=gamma_limit)
-            text = walking_results_markdown(facts)
-            warn(f"walking-2020: {facts['orientation_missing_subject']} subject trajectories and "
-                 f"{facts['orientation_missing_mean']} means without orientation (theta, gamma NaN); "
-                 f"{facts['implausible_subject']} subject trajectories flagged implausible_gamma (see results.md)")
-        else:
-            traj, durations, rel, facts = read_pair_carriage_2022(path)
-            warn(f"pair-carriage-2022: {len(facts['plain_angle_means'])} means flagged plain_angle_mean "
-                 "(table orientation off its configuration: angles averaged as plain numbers; see results.md)")
-            write_table(durations, stage.path("durations.parquet"), DURATIONS, study=PAIRS)
-            write_table(rel, stage.path("subject_wrt_table.parquet"), SUBJECT_WRT_TABLE, study=PAIRS)
-            text = pair_results_markdown(facts)
-        write_table(traj, stage.path("trajectories.parquet"), TRAJECTORIES, study=dataset, n_samples=N_SAMPLES,
-                    source=str(path.resolve()))
-        stage.path("results.md").write_text(text)
-        stage.path("facts.json").write_text(json.dumps(facts, indent=2, default=str) + "\n")
-        n_traj = traj.groupby(["trial", "entity"], observed=True).ngroups
-        info(f"[green]import-published[/green]: {dataset}: {n_traj} trajectories -> {stage.final_dir}")
-    return stage.final_dir

@@ -47,6 +47,22 @@ IOC_DISTANCES = TableSchema(
     },
 )
 
+
+
+def ioc_distances_schema(coupled: bool = False) -> TableSchema:
+    """The schema of fit-ioc's distances.parquet: ``IOC_DISTANCES`` with the solve's convergence and the
+    convention, and for the coupled model the direction, carrier and the pair's duration."""
+    extra = {"converged": Column("bool", "", "the model's OC solve converged"),
+             "convention": Column("string", "", "published or continuous (docs/methods.md sec. 11)")}
+    if coupled:
+        extra = {"direction": Column("string", "", "forward or return"),
+                 "carrier": Column("int", "", "1 or 2; carrier 1 is Subject 1 forward, Subject 2 on returns (subject column)"),
+                 "T": Column("float", "s", "duration of the pair's OC solution (free, within (0.4, 2.5) x T0)"),
+                 "T_at_bound": Column("int", "", "-1 / +1: T on the lower / upper bound, 0 inside"), **extra}
+    return TableSchema(name=IOC_DISTANCES.name, version=IOC_DISTANCES.version, description=IOC_DISTANCES.description,
+                       columns={**IOC_DISTANCES.columns, **extra})
+
+
 VELOCITY_COMMANDS = TableSchema(
     name="velocity_commands",
     version=1,

@@ -99,7 +99,10 @@ def load_weights(spec: str | Path | dict | None, model: str = "improved") -> dic
 def weights_convention(spec: str | Path | dict | None, model: str = "improved") -> str | None:
     """The convention weights were made under (docs/methods.md sec. 11): ``published`` for the presets
     (the papers' weights) and for the model default (None), the ``convention`` of a fitted-weights
-    file, None when unknown (a mapping, or a file without one)."""
+    file, None when unknown (a mapping, or a file without one: the caller's default applies). A file
+    whose ``convention`` is not one is refused."""
+    from cobot_analysis.conventions import NAMES
+
     if spec is None or str(spec) in PRESETS:
         return "published"
     if isinstance(spec, dict):
@@ -108,4 +111,8 @@ def weights_convention(spec: str | Path | dict | None, model: str = "improved") 
         data = json.loads(Path(spec).read_text())
     except (OSError, ValueError):
         return None
-    return data.get("convention") if isinstance(data, dict) else None
+    name = data.get("convention") if isinstance(data, dict) else None
+    if name is not None and name not in NAMES:
+        raise InputError(f"its \"convention\" {name!r} is not a convention", path=Path(spec),
+                         remedy=f"write one of {', '.join(NAMES)} or pass --convention")
+    return name

@@ -46,7 +46,7 @@ distance cover only the recorded part).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -60,7 +60,7 @@ from cobot_analysis.io.markers import Refused, refusal_error
 from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, MAX_SPIKE, check_positions
 from cobot_analysis.io.protocol import PELVIS_MARKERS, SACRUM, TABLE_MARKERS, pelvis_definition, pelvis_requirement
 from cobot_analysis.preprocess import filtering, gaps, normalisation, segmentation
-from cobot_analysis.schema import MARKERS, TRAJECTORIES, TRIAL_COLUMNS, TRIALS, read_table, table_metadata, write_table
+from cobot_analysis.schema import MARKERS, TRIAL_COLUMNS, TRIALS, read_table, table_metadata
 
 SUBJECT_ENTITIES = ("walker", "subject1", "subject2")
 USED_MARKERS = PELVIS_MARKERS + (SACRUM,) + TABLE_MARKERS
@@ -110,7 +110,6 @@ def load_recordings(markers_path: Path, trials_path: Path) -> list[Recording]:
     about 4 markers x frames x trials. Raises ``InputError`` for foreign or broken files,
     trials without marker rows, and marker rows of unknown trials.
     """
-    import pyarrow.parquet as pq
 
     trials = read_table(trials_path, TRIALS)
     if not markers_path.is_file():
@@ -456,84 +455,32 @@ def assemble(results: list[dict[str, Any]], n_samples: int) -> tuple[pd.DataFram
     return df, gap_df
 
 
-def summary_markdown(traj: pd.DataFrame, gap_df: pd.DataFrame, p: Params, n_recordings: int,
-                     refused: list[Refused] = ()) -> str:
-    """The stage's results.md fragment: what was processed, pelvis markers, gaps, quality flags and skipped trials."""
-    per = traj.drop_duplicates(["trial", "entity"])
-    flags = per["quality"].str.split(";").explode().value_counts()
-    pelvis = per["pelvis_markers"].dropna().value_counts()
-    lines = [
-        "## Preprocessing (raw markers -> trajectories)", "",
-        f"{n_recordings} recordings -> {per['trial'].nunique()} trials, {len(per)} trajectories of "
-        f"{p.n_samples} samples. Filter: Butterworth low-pass order {p.order} ({p.order_convention} convention), "
-        f"{p.cutoff:g} Hz, zero-phase; gaps up to {p.max_gap:g} s filled by cubic spline. Segmentation: pair "
-        f"recordings where the table is {p.lift_threshold * 1000:g} mm above its resting height (median of the first "
-        f"{p.floor_window:g} s), walking trials where the CoM speed exceeds {p.speed_threshold:g} m/s for "
-        f"{p.min_duration:g} s (extended to {p.rest_speed:g} m/s). Orientation is reported missing for a trajectory "
-        f"with a long gap on {'any pelvis marker' if p.orientation_markers == 'pelvis' else 'LASI or RASI'}.", "",
-        f"Gaps in the pelvis/table markers: {len(gap_df)} ({int(gap_df['filled'].sum())} filled, "
-        f"{int((~gap_df['filled']).sum())} left open; {gap_df['n_frames'].sum() if len(gap_df) else 0} frames).", "",
-        "| entity | marker | recordings with gaps | gaps filled | gaps left open | missing frames left |",
-        "|---|---|---|---|---|---|",
-        *[f"| {e} | {m} | {g['trial'].nunique()} | {int(g['filled'].sum())} | {int((~g['filled']).sum())} | "
-          f"{int(g.loc[~g['filled'], 'n_frames'].sum())} |" for (e, m), g in gap_df.groupby(["entity", "marker"])], "",
-        "| pelvis markers (CoM = barycentre, SACR counted for both PSIS; theta from LASI-RASI) | trajectories |", "|---|---|",
-        *[f"| {k.replace(',', ' ')} | {v} |" for k, v in pelvis.items()], "",
-        "| quality flag | trajectories |", "|---|---|",
-        *[f"| {k} | {v} |" for k, v in flags.items()], "",
-        *([f"{int(flags['truncated'])} trajectories are `truncated`: they run off the start or end of the recording (or of "
-           "the visible data) while moving, so their travel time and distance cover only the recorded part.", ""]
-          if "truncated" in flags else []),
-        "| entity | direction | trajectories | travel time (s), median [IQR] | travelled distance (m), median |",
-        "|---|---|---|---|---|",
-    ]
-    for (ent, dirn), g in per.fillna({"direction": "-"}).groupby(["entity", "direction"]):
-        q = g["travel_time"].quantile([0.25, 0.5, 0.75]).to_numpy()
-        lines.append(f"| {ent} | {dirn} | {len(g)} | {q[1]:.2f} [{q[0]:.2f}, {q[2]:.2f}] | "
-                     f"{g['travelled_distance'].median():.2f} |")
-    if refused:
-        lines += ["", f"Skipped (--skip-bad): {len(refused)} recordings.", "", "| recording | reason |", "|---|---|",
-                  *[f"| {r.trial} | {r.reason.replace('|', '/')} |" for r in refused]]
-    return "\n".join(lines) + "\n"
+def process(markers_path: Path, trials_path: Path, p: Params, *, jobs: int | None = None,
+            scheduler: str | None = None) -> tuple[pd.DataFrame, pd.DataFrame, int, list[Refused]]:
+    """Preprocess every recording of an import: (trajectories, gaps, recordings processed, refused ones).
 
-
-def run(out: Path, markers_path: Path, trials_path: Path, p: Params, *, force: bool = False, jobs: int | None = None,
-        scheduler: str | None = None) -> Path:
-    """Run the stage into ``out/preprocess`` (skipped when up to date); returns its directory."""
-    from cobot_analysis.console import info, warn
+    Bad filter parameters are refused before any long work; refused recordings raise one ``InputError``
+    naming them all unless ``p.skip_bad`` (and some recording is good)."""
     from cobot_analysis.parallel import chunked, default_jobs, map_tasks
-    from cobot_analysis.workspace import Stage
 
-    with Stage(out, "preprocess", inputs=[markers_path, trials_path], params=asdict(p), force=force) as stage:
-        if stage.skipped:
-            return stage.final_dir
-        recordings = load_recordings(markers_path, trials_path)
-        import scipy.interpolate  # noqa: F401 - imported once here, inherited by forked workers
+    recordings = load_recordings(markers_path, trials_path)
+    import scipy.interpolate  # noqa: F401 - imported once here, inherited by forked workers
 
-        for r in recordings:  # bad parameters are reported before any long work
-            try:
-                filtering.butter_sos(p.cutoff, r.rate, p.order, p.order_convention)
-            except ValueError as exc:
-                raise InputError(f"trial {r.trial}: {exc}", path=trials_path,
-                                 remedy="change --cutoff / --order / --order-convention") from exc
-        n_jobs = 1 if scheduler is None and (jobs or default_jobs()) <= 1 else (jobs or default_jobs())
-        size = max(1, min(25, len(recordings) // (4 * n_jobs) or 1))
-        chunks = [(list(c), p) for c in chunked(recordings, size)]
-        del recordings
-        done = [r for chunk in map_tasks(_process_chunk, chunks, jobs=n_jobs, scheduler=scheduler,
-                                         description="preprocess") for r in chunk]
-        refused = [r for r in done if isinstance(r, Refused)]
-        results = [r for r in done if not isinstance(r, Refused)]
-        if refused and (not p.skip_bad or not results):
-            raise refusal_error(refused, len(done), markers_path, "preprocess")
-        for r in refused:
-            warn(f"skipped recording {r.trial}: {r.reason}")
-        traj, gap_df = assemble(results, p.n_samples)
-        params = asdict(p)
-        write_table(traj, stage.path("trajectories.parquet"), TRAJECTORIES, stage="preprocess", **params)
-        write_table(gap_df, stage.path("gaps.parquet"), gaps.GAPS, stage="preprocess", max_gap=p.max_gap)
-        stage.path("results.md").write_text(summary_markdown(traj, gap_df, p, len(results), refused))
-        info(f"[green]preprocess[/green]: {traj[['trial', 'entity']].drop_duplicates().shape[0]} trajectories "
-             f"from {len(results)} recordings -> {stage.final_dir}")
-    return stage.final_dir
-
+    for r in recordings:  # bad parameters are reported before any long work
+        try:
+            filtering.butter_sos(p.cutoff, r.rate, p.order, p.order_convention)
+        except ValueError as exc:
+            raise InputError(f"trial {r.trial}: {exc}", path=trials_path,
+                             remedy="change --cutoff / --order / --order-convention") from exc
+    n_jobs = 1 if scheduler is None and (jobs or default_jobs()) <= 1 else (jobs or default_jobs())
+    size = max(1, min(25, len(recordings) // (4 * n_jobs) or 1))
+    chunks = [(list(c), p) for c in chunked(recordings, size)]
+    del recordings
+    done = [r for chunk in map_tasks(_process_chunk, chunks, jobs=n_jobs, scheduler=scheduler,
+                                     description="preprocess") for r in chunk]
+    refused = [r for r in done if isinstance(r, Refused)]
+    results = [r for r in done if not isinstance(r, Refused)]
+    if refused and (not p.skip_bad or not results):
+        raise refusal_error(refused, len(done), markers_path, "preprocess")
+    traj, gap_df = assemble(results, p.n_samples)
+    return traj, gap_df, len(results), refused

@@ -319,7 +319,7 @@ def update(baseline: Path, workspaces: list[Path], *, write: bool = True) -> tup
 
     A new baseline takes the workspaces' study; an existing one must be of the same study."""
     from cobot_analysis import __version__
-    from cobot_analysis.workspace import git_commit
+    from cobot_analysis.provenance import git_commit
 
     baseline = Path(baseline)
     old: dict[str, Metric] = {}

@@ -16,15 +16,14 @@ from __future__ import annotations
 
 import json
 import math
-import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
+from cobot_analysis import registry
+
 METRICS_FILE = "metrics.json"
 FORMAT = "cobot-analysis-metrics/1"
-#: stages whose outputs depend on the OC model convention (docs/methods.md sec. 5, 6, 7)
-MODEL_STAGES = ("generate", "fit-ioc", "fit-ioc-subjects", "fit-ioc-coupled", "velocity-commands")
 DEFAULT_CONVENTION = "continuous"
 LOCALISATION_STUDY = "localisation"
 
@@ -83,7 +82,7 @@ class Collector:
 
     def __init__(self, stage: str, convention: str | None):
         self.stage, self.convention = stage, convention
-        self.prefix = base_stage(stage)  # a stage and its -published twin name their metrics alike (@convention apart)
+        self.prefix = registry.base_stage(stage)  # a stage and its -published twin name their metrics alike (@convention apart)
         self.study: str | None = None
         self.items: list[Metric] = []
 
@@ -420,26 +419,10 @@ STAGE_METRICS: dict[str, Callable[[Path, Collector, dict], None]] = {
 }
 
 
-def base_stage(stage: str) -> str:
-    """The stage without its convention suffix (``fit-ioc-published`` -> ``fit-ioc``, docs/methods.md sec. 11;
-    ``import-published`` is a stage of its own)."""
-    base = stage[: -len("-published")] if stage.endswith("-published") else stage
-    return base if base in MODEL_STAGES or base == "compare" or base.startswith("predict") else stage
-
-
 def extractor(stage: str) -> Callable | None:
-    """The metric function of a stage (``predict-<label>`` stages share ``predict``'s; a ``-published``
-    stage its base stage's)."""
-    stage = base_stage(stage)
-    if stage in STAGE_METRICS:
-        return STAGE_METRICS[stage]
-    return STAGE_METRICS["predict"] if re.fullmatch(r"predict[-_A-Za-z0-9]+", stage) else None
-
-
-def is_model_stage(stage: str) -> bool:
-    """Stages that run under a convention (docs/methods.md sec. 11): the models, predict and compare."""
-    stage = base_stage(stage)
-    return stage in MODEL_STAGES or stage.startswith("predict") or stage == "compare"
+    """The metric function of a stage directory (``predict-<label>`` stages share ``predict``'s; a
+    ``-published`` directory its base stage's)."""
+    return STAGE_METRICS.get(registry.spec(registry.base_stage(stage)).name) if registry.known(stage) else None
 
 
 def _find_key(obj: Any, key: str) -> Any:
@@ -456,7 +439,7 @@ def _find_key(obj: Any, key: str) -> Any:
 def stage_convention(stage: str, stage_dir: Path, params: dict) -> str | None:
     """Model stages: the ``convention`` of the stage's parameters, else of its Parquet metadata, else
     ``continuous``; None for the other stages."""
-    if not is_model_stage(stage):
+    if not registry.is_model_stage(stage):
         return None
     conv = _find_key(params, "convention")
     if conv is None:
@@ -540,7 +523,6 @@ def read_stage_metrics(stage_dir: Path) -> dict[str, Any] | None:
 def workspace_metrics(workspace: Path) -> list[dict[str, Any]]:
     """The metrics payload of every stage of a workspace, in pipeline order."""
     from cobot_analysis.errors import InputError
-    from cobot_analysis.pipeline import STAGE_ORDER
 
     workspace = Path(workspace)
     if not workspace.is_dir():
@@ -551,7 +533,5 @@ def workspace_metrics(workspace: Path) -> list[dict[str, Any]]:
         if payload is not None:
             payload["workspace"] = str(workspace)
             payloads.append(payload)
-    rank = {s: i for i, s in enumerate(STAGE_ORDER)}
-    payloads.sort(key=lambda p: (rank.get(p["stage"], rank.get("predict") if p["stage"].startswith("predict") else len(rank)),
-                                 p["stage"]))
+    payloads.sort(key=lambda p: (registry.order(p["stage"]), p["stage"]))
     return payloads

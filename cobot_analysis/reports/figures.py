@@ -18,28 +18,15 @@ import re
 
 import numpy as np
 
+from cobot_analysis.plotting import pyplot
+
 #: one colour per entity, used in every figure.
 COLORS = {"walker": "#1f77b4", "subject1": "#d62728", "subject2": "#2ca02c", "table": "#7f7f7f"}
 #: how figures name the entities.
 NAMES = {"walker": "walker", "subject1": "Subject 1", "subject2": "Subject 2", "table": "table"}
-STYLE = {
-    "figure.dpi": 100, "font.size": 9, "axes.titlesize": 9, "axes.labelsize": 9, "legend.fontsize": 8,
-    "axes.spines.top": False, "axes.spines.right": False, "axes.grid": True, "grid.alpha": 0.3,
-    "savefig.bbox": "tight",
-}
 #: start-orientation columns of the walking grid: letter -> header.
 WALKING_COLUMNS = {"N": "start facing N (θ0 = π/2)", "E": "start facing E (θ0 = 0)",
                    "S": "start facing S (θ0 = -π/2)", "O": "start facing O (θ0 = π)"}
-
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    plt.rcParams.update(STYLE)
-    return plt
 
 
 # ---- path panels ---------------------------------------------------------------------------------
@@ -72,7 +59,7 @@ def walking_title(condition: str) -> str:
 
 def path_grid(cells: list[tuple[int, int]], size: float):
     """A figure with one square panel (``size`` inches) per cell (row, column); the unused ones hidden."""
-    plt = _plt()
+    plt = pyplot()
     nrows = max(r for r, _ in cells) + 1
     ncols = max(c for _, c in cells) + 1
     fig, axes = plt.subplots(nrows, ncols, figsize=(size * ncols + 0.6, size * nrows + 1.4), squeeze=False, layout="constrained")
@@ -249,7 +236,7 @@ def paths(panels: list[dict], ncols: int = 4, arrows: int = 8, title: str = "", 
 def boxplots(groups: dict, ylabel: str, title: str = "", colors: list | None = None, xlabel: str = "group"):
     """Box plot per group (label -> values): median, quartiles, whiskers to the most extreme value
     within 1.5 IQR, outliers (docs/methods.md sec. 4); "label (n = ...)" under each box, n the finite values."""
-    plt = _plt()
+    plt = pyplot()
     labels = list(groups)
     values = [np.asarray(groups[k], float) for k in labels]
     values = [v[np.isfinite(v)] for v in values]
@@ -271,7 +258,7 @@ def boxplots(groups: dict, ylabel: str, title: str = "", colors: list | None = N
 
 def pies(charts: dict, title: str = ""):
     """One pie per chart: ``{name: {category: count}}``."""
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(1, len(charts), figsize=(3.2 * len(charts), 3.4), squeeze=False)
     for ax, (name, counts) in zip(axes.ravel(), charts.items()):
         vals = [v for v in counts.values() if v > 0]
@@ -288,7 +275,7 @@ def scatter_r(series: dict, xlabel: str, ylabel: str, title: str = ""):
     """Scatter of (x, y) per entity with the Pearson r and p in the legend."""
     from scipy import stats
 
-    plt = _plt()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(4.5, 3.5))
     for ent, (x, y) in series.items():
         x, y = np.asarray(x, float), np.asarray(y, float)

@@ -94,10 +94,11 @@ ACCOUNTS: dict[str, dict[str, str]] = {
 def measured(ws: Path, fig: Figure, convention: str) -> tuple[float, float, int] | None:
     """Mean, sd (the convention's ddof) and n of our value of ``fig`` under ``convention``, or None
     when the workspace has no such output."""
-    from cobot_analysis.conventions import get, stage_name
+    from cobot_analysis.conventions import get
+    from cobot_analysis.registry import directory
 
     conv = get(convention)
-    path = ws / stage_name(fig.stage, conv) / fig.table
+    path = ws / directory(fig.stage, conv.name) / fig.table
     if not path.is_file():
         return None
     df = pd.read_parquet(path)
@@ -149,7 +150,7 @@ def comparison_switches(ws: Path) -> dict[str, float] | None:
     model path only (the authors' other script version), pointwise on time (sec. 3). None when the
     workspace has no such paths."""
     from cobot_analysis.conventions import Comparison
-    from cobot_analysis.metrics import path_distances
+    from cobot_analysis.distances import path_distances
 
     gen_path, mean_path = ws / "generate-published" / "generated.parquet", ws / "import-published" / "trajectories.parquet"
     if not (gen_path.is_file() and mean_path.is_file()):

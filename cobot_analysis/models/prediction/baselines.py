@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from cobot_analysis.angles import angle_diff
-from cobot_analysis.models.prediction.predictor import Predictor
+from cobot_analysis.models.prediction.base import Predictor
 
 STILL = 1e-6  # m per sample: below this the walker is at rest and has no heading
 

@@ -39,7 +39,7 @@ from collections import deque
 import numpy as np
 
 from cobot_analysis.errors import InputError
-from cobot_analysis.models.prediction.predictor import Predictor
+from cobot_analysis.models.prediction.base import Predictor
 
 N_INTERVALS = 20  # intervals of the plan: one solve per window, warm-started
 SIGMA = 0.08  # m: path error of the improved OC against human paths (docs/methods.md sec. 5.5)

@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from cobot_analysis.errors import InputError
-from cobot_analysis.models.prediction.metrics import truth_windows, window_errors
+from cobot_analysis.models.prediction.errors import truth_windows, window_errors
 from cobot_analysis.models.prediction.predictor import make_predictor
 from cobot_analysis.schema import Column, TableSchema
 
@@ -156,7 +156,7 @@ def _task(item):
 def horizon_sweep(trajectories, config, n0: int = 50, horizons=HORIZONS, *, jobs: int | None = None,
                   scheduler: str | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
     """``trajectory_horizons`` over ``trajectories`` in parallel (``parallel.map_tasks``): (errors, inference)."""
-    from cobot_analysis.models.prediction.predictor import check_setting
+    from cobot_analysis.models.prediction.base import check_setting
     from cobot_analysis.parallel import map_tasks
 
     check_setting(n0, n0 + 1)
@@ -194,82 +194,3 @@ def wins_from(summary: pd.DataFrame, study: str, predictor: str, baseline: str =
         elif not b:
             start = None
     return start
-
-
-def horizon_markdown(summary: pd.DataFrame, inference: pd.DataFrame) -> list[str]:
-    """The results fragment: delta_xy (FDE) per horizon and predictor, the horizon from which each beats
-    constant velocity, and the goal inference against the walked fraction."""
-    lines = ["## Prediction error against the horizon (docs/methods.md sec. 7.2)", ""]
-    fmt = lambda h: "whole path" if h == WHOLE else f"{h}"  # noqa: E731
-    for study, g in summary.groupby("study", sort=True):
-        preds = list(dict.fromkeys(g["predictor"]))
-        hs = sorted(set(g["horizon"]), key=lambda h: np.inf if h == WHOLE else h)
-        lines += [f"**{study}** ({int(g['n'].max())} trajectories), mean delta_xy (FDE) in m:", "",
-                  "| horizon (samples) | " + " | ".join(preds) + " |", "|---" * (len(preds) + 1) + "|"]
-        for h in hs:
-            cells = []
-            for p in preds:
-                r = g[(g["predictor"] == p) & (g["horizon"] == h)]
-                cells.append(f"{r['delta_xy'].iloc[0]:.3f} ({r['fde'].iloc[0]:.3f})" if len(r) else "")
-            lines.append(f"| {fmt(h)} | " + " | ".join(cells) + " |")
-        lines.append("")
-        if BASELINE in preds:
-            for p in [p for p in preds if p != BASELINE]:
-                w = wins_from(summary, study, p)
-                whole = g[(g["predictor"] == p) & (g["horizon"] == WHOLE)]
-                ratio = f"; over the whole remaining path {1 / whole['ratio_cv'].iloc[0]:.2f}x better than cv" \
-                    if len(whole) and whole["ratio_cv"].iloc[0] < 1 else \
-                    (f"; over the whole remaining path {whole['ratio_cv'].iloc[0]:.2f}x cv's error" if len(whole) else "")
-                lines.append(f"- {p}: " + (f"beats cv from {fmt(w)} samples ahead on" if w is not None else "never beats cv at every longer horizon")
-                             + ratio)
-            lines.append("")
-    if len(inference):
-        bins = np.linspace(0, 1, 6)
-        inference = inference.assign(part=pd.cut(inference["walked"], bins, include_lowest=True))
-        t = inference.groupby("part", observed=True).agg(p_true=("p_true", "mean"), correct=("correct", "mean"), n=("k", "size"))
-        lines += ["Goal inference (goal-inferred, candidate goals of the study), by fraction of the path walked:", "",
-                  "| walked | mean p(true goal) | most probable = true | windows |", "|---|---|---|---|"]
-        lines += [f"| {iv.left:.0%}-{iv.right:.0%} | {r.p_true:.2f} | {r.correct:.0%} | {r.n} |" for iv, r in t.iterrows()]
-        lines.append("")
-    return lines
-
-
-def horizon_figure(summary: pd.DataFrame):
-    """delta_xy and FDE against the horizon, one column per study (the whole path at the right end)."""
-    import matplotlib.pyplot as plt
-
-    studies = sorted(set(summary["study"]))
-    fig, axes = plt.subplots(2, len(studies), figsize=(5.5 * len(studies), 7), squeeze=False)
-    for j, study in enumerate(studies):
-        g = summary[summary["study"] == study]
-        hs = sorted(set(g["horizon"]) - {WHOLE})
-        x_whole = (hs[-1] * 2) if hs else 1
-        for row, metric in enumerate(("delta_xy", "fde")):
-            ax = axes[row, j]
-            for p, gp in g.groupby("predictor", sort=True):
-                gp = gp.assign(x=gp["horizon"].where(gp["horizon"] != WHOLE, x_whole)).sort_values("x")
-                ax.plot(gp["x"], gp[metric], "o-", label=p)
-            ax.set_xscale("log")
-            ax.set_xticks(hs + [x_whole], [str(h) for h in hs] + ["whole"])
-            ax.set_xlabel("horizon (samples ahead)")
-            ax.set_ylabel(f"{metric} (m)")
-            ax.set_title(f"{study}: {metric}")
-            ax.grid(alpha=0.3)
-        axes[0, j].legend()
-    fig.tight_layout()
-    return fig
-
-
-def write_horizons(stage, trajectories, config, horizons, *, jobs: int | None = None, scheduler: str | None = None) -> list[str]:
-    """The horizon sweep at the first setting's N0 written into ``stage`` (``horizon_errors.parquet``,
-    ``horizon_summary.parquet``, ``goal_inference.parquet``, figure ``horizons``); returns the results fragment."""
-    from cobot_analysis.schema import write_table
-
-    n0 = config.settings[0][0]
-    errors, inference = horizon_sweep(trajectories, config, n0, horizons, jobs=jobs, scheduler=scheduler)
-    summary = horizon_summary(errors)
-    write_table(errors, stage.path("horizon_errors.parquet"), HORIZON_ERRORS, convention=config.convention.name)
-    write_table(summary, stage.path("horizon_summary.parquet"), HORIZON_SUMMARY, convention=config.convention.name)
-    write_table(inference, stage.path("goal_inference.parquet"), GOAL_INFERENCE, convention=config.convention.name)
-    stage.savefig(horizon_figure(summary), "horizons")
-    return horizon_markdown(summary, inference)

@@ -1,24 +1,32 @@
-"""Whole-pipeline runs: the demo on the embedded synthetic default, and docs/results.md.
-
-``demo`` chains the stage commands exactly as a user would type them (same code path), one
-workspace per study under ``--out``. ``assemble_results`` gathers the ``results.md`` fragments that
-stages write into their directories into one generated document.
+"""``docs/results.md``: the ``results.md`` fragments that stages write into their directories,
+gathered from one or more workspaces in the order data flows through the stages (``registry``),
+under the reproduction table (``reports.reproduction``). Generated, never typed.
 """
 
 from __future__ import annotations
 
+import json
 from datetime import datetime, timezone
 from pathlib import Path
 
-from cobot_analysis import __version__
+from cobot_analysis import __version__, registry
 from cobot_analysis.errors import InputError
 from cobot_analysis.reports import reproduction
-from cobot_analysis.workspace import git_commit
+from cobot_analysis.provenance import git_commit
+
+
+#: the paragraph under the title of the demo's report (cobot-analysis demo)
+DEMO_PREFACE = "\n".join([
+    "Study reports with their figures:",
+    f"- [walking]({Path('reports') / 'walking' / 'README.md'}), [pair carriage]({Path('reports') / 'pairs' / 'README.md'}),",
+    f"  localisation figures in `{Path('localisation') / 'localisation'}`.",
+    "Below: what each stage computed, in the order the stages ran.",
+])
 
 
 def assemble_results(workspaces: list[Path], title: str = "Results", preface: str = "") -> str:
     """Concatenate the ``<stage>/results.md`` fragments of each workspace, in pipeline order
-    (``STAGE_ORDER``; other stages after them, in the order they ran)."""
+    (``registry.order``; other directories after them, in the order they ran)."""
     parts = [
         f"# {title}",
         "",
@@ -44,40 +52,16 @@ def assemble_results(workspaces: list[Path], title: str = "Results", preface: st
     return "\n".join(parts).rstrip() + "\n"
 
 
-#: the stages in the order data flows through them (io -> preprocess -> ... -> reports)
-STAGE_ORDER = ("synth-walking", "synth-pairs", "synth-localisation", "import-published", "import", "preprocess", "average",
-               "compare", "compare-published", "stats", "reconstruct", "fit-ioc", "fit-ioc-published", "fit-ioc-subjects",
-               "fit-ioc-subjects-published", "fit-ioc-coupled", "generate", "generate-published", "predict", "predict-published",
-               "predict-fitted", "predict-fitted-published", "localisation", "report")
-
-
 def _run_order(fragment: Path) -> tuple[int, float]:
     stage = fragment.parent
     manifest = stage / "manifest.json"
-    rank = STAGE_ORDER.index(stage.name) if stage.name in STAGE_ORDER else len(STAGE_ORDER)
+    rank = registry.order(stage.name)
     return rank, (manifest.stat().st_mtime if manifest.exists() else fragment.stat().st_mtime)
 
 
 def _manifest_line(stage_dir: Path) -> str:
-    import json
-
     try:
         m = json.loads((stage_dir / "manifest.json").read_text())
     except (OSError, ValueError):
         return "no manifest"
     return f"stage {m.get('stage')}, {m.get('started')}, {m.get('duration_s')} s"
-
-
-def run_steps(steps: list[list[str]]) -> None:
-    """Run CLI steps in-process, at the verbosity of this run (-q, -v); stop at the first failing one
-    with its exit code."""
-    from cobot_analysis.cli import run
-    from cobot_analysis.console import info, verbosity
-
-    level = {0: ["-q"], 2: ["-v"]}.get(verbosity(), [])
-    for argv in steps:
-        info(f"[bold]$ cobot-analysis {' '.join(argv)}[/bold]")
-        code = run([*level, *argv])
-        if code != 0:
-            raise SystemExit(code)
-

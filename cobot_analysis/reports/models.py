@@ -1,98 +1,18 @@
-"""Comparison of the walking-path models against measured trajectories, and the fit report
-(docs/methods.md sec. 4-6): distances per model and trajectory, summary tables overall / by start
-orientation / by global distance, statistics of model error vs subject-to-mean distances, figures.
+"""The report of the model stages (docs/methods.md sec. 4-6): summary tables overall / by start
+orientation / by global distance, statistics of model error vs subject-to-mean distances, figures of
+generated vs measured paths, flags of durations and weights at a bound, and the coupled model's section.
 """
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from cobot_analysis.design import GLOBAL_DISTANCE_SPLIT
-from cobot_analysis.models.ioc import FAILED_D, Target, distances
-
-#: models of the comparison: label -> (model, weights). "fitted" is filled in by the caller.
-COMPARED = {
-    "unicycle": ("unicycle", "walking-2021"),
-    "clothoid": ("clothoid", None),
-    "Mombaur OC": ("mombaur", "mombaur-2010"),
-    "improved OC (published)": ("improved", "walking-2021"),
-}
-
-
-def compared_models(convention) -> dict:
-    """The models of the comparison that ``convention`` has (the published one has no unicycle)."""
-    return {k: v for k, v in COMPARED.items() if v[0] == "clothoid" or v[0] in convention.oc}
-
-
-def orientation_of(condition: str) -> str:
-    """Start orientation letter of a walking condition code ('' if not a walking code)."""
-    from cobot_analysis.design import walking_condition
-
-    try:
-        return walking_condition(condition).orientation
-    except ValueError:
-        return ""
-
-
-def compare_task(task) -> list[dict]:
-    """Worker task: every compared model on one target (top-level, picklable)."""
-    from cobot_analysis.models import generate
-    from cobot_analysis.models.presets import weights_vector
-
-    target, models, n_intervals, angle_weight, angle, convention = task
-    rows = []
-    for label, (model, weights) in models.items():
-        w = weights if isinstance(weights, str | None) else dict(zip(
-            ("a0", "a1", "a2", "a3", "a4", "a5", "a6", "b0", "b1", "b2", "b3"), weights_vector(weights)))
-        try:
-            df = generate(model, target.start, target.goal, weights=w, n_samples=len(target.x), n_intervals=n_intervals,
-                          convention=convention)
-            d = distances(target, df["x"].to_numpy(), df["y"].to_numpy(), df["theta"].to_numpy(), convention)
-            ok = True
-        except Exception as exc:  # noqa: BLE001 - a failed model is a flagged row, not a crash
-            from cobot_analysis.errors import SolverError
-
-            if not isinstance(exc, SolverError):
-                raise
-            d, ok = {"d_xy": math.nan, "d_theta": math.nan, "d_gamma": math.nan}, False
-        rows.append({"model": label, "trial": target.trial, "condition": target.condition, "subject": target.subject,
-                     "orientation": orientation_of(target.condition), "global_distance": target.global_distance,
-                     **d, "D": d["d_xy"] + angle_weight * d[f"d_{angle}"], "converged": ok})
-    return rows
-
-
-def compare_models(targets: list[Target], models: dict, *, n_intervals: int = 100, angle: str = "gamma",
-                   angle_weight: float = 0.5, jobs=None, scheduler=None, fit: str = "all",
-                   convention: str = "continuous") -> pd.DataFrame:
-    """Distances of every model in ``models`` (label -> (model, weights)) to every target, each model
-    generated and compared under ``convention``."""
-    from cobot_analysis.parallel import map_tasks
-
-    tasks = [(t, models, n_intervals, angle_weight, angle, convention) for t in targets]
-    rows = map_tasks(compare_task, tasks, jobs=jobs, scheduler=scheduler, description="model comparison")
-    df = pd.DataFrame([r for rs in rows for r in rs])
-    df.insert(1, "fit", fit)
-    return df
-
-
-def subject_distances(trials: list[Target], means: list[Target], angle: str = "gamma",
-                      convention: str = "continuous") -> pd.DataFrame:
-    """Distance of each subject trajectory to the mean of its condition (docs/methods.md sec. 4), under
-    ``convention`` (published: both paths resampled by arc length)."""
-    by_condition = {m.condition: m for m in means}
-    rows = []
-    for t in trials:
-        m = by_condition.get(t.condition)
-        if m is None or len(m.x) != len(t.x):
-            continue
-        d = distances(m, t.x, t.y, t.theta, convention)
-        rows.append({"model": "subjects vs mean", "fit": "", "trial": t.trial, "condition": t.condition, "subject": t.subject,
-                     "orientation": orientation_of(t.condition), "global_distance": m.global_distance, **d,
-                     "D": d["d_xy"] + 0.5 * d[f"d_{angle}"], "converged": True})
-    return pd.DataFrame(rows)
+from cobot_analysis.models.ioc import FAILED_D, Target
 
 
 def _ms(v: pd.Series, digits: int = 3, ddof: int = 1) -> str:
@@ -229,9 +149,9 @@ def figure_paths(targets: list[Target], generated: dict[str, list[pd.DataFrame]]
 def figure_boxplots(df: pd.DataFrame, angle: str = "gamma"):
     """Box plots (median, quartiles, whiskers to 1.5 IQR, outliers) of d_xy and d_angle per model,
     the number of trajectories under each box."""
-    from cobot_analysis.reports.figures import _plt
+    from cobot_analysis.plotting import pyplot
 
-    plt = _plt()
+    plt = pyplot()
     models = list(dict.fromkeys(df["model"]))
     fig, axes = plt.subplots(1, 2, figsize=(max(8.0, 2.2 * len(models) + 2), 4.2), layout="constrained")
     for ax, metric, unit in zip(axes, ("d_xy", f"d_{angle}"), ("m", "rad")):
@@ -278,46 +198,6 @@ def weight_limit_flag(weights: dict[str, float], fitted: tuple[str, ...]) -> str
         return f"Fitted weights inside the search limits 1e{LOG_BOUNDS[0]:g}..1e{LOG_BOUNDS[1]:g}."
     return (f"**Warning: fitted weights at a search limit** (1e{LOG_BOUNDS[0]:g}..1e{LOG_BOUNDS[1]:g}): {', '.join(near)}; "
             "the optimum may lie beyond the limit, so these values bound the estimate rather than estimate it.")
-
-
-# ---- coupled model (two carriers) ----------------------------------------------------------------
-def coupled_task(task) -> tuple[dict, list[dict] | None]:
-    """Worker task: the coupled model at ``w`` on one pair target, best of a 'rest' and a 'line'
-    guess; returns the distance terms and the resampled paths of both carriers (None if not converged)."""
-    from cobot_analysis.models.oc import resample
-    from cobot_analysis.models.ioc import solve_pair_target
-    from cobot_analysis.models.oc.problem import OCPSolution
-
-    spec, w, t = task
-    d, sol = solve_pair_target(spec, np.asarray(w, float), t, ("rest", "line"))
-    if not d["success"]:
-        return d, None
-    paths = []
-    for i, c in enumerate(t.carriers):
-        part = OCPSolution(sol.X[:, 6 * i:6 * i + 6], sol.U[:, 3 * i:3 * i + 3], sol.T, sol.cost, True, "", "", 0, sol.primal)
-        paths.append(resample(part, len(c.x)))
-    return d, paths
-
-
-def coupled_distances(spec, targets, weights: dict[str, np.ndarray], *, jobs=None, scheduler=None):
-    """Per-carrier distances of the coupled model at each weight set (label -> 15-vector) to every
-    pair target: (long table, one row per label x target x carrier; paths label -> [per target])."""
-    from cobot_analysis.parallel import map_tasks
-
-    labels = list(weights)
-    tasks = [(spec, tuple(weights[lab]), t) for lab in labels for t in targets]
-    res = map_tasks(coupled_task, tasks, jobs=jobs, scheduler=scheduler, description="coupled model runs")
-    rows, paths = [], {lab: [] for lab in labels}
-    for (_, _, t), lab, (d, p) in zip(tasks, [lab for lab in labels for _ in targets], res):
-        paths[lab].append(p)
-        for i, c in enumerate(t.carriers):
-            k = f"_{i + 1}"
-            dxy, dth, dga = (d.get(f"d_xy{k}", math.nan), d.get(f"d_theta{k}", math.nan), d.get(f"d_gamma{k}", math.nan))
-            rows.append({"model": lab, "fit": "all", "trial": t.trial, "condition": t.condition, "subject": c.trial,
-                         "orientation": "", "global_distance": c.global_distance, "direction": t.direction, "carrier": i + 1,
-                         "d_xy": dxy, "d_theta": dth, "d_gamma": dga, "D": dxy + spec.angle_weight * dth,
-                         "T": d["T"], "T_at_bound": int(d["T_at_bound"]), "converged": bool(d["success"])})
-    return pd.DataFrame(rows), paths
 
 
 def coupled_summary(df: pd.DataFrame) -> str:
@@ -456,3 +336,90 @@ def duration_lines(df: pd.DataFrame, targets, durations: pd.DataFrame | None, v_
     else:
         lines += ["", "No published trial durations in this workspace (import-published/durations.parquet)."]
     return lines + [""]
+
+
+# ---- the stages' results fragments ---------------------------------------------------------------
+def generate_markdown(result, summary: str) -> str:
+    """Generated paths: per trajectory, the duration T, the optimal cost and the end error to the goal."""
+    df = result.generated
+    ends = df.groupby("trial").tail(1)
+    grid = (f"OC grid {result.n_intervals} intervals resampled to {result.n_samples} samples" if result.convention == "continuous" else
+            "the authors' node step and duration rule, paths at their nodes")
+    goals = sorted({tuple(round(v, 3) for v in g) for _, _, g in result.cases})
+    lines = [f"## Generated trajectories ({result.convention} convention)", "",
+             f"Models {', '.join(result.models)}; weights {result.weights or 'model presets'}; "
+             f"goal{'s' if len(goals) > 1 else ''} {goals[0] if len(goals) == 1 else f'of the {len(goals)} measured means'}; "
+             f"{grid} (docs/methods.md sec. 11: {summary}).", "",
+             "| trial | T (s) | cost | end error (m) |", "|---|---|---|---|"]
+    goal_of = {f"{m}_{c}" if c else m: g for m in result.models for c, _, g in result.cases}
+    for _, r in ends.iterrows():
+        g = goal_of[r.trial]
+        lines.append(f"| {r.trial} | {r.travel_time:.2f} | {r.cost:.3f} | {math.hypot(r.x - g[0], r.y - g[1]):.3f} |")
+    return "\n".join(lines) + "\n"
+
+
+def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal: float, durations: pd.DataFrame | None) -> str:
+    """The IOC's results fragment: the fits (D, evaluations, weights at the start and fitted), their flags,
+    the model comparison with its statistics and figures (drawn into ``stage``)."""
+    from cobot_analysis import conventions
+
+    conv = conventions.get(result.convention)
+    model, names, per = result.model, result.names, result.per
+    spec, results, fits = result.spec, result.results, result.fits
+    angle = spec.angle
+    if conv.name == "published":
+        lower = ("lower level: the published convention (docs/methods.md sec. 11): explicit Euler at the authors' node "
+                 "step, costs summed per node, the authors' start and goal poses; each path's horizon chosen by the authors' "
+                 "duration rule (Nelder-Mead on J/T) at the start weights and held during the fit, then the rule run again "
+                 "at the fitted weights (the D fitted below); distances after arc-length resampling of both paths, to "
+                 + ("the authors' mean block" if Path(result.means_source).parent.name == "import-published" else "the means")
+                 + f" ({result.means_source})")
+    else:
+        lower = (f"lower level: OC with free duration on {intervals} intervals (continuous convention, docs/methods.md "
+                 "sec. 11), warm-started from the solution at the best weights so far")
+    start_weights = result.start_label
+    lines = [f"## Inverse optimal control ({model} model{', one fit per subject' if per == 'subject' else ''}, "
+             f"{conv.name} convention)", "",
+             f"Bi-level IOC (docs/methods.md sec. 6): upper level {optimizer} over log10 of ({', '.join(names)}), "
+             f"bounds 1e-7..1e3, the other weights held at their start value "
+             f"({'neutral start: fitted weights 1' if start_weights == 'ones' else start_weights}); "
+             f"{lower}; objective D = d_xy + 0.5 d_{angle} averaged over the trajectories (orientation required; "
+             f"goal: {result.goal if conv.name == 'continuous' else 'the authors'})"
+             + ((". gamma of the measured path: " + ("recorded in the data" if conv.comparison.measured_gamma == "data" else
+                                                       "from the path (distances.gamma_from_path)") + "; of the model's path: from the path.")
+                if angle == "gamma" else "; pair study: per-scenario means (the pooled 'all' means left out).")
+             + (" Coupled model: scenario-3 forward and return means, Subject 2 as carrier 1 on returns." if model == "coupled" else ""),
+             "",
+             "| fit | paths | D start | D fitted | evaluations | not converged | " + " | ".join(names) + " |",
+             "|---|---|---|---|---|---|" + "---|" * len(names)]
+    w0, all_names = result.start_weights, result.all_names
+    for k, r in results.items():
+        lines.append(f"| {k}: start weights ({start_weights}) | {len(fits[k])} | {r.start_objective:.4f} |  |  |  | "
+                     + " | ".join(f"{w0[all_names.index(n)]:.3g}" for n in names) + " |")
+        lines.append(f"| {k}: fitted | {len(fits[k])} | {r.start_objective:.4f} | {r.objective:.4f} | {r.evaluations} | {r.failed} | "
+                     + " | ".join(f"{r.weights[n]:.3g}" for n in names) + " |")
+    lines.append("")
+    for k, r in results.items():
+        lines += [("" if per == "all" else f"Fit {k}: ") + duration_flag(r.per_target, v_nominal, conv.name)
+                  + " " + weight_limit_flag(r.weights, names)
+                  + (f" Optimiser: {r.message.strip()}" if per == "all" else ""), ""]
+    if conv.name == "published" and "a0" not in names and model != "coupled":
+        lines += ["a0 is held at its start value under the published convention: a constant per node, it adds a0 N to J "
+                  "on a held horizon and a0 / dt to the duration rule's J / T, so no path depends on it (docs/methods.md "
+                  "sec. 11).", ""]
+        if r.held_objective is not None:
+            lines += [f"{'' if per == 'all' else f'Fit {k}: '}with the horizons held, D = {r.held_objective:.4f} at the "
+                      f"fitted weights; the duration rule run again there moves the horizon of {r.horizons_changed} of "
+                      f"{len(fits[k])} paths (D = {r.objective:.4f}).", ""]
+    if result.coupled is not None:
+        lines += coupled_section(results["all"], result.coupled, result.mean_targets, stage, durations)
+    if result.comparison is not None:
+        comparison = result.comparison
+        lines += [f"### Model comparison on the mean trajectories ({conv.name} convention)", "",
+                  summary_table(comparison, angle, ddof=conv.comparison.sd_ddof),
+                  "### Statistics", "", statistics(comparison, list(result.compared)[-1], angle)]
+        stage.savefig(figure_boxplots(comparison, angle), "distances_boxplot")
+        lines += ["![distances per model](distances_boxplot.png)", ""]
+        stage.savefig(figure_paths(result.mean_targets, result.paths, "mean (black) vs improved OC: published, fitted"), "paths")
+        lines += ["![generated vs mean paths](paths.png)", ""]
+    return "\n".join(lines) + "\n"

@@ -6,31 +6,43 @@ trajectory pairs of shape ``(..., N)`` is compared in one call without a Python 
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+import numpy.typing as npt
 
 from cobot_analysis.angles import angle_diff, wrap
 
+ArrayLike = npt.ArrayLike
+FloatArray = npt.NDArray[np.float64]
 
-def d_xy(x1, y1, x2, y2):
+
+def d_xy(x1: ArrayLike, y1: ArrayLike, x2: ArrayLike, y2: ArrayLike) -> FloatArray:
     """Linear distance ``d_xy = (1/N) sum_i sqrt((x1_i - x2_i)^2 + (y1_i - y2_i)^2)`` (m)."""
     return np.mean(np.hypot(np.asarray(x1) - np.asarray(x2), np.asarray(y1) - np.asarray(y2)), axis=-1)
 
 
-def d_theta(theta1, theta2):
-    """Angular distance ``d_theta = (1/N) sum_i |wrap(theta1_i - theta2_i)|`` (rad)."""
-    return np.mean(np.abs(angle_diff(theta1, theta2)), axis=-1)
+def d_theta(theta1: ArrayLike, theta2: ArrayLike, difference: str = "wrapped") -> FloatArray:
+    """Angular distance ``d_theta = (1/N) sum_i |wrap(theta1_i - theta2_i)|`` (rad, sec. 3) over the last axis;
+    ``difference="each"``: ``|wrap(theta1_i) - wrap(theta2_i)|``, the authors' scripts, which wrap each angle on
+    its own, so that a pair across +-pi counts nearly 2 pi (sec. 11)."""
+    a, b = np.asarray(theta1, dtype=float), np.asarray(theta2, dtype=float)
+    if difference == "each":
+        return np.mean(np.abs(wrap(a) - wrap(b)), axis=-1)
+    return np.mean(np.abs(angle_diff(a, b)), axis=-1)
 
 
-def d_gamma(gamma1, gamma2):
-    """Local angular distance ``d_gamma = (1/(N-1)) sum_{i<N} |wrap(gamma1_i - gamma2_i)|`` (rad).
+def d_gamma(gamma1: ArrayLike, gamma2: ArrayLike, difference: str = "wrapped") -> FloatArray:
+    """Local angular distance ``d_gamma = (1/(N-1)) sum_{i<N} |wrap(gamma1_i - gamma2_i)|`` (rad), ``difference``
+    as in ``d_theta``.
 
     The last sample is left out (docs/methods.md sec. 3): gamma of a generated path is defined from the
     step i -> i+1 (see ``gamma_from_path``).
     """
-    return np.mean(np.abs(angle_diff(np.asarray(gamma1)[..., :-1], np.asarray(gamma2)[..., :-1])), axis=-1)
+    return d_theta(np.asarray(gamma1)[..., :-1], np.asarray(gamma2)[..., :-1], difference)
 
 
-def gamma_from_path(x, y, theta):
+def gamma_from_path(x: ArrayLike, y: ArrayLike, theta: ArrayLike) -> FloatArray:
     """Local orientation of a generated path: ``gamma_i = atan2(y_{i+1} - y_i, x_{i+1} - x_i) - theta_i``.
 
     Defined for i < N; the last sample repeats the previous value so the length stays N. Wrapped
@@ -43,7 +55,7 @@ def gamma_from_path(x, y, theta):
 
 
 # ---- one generated or measured path against a measured one, under a convention ---------------------
-def resample_arclength(x, y, n: int):
+def resample_arclength(x: ArrayLike, y: ArrayLike, n: int) -> tuple[FloatArray, FloatArray]:
     """The authors' path resampling (docs/methods.md sec. 11): the points ``i`` with
     ``|x_{i+1} - x_i| + |y_{i+1} - y_i| > 0`` are kept (which drops repeated points and always the
     last one), an interpolating parametric cubic spline (scipy ``splprep``, s = 0, chord-length
@@ -59,7 +71,7 @@ def resample_arclength(x, y, n: int):
     return np.asarray(xr), np.asarray(yr)
 
 
-def resample_time(values, n: int, *, authors: bool = False):
+def resample_time(values: ArrayLike, n: int, *, authors: bool = False) -> FloatArray:
     """``values`` (one per node, equally spaced in time) at ``n`` samples equally spaced in time
     (linear interpolation). ``authors``: their mapping, sample i at node time i / n of the path
     (np.interp(arange(n), linspace(0, n, len(values)), values)), which stops 1/n short of the end."""
@@ -70,17 +82,8 @@ def resample_time(values, n: int, *, authors: bool = False):
     return np.interp(np.arange(n), src, values)
 
 
-def angle_distance(theta1, theta2, difference: str = "wrapped"):
-    """Mean absolute angle difference (rad) over the last axis: ``wrapped`` |wrap(a - b)| (sec. 3),
-    or ``each`` |wrap(a) - wrap(b)| (the authors' scripts wrap each angle on its own, so a pair
-    across +-pi counts nearly 2 pi)."""
-    a, b = np.asarray(theta1, dtype=float), np.asarray(theta2, dtype=float)
-    if difference == "each":
-        return np.mean(np.abs(wrap(a) - wrap(b)), axis=-1)
-    return np.mean(np.abs(angle_diff(a, b)), axis=-1)
-
-
-def path_distances(measured, other, comparison, *, measured_gamma=None, resample_measured: bool | None = None) -> dict[str, float]:
+def path_distances(measured: dict[str, ArrayLike], other: dict[str, ArrayLike], comparison: Any, *, measured_gamma: ArrayLike | None = None,
+                   resample_measured: bool | None = None) -> dict[str, float]:
     """d_xy, d_theta, d_gamma of ``other`` = (x, y, theta) against ``measured`` = (x, y, theta)
     (N samples) under a ``conventions.Comparison``:
 
@@ -109,24 +112,19 @@ def path_distances(measured, other, comparison, *, measured_gamma=None, resample
         ox, oy, oth = (resample_time(v, n) for v in (ox, oy, oth))
     with np.errstate(invalid="ignore"):
         out = {"d_xy": float(d_xy(mx, my, ox, oy)),
-               "d_theta": float(angle_distance(mth, oth, comparison.angle_difference)),
-               "d_gamma": float(np.mean(np.abs(_gamma_difference(mg, gamma_from_path(ox, oy, oth),
-                                                                 comparison.angle_difference))[:-1]))}
+               "d_theta": float(d_theta(mth, oth, comparison.angle_difference)),
+               "d_gamma": float(d_gamma(mg, gamma_from_path(ox, oy, oth), comparison.angle_difference))}
         if measured_gamma is not None:  # the model's theta against the measured path's tangent, theta - gamma
-            out["d_theta_tangent"] = float(angle_distance(mth - mg, oth, comparison.angle_difference))
+            out["d_theta_tangent"] = float(d_theta(mth - mg, oth, comparison.angle_difference))
     return out
 
 
-def _gamma_difference(g1, g2, difference: str):
-    return wrap(g1) - wrap(g2) if difference == "each" else angle_diff(g1, g2)
-
-
 # ---- distances over many pairs at once ------------------------------------------------------------
-def pair_distances(a: dict, b: dict, ia, ib, angle_difference: str = "wrapped") -> dict[str, np.ndarray]:
+def pair_distances(a: dict[str, FloatArray], b: dict[str, FloatArray], ia: ArrayLike, ib: ArrayLike, angle_difference: str = "wrapped") -> dict[str, FloatArray]:
     """d_xy, d_theta, d_gamma between trajectories ``a[k][ia[j]]`` and ``b[k][ib[j]]`` for every j.
 
     ``a`` and ``b`` map "x", "y", "theta", "gamma" to arrays (n_traj, N); ``ia``/``ib`` are index
-    arrays of equal length; ``angle_difference`` as in ``angle_distance`` ("wrapped" or "each").
+    arrays of equal length; ``angle_difference`` as in ``d_theta`` ("wrapped" or "each").
     Angular distances are NaN where either trajectory lacks orientation
     at some sample (docs/methods.md sec. 2.9: such trials leave only the orientation comparison).
     Work is done in blocks so that memory stays bounded for tens of thousands of pairs.
@@ -137,49 +135,30 @@ def pair_distances(a: dict, b: dict, ia, ib, angle_difference: str = "wrapped") 
     for s in range(0, len(ia), block):
         i, j = ia[s:s + block], ib[s:s + block]
         out["d_xy"][s:s + block] = d_xy(a["x"][i], a["y"][i], b["x"][j], b["y"][j])
-        for key in ("theta", "gamma"):
+        for key, distance in (("theta", d_theta), ("gamma", d_gamma)):
             if key in a and key in b:
-                ai, bj = a[key][i], b[key][j]
-                if key == "gamma":  # N - 1 samples (sec. 3)
-                    ai, bj = ai[..., :-1], bj[..., :-1]
                 with np.errstate(invalid="ignore"):
-                    out[f"d_{key}"][s:s + block] = angle_distance(ai, bj, angle_difference)
+                    out[f"d_{key}"][s:s + block] = distance(a[key][i], b[key][j], angle_difference)
     return out
 
 
-def reverse_time(values):
+def reverse_time(values: ArrayLike) -> FloatArray:
     """A trajectory travelled backwards in time: sample i becomes sample N-1-i (last axis)."""
     return np.asarray(values)[..., ::-1]
 
 
-def symmetry(x_fwd, y_fwd, theta_fwd, x_ret, y_ret, theta_ret):
-    """Forward/return symmetry (docs/methods.md sec. 3): d_xy and d_theta between the forward path and
-    the time-reversed return path. Returns ``(d_xy, d_theta)``.
-
-    Orientation is compared as is: a carrier who walks the return facing the same way as on the
-    forward path (e.g. walking backwards) has d_theta = 0; one who turns round has d_theta ~ pi.
-    """
-    return (d_xy(x_fwd, y_fwd, reverse_time(x_ret), reverse_time(y_ret)),
-            d_theta(theta_fwd, reverse_time(theta_ret)))
-
-
-def travelled_distance(x, y):
+def travelled_distance(x: ArrayLike, y: ArrayLike) -> FloatArray:
     """Straight-line distance from start to end position ``D = |p_{N-1} - p_0|`` (m, docs/methods.md sec. 3)."""
     x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
     return np.hypot(x[..., -1] - x[..., 0], y[..., -1] - y[..., 0])
 
 
-def path_length(x, y):
+def path_length(x: ArrayLike, y: ArrayLike) -> FloatArray:
     """Length of the polyline through the samples ``sum_i |p_{i+1} - p_i|`` (m)."""
     return np.sum(np.hypot(np.diff(x, axis=-1), np.diff(y, axis=-1)), axis=-1)
 
 
-def travel_time(onset, offset):
-    """Travel time = carriage offset - onset (s, docs/methods.md sec. 3)."""
-    return np.asarray(offset, dtype=float) - np.asarray(onset, dtype=float)
-
-
-def optimal_configurations(d_by_config: dict, tol: float = 0.05) -> set:
+def optimal_configurations(d_by_config: dict[Any, float], tol: float = 0.05) -> set[Any]:
     """Configurations that minimise a distance among the configurations of a goal (docs/methods.md sec. 3).
 
     ``d_by_config`` maps a configuration (e.g. an end orientation) to its travelled distance

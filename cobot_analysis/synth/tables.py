@@ -1,4 +1,4 @@
-"""Small in-memory trajectory tables with planted (or null) effects, for the analysis tests.
+"""Small in-memory trajectory tables with planted (or null) effects: examples, doctests and the analysis tests.
 
 Fast (no raw markers): straight-ish paths with a random lateral bulge per trajectory. Pair study:
 ``pairs x goals x 3 scenarios`` recordings, each a forward trial (scenario s) and a return trial

@@ -1,0 +1,254 @@
+"""The analyses of a study's trajectories (docs/methods.md sec. 2.9, 3, 4, 8): mean trajectories,
+distances between trajectories, the statistics of the study's questions, and the subjects
+reconstructed from the table. Each function takes the documented trajectories table (a DataFrame
+as ``schema.TRAJECTORIES`` / ``averaging.MEANS`` describe, or the path of such a Parquet file) and
+returns a result holding its tables; nothing is written."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from cobot_analysis.compare import TrajectorySet
+from cobot_analysis.errors import InputError
+
+Trajectories = "pd.DataFrame | str | os.PathLike | TrajectorySet"
+
+
+def trajectory_set(table: Any, what: tuple[str, ...] = ("trajectories", "means", "generated_trajectories")) -> TrajectorySet:
+    """A trajectories table (DataFrame, or the path of a Parquet file a stage wrote) as a ``TrajectorySet``
+    (one row of metadata and N samples of x, y, theta, gamma per trajectory)."""
+    from cobot_analysis.compare import pivot, read_trajectory_set
+
+    if isinstance(table, TrajectorySet):
+        return table
+    if isinstance(table, pd.DataFrame):
+        return pivot(table)
+    return read_trajectory_set(Path(table), what)
+
+
+def study_of(ts: TrajectorySet) -> str:
+    studies = sorted(ts.meta["study"].dropna().astype(str).unique())
+    return studies[0] if len(studies) == 1 else "+".join(studies)
+
+
+def check_by(by: list[str] | None, columns, path=None) -> list[str] | None:
+    """The grouping columns asked for (``--by``), refused when one is not a column of the trajectories."""
+    if not by:
+        return None
+    bad = [c for c in by if c not in columns]
+    if bad:
+        raise InputError(f"--by names unknown column(s) {bad}", path=path, remedy=f"use columns of the trajectories: {', '.join(columns)}")
+    return list(by)
+
+
+# ---- average ------------------------------------------------------------------------------------
+@dataclass
+class AverageResult:
+    """Mean trajectories (``averaging.MEANS``): one per group, with counts, sd and the 95 % band."""
+
+    means: pd.DataFrame
+    groups: list[str]
+    source: str  # how the means were made
+    study: str
+    n_averaged: int  # trajectories averaged (0: published means carried over)
+    truncated: int = 0  # of them, flagged truncated
+
+    def summary(self) -> str:
+        return f"{self.means.drop_duplicates(['trial', 'entity']).shape[0]} means"
+
+
+def average(trajectories: Any, *, by: list[str] | None = None) -> AverageResult:
+    """Mean trajectory per condition (sample-wise mean of positions; circular mean of angles, trajectories
+    without orientation left out of the angle means only), with counts, sd and the 95 % band
+    (docs/methods.md sec. 2.9). ``by``: grouping columns (default: the study's design,
+    ``compare.default_groups``). A grouping column missing for some trials is refused (the means would
+    pool unrelated trials). A table holding only published means (pair-carriage-2022) is carried over.
+
+        >>> from cobot_analysis.api import average
+        >>> from cobot_analysis.synth.tables import walking_table
+        >>> result = average(walking_table(n_subjects=3, n_conditions=2, n_trials=2))
+        >>> result.means.drop_duplicates("trial")[["condition", "n_trials"]].to_string(index=False)
+        'condition  n_trials\n    E4015         6\n    E4030         6'
+    """
+    from cobot_analysis.averaging import MEANS, check_groups, mean_trajectories
+    from cobot_analysis.compare import default_groups
+    from cobot_analysis.schema import TRAJECTORIES, read_table
+
+    path = None if isinstance(trajectories, (pd.DataFrame, TrajectorySet)) else Path(trajectories)
+    ts = trajectory_set(trajectories, ("trajectories",))
+    groups = check_by(by, list(ts.meta.columns), path) or default_groups(ts.meta)
+    trials = ts.subset(ts.meta["kind"].eq("trial").to_numpy())
+    if len(trials):
+        check_groups(trials.meta, groups, path)
+        means = mean_trajectories(trials, groups)
+        cut = 0
+        if "quality" in trials.meta.columns:
+            cut = int(trials.meta["quality"].fillna("").str.split(";").map(lambda f: "truncated" in f).sum())
+        return AverageResult(means, groups, f"recomputed from {len(trials)} trajectories", study_of(ts), len(trials), cut)
+    long = trajectories.copy() if isinstance(trajectories, pd.DataFrame) else read_table(path, TRAJECTORIES)
+    long.attrs = {}
+    means = long[long["kind"].eq("mean")].copy()
+    means["n_theta"] = np.where(means.groupby(["study", "trial", "entity"])["theta"].transform(lambda v: v.notna().all()),
+                                means["n_trials"], 0)
+    for c in MEANS.columns:
+        if c not in means.columns:
+            means[c] = np.nan
+    return AverageResult(means, groups, "published means carried over (no per-trial data)", study_of(ts), 0)
+
+
+# ---- compare ------------------------------------------------------------------------------------
+@dataclass
+class CompareResult:
+    """Distances between trajectories (``compare.DISTANCES``): one row per compared pair."""
+
+    distances: pd.DataFrame
+    groups: list[str]
+    convention: str
+
+    def summary(self) -> str:
+        return f"{len(self.distances)} compared pairs"
+
+
+def compare(trajectories: Any, means: Any, *, against: Any = None, comparison: str = "against",
+            any_vs_any: list[str] | None = None, by: list[str] | None = None, convention: str = "continuous") -> CompareResult:
+    """Distances d_xy, d_theta, d_gamma (docs/methods.md sec. 3): every trial vs the mean of its group,
+    between scenarios, forward vs reversed return, recomputed vs published means, ``against`` (e.g. model
+    paths, ``kind == "model"``) vs the means of the same group, and every two trials that agree on
+    ``any_vs_any``. ``convention``: ``continuous`` (pointwise on time-normalised samples) or ``published``
+    (arc-length resampling first, the authors' scripts; docs/methods.md sec. 11).
+
+        >>> from cobot_analysis.api import average, compare
+        >>> from cobot_analysis.synth.tables import walking_table
+        >>> walks = walking_table(n_subjects=3, n_conditions=2, n_trials=2)
+        >>> d = compare(walks, average(walks).means).distances
+        >>> d["comparison"].unique().tolist(), len(d)
+        (['individual-mean'], 12)
+    """
+    from cobot_analysis import conventions
+    from cobot_analysis.compare import WALKING_GROUPS, against_set, against_vs_mean, any_vs_any as any_any, compare_sets
+    from cobot_analysis.compare import default_groups
+    from cobot_analysis.schema import table_metadata
+
+    conv = conventions.get(convention)
+    ts = trajectory_set(trajectories, ("trajectories",))
+    mts = trajectory_set(means, ("means",))
+    stored = table_metadata(Path(means)).get("grouping") if not isinstance(means, (pd.DataFrame, TrajectorySet)) else None
+    groups = check_by(by, list(ts.meta.columns)) or stored or default_groups(ts.meta)
+    same = check_by(any_vs_any, list(ts.meta.columns))
+    other = None
+    if against is not None:
+        if isinstance(against, (pd.DataFrame, TrajectorySet)):
+            raise InputError("--against must be the path of a trajectory table (generate's generated.parquet)",
+                             remedy="pass the Parquet file that generate wrote")
+        other = against_set(Path(against), mts.n_samples, conv)
+    if (ts.meta["kind"] == "model").all():
+        raise InputError("the trajectories are generated paths (kind = model), not trials",
+                         remedy="pass the model paths as `against` (compare --against generated.parquet) and the measured "
+                                "trajectories as `trajectories`")
+    ts, mts = ts.compared_as(conv.comparison), mts.compared_as(conv.comparison)
+    if other is not None:
+        other.angle_difference = conv.comparison.angle_difference
+    trials = ts.subset(ts.meta["kind"].eq("trial").to_numpy())
+    parts = [compare_sets(trials, mts, by=groups)]
+    published = ts.subset(ts.meta["kind"].eq("mean").to_numpy())
+    if len(published) and len(trials):  # our means vs the authors' means of the same condition
+        keys = [c for c in groups if c in WALKING_GROUPS or c in ("direction", "scenario", "end_orientation")]
+        parts.append(any_any(mts, same=keys, comparison="mean-published", other=published))
+    if same:
+        parts.append(any_any(trials, same=["study", *same]))
+    if other is not None:
+        parts.append(against_vs_mean(other, mts, groups, comparison, against))
+    d = pd.concat([p for p in parts if len(p)] or parts[:1], ignore_index=True)
+    d["convention"] = conv.name
+    return CompareResult(d, groups, conv.name)
+
+
+# ---- statistics ---------------------------------------------------------------------------------
+@dataclass
+class StatisticsResult:
+    """One row per question of the configuration (``stats.analyses.STATS``): test, n, statistic, p, Holm p,
+    effect size, or why it was skipped."""
+
+    table: pd.DataFrame
+    config: Any
+    config_path: Path | None
+    study: str
+    unmatched: list[str] = field(default_factory=list)  # filter values that match no row
+
+    def summary(self) -> str:
+        ok = self.table["status"].eq("ok")
+        return (f"{int(ok.sum())} tests run, {int((~ok).sum())} skipped (reason in the table); "
+                f"{int(self.table['significant'].sum())} significant after Holm within each family.")
+
+
+def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *, config: Any,
+               durations: pd.DataFrame | None = None, anthropometrics: pd.DataFrame | None = None,
+               progress=None) -> StatisticsResult:
+    """Every statistical question of a study's configuration (``stats.config``: a TOML file or a loaded
+    ``StudyConfig``): Kruskal-Wallis, Mann-Whitney, Fisher, ANOVA, Pearson, ..., with effect sizes and Holm
+    correction within each family (docs/methods.md sec. 4)."""
+    from cobot_analysis.compare import DISTANCES
+    from cobot_analysis.schema import read_table
+    from cobot_analysis.stats import analyses
+    from cobot_analysis.stats import config as cfg
+    from cobot_analysis.stats.sources import build_sources
+
+    path = None
+    if not isinstance(config, cfg.StudyConfig):
+        path = Path(config)
+        config = cfg.load(path)
+    ts = trajectory_set(trajectories, ("trajectories",))
+    study = study_of(ts)
+    cfg.check_study(config, study)
+    if not isinstance(distances, pd.DataFrame):
+        distances = read_table(Path(distances), DISTANCES)
+    distances = distances.copy()
+    distances.attrs = {}
+    sources = build_sources(ts, distances, durations, anthropometrics, config.alpha)
+    cfg.check_levels(config, sources)
+    unmatched = cfg.filter_problems(config, sources)
+    table = analyses.run(config, sources, progress=progress)
+    table["study"] = study  # the data's study (a configuration may serve several, e.g. synthetic-walking)
+    return StatisticsResult(table, config, path, study, list(unmatched))
+
+
+# ---- reconstruct --------------------------------------------------------------------------------
+@dataclass
+class ReconstructResult:
+    """Subjects rebuilt from the table trajectory, vs the measured ones (``reconstruct.RECONSTRUCTION``)."""
+
+    reconstruction: pd.DataFrame
+    scenario: int
+
+    def summary(self) -> str:
+        return f"{len(self.reconstruction)} reconstructions"
+
+
+def reconstruct(trajectories: Any, *, relative_pose: dict | None = None, scenario: int = 3, progress=None) -> ReconstructResult:
+    """Each subject rebuilt from the table pose and the subject's mean pose in the table frame
+    (docs/methods.md sec. 8), compared with the measured trajectory: from the scenario-``scenario`` trials
+    themselves and, when given, from a published relative pose (``reconstruct.read_wrt_table``)."""
+    from cobot_analysis import reconstruct as rc
+
+    ts = trajectory_set(trajectories, ("trajectories",))
+    if not ts.meta["entity"].eq("table").any():
+        raise InputError("no table trajectories to reconstruct the subjects from", remedy="use pair-study trajectories")
+    parts = []
+    from_trials = rc.relative_pose(ts, scenario, "trial")
+    if from_trials:
+        parts.append(rc.accuracy(ts, from_trials, "trials", scenario, progress=progress))
+    if relative_pose:
+        parts.append(rc.accuracy(ts, relative_pose, "published", scenario, progress=progress))
+    if not parts:
+        parts.append(rc.accuracy(ts, rc.relative_pose(ts, scenario, "mean"), "means", scenario, progress=progress))
+    rec = pd.concat(parts, ignore_index=True)
+    if rec.empty:
+        raise InputError(f"no scenario-{scenario} trajectory has both a table and a subject",
+                         remedy="check --scenario and the entities of the trajectories")
+    return ReconstructResult(rec, scenario)

@@ -1,0 +1,150 @@
+"""Reading data: raw marker files of a protocol, the published CoBot datasets, and preprocessing raw
+markers into time-normalised trajectories (docs/methods.md sec. 1-2). Each function returns a result
+holding its tables; nothing is written (``cobot_analysis.stages`` writes them into a workspace)."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from cobot_analysis.io.markers import ImportedTrial, ImportPlan, Refused
+from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, MAX_SPIKE
+from cobot_analysis.preprocess.stage import Params
+
+
+@dataclass
+class ImportResult:
+    """Raw markers of a protocol's trials: ``markers`` (trial, frame, time, entity, marker, x, y, z in m,
+    occluded), ``trials`` (one row per trial), ``meta`` (rates, units, formats, pelvis markers, skipped)."""
+
+    plan: ImportPlan
+    markers: pd.DataFrame
+    trials: pd.DataFrame
+    meta: dict[str, Any]
+    refused: list[Refused]
+    imported: list[ImportedTrial]  # the trials imported (their arrays dropped: ``markers`` holds them)
+
+    @property
+    def notes(self) -> list[str]:
+        return [n for t in self.imported for n in t.notes]
+
+    def summary(self) -> str:
+        n_occ = int(self.markers["occluded"].sum())
+        skipped = f", {len(self.refused)} skipped (listed in results.md)" if self.refused else ""
+        return (f"{len(self.trials)} trials{skipped}, {len(self.markers)} marker samples "
+                f"({n_occ / max(len(self.markers), 1):.1%} occluded)")
+
+
+def import_markers(protocol: str | os.PathLike | ImportPlan, *, units: str = "auto", marker_map: dict[str, str] | None = None,
+                   marker_map_file: str | os.PathLike | None = None, keep_all_markers: bool = False, skip_bad: bool = False,
+                   lab_extent: float = LAB_EXTENT, max_speed: float = MAX_SPEED, max_spike: float = MAX_SPIKE,
+                   jobs: int | None = None, scheduler: str | None = None) -> ImportResult:
+    """Import every trial of a protocol (C3D, Vicon Nexus CSV, Qualisys TSV; docs/protocol.md).
+
+    Every trial is read and checked before anything is returned: the refused ones are named together in
+    one ``InputError``, or, with ``skip_bad``, left out and listed in ``result.refused``.
+
+        >>> from cobot_analysis.api import import_markers                      # doctest: +SKIP
+        >>> result = import_markers("study/protocol.yaml", skip_bad=True)     # doctest: +SKIP
+        >>> result.trials[["trial", "rate", "n_frames"]]                      # doctest: +SKIP
+    """
+    from cobot_analysis.io.markers import import_or_refuse, imported_tables, plan_import, refusal_error
+    from cobot_analysis.parallel import map_tasks
+
+    plan = protocol if isinstance(protocol, ImportPlan) else plan_import(
+        protocol, units=units, marker_map=marker_map, marker_map_file=marker_map_file, keep_all=keep_all_markers,
+        skip_bad=skip_bad, lab_extent=lab_extent, max_speed=max_speed, max_spike=max_spike)
+    results = map_tasks(import_or_refuse, plan.tasks, jobs=jobs, scheduler=scheduler, description="import")
+    refused = [r for r in results if isinstance(r, Refused)]
+    imported: list[ImportedTrial] = [r for r in results if isinstance(r, ImportedTrial)]
+    if refused and (not plan.params["skip_bad"] or not imported):
+        raise refusal_error(refused, len(plan.tasks), plan.protocol.path, "import")
+    markers, trials, meta = imported_tables(plan, imported, refused)
+    for t in imported:  # the long table holds a copy of the arrays
+        t.xyz = t.xyz[:0]
+    return ImportResult(plan, markers, trials, meta, refused, imported)
+
+
+@dataclass
+class PublishedResult:
+    """A published dataset as trajectories (500 samples each), with its checked facts; the pair study
+    also gives ``durations`` and ``subject_wrt_table``."""
+
+    dataset: str
+    path: Path
+    trajectories: pd.DataFrame
+    facts: dict[str, Any]
+    durations: pd.DataFrame | None = None
+    subject_wrt_table: pd.DataFrame | None = None
+
+    def summary(self) -> str:
+        return f"{self.dataset}: {self.trajectories.groupby(['trial', 'entity'], observed=True).ngroups} trajectories"
+
+
+def import_published(dataset: str, path: str | os.PathLike, *, gamma_limit: float | None = None) -> PublishedResult:
+    """Read a published CoBot dataset (``walking-2020`` or ``pair-carriage-2022``) from its folder.
+
+        >>> from cobot_analysis.api import import_published                                   # doctest: +SKIP
+        >>> walking = import_published("walking-2020", "../shared/datasets/walking-2020")    # doctest: +SKIP
+        >>> walking.facts["orientation_missing_subject"]                                      # doctest: +SKIP
+    """
+    from cobot_analysis.errors import InputError
+    from cobot_analysis.io import published as pub
+
+    if dataset not in pub.DATASETS:
+        raise InputError(f"unknown dataset {dataset!r}", remedy=f"use one of {', '.join(pub.DATASETS)}")
+    path = Path(path)
+    if not path.is_dir():
+        raise InputError("dataset folder not found", path=path, remedy=pub.REMEDY_DATASET)
+    if dataset == pub.WALKING:
+        traj, facts = pub.read_walking_2020(path, gamma_limit=pub.GAMMA_LIMIT if gamma_limit is None else gamma_limit)
+        return PublishedResult(dataset, path, traj, facts)
+    traj, durations, rel, facts = pub.read_pair_carriage_2022(path)
+    return PublishedResult(dataset, path, traj, facts, durations, rel)
+
+
+@dataclass
+class PreprocessResult:
+    """Trajectories (one row per trajectory and sample, ``schema.TRAJECTORIES``), the gaps of the pelvis and
+    table markers, and the recordings refused (with ``skip_bad``)."""
+
+    params: Params
+    trajectories: pd.DataFrame
+    gaps: pd.DataFrame
+    n_recordings: int
+    refused: list[Refused] = field(default_factory=list)
+
+    def summary(self) -> str:
+        n = self.trajectories[["trial", "entity"]].drop_duplicates().shape[0]
+        return f"{n} trajectories from {self.n_recordings} recordings"
+
+    def params_dict(self) -> dict[str, Any]:
+        return asdict(self.params)
+
+
+def preprocess(markers: str | os.PathLike, trials: str | os.PathLike | None = None, *, jobs: int | None = None,
+               scheduler: str | None = None, **options: Any) -> PreprocessResult:
+    """Fill short gaps, low-pass filter, compute pelvis / table kinematics, segment and time-normalise the
+    recordings of an import (``markers.parquet``, ``trials.parquet`` beside it by default). ``options`` are
+    the fields of ``preprocess.stage.Params`` (``max_gap``, ``cutoff``, ``order``, ``n_samples``, ...,
+    ``skip_bad``), with the CLI's defaults.
+
+        >>> from cobot_analysis.api import preprocess                                  # doctest: +SKIP
+        >>> result = preprocess("ws/import/markers.parquet", cutoff=6.0)              # doctest: +SKIP
+        >>> result.trajectories.query("sample == 0")[["trial", "travel_time"]]         # doctest: +SKIP
+    """
+    from cobot_analysis.errors import InputError
+    from cobot_analysis.preprocess.stage import process
+
+    unknown = sorted(set(options) - set(Params.__dataclass_fields__))
+    if unknown:
+        raise InputError(f"unknown preprocess option(s) {unknown}", remedy=f"use {', '.join(Params.__dataclass_fields__)}")
+    markers = Path(markers)
+    trials = Path(trials) if trials is not None else markers.with_name("trials.parquet")
+    p = Params(**options)
+    traj, gap_df, n, refused = process(markers, trials, p, jobs=jobs, scheduler=scheduler)
+    return PreprocessResult(p, traj, gap_df, n, refused)

@@ -1,0 +1,172 @@
+"""Localisation accuracy of a robot's on-board (ICP) localisation against motion capture
+(docs/methods.md sec. 9): per bag, the delay, the structural offset, per-axis errors, the APE, the
+drift and the accuracy at the commanded goals. Returns the result's tables; nothing is written."""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from cobot_analysis.errors import InputError
+
+
+def floats(text: str, n: int, option: str) -> tuple[float, ...]:
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != n or not all(math.isfinite(v) for v in values):
+        raise InputError(f"{option} needs {n} comma-separated numbers, got {text!r}", remedy=f"e.g. {option} " + ",".join(["0"] * n))
+    return values
+
+
+def at_least(value: float | None, option: str, low: float = 0.0, strict: bool = True, example: str = "") -> None:
+    """Range check of a number option (before any work): one line naming the option."""
+    if value is None:
+        return
+    if not math.isfinite(value) or value < low or (strict and value == low):
+        raise InputError(f"{option} must be {'>' if strict else '>='} {low:g}, got {value:g}",
+                         remedy=f"e.g. {option} {example}" if example else None)
+
+
+def run_labels(bags: list[Path]) -> list[str]:
+    """Run labels: the bags' stems (their names where two stems are the same)."""
+    stems = [b.stem if b.is_file() else b.name for b in bags]
+    return [b.name if stems.count(s) > 1 else s for b, s in zip(bags, stems)]
+
+
+@dataclass
+class LocalisationResult:
+    """Per run (``runs``: one row per bag, ``localisation.tables.RUNS``), per associated ICP sample (``errors``),
+    per commanded goal (``goals``), both pose streams (``poses``); ``per_run`` keeps each run's arrays for
+    the figures."""
+
+    options: Any  # localisation.analysis.Options
+    labels: list[str]
+    maps: list[str]
+    runs: pd.DataFrame
+    errors: pd.DataFrame
+    goals: pd.DataFrame | None
+    poses: pd.DataFrame
+    per_run: list[dict]
+
+    def summary(self) -> str:
+        return f"{len(self.per_run)} run(s)"
+
+    def run_lines(self) -> list[str]:
+        """One line per run: delay, RMSE, goals, warnings."""
+        lines = []
+        for r in self.per_run:
+            row = r["row"]
+            d = (f"{row['delay']:.3f} s (at the edge of the search window: see the warning)" if row["delay_at_edge"]
+                 else f"{row['delay']:.3f} s (given)" if row["delay_method"] == "given" else f"{row['delay']:.3f} ± {row['delay_sd']:.3f} s")
+            lines.append(f"{r['run']}: delay {d}, RMSE {1000 * row['ape_rmse']:.1f} mm"
+                         + (f", goals {row['goals_found']}/{row['goals_commanded']}" if "goals_found" in row else "")
+                         + (f", {len(row['warnings'].split(' | '))} warning(s) (results.md)" if row["warnings"] else ""))
+        return lines
+
+
+def localisation_options(bags: list[Path], *, truth: str = "/mocap/pose", icp: str = "/icp/pose", time: str = "header",
+                         label: list[str] | None = None, map_name: list[str] | None = None, delay: float | None = None,
+                         delay_window: str = "0,1.5", delay_weights: str = "1,1,1,1", alignment: str = "mean",
+                         association: str = "interpolate", max_gap: float | None = None, max_diff: float = 0.01,
+                         goals_csv: str | os.PathLike | None = None, goal_topic: str = "/goal", speed_threshold: float = 0.02,
+                         yaw_rate_threshold: float = 0.03, min_stop: float = 3.0, tol_xy: float = 0.08, tol_yaw: float = 0.07,
+                         distance_window: float = 2.0, up: str = "auto", min_samples: int = 20):
+    """(Options, labels, maps): the options of ``localise`` checked (one line naming the option otherwise)."""
+    from cobot_analysis.localisation.analysis import Options
+    from cobot_analysis.localisation.goals import StopRule, read_goals_csv
+
+    goals = goals_csv
+    from cobot_analysis.localisation import vertical
+
+    window = floats(delay_window, 2, "--delay-window")
+    if window[0] >= window[1]:
+        raise InputError(f"--delay-window MIN,MAX needs MIN < MAX, got {delay_window!r}", remedy="e.g. --delay-window 0,1.5")
+    weights = floats(delay_weights, 4, "--delay-weights")
+    if min(weights) < 0 or max(weights) <= 0:
+        raise InputError(f"--delay-weights must be >= 0 with at least one > 0, got {delay_weights!r}", remedy="e.g. --delay-weights 1,1,1,1")
+    if delay is not None and not math.isfinite(delay):
+        raise InputError(f"--delay must be a number of seconds, got {delay}", remedy="e.g. --delay 0.55")
+    at_least(max_gap, "--max-gap", example="0.2")
+    at_least(max_diff, "--max-diff", example="0.01")
+    at_least(distance_window, "--distance-window", example="2")
+    at_least(speed_threshold, "--speed-threshold", example="0.02")
+    at_least(yaw_rate_threshold, "--yaw-rate-threshold", example="0.03")
+    at_least(min_stop, "--min-stop", strict=False, example="3")
+    at_least(tol_xy, "--tol-xy", strict=False, example="0.08")
+    at_least(tol_yaw, "--tol-yaw", strict=False, example="0.07")
+    try:
+        up_axes = vertical.parse(up)
+    except ValueError:
+        raise InputError(f"--up must be auto, x, y, z, -x, -y, -z or TRUTH,ICP, got {up!r}", remedy="e.g. --up -y,z") from None
+    if time not in ("header", "record"):
+        raise InputError(f"--time must be header or record, not {time!r}")
+    if alignment not in ("mean", "se3", "yaw", "none"):
+        raise InputError(f"--alignment must be mean, se3, yaw or none, not {alignment!r}")
+    if association not in ("interpolate", "nearest"):
+        raise InputError(f"--association must be interpolate or nearest, not {association!r}")
+    labels = list(label) if label else run_labels(bags)
+    if len(labels) != len(bags):
+        raise InputError(f"{len(labels)} --label for {len(bags)} bags", remedy="give one --label per bag")
+    maps = list(map_name or [""])
+    if len(maps) == 1:
+        maps = maps * len(bags)
+    if len(maps) != len(bags):
+        raise InputError(f"{len(maps)} --map-name for {len(bags)} bags", remedy="give one --map-name for all bags or one per bag")
+    goal_rows = tuple(map(tuple, read_goals_csv(goals))) if goals else None
+    opts = Options(truth=truth, icp=icp, time=time, delay=delay, window=window, weights=weights, alignment=alignment,
+                   association=association, max_gap=max_gap, max_diff=max_diff, distance_window=distance_window,
+                   min_samples=min_samples, up=up_axes,
+                   goal_topic=goal_topic or None, goals=goal_rows,
+                   rule=StopRule(speed_threshold=speed_threshold, yaw_rate_threshold=yaw_rate_threshold,
+                                 min_duration=min_stop, tol_xy=tol_xy, tol_yaw=tol_yaw))
+    return opts, labels, maps
+
+
+def localise(bags: list[str | os.PathLike], *, jobs: int | None = None, scheduler: str | None = None,
+             **options: Any) -> LocalisationResult:
+    """Localisation accuracy of ICP against motion capture in each bag (ROS1 .bag, ROS2 bag directory,
+    .mcap): delay, structural offset, per-axis errors, APE, drift, goal accuracy (docs/methods.md sec. 9).
+    ``options``: those of ``localisation_options`` (the command line's, e.g. ``truth="/mocap/pose"``,
+    ``icp="/icp/pose"``, ``delay=None`` to estimate it, ``alignment="mean"``).
+
+        >>> from cobot_analysis.api import localise                                  # doctest: +SKIP
+        >>> r = localise(["run.bag"], truth="/mocap/pose", icp="/icp/pose")          # doctest: +SKIP
+        >>> r.runs[["run", "delay", "ape_rmse"]]                                     # doctest: +SKIP
+    """
+    bags = [Path(b) for b in bags]
+    for b in bags:
+        if not b.exists():
+            raise InputError("no such file or directory", path=b, remedy="check the path")
+    opts, labels, maps = localisation_options(bags, **options)
+    return analyse(bags, opts, labels, maps, jobs=jobs, scheduler=scheduler)
+
+
+def analyse(bags: list[Path], opts, labels: list[str], maps: list[str], *, jobs: int | None = None,
+            scheduler: str | None = None) -> LocalisationResult:
+    """Analyse each bag with checked options (``localisation_options``)."""
+    from cobot_analysis.localisation.analysis import analyse_run
+    from cobot_analysis.parallel import map_tasks
+
+    tasks = [(str(b), lab, m, opts) for b, lab, m in zip(bags, labels, maps)]
+    n_jobs = 1 if len(tasks) == 1 else jobs
+    results = map_tasks(analyse_run, tasks, jobs=n_jobs, scheduler=scheduler, description="localisation runs",
+                        status=lambda r: f"{r['run']}: delay {r['row']['delay']:.3f} s")
+    goal_frames = [r["goals"] for r in results if r["goals"] is not None]
+    return LocalisationResult(opts, labels, maps, pd.DataFrame([r["row"] for r in results]),
+                              pd.concat([r["samples"] for r in results], ignore_index=True),
+                              pd.concat(goal_frames, ignore_index=True) if goal_frames else None,
+                              pd.concat([p for r in results for p in r["poses"]], ignore_index=True), results)
+
+
+def bag_topics(bag: str | os.PathLike) -> tuple[list[dict], list[dict]]:
+    """The topics of a bag (topic, type, count, rate, start, end, pose-like) and its tf frame pairs."""
+    from cobot_analysis.localisation.bags import bag_info
+
+    return bag_info(Path(bag))

@@ -1,0 +1,151 @@
+"""Trajectory prediction (docs/methods.md sec. 7): every trajectory predicted at every sample from its
+recent past, by the receding-horizon OC predictor and the baselines (constant velocity, CTRV), and the
+predictions assessed. Returns the result's tables; nothing is written."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from cobot_analysis.errors import InputError
+
+DEFAULT_SETTINGS = "25:100,50:100,75:100,50:200"
+
+
+def parse_settings(text: str) -> tuple[tuple[int, int], ...]:
+    """``"25:100,50:100"`` -> ((25, 100), (50, 100)).
+
+        >>> parse_settings("25:100, 50:200")
+        ((25, 100), (50, 200))
+    """
+    out = []
+    for part in filter(None, (p.strip() for p in text.split(","))):
+        try:
+            n0, n_oc = (int(v) for v in part.split(":"))
+        except ValueError:
+            raise InputError(f"bad setting {part!r}", remedy="write settings as N0:N_OC pairs, e.g. 25:100,50:100") from None
+        out.append((n0, n_oc))
+    if not out:
+        raise InputError("no (N0, N_OC) setting given", remedy="pass e.g. --settings 50:100")
+    return tuple(out)
+
+
+@dataclass
+class PredictionResult:
+    """The predictions assessed: per trajectory x setting x predictor (``predictions``), per window
+    (``windows``), summaries per setting (``summary``) and the OC predictor vs the baselines on the same
+    windows (``comparison``)."""
+
+    config: Any  # models.prediction.sweep.SweepConfig
+    trajectories: list
+    predictions: pd.DataFrame
+    windows: pd.DataFrame
+    summary_table: pd.DataFrame
+    comparison: pd.DataFrame
+    unpredictable: list[str] = field(default_factory=list)
+    resumed: int = 0
+
+    def summary(self) -> str:
+        n = len(self.trajectories)
+        c = self.config
+        first = self.predictions.drop_duplicates(["study", "trial", "entity", "n0", "n_oc"])
+        return (f"{n} {'trajectory' if n == 1 else 'trajectories'} x {len(c.settings)} setting{'s' if len(c.settings) != 1 else ''} x "
+                f"{len(c.predictors)} predictor{'s' if len(c.predictors) != 1 else ''}, {int(first['n_windows'].sum())} windows per predictor")
+
+
+def prediction_config(*, settings: str = DEFAULT_SETTINGS, predictors: str = "oc,cv,ctrv", weights: str | None = None,
+                      convention: str | None = None, g0: float = 10.0, g1: float = 10.0, t_oc: float | None = None,
+                      orientation: str = "auto", v_nominal: float = 1.0, goal=None, candidates: str | None = None):
+    """The sweep's configuration (``SweepConfig``) from the command line's options; the convention defaults to
+    the one the weights were made under (``presets.weights_convention``; continuous when unknown). ``goal``
+    (x, y, theta) and ``candidates`` ("x,y;x,y") for the goal-aware predictors (docs/methods.md sec. 7.1)."""
+    from cobot_analysis import conventions
+    from cobot_analysis.models.presets import load_weights, weights_convention
+    from cobot_analysis.models.prediction.goal import check_goal, parse_candidates
+    from cobot_analysis.models.prediction.sweep import SweepConfig
+
+    conv = conventions.get(convention if convention is not None else weights_convention(weights) or "continuous")
+    config = SweepConfig(settings=parse_settings(settings), predictors=tuple(p.strip() for p in predictors.split(",") if p.strip()),
+                         weights=weights, g0=g0, g1=g1, t_oc=t_oc, nominal_speed=v_nominal, orientation=orientation,
+                         convention=conv, goal=None if goal is None else check_goal(goal),
+                         candidates=None if candidates is None else parse_candidates(candidates))
+    if "oc" in config.predictors:
+        for name in {config.weights_for(e) for e in ("walker", "table")}:
+            load_weights(name, "improved")  # unknown preset / bad file: one-line error before any work
+    return config
+
+
+def select(df: pd.DataFrame, config, *, studies: list[str] | None = None, entities: list[str] | None = None, kind: str = "all",
+           limit: int | None = None, every: int = 1, path=None) -> tuple[list, list[str]]:
+    """The trajectories to predict (``studies``, ``entities``, ``kind``, every ``every``-th, the first ``limit``)
+    and the labels of those left out for lack of N0 consecutive finite positions."""
+    from cobot_analysis.models.prediction.sweep import predictable_windows, trajectories_from_table
+
+    if kind not in ("trial", "mean", "all"):
+        raise InputError(f"unknown --kind {kind!r}", remedy="use trial, mean or all")
+    if studies:
+        df = df[df["study"].isin(studies)]
+    if entities:
+        df = df[df["entity"].isin(entities)]
+    if kind != "all":
+        df = df[df["kind"] == kind]
+    trajs = trajectories_from_table(df, config, path)[::every]
+    if limit:
+        trajs = trajs[:limit]
+    n0_min = min(n0 for n0, _ in config.settings)
+    unpredictable = [t.label for t in trajs if not predictable_windows(t, n0_min)]
+    trajs = [t for t in trajs if predictable_windows(t, n0_min)]
+    if not trajs:
+        raise InputError(f"no window can be predicted: no trajectory has {n0_min} consecutive samples with finite positions",
+                         path=path, remedy="check the trajectories (gaps left by preprocess) or lower N0")
+    return trajs, unpredictable
+
+
+def predict(trajectories: pd.DataFrame | str | os.PathLike, *, settings: str = DEFAULT_SETTINGS, predictors: str = "oc,cv,ctrv",
+            weights: str | None = None, convention: str | None = None, g0: float = 10.0, g1: float = 10.0,
+            t_oc: float | None = None, orientation: str = "auto", v_nominal: float = 1.0, studies: list[str] | None = None,
+            entities: list[str] | None = None, kind: str = "all", limit: int | None = None, every: int = 1,
+            work: str | os.PathLike | None = None, jobs: int | None = None, scheduler: str | None = None) -> PredictionResult:
+    """Predict every trajectory at every sample k from its last N0 samples over N_OC - N0 samples ahead, for
+    each (N0, N_OC) of ``settings`` and each predictor (``oc``: receding-horizon OC; ``cv``: constant
+    velocity; ``ctrv``: constant turn rate and velocity), and assess the predictions: delta_xy,
+    delta_theta, d_pred (docs/methods.md sec. 7), ADE / FDE. ``work``: a directory that keeps finished
+    (trajectory, setting) results, so an interrupted run resumes.
+
+        >>> from cobot_analysis.api import predict
+        >>> from cobot_analysis.synth.tables import walking_table
+        >>> r = predict(walking_table(n_subjects=1, n_conditions=1, n_trials=1), settings="10:20", predictors="cv")
+        >>> r.summary()
+        '1 trajectory x 1 setting x 1 predictor, 21 windows per predictor'
+    """
+    import tempfile
+
+    from cobot_analysis.schema import TRAJECTORIES, read_table
+
+    config = prediction_config(settings=settings, predictors=predictors, weights=weights, convention=convention, g0=g0, g1=g1,
+                               t_oc=t_oc, orientation=orientation, v_nominal=v_nominal)
+    path = None
+    if not isinstance(trajectories, pd.DataFrame):
+        path = Path(trajectories)
+        trajectories = read_table(path, TRAJECTORIES)
+    trajs, unpredictable = select(trajectories, config, studies=studies, entities=entities, kind=kind, limit=limit, every=every,
+                                  path=path)
+    if work is not None:
+        return assess(trajs, config, work, unpredictable=unpredictable, jobs=jobs, scheduler=scheduler)
+    with tempfile.TemporaryDirectory() as tmp:
+        return assess(trajs, config, tmp, unpredictable=unpredictable, jobs=jobs, scheduler=scheduler)
+
+
+def assess(trajs: list, config, work: str | os.PathLike, *, unpredictable: list[str] = (), jobs: int | None = None,
+           scheduler: str | None = None) -> PredictionResult:
+    """Predict the selected trajectories (``select``) with ``config`` and assess the predictions; finished
+    (trajectory, setting) results are kept in ``work`` and reused."""
+    from cobot_analysis.models.prediction.sweep import WorkDir, compare_table, run_sweep, summary_table
+
+    metrics, windows, resumed = run_sweep(trajs, config, WorkDir(Path(work)), jobs=jobs, scheduler=scheduler)
+    return PredictionResult(config, trajs, metrics, windows, summary_table(metrics, config.convention),
+                            compare_table(metrics, windows, config.convention), list(unpredictable), resumed)

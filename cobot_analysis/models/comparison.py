@@ -1,0 +1,136 @@
+"""Comparison of the walking-path models against measured trajectories (docs/methods.md sec. 4-6):
+distances per model and trajectory (single walkers and the coupled pair model), and the subjects'
+own distances to their mean for reference. The tables and figures of these comparisons are drawn by
+``cobot_analysis.reports.models``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from cobot_analysis.models.ioc import Target, distances
+
+
+#: models of the comparison: label -> (model, weights). "fitted" is filled in by the caller.
+COMPARED = {
+    "unicycle": ("unicycle", "walking-2021"),
+    "clothoid": ("clothoid", None),
+    "Mombaur OC": ("mombaur", "mombaur-2010"),
+    "improved OC (published)": ("improved", "walking-2021"),
+}
+
+
+def compared_models(convention) -> dict:
+    """The models of the comparison that ``convention`` has (the published one has no unicycle)."""
+    return {k: v for k, v in COMPARED.items() if v[0] == "clothoid" or v[0] in convention.oc}
+
+
+def orientation_of(condition: str) -> str:
+    """Start orientation letter of a walking condition code ('' if not a walking code)."""
+    from cobot_analysis.design import walking_condition
+
+    try:
+        return walking_condition(condition).orientation
+    except ValueError:
+        return ""
+
+
+def compare_task(task) -> list[dict]:
+    """Worker task: every compared model on one target (top-level, picklable)."""
+    from cobot_analysis.models import generate
+    from cobot_analysis.models.presets import weights_vector
+
+    target, models, n_intervals, angle_weight, angle, convention = task
+    rows = []
+    for label, (model, weights) in models.items():
+        w = weights if isinstance(weights, str | None) else dict(zip(
+            ("a0", "a1", "a2", "a3", "a4", "a5", "a6", "b0", "b1", "b2", "b3"), weights_vector(weights)))
+        try:
+            df = generate(model, target.start, target.goal, weights=w, n_samples=len(target.x), n_intervals=n_intervals,
+                          convention=convention)
+            d = distances(target, df["x"].to_numpy(), df["y"].to_numpy(), df["theta"].to_numpy(), convention)
+            ok = True
+        except Exception as exc:  # noqa: BLE001 - a failed model is a flagged row, not a crash
+            from cobot_analysis.errors import SolverError
+
+            if not isinstance(exc, SolverError):
+                raise
+            d, ok = {"d_xy": math.nan, "d_theta": math.nan, "d_gamma": math.nan}, False
+        rows.append({"model": label, "trial": target.trial, "condition": target.condition, "subject": target.subject,
+                     "orientation": orientation_of(target.condition), "global_distance": target.global_distance,
+                     **d, "D": d["d_xy"] + angle_weight * d[f"d_{angle}"], "converged": ok})
+    return rows
+
+
+def compare_models(targets: list[Target], models: dict, *, n_intervals: int = 100, angle: str = "gamma",
+                   angle_weight: float = 0.5, jobs=None, scheduler=None, fit: str = "all",
+                   convention: str = "continuous") -> pd.DataFrame:
+    """Distances of every model in ``models`` (label -> (model, weights)) to every target, each model
+    generated and compared under ``convention``."""
+    from cobot_analysis.parallel import map_tasks
+
+    tasks = [(t, models, n_intervals, angle_weight, angle, convention) for t in targets]
+    rows = map_tasks(compare_task, tasks, jobs=jobs, scheduler=scheduler, description="model comparison")
+    df = pd.DataFrame([r for rs in rows for r in rs])
+    df.insert(1, "fit", fit)
+    return df
+
+
+def subject_distances(trials: list[Target], means: list[Target], angle: str = "gamma",
+                      convention: str = "continuous") -> pd.DataFrame:
+    """Distance of each subject trajectory to the mean of its condition (docs/methods.md sec. 4), under
+    ``convention`` (published: both paths resampled by arc length)."""
+    by_condition = {m.condition: m for m in means}
+    rows = []
+    for t in trials:
+        m = by_condition.get(t.condition)
+        if m is None or len(m.x) != len(t.x):
+            continue
+        d = distances(m, t.x, t.y, t.theta, convention)
+        rows.append({"model": "subjects vs mean", "fit": "", "trial": t.trial, "condition": t.condition, "subject": t.subject,
+                     "orientation": orientation_of(t.condition), "global_distance": m.global_distance, **d,
+                     "D": d["d_xy"] + 0.5 * d[f"d_{angle}"], "converged": True})
+    return pd.DataFrame(rows)
+
+
+# ---- coupled model (two carriers) ----------------------------------------------------------------
+def coupled_task(task) -> tuple[dict, list[dict] | None]:
+    """Worker task: the coupled model at ``w`` on one pair target, best of a 'rest' and a 'line'
+    guess; returns the distance terms and the resampled paths of both carriers (None if not converged)."""
+    from cobot_analysis.models.oc import resample
+    from cobot_analysis.models.ioc import solve_pair_target
+    from cobot_analysis.models.oc.problem import OCPSolution
+
+    spec, w, t = task
+    d, sol = solve_pair_target(spec, np.asarray(w, float), t, ("rest", "line"))
+    if not d["success"]:
+        return d, None
+    paths = []
+    for i, c in enumerate(t.carriers):
+        part = OCPSolution(sol.X[:, 6 * i:6 * i + 6], sol.U[:, 3 * i:3 * i + 3], sol.T, sol.cost, True, "", "", 0, sol.primal)
+        paths.append(resample(part, len(c.x)))
+    return d, paths
+
+
+def coupled_distances(spec, targets, weights: dict[str, np.ndarray], *, jobs=None, scheduler=None):
+    """Per-carrier distances of the coupled model at each weight set (label -> 15-vector) to every
+    pair target: (long table, one row per label x target x carrier; paths label -> [per target])."""
+    from cobot_analysis.parallel import map_tasks
+
+    labels = list(weights)
+    tasks = [(spec, tuple(weights[lab]), t) for lab in labels for t in targets]
+    res = map_tasks(coupled_task, tasks, jobs=jobs, scheduler=scheduler, description="coupled model runs")
+    rows, paths = [], {lab: [] for lab in labels}
+    for (_, _, t), lab, (d, p) in zip(tasks, [lab for lab in labels for _ in targets], res):
+        paths[lab].append(p)
+        for i, c in enumerate(t.carriers):
+            k = f"_{i + 1}"
+            dxy, dth, dga = (d.get(f"d_xy{k}", math.nan), d.get(f"d_theta{k}", math.nan), d.get(f"d_gamma{k}", math.nan))
+            rows.append({"model": lab, "fit": "all", "trial": t.trial, "condition": t.condition, "subject": c.trial,
+                         "orientation": "", "global_distance": c.global_distance, "direction": t.direction, "carrier": i + 1,
+                         "d_xy": dxy, "d_theta": dth, "d_gamma": dga, "D": dxy + spec.angle_weight * dth,
+                         "T": d["T"], "T_at_bound": int(d["T_at_bound"]), "converged": bool(d["success"])})
+    return pd.DataFrame(rows), paths

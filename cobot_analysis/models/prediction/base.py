@@ -1,0 +1,84 @@
+"""The ``Predictor`` interface of the trajectory predictors (docs/methods.md sec. 7): the measured poses
+one at a time (``update``) or a whole trajectory (``predict_offline``), the windows skipped and failed,
+and the check of an (N0, N_OC) setting. The predictors: ``predictor.OCPredictor`` and
+``baselines.ConstantVelocity`` / ``ConstantTurnRateVelocity``; ``predictor.make_predictor`` makes one by name."""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+
+from cobot_analysis.errors import InputError
+
+
+class Predictor:
+    """Receding-horizon predictor: ``update(pose) -> predicted path`` over ``N_OC - N0`` samples ahead."""
+
+    name = "predictor"
+    min_past = 1  # samples the model needs in its past window
+
+    def __init__(self, n0: int, n_oc: int, dt: float = 1.0):
+        check_setting(n0, n_oc, self.min_past)
+        if not (np.isfinite(dt) and dt > 0):
+            raise InputError(f"sampling period T_OC must be positive (got {dt})", remedy="pass a positive --t-oc")
+        self.n0, self.n_oc, self.dt = int(n0), int(n_oc), float(dt)
+        self.horizon = self.n_oc - self.n0
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the past (a new trajectory)."""
+        self._past: deque[np.ndarray] = deque(maxlen=self.n0)
+        self.skipped = 0  # windows with a NaN position in their past
+        self.failed = 0  # windows where the model gave no prediction (solver failure)
+
+    def update(self, pose) -> np.ndarray | None:
+        """Add the measured pose ``C_k`` = (x, y, theta) and return the prediction for samples
+        ``k .. k + H`` as an (H + 1, 3) array, or None while fewer than N0 poses were seen or when
+        the window is skipped."""
+        self._past.append(np.asarray(pose, dtype=float).reshape(3))
+        if len(self._past) < self.n0:
+            return None
+        past = np.array(self._past)
+        if not np.isfinite(past[:, :2]).all():
+            self.skipped += 1
+            self.on_skip()
+            return None
+        path = self.predict(past)
+        if path is None:
+            self.failed += 1
+        return path
+
+    def predict_offline(self, poses: np.ndarray) -> np.ndarray:
+        """Predictions for every window of a whole trajectory: (N - N0 + 1, H + 1, 3), NaN if skipped."""
+        poses = np.asarray(poses, dtype=float)
+        if poses.ndim != 2 or poses.shape[1] != 3:
+            raise ValueError("poses must be an (N, 3) array of x, y, theta")
+        if poses.shape[0] < self.n0:
+            raise InputError(f"trajectory has {poses.shape[0]} samples, fewer than N0 = {self.n0}",
+                             remedy="lower N0 or leave this trajectory out")
+        self.reset()
+        out = np.full((poses.shape[0] - self.n0 + 1, self.horizon + 1, 3), np.nan)
+        for i, pose in enumerate(poses):
+            path = self.update(pose)
+            if path is not None:
+                out[i - self.n0 + 1] = path
+        return out
+
+    # -- what a model implements ----------------------------------------------------------------
+    def predict(self, past: np.ndarray) -> np.ndarray | None:
+        """Prediction (H + 1, 3) for the samples k .. k + H from the past (N0, 3) (x, y finite)."""
+        raise NotImplementedError
+
+    def on_skip(self) -> None:
+        """Called when a window is skipped (e.g. to drop a warm start)."""
+
+
+def check_setting(n0: int, n_oc: int, min_past: int = 3) -> None:
+    """Bad (N0, N_OC) settings are input errors: N_OC > N0 >= ``min_past``."""
+    if n_oc <= n0:
+        raise InputError(f"N_OC = {n_oc} must be larger than N0 = {n0} (the OC window extends the measured past)",
+                         remedy="pass settings as N0:N_OC with N_OC > N0, e.g. 50:100")
+    if n0 < min_past:
+        raise InputError(f"N0 = {n0} is too short: the predictors need at least {min_past} past samples",
+                         remedy=f"use N0 >= {min_past}")

@@ -1,0 +1,84 @@
+"""The results fragments (docs/results.md) of the analysis stages: ``average``, ``compare``, ``stats``
+and ``reconstruct`` (docs/methods.md sec. 2.9, 3, 4, 8)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def average_markdown(result, source: str) -> str:
+    """What the means are made of: input, grouping, counts, how angles were averaged."""
+    means = result.means
+    n_means = means.drop_duplicates(["trial", "entity"]).shape[0]
+    first = means[means["sample"].eq(0)]
+    lines = ["## Mean trajectories", "",
+             f"- Input: `{source}` ({result.study}); {result.source}.",
+             f"- Grouping: {', '.join(result.groups)}; {n_means} mean trajectories; trials per mean "
+             f"{int(first['n_trials'].min())} to {int(first['n_trials'].max())}.",
+             "- Positions: sample-wise arithmetic mean; angles: circular mean (theta unwrapped along the path), "
+             "trajectories without orientation excluded from the angle means only; band = mean +- 1.96 sd.",
+             f"- Means without any orientation: {int((first['n_theta'] == 0).sum())}."]
+    if result.truncated:
+        lines.append(f"- {result.truncated} of the {result.n_averaged} trajectories averaged are flagged `truncated` (they run "
+                     "off their recording: travel time and path cover only the recorded part).")
+    return "\n".join(lines) + "\n"
+
+
+def compare_markdown(result, sd_ddof: int) -> str:
+    """d_xy, d_theta, d_gamma mean +- sd per comparison and entity, with how they were computed."""
+    d = result.distances
+    summary = d.groupby(["comparison", "entity"])[["d_xy", "d_theta", "d_gamma"]].agg(
+        ["mean", lambda v: v.std(ddof=sd_ddof), "count"]).rename(columns={"<lambda_0>": "std"})
+    how = ("pointwise on the time-normalised samples, angle differences wrapped to [-pi, pi], sample sd"
+           if result.convention == "continuous" else
+           "after resampling both paths by arc length (scipy splprep, s = 0), each angle wrapped to [-pi, pi] on "
+           "its own, population sd (the authors' scripts)")
+    lines = [f"## Distances between trajectories ({result.convention} convention)", "",
+             f"d_xy (m), d_theta (rad), d_gamma (rad, N-1 samples) (docs/methods.md sec. 3, 11), {how}; "
+             "symmetry = forward vs time-reversed return; angular distances only where both trajectories have "
+             "orientation.", "",
+             "| comparison | entity | n | d_xy mean +- sd | d_theta mean +- sd | d_gamma mean +- sd |", "|---|---|---|---|---|---|"]
+    for (comp, ent), r in summary.iterrows():
+        fmt = [f"{r[(k, 'mean')]:.3f} +- {r[(k, 'std')]:.3f} (n={int(r[(k, 'count')])})" if r[(k, "count")] else "n/a"
+               for k in ("d_xy", "d_theta", "d_gamma")]
+        lines.append(f"| {comp} | {ent} | {int(r[('d_xy', 'count')])} | " + " | ".join(fmt) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def statistics_markdown(result, config_path: Path, n_trajectories: int, n_samples: int, source: str) -> tuple[str, str]:
+    """(stats.md, results.md): the tests table, and the same with the choices behind the numbers."""
+    from cobot_analysis.stats import analyses
+
+    md = analyses.markdown(result.table, f"Statistics: {result.study} ({Path(config_path).name})", result.config.alpha)
+    choices = [
+        "Choices behind these numbers:",
+        f"- Trajectories: {n_trajectories} from `{source}`, {n_samples} time-normalised samples each (as given; "
+        "no further resampling); angle differences wrapped to [-pi, pi] before averaging (d_theta, d_gamma).",
+        f"- Configuration `{Path(config_path).name}`: each row names its subset, test and grouping. Holm correction "
+        f"(statsmodels) within each family; alpha = {result.config.alpha}; descriptive rows (describe, largest subset) "
+        "are outside the families.",
+        "- Trial-level tests treat every trial as independent; `pair-level` rows first average each pair; "
+        "`paired` rows (Wilcoxon) match values by the listed columns (several returns of a pair and goal are averaged); "
+        "`unpaired` rows ignore the pairing.",
+        "- Normality (Shapiro-Wilk for the pair study, Kolmogorov-Smirnov against N(mean, sd) for the walking study) "
+        "only switches to the parametric test where the configuration names one.",
+        "- Largest indistinguishable subset: exact search over all subsets up to 12 groups, greedy backward "
+        "elimination above (the row says which).",
+    ]
+    return md, md + "\n" + result.summary() + "\n\n" + "\n".join(choices) + "\n"
+
+
+def reconstruct_markdown(result) -> str:
+    """d_xy and d_theta of the reconstructed subjects per relative pose, trajectories, direction, subject."""
+    rec = result.reconstruction
+    s = rec.groupby(["relative_pose", "kind", "direction", "entity"])[["d_xy", "d_theta"]].agg(["mean", "std", "count"])
+    lines = ["## Subjects reconstructed from the table", "",
+             f"Relative pose: mean subject pose in the table frame over scenario-{result.scenario} trajectories "
+             "(or the published subject*_wrt_table.dat); reconstructed trajectories compared with the measured ones "
+             "(docs/methods.md sec. 8).", "",
+             "| relative pose | trajectories | direction | subject | n | d_xy (m) mean +- sd | d_theta (rad) mean +- sd |",
+             "|---|---|---|---|---|---|---|"]
+    for (src, kind, direction, ent), r in s.iterrows():
+        lines.append(f"| {src} | {kind} | {direction} | {ent} | {int(r[('d_xy', 'count')])} | "
+                     f"{r[('d_xy', 'mean')]:.3f} +- {r[('d_xy', 'std')]:.3f} | {r[('d_theta', 'mean')]:.3f} +- {r[('d_theta', 'std')]:.3f} |")
+    return "\n".join(lines) + "\n"

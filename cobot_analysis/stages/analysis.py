@@ -1,0 +1,208 @@
+"""Analysis stages into a workspace: ``average``, ``compare``, ``stats``, ``reconstruct`` and ``report``
+(docs/methods.md sec. 2.9, 3, 4, 8)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import pandas as pd
+
+from cobot_analysis import api, registry
+from cobot_analysis.console import warn
+from cobot_analysis.errors import InputError
+from cobot_analysis.stages import Outcome
+from cobot_analysis.workspace import Stage, find_input
+
+#: where a study's trajectories come from in a workspace, in order of preference
+TRAJ_STAGES = ["preprocess", "import-published"]
+PIPELINES = Path(__file__).resolve().parents[2] / "pipelines"
+#: Study names (the 'study' column of the data) -> the design their report follows.
+STUDY_DESIGNS = {"walking-2020": "walking", "synthetic-walking": "walking", "pair-carriage-2022": "pairs", "synthetic-pairs": "pairs"}
+
+
+def trajectories_input(out: str | os.PathLike, path: str | os.PathLike | None):
+    """The workspace's trajectories (``--trajectories``, else preprocess/ or import-published/) and their set."""
+    path = Path(path) if path is not None else find_input(out, "trajectories.parquet", TRAJ_STAGES, "--trajectories")
+    return path, api.trajectory_set(path, ("trajectories",))
+
+
+def average(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = None, by: list[str] | None = None,
+            force: bool = False) -> Outcome:
+    """``average``: ``average/means.parquet`` and its results fragment."""
+    from cobot_analysis.averaging import MEANS, check_groups
+    from cobot_analysis.compare import default_groups
+    from cobot_analysis.reports.analysis import average_markdown
+    from cobot_analysis.schema import write_table
+
+    path, ts = trajectories_input(out, trajectories)
+    groups = api.check_by(by, list(ts.meta.columns), path) or default_groups(ts.meta)
+    trials = ts.subset(ts.meta["kind"].eq("trial").to_numpy())
+    if len(trials):
+        check_groups(trials.meta, groups, path)
+    with Stage(out, "average", inputs=[path], params={"by": groups}, force=force) as stage:
+        if stage.skipped:
+            return Outcome.skip(stage)
+        result = api.average(path if not len(trials) else ts, by=groups)
+        if not result.n_averaged:
+            warn(f"{path}: no per-trial trajectories; the published means are carried over unchanged")
+        write_table(result.means, stage.path("means.parquet"), MEANS, grouping=groups, source=result.source)
+        stage.path("results.md").write_text(average_markdown(result, path.name))
+    return Outcome(stage.final_dir, result)
+
+
+def compare(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = None, means: str | os.PathLike | None = None,
+            against: str | os.PathLike | None = None, comparison: str = "against", any_vs_any: list[str] | None = None,
+            by: list[str] | None = None, convention: str | None = None, force: bool = False) -> Outcome:
+    """``compare`` (``compare-published`` under the published convention): ``distances.parquet``."""
+    from cobot_analysis import conventions
+    from cobot_analysis.compare import DISTANCES, default_groups
+    from cobot_analysis.reports.analysis import compare_markdown
+    from cobot_analysis.schema import table_metadata, write_table
+
+    conv = conventions.get(convention or "continuous")
+    path, ts = trajectories_input(out, trajectories)
+    means_path = Path(means) if means is not None else find_input(out, "means.parquet", ["average"], "--means")
+    mts = api.trajectory_set(means_path, ("means",))
+    groups = api.check_by(by, list(ts.meta.columns), path) or table_metadata(means_path).get("grouping") or default_groups(ts.meta)
+    same = api.check_by(any_vs_any, list(ts.meta.columns), path)
+    if against is not None:
+        from cobot_analysis.compare import against_set
+
+        against_set(Path(against), mts.n_samples, conv)  # a bad --against table is refused before the stage starts
+    inputs = [path, means_path] + ([Path(against)] if against is not None else [])
+    params = {"by": groups, "label": comparison, "any_vs_any": same, "convention": conv.name}
+    with Stage(out, registry.directory("compare", conv.name), inputs=inputs, params=params, force=force) as stage:
+        if stage.skipped:
+            return Outcome.skip(stage)
+        result = api.compare(ts, mts, against=against, comparison=comparison, any_vs_any=same, by=groups, convention=conv.name)
+        write_table(result.distances, stage.path("distances.parquet"), DISTANCES, grouping=groups, convention=conv.name)
+        stage.path("results.md").write_text(compare_markdown(result, conv.comparison.sd_ddof))
+    return Outcome(stage.final_dir, result)
+
+
+def default_config(study: str) -> Path:
+    """``pipelines/<study>.toml`` in the current directory or the source tree; walking / pair fallbacks."""
+    names = [study]
+    if "walking" in study:
+        names.append("walking-2020")
+    elif "pair" in study:
+        names += ["synthetic-pairs", "pair-carriage-2022"] if "synth" in study else ["pair-carriage-2022"]
+    for base in (Path.cwd() / "pipelines", PIPELINES):
+        for n in names:
+            if (base / f"{n}.toml").is_file():
+                return base / f"{n}.toml"
+    raise InputError(f"no statistics configuration for study {study!r}", path=PIPELINES, remedy="pass --config FILE.toml")
+
+
+def statistics(out: str | os.PathLike, *, config: str | os.PathLike | None = None, trajectories: str | os.PathLike | None = None,
+               distances: str | os.PathLike | None = None, durations: str | os.PathLike | None = None,
+               anthropometrics: str | os.PathLike | None = None, force: bool = False) -> Outcome:
+    """``stats``: ``stats/stats.parquet``, ``stats.md`` and the results fragment."""
+    from cobot_analysis.console import track
+    from cobot_analysis.compare import DISTANCES
+    from cobot_analysis.reports.analysis import statistics_markdown
+    from cobot_analysis.schema import read_table, write_table
+    from cobot_analysis.stats import analyses
+    from cobot_analysis.stats import config as cfg
+    from cobot_analysis.stats.sources import read_anthropometrics
+
+    out = Path(out)
+    study_cfg = cfg.load(config) if config else None  # validate a given configuration before anything else
+    path, ts = trajectories_input(out, trajectories)
+    study = api.study_of(ts)
+    if study_cfg is None:
+        config = default_config(study)
+        study_cfg = cfg.load(config)
+    cfg.check_study(study_cfg, study)
+    dist_path = Path(distances) if distances is not None else find_input(out, "distances.parquet", ["compare"], "--distances")
+    dist = read_table(dist_path, DISTANCES)
+    dist.attrs = {}
+    dur_path = Path(durations) if durations is not None else out / "import-published" / "durations.parquet"
+    dur = None
+    if dur_path.is_file():
+        import pyarrow.parquet as pq
+
+        try:
+            dur = pq.read_table(dur_path).to_pandas()
+        except Exception as exc:
+            raise InputError(f"not a readable Parquet file ({type(exc).__name__})", path=dur_path, remedy="re-run import-published") from None
+        if not {"duration", "duration_s"} & set(dur.columns):
+            raise InputError("durations table lacks a duration column", path=dur_path, remedy="re-run import-published")
+    elif durations is not None:
+        raise InputError("file not found", path=durations, remedy="check --durations")
+    anthro_dir = Path(anthropometrics) if anthropometrics is not None else (
+        out / "synth-pairs" if (out / "synth-pairs" / "pairs.csv").is_file() else None)
+    anthro = read_anthropometrics(anthro_dir)
+    inputs = [p for p in (config, path, dist_path, dur_path if dur is not None else None) if p] + \
+        ([anthro_dir / "subjects.csv", anthro_dir / "pairs.csv"] if anthro is not None else [])
+    with Stage(out, "stats", inputs=inputs, params={"config": str(config)}, force=force) as stage:
+        if stage.skipped:
+            return Outcome.skip(stage)
+        result = api.statistics(ts, dist, config=study_cfg, durations=dur, anthropometrics=anthro, progress=track)
+        if result.unmatched:  # a typo, or data not there yet (e.g. no model compared): either way, said once
+            warn(f"{config}: {len(result.unmatched)} filter value(s) match no row, their analyses are skipped (stats.md says "
+                 f"why): {'; '.join(result.unmatched)}")
+        write_table(result.table, stage.path("stats.parquet"), analyses.STATS, config=str(config))
+        md, fragment = statistics_markdown(result, Path(config), len(ts), ts.n_samples, path.name)
+        stage.path("stats.md").write_text(md)
+        stage.path("results.md").write_text(fragment)
+    return Outcome(stage.final_dir, result)
+
+
+def reconstruct(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = None, wrt_table: str | os.PathLike | None = None,
+                scenario: int = 3, force: bool = False) -> Outcome:
+    """``reconstruct``: ``reconstruct/reconstruction.parquet`` and its results fragment."""
+    from cobot_analysis.console import track
+    from cobot_analysis.reconstruct import RECONSTRUCTION, read_wrt_table, relative_pose_table
+    from cobot_analysis.reports.analysis import reconstruct_markdown
+    from cobot_analysis.schema import write_table
+
+    path, ts = trajectories_input(out, trajectories)
+    if not ts.meta["entity"].eq("table").any():
+        raise InputError("no table trajectories to reconstruct the subjects from", path=path, remedy="use pair-study trajectories")
+    imported = Path(out) / "import-published" / "subject_wrt_table.parquet"
+    if wrt_table:
+        wrt_table = Path(wrt_table)
+        published, inputs = read_wrt_table(wrt_table), [path, wrt_table / "subject1_wrt_table.dat", wrt_table / "subject2_wrt_table.dat"]
+    elif imported.is_file():
+        table = pd.read_parquet(imported)
+        table.attrs = {}
+        published, inputs = relative_pose_table(table), [path, imported]
+    else:
+        published, inputs = None, [path]
+    with Stage(out, "reconstruct", inputs=inputs, params={"scenario": scenario}, force=force) as stage:
+        if stage.skipped:
+            return Outcome.skip(stage)
+        try:
+            result = api.reconstruct(ts, relative_pose=published, scenario=scenario, progress=track)
+        except InputError as exc:
+            raise InputError(exc.detail, path=path, remedy=exc.remedy) from None
+        write_table(result.reconstruction, stage.path("reconstruction.parquet"), RECONSTRUCTION)
+        stage.path("results.md").write_text(reconstruct_markdown(result))
+    return Outcome(stage.final_dir, result)
+
+
+def report(out: str | os.PathLike, study: str, *, to: str | os.PathLike | None = None, force: bool = False) -> Outcome:
+    """``report``: the study's Markdown report with its figures in ``report/``, copied to ``to``
+    (default ``reports/STUDY``); the outcome's result is the report directory."""
+    from cobot_analysis.reports.builders import build_report, report_inputs
+
+    if study not in STUDY_DESIGNS:
+        raise InputError(f"unknown study {study!r}", remedy=f"use one of {', '.join(STUDY_DESIGNS)}")
+    design = STUDY_DESIGNS[study]
+    inputs = report_inputs(Path(out))
+    if not inputs:
+        raise InputError("nothing to report in this workspace", path=out, remedy="run average, compare and stats first")
+    to = Path(to) if to is not None else Path("reports") / study
+    with Stage(out, "report", inputs=list(inputs.values()), params={"study": design}, force=force) as stage:
+        if not stage.skipped:
+            build_report(design, inputs, stage, Path(out))
+    tmp = to.with_name(f".{to.name}.tmp")
+    shutil.rmtree(tmp, ignore_errors=True)
+    shutil.copytree(stage.final_dir, tmp, ignore=shutil.ignore_patterns("manifest.json"))
+    if to.exists():
+        shutil.rmtree(to)
+    tmp.rename(to)
+    return Outcome(stage.final_dir, to)

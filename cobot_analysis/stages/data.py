@@ -1,0 +1,140 @@
+"""Data stages into a workspace: ``synth walking`` / ``synth pairs``, ``import``, ``import-published``,
+``preprocess`` (docs/methods.md sec. 1-2)."""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+from cobot_analysis import api
+from cobot_analysis.console import warn
+from cobot_analysis.stages import Outcome
+from cobot_analysis.workspace import Stage, find_input
+
+
+def synth_walking(out: str | os.PathLike, *, seed: int = 0, subjects: int = 10, repetitions: int = 3,
+                  conditions: list[str] | None = None, jobs: int | None = None, scheduler: str | None = None,
+                  force: bool = False) -> Outcome:
+    """``synth-walking``: the synthetic walking study's raw C3D, protocol and ground truth."""
+    from cobot_analysis.design import WALKING_CONDITIONS
+    from cobot_analysis.synth import GENERATOR_VERSION, walking
+
+    codes = list(conditions or WALKING_CONDITIONS)
+    params = {"seed": seed, "subjects": subjects, "trials": repetitions, "conditions": codes, "generator": GENERATOR_VERSION}
+    with Stage(out, walking.STAGE, params=params, force=force) as stage:
+        if stage.skipped:
+            return Outcome.skip(stage)
+        walking.generate(stage.dir, seed=seed, n_subjects=subjects, n_trials=repetitions, conditions=codes,
+                         jobs=jobs, scheduler=scheduler)
+    return Outcome(stage.final_dir, f"{subjects * len(codes) * repetitions} trials")
+
+
+def synth_pairs(out: str | os.PathLike, *, seed: int = 0, pairs: int = 20, goals: list[str] | None = None,
+                scenarios: list[int] | None = None, jobs: int | None = None, scheduler: str | None = None,
+                force: bool = False) -> Outcome:
+    """``synth-pairs``: the synthetic pair-carriage study's raw C3D, protocol and ground truth."""
+    from cobot_analysis.design import PAIR_GOALS, SCENARIOS
+    from cobot_analysis.synth import GENERATOR_VERSION
+    from cobot_analysis.synth import pairs as synth
+
+    stems = list(goals or [g.stem for g in PAIR_GOALS])
+    scens = list(scenarios or sorted(SCENARIOS))
+    params = {"seed": seed, "pairs": pairs, "goals": stems, "scenarios": scens, "generator": GENERATOR_VERSION}
+    with Stage(out, synth.STAGE, params=params, force=force) as stage:
+        if stage.skipped:
+            return Outcome.skip(stage)
+        synth.generate(stage.dir, seed=seed, n_pairs=pairs, goals=stems, scenarios=scens, jobs=jobs, scheduler=scheduler)
+    return Outcome(stage.final_dir, f"{pairs * len(stems) * len(scens)} recordings")
+
+
+def import_markers(out: str | os.PathLike, protocol: str | os.PathLike, *, jobs: int | None = None,
+                   scheduler: str | None = None, force: bool = False, **options: Any) -> Outcome:
+    """``import``: raw markers of a protocol -> ``import/markers.parquet`` and ``trials.parquet``
+    (options: those of ``api.import_markers``)."""
+    from cobot_analysis.io.markers import plan_import
+    from cobot_analysis.reports.data import import_summary
+    from cobot_analysis.schema import MARKERS, TRIALS, write_table
+
+    keep_all = options.pop("keep_all_markers", False)
+    plan = plan_import(protocol, keep_all=keep_all, **options)
+    with Stage(out, "import", inputs=plan.inputs, params=plan.params, force=force) as stage:
+        if stage.skipped:
+            return Outcome.skip(stage)
+        result = api.import_markers(plan, jobs=jobs, scheduler=scheduler)
+        for note in result.notes:
+            warn(note)
+        for r in result.refused:
+            warn(f"skipped trial {r.trial}: {r.reason}")
+        stage.path("results.md").write_text(import_summary(plan.protocol, result.imported, result.refused, plan.limits))
+        write_table(result.markers, stage.path("markers.parquet"), MARKERS, **result.meta)
+        write_table(result.trials, stage.path("trials.parquet"), TRIALS, study=plan.protocol.study)
+    return Outcome(stage.final_dir, result)
+
+
+def import_published(out: str | os.PathLike, dataset: str, path: str | os.PathLike, *, gamma_limit: float | None = None,
+                     force: bool = False) -> Outcome:
+    """``import-published``: a published dataset -> ``import-published/trajectories.parquet`` (+ durations and
+    subject_wrt_table for the pairs), ``facts.json`` and ``results.md``."""
+    from cobot_analysis.errors import InputError
+    from cobot_analysis.io import published as pub
+    from cobot_analysis.reports.data import pair_results_markdown, walking_results_markdown
+    from cobot_analysis.schema import TRAJECTORIES, write_table
+
+    gamma_limit = pub.GAMMA_LIMIT if gamma_limit is None else gamma_limit
+    if dataset not in pub.DATASETS:
+        raise InputError(f"unknown dataset {dataset!r}", remedy=f"use one of {', '.join(pub.DATASETS)}")
+    path = Path(path)
+    if not path.is_dir():
+        raise InputError("dataset folder not found", path=path, remedy=pub.REMEDY_DATASET)
+    params = {"dataset": dataset, "gamma_limit": gamma_limit, "gamma_consistency": pub.GAMMA_CONSISTENCY,
+              "end_orientation_tolerance": pub.END_ORIENTATION_TOLERANCE}
+    with Stage(out, "import-published", inputs=[path], params=params, force=force) as stage:
+        if stage.skipped:
+            return Outcome.skip(stage)
+        result = api.import_published(dataset, path, gamma_limit=gamma_limit)
+        facts = result.facts
+        if dataset == pub.WALKING:
+            text = walking_results_markdown(facts)
+            warn(f"walking-2020: {facts['orientation_missing_subject']} subject trajectories and "
+                 f"{facts['orientation_missing_mean']} means without orientation (theta, gamma NaN); "
+                 f"{facts['implausible_subject']} subject trajectories flagged implausible_gamma (see results.md)")
+        else:
+            warn(f"pair-carriage-2022: {len(facts['plain_angle_means'])} means flagged plain_angle_mean "
+                 "(table orientation off its configuration: angles averaged as plain numbers; see results.md)")
+            write_table(result.durations, stage.path("durations.parquet"), pub.DURATIONS, study=pub.PAIRS)
+            write_table(result.subject_wrt_table, stage.path("subject_wrt_table.parquet"), pub.SUBJECT_WRT_TABLE, study=pub.PAIRS)
+            text = pair_results_markdown(facts)
+        write_table(result.trajectories, stage.path("trajectories.parquet"), TRAJECTORIES, study=dataset,
+                    n_samples=pub.N_SAMPLES, source=str(path.resolve()))
+        stage.path("results.md").write_text(text)
+        stage.path("facts.json").write_text(json.dumps(facts, indent=2, default=str) + "\n")
+    return Outcome(stage.final_dir, result)
+
+
+def preprocess(out: str | os.PathLike, *, markers: str | os.PathLike | None = None, trials: str | os.PathLike | None = None,
+               jobs: int | None = None, scheduler: str | None = None, force: bool = False, **options: Any) -> Outcome:
+    """``preprocess``: ``import/markers.parquet`` -> ``preprocess/trajectories.parquet``, ``gaps.parquet`` and
+    ``results.md`` (options: the fields of ``preprocess.stage.Params``)."""
+    from cobot_analysis.preprocess import gaps
+    from cobot_analysis.preprocess.stage import Params
+    from cobot_analysis.reports.data import preprocess_summary
+    from cobot_analysis.schema import TRAJECTORIES, write_table
+
+    markers_path = Path(markers) if markers is not None else find_input(out, "markers.parquet", ["import"], "--markers")
+    trials_path = Path(trials) if trials is not None else markers_path.with_name("trials.parquet")
+    p = Params(**options)
+    with Stage(out, "preprocess", inputs=[markers_path, trials_path], params=asdict(p), force=force) as stage:
+        if stage.skipped:
+            return Outcome.skip(stage)
+        result = api.preprocess(markers_path, trials_path, jobs=jobs, scheduler=scheduler, **options)
+        for r in result.refused:
+            warn(f"skipped recording {r.trial}: {r.reason}")
+        params = asdict(p)
+        write_table(result.trajectories, stage.path("trajectories.parquet"), TRAJECTORIES, stage="preprocess", **params)
+        write_table(result.gaps, stage.path("gaps.parquet"), gaps.GAPS, stage="preprocess", max_gap=p.max_gap)
+        stage.path("results.md").write_text(preprocess_summary(result.trajectories, result.gaps, p, result.n_recordings,
+                                                               result.refused))
+    return Outcome(stage.final_dir, result)

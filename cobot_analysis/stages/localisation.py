@@ -1,0 +1,89 @@
+"""Localisation stages into a workspace: ``synth localisation`` (synthetic robot runs as ROS1 / ROS2 /
+MCAP bags with their truth) and ``localisation`` (docs/methods.md sec. 9)."""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+from typing import Any
+
+from cobot_analysis.errors import InputError
+from cobot_analysis.stages import Outcome
+from cobot_analysis.workspace import Stage
+
+SYNTH_STAGE = "synth-localisation"
+SYNTH_FILES = ("run.bag", "run_ros2", "run.mcap")
+STAGE = "localisation"
+
+
+def synth_localisation(out: str | os.PathLike, params, formats: list[str], *, force: bool = False) -> Outcome:
+    """``synth-localisation``: a synthetic robot run (``localisation.synth.SynthParams``) written in each format
+    (ros1 -> run.bag, ros2 -> run_ros2/, mcap -> run.mcap), with truth.json and goals.csv."""
+    from cobot_analysis.console import track
+    from cobot_analysis.localisation import synth
+
+    unknown = sorted(set(formats) - {"ros1", "ros2", "mcap"})
+    if unknown or not formats:
+        raise InputError(f"unknown format(s) {unknown or formats!r}", remedy="use --formats ros1,ros2,mcap")
+    with Stage(out, SYNTH_STAGE, params={**params.__dict__, "formats": formats}, force=force) as stage:
+        if stage.skipped:
+            return Outcome.skip(stage)
+        run = synth.make_run(params)
+        writers = {"ros1": ("run.bag", synth.write_ros1), "ros2": ("run_ros2", synth.write_ros2), "mcap": ("run.mcap", synth.write_mcap)}
+        for fmt in track(formats, "write bags"):
+            name, write = writers[fmt]
+            write(run, stage.path(name))
+        synth.write_goals_csv(run, stage.path("goals.csv"))
+        synth.write_truth(run, stage.path("truth.json"))
+    return Outcome(stage.final_dir, run)
+
+
+def localisation(out: str | os.PathLike, bags: list[str | os.PathLike] | None = None, *, figures: bool = True,
+                 jobs: int | None = None, scheduler: str | None = None, force: bool = False, **options: Any) -> Outcome:
+    """``localisation``: localisation.parquet (one row per bag), errors.parquet, goals.parquet, poses.parquet,
+    figures and results.md; the bags default to the synthetic runs of ``synth localisation`` in ``out``."""
+
+    from cobot_analysis.api.localisation import analyse, localisation_options
+    from cobot_analysis.localisation.poses import POSES
+    from cobot_analysis.localisation.tables import ERRORS, GOALS, RUNS
+    from cobot_analysis.reports import localisation as report
+    from cobot_analysis.schema import write_table
+
+    if not bags:
+        base = Path(out) / SYNTH_STAGE
+        bags = [base / f for f in SYNTH_FILES if (base / f).exists()]
+        if not bags:
+            raise InputError("no bag given and no synthetic runs in the workspace", path=base,
+                             remedy="pass bag files, or run `cobot-analysis synth localisation` first with the same --out")
+    bags = [Path(b) for b in bags]
+    for b in bags:
+        if not b.exists():
+            raise InputError("no such file or directory", path=b, remedy="check the path")
+    opts, labels, maps = localisation_options(bags, **options)
+    goals = options.get("goals_csv")
+    params = {"options": opts, "labels": labels, "maps": maps, "figures": figures}
+    inputs = [*bags, *([Path(goals)] if goals else [])]
+    with Stage(out, STAGE, inputs=inputs, params=params, force=force) as stage:
+        if stage.skipped:
+            return Outcome.skip(stage)
+        result = analyse(bags, opts, labels, maps, jobs=jobs, scheduler=scheduler)
+        write_table(result.poses, stage.path("poses.parquet"), POSES, time_base=opts.time)
+        write_table(result.runs, stage.path("localisation.parquet"), RUNS)
+        write_table(result.errors, stage.path("errors.parquet"), ERRORS)
+        if result.goals is not None:
+            write_table(result.goals, stage.path("goals.parquet"), GOALS, tol_xy=opts.rule.tol_xy, tol_yaw=opts.rule.tol_yaw)
+        names = []
+        if figures:
+            results = result.per_run
+            for fig, stem in [(report.figure_paths(results), "paths"), (report.figure_error_time(results), "error_time"),
+                              (report.figure_error_distribution(results), "error_distribution"),
+                              (report.figure_delay(results), "delay_cost")]:
+                stage.savefig(fig, stem)
+                names.append(f"{stem}.png")
+            for r in results:
+                stem = "timeseries_" + re.sub(r"[^A-Za-z0-9_-]+", "_", r["run"])
+                stage.savefig(report.figure_timeseries(r), stem)
+                names.append(f"{stem}.png")
+        stage.path("results.md").write_text(report.results_markdown(result.runs, names, opts.rule.tol_xy, opts.rule.tol_yaw))
+    return Outcome(stage.final_dir, result)

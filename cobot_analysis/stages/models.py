@@ -1,0 +1,187 @@
+"""Model stages into a workspace: ``generate``, ``fit-ioc`` and ``velocity-commands`` (docs/methods.md
+sec. 5, 6, 10); under the published convention they write ``STAGE-published/`` (``registry.directory``)."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+from cobot_analysis import api, registry
+from cobot_analysis.api.models import held_weights, plan_generate
+from cobot_analysis.errors import InputError
+from cobot_analysis.stages import Outcome
+from cobot_analysis.workspace import Stage, find_input
+
+
+def read_trajectories(path: Path):
+    """A trajectories or means table (chosen by the file's metadata)."""
+    from cobot_analysis.averaging import MEANS
+    from cobot_analysis.schema import TRAJECTORIES, read_table, table_metadata
+
+    try:
+        name = table_metadata(path).get("table")
+    except Exception:  # noqa: BLE001 - read_table below reports the file properly
+        name = None
+    return read_table(path, MEANS if name == "means" else TRAJECTORIES)
+
+
+def generate(out: str | os.PathLike, *, model: str = "improved", weights: Any = None, start=None, goal=None,
+             study: str | None = None, samples: int = 500, intervals: int = 100, duration: str | None = None,
+             v_nominal: float = 1.0, max_iter: int = 500, means: str | os.PathLike | None = None,
+             convention: str | None = None, jobs: int | None = None, scheduler: str | None = None, force: bool = False) -> Outcome:
+    """``generate`` (``generate-published``): ``generated.parquet`` and its results fragment."""
+    from cobot_analysis import conventions
+    from cobot_analysis.models.outputs import GENERATED
+    from cobot_analysis.reports.models import generate_markdown
+    from cobot_analysis.schema import write_table
+
+    inputs = [Path(weights)] if weights and Path(weights).is_file() else []
+    _, conv, _ = plan_generate(model, weights=weights, cases=[], duration=duration, convention=convention)  # options first
+    cases = None
+    if study is None and start is None:
+        raise InputError("nothing to generate", remedy="give --start X Y THETA or --study walking-2020")
+    if study is not None:
+        if study != "walking-2020":
+            raise InputError(f"unknown study {study!r}", remedy="use --study walking-2020 or give --start")
+        means_df = None
+        if conv.name == "published":
+            path = Path(means) if means is not None else find_input(out, "trajectories.parquet", ["import-published"], "--means")
+            means_df = read_trajectories(path)
+            inputs.append(path)
+        cases = api.walking_cases(conv.name, means_df, goal=goal, path=means)
+    models, conv, cases = plan_generate(model, weights=weights, start=start, goal=goal, cases=cases, duration=duration,
+                                        convention=convention)
+    kw = {"n_samples": samples, "n_intervals": intervals, "duration": duration, "v_nominal": v_nominal, "max_iter": max_iter,
+          "convention": conv.name}
+    params = {"models": models, "weights": weights, "cases": cases, **kw}
+    with Stage(out, registry.directory("generate", conv.name), inputs=inputs, params=params, force=force) as stage:
+        if stage.skipped:
+            return Outcome.skip(stage)
+        result = api.generate(model, start=start, goal=goal, cases=cases, study=study, weights=weights, samples=samples,
+                              intervals=intervals, duration=duration, v_nominal=v_nominal, max_iter=max_iter,
+                              convention=conv.name, jobs=jobs, scheduler=scheduler)
+        write_table(result.generated, stage.path("generated.parquet"), GENERATED, n_samples=samples, n_intervals=intervals,
+                    convention=conv.name)
+        stage.path("results.md").write_text(generate_markdown(result, conventions.get(conv.name).summary))
+    return Outcome(stage.final_dir, result)
+
+
+def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, trajectories: str | os.PathLike | None = None,
+            model: str = "improved", start_weights: str | None = None, fit: list[str] | None = None, optimizer: str = "powell",
+            max_evaluations: int = 2000, per: str = "all", subjects: int | None = None, goal: str = "auto", intervals: int = 50,
+            v_nominal: float = 1.0, compare: bool = True, resume: bool = False, convention: str | None = None, seed: int = 0,
+            jobs: int | None = None, scheduler: str | None = None, force: bool = False, on_evaluation=None) -> Outcome:
+    """``fit-ioc`` (``fit-ioc-subjects`` with ``per="subject"``, ``fit-ioc-coupled`` for the coupled model, each
+    ``-published`` under the published convention): weights.json, weights/<fit>.json, distances.parquet,
+    fits.csv, figures and results.md. The upper level's evaluations are checkpointed in
+    ``OUT/.<stage>.checkpoint`` after every iteration (``resume`` continues from it)."""
+    import pandas as pd
+
+    from cobot_analysis import conventions
+    from cobot_analysis.models.outputs import ioc_distances_schema
+    from cobot_analysis.models.presets import names_for
+    from cobot_analysis.reports.models import fit_ioc_markdown
+    from cobot_analysis.schema import write_table
+
+    conv = conventions.get(convention or "continuous")
+    if model not in ("improved", "table", "coupled"):
+        raise InputError(f"fit-ioc fits the improved, table or coupled model, not {model!r}", remedy="use --model improved, table or coupled")
+    conv.oc_rule(model)
+    traj_path = Path(trajectories) if trajectories is not None else None
+    if traj_path is None:
+        try:
+            traj_path = find_input(out, "trajectories.parquet", ["import-published", "preprocess"], "--trajectories")
+        except InputError:
+            traj_path = None
+    if means is None and conv.name == "published" and traj_path is not None and traj_path.parent.name == "import-published":
+        means = traj_path  # the published convention compares with the authors' own mean block
+    if means is None:
+        try:
+            means = find_input(out, "means.parquet", ["average"], "--means")
+        except InputError:
+            if traj_path is None:
+                raise
+    means = Path(means) if means is not None else None
+    mean_df = read_trajectories(means) if means is not None else read_trajectories(traj_path)
+    mean_src = means if means is not None else traj_path
+    traj_df = read_trajectories(traj_path) if traj_path is not None else None
+    # the checks of the options, before the stage starts (names, held weights, start weights)
+    all_names = names_for(model)
+    fitted = fit or [n for n in all_names if n not in held_weights(model, conv.name)]
+    bad = [n for n in fitted if n not in all_names]
+    if bad or not fitted:
+        raise InputError(f"--fit names {bad or '(none)'} are not weights of the model ({', '.join(all_names)})", remedy="e.g. --fit a1,a2,a4")
+    spec_params = _spec_params(model, conv.name, start_weights, tuple(fitted), optimizer, max_evaluations, intervals, v_nominal)
+    inputs = [p for p in (means, traj_path) if p is not None]
+    if start_weights and Path(start_weights).is_file():
+        inputs.append(Path(start_weights))
+    params = {"spec": spec_params, "per": per, "subjects": subjects, "goal": goal, "compare": compare, "seed": seed}
+    # own stages: the coupled fit never replaces the table fit, nor per-subject fits the fit over the means
+    name = registry.directory("fit-ioc-coupled" if model == "coupled" else "fit-ioc-subjects" if per == "subject" else "fit-ioc",
+                              conv.name)
+    durations = None
+    if model == "coupled":
+        try:
+            durations = pd.read_parquet(find_input(out, "durations.parquet", ["import-published"], "--means"))
+        except InputError:
+            pass  # no published durations (e.g. a synthetic pair study): the section says so
+    with Stage(out, name, inputs=inputs, params=params, force=force) as stage:
+        if stage.skipped:
+            return Outcome.skip(stage)
+        result = api.fit_ioc(mean_df, trials=traj_df, model=model, start_weights=start_weights, fit=fitted, optimizer=optimizer,
+                             max_evaluations=max_evaluations, per=per, subjects=subjects, goal=goal, intervals=intervals,
+                             v_nominal=v_nominal, compare=compare, convention=conv.name, resume=resume,
+                             checkpoint=Path(out) / f".{name}.checkpoint", jobs=jobs, scheduler=scheduler, means_source=mean_src,
+                             trials_source=traj_path or out, durations=durations, on_evaluation=on_evaluation)
+        stage.path("weights.json").write_text(json.dumps(result.weights_json(), indent=2, default=float) + "\n")
+        for k, r in result.results.items():  # each fit also as a file usable with --weights
+            stage.path(f"weights/{k}.json").write_text(json.dumps({"convention": conv.name, "weights": r.weights}, indent=2) + "\n")
+        write_table(result.distances, stage.path("distances.parquet"), ioc_distances_schema(coupled=result.coupled is not None),
+                    convention=conv.name)
+        result.fits_table().to_csv(stage.path("fits.csv"), index=False)
+        stage.path("results.md").write_text(fit_ioc_markdown(result, stage, optimizer=optimizer, intervals=intervals,
+                                                             v_nominal=v_nominal, durations=durations))
+    return Outcome(stage.final_dir, result)
+
+
+def _spec_params(model, convention, start_weights, fitted, optimizer, max_evaluations, intervals, v_nominal) -> dict:
+    """The IOC specification as the manifest records it (``IOCSpec.__dict__``), computed before the fit."""
+    from cobot_analysis.models.ioc import IOCSpec
+    from cobot_analysis.models.presets import load_weights, names_for, weights_vector
+
+    all_names = names_for(model)
+    w0 = weights_vector(load_weights(None if start_weights == "ones" else start_weights, model), model)
+    if start_weights == "ones":
+        for n in fitted:
+            w0[all_names.index(n)] = 1.0
+    spec = IOCSpec(model=model, start_weights=tuple(map(float, w0)), fitted=tuple(fitted), optimizer=optimizer,
+                   max_evaluations=max_evaluations, n_intervals=intervals, v_nominal=v_nominal, convention=convention,
+                   **({"max_iter": 100} if convention == "published" else {}))
+    return spec.__dict__
+
+
+def velocity_commands(out: str | os.PathLike, *, generated: str | os.PathLike | None = None, trial: str | None = None,
+                      rate: float = 10.0, v_max: float = 0.1, omega_max: float = 7.0, fmt: str = "csv",
+                      force: bool = False) -> Outcome:
+    """``velocity-commands``: ``commands.csv`` (or ``.parquet``) of one generated path."""
+    from cobot_analysis.models.outputs import GENERATED, VELOCITY_COMMANDS
+    from cobot_analysis.schema import read_table, write_table
+
+    path = Path(generated) if generated is not None else find_input(out, "generated.parquet", ["generate", "generate-published"], "--generated")
+    df = read_table(path, GENERATED)
+    cmd = api.velocity_commands(df, trial=trial, rate=rate, v_max=v_max, omega_max=omega_max, path=path)
+    params = {"trial": cmd.trial, "rate": rate, "v_max": v_max, "omega_max": omega_max, "format": fmt}
+    with Stage(out, "velocity-commands", inputs=[path], params=params, force=force) as stage:
+        if stage.skipped:
+            return Outcome.skip(stage)
+        if fmt == "csv":
+            cmd.commands.to_csv(stage.path("commands.csv"), index=False, float_format="%.6g")
+        else:
+            write_table(cmd.commands, stage.path("commands.parquet"), VELOCITY_COMMANDS, rate=rate, v_max=v_max,
+                        omega_max_deg_s=omega_max)
+        stage.path("results.md").write_text(
+            f"## Velocity commands\n\nTrajectory {cmd.trial} at {rate:g} Hz: {len(cmd.commands)} commands, saturated at "
+            f"{v_max:g} m/s and {omega_max:g} deg/s; {cmd.commands['saturated'].mean() * 100:.0f} % of the commands hit a limit.\n")
+    return Outcome(stage.final_dir, cmd)
