@@ -124,7 +124,7 @@ class SweepConfig:
     """What is swept and how (the stage parameters)."""
 
     settings: tuple[tuple[int, int], ...] = DEFAULT_SETTINGS
-    predictors: tuple[str, ...] = PREDICTORS
+    predictors: tuple[str, ...] = ("oc", "cv", "ctrv")  # the goal-aware predictors on request (they need goals)
     weights: str | None = None  # OC weights: preset or weights file; None = walking-2021, table-2022 for tables
     g0: float = 10.0
     g1: float = 10.0
