@@ -107,13 +107,11 @@ def write_horizons(stage, trajectories, config, horizons, *, jobs: int | None = 
     from cobot_analysis.models.prediction.horizons import (GOAL_INFERENCE, HORIZON_ERRORS, HORIZON_SUMMARY, horizon_summary,
                                                            horizon_sweep)
     from cobot_analysis.reports.horizons import horizon_figure, horizon_markdown
-    from cobot_analysis.schema import write_table
-
     n0 = config.settings[0][0]
     errors, inference = horizon_sweep(trajectories, config, n0, horizons, jobs=jobs, scheduler=scheduler)
     summary = horizon_summary(errors)
-    write_table(errors, stage.path("horizon_errors.parquet"), HORIZON_ERRORS, convention=config.convention.name)
-    write_table(summary, stage.path("horizon_summary.parquet"), HORIZON_SUMMARY, convention=config.convention.name)
-    write_table(inference, stage.path("goal_inference.parquet"), GOAL_INFERENCE, convention=config.convention.name)
+    stage.write_table("horizon_errors.parquet", errors, HORIZON_ERRORS, convention=config.convention.name)
+    stage.write_table("horizon_summary.parquet", summary, HORIZON_SUMMARY, convention=config.convention.name)
+    stage.write_table("goal_inference.parquet", inference, GOAL_INFERENCE, convention=config.convention.name)
     stage.savefig(horizon_figure(summary), "horizons")
     return horizon_markdown(summary, inference)
