@@ -33,8 +33,9 @@ def horizon_markdown(summary: pd.DataFrame, inference: pd.DataFrame) -> list[str
                 ratio = f"; over the whole remaining path {1 / whole['ratio_cv'].iloc[0]:.2f}x better than cv" \
                     if len(whole) and whole["ratio_cv"].iloc[0] < 1 else \
                     (f"; over the whole remaining path {whole['ratio_cv'].iloc[0]:.2f}x cv's error" if len(whole) else "")
-                lines.append(f"- {p}: " + (f"beats cv from {fmt(w)} samples ahead on" if w is not None else "never beats cv at every longer horizon")
-                             + ratio)
+                beats = ("never beats cv at every longer horizon" if w is None else "beats cv over the whole path only" if w == WHOLE
+                         else f"beats cv from {w} samples ahead on")
+                lines.append(f"- {p}: {beats}{ratio}")
             lines.append("")
     if len(inference):
         bins = np.linspace(0, 1, 6)
