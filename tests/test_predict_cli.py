@@ -392,8 +392,9 @@ def test_both_conventions_sit_side_by_side_and_name_themselves(cli, tmp_path, tr
 @pytest.mark.datasets
 def test_published_walking_trajectories_under_both_conventions(cli, tmp_path, datasets):
     """Five walking-2020 trials (every 80th) at (50, 100): the OC predictor loses to constant
-    velocity under both conventions; starting each window from rest at 0.1 s per node (published)
-    halves its error against the continuous convention on these walks."""
+    velocity under both conventions; the continuous predictor is the thesis's problem in real time
+    (tracking g (0.1 s / dt)^4, docs/methods.md sec. 7), so the two give nearly the same error (before
+    that fix the continuous one was twice the published one: 0.1767 m, issue 17)."""
     out = tmp_path / "ws"
     assert cli("-q", "import-published", "walking-2020", datasets / "walking-2020", "--out", out)[0] == 0
     m = {}
@@ -404,9 +405,9 @@ def test_published_walking_trajectories_under_both_conventions(cli, tmp_path, da
         m[conv] = pd.read_parquet(out / stage / "predictions.parquet").set_index(["trial", "predictor"])["delta_xy"].unstack()
         assert len(m[conv]) == 5
         assert (m[conv]["oc"] > m[conv]["cv"]).all()
-    assert (m["published"]["oc"] < 0.7 * m["continuous"]["oc"]).all()
+    np.testing.assert_allclose(m["continuous"]["oc"], m["published"]["oc"], rtol=0.15)
     assert m["published"]["oc"].mean() == pytest.approx(0.0895, rel=0.02)  # 2026-11-22; tolerance of an OC solve
-    assert m["continuous"]["oc"].mean() == pytest.approx(0.1767, rel=0.02)
+    assert m["continuous"]["oc"].mean() == pytest.approx(0.0877, rel=0.02)  # 2026-11-24
     np.testing.assert_array_equal(m["published"]["cv"], m["continuous"]["cv"])
 
 
