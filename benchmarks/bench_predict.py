@@ -9,8 +9,13 @@
         CPU per trajectory of the published (50, 100) sweep split into the fatrop solves and the rest
         (issue 22), extrapolated to the 400 walking-2020 trials on 2 cores against the 60 s target.
     python benchmarks/bench_predict.py sweep TRAJECTORIES.parquet --out DIR [--convention NAME] [--dask] [--every K] [--limit N]
+                                             [--predictors goal,cv]
         Wall time of `cobot-analysis predict --settings 50:100 --kind trial --convention NAME` from an
         empty work directory: local pool of 2 processes, or a 2-worker local Dask cluster (--dask).
+
+    python benchmarks/bench_predict.py horizons WALKING.parquet [--pairs PAIRS.parquet] [--every K] [--jobs 2]
+        Wall time of the horizon sweep (models.prediction.horizons) at N0 = 50.
+    The windows benchmark also times the goal-aware predictor (goal known) per window on one core.
 
 TRAJECTORIES.parquet: e.g. the output of `cobot-analysis import-published walking-2020 ...`.
 BLAS is limited to one thread per process, as in the pipeline's pool.
@@ -69,6 +74,7 @@ def bench_windows(path: Path, n: int, convention: str) -> None:
         print(f"{label}: {len(times)} windows, {1 / times.mean():.0f} windows/s (mean {1e3 * times.mean():.2f} ms, "
               f"median {1e3 * np.median(times):.2f} ms, p95 {1e3 * np.percentile(times, 95):.2f} ms), "
               f"iterations median {np.median(iters):.0f}, failed {failed}")
+    bench_goal(trajs)
     for name in ("cv", "ctrv"):
         s = time.process_time()
         count = sum(make_predictor(name, 50, 100, t.dt).predict_offline(t.seen).shape[0] for t in trajs)
@@ -113,12 +119,52 @@ def bench_published_floor(path: Path, n: int, target: float = 60.0) -> None:
           f"{400 * fatrop / 2:.0f} s: {400 * fatrop / 2 / target:.2f} of the {target:.0f} s target")
 
 
-def bench_sweep(path: Path, out: Path, dask: bool, limit: int | None, every: int = 1, convention: str = "continuous") -> None:
+def bench_goal(trajs) -> None:
+    """The goal-aware predictor (goal known, the walking goal): windows per second of CPU time, one core."""
+    from cobot_analysis.models.prediction.predictor import make_predictor
+
+    times, failed = [], 0
+    for t in trajs:
+        p = make_predictor("goal", 50, 100, t.dt, goal=t.goal)
+        for pose in t.seen:
+            s = time.process_time()
+            path = p.update(pose)
+            if path is not None or len(p._past) == p.n0:
+                times.append(time.process_time() - s)
+        failed += p.failed
+    times = np.array(times)
+    print(f"goal: {len(times)} windows, {1 / times.mean():.0f} windows/s (mean {1e3 * times.mean():.2f} ms, "
+          f"median {1e3 * np.median(times):.2f} ms, p95 {1e3 * np.percentile(times, 95):.2f} ms), failed {failed}")
+
+
+def bench_horizons(walking: Path, pairs: Path | None, every: int, jobs: int) -> None:
+    """Wall time of the horizon sweep (N0 = 50, horizons 5..200 and the whole path) of oc, goal, cv, ctrv on the
+    walking trials (every ``every``-th) and on the pair study's table means."""
+    from cobot_analysis.models.prediction.horizons import horizon_sweep
+    from cobot_analysis.models.prediction.sweep import SweepConfig, trajectories_from_table
+    from cobot_analysis.schema import TRAJECTORIES, read_table
+
+    for path, entity, predictors in ((walking, "walker", ("oc", "goal", "cv", "ctrv")),
+                                     (pairs, "table", ("oc", "goal", "cv", "ctrv"))):  # goal-inferred: far slower (docs/benchmarks.md)
+        if path is None:
+            continue
+        df = read_table(path, TRAJECTORIES)
+        df = df[(df["entity"] == entity) & ((df["kind"] == "trial") if entity == "walker" else True)]
+        config = SweepConfig(settings=((50, 100),), predictors=predictors)
+        trajs = trajectories_from_table(df, config)[::every]
+        s = time.perf_counter()
+        horizon_sweep(trajs, config, 50, jobs=jobs)
+        print(f"horizon sweep {path.parent.name} {len(trajs)} trajectories x {len(predictors)} predictors, -j {jobs}: "
+              f"wall {time.perf_counter() - s:.0f} s, load average after {os.getloadavg()[0]:.1f}")
+
+
+def bench_sweep(path: Path, out: Path, dask: bool, limit: int | None, every: int = 1, convention: str = "continuous",
+                predictors: str = "oc,cv,ctrv") -> None:
     from cobot_analysis.cli import run
 
     shutil.rmtree(out / ".predict-work", ignore_errors=True)
     argv = ["-q", "predict", "--out", str(out), "--trajectories", str(path), "--kind", "trial", "--settings", "50:100",
-            "--convention", convention, "--force", "--every", str(every), *(["--limit", str(limit)] if limit else [])]
+            "--convention", convention, "--predictors", predictors, "--force", "--every", str(every), *(["--limit", str(limit)] if limit else [])]
     if dask:
         from distributed import LocalCluster
 
@@ -131,7 +177,7 @@ def bench_sweep(path: Path, out: Path, dask: bool, limit: int | None, every: int
         code = run([*argv, "--jobs", "2"])
         wall = time.perf_counter() - s
     cpu = sum(os.times()[:4])  # this process and its finished children (the pool's workers)
-    print(f"sweep (50,100), {convention} convention, {'dask 2 workers' if dask else 'local pool -j 2'}: exit {code}, "
+    print(f"sweep (50,100) {predictors}, {convention} convention, {'dask 2 workers' if dask else 'local pool -j 2'}: exit {code}, "
           f"wall {wall:.0f} s, CPU {cpu:.0f} s, load average after {os.getloadavg()[0]:.1f}")
 
 
@@ -152,6 +198,12 @@ def main() -> None:
     s.add_argument("--limit", type=int)
     s.add_argument("--every", type=int, default=1)
     s.add_argument("--convention", choices=("continuous", "published"), default="continuous")
+    s.add_argument("--predictors", default="oc,cv,ctrv")
+    h = sub.add_parser("horizons")
+    h.add_argument("walking", type=Path)
+    h.add_argument("--pairs", type=Path)
+    h.add_argument("--every", type=int, default=1)
+    h.add_argument("--jobs", type=int, default=2)
     a = ap.parse_args()
     print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} cores, load average "
           f"{', '.join(f'{v:.1f}' for v in os.getloadavg())}")
@@ -159,8 +211,10 @@ def main() -> None:
         bench_windows(a.trajectories, a.n, a.convention)
     elif a.what == "published-floor":
         bench_published_floor(a.trajectories, a.n)
+    elif a.what == "horizons":
+        bench_horizons(a.walking, a.pairs, a.every, a.jobs)
     else:
-        bench_sweep(a.trajectories, a.out, a.dask, a.limit, a.every, a.convention)
+        bench_sweep(a.trajectories, a.out, a.dask, a.limit, a.every, a.convention, a.predictors)
 
 
 if __name__ == "__main__":

@@ -178,7 +178,7 @@ def test_window_separates_into_past_solve_and_coast(convention):
                 else (OCPShape(n_intervals=n_oc - 1), (n_oc - 1) * DT))
     whole = get_ocp(shape).solve(
         x0[:3] - origin, (x0[0] + 1e3, x0[1] + 1e3, 0.0), oc.weights, T, start_velocity=x0[3:], track=past - origin,
-        track_weights=(10.0, 10.0), n_track=n0).check()
+        track_weights=oc.track_weights, n_track=n0).check()
     assert np.abs(whole.U[n0 - 1:]).max() < 1e-5  # the future's optimal controls are zero
     assert np.abs(whole.U[: n0 - 1]).max() > 1e-2  # and the past's are not
     np.testing.assert_allclose(predicted, whole.X[n0 - 1:, :3] + origin, atol=1e-6)

@@ -118,7 +118,11 @@ def test_nan_samples_skip_windows_and_are_counted(cli, tmp_path, traj_file):
     (["--settings", "70:90"], "has 60 samples, fewer than N0 = 70"),
     (["--settings", "ten:20"], "bad setting 'ten:20'"),
     (["--weights", "no-such-preset"], "unknown preset or missing weights file 'no-such-preset'"),
-    (["--predictors", "oc,kalman"], "unknown predictor(s) ['kalman']"),
+    (["--predictors", "oc,kalman"], "--predictors: unknown predictor(s) kalman; use some of oc, cv, ctrv, goal, goal-inferred"),
+    (["--predictors", "goal-inferred", "--candidates", " ; "], "--candidates: the candidate-goal set is empty"),
+    (["--predictors", "goal", "--goal", "25", "0", "1.57"], "--goal (25, 0) lies outside the lab"),
+    (["--predictors", "goal", "--convention", "published"], "goal and goal-inferred are defined under the continuous convention only"),
+    (["--horizons", "0,all"], "--horizons: bad horizon '0'"),
     (["--kind", "average"], "unknown --kind 'average'"),
 ])
 def test_bad_options_exit_2_without_output(cli, tmp_path, traj_file, args, message):
@@ -398,8 +402,9 @@ def test_both_conventions_sit_side_by_side_and_name_themselves(cli, tmp_path, tr
 @pytest.mark.slow
 def test_published_walking_trajectories_under_both_conventions(cli, tmp_path, datasets):
     """Five walking-2020 trials (every 80th) at (50, 100): the OC predictor loses to constant
-    velocity under both conventions; starting each window from rest at 0.1 s per node (published)
-    halves its error against the continuous convention on these walks."""
+    velocity under both conventions; the continuous predictor is the thesis's problem in real time
+    (tracking g (0.1 s / dt)^4, docs/methods.md sec. 7), so the two give nearly the same error (before
+    that fix the continuous one was twice the published one: 0.1767 m, issue 17)."""
     out = tmp_path / "ws"
     assert cli("-q", "import-published", "walking-2020", datasets / "walking-2020", "--out", out)[0] == 0
     m = {}
@@ -410,9 +415,9 @@ def test_published_walking_trajectories_under_both_conventions(cli, tmp_path, da
         m[conv] = pd.read_parquet(out / stage / "predictions.parquet").set_index(["trial", "predictor"])["delta_xy"].unstack()
         assert len(m[conv]) == 5
         assert (m[conv]["oc"] > m[conv]["cv"]).all()
-    assert (m["published"]["oc"] < 0.7 * m["continuous"]["oc"]).all()
+    np.testing.assert_allclose(m["continuous"]["oc"], m["published"]["oc"], rtol=0.15)
     assert m["published"]["oc"].mean() == pytest.approx(0.0895, rel=0.02)  # 2026-11-22; tolerance of an OC solve
-    assert m["continuous"]["oc"].mean() == pytest.approx(0.1767, rel=0.02)
+    assert m["continuous"]["oc"].mean() == pytest.approx(0.0877, rel=0.02)  # 2026-11-24
     np.testing.assert_array_equal(m["published"]["cv"], m["continuous"]["cv"])
 
 
@@ -433,3 +438,26 @@ def test_paper_rows_put_ours_beside_the_paper():
     assert f"{np.std(oc, ddof=1):.3f}" in row
     assert paper_rows(metrics.assign(study="synthetic-walking"), PUBLISHED) == []  # no paper for it
     assert paper_rows(metrics.assign(n0=25), PUBLISHED) == []  # the papers' setting only
+
+
+def test_goal_predictors_and_horizon_sweep_from_the_command_line(cli, tmp_path, traj_file):
+    """goal (the goal given), goal-inferred (two candidates) and cv, with the horizon sweep: its
+    tables, figure and results section; the goal-aware predictions start on the walker."""
+    from cobot_analysis.models.prediction.horizons import GOAL_INFERENCE, HORIZON_ERRORS
+
+    out = tmp_path / "ws"
+    path = traj_file(n_traj=2)
+    code, _, err = cli("predict", "--out", out, "--trajectories", path, "--predictors", "goal,goal-inferred,cv",
+                       "--goal", "1.5", "1.5", "0", "--candidates", "1.5,1.5;-3,-3", "--horizons", "5,20,all", *FAST)
+    assert code == 0, err
+    stage = out / "predict"
+    errors = read_table(stage / "horizon_errors.parquet", HORIZON_ERRORS)
+    assert set(errors["predictor"]) == {"goal", "goal-inferred", "cv"} and set(errors["horizon"]) == {5, 20, -1}
+    assert (errors["n_windows"] > 0).all() and errors["delta_xy"].notna().all()
+    inference = read_table(stage / "goal_inference.parquet", GOAL_INFERENCE)
+    assert len(inference) == 0  # a synthetic study has no design goal to score the inference against
+    assert (stage / "horizons.png").is_file()
+    text = (stage / "results.md").read_text()
+    assert "Prediction error against the horizon" in text and "| whole path |" in text
+    windows = pd.read_parquet(stage / "prediction_windows.parquet")
+    assert set(windows["predictor"].astype(str)) == {"goal", "goal-inferred", "cv"}

@@ -59,17 +59,20 @@ class PredictionResult:
 
 def prediction_config(*, settings: str = DEFAULT_SETTINGS, predictors: str = "oc,cv,ctrv", weights: str | None = None,
                       convention: str | None = None, g0: float = 10.0, g1: float = 10.0, t_oc: float | None = None,
-                      orientation: str = "auto", v_nominal: float = 1.0):
+                      orientation: str = "auto", v_nominal: float = 1.0, goal=None, candidates: str | None = None):
     """The sweep's configuration (``SweepConfig``) from the command line's options; the convention defaults to
-    the one the weights were made under (``presets.weights_convention``; continuous when unknown)."""
+    the one the weights were made under (``presets.weights_convention``; continuous when unknown). ``goal``
+    (x, y, theta) and ``candidates`` ("x,y;x,y") for the goal-aware predictors (docs/methods.md sec. 7.1)."""
     from cobot_analysis import conventions
     from cobot_analysis.models.presets import load_weights, weights_convention
+    from cobot_analysis.models.prediction.goal import check_goal, parse_candidates
     from cobot_analysis.models.prediction.sweep import SweepConfig
 
     conv = conventions.get(convention if convention is not None else weights_convention(weights) or "continuous")
     config = SweepConfig(settings=parse_settings(settings), predictors=tuple(p.strip() for p in predictors.split(",") if p.strip()),
                          weights=weights, g0=g0, g1=g1, t_oc=t_oc, nominal_speed=v_nominal, orientation=orientation,
-                         convention=conv)
+                         convention=conv, goal=None if goal is None else check_goal(goal),
+                         candidates=None if candidates is None else parse_candidates(candidates))
     if "oc" in config.predictors:
         for name in {config.weights_for(e) for e in ("walker", "table")}:
             load_weights(name, "improved")  # unknown preset / bad file: one-line error before any work

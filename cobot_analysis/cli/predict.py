@@ -19,7 +19,10 @@ def predict_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     trajectories: Annotated[Optional[Path], typer.Option("--trajectories", help="trajectories.parquet (default: from preprocess or import-published in OUT).")] = None,
     settings: Annotated[str, typer.Option("--settings", help="(N0, N_OC) pairs in samples, as N0:N_OC,...")] = "25:100,50:100,75:100,50:200",
-    predictors: Annotated[str, typer.Option("--predictors", help="Comma-separated: oc (receding-horizon OC), cv (constant velocity), ctrv (constant turn rate and velocity).")] = "oc,cv,ctrv",
+    predictors: Annotated[str, typer.Option("--predictors", help="Comma-separated: oc (receding-horizon OC), cv (constant velocity), ctrv (constant turn rate and velocity), goal (goal-aware OC, the goal known), goal-inferred (goal-aware OC, the goal inferred among --candidates); docs/methods.md sec. 7.1.")] = "oc,cv,ctrv",
+    goal: Annotated[Optional[tuple[float, float, float]], typer.Option("--goal", metavar="X Y THETA", help="Goal pose (m, m, rad) of the goal predictor, in the study frame, as generate --goal. Default: each trajectory's design goal.")] = None,
+    candidates: Annotated[Optional[str], typer.Option("--candidates", help="Candidate goals of goal-inferred, as x,y;x,y;... Default: the study's goals.")] = None,
+    horizons: Annotated[Optional[str], typer.Option("--horizons", help="Also sweep the horizon at the first setting's N0: samples ahead and/or 'all' (the whole remaining path), e.g. 5,10,25,50,100,200,all (docs/methods.md sec. 7.2).")] = None,
     weights: Annotated[Optional[str], typer.Option("--weights", "-w", help="OC cost weights a0..a3: a preset (walking-2021, table-2022, ...) or a fitted weights.json. Default: walking-2021, and for tables the convention's table preset (published: table-prediction-2022, the authors' predictor; continuous: table-2022).")] = None,
     convention: Annotated[Optional[str], typer.Option("--convention", help="published (the authors' code: one node of 0.1 s per sample, every window from rest, explicit Euler, costs summed per node, cold solves, population sd) or continuous (the real sample period, the start velocity estimated, warm starts, sample sd); docs/methods.md sec. 11. Default: the convention of the weights: published for a preset, the \"convention\" key of a fit-ioc weights.json, else continuous. Stage directory: STAGE-NAME (continuous) or STAGE-NAME-published.")] = None,
     g0: Annotated[float, typer.Option("--g0", min=0.0, help="Weight of the position tracking of the measured past.")] = 10.0,
@@ -50,6 +53,7 @@ def predict_command(
 
     done = predict(out, trajectories=trajectories, settings=settings, predictors=predictors, weights=weights, convention=convention,
                    g0=g0, g1=g1, t_oc=t_oc, orientation=orientation, v_nominal=nominal_speed, studies=study, entities=entity,
-                   kind=kind, limit=limit, every=every, stage_name=stage_name, jobs=jobs, scheduler=scheduler, force=force)
+                   kind=kind, limit=limit, every=every, stage_name=stage_name, jobs=jobs, scheduler=scheduler, force=force,
+                   goal=goal, candidates=candidates, horizons=horizons)
     if not done.skipped:
         finished(f"predict ({done.result.config.convention.name})", done.result.summary(), done.directory)

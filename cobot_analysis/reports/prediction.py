@@ -203,15 +203,16 @@ def figures(metrics, traj, config) -> dict:
     from matplotlib.legend_handler import HandlerTuple
 
     from cobot_analysis.models.prediction.predictor import make_predictor
+    from cobot_analysis.models.prediction.sweep import predictor_options
 
     plt = pyplot()
     n0, n_oc = figure_setting(config)
     preds = {}
     for name in config.predictors:
-        options = {"weights": config.weights_for(traj.entity), "g0": config.g0, "g1": config.g1} if name == "oc" else {}
+        options = predictor_options(name, traj, config)
         preds[name] = make_predictor(name, n0, n_oc, traj.dt, convention=config.convention, **options).predict_offline(traj.seen)
     xy = traj.poses[:, :2]
-    colours = {"oc": "tab:blue", "cv": "tab:orange", "ctrv": "tab:green"}
+    colours = {"oc": "tab:blue", "cv": "tab:orange", "ctrv": "tab:green", "goal": "tab:red", "goal-inferred": "tab:purple"}
     conv = config.convention
     span = np.nanmax(xy, axis=0) - np.nanmin(xy, axis=0)
     aspect = float(np.clip(span[1] / max(span[0], 1e-9), 0.3, 1.5))  # of the equal-aspect path panels

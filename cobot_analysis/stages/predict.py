@@ -23,9 +23,12 @@ def predict(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
             g1: float = 10.0, t_oc: float | None = None, orientation: str = "auto", v_nominal: float = 1.0,
             studies: list[str] | None = None, entities: list[str] | None = None, kind: str = "all", limit: int | None = None,
             every: int = 1, stage_name: str = "predict", jobs: int | None = None, scheduler: str | None = None,
-            force: bool = False) -> Outcome:
+            force: bool = False, goal=None, candidates: str | None = None, horizons: str | None = None) -> Outcome:
     """``predict``: predictions.parquet, prediction_windows.parquet, prediction_summary.parquet,
-    prediction_comparison.parquet, figures and results.md."""
+    prediction_comparison.parquet, figures and results.md; with ``horizons`` also the horizon sweep
+    (``models.prediction.horizons.write_horizons``)."""
+    from cobot_analysis.models.prediction.horizons import parse_horizons
+
     from cobot_analysis import conventions
     from cobot_analysis.models.presets import weights_convention
     from cobot_analysis.models.prediction.sweep import (PREDICTION_COMPARISON, PREDICTION_SUMMARY, PREDICTION_WINDOWS, PREDICTIONS,
@@ -35,7 +38,9 @@ def predict(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
 
     of_weights = weights_convention(weights) or "continuous"
     config = prediction_config(settings=settings, predictors=predictors, weights=weights, convention=convention,
-                                              g0=g0, g1=g1, t_oc=t_oc, orientation=orientation, v_nominal=v_nominal)
+                                              g0=g0, g1=g1, t_oc=t_oc, orientation=orientation, v_nominal=v_nominal,
+                                              goal=goal, candidates=candidates)
+    horizon_list = None if horizons is None else parse_horizons(horizons)
     conv = config.convention
     if not registry.PREDICT_LABEL.fullmatch(stage_name):
         raise InputError(f"--stage-name {stage_name!r} is not a predict stage name", remedy="use predict or predict-<label>, e.g. predict-fitted")
@@ -51,7 +56,7 @@ def predict(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
         warn(f"predict: {len(unpredictable)} trajectories left out, fewer than N0 = {n0_min} consecutive finite positions: "
              + ", ".join(unpredictable[:5]) + (" ..." if len(unpredictable) > 5 else ""))
     params = {"convention": conv.name, "config": config.params(), "study": studies, "entity": entities, "kind": kind,
-              "limit": limit, "every": every}
+              "limit": limit, "every": every, "horizons": horizon_list}
     work = WorkDir(Path(out) / WORK)  # shared by every sweep: its results are keyed by trajectory, setting and options
     with Stage(out, directory, inputs=[path, *inputs], params=params, force=force) as stage:
         if stage.skipped:
@@ -89,5 +94,24 @@ def predict(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
                 warn(f"predict: no table of both conventions ({exc})")
             else:
                 text += "\n" + "\n".join(report.conventions_markdown(both) + ["", f"From this stage and `{other.name}`."]) + "\n"
+        if horizon_list:
+            text += "\n" + "\n".join(write_horizons(stage, trajs, config, horizon_list, jobs=jobs, scheduler=scheduler)) + "\n"
         stage.path("results.md").write_text(text)
     return Outcome(stage.final_dir, result)
+
+
+def write_horizons(stage, trajectories, config, horizons, *, jobs: int | None = None, scheduler: str | None = None) -> list[str]:
+    """The horizon sweep (docs/methods.md sec. 7.2) at the first setting's N0 into ``stage``:
+    ``horizon_errors.parquet``, ``horizon_summary.parquet``, ``goal_inference.parquet``, figure ``horizons``;
+    returns the results fragment."""
+    from cobot_analysis.models.prediction.horizons import (GOAL_INFERENCE, HORIZON_ERRORS, HORIZON_SUMMARY, horizon_summary,
+                                                           horizon_sweep)
+    from cobot_analysis.reports.horizons import horizon_figure, horizon_markdown
+    n0 = config.settings[0][0]
+    errors, inference = horizon_sweep(trajectories, config, n0, horizons, jobs=jobs, scheduler=scheduler)
+    summary = horizon_summary(errors)
+    stage.write_table("horizon_errors.parquet", errors, HORIZON_ERRORS, convention=config.convention.name)
+    stage.write_table("horizon_summary.parquet", summary, HORIZON_SUMMARY, convention=config.convention.name)
+    stage.write_table("goal_inference.parquet", inference, GOAL_INFERENCE, convention=config.convention.name)
+    stage.savefig(horizon_figure(summary), "horizons")
+    return horizon_markdown(summary, inference)

@@ -25,13 +25,16 @@ from cobot_analysis.errors import InputError
 from cobot_analysis.models.dynamics import coast
 from cobot_analysis.models.prediction.base import Predictor
 
-PREDICTORS = ("oc", "cv", "ctrv")
+PREDICTORS = ("oc", "cv", "ctrv", "goal", "goal-inferred")
 
 
 def make_predictor(name: str, n0: int, n_oc: int, dt: float = 1.0, *, convention="continuous", **options) -> Predictor:
     """A predictor by name: ``oc`` (options: weights, g0, g1, ...; ``convention``, docs/methods.md
-    sec. 11), ``cv`` or ``ctrv`` (one step per sample: the same under both conventions)."""
+    sec. 11), ``cv`` or ``ctrv`` (one step per sample: the same under both conventions), ``goal``
+    (options: goal, weights) or ``goal-inferred`` (options: candidates, weights), docs/methods.md
+    sec. 7.1, continuous convention only."""
     from cobot_analysis.models.prediction.baselines import ConstantTurnRateVelocity, ConstantVelocity
+    from cobot_analysis.models.prediction.goal import GoalInferencePredictor, GoalPredictor
 
     if name == "cv":
         return ConstantVelocity(n0, n_oc, dt)
@@ -39,7 +42,15 @@ def make_predictor(name: str, n0: int, n_oc: int, dt: float = 1.0, *, convention
         return ConstantTurnRateVelocity(n0, n_oc, dt)
     if name == "oc":
         return OCPredictor(n0, n_oc, dt, convention=convention, **options)
-    raise InputError(f"unknown predictor {name!r}", remedy=f"use one of {', '.join(PREDICTORS)}")
+    if name in ("goal", "goal-inferred"):
+        from cobot_analysis import conventions
+
+        if conventions.get(convention).name != "continuous":
+            raise InputError(f"the {name} predictor is ours, defined under the continuous convention only",
+                             remedy="pass --convention continuous or leave it out of --predictors")
+        cls = GoalPredictor if name == "goal" else GoalInferencePredictor
+        return cls(n0, n_oc, dt, **options)
+    raise InputError(f"--predictors: unknown predictor {name!r}", remedy=f"use some of {', '.join(PREDICTORS)}")
 
 
 class OCPredictor(Predictor):
@@ -71,6 +82,14 @@ class OCPredictor(Predictor):
       cold solves, the Euler coast ``x_{j+1} = x_j + 0.1 R(theta_j) v``, ``theta_{j+1} = theta_j + 0.1 omega``.
 
     Under both the window separates (same argument: no state cost on the future).
+
+    Tracking weights, continuous. The thesis's problem (published convention) makes each sample a node
+    of h = 0.1 s and sums ``a1 u^2 + g0 e^2`` per node. Written in real time (sample period dt, time
+    stretched by h / dt), its controls are ``u = u_real (dt / h)^2``, so the same optimum in the
+    continuous form ``sum dt [a1 u_real^2 + g0' e^2]`` needs ``g0' = g0 (h / dt)^4`` (g1 likewise).
+    Integrating the thesis's g0 = 10 as a rate instead (as before) made the tracking so light that the
+    window's estimate at sample k was the coast of the window's start state, 4-11 cm off the measured
+    pose, and the further off the longer the window N0: an error that grew as the horizon shrank.
 
     Initial state, continuous (node 0 = the measured pose C_{n+1}; "at rest" is not assumed): the velocities are
     the derivative at node 0 of a least-squares quadratic through the first ``fit`` measured poses
@@ -112,13 +131,17 @@ class OCPredictor(Predictor):
         w = load_weights(weights, "improved")
         # running control cost only: no bearing, goal or heading terms, no terminal cost (free end)
         self.weights = np.array([w["a0"], w["a1"], w["a2"], w["a3"]] + [0.0] * 7)
-        self.track_weights = (float(g0), float(g1))
+        self.g = (float(g0), float(g1))
         self.fit = int(fit)
         self.warm_start = rule.warm_start if warm_start is None else bool(warm_start)
         # the measured past (see above)
         self.ocp = get_ocp(OCPShape(n_intervals=n0 - 1, tol=tol, solver=solver, scheme=self.scheme))
         super().__init__(n0, n_oc, dt)
         self.step = float(rule.node_dt) if rule.node_dt is not None else self.dt  # seconds per node
+        # g0, g1 are the thesis's weights per node of its 0.1 s step; in real time (continuous) the same
+        # problem tracks with g (h / dt)^4 against the integrated control costs (see the class docstring)
+        scale = 1.0 if rule.node_dt is not None else (conventions.PUBLISHED.prediction.node_dt / self.step) ** 4
+        self.track_weights = (self.g[0] * scale, self.g[1] * scale)
         # derivative at t = 0 of the least-squares quadratic c0 + c1 t + c2 t^2 through the first
         # ``fit`` samples of a window: c1 = d . p (a fixed filter, computed once)
         t = np.arange(min(self.fit, self.n0)) * self.step

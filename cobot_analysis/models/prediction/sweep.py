@@ -45,6 +45,7 @@ from cobot_analysis.conventions import CONTINUOUS, Convention
 from cobot_analysis.errors import InputError
 from cobot_analysis.models.prediction.errors import summarise, window_errors
 from cobot_analysis.models.prediction.base import check_setting
+from cobot_analysis.models.prediction.goal import check_candidates, check_goal
 from cobot_analysis.models.prediction.predictor import PREDICTORS, make_predictor
 from cobot_analysis.schema import Column, TableSchema
 
@@ -75,7 +76,8 @@ PREDICTIONS = TableSchema(
         "global_distance": Column("float", "m", "straight-line distance start -> end of the trajectory"),
         "n0": Column("int", "-", "N0: measured past samples tracked by a window"),
         "n_oc": Column("int", "-", "N_OC: samples of the OC window (past + future)"),
-        "predictor": Column("string", "", "oc (receding-horizon OC), cv (constant velocity), ctrv (constant turn rate and velocity)"),
+        "predictor": Column("string", "", "oc (receding-horizon OC), cv (constant velocity), ctrv (constant turn rate and velocity), "
+                                          "goal / goal-inferred (goal-aware OC, docs/methods.md sec. 7.1)"),
         "weights": Column("string", "", "OC cost weights (preset or file); empty for baselines"),
         "t_oc": Column("float", "s", "seconds per OC node: the sample period (continuous) or 0.1 s (published)"),
         "sample_period": Column("float", "s", "sample period of the (resampled) trajectory: duration / (N - 1) or --t-oc"),
@@ -122,7 +124,7 @@ class SweepConfig:
     """What is swept and how (the stage parameters)."""
 
     settings: tuple[tuple[int, int], ...] = DEFAULT_SETTINGS
-    predictors: tuple[str, ...] = PREDICTORS
+    predictors: tuple[str, ...] = ("oc", "cv", "ctrv")  # the goal-aware predictors on request (they need goals)
     weights: str | None = None  # OC weights: preset or weights file; None = walking-2021, table-2022 for tables
     g0: float = 10.0
     g1: float = 10.0
@@ -130,13 +132,23 @@ class SweepConfig:
     nominal_speed: float = NOMINAL_SPEED
     orientation: str = "auto"  # track theta: "auto" (unless flagged), "track" (wherever present), "ignore"
     convention: Convention = CONTINUOUS  # docs/methods.md sec. 11
+    goal: tuple[float, float, float] | None = None  # goal of the goal predictor; None: each trajectory's design goal
+    candidates: tuple[tuple[float, float], ...] | None = None  # goal-inferred's candidates; None: the study's goals
 
     def __post_init__(self) -> None:
         for n0, n_oc in self.settings:
             check_setting(n0, n_oc)
         unknown = [p for p in self.predictors if p not in PREDICTORS]
         if unknown or not self.predictors:
-            raise InputError(f"unknown predictor(s) {unknown}", remedy=f"use some of {', '.join(PREDICTORS)}")
+            raise InputError(f"--predictors: unknown predictor(s) {', '.join(unknown) or '(none given)'}",
+                             remedy=f"use some of {', '.join(PREDICTORS)}")
+        if {"goal", "goal-inferred"} & set(self.predictors) and self.convention.name != "continuous":
+            raise InputError("--predictors: goal and goal-inferred are defined under the continuous convention only",
+                             remedy="pass --convention continuous or leave them out of --predictors")
+        if self.goal is not None:
+            check_goal(self.goal)
+        if self.candidates is not None:
+            check_candidates(self.candidates)
         if self.t_oc is not None and not self.t_oc > 0:
             raise InputError(f"T_OC must be positive (got {self.t_oc})", remedy="pass a positive --t-oc")
         if self.orientation not in ORIENTATION_MODES:
@@ -166,6 +178,7 @@ class Trajectory:
     duration_source: str
     track_theta: bool = True  # the predictors see the measured orientation
     meta: dict = field(default_factory=dict)  # kind, condition, subject, start_orientation, global_distance
+    goal: tuple[float, float, float] | None = None  # the design goal (goal-aware predictors), see goal.design_goal
 
     @property
     def seen(self) -> np.ndarray:
@@ -211,6 +224,7 @@ def trajectories_from_table(df: pd.DataFrame, config: SweepConfig, path: str | o
     trajectory shorter than the largest N0.
     """
     from cobot_analysis.design import walking_condition
+    from cobot_analysis.models.prediction.goal import design_goal
 
     if df.empty:
         raise InputError("no trajectory to predict (empty selection)", path=path, remedy="check --only-study / --entity / --kind")
@@ -257,7 +271,9 @@ def trajectories_from_table(df: pd.DataFrame, config: SweepConfig, path: str | o
         flags = set(str(first.get("quality") or "").split(";"))
         has_theta = bool(np.isfinite(poses[:, 2]).any())
         track = has_theta and (config.orientation == "track" or (config.orientation == "auto" and not flags & set(ORIENTATION_FLAGS)))
-        out.append(Trajectory(str(study), str(trial), str(entity), poses, float(dt), float(duration), source, track, meta))
+        goal = design_goal(str(study), {"condition": condition, "direction": first.get("direction"),
+                                        "end_orientation": first.get("end_orientation")})
+        out.append(Trajectory(str(study), str(trial), str(entity), poses, float(dt), float(duration), source, track, meta, goal))
     return out
 
 
@@ -268,6 +284,26 @@ def predictable_windows(traj: Trajectory, n0: int) -> int:
 
 
 # ---- one trajectory ---------------------------------------------------------------------------
+def predictor_options(name: str, traj: Trajectory, config: SweepConfig) -> dict:
+    """``make_predictor`` options of ``name`` for ``traj``: weights, tracking weights (oc), the design
+    goal (goal) or the study's candidate goals (goal-inferred)."""
+    from cobot_analysis.models.prediction.goal import study_candidates
+
+    if name == "oc":
+        return {"weights": config.weights_for(traj.entity), "g0": config.g0, "g1": config.g1}
+    if name == "goal":
+        if config.goal is not None:
+            return {"weights": config.weights_for(traj.entity), "goal": config.goal}
+        if traj.goal is None:
+            raise InputError(f"trajectory {traj.label} has no design goal for the goal-aware predictor",
+                             remedy="leave 'goal' out of --predictors for this study, or use goal-inferred")
+        return {"weights": config.weights_for(traj.entity), "goal": traj.goal}
+    if name == "goal-inferred":
+        cands = config.candidates if config.candidates is not None else study_candidates(traj.study)
+        return {"weights": config.weights_for(traj.entity), "candidates": cands}
+    return {}
+
+
 def predict_trajectory(traj: Trajectory, config: SweepConfig) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Every setting and predictor on one trajectory: (metrics rows, per-window rows).
 
@@ -287,7 +323,7 @@ def predict_trajectory(traj: Trajectory, config: SweepConfig) -> tuple[pd.DataFr
     runs = {}  # (N0, predictor) -> (predictions over the longest horizon, skipped, failed, options)
     for n0, n_oc in longest.items():
         for name in config.predictors:
-            options = {"weights": config.weights_for(traj.entity), "g0": config.g0, "g1": config.g1} if name == "oc" else {}
+            options = predictor_options(name, traj, config)
             predictor = make_predictor(name, n0, n_oc, traj.dt, convention=conv, **options)
             runs[n0, name] = (predictor.predict_offline(traj.seen), predictor.skipped, predictor.failed, options)
     for n0, n_oc in config.settings:
@@ -337,10 +373,10 @@ def code_digest() -> str:
     from cobot_analysis import __version__
     from cobot_analysis.models import dynamics, presets
     from cobot_analysis.models.oc import problem
-    from cobot_analysis.models.prediction import base, baselines, errors, predictor
+    from cobot_analysis.models.prediction import base, baselines, errors, goal, predictor
 
     h = hashlib.sha256(__version__.encode())
-    for mod in (base, baselines, dynamics, problem, predictor, errors, presets):
+    for mod in (base, baselines, dynamics, problem, predictor, goal, errors, presets):
         h.update(Path(mod.__file__).read_bytes())
     return h.hexdigest()[:12]
 

@@ -1,0 +1,298 @@
+"""Goal-aware prediction (docs/methods.md sec. 7.1): at each window, the walking model's OC from the
+current state estimate to the goal, re-planned every window, read at the person's own pace.
+
+Window at sample k (the measured past ``C_{k-N0+1} .. C_k``):
+
+1. State estimate (``state_estimate``): the least-squares quadratic through the last ``fit`` poses
+   (x, y, unwrapped heading), evaluated at sample k: position, world velocity ``(x', y')``, heading and
+   its rate, rotated into the walker frame
+   ``v_forw = cos(th) x' + sin(th) y'``, ``v_orth = -sin(th) x' + cos(th) y'``, ``omega = th'``. The
+   heading is the direction of travel (so v_orth = 0), even where theta was measured: the measured
+   pelvis orientation of walking-2020 swings with the gait at up to 50 rad/s, which put into the
+   start state (omega) curls the plan.
+2. Plan: the improved OC of docs/methods.md sec. 5.5 (continuous convention: integrated running cost,
+   exact-in-time step, free duration, ``models.oc.problem``) on ``N_INTERVALS`` intervals from that
+   state (pose *and* velocity: the path starts at the measured speed) to the goal; warm-started from the
+   previous window's plan. The goal heading is put on the branch nearest the current heading.
+3. Read at the person's pace: the plan's path (cubic Hermite in x, y, theta between its nodes) walked
+   at the measured speed ``v_k = sqrt(v_forw^2 + v_orth^2)``: prediction j (sample k + j) is the plan's
+   pose at arc length ``min(j T_s v_k, L)``, ``L`` the plan's length (the walker stops at its end). The
+   plan's own time law is not used: under the continuous convention with the published weights it is
+   not a human one (docs/methods.md sec. 11); only its path is.
+
+Candidate goals (``GoalInferencePredictor``, the goal not known): the same plan towards every candidate
+g in G, every window. The candidates are positions (their heading unknown: the terminal heading cost b1
+is dropped). The evidence for g at window k is how well the plan towards g made at the oldest sample
+j0 still in the window (``j0 = max(k - N0 + 1, N0 - 1)``) explains the samples measured since:
+``d_g = (1/(k - j0 + 1)) sum_{i=j0..k} ||c_i - x*_g,i||`` and
+``p(g | past) = exp(-d_g^2 / 2 sigma^2) / sum_g' exp(-d_g'^2 / 2 sigma^2)``, recomputed window after
+window (uniform at the first window). ``sigma = SIGMA`` m, the size of the improved OC's path error
+against human paths (docs/methods.md sec. 5.5: d_xy about 0.08 m). The prediction is the plan
+towards the most probable goal.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+import numpy as np
+
+from cobot_analysis.errors import InputError
+from cobot_analysis.models.prediction.base import Predictor
+
+N_INTERVALS = 20  # intervals of the plan: one solve per window, warm-started
+SIGMA = 0.08  # m: path error of the improved OC against human paths (docs/methods.md sec. 5.5)
+LAB_EXTENT = 10.0  # m: |x|, |y| of a goal in the studies' frames (their paths lie within 6 m of the origin)
+ARRIVED = 0.01  # m: closer to the goal than this the walker is predicted to stay
+DENSE = 200  # points of the plan's arc-length table
+MIN_SPEED = 0.05  # m/s: below this the duration guess uses this speed
+
+
+def check_goal(goal, option: str = "--goal") -> tuple[float, float, float]:
+    """A goal pose (x, y, theta) inside the lab (``LAB_EXTENT``), else ``InputError``."""
+    g = tuple(float(v) for v in goal)
+    if len(g) == 2:
+        g = (*g, float("nan"))
+    if len(g) != 3 or not (math.isfinite(g[0]) and math.isfinite(g[1])):
+        raise InputError(f"{option} {goal!r} is not a goal x, y[, theta]", remedy=f"pass {option} as x,y or x,y,theta in metres and radians")
+    if abs(g[0]) > LAB_EXTENT or abs(g[1]) > LAB_EXTENT:
+        raise InputError(f"{option} ({g[0]:g}, {g[1]:g}) lies outside the lab (|x|, |y| <= {LAB_EXTENT:g} m in the study frame)",
+                         remedy=f"give a goal in the study's frame, within {LAB_EXTENT:g} m of its origin")
+    return g
+
+
+def check_candidates(candidates, option: str = "--candidates") -> np.ndarray:
+    """Candidate goal positions (M, 2), M >= 1, each inside the lab."""
+    cands = [check_goal(c, option)[:2] for c in (() if candidates is None else candidates)]
+    if not cands:
+        raise InputError(f"{option}: the candidate-goal set is empty", remedy="give at least one candidate goal x,y (or use the goal-known predictor 'goal')")
+    return np.array(cands, dtype=float)
+
+
+def quadratic_fit(n: int, dt: float) -> np.ndarray:
+    """(2, n) filter: rows give the value and the derivative at the last of ``n`` samples ``dt`` apart
+    of the least-squares quadratic (a line when n < 3)."""
+    t = (np.arange(n) - (n - 1)) * dt
+    pinv = np.linalg.pinv(np.vander(t, min(3, n), increasing=True))
+    return pinv[:2]
+
+
+def state_estimate(past: np.ndarray, filt: np.ndarray, travel: bool = False) -> np.ndarray:
+    """X_k = (x, y, theta, v_forw, v_orth, omega) at the last sample of ``past`` (see module docstring);
+    ``travel``: theta is the direction of travel (v_orth = 0) even where it was measured."""
+    m = filt.shape[1]
+    p = past[-m:]
+    if np.isfinite(p[:, 2]).all() and not travel:
+        angles = np.unwrap(p[:, 2])
+    else:  # direction of travel
+        angles = np.unwrap(np.arctan2(np.gradient(p[:, 1]), np.gradient(p[:, 0])))
+    (x, vx), (y, vy), (th, om) = filt @ p[:, 0], filt @ p[:, 1], filt @ angles
+    c, s = math.cos(th), math.sin(th)
+    return np.array([x, y, th, c * vx + s * vy, -s * vx + c * vy, om])
+
+
+class Planner:
+    """The improved OC from a state to a goal, warm-started from its previous plan (module docstring, 2-3)."""
+
+    def __init__(self, weights: np.ndarray, dt: float, n_intervals: int = N_INTERVALS, tol: float = 1e-6):
+        from cobot_analysis.models.oc.problem import OCPShape, get_ocp
+
+        self.ocp = get_ocp(OCPShape(n_intervals=n_intervals, free_time=True, tol=tol))
+        self.weights, self.dt = weights, float(dt)
+        self._warm: np.ndarray | None = None
+
+    def reset(self) -> None:
+        self._warm = None
+
+    def plan(self, x0: np.ndarray, goal) -> "object | None":
+        """The OC solution from ``x0`` to ``goal`` (heading on the branch nearest x0's), or None if it failed."""
+        gth = goal[2]
+        if math.isfinite(gth):
+            gth = x0[2] + math.remainder(gth - x0[2], 2 * math.pi)
+        else:
+            gth = x0[2]  # heading unknown: no cost on it (b1 = 0 in the weights)
+        dist = math.hypot(goal[0] - x0[0], goal[1] - x0[1])
+        speed = max(math.hypot(x0[3], x0[4]), MIN_SPEED)
+        T0 = max(dist / speed, 10 * self.dt)
+        guess = self._warm if self._warm is not None else "rest"
+        sol = self.ocp.solve(x0[:3], (goal[0], goal[1], gth), self.weights, T0, guess=guess, start_velocity=x0[3:])
+        if not sol.success and self._warm is not None:  # a stale warm start: once more from rest
+            sol = self.ocp.solve(x0[:3], (goal[0], goal[1], gth), self.weights, T0, guess="rest", start_velocity=x0[3:])
+        self._warm = sol.primal if sol.success else None
+        return sol if sol.success else None
+
+    def read(self, sol, horizon: int, speed: float) -> np.ndarray:
+        """Poses j = 0..horizon of the plan walked at ``speed`` (m/s): at arc length ``min(j dt speed, L)``."""
+        dense = self._at(sol, np.linspace(0.0, sol.T, DENSE + 1))
+        s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(dense[:, :2], axis=0).T))])
+        sj = np.minimum(np.arange(horizon + 1) * self.dt * speed, s[-1])
+        return np.column_stack([np.interp(sj, s, dense[:, c]) for c in range(3)])
+
+    def _at(self, sol, tt: np.ndarray) -> np.ndarray:
+        """The plan's poses at the times ``tt`` (cubic Hermite in x, y, theta with the plan's velocities)."""
+        from cobot_analysis.models.dynamics import world_velocity
+
+        X = sol.X
+        t = np.linspace(0.0, sol.T, X.shape[0])
+        horizon = len(tt) - 1
+        vx, vy = world_velocity(X[:, 2], X[:, 3], X[:, 4])
+        out = np.empty((horizon + 1, 3))
+        i = np.clip(np.searchsorted(t, tt, side="right") - 1, 0, len(t) - 2)
+        h = t[i + 1] - t[i]
+        s = (tt - t[i]) / h
+        h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
+        for col, d in ((0, vx), (1, vy), (2, X[:, 5])):
+            v = X[:, col]
+            out[:, col] = h00 * v[i] + h10 * h * d[i] + h01 * v[i + 1] + h11 * h * d[i + 1]
+        return out
+
+
+def _weights(weights, entity_default: str = "walking-2021", heading: bool = True) -> np.ndarray:
+    from cobot_analysis.models.presets import load_weights, weights_vector
+
+    w = weights_vector(load_weights(weights or entity_default, "improved"), "improved")
+    if not heading:
+        w[8] = 0.0  # b1: the goal heading is unknown
+    return w
+
+
+class GoalPredictor(Predictor):
+    """Goal known: the plan from the state estimate at k to ``goal`` (module docstring)."""
+
+    name = "goal"
+    min_past = 3
+
+    def __init__(self, n0: int, n_oc: int, dt: float = 1.0, *, goal=None, weights: str | None = "walking-2021",
+                 fit: int = 5, n_intervals: int = N_INTERVALS):
+        if goal is None:
+            raise InputError("the goal-aware predictor needs a goal", remedy="pass --goal x,y,theta or use goal-inferred with --candidates")
+        self.goal = check_goal(goal)
+        super().__init__(n0, n_oc, dt)
+        self.filter = quadratic_fit(min(int(fit), self.n0), self.dt)
+        self.planner = Planner(_weights(weights, heading=math.isfinite(self.goal[2])), self.dt, n_intervals)
+
+    def reset(self) -> None:
+        super().reset()
+        if hasattr(self, "planner"):
+            self.planner.reset()
+
+    def on_skip(self) -> None:
+        self.planner.reset()
+
+    def predict(self, past: np.ndarray) -> np.ndarray | None:
+        x0 = state_estimate(past, self.filter, travel=True)
+        return plan_path(self.planner, x0, self.goal, self.horizon)
+
+
+def plan_path(planner: Planner, x0: np.ndarray, goal, horizon: int) -> np.ndarray | None:
+    """(horizon + 1, 3) predicted poses from x0 towards goal; x0's pose held when already at the goal."""
+    if math.hypot(goal[0] - x0[0], goal[1] - x0[1]) < ARRIVED:
+        return np.repeat(x0[None, :3], horizon + 1, axis=0)
+    sol = planner.plan(x0, goal)
+    return None if sol is None else planner.read(sol, horizon, math.hypot(x0[3], x0[4]))
+
+
+class GoalInferencePredictor(Predictor):
+    """Goal one of ``candidates`` (positions), inferred from the measured past (module docstring).
+
+    After each window: ``posterior`` (M,) holds p(g | past); ``history`` lists (k, posterior) per window.
+    """
+
+    name = "goal-inferred"
+    min_past = 3
+
+    def __init__(self, n0: int, n_oc: int, dt: float = 1.0, *, candidates=None, weights: str | None = "walking-2021",
+                 fit: int = 5, sigma: float = SIGMA, n_intervals: int = N_INTERVALS, goal=None):
+        self.candidates = check_candidates(candidates)
+        super().__init__(n0, n_oc, dt)
+        self.sigma = float(sigma)
+        self.filter = quadratic_fit(min(int(fit), self.n0), self.dt)
+        w = _weights(weights, heading=False)
+        self.planners = [Planner(w, self.dt, n_intervals) for _ in self.candidates]
+        self._length = max(self.horizon, self.n0)  # a plan long enough to cover a whole past window later
+
+    def reset(self) -> None:
+        super().reset()
+        for p in getattr(self, "planners", ()):
+            p.reset()
+        self._k = -1
+        self._plans: deque = deque()  # (sample, (M, L + 1, 2) plans)
+        self.posterior = None
+        self.history: list[tuple[int, np.ndarray]] = []
+
+    def update(self, pose) -> np.ndarray | None:
+        self._k += 1
+        return super().update(pose)
+
+    def on_skip(self) -> None:
+        for p in self.planners:
+            p.reset()
+        self._plans.clear()
+
+    def predict(self, past: np.ndarray) -> np.ndarray | None:
+        k = self._k
+        x0 = state_estimate(past, self.filter, travel=True)
+        paths = [plan_path(p, x0, (g[0], g[1], float("nan")), self._length) for p, g in zip(self.planners, self.candidates)]
+        ok = np.array([p is not None for p in paths])
+        if not ok.any():
+            return None
+        plans = np.stack([p[:, :2] if p is not None else np.full((self._length + 1, 2), np.nan) for p in paths])
+        self._plans.append((k, plans))
+        while self._plans and self._plans[0][0] < k - self.n0 + 1:
+            self._plans.popleft()
+        j0, old = self._plans[0]
+        seen = past[len(past) - (k - j0 + 1):, :2]  # samples j0..k
+        d = np.nanmean(np.hypot(*(old[:, : k - j0 + 1] - seen[None]).transpose(2, 0, 1)), axis=1)
+        d = np.where(np.isfinite(d) & ok, d, np.inf)
+        logp = -0.5 * (d / self.sigma) ** 2
+        logp -= logp.max()
+        post = np.exp(logp)
+        self.posterior = post / post.sum()
+        self.history.append((k, self.posterior.copy()))
+        return paths[int(np.argmax(self.posterior))][: self.horizon + 1]
+
+
+# ---- the studies' goals ---------------------------------------------------------------------------
+def design_goal(study: str, meta: dict) -> tuple[float, float, float] | None:
+    """The goal a trajectory walks to, from the study design (docs/methods.md sec. 1): the walking
+    goal (0, 0, pi/2); for the pair study's table, the goal position with the trial's end orientation
+    (forward) or the start pose (return). None when the design gives none."""
+    from cobot_analysis.design import GOAL_POSITIONS, PAIR_GOALS, WALKING_GOAL
+
+    if study.startswith("walking"):
+        return WALKING_GOAL
+    stem = str(meta.get("condition") or "")
+    goal = next((g for g in PAIR_GOALS if g.stem == stem), None)
+    if goal is None:
+        return None
+    if meta.get("direction") == "return":
+        return goal.start_pose
+    end = meta.get("end_orientation")
+    theta = float(end) if end is not None and np.isfinite(end) else float("nan")
+    return (*GOAL_POSITIONS[stem.split("_")[1]], theta)
+
+
+def study_candidates(study: str) -> np.ndarray:
+    """Candidate goal positions of a study: the pair study's goal positions and its start (the
+    return paths' goal); the walking study's single goal."""
+    from cobot_analysis.design import GOAL_POSITIONS, WALKING_GOAL
+
+    if study.startswith("walking"):
+        return np.array([WALKING_GOAL[:2]])
+    return np.array([(0.0, 0.0), *GOAL_POSITIONS.values()])
+
+
+def parse_goal(text: str, option: str = "--goal") -> tuple[float, float, float]:
+    """``"x,y[,theta]"`` -> a checked goal (``check_goal``)."""
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise InputError(f"{option} {text!r} is not x,y[,theta]", remedy=f"write {option} as numbers, e.g. 0,0,1.5708") from None
+    return check_goal(values, option)
+
+
+def parse_candidates(text: str, option: str = "--candidates") -> tuple[tuple[float, float], ...]:
+    """``"x,y;x,y;..."`` -> checked candidate positions (``check_candidates``)."""
+    parts = [p for p in (q.strip() for q in text.split(";")) if p]
+    return tuple(tuple(c) for c in check_candidates([parse_goal(p, option)[:2] for p in parts], option))

@@ -1,0 +1,116 @@
+"""The continuous OC predictor's first point and its error against the horizon (issue 17 point 3),
+and the goal-aware predictors (docs/methods.md sec. 7.1) on analytic walks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cobot_analysis.errors import InputError
+from cobot_analysis.models.prediction.goal import check_candidates, check_goal, parse_candidates, quadratic_fit, state_estimate
+from cobot_analysis.models.prediction.horizons import WHOLE, parse_horizons, wins_from
+from cobot_analysis.models.prediction.errors import summarise, window_errors
+from cobot_analysis.models.prediction.predictor import make_predictor
+
+DT = 0.01
+
+
+def walk(kind: str, n: int = 260) -> np.ndarray:
+    """A walk sampled every DT: ``straight`` along x speeding up from 0.8 to 1.8 m/s with a 2 cm, 1 Hz lateral sway (the
+    gait's), the heading along the path; ``curved``: a 1.5 m-radius arc walked at 1 +- 0.2 m/s."""
+    t = np.arange(n) * DT
+    if kind == "straight":
+        x, y = 0.8 * t + 0.2 * t**2 - 1.3, 0.02 * np.sin(2 * np.pi * t)
+    else:
+        s = t + 0.2 * np.sin(2 * np.pi * t / 2.6) * 2.6 / (2 * np.pi)  # speed 1 + 0.2 cos(...)
+        x, y = 1.5 * np.cos(s / 1.5), 1.5 * np.sin(s / 1.5)
+    th = np.unwrap(np.arctan2(np.gradient(y), np.gradient(x)))
+    return np.c_[x, y, th]
+
+
+@pytest.mark.parametrize("kind", ["straight", "curved"])
+def test_continuous_oc_predictor_starts_on_the_walker(kind):
+    """The first predicted point is the state estimate at sample k: on the measured pose to the mm
+    (it was 4-11 cm off on the walking data when the tracking cost was integrated as a rate)."""
+    poses = walk(kind)
+    for n0 in (25, 75):
+        P = make_predictor("oc", n0, 100, DT).predict_offline(poses)
+        offset = np.hypot(*(P[:, 0, :2] - poses[n0 - 1:, :2]).T)
+        assert np.median(offset) <= 5e-3 and offset.max() < 1e-2  # the issue's target: median <= 5 mm
+
+
+@pytest.mark.parametrize("kind", ["straight", "curved"])
+def test_continuous_oc_predictor_error_shrinks_with_the_horizon(kind):
+    poses = walk(kind)
+    d = [summarise(window_errors(poses, make_predictor("oc", n0, 100, DT).predict_offline(poses), n0)).delta_xy
+         for n0 in (25, 50, 75)]
+    assert d[0] > d[1] > d[2]
+    assert d[2] < d[0] / 2  # a third of the horizon: less than half the error
+
+
+def test_state_estimate_is_exact_on_a_quadratic():
+    t = np.arange(10) * DT
+    past = np.c_[1 + 2 * t + t**2, -t, 0.3 + 0.5 * t]
+    x = state_estimate(past, quadratic_fit(5, DT))
+    vx, vy = 2 + 2 * t[-1], -1.0
+    th = 0.3 + 0.5 * t[-1]
+    np.testing.assert_allclose(x, [past[-1, 0], past[-1, 1], th, np.cos(th) * vx + np.sin(th) * vy,
+                                   -np.sin(th) * vx + np.cos(th) * vy, 0.5], atol=1e-9)
+
+
+def straight_to_goal(n: int = 300, speed: float = 1.0) -> np.ndarray:
+    """Along the x axis at ``speed`` from x = -n DT speed to the goal (0, 0), heading 0."""
+    x = (np.arange(n) - (n - 1)) * DT * speed
+    return np.c_[x, np.zeros(n), np.zeros(n)]
+
+
+def test_goal_predictor_follows_a_straight_walk_to_its_goal():
+    poses = straight_to_goal()
+    p = make_predictor("goal", 20, 20 + 280, DT, goal=(0.0, 0.0, 0.0))
+    P = p.predict_offline(poses)
+    assert p.failed == 0
+    np.testing.assert_allclose(P[:, 0, :2], poses[19:, :2], atol=1e-9)  # starts on the walker
+    assert np.nanmax(np.abs(P[..., 1])) < 1e-3  # stays on the line to the goal
+    m = summarise(window_errors(poses, P, 20))
+    # over the whole remaining path (up to 2.8 m); what is left is the plan's end, short of its goal
+    # (0.24 m from 2.8 m away: the continuous OC with the published weights, issue 17 point 1)
+    assert m.delta_xy < 0.05 and m.ade < 0.015
+    assert np.hypot(*P[0, -1, :2]) < 0.25
+
+
+def test_goal_inferred_finds_the_goal_walked_to():
+    """Two candidates, straight ahead and 90 degrees to the left: walking straight makes the goal
+    ahead the most probable one as soon as the plans made from the walker's past have diverged."""
+    poses = straight_to_goal()
+    p = make_predictor("goal-inferred", 30, 80, DT, candidates=[(0.0, 0.0), (-2.0, 1.5)])
+    p.predict_offline(poses)
+    k, post = zip(*p.history)
+    post = np.array(post)
+    assert np.all(post[:, 0] >= post[:, 1] - 1e-9)
+    assert post[len(post) // 2:, 0].min() > 0.8
+
+
+def test_goal_predictors_bad_input():
+    with pytest.raises(InputError, match="the candidate-goal set is empty"):
+        check_candidates([])
+    with pytest.raises(InputError, match="--candidates: the candidate-goal set is empty"):
+        parse_candidates(" ; ")
+    with pytest.raises(InputError, match=r"--goal \(0, -12\) lies outside the lab"):
+        check_goal((0, -12, 0))
+    with pytest.raises(InputError, match="unknown predictor 'goal-aware'"):
+        make_predictor("goal-aware", 5, 10)
+    with pytest.raises(InputError, match="needs a goal"):
+        make_predictor("goal", 5, 10)
+    with pytest.raises(InputError, match="continuous convention only"):
+        make_predictor("goal", 5, 10, convention="published", goal=(0, 0, 0))
+
+
+def test_horizons_parse_and_wins_from():
+    import pandas as pd
+
+    assert parse_horizons("5, 50,all,5") == (5, 50, WHOLE)
+    with pytest.raises(InputError, match="bad horizon '-3'"):
+        parse_horizons("-3")
+    s = pd.DataFrame({"study": "s", "predictor": ["cv"] * 4 + ["goal"] * 4, "horizon": [5, 50, 100, WHOLE] * 2,
+                      "delta_xy": [1, 2, 3, 4, 0.5, 3, 2, 2]})
+    assert wins_from(s, "s", "goal") == 100  # better at 5, worse at 50, better from 100 to the whole path
