@@ -234,7 +234,7 @@ def reconstruct(trajectories: Any, *, relative_pose: dict | None = None, scenari
     """Each subject rebuilt from the table pose and the subject's mean pose in the table frame
     (docs/methods.md sec. 8), compared with the measured trajectory: from the scenario-``scenario`` trials
     themselves and, when given, from a published relative pose (``reconstruct.read_wrt_table``)."""
-    from cobot_analysis import reconstruct as rc
+    import cobot_analysis.reconstruct as rc  # not `from cobot_analysis import reconstruct`: the package exports the API function
 
     ts = trajectory_set(trajectories, ("trajectories",))
     if not ts.meta["entity"].eq("table").any():
