@@ -22,7 +22,15 @@ Trajectories = "pd.DataFrame | str | os.PathLike | TrajectorySet"
 
 def trajectory_set(table: Any, what: tuple[str, ...] = ("trajectories", "means", "generated_trajectories")) -> TrajectorySet:
     """A trajectories table (DataFrame, or the path of a Parquet file a stage wrote) as a ``TrajectorySet``
-    (one row of metadata and N samples of x, y, theta, gamma per trajectory)."""
+    (one row of metadata and N samples of x, y, theta, gamma per trajectory); ``what``: the tables a path
+    may hold.
+
+        >>> from cobot_analysis.api import trajectory_set
+        >>> from cobot_analysis.synth.tables import walking_table
+        >>> ts = trajectory_set(walking_table(n_subjects=2, n_conditions=1, n_trials=1))
+        >>> len(ts), ts.n_samples, ts.x.shape
+        (2, 40, (2, 40))
+    """
     from cobot_analysis.compare import pivot, read_trajectory_set
 
     if isinstance(table, TrajectorySet):
@@ -33,12 +41,27 @@ def trajectory_set(table: Any, what: tuple[str, ...] = ("trajectories", "means",
 
 
 def study_of(ts: TrajectorySet) -> str:
+    """The study of a set (``a+b`` when it mixes studies).
+
+        >>> from cobot_analysis.api import study_of, trajectory_set
+        >>> from cobot_analysis.synth.tables import walking_table
+        >>> study_of(trajectory_set(walking_table(n_subjects=1, n_conditions=1, n_trials=1)))
+        'synthetic-walking'
+    """
     studies = sorted(ts.meta["study"].dropna().astype(str).unique())
     return studies[0] if len(studies) == 1 else "+".join(studies)
 
 
 def check_by(by: list[str] | None, columns, path=None) -> list[str] | None:
-    """The grouping columns asked for (``--by``), refused when one is not a column of the trajectories."""
+    """The grouping columns asked for (``--by``), refused when one is not a column of the trajectories.
+
+        >>> from cobot_analysis.api import check_by
+        >>> check_by(["condition"], ["trial", "condition"])
+        ['condition']
+        >>> check_by(["speed"], ["trial", "condition"])
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: --by names unknown column(s) ['speed']; use columns of the trajectories: trial, condition
+    """
     if not by:
         return None
     bad = [c for c in by if c not in columns]
@@ -73,8 +96,12 @@ def average(trajectories: Any, *, by: list[str] | None = None) -> AverageResult:
         >>> from cobot_analysis.api import average
         >>> from cobot_analysis.synth.tables import walking_table
         >>> result = average(walking_table(n_subjects=3, n_conditions=2, n_trials=2))
-        >>> result.means.drop_duplicates("trial")[["condition", "n_trials"]].to_string(index=False)
-        'condition  n_trials\n    E4015         6\n    E4030         6'
+        >>> result.groups, result.n_averaged
+        (['study', 'condition', 'entity'], 12)
+        >>> print(result.means.drop_duplicates("trial")[["condition", "n_trials"]].to_string(index=False))
+        condition  n_trials
+            E1500         6
+            N1500         6
     """
     from cobot_analysis.averaging import MEANS, check_groups, mean_trajectories
     from cobot_analysis.compare import default_groups
@@ -190,9 +217,25 @@ class StatisticsResult:
 def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *, config: Any,
                durations: pd.DataFrame | None = None, anthropometrics: pd.DataFrame | None = None,
                progress=None) -> StatisticsResult:
-    """Every statistical question of a study's configuration (``stats.config``: a TOML file or a loaded
-    ``StudyConfig``): Kruskal-Wallis, Mann-Whitney, Fisher, ANOVA, Pearson, ..., with effect sizes and Holm
-    correction within each family (docs/methods.md sec. 4)."""
+    """Every statistical question of a study's configuration (``config``: a TOML file such as
+    ``pipelines/walking-2020.toml``, the same document as a dict, or a loaded ``stats.config.StudyConfig``;
+    keys in ``stats.config``): Kruskal-Wallis, Mann-Whitney, Fisher, ANOVA, Pearson, ..., with effect sizes
+    and Holm correction within each family (docs/methods.md sec. 4). ``distances``: the table of ``compare``;
+    ``durations`` (published pair study) and ``anthropometrics`` (subjects' weight and height) feed the
+    questions that use them.
+
+        >>> from cobot_analysis.api import average, compare, statistics
+        >>> from cobot_analysis.synth.tables import walking_table
+        >>> walks = walking_table(n_subjects=3, n_conditions=2, n_trials=3, subject_effect=0.2)
+        >>> distances = compare(walks, average(walks).means).distances
+        >>> question = {"id": "W1.1", "description": "d_xy across subjects", "source": "distances",
+        ...             "filter": {"comparison": "individual-mean"}, "value": "d_xy", "group": "subject",
+        ...             "test": "kruskal", "family": "study"}
+        >>> result = statistics(walks, distances, config={"study": "synthetic-walking", "analysis": [question]})
+        >>> row = result.table.iloc[0]
+        >>> row["test"], int(row["n"]), row["levels"], bool(row["p"] < 0.05)   # the planted subject effect
+        ('kruskal', 18, 'S01, S02, S03', True)
+    """
     from cobot_analysis.compare import DISTANCES
     from cobot_analysis.schema import read_table
     from cobot_analysis.stats import analyses
@@ -200,7 +243,9 @@ def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *
     from cobot_analysis.stats.sources import build_sources
 
     path = None
-    if not isinstance(config, cfg.StudyConfig):
+    if isinstance(config, dict):
+        config = cfg.parse(config)
+    elif not isinstance(config, cfg.StudyConfig):
         path = Path(config)
         config = cfg.load(path)
     ts = trajectory_set(trajectories, ("trajectories",))
@@ -233,7 +278,16 @@ class ReconstructResult:
 def reconstruct(trajectories: Any, *, relative_pose: dict | None = None, scenario: int = 3, progress=None) -> ReconstructResult:
     """Each subject rebuilt from the table pose and the subject's mean pose in the table frame
     (docs/methods.md sec. 8), compared with the measured trajectory: from the scenario-``scenario`` trials
-    themselves and, when given, from a published relative pose (``reconstruct.read_wrt_table``)."""
+    themselves and, when given, from a published relative pose (``reconstruct.read_wrt_table``).
+
+        >>> from cobot_analysis.api import reconstruct
+        >>> from cobot_analysis.synth.tables import pair_table
+        >>> rec = reconstruct(pair_table(n_pairs=2, goals=1)).reconstruction
+        >>> sorted(rec["entity"].unique()), sorted(rec["relative_pose"].unique()), len(rec)
+        (['subject1', 'subject2'], ['trials'], 16)
+        >>> bool(rec["d_xy"].between(0.0, 0.5).all())   # m: a subject stays beside the table
+        True
+    """
     import cobot_analysis.reconstruct as rc  # not `from cobot_analysis import reconstruct`: the package exports the API function
 
     ts = trajectory_set(trajectories, ("trajectories",))
