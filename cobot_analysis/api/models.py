@@ -48,7 +48,14 @@ def _generate_task(task):
 def resolve_convention(convention: str | None, weights: Any, models: list[str]):
     """The convention of a model run: the one asked for, else the one the weights were made under
     (``presets.weights_convention``), else ``continuous``; a model the weights' convention has no rule for
-    (the unicycle under the published one) runs under ``continuous``."""
+    (the unicycle under the published one) runs under ``continuous``.
+
+        >>> from cobot_analysis.api.models import resolve_convention
+        >>> resolve_convention(None, None, ["improved"]).name      # the default preset: the papers' weights
+        'published'
+        >>> resolve_convention(None, None, ["unicycle"]).name, resolve_convention("continuous", None, ["improved"]).name
+        ('continuous', 'continuous')
+    """
     from cobot_analysis import conventions
     from cobot_analysis.models.presets import weights_convention
 
@@ -74,9 +81,19 @@ def generate(model: str = "improved", *, start: tuple[float, float, float] | Non
     that does not converge raises ``SolverError``.
 
         >>> from cobot_analysis.api import generate
-        >>> path = generate("clothoid", start=(-1.5, -3.4, 0.0)).generated
-        >>> round(float(path["x"].iloc[-1]), 6), round(float(path["y"].iloc[-1]), 6)
-        (0.0, 0.0)
+        >>> result = generate("clothoid", start=(-1.5, -3.4, 0.0), samples=50)
+        >>> path = result.generated
+        >>> result.summary(), len(path), path["trial"].iloc[0]
+        ('1 trajectory', 50, 'clothoid')
+        >>> end = path.iloc[-1]
+        >>> round(abs(float(end["x"])) + abs(float(end["y"])), 6), round(float(end["theta"]), 4)   # at the walking goal
+        (0.0, 1.5708)
+
+    An OC model on a coarse grid (a second or two): the path ends at the goal too.
+
+        >>> oc = generate("improved", start=(-1.5, -3.4, 0.0), samples=50, intervals=20)
+        >>> oc.convention, bool(abs(oc.generated[["x", "y"]].iloc[-1]).max() < 0.01)
+        ('published', True)
     """
     from cobot_analysis.design import WALKING_GOAL
     from cobot_analysis.models import MODELS, check_endpoints
@@ -110,7 +127,13 @@ def generate(model: str = "improved", *, start: tuple[float, float, float] | Non
 
 def walking_cases(convention: str, means: pd.DataFrame | None = None, *, goal: tuple | None = None, path=None) -> list:
     """The (condition, start, goal) of the walking study's 40 conditions: the design starts (continuous), or
-    the authors' start and goal poses from the measured ``means`` (published; ``ioc.targets.published_endpoints``)."""
+    the authors' start and goal poses from the measured ``means`` (published; ``ioc.targets.published_endpoints``).
+
+        >>> from cobot_analysis.api import walking_cases
+        >>> cases = walking_cases("continuous")
+        >>> len(cases), cases[0]
+        (40, ('N1500', (-0.0, -0.9, 1.5707963267948966), (0.0, 0.0, 1.5707963267948966)))
+    """
     from cobot_analysis.design import WALKING_CONDITIONS, WALKING_GOAL, walking_condition
     from cobot_analysis.models.ioc.targets import published_endpoints
 
@@ -147,7 +170,20 @@ def velocity_commands(generated: pd.DataFrame, *, trial: str | None = None, rate
                       omega_max: float = 7.0, path=None) -> VelocityCommands:
     """Velocity commands for a walking robot following a generated path (docs/methods.md sec. 10):
     v = (p_sim(t+1) - p_real(t)) f in the robot frame, open loop, saturated at ``v_max`` (m/s, x and y) and
-    ``omega_max`` (deg/s, yaw)."""
+    ``omega_max`` (deg/s, yaw). ``generated``: the table of ``generate``; ``trial``: which of its paths
+    (default: the only one).
+
+        >>> import math
+        >>> from cobot_analysis.api import generate, velocity_commands
+        >>> path = generate("clothoid", start=(-1.5, -3.4, 0.0)).generated
+        >>> cmd = velocity_commands(path, rate=10.0, v_max=0.1)
+        >>> cmd.trial, cmd.rate, len(cmd.commands) > 0
+        ('clothoid', 10.0, True)
+        >>> float(cmd.commands[["v_x", "v_y"]].abs().max().max())   # saturated at v_max (m/s)
+        0.1
+        >>> round(float(cmd.commands["omega"].abs().max()), 6) == round(math.radians(7.0), 6)   # omega_max 7 deg/s, in rad/s
+        True
+    """
     import math
 
     from cobot_analysis.models.velocity_commands import resample_path, velocity_commands as commands
@@ -217,7 +253,12 @@ def held_weights(model: str, convention: str) -> tuple[str, ...]:
     scale; a5, a6 of the walker belong to the Mombaur model; the coupled time cost a0 is not identifiable
     from time-normalised paths (fitted, it goes to ~0 and every T to its bound); under the published
     convention a0 is a per-node constant: it adds a0 N to J on a held horizon and a0 / dt to the duration
-    rule's J / T, so it moves no path and is not identifiable either."""
+    rule's J / T, so it moves no path and is not identifiable either.
+
+        >>> from cobot_analysis.api.models import held_weights
+        >>> held_weights("improved", "continuous"), held_weights("improved", "published"), held_weights("coupled", "continuous")
+        (('a5', 'a6', 'b0'), ('a5', 'a6', 'b0', 'a0'), ('a0', 'b0'))
+    """
     if model == "coupled":
         return ("a0", "b0")
     return ("a5", "a6", "b0") + (("a0",) if convention == "published" else ())
@@ -225,7 +266,15 @@ def held_weights(model: str, convention: str) -> tuple[str, ...]:
 
 def goal_rule(goal: str, df: pd.DataFrame) -> tuple | None:
     """The goal of each OC problem: ``design`` (the walking goal), ``end`` (None: the last measured pose),
-    ``auto`` (design when every condition is a walking-study one)."""
+    ``auto`` (design when every condition is a walking-study one).
+
+        >>> import pandas as pd
+        >>> from cobot_analysis.api.models import goal_rule
+        >>> goal_rule("auto", pd.DataFrame({"condition": ["E4015", "N1500"]}))
+        (0.0, 0.0, 1.5707963267948966)
+        >>> goal_rule("auto", pd.DataFrame({"condition": ["d1_p4"]})) is None   # not a walking condition: the last pose
+        True
+    """
     from cobot_analysis.design import WALKING_GOAL, walking_condition
 
     if goal == "end":
@@ -253,7 +302,21 @@ def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: s
     trials (``per="subject"``). ``fit``: the weights to fit (default: all but those ``held_weights`` holds);
     ``start_weights``: a preset, a weights.json, or ``"ones"`` (every fitted weight 1). ``checkpoint``: a
     directory where the upper level's evaluations are logged after every iteration (``resume`` continues).
-    ``on_evaluation(fit, n, D, best)`` reports progress."""
+    ``on_evaluation(fit, n, D, best)`` reports progress. A fit is long (minutes to hours at the CLI's
+    defaults); the example fits two means on a coarse grid with a budget of 20 evaluations:
+
+        >>> from cobot_analysis.api import average, fit_ioc
+        >>> from cobot_analysis.synth.tables import walking_table
+        >>> means = average(walking_table(n_subjects=3, n_conditions=2, n_trials=2)).means
+        >>> fit = fit_ioc(means, intervals=20, max_evaluations=20, compare=False, jobs=1)
+        >>> fit.names   # all but the held a5, a6 (Mombaur's) and b0 (the scale)
+        ('a0', 'a1', 'a2', 'a3', 'a4', 'b1', 'b2', 'b3')
+        >>> r = fit.results["all"]
+        >>> r.evaluations <= 20, bool(r.objective < r.start_objective)   # D went down from the start weights
+        (True, True)
+        >>> sorted(fit.weights_json())
+        ['convention', 'fits', 'model', 'weights', 'weights_order']
+    """
     from cobot_analysis import conventions
     from cobot_analysis.models.comparison import compare_models, compared_models, coupled_distances, orientation_of, subject_distances
     from cobot_analysis.models.ioc import IOCSpec, fit as ioc_fit, pair_targets_from_table, targets_from_table
