@@ -1,0 +1,55 @@
+"""The public API's documentation: every example in the docstrings of ``cobot_analysis.api`` runs and
+gives what it shows, every public function has one, and docs/api.md documents every exported name."""
+
+from __future__ import annotations
+
+import doctest
+import importlib
+import inspect
+import re
+from pathlib import Path
+
+import pytest
+
+from cobot_analysis import api
+
+DOC = Path(__file__).resolve().parents[1] / "docs" / "api.md"
+MODULES = ["cobot_analysis.api", *sorted({f"cobot_analysis.api.{m}" for m in api.EXPORTS.values()})]
+
+
+def public_functions(module) -> list[str]:
+    """Functions defined in ``module`` whose name does not start with an underscore."""
+    return [name for name, obj in vars(module).items()
+            if inspect.isfunction(obj) and obj.__module__ == module.__name__ and not name.startswith("_")]
+
+
+@pytest.mark.parametrize("name", MODULES)
+def test_docstring_examples_run(name, monkeypatch, tmp_path):
+    monkeypatch.chdir(tmp_path)  # an example that wrote beside it would write here
+    module = importlib.import_module(name)
+    result = doctest.testmod(module, optionflags=doctest.ELLIPSIS, report=True, verbose=False)
+    assert result.attempted > 0, f"{name} has no doctest example"
+    assert result.failed == 0, f"{result.failed} of {result.attempted} doctest examples of {name} failed (see the output above)"
+
+
+@pytest.mark.parametrize("name", MODULES[1:])
+def test_every_public_function_has_an_example(name):
+    module = importlib.import_module(name)
+    missing = [f for f in public_functions(module) if ">>>" not in (getattr(module, f).__doc__ or "")]
+    assert public_functions(module) and not missing, f"{name}: no >>> example in {missing}"
+
+
+def test_every_export_is_documented():
+    text = DOC.read_text()
+    missing = [n for n in api.EXPORTS if not re.search(rf"`{n}\b", text)]
+    assert not missing, f"docs/api.md does not document {missing}"
+    for name in api.EXPORTS:  # each exported function with its signature: `name(` starts a code line or span
+        obj = getattr(api, name)
+        if inspect.isfunction(obj):
+            assert re.search(rf"(^|`){name}\(", text, re.M), f"docs/api.md gives no signature for {name}"
+
+
+def test_exports_resolve():
+    """Every name of EXPORTS is defined in the module it names (the lazy import finds it)."""
+    for name, module in api.EXPORTS.items():
+        assert getattr(api, name) is getattr(importlib.import_module(f"cobot_analysis.api.{module}"), name)
