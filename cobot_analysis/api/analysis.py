@@ -156,6 +156,15 @@ def compare(trajectories: Any, means: Any, *, against: Any = None, comparison: s
         >>> d = compare(walks, average(walks).means).distances
         >>> d["comparison"].unique().tolist(), len(d)
         (['individual-mean'], 12)
+
+    Model paths (``generate``, under the comparison's convention) against the means of their condition:
+
+        >>> from cobot_analysis.api import generate, walking_cases
+        >>> cases = [c for c in walking_cases("continuous") if c[0] in ("N1500", "E1500")]
+        >>> paths = generate("clothoid", cases=cases, study="synthetic-walking").generated
+        >>> m = compare(walks, average(walks).means, against=paths, comparison="model").distances.query("comparison == 'model'")
+        >>> sorted(m["condition"]), bool(m["d_xy"].between(0.0, 0.5).all())
+        (['E1500', 'N1500'], True)
     """
     from cobot_analysis import conventions
     from cobot_analysis.compare import WALKING_GROUPS, against_set, against_vs_mean, any_vs_any as any_any, compare_sets
@@ -170,10 +179,25 @@ def compare(trajectories: Any, means: Any, *, against: Any = None, comparison: s
     same = check_by(any_vs_any, list(ts.meta.columns))
     other = None
     if against is not None:
-        if isinstance(against, (pd.DataFrame, TrajectorySet)):
-            raise InputError("--against must be the path of a trajectory table (generate's generated.parquet)",
-                             remedy="pass the Parquet file that generate wrote")
-        other = against_set(Path(against), mts.n_samples, conv)
+        if isinstance(against, TrajectorySet):
+            raise InputError("--against must be a trajectory table (generate's generated table, or its Parquet file)",
+                             remedy="pass the DataFrame or the Parquet file that generate wrote")
+        if isinstance(against, pd.DataFrame):  # against_set reads a file: the table goes through a temporary one
+            import tempfile
+
+            against_name = "the against table"  # its name in messages
+            with tempfile.TemporaryDirectory() as tmp:
+                file = Path(tmp) / "against.parquet"
+                table = against.copy()
+                table.attrs = {}
+                table.to_parquet(file)
+                try:
+                    other = against_set(file, mts.n_samples, conv)
+                except InputError as exc:
+                    raise InputError(str(exc).replace(str(file), against_name)) from None
+            against = against_name
+        else:
+            other = against_set(Path(against), mts.n_samples, conv)
     if (ts.meta["kind"] == "model").all():
         raise InputError("the trajectories are generated paths (kind = model), not trials",
                          remedy="pass the model paths as `against` (compare --against generated.parquet) and the measured "
