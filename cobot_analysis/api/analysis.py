@@ -30,12 +30,18 @@ def trajectory_set(table: Any, what: tuple[str, ...] = ("trajectories", "means",
         >>> ts = trajectory_set(walking_table(n_subjects=2, n_conditions=1, n_trials=1))
         >>> len(ts), ts.n_samples, ts.x.shape
         (2, 40, (2, 40))
+        >>> trajectory_set(walking_table(n_subjects=1, n_conditions=1, n_trials=1).drop(columns="kind"))
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: trajectory table lacks column 'kind'; add it: 'trial' for a recording, 'mean' for a mean trajectory (docs/schemas.md, trajectories)
     """
     from cobot_analysis.compare import pivot, read_trajectory_set
 
     if isinstance(table, TrajectorySet):
         return table
     if isinstance(table, pd.DataFrame):
+        if "kind" not in table.columns:  # every analysis selects on it (a file a stage wrote always has it)
+            raise InputError("trajectory table lacks column 'kind'",
+                             remedy="add it: 'trial' for a recording, 'mean' for a mean trajectory (docs/schemas.md, trajectories)")
         return pivot(table)
     return read_trajectory_set(Path(table), what)
 
