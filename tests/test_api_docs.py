@@ -53,3 +53,32 @@ def test_exports_resolve():
     """Every name of EXPORTS is defined in the module it names (the lazy import finds it)."""
     for name, module in api.EXPORTS.items():
         assert getattr(api, name) is getattr(importlib.import_module(f"cobot_analysis.api.{module}"), name)
+
+
+def documented_defaults(name: str, text: str) -> dict[str, object]:
+    """``option=default`` pairs of the signature docs/api.md gives for ``name`` (its code block line)."""
+    import ast
+
+    block = re.search(rf"^{name}\((.*?)\)(?:\s*->|\n```)", text, re.M | re.S)
+    assert block, f"docs/api.md gives no signature for {name}"
+    pairs = {}
+    for key, value in re.findall(r"(\w+)=((?:\"[^\"]*\"|\([^)]*\)|[^,\s)])+)", block.group(1)):
+        pairs[key] = ast.literal_eval(value)
+    return pairs
+
+
+def test_documented_defaults_are_the_functions():
+    """The defaults docs/api.md shows are those of the functions (localise: of its checked options)."""
+    text = DOC.read_text()
+    for name in api.EXPORTS:
+        obj = getattr(api, name)
+        if not inspect.isfunction(obj):
+            continue
+        params = dict(inspect.signature(obj).parameters)
+        if name == "localise":
+            from cobot_analysis.api.localisation import localisation_options
+
+            params.update(inspect.signature(localisation_options).parameters)
+        for key, value in documented_defaults(name, text).items():
+            assert key in params, f"docs/api.md: {name} has no option {key}"
+            assert params[key].default == value, f"docs/api.md: {name}({key}={value!r}), the function's default is {params[key].default!r}"
