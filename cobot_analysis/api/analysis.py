@@ -167,7 +167,7 @@ def compare(trajectories: Any, means: Any, *, against: Any = None, comparison: s
 
         >>> from cobot_analysis.api import generate, walking_cases
         >>> cases = [c for c in walking_cases("continuous") if c[0] in ("N1500", "E1500")]
-        >>> paths = generate("clothoid", cases=cases, study="synthetic-walking").generated
+        >>> paths = generate("clothoid", cases=cases, study="synthetic-walking", jobs=1).generated
         >>> m = compare(walks, average(walks).means, against=paths, comparison="model").distances.query("comparison == 'model'")
         >>> sorted(m["condition"]), bool(m["d_xy"].between(0.0, 0.5).all())
         (['E1500', 'N1500'], True)

@@ -81,7 +81,7 @@ def generate(model: str = "improved", *, start: tuple[float, float, float] | Non
     that does not converge raises ``SolverError``.
 
         >>> from cobot_analysis.api import generate
-        >>> result = generate("clothoid", start=(-1.5, -3.4, 0.0), samples=50)
+        >>> result = generate("clothoid", start=(-1.5, -3.4, 0.0), samples=50, jobs=1)
         >>> path = result.generated
         >>> result.summary(), len(path), path["trial"].iloc[0]
         ('1 trajectory', 50, 'clothoid')
@@ -91,7 +91,7 @@ def generate(model: str = "improved", *, start: tuple[float, float, float] | Non
 
     An OC model on a coarse grid (a second or two): the path ends at the goal too.
 
-        >>> oc = generate("improved", start=(-1.5, -3.4, 0.0), samples=50, intervals=20)
+        >>> oc = generate("improved", start=(-1.5, -3.4, 0.0), samples=50, intervals=20, jobs=1)
         >>> oc.convention, bool(abs(oc.generated[["x", "y"]].iloc[-1]).max() < 0.01)
         ('published', True)
     """
@@ -175,7 +175,7 @@ def velocity_commands(generated: pd.DataFrame, *, trial: str | None = None, rate
 
         >>> import math
         >>> from cobot_analysis.api import generate, velocity_commands
-        >>> path = generate("clothoid", start=(-1.5, -3.4, 0.0)).generated
+        >>> path = generate("clothoid", start=(-1.5, -3.4, 0.0), jobs=1).generated
         >>> cmd = velocity_commands(path, rate=10.0, v_max=0.1)
         >>> cmd.trial, cmd.rate, len(cmd.commands) > 0
         ('clothoid', 10.0, True)
