@@ -64,7 +64,7 @@ def bench_pipeline(workspace: Path | None) -> list[tuple[str, float, float]]:
 def bench_distances(n_pairs: int = 20000, n: int = 500) -> tuple[float, float]:
     """Seconds for ``n_pairs`` distance triples: vectorised ``pair_distances`` vs a loop of
     per-pair calls (the loop is timed on 1000 pairs and scaled)."""
-    from cobot_analysis.metrics import d_gamma, d_theta, d_xy, pair_distances
+    from cobot_analysis.distances import d_gamma, d_theta, d_xy, pair_distances
 
     rng = np.random.default_rng(0)
     a = {k: rng.normal(size=(3240, n)) for k in ("x", "y", "theta", "gamma")}

@@ -3,7 +3,7 @@
 Long trajectory tables (one row per trajectory x sample) are pivoted once into arrays
 ``(n_trajectories, N)`` (``TrajectorySet``); the pairs to compare are found with table joins on
 the metadata and all their distances (docs/methods.md sec. 3: d_xy, d_theta, d_gamma) are computed in a
-few vectorised calls of ``metrics.pair_distances`` (no Python loop over pairs or samples).
+few vectorised calls of ``distances.pair_distances`` (no Python loop over pairs or samples).
 The result is ``distances.parquet``: one row per compared pair with the grouping columns of the
 first trajectory ("a") and the identity of the second ("b_*").
 """
@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from cobot_analysis.errors import InputError
-from cobot_analysis.metrics import pair_distances
+from cobot_analysis.distances import pair_distances, reverse_time
 from cobot_analysis.schema import TRIAL_COLUMNS, Column, TableSchema
 
 KEY = ["study", "trial", "entity"]
@@ -62,7 +62,7 @@ class TrajectorySet:
     y: np.ndarray
     theta: np.ndarray
     gamma: np.ndarray
-    angle_difference: str = "wrapped"  # how this set's angles are compared (metrics.angle_distance)
+    angle_difference: str = "wrapped"  # how this set's angles are compared (distances.d_theta)
 
     @property
     def arrays(self) -> dict[str, np.ndarray]:
@@ -82,9 +82,9 @@ class TrajectorySet:
 
     def compared_as(self, comparison) -> "TrajectorySet":
         """The set as a ``conventions.Comparison`` compares it: with ``arclength`` (and both paths
-        resampled) every path resampled by arc length to its N samples (``metrics.resample_arclength``;
+        resampled) every path resampled by arc length to its N samples (``distances.resample_arclength``;
         angles stay on the time samples), angles compared with ``comparison.angle_difference``."""
-        from cobot_analysis.metrics import resample_arclength
+        from cobot_analysis.distances import resample_arclength
 
         x, y = self.x, self.y
         if comparison.resample == "arclength" and comparison.both_resampled and len(self):
@@ -340,7 +340,7 @@ def forward_vs_return(ts: TrajectorySet, match: list[str]) -> pd.DataFrame:
     """
     fwd = ts.subset(ts.meta["direction"].eq("forward").to_numpy())
     ret = ts.subset(ts.meta["direction"].eq("return").to_numpy())
-    ret = TrajectorySet(ret.meta, ret.x[:, ::-1], ret.y[:, ::-1], ret.theta[:, ::-1], ret.gamma[:, ::-1])
+    ret = TrajectorySet(ret.meta, *(reverse_time(v) for v in (ret.x, ret.y, ret.theta, ret.gamma)))
     if not len(fwd) or not len(ret):
         return _rows("symmetry", ts, ts, [], [])
     return any_vs_any(fwd, same=match, comparison="symmetry", other=ret)
@@ -386,11 +386,11 @@ def against_set(path: Path, n_samples: int, convention) -> TrajectorySet:
     """``compare --against`` table as a set on ``n_samples`` samples, under ``convention``: its
     ``convention`` (column or metadata, when it has one) must be the one asked for; each trajectory is
     put on ``n_samples`` samples as the convention compares a model path with a measured one
-    (arc length, or time; ``metrics.path_distances``)."""
+    (arc length, or time; ``distances.path_distances``)."""
     import pyarrow.parquet as pq
 
     from cobot_analysis import conventions
-    from cobot_analysis.metrics import gamma_from_path, resample_arclength, resample_time
+    from cobot_analysis.distances import gamma_from_path, resample_arclength, resample_time
     from cobot_analysis.schema import table_metadata
 
     try:

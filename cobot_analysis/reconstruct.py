@@ -19,7 +19,7 @@ import pandas as pd
 from cobot_analysis.angles import angle_diff, circular_mean
 from cobot_analysis.compare import TrajectorySet
 from cobot_analysis.errors import InputError
-from cobot_analysis.metrics import d_theta, d_xy
+from cobot_analysis.distances import d_theta, d_xy
 from cobot_analysis.schema import Column, TableSchema
 
 SUBJECTS = ("subject1", "subject2")

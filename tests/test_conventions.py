@@ -11,7 +11,7 @@ import pytest
 
 from cobot_analysis import conventions
 from cobot_analysis.errors import InputError
-from cobot_analysis.metrics import path_distances, resample_arclength, resample_time
+from cobot_analysis.distances import path_distances, resample_arclength, resample_time
 
 WALKING_2021 = np.array([7.87, 4.00, 20.15, 1.00e-6, 10.00, 0, 0, 10.0, 10.0, 0.38, 3.36])
 

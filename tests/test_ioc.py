@@ -24,7 +24,8 @@ N = 200  # samples per trajectory (the published data have 500; fewer keep the t
 
 
 def _paths(weights=PLANTED, conditions=CONDITIONS, n=N):
-    return {c: generate("improved", walking_condition(c).start, WALKING_GOAL, weights=weights, n_samples=n, n_intervals=50)
+    return {c: generate("improved", walking_condition(c).start, WALKING_GOAL, weights=weights, n_samples=n, n_intervals=50,
+                     convention="continuous")
             for c in conditions}
 
 

@@ -10,7 +10,7 @@ import pytest
 
 from cobot_analysis.angles import angle_diff
 from cobot_analysis.errors import InputError, SolverError
-from cobot_analysis.metrics import d_xy
+from cobot_analysis.distances import d_xy
 from cobot_analysis.models import generate, resample, solve_model
 from cobot_analysis.models.oc.duration import initial_duration, search_duration
 from cobot_analysis.models.oc.problem import OCPShape, WalkerOCP, get_ocp
@@ -34,8 +34,8 @@ def test_straight_start_goal_pair_gives_a_straight_path():
 @pytest.mark.parametrize("start", [(-1.5, -3.4, 0.0), (-4.0, 0.6, math.pi / 2), (-0.6, -1.5, -math.pi / 2)])
 def test_mirror_symmetric_starts_give_mirrored_paths(start):
     """Mirror x -> -x (goal heading pi/2 is its own mirror): theta -> pi - theta."""
-    a = generate("improved", start, GOAL)
-    b = generate("improved", (-start[0], start[1], math.pi - start[2]), GOAL)
+    a = generate("improved", start, GOAL, convention="continuous")
+    b = generate("improved", (-start[0], start[1], math.pi - start[2]), GOAL, convention="continuous")
     assert d_xy(a["x"], a["y"], -b["x"], b["y"]) < 2e-3
     assert np.abs(angle_diff(a["theta"], math.pi - b["theta"])).max() < 2e-2
     assert a["travel_time"].iloc[0] == pytest.approx(b["travel_time"].iloc[0], rel=1e-3)
@@ -44,7 +44,7 @@ def test_mirror_symmetric_starts_give_mirrored_paths(start):
 @pytest.mark.parametrize("model", ["unicycle", "mombaur", "improved"])
 def test_paths_start_at_rest_on_the_start_pose_and_end_near_the_goal(model):
     start = (-1.5, -3.4, 0.0)
-    df = generate(model, start, GOAL)
+    df = generate(model, start, GOAL, convention="continuous")
     first = df.iloc[0]
     assert (first.x, first.y, first.theta) == pytest.approx(start, abs=1e-9)
     assert (first.v_forw, first.v_orth, first.omega) == pytest.approx((0, 0, 0), abs=1e-9)

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from cobot_analysis.errors import InputError
 from cobot_analysis.models.prediction.predictor import OCPredictor, make_predictor
-from cobot_analysis.models.prediction.metrics import summarise, truth_windows, window_errors
+from cobot_analysis.models.prediction.errors import summarise, truth_windows, window_errors
 
 
 # ---- metrics ----------------------------------------------------------------------------------

@@ -87,7 +87,7 @@ def test_unchanged_run_passes(checked, cli):
 
 def test_scaled_distance_fails_and_update_prints_the_diff(checked, cli, monkeypatch):
     """A planted regression in the code: every d_xy 10 % larger, through the real compare stage."""
-    import cobot_analysis.metrics as metrics
+    import cobot_analysis.distances as metrics
 
     ws, baseline = checked
     before = baseline_metrics(load_baseline(baseline))[D_XY_KEY].value

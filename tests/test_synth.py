@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from cobot_analysis.angles import angle_diff
 from cobot_analysis.design import PAIR_GOALS
 from cobot_analysis.io.protocol import PELVIS_MARKERS, SUBJECT_MARKERS, load_protocol
-from cobot_analysis.metrics import d_xy
+from cobot_analysis.distances import d_xy
 from cobot_analysis.schema import read_table
 from cobot_analysis.synth import body as bd
 from cobot_analysis.synth import pairs, paths, walking

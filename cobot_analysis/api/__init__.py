@@ -6,11 +6,11 @@ them, keyword-only options with the command line's names and defaults, and retur
 that carries its tables (and ``summary()``). Nothing is written to disk: ``cobot_analysis.stages``
 runs the same functions into a workspace, which is what the command line does.
 
-    >>> from cobot_analysis import api
+    >>> import cobot_analysis.api as ca
     >>> from cobot_analysis.synth.tables import walking_table
-    >>> walks = walking_table(n_subjects=3, n_conditions=2, n_trials=2)   # or api.import_published(...).trajectories
-    >>> means = api.average(walks).means
-    >>> distances = api.compare(walks, means).distances
+    >>> walks = walking_table(n_subjects=3, n_conditions=2, n_trials=2)   # or ca.import_published(...).trajectories
+    >>> means = ca.average(walks).means
+    >>> distances = ca.compare(walks, means).distances
     >>> len(distances), sorted(distances["comparison"].unique())
     (12, ['individual-mean'])
 

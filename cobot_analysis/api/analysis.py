@@ -318,7 +318,7 @@ def reconstruct(trajectories: Any, *, relative_pose: dict | None = None, scenari
         >>> bool(rec["d_xy"].between(0.0, 0.5).all())   # m: a subject stays beside the table
         True
     """
-    import cobot_analysis.reconstruct as rc  # not `from cobot_analysis import reconstruct`: the package exports the API function
+    import cobot_analysis.reconstruct as rc
 
     ts = trajectory_set(trajectories, ("trajectories",))
     if not ts.meta["entity"].eq("table").any():

@@ -134,23 +134,27 @@ def fit_ioc_command(
         from cobot_analysis.errors import InputError
 
         raise InputError("--fit names (none) are not weights of the model", remedy="e.g. --fit a1,a2,a4")
-    with progress() as bar:
-        tasks: dict[str, int] = {}
+    bar, tasks = progress(), {}  # shown from the first upper-level evaluation on (nothing when the stage is skipped)
 
-        def on_evaluation(key: str, n: int, f: float, best: float) -> None:
-            if key not in tasks:
-                tasks[key] = bar.add_task(f"IOC {key}", total=max_evaluations, status="")
-            bar.update(tasks[key], completed=n, status=f"D = {f:.4f}, best {best:.4f}")
+    def on_evaluation(key: str, n: int, f: float, best: float) -> None:
+        if not tasks:
+            bar.start()
+        if key not in tasks:
+            tasks[key] = bar.add_task(f"IOC {key}", total=max_evaluations, status="")
+        bar.update(tasks[key], completed=n, status=f"D = {f:.4f}, best {best:.4f}")
 
+    try:
         done = models.fit_ioc(out, means=means, trajectories=trajectories, model=model, start_weights=start_weights, fit=fitted,
                               optimizer=optimizer.value, max_evaluations=max_evaluations, per=per.value, subjects=subjects,
                               goal=goal.value, intervals=intervals, v_nominal=v_nominal, compare=compare, resume=resume,
                               convention=convention, seed=seed, jobs=jobs, scheduler=scheduler, force=force,
                               on_evaluation=on_evaluation)
         for key, task in tasks.items():
-            if not done.skipped:
-                evaluations = done.result.results[key].evaluations
-                bar.update(task, total=evaluations, completed=evaluations)
+            evaluations = done.result.results[key].evaluations
+            bar.update(task, total=evaluations, completed=evaluations)
+    finally:
+        if tasks:
+            bar.stop()
     if not done.skipped:
         r = done.result
         how = ", ".join([r.convention] + (["coupled"] if model == "coupled" else []) + (["per subject"] if per is Per.subject else []))

@@ -102,7 +102,7 @@ def demo_command(
     runs every stage on each, then writes OUT/report.md. Each study has its own workspace under
     OUT; stages already up to date are skipped.
     """
-    from cobot_analysis.reports.results import assemble_results
+    from cobot_analysis.reports.results import DEMO_PREFACE, assemble_results
 
     if size not in DEMO_SIZES:
         raise typer.BadParameter(f"--size must be one of {', '.join(DEMO_SIZES)}", param_hint="--size")
@@ -110,14 +110,8 @@ def demo_command(
     for steps in studies.values():
         run_steps(steps)
     report = out / "report.md"
-    preface = "\n".join([
-        "Study reports with their figures:",
-        f"- [walking]({Path('reports') / 'walking' / 'README.md'}), [pair carriage]({Path('reports') / 'pairs' / 'README.md'}),",
-        f"  localisation figures in `{Path('localisation') / 'localisation'}`.",
-        "Below: what each stage computed, in the order the stages ran.",
-    ])
     report.write_text(assemble_results([out / s for s in studies], title="cobot-analysis demo report (synthetic studies)",
-                                       preface=preface))
+                                       preface=DEMO_PREFACE))
     finished("demo", f"{len(studies)} studies, Parquet outputs under {', '.join(str(out / s) for s in studies)}", report)
 
 

@@ -414,7 +414,6 @@ def _start_end_facts(directory: Path, meta: pd.DataFrame, arrays: dict[str, np.n
     doc = _load_json(path)
     index = {(r.condition, r.direction, r.source_scenario, r.entity, round(r.end_orientation, 9)): i
              for i, r in enumerate(meta.itertuples())}
-    entity_keys = {v: k for k, v in PAIR_ENTITIES.items()}
     checked = matched = 0
     worst = 0.0
     for stem, by_entity in doc.items():

@@ -44,7 +44,7 @@ def check_endpoints(start, goal, *, path=None, min_distance: float = 0.01) -> No
 
 def _frame(arrays: dict[str, np.ndarray], *, model: str, weights_label: str, entity: str, trial: str,
            condition: str, study: str, cost: float, convention: str) -> pd.DataFrame:
-    from cobot_analysis.metrics import gamma_from_path
+    from cobot_analysis.distances import gamma_from_path
 
     n = len(arrays["x"])
     T = float(arrays["time"][-1])
@@ -65,14 +65,16 @@ def _frame(arrays: dict[str, np.ndarray], *, model: str, weights_label: str, ent
 
 
 def generate(model: str, start: Sequence[float], goal: Sequence[float], weights=None, n_samples: int = 500, *,
-             convention="continuous", n_intervals: int = 100, duration: str | None = None, v_nominal: float = 1.0,
+             convention=None, n_intervals: int = 100, duration: str | None = None, v_nominal: float = 1.0,
              solver: str = "fatrop", guesses=("rest", "line"), trial: str | None = None, condition: str = "",
              study: str = "model", entity: str | None = None, max_iter: int = 500) -> pd.DataFrame:
     """A trajectory of ``model`` from ``start`` to ``goal`` (poses (x, y, theta), goal heading on the
     branch wanted) with the columns of measured trajectories; see the module docstring.
 
     ``weights``: preset name, fitted-weights file, mapping, or None (the model's default preset).
-    ``convention`` (docs/methods.md sec. 11): ``continuous``, the OC solution resampled to
+    ``convention`` (docs/methods.md sec. 11), by default the one the weights were made under, as on the
+    command line (``presets.weights_convention``; ``continuous`` when unknown or when that convention has
+    no rule for the model): ``continuous``, the OC solution resampled to
     ``n_samples`` in time; ``published``, the solution's nodes (one per step of the authors' node
     step; ``n_samples`` is ignored for OC models). Raises ``SolverError`` when the OC problem does
     not converge (never a silent result).
@@ -82,6 +84,12 @@ def generate(model: str, start: Sequence[float], goal: Sequence[float], weights=
 
     if model not in MODELS:
         raise InputError(f"unknown model {model!r}", remedy=f"use one of {', '.join(MODELS)}")
+    if convention is None:
+        from cobot_analysis.models.presets import weights_convention
+
+        convention = weights_convention(weights) if model != "clothoid" else None
+        if convention is None or model not in conventions.get(convention).oc:
+            convention = "continuous"
     conv = conventions.get(convention)
     if model != "clothoid":
         conv.oc_rule(model)

@@ -110,7 +110,6 @@ def load_recordings(markers_path: Path, trials_path: Path) -> list[Recording]:
     about 4 markers x frames x trials. Raises ``InputError`` for foreign or broken files,
     trials without marker rows, and marker rows of unknown trials.
     """
-    import pyarrow.parquet as pq
 
     trials = read_table(trials_path, TRIALS)
     if not markers_path.is_file():

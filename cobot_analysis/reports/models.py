@@ -386,7 +386,7 @@ def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal
              f"{lower}; objective D = d_xy + 0.5 d_{angle} averaged over the trajectories (orientation required; "
              f"goal: {result.goal if conv.name == 'continuous' else 'the authors'})"
              + ((". gamma of the measured path: " + ("recorded in the data" if conv.comparison.measured_gamma == "data" else
-                                                       "from the path (metrics.gamma_from_path)") + "; of the model's path: from the path.")
+                                                       "from the path (distances.gamma_from_path)") + "; of the model's path: from the path.")
                 if angle == "gamma" else "; pair study: per-scenario means (the pooled 'all' means left out).")
              + (" Coupled model: scenario-3 forward and return means, Subject 2 as carrier 1 on returns." if model == "coupled" else ""),
              "",

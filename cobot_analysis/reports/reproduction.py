@@ -149,7 +149,7 @@ def comparison_switches(ws: Path) -> dict[str, float] | None:
     model path only (the authors' other script version), pointwise on time (sec. 3). None when the
     workspace has no such paths."""
     from cobot_analysis.conventions import Comparison
-    from cobot_analysis.metrics import path_distances
+    from cobot_analysis.distances import path_distances
 
     gen_path, mean_path = ws / "generate-published" / "generated.parquet", ws / "import-published" / "trajectories.parquet"
     if not (gen_path.is_file() and mean_path.is_file()):

@@ -15,6 +15,15 @@ from cobot_analysis.reports import reproduction
 from cobot_analysis.provenance import git_commit
 
 
+#: the paragraph under the title of the demo's report (cobot-analysis demo)
+DEMO_PREFACE = "\n".join([
+    "Study reports with their figures:",
+    f"- [walking]({Path('reports') / 'walking' / 'README.md'}), [pair carriage]({Path('reports') / 'pairs' / 'README.md'}),",
+    f"  localisation figures in `{Path('localisation') / 'localisation'}`.",
+    "Below: what each stage computed, in the order the stages ran.",
+])
+
+
 def assemble_results(workspaces: list[Path], title: str = "Results", preface: str = "") -> str:
     """Concatenate the ``<stage>/results.md`` fragments of each workspace, in pipeline order
     (``registry.order``; other directories after them, in the order they ran)."""

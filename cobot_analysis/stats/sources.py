@@ -32,7 +32,7 @@ import pandas as pd
 from cobot_analysis.angles import wrap
 from cobot_analysis.compare import TrajectorySet, plain_dtypes
 from cobot_analysis.design import GLOBAL_DISTANCE_SPLIT
-from cobot_analysis.metrics import optimal_configurations
+from cobot_analysis.distances import optimal_configurations
 
 _META = ["study", "trial", "kind", "subject", "pair", "condition", "direction", "scenario", "configuration",
          "end_orientation", "repetition", "entity"]

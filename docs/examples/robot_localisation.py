@@ -23,7 +23,7 @@ import matplotlib
 matplotlib.use("Agg")  # files only, no window
 import matplotlib.pyplot as plt  # noqa: E402
 
-from cobot_analysis import api  # noqa: E402
+import cobot_analysis.api as ca  # noqa: E402
 from cobot_analysis.localisation.synth import SynthParams  # noqa: E402
 from cobot_analysis.stages.localisation import synth_localisation  # noqa: E402
 
@@ -41,7 +41,7 @@ def main(out: str | Path = "robot-example") -> dict:
     planted = json.loads((out / "synth-localisation" / "truth.json").read_text())
 
     # 2. what the bag holds: pose-like topics and tf frame pairs (choose the truth and ICP streams)
-    topics, frames = api.bag_topics(bag)
+    topics, frames = ca.bag_topics(bag)
     for t in topics:
         if t["pose"]:
             rate = f" at {t['rate']:g} Hz" if t["count"] > 1 else ""
@@ -50,7 +50,7 @@ def main(out: str | Path = "robot-example") -> dict:
 
     # 3. localisation accuracy: the delay is estimated (least squares over --delay-window 0,1.5 s), the
     #    structural offset removed (alignment "mean"), ICP compared with the truth interpolated at its stamps
-    result = api.localise([bag], truth="/mocap/pose", icp="/icp/pose", goal_topic="/goal")
+    result = ca.localise([bag], truth="/mocap/pose", icp="/icp/pose", goal_topic="/goal")
     run = result.runs.iloc[0]
     print(f"delay {run['delay']:.4f} ± {run['delay_sd']:.4f} s (planted {planted['delay']} s)")
     print("offset, ICP minus truth (m, rad): " + ", ".join(

@@ -20,7 +20,7 @@ import matplotlib
 matplotlib.use("Agg")  # files only, no window
 import matplotlib.pyplot as plt  # noqa: E402
 
-from cobot_analysis import api  # noqa: E402
+import cobot_analysis.api as ca  # noqa: E402
 from cobot_analysis.stages.data import synth_walking  # noqa: E402
 
 # 4 subjects x 4 start conditions x 2 repetitions. A condition is its start orientation (N: facing the goal's
@@ -55,22 +55,22 @@ def main(out: str | Path = "walking-example") -> dict:
     protocol = out / "synth-walking" / "protocol.yaml"
 
     # 2. import: every trial read and checked (units, plausibility); markers in metres
-    imported = api.import_markers(protocol, jobs=1)
+    imported = ca.import_markers(protocol, jobs=1)
     print("import:", imported.summary())
 
     # 3. preprocess: gaps, low-pass filter, pelvis kinematics, walk segmentation, 500 samples per walk
-    walks = api.preprocess(imported, jobs=1).trajectories  # the documented trajectories table (docs/schemas.md)
+    walks = ca.preprocess(imported, jobs=1).trajectories  # the documented trajectories table (docs/schemas.md)
     n_walks = walks.groupby(["trial", "entity"]).ngroups
     print(f"preprocess: {n_walks} trajectories of {walks['sample'].nunique()} samples")
 
     # 4. mean path per start condition, 5. each walk's distance to its condition's mean
-    means = api.average(walks).means
-    distances = api.compare(walks, means).distances
+    means = ca.average(walks).means
+    distances = ca.compare(walks, means).distances
     per_subject = distances.groupby("subject")["d_xy"].mean()
     print("mean d_xy per subject (m):", ", ".join(f"{s} {v:.3f}" for s, v in per_subject.items()))
 
     # 6. the statistics of the study's questions (Holm correction within each family)
-    stats = api.statistics(walks, distances, config=QUESTIONS)
+    stats = ca.statistics(walks, distances, config=QUESTIONS)
     print("statistics:", stats.summary())
     for _, row in stats.table.iterrows():
         print(f"  {row['id']:<12} {row['test']:<13} n={row['n']:<3} statistic={row['statistic']:.3f} "

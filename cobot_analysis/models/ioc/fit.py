@@ -7,7 +7,7 @@ fixed because the lower-level optimum does not change when all weights are scale
 Lower level: the OC problem from the measured start pose to the measured end pose of each
 trajectory with weights w, T free (``ocp.py``), resampled to the measured number of samples.
 D_n = d_xy + 0.5 d_gamma (walker) or d_xy + 0.5 d_theta (table), with the distances of
-``cobot_analysis.metrics``; gamma of both paths from the path (``metrics.gamma_from_path``).
+``cobot_analysis.distances``; gamma of both paths from the path (``distances.gamma_from_path``).
 
 Speed and reproducibility:
 - every lower-level solve is warm-started from the solution at the best weights found so far
@@ -83,9 +83,9 @@ class IOCSpec:
 # ---- lower level (runs on workers) -------------------------------------------------------------
 def distances(t: Target, x, y, theta, convention="continuous") -> dict[str, float]:
     """d_xy, d_theta, d_gamma of a path (x, y, theta) against target ``t`` under a convention
-    (``metrics.path_distances``; the target's recorded gamma when the convention takes it)."""
+    (``distances.path_distances``; the target's recorded gamma when the convention takes it)."""
     from cobot_analysis import conventions
-    from cobot_analysis.metrics import path_distances
+    from cobot_analysis.distances import path_distances
 
     comparison = conventions.get(convention).comparison
     gamma = t.gamma if comparison.measured_gamma == "data" else None

@@ -43,7 +43,7 @@ import pandas as pd
 
 from cobot_analysis.conventions import CONTINUOUS, Convention
 from cobot_analysis.errors import InputError
-from cobot_analysis.models.prediction.metrics import summarise, window_errors
+from cobot_analysis.models.prediction.errors import summarise, window_errors
 from cobot_analysis.models.prediction.base import check_setting
 from cobot_analysis.models.prediction.predictor import PREDICTORS, make_predictor
 from cobot_analysis.schema import Column, TableSchema
@@ -337,10 +337,10 @@ def code_digest() -> str:
     from cobot_analysis import __version__
     from cobot_analysis.models import dynamics, presets
     from cobot_analysis.models.oc import problem
-    from cobot_analysis.models.prediction import baselines, metrics, predictor
+    from cobot_analysis.models.prediction import base, baselines, errors, predictor
 
     h = hashlib.sha256(__version__.encode())
-    for mod in (baselines, dynamics, problem, predictor, metrics, presets):
+    for mod in (base, baselines, dynamics, problem, predictor, errors, presets):
         h.update(Path(mod.__file__).read_bytes())
     return h.hexdigest()[:12]
 

@@ -22,18 +22,24 @@ def d_xy(x1: ArrayLike, y1: ArrayLike, x2: ArrayLike, y2: ArrayLike) -> FloatArr
     return np.mean(np.hypot(np.asarray(x1) - np.asarray(x2), np.asarray(y1) - np.asarray(y2)), axis=-1)
 
 
-def d_theta(theta1: ArrayLike, theta2: ArrayLike) -> FloatArray:
-    """Angular distance ``d_theta = (1/N) sum_i |wrap(theta1_i - theta2_i)|`` (rad)."""
-    return np.mean(np.abs(angle_diff(theta1, theta2)), axis=-1)
+def d_theta(theta1: ArrayLike, theta2: ArrayLike, difference: str = "wrapped") -> FloatArray:
+    """Angular distance ``d_theta = (1/N) sum_i |wrap(theta1_i - theta2_i)|`` (rad, sec. 3) over the last axis;
+    ``difference="each"``: ``|wrap(theta1_i) - wrap(theta2_i)|``, the authors' scripts, which wrap each angle on
+    its own, so that a pair across +-pi counts nearly 2 pi (sec. 11)."""
+    a, b = np.asarray(theta1, dtype=float), np.asarray(theta2, dtype=float)
+    if difference == "each":
+        return np.mean(np.abs(wrap(a) - wrap(b)), axis=-1)
+    return np.mean(np.abs(angle_diff(a, b)), axis=-1)
 
 
-def d_gamma(gamma1: ArrayLike, gamma2: ArrayLike) -> FloatArray:
-    """Local angular distance ``d_gamma = (1/(N-1)) sum_{i<N} |wrap(gamma1_i - gamma2_i)|`` (rad).
+def d_gamma(gamma1: ArrayLike, gamma2: ArrayLike, difference: str = "wrapped") -> FloatArray:
+    """Local angular distance ``d_gamma = (1/(N-1)) sum_{i<N} |wrap(gamma1_i - gamma2_i)|`` (rad), ``difference``
+    as in ``d_theta``.
 
     The last sample is left out (docs/methods.md sec. 3): gamma of a generated path is defined from the
     step i -> i+1 (see ``gamma_from_path``).
     """
-    return np.mean(np.abs(angle_diff(np.asarray(gamma1)[..., :-1], np.asarray(gamma2)[..., :-1])), axis=-1)
+    return d_theta(np.asarray(gamma1)[..., :-1], np.asarray(gamma2)[..., :-1], difference)
 
 
 def gamma_from_path(x: ArrayLike, y: ArrayLike, theta: ArrayLike) -> FloatArray:
@@ -76,16 +82,6 @@ def resample_time(values: ArrayLike, n: int, *, authors: bool = False) -> FloatA
     return np.interp(np.arange(n), src, values)
 
 
-def angle_distance(theta1: ArrayLike, theta2: ArrayLike, difference: str = "wrapped") -> FloatArray:
-    """Mean absolute angle difference (rad) over the last axis: ``wrapped`` |wrap(a - b)| (sec. 3),
-    or ``each`` |wrap(a) - wrap(b)| (the authors' scripts wrap each angle on its own, so a pair
-    across +-pi counts nearly 2 pi)."""
-    a, b = np.asarray(theta1, dtype=float), np.asarray(theta2, dtype=float)
-    if difference == "each":
-        return np.mean(np.abs(wrap(a) - wrap(b)), axis=-1)
-    return np.mean(np.abs(angle_diff(a, b)), axis=-1)
-
-
 def path_distances(measured: dict[str, ArrayLike], other: dict[str, ArrayLike], comparison: Any, *, measured_gamma: ArrayLike | None = None,
                    resample_measured: bool | None = None) -> dict[str, float]:
     """d_xy, d_theta, d_gamma of ``other`` = (x, y, theta) against ``measured`` = (x, y, theta)
@@ -116,16 +112,11 @@ def path_distances(measured: dict[str, ArrayLike], other: dict[str, ArrayLike], 
         ox, oy, oth = (resample_time(v, n) for v in (ox, oy, oth))
     with np.errstate(invalid="ignore"):
         out = {"d_xy": float(d_xy(mx, my, ox, oy)),
-               "d_theta": float(angle_distance(mth, oth, comparison.angle_difference)),
-               "d_gamma": float(np.mean(np.abs(_gamma_difference(mg, gamma_from_path(ox, oy, oth),
-                                                                 comparison.angle_difference))[:-1]))}
+               "d_theta": float(d_theta(mth, oth, comparison.angle_difference)),
+               "d_gamma": float(d_gamma(mg, gamma_from_path(ox, oy, oth), comparison.angle_difference))}
         if measured_gamma is not None:  # the model's theta against the measured path's tangent, theta - gamma
-            out["d_theta_tangent"] = float(angle_distance(mth - mg, oth, comparison.angle_difference))
+            out["d_theta_tangent"] = float(d_theta(mth - mg, oth, comparison.angle_difference))
     return out
-
-
-def _gamma_difference(g1: ArrayLike, g2: ArrayLike, difference: str) -> FloatArray:
-    return wrap(g1) - wrap(g2) if difference == "each" else angle_diff(g1, g2)
 
 
 # ---- distances over many pairs at once ------------------------------------------------------------
@@ -133,7 +124,7 @@ def pair_distances(a: dict[str, FloatArray], b: dict[str, FloatArray], ia: Array
     """d_xy, d_theta, d_gamma between trajectories ``a[k][ia[j]]`` and ``b[k][ib[j]]`` for every j.
 
     ``a`` and ``b`` map "x", "y", "theta", "gamma" to arrays (n_traj, N); ``ia``/``ib`` are index
-    arrays of equal length; ``angle_difference`` as in ``angle_distance`` ("wrapped" or "each").
+    arrays of equal length; ``angle_difference`` as in ``d_theta`` ("wrapped" or "each").
     Angular distances are NaN where either trajectory lacks orientation
     at some sample (docs/methods.md sec. 2.9: such trials leave only the orientation comparison).
     Work is done in blocks so that memory stays bounded for tens of thousands of pairs.
@@ -144,30 +135,16 @@ def pair_distances(a: dict[str, FloatArray], b: dict[str, FloatArray], ia: Array
     for s in range(0, len(ia), block):
         i, j = ia[s:s + block], ib[s:s + block]
         out["d_xy"][s:s + block] = d_xy(a["x"][i], a["y"][i], b["x"][j], b["y"][j])
-        for key in ("theta", "gamma"):
+        for key, distance in (("theta", d_theta), ("gamma", d_gamma)):
             if key in a and key in b:
-                ai, bj = a[key][i], b[key][j]
-                if key == "gamma":  # N - 1 samples (sec. 3)
-                    ai, bj = ai[..., :-1], bj[..., :-1]
                 with np.errstate(invalid="ignore"):
-                    out[f"d_{key}"][s:s + block] = angle_distance(ai, bj, angle_difference)
+                    out[f"d_{key}"][s:s + block] = distance(a[key][i], b[key][j], angle_difference)
     return out
 
 
 def reverse_time(values: ArrayLike) -> FloatArray:
     """A trajectory travelled backwards in time: sample i becomes sample N-1-i (last axis)."""
     return np.asarray(values)[..., ::-1]
-
-
-def symmetry(x_fwd: ArrayLike, y_fwd: ArrayLike, theta_fwd: ArrayLike, x_ret: ArrayLike, y_ret: ArrayLike, theta_ret: ArrayLike) -> tuple[FloatArray, FloatArray]:
-    """Forward/return symmetry (docs/methods.md sec. 3): d_xy and d_theta between the forward path and
-    the time-reversed return path. Returns ``(d_xy, d_theta)``.
-
-    Orientation is compared as is: a carrier who walks the return facing the same way as on the
-    forward path (e.g. walking backwards) has d_theta = 0; one who turns round has d_theta ~ pi.
-    """
-    return (d_xy(x_fwd, y_fwd, reverse_time(x_ret), reverse_time(y_ret)),
-            d_theta(theta_fwd, reverse_time(theta_ret)))
 
 
 def travelled_distance(x: ArrayLike, y: ArrayLike) -> FloatArray:
@@ -179,11 +156,6 @@ def travelled_distance(x: ArrayLike, y: ArrayLike) -> FloatArray:
 def path_length(x: ArrayLike, y: ArrayLike) -> FloatArray:
     """Length of the polyline through the samples ``sum_i |p_{i+1} - p_i|`` (m)."""
     return np.sum(np.hypot(np.diff(x, axis=-1), np.diff(y, axis=-1)), axis=-1)
-
-
-def travel_time(onset: ArrayLike, offset: ArrayLike) -> FloatArray:
-    """Travel time = carriage offset - onset (s, docs/methods.md sec. 3)."""
-    return np.asarray(offset, dtype=float) - np.asarray(onset, dtype=float)
 
 
 def optimal_configurations(d_by_config: dict[Any, float], tol: float = 0.05) -> set[Any]:

@@ -1,0 +1,46 @@
+"""The public API (docs/api.md): what a notebook user imports behaves as the command line does."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+import cobot_analysis.api as ca
+from cobot_analysis.errors import InputError
+from cobot_analysis.synth.tables import walking_table
+
+
+def test_importing_the_package_loads_no_heavy_library():
+    code = "import sys, cobot_analysis, cobot_analysis.api; print(sorted({'pandas', 'scipy', 'casadi', 'matplotlib'} & set(sys.modules)))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
+    assert out == "[]"
+
+
+def test_every_export_resolves():
+    for name, module in ca.EXPORTS.items():
+        assert getattr(ca, name).__module__ == f"cobot_analysis.api.{module}"
+    with pytest.raises(AttributeError):
+        ca.no_such_function  # noqa: B018
+
+
+def test_generate_defaults_to_the_convention_of_the_weights_as_the_cli_does():
+    from cobot_analysis.models import generate
+
+    preset = generate("improved", (-1.0, -1.5, 0.0), (0.0, 0.0, 1.5707963), weights="walking-2021")
+    assert preset["convention"].iloc[0] == "published"  # the papers' weights mean what they mean under it
+    mapping = generate("improved", (-1.0, -1.5, 0.0), (0.0, 0.0, 1.5707963), weights=dict(a1=1.0, b0=10.0, b1=10.0))
+    assert mapping["convention"].iloc[0] == "continuous"  # weights of unknown convention: ours
+    unicycle = generate("unicycle", (-1.0, -1.5, 0.0), (0.0, 0.0, 1.5707963), weights="walking-2021")
+    assert unicycle["convention"].iloc[0] == "continuous"  # the published convention has no unicycle
+    assert ca.generate("improved", start=(-1.0, -1.5, 0.0), weights="walking-2021").convention == "published"
+
+
+def test_compare_refuses_generated_paths_given_as_trials():
+    walks = walking_table(n_subjects=2, n_conditions=1, n_trials=2)
+    means = ca.average(walks).means
+    with pytest.raises(InputError, match="generated paths"):
+        ca.compare(walks.assign(kind="model"), means)
+    d = ca.compare(walks, means).distances
+    assert len(d) == 4 and (d["comparison"] == "individual-mean").all() and (d["d_xy"] > 0).all()
