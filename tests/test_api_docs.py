@@ -76,3 +76,12 @@ def test_documented_defaults_are_the_functions():
         for key, value in documented_defaults(name, text).items():
             assert key in params, f"docs/api.md: {name} has no option {key}"
             assert params[key].default == value, f"docs/api.md: {name}({key}={value!r}), the function's default is {params[key].default!r}"
+
+
+def test_code_examples_of_the_page_are_python():
+    """The example blocks of docs/api.md (not the signature blocks) are valid Python."""
+    blocks = re.findall(r"```python\n(.*?)```", DOC.read_text(), re.S)
+    examples = [b for b in blocks if not re.match(r"\w+\(", b)]
+    assert len(examples) >= 14
+    for block in examples:
+        compile(block, "docs/api.md", "exec")
