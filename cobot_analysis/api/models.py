@@ -95,10 +95,36 @@ def generate(model: str = "improved", *, start: tuple[float, float, float] | Non
         >>> oc.convention, bool(abs(oc.generated[["x", "y"]].iloc[-1]).max() < 0.01)
         ('published', True)
     """
+    from cobot_analysis.parallel import map_tasks
+
+    models, conv, cases = plan_generate(model, weights=weights, start=start, goal=goal, cases=cases, duration=duration,
+                                        convention=convention)
+    kw = {"n_samples": samples, "n_intervals": intervals, "duration": duration, "v_nominal": v_nominal,
+          "max_iter": max_iter, "convention": conv.name}
+    tasks = [(m, s, g, weights if m != "clothoid" else None,
+              {**kw, "trial": f"{m}_{c}" if c else m, "condition": c, "study": study or "model"})
+             for m in models for c, s, g in cases]
+    frames = map_tasks(_generate_task, tasks, jobs=jobs, scheduler=scheduler, description="generate")
+    return GenerateResult(pd.concat(frames, ignore_index=True), models, weights, cases, conv.name, samples, intervals)
+
+
+def plan_generate(model: str, *, weights: Any = None, start: tuple | None = None, goal: tuple | None = None,
+                  cases: list | None = None, duration: str | None = None, convention: str | None = None):
+    """(models, convention, cases) of a ``generate`` run, every option checked before any solve: the model
+    name, the weights, the convention (``resolve_convention``), ``duration`` (not under the published
+    convention), and each case's start and goal (``cases``, else ``start`` to ``goal``).
+
+        >>> from cobot_analysis.api.models import plan_generate
+        >>> models, conv, cases = plan_generate("all", start=(-1.5, -3.4, 0.0))
+        >>> models, conv.name, cases
+        (['unicycle', 'clothoid', 'mombaur', 'improved', 'table'], 'continuous', [('', (-1.5, -3.4, 0.0), (0.0, 0.0, 1.5707963267948966))])
+        >>> plan_generate("improved", start=(0.0, 0.0, 1.0))
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: start equals goal (closer than 1 cm); ...
+    """
     from cobot_analysis.design import WALKING_GOAL
     from cobot_analysis.models import MODELS, check_endpoints
     from cobot_analysis.models.presets import load_weights
-    from cobot_analysis.parallel import map_tasks
 
     if model not in MODEL_CHOICES:
         raise InputError(f"unknown model {model!r}", remedy=f"use one of {', '.join(MODEL_CHOICES)}")
@@ -116,13 +142,7 @@ def generate(model: str = "improved", *, start: tuple[float, float, float] | Non
         cases = [("", tuple(start), goal)]
     for _, s, g in cases:
         check_endpoints(s, g)
-    kw = {"n_samples": samples, "n_intervals": intervals, "duration": duration, "v_nominal": v_nominal,
-          "max_iter": max_iter, "convention": conv.name}
-    tasks = [(m, s, g, weights if m != "clothoid" else None,
-              {**kw, "trial": f"{m}_{c}" if c else m, "condition": c, "study": study or "model"})
-             for m in models for c, s, g in cases]
-    frames = map_tasks(_generate_task, tasks, jobs=jobs, scheduler=scheduler, description="generate")
-    return GenerateResult(pd.concat(frames, ignore_index=True), models, weights, cases, conv.name, samples, intervals)
+    return models, conv, cases
 
 
 def walking_cases(convention: str, means: pd.DataFrame | None = None, *, goal: tuple | None = None, path=None) -> list:

@@ -94,10 +94,11 @@ ACCOUNTS: dict[str, dict[str, str]] = {
 def measured(ws: Path, fig: Figure, convention: str) -> tuple[float, float, int] | None:
     """Mean, sd (the convention's ddof) and n of our value of ``fig`` under ``convention``, or None
     when the workspace has no such output."""
-    from cobot_analysis.conventions import get, stage_name
+    from cobot_analysis.conventions import get
+    from cobot_analysis.registry import directory
 
     conv = get(convention)
-    path = ws / stage_name(fig.stage, conv) / fig.table
+    path = ws / directory(fig.stage, conv.name) / fig.table
     if not path.is_file():
         return None
     df = pd.read_parquet(path)

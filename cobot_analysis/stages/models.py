@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from cobot_analysis import api, registry
-from cobot_analysis.api.models import MODEL_CHOICES, held_weights, resolve_convention
+from cobot_analysis.api.models import held_weights, plan_generate
 from cobot_analysis.errors import InputError
 from cobot_analysis.stages import Outcome
 from cobot_analysis.workspace import Stage, find_input
@@ -33,25 +33,15 @@ def generate(out: str | os.PathLike, *, model: str = "improved", weights: Any = 
              convention: str | None = None, jobs: int | None = None, scheduler: str | None = None, force: bool = False) -> Outcome:
     """``generate`` (``generate-published``): ``generated.parquet`` and its results fragment."""
     from cobot_analysis import conventions
-    from cobot_analysis.models import MODELS
     from cobot_analysis.models.outputs import GENERATED
-    from cobot_analysis.models.presets import load_weights
     from cobot_analysis.reports.models import generate_markdown
     from cobot_analysis.schema import write_table
 
-    if model not in MODEL_CHOICES:
-        raise InputError(f"unknown model {model!r}", remedy=f"use one of {', '.join(MODEL_CHOICES)}")
-    models = list(MODELS) if model == "all" else [model]
-    inputs = []
-    if weights and any(m != "clothoid" for m in models):
-        load_weights(weights, "improved")  # validate before any work
-    if weights and Path(weights).is_file():
-        inputs.append(Path(weights))
-    conv = resolve_convention(convention, weights, models)
-    if conv.name == "published" and duration is not None:
-        raise InputError("--duration does not apply to the published convention (it has the authors' duration rule)",
-                         remedy="leave --duration out, or use --convention continuous")
+    inputs = [Path(weights)] if weights and Path(weights).is_file() else []
+    _, conv, _ = plan_generate(model, weights=weights, cases=[], duration=duration, convention=convention)  # options first
     cases = None
+    if study is None and start is None:
+        raise InputError("nothing to generate", remedy="give --start X Y THETA or --study walking-2020")
     if study is not None:
         if study != "walking-2020":
             raise InputError(f"unknown study {study!r}", remedy="use --study walking-2020 or give --start")
@@ -61,17 +51,11 @@ def generate(out: str | os.PathLike, *, model: str = "improved", weights: Any = 
             means_df = read_trajectories(path)
             inputs.append(path)
         cases = api.walking_cases(conv.name, means_df, goal=goal, path=means)
-    elif start is None:
-        raise InputError("nothing to generate", remedy="give --start X Y THETA or --study walking-2020")
-    from cobot_analysis.design import WALKING_GOAL
-    from cobot_analysis.models import check_endpoints
-
-    goal = tuple(goal) if goal is not None else WALKING_GOAL
-    for _, s, g in cases or [("", tuple(start), goal)]:
-        check_endpoints(s, g)
+    models, conv, cases = plan_generate(model, weights=weights, start=start, goal=goal, cases=cases, duration=duration,
+                                        convention=convention)
     kw = {"n_samples": samples, "n_intervals": intervals, "duration": duration, "v_nominal": v_nominal, "max_iter": max_iter,
           "convention": conv.name}
-    params = {"models": models, "weights": weights, "cases": cases or [("", tuple(start), goal)], **kw}
+    params = {"models": models, "weights": weights, "cases": cases, **kw}
     with Stage(out, registry.directory("generate", conv.name), inputs=inputs, params=params, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
