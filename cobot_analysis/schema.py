@@ -144,10 +144,10 @@ TRAJECTORIES = TableSchema(
 
 
 # ---------------------------------------------------------------------------------------------
-def write_table(df: pd.DataFrame, path: str | os.PathLike, schema: TableSchema, **metadata: Any) -> Path:
-    """Write ``df`` as the Parquet table ``schema`` at ``path`` (atomic: temp file then rename)."""
+def to_arrow(df: pd.DataFrame, schema: TableSchema, **metadata: Any):
+    """``df`` as the Arrow table ``schema`` declares (types conformed, units and ``metadata`` attached): what
+    ``write_table`` writes, and what reading the file gives back."""
     import pyarrow as pa
-    import pyarrow.parquet as pq
 
     missing = [c for c in schema.required if c not in df.columns]
     if missing:
@@ -155,7 +155,15 @@ def write_table(df: pd.DataFrame, path: str | os.PathLike, schema: TableSchema, 
     table = conform(pa.Table.from_pandas(df, preserve_index=False), schema)
     meta = dict(table.schema.metadata or {})
     meta[METADATA_KEY] = json.dumps({**schema.metadata(), **metadata}, default=str).encode()
-    table = table.replace_schema_metadata(meta)
+    return table.replace_schema_metadata(meta)
+
+
+def write_table(df: pd.DataFrame | Any, path: str | os.PathLike, schema: TableSchema | None = None, **metadata: Any) -> Path:
+    """Write ``df`` as the Parquet table ``schema`` at ``path`` (atomic: temp file then rename); ``df`` may be
+    an Arrow table already made by ``to_arrow`` (then ``schema`` and ``metadata`` are not needed)."""
+    import pyarrow.parquet as pq
+
+    table = df if schema is None else to_arrow(df, schema, **metadata)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp")

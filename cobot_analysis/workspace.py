@@ -140,6 +140,7 @@ class Stage:
         self._t0 = 0.0
         self._started = ""
         self._lock: int | None = None
+        self.outputs: dict[str, Any] = {}  # what the stage wrote, kept in memory: its metrics are computed from it
 
     # -- skip logic -----------------------------------------------------------------------------
     def _previous_manifest(self) -> dict[str, Any] | None:
@@ -251,6 +252,22 @@ class Stage:
         p.parent.mkdir(parents=True, exist_ok=True)
         return p
 
+    def write_table(self, relative: str, df, schema, **metadata: Any) -> Path:
+        """Write ``df`` as the Parquet table ``schema`` (``schema.write_table``) and keep it for the metrics."""
+        from cobot_analysis.schema import to_arrow, write_table
+
+        table = to_arrow(df, schema, **metadata)
+        self.outputs[relative] = table
+        return write_table(table, self.path(relative))
+
+    def write_json(self, relative: str, data: Any, default=float) -> Path:
+        """Write ``data`` as indented JSON (``default`` converts what JSON lacks) and keep the text for the metrics."""
+        text = json.dumps(data, indent=2, default=default) + "\n"
+        self.outputs[relative] = text
+        p = self.path(relative)
+        p.write_text(text)
+        return p
+
     def savefig(self, fig, stem: str, formats: tuple[str, ...] = ("png", "pdf")) -> list[Path]:
         """Save a matplotlib figure as ``stem.png`` and ``stem.pdf`` and close it."""
         import matplotlib.pyplot as plt
@@ -267,7 +284,7 @@ class Stage:
         """``metrics.json``: the stage's headline numbers, for ``cobot-analysis metrics check``."""
         from cobot_analysis.regression.extract import write_stage_metrics
 
-        write_stage_metrics(self.name, self.dir, self.params)
+        write_stage_metrics(self.name, self.dir, self.params, self.outputs)
 
     def _write_manifest(self) -> None:
         outputs = [

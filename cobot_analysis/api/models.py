@@ -309,6 +309,32 @@ def goal_rule(goal: str, df: pd.DataFrame) -> tuple | None:
         return None
 
 
+def ioc_spec(model: str, *, convention: str = "continuous", start_weights: str | None = None, fit: list[str] | None = None,
+             optimizer: str = "powell", max_evaluations: int = 2000, intervals: int = 50, v_nominal: float = 1.0):
+    """The IOC's specification (``ioc.IOCSpec``), every option checked: the model, the weights to fit (default:
+    all but ``held_weights``), the start weights (a preset, a weights.json, or ``"ones"``: every fitted weight 1)."""
+    from cobot_analysis import conventions
+    from cobot_analysis.models.ioc import IOCSpec
+    from cobot_analysis.models.presets import load_weights, names_for, weights_vector
+
+    if model not in ("improved", "table", "coupled"):
+        raise InputError(f"fit-ioc fits the improved, table or coupled model, not {model!r}", remedy="use --model improved, table or coupled")
+    conventions.get(convention).oc_rule(model)
+    all_names = names_for(model)
+    names = tuple(n.strip() for n in (fit or [n for n in all_names if n not in held_weights(model, convention)]) if n.strip())
+    bad = [n for n in names if n not in all_names]
+    if bad or not names:
+        raise InputError(f"--fit names {bad or '(none)'} are not weights of the model ({', '.join(all_names)})", remedy="e.g. --fit a1,a2,a4")
+    w0 = weights_vector(load_weights(None if start_weights == "ones" else start_weights, model), model)
+    if start_weights == "ones":
+        for n in names:
+            w0[all_names.index(n)] = 1.0
+    return IOCSpec(model=model, start_weights=tuple(map(float, w0)), fitted=names, optimizer=optimizer,
+                   max_evaluations=max_evaluations, n_intervals=intervals, v_nominal=v_nominal, convention=convention,
+                   # published: the iteration budget of the authors' DDP (crocoddyl's default maxiter)
+                   **({"max_iter": 100} if convention == "published" else {}))
+
+
 def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: str = "improved",
             start_weights: str | None = None, fit: list[str] | None = None, optimizer: str = "powell",
             max_evaluations: int = 2000, per: str = "all", subjects: int | None = None, goal: str = "auto",
@@ -339,26 +365,18 @@ def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: s
     """
     from cobot_analysis import conventions
     from cobot_analysis.models.comparison import compare_models, compared_models, coupled_distances, orientation_of, subject_distances
-    from cobot_analysis.models.ioc import IOCSpec, fit as ioc_fit, pair_targets_from_table, targets_from_table
-    from cobot_analysis.models.presets import DEFAULT_PRESET, PRESETS, load_weights, names_for, weights_vector
+    from cobot_analysis.models.ioc import fit as ioc_fit, pair_targets_from_table, targets_from_table
+    from cobot_analysis.models.presets import DEFAULT_PRESET, PRESETS, names_for, weights_vector
     from cobot_analysis.parallel import default_jobs, executor
 
     if model not in ("improved", "table", "coupled"):
         raise InputError(f"fit-ioc fits the improved, table or coupled model, not {model!r}", remedy="use --model improved, table or coupled")
     conv = conventions.get(convention or "continuous")
-    conv.oc_rule(model)
-    all_names = names_for(model)
-    held = held_weights(model, conv.name)
-    names = tuple(n.strip() for n in (fit or [n for n in all_names if n not in held]) if n.strip())
-    bad = [n for n in names if n not in all_names]
-    if bad or not names:
-        raise InputError(f"--fit names {bad or '(none)'} are not weights of the model ({', '.join(all_names)})", remedy="e.g. --fit a1,a2,a4")
+    spec = ioc_spec(model, convention=conv.name, start_weights=start_weights, fit=fit, optimizer=optimizer,
+                    max_evaluations=max_evaluations, intervals=intervals, v_nominal=v_nominal)
     if model == "coupled" and per == "subject":
         raise InputError("--per subject is for the walking study", remedy="fit the coupled model over the pair means (--per all)")
-    w0 = weights_vector(load_weights(None if start_weights == "ones" else start_weights, model), model)
-    if start_weights == "ones":
-        for n in names:
-            w0[all_names.index(n)] = 1.0
+    all_names, names, w0 = names_for(model), spec.fitted, np.asarray(spec.start_weights)
     entity = "table" if model == "table" else "walker"
     mean_df = means[means["kind"] == "mean"] if "kind" in means else means
     if "scenario" in mean_df and mean_df["scenario"].notna().any():
@@ -388,10 +406,6 @@ def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: s
             fits = dict(list(fits.items())[:subjects])
         if not fits:
             raise InputError("no subject trajectory with orientation", path=trials_source, remedy="check the input table")
-    spec = IOCSpec(model=model, start_weights=tuple(map(float, w0)), fitted=names, optimizer=optimizer,
-                   max_evaluations=max_evaluations, n_intervals=intervals, v_nominal=v_nominal, convention=conv.name,
-                   # published: the iteration budget of the authors' DDP (crocoddyl's default maxiter)
-                   **({"max_iter": 100} if conv.name == "published" else {}))
     checkpoint = Path(checkpoint) if checkpoint is not None else None
     n_chunks = 4 * (default_jobs() if jobs is None else jobs) if scheduler is None else 8
     results = {}

@@ -20,16 +20,9 @@ def results_command(
     preface: Annotated[str, typer.Option(help="Paragraph under the title (what was run).")] = "",
 ) -> None:
     """Assemble docs/results.md from the results.md fragments of the given workspaces (generated, never typed)."""
-    import os
+    from cobot_analysis.reports.results import write_results
 
-    from cobot_analysis.reports.results import assemble_results
-
-    text = assemble_results(workspaces, title=title, preface=" ".join(preface.split()))
-    to.parent.mkdir(parents=True, exist_ok=True)
-    tmp = to.with_name(f".{to.name}.tmp")
-    tmp.write_text(text)
-    os.replace(tmp, to)
-    sections = sum(line.startswith("## ") for line in text.splitlines())
+    sections = write_results(workspaces, to, title=title, preface=preface)
     finished("results", f"{count(sections, 'section')} from {count(len(workspaces), 'workspace')}", to)
 
 

@@ -1,7 +1,8 @@
-"""The headline numbers of each stage, read from the stage's own outputs -> ``<stage>/metrics.json``.
+"""The headline numbers of each stage, from the stage's own outputs -> ``<stage>/metrics.json``.
 
-``STAGE_METRICS`` maps a stage name to a function ``(stage_dir, out, params)`` that reads the tables
-the stage wrote (Parquet, json, csv) and adds metric records to ``out``: the numbers
+``STAGE_METRICS`` maps a stage name to a function ``(outputs, out, params)`` that reads the tables
+the stage wrote (``Outputs``: the Arrow tables and JSON the stage kept in memory as it wrote them,
+``Stage.write_table`` / ``write_json``, else its files) and adds metric records to ``out``: the numbers
 ``docs/results.md`` reports (distances mean and sd, test statistics and p, fitted D and weights,
 prediction errors, localisation delay, offsets, errors, goals) and the counts behind them.
 ``workspace.Stage`` calls ``write_stage_metrics`` inside the stage's temporary directory, so the
@@ -111,16 +112,50 @@ class Collector:
             self.add((*name, "sd"), float(v.std(ddof=1)), unit)
 
 
-def _parquet(path: Path, columns: list[str] | None = None, filters=None):
-    """A Parquet table as pandas (only ``columns`` that exist), without the file metadata in attrs."""
-    import pyarrow.parquet as pq
+class Outputs:
+    """A stage's outputs as its metrics read them: the tables and JSON documents the stage kept in memory as it
+    wrote them (``Stage.write_table`` / ``write_json``), else the files of its directory."""
 
-    if columns is not None:
-        names = set(pq.read_schema(path).names)
-        columns = [c for c in columns if c in names]
-    df = pq.read_table(path, columns=columns, filters=filters).to_pandas()
-    df.attrs = {}
-    return df
+    def __init__(self, directory: Path, memory: dict[str, Any] | None = None):
+        self.directory, self.memory = Path(directory), memory or {}
+
+    def exists(self, name: str) -> bool:
+        return name in self.memory or (self.directory / name).is_file()
+
+    def table(self, name: str, columns: list[str] | None = None, sample0: bool = False):
+        """A Parquet table as pandas (only the ``columns`` that exist; ``sample0``: the rows of sample 0)."""
+        import pyarrow.compute as pc
+        import pyarrow.parquet as pq
+
+        table = self.memory.get(name)
+        if table is None:
+            names = pq.read_schema(self.directory / name).names
+            cols = None if columns is None else [c for c in columns if c in names]
+            table = pq.read_table(self.directory / name, columns=cols, filters=[("sample", "=", 0)] if sample0 else None)
+        else:
+            if columns is not None:
+                table = table.select([c for c in columns if c in table.column_names])
+            if sample0:
+                table = table.filter(pc.equal(table["sample"], 0))
+        df = table.to_pandas()
+        df.attrs = {}
+        return df
+
+    def rows(self, name: str) -> int:
+        import pyarrow.parquet as pq
+
+        return self.memory[name].num_rows if name in self.memory else pq.ParquetFile(self.directory / name).metadata.num_rows
+
+    def json(self, name: str) -> Any:
+        return json.loads(self.memory[name] if name in self.memory else (self.directory / name).read_text())
+
+    def csv(self, name: str):
+        import pandas as pd
+
+        return pd.read_csv(self.directory / name)
+
+    def count(self, pattern: str) -> int:
+        return sum(1 for _ in self.directory.glob(pattern))
 
 
 def _study(df) -> str | None:
@@ -147,18 +182,17 @@ def _groups(df, keys: list[str], fmt: dict[str, str] | None = None):
 
 
 # ---- per stage ---------------------------------------------------------------------------------------
-def _synth_study(d: Path, out: Collector, params: dict) -> None:
+def _synth_study(d: Outputs, out: Collector, params: dict) -> None:
     """synth-walking / synth-pairs: design counts, true travel times and paths, planted losses."""
-    import pandas as pd
     import yaml
 
-    proto = yaml.safe_load((d / "protocol.yaml").read_text()) or {}
+    proto = yaml.safe_load((d.directory / "protocol.yaml").read_text()) or {}
     out.study = proto.get("study")
-    out.count("recordings", len(pd.read_csv(d / "trials.csv")))
+    out.count("recordings", len(d.csv("trials.csv")))
     for name in ("subjects", "pairs"):
-        if (d / f"{name}.csv").is_file():
-            out.count(name, len(pd.read_csv(d / f"{name}.csv")))
-    tt = _parquet(d / "truth_trials.parquet")
+        if d.exists(f"{name}.csv"):
+            out.count(name, len(d.csv(f"{name}.csv")))
+    tt = d.table("truth_trials.parquet")
     for key, g in _groups(tt, ["entity", "segment", "scenario"], {"scenario": "s{}"}):
         out.count((*key, "n"), len(g))
         out.mean_sd((*key, "travel_time"), g["travel_time"], "s")
@@ -169,10 +203,10 @@ def _synth_study(d: Path, out: Collector, params: dict) -> None:
             out.add((*key, "optimal", "share"), g["optimal"].astype(float).mean())
 
 
-def _synth_localisation(d: Path, out: Collector, params: dict) -> None:
+def _synth_localisation(d: Outputs, out: Collector, params: dict) -> None:
     """synth-localisation: length of the run, poses, goals and the realised ICP noise."""
     out.study = LOCALISATION_STUDY
-    truth = json.loads((d / "truth.json").read_text())
+    truth = d.json("truth.json")
     out.add("distance", truth.get("distance"), "m")
     out.add("duration", truth.get("duration"), "s")
     out.count("mocap_poses", truth.get("n_mocap"))
@@ -181,19 +215,18 @@ def _synth_localisation(d: Path, out: Collector, params: dict) -> None:
     out.add("delay", truth.get("delay"), "s")
     for axis, r in (truth.get("noise_realised") or {}).items():
         out.add(("noise", axis, "rmse"), r.get("rmse"), "rad" if axis == "yaw" else "m")
-    out.count("bags", sum(1 for p in d.iterdir() if p.name.startswith("run")))
+    out.count("bags", d.count("run*"))
 
 
-def _import(d: Path, out: Collector, params: dict) -> None:
+def _import(d: Outputs, out: Collector, params: dict) -> None:
     """import: recordings, frames, marker samples, sampling rate."""
-    import pyarrow.parquet as pq
 
-    trials = _parquet(d / "trials.parquet")
+    trials = d.table("trials.parquet")
     out.study = _study(trials)
     out.count("recordings", len(trials))
     out.count("frames", trials["n_frames"].sum())
     out.add(("rate", "median"), trials["rate"].median(), "Hz")
-    out.count("marker_samples", pq.ParquetFile(d / "markers.parquet").metadata.num_rows)
+    out.count("marker_samples", d.rows("markers.parquet"))
 
 
 def _flatten(out: Collector, prefix: tuple, value: Any) -> None:
@@ -213,18 +246,18 @@ def _flatten(out: Collector, prefix: tuple, value: Any) -> None:
         out.add(prefix, value)
 
 
-def _import_published(d: Path, out: Collector, params: dict) -> None:
+def _import_published(d: Outputs, out: Collector, params: dict) -> None:
     """import-published: every fact the stage checked against the dataset README (facts.json)."""
-    out.study = _study(_parquet(d / "trajectories.parquet", ["study"]))
-    facts = json.loads((d / "facts.json").read_text()) if (d / "facts.json").is_file() else {}
+    out.study = _study(d.table("trajectories.parquet", ["study"]))
+    facts = d.json("facts.json") if d.exists("facts.json") else {}
     for k, v in facts.items():
         _flatten(out, ("facts", k), v)
 
 
-def _preprocess(d: Path, out: Collector, params: dict) -> None:
+def _preprocess(d: Outputs, out: Collector, params: dict) -> None:
     """preprocess: trajectories per entity, travel times, distances, quality flags and marker gaps."""
-    t = _parquet(d / "trajectories.parquet", ["study", "entity", "direction", "quality", "travel_time", "travelled_distance",
-                                               "theta", "sample"], filters=[("sample", "=", 0)])
+    t = d.table("trajectories.parquet", ["study", "entity", "direction", "quality", "travel_time", "travelled_distance",
+                                               "theta", "sample"], sample0=True)
     out.study = _study(t)
     out.count("trajectories", len(t))
     for key, g in _groups(t, ["entity", "direction"]):
@@ -237,8 +270,8 @@ def _preprocess(d: Path, out: Collector, params: dict) -> None:
             flags[f] = flags.get(f, 0) + 1
     for f, n in sorted(flags.items()):
         out.count(("quality", f), n)
-    if (d / "gaps.parquet").is_file():
-        gaps = _parquet(d / "gaps.parquet")
+    if d.exists("gaps.parquet"):
+        gaps = d.table("gaps.parquet")
         filled = gaps["filled"].astype(bool)
         out.count(("gaps", "total"), len(gaps))
         out.count(("gaps", "filled"), filled.sum())
@@ -246,9 +279,9 @@ def _preprocess(d: Path, out: Collector, params: dict) -> None:
         out.count(("gaps", "open_frames"), gaps.loc[~filled, "n_frames"].sum())
 
 
-def _average(d: Path, out: Collector, params: dict) -> None:
+def _average(d: Outputs, out: Collector, params: dict) -> None:
     """average: mean trajectories per entity, trials behind them, spread of the individual paths."""
-    m = _parquet(d / "means.parquet", ["study", "trial", "entity", "sample", "n_trials", "n_theta", "x_sd", "y_sd",
+    m = d.table("means.parquet", ["study", "trial", "entity", "sample", "n_trials", "n_theta", "x_sd", "y_sd",
                                        "travelled_distance", "travel_time"])
     out.study = _study(m)
     first = m[m["sample"] == 0]
@@ -264,9 +297,9 @@ def _average(d: Path, out: Collector, params: dict) -> None:
         out.add((*key, "travel_time", "mean"), f["travel_time"].mean(), "s")
 
 
-def _compare(d: Path, out: Collector, params: dict) -> None:
+def _compare(d: Outputs, out: Collector, params: dict) -> None:
     """compare: d_xy, d_theta, d_gamma mean and sd per comparison and entity (docs/methods.md sec. 3)."""
-    dist = _parquet(d / "distances.parquet", ["study", "comparison", "entity", "d_xy", "d_theta", "d_gamma"])
+    dist = d.table("distances.parquet", ["study", "comparison", "entity", "d_xy", "d_theta", "d_gamma"])
     out.study = _study(dist)
     for key, g in _groups(dist, ["comparison", "entity"]):
         out.count((*key, "n"), len(g))
@@ -275,9 +308,9 @@ def _compare(d: Path, out: Collector, params: dict) -> None:
             out.mean_sd((*key, c), g[c], "rad", n=True)
 
 
-def _stats(d: Path, out: Collector, params: dict) -> None:
+def _stats(d: Outputs, out: Collector, params: dict) -> None:
     """stats: per question, the test run, n, statistic, p, Holm p, effect size; or why it was skipped."""
-    s = _parquet(d / "stats.parquet")
+    s = d.table("stats.parquet")
     out.study = _study(s)
     ok = s["status"].eq("ok")
     out.count("tests_run", ok.sum())
@@ -295,9 +328,9 @@ def _stats(d: Path, out: Collector, params: dict) -> None:
             out.add((key, "significant"), bool(r["significant"]))
 
 
-def _reconstruct(d: Path, out: Collector, params: dict) -> None:
+def _reconstruct(d: Outputs, out: Collector, params: dict) -> None:
     """reconstruct: accuracy of the subjects rebuilt from the table (docs/methods.md sec. 8)."""
-    rec = _parquet(d / "reconstruction.parquet")
+    rec = d.table("reconstruction.parquet")
     out.study = _study(rec)
     for key, g in _groups(rec, ["relative_pose", "kind", "direction", "entity"]):
         out.count((*key, "n"), len(g))
@@ -305,10 +338,10 @@ def _reconstruct(d: Path, out: Collector, params: dict) -> None:
         out.mean_sd((*key, "d_theta"), g["d_theta"], "rad")
 
 
-def _fit_ioc(d: Path, out: Collector, params: dict) -> None:
+def _fit_ioc(d: Outputs, out: Collector, params: dict) -> None:
     """fit-ioc (and -subjects, -coupled): D at the start and fitted, evaluations, fitted weights;
     distances of each compared model to the means (docs/methods.md sec. 6)."""
-    w = json.loads((d / "weights.json").read_text())
+    w = d.json("weights.json")
     for fit, r in (w.get("fits") or {}).items():
         per = r.get("per_target") or []
         out.count((fit, "paths"), len(per))
@@ -319,8 +352,8 @@ def _fit_ioc(d: Path, out: Collector, params: dict) -> None:
         out.count((fit, "T_at_bound"), sum(1 for p in per if p.get("T_at_bound")))
         for name in (r.get("spec") or {}).get("fitted", []):
             out.add((fit, "weights", name), (r.get("weights") or {}).get(name))
-    if (d / "distances.parquet").is_file():
-        dist = _parquet(d / "distances.parquet")
+    if d.exists("distances.parquet"):
+        dist = d.table("distances.parquet")
         keys = ["model", *(["fit"] if out.stage == "fit-ioc-subjects" else []), "carrier"]
         for key, g in _groups(dist, keys, {"carrier": "carrier{}"}):
             out.count(("distances", *key, "n"), len(g))
@@ -330,11 +363,11 @@ def _fit_ioc(d: Path, out: Collector, params: dict) -> None:
             out.add(("distances", *key, "D", "mean"), g["D"].mean() if "D" in g else None)
 
 
-def _generate(d: Path, out: Collector, params: dict) -> None:
+def _generate(d: Outputs, out: Collector, params: dict) -> None:
     """generate: per model, paths, duration T, optimal cost and end error to the goal."""
     import numpy as np
 
-    g = _parquet(d / "generated.parquet", ["trial", "model", "sample", "x", "y", "travel_time", "cost"])
+    g = d.table("generated.parquet", ["trial", "model", "sample", "x", "y", "travel_time", "cost"])
     ends = g.sort_values("sample").groupby("trial").tail(1)
     # each case's goal (params: cases = [condition, start, goal]; trial = model_condition, or model)
     goals = {f"{m}_{c}" if c else m: goal for m in params.get("models", []) for c, _, goal in params.get("cases", [])}
@@ -348,23 +381,23 @@ def _generate(d: Path, out: Collector, params: dict) -> None:
             out.add((*key, "end_error", "max"), float(max(err)), "m")
 
 
-def _predict(d: Path, out: Collector, params: dict) -> None:
+def _predict(d: Outputs, out: Collector, params: dict) -> None:
     """predict, predict-*: per (N0, N_OC) and predictor, the error metrics' mean and sd over
     trajectories, r with the global distance; OC vs each baseline (Wilcoxon); windows used and failed."""
-    p = _parquet(d / "predictions.parquet", ["study", "trial", "entity", "n0", "n_oc", "predictor", "n_used", "n_skipped", "n_failed"])
+    p = d.table("predictions.parquet", ["study", "trial", "entity", "n0", "n_oc", "predictor", "n_used", "n_skipped", "n_failed"])
     out.study = _study(p)
     out.count("trajectories", p.drop_duplicates(["study", "trial", "entity"]).shape[0])
     for (n0, n_oc, pred), g in p.groupby(["n0", "n_oc", "predictor"], sort=True):
         setting = f"{n0}:{n_oc}"
         out.count((setting, pred, "windows_used"), g["n_used"].sum())
         out.count((setting, pred, "windows_failed"), g["n_failed"].sum())
-    s = _parquet(d / "prediction_summary.parquet")
+    s = d.table("prediction_summary.parquet")
     for _, r in s.iterrows():
         key = (f"{r['n0']}:{r['n_oc']}", r["predictor"], r["metric"])
         out.add((*key, "mean"), r["mean"], r["unit"])
         out.add((*key, "sd"), r["sd"], r["unit"])
         out.add((*key, "pearson_r"), r["pearson_r"])
-    c = _parquet(d / "prediction_comparison.parquet")
+    c = d.table("prediction_comparison.parquet")
     for _, r in c[c["group"] == "all"].iterrows():
         key = (f"{r['n0']}:{r['n_oc']}", f"oc_vs_{r['baseline']}")
         out.add((*key, "median_difference"), r["median_difference"], "m")
@@ -381,11 +414,11 @@ _RUN_COLUMNS = {
 _RUN_COUNTS = ("n_truth", "n_icp", "n", "goals_commanded", "goals_found", "goals_within_tolerance")
 
 
-def _localisation(d: Path, out: Collector, params: dict) -> None:
+def _localisation(d: Outputs, out: Collector, params: dict) -> None:
     """localisation: per run, delay, structural offset, per-axis errors, APE, drift and goal accuracy
     (docs/methods.md sec. 9)."""
     out.study = LOCALISATION_STUDY
-    runs = _parquet(d / "localisation.parquet")
+    runs = d.table("localisation.parquet")
     out.count("runs", len(runs))
     for _, r in runs.iterrows():
         for c in _RUN_COUNTS:
@@ -396,21 +429,20 @@ def _localisation(d: Path, out: Collector, params: dict) -> None:
                 out.add((r["run"], c), r[c], unit)
 
 
-def _report(d: Path, out: Collector, params: dict) -> None:
+def _report(d: Outputs, out: Collector, params: dict) -> None:
     """report: the figures drawn."""
-    out.count("figures", sum(1 for _ in d.glob("*.png")))
+    out.count("figures", d.count("*.png"))
 
 
-def _velocity_commands(d: Path, out: Collector, params: dict) -> None:
+def _velocity_commands(d: Outputs, out: Collector, params: dict) -> None:
     """velocity-commands: commands written and the share saturated."""
-    import pandas as pd
 
-    cmd = pd.read_csv(d / "commands.csv") if (d / "commands.csv").is_file() else _parquet(d / "commands.parquet")
+    cmd = d.csv("commands.csv") if d.exists("commands.csv") else d.table("commands.parquet")
     out.count("commands", len(cmd))
     out.add(("saturated", "share"), cmd["saturated"].astype(float).mean())
 
 
-STAGE_METRICS: dict[str, Callable[[Path, Collector, dict], None]] = {
+STAGE_METRICS: dict[str, Callable[[Outputs, Collector, dict], None]] = {
     "synth-walking": _synth_study, "synth-pairs": _synth_study, "synth-localisation": _synth_localisation,
     "import": _import, "import-published": _import_published, "preprocess": _preprocess, "average": _average,
     "compare": _compare, "stats": _stats, "reconstruct": _reconstruct, "fit-ioc": _fit_ioc, "fit-ioc-subjects": _fit_ioc,
@@ -455,14 +487,15 @@ def stage_convention(stage: str, stage_dir: Path, params: dict) -> str | None:
     return str(conv) if conv is not None else DEFAULT_CONVENTION
 
 
-def stage_metrics(stage: str, stage_dir: Path, params: dict | None = None) -> dict[str, Any] | None:
-    """The content of ``metrics.json`` for a stage directory, or None for a stage without metrics."""
+def stage_metrics(stage: str, stage_dir: Path, params: dict | None = None, memory: dict[str, Any] | None = None) -> dict[str, Any] | None:
+    """The content of ``metrics.json`` for a stage directory, or None for a stage without metrics; ``memory``: the
+    outputs the stage kept as it wrote them (``Stage.outputs``), read before the files."""
     fn = extractor(stage)
     if fn is None:
         return None
     params = params or {}
     out = Collector(stage, stage_convention(stage, Path(stage_dir), params))
-    fn(Path(stage_dir), out, params)
+    fn(Outputs(Path(stage_dir), memory), out, params)
     keys = [m.key for m in out.items]
     if len(set(keys)) != len(keys):  # a bug of an extractor, not of the data
         dup = sorted({k for k in keys if keys.count(k) > 1})
@@ -471,13 +504,13 @@ def stage_metrics(stage: str, stage_dir: Path, params: dict | None = None) -> di
             "metrics": [m.to_json() for m in out.items]}
 
 
-def write_stage_metrics(stage: str, stage_dir: Path, params: dict | None = None) -> None:
+def write_stage_metrics(stage: str, stage_dir: Path, params: dict | None = None, memory: dict[str, Any] | None = None) -> None:
     """Write ``stage_dir/metrics.json``; an extraction error is recorded there (and warned about),
     never raised: the stage's own outputs stand, and ``metrics check`` reports the missing numbers."""
     from cobot_analysis.console import warn
 
     try:
-        payload = stage_metrics(stage, Path(stage_dir), params)
+        payload = stage_metrics(stage, Path(stage_dir), params, memory)
     except Exception as exc:  # noqa: BLE001 - see docstring
         warn(f"{stage}: metrics.json records an error instead of the metrics ({type(exc).__name__}: {exc})")
         try:

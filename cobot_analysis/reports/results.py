@@ -52,6 +52,18 @@ def assemble_results(workspaces: list[Path], title: str = "Results", preface: st
     return "\n".join(parts).rstrip() + "\n"
 
 
+def write_results(workspaces: list[Path], to: Path, *, title: str = "Results", preface: str = "") -> int:
+    """Write ``assemble_results`` to ``to`` atomically (``preface``'s white space folded); returns its number of sections."""
+    import os
+
+    text = assemble_results(workspaces, title=title, preface=" ".join(preface.split()))
+    to.parent.mkdir(parents=True, exist_ok=True)
+    tmp = to.with_name(f".{to.name}.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, to)
+    return sum(line.startswith("## ") for line in text.splitlines())
+
+
 def _run_order(fragment: Path) -> tuple[int, float]:
     stage = fragment.parent
     manifest = stage / "manifest.json"

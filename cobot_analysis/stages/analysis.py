@@ -34,7 +34,6 @@ def average(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
     from cobot_analysis.averaging import MEANS, check_groups
     from cobot_analysis.compare import default_groups
     from cobot_analysis.reports.analysis import average_markdown
-    from cobot_analysis.schema import write_table
 
     path, ts = trajectories_input(out, trajectories)
     groups = api.check_by(by, list(ts.meta.columns), path) or default_groups(ts.meta)
@@ -47,7 +46,7 @@ def average(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
         result = api.average(path if not len(trials) else ts, by=groups)
         if not result.n_averaged:
             warn(f"{path}: no per-trial trajectories; the published means are carried over unchanged")
-        write_table(result.means, stage.path("means.parquet"), MEANS, grouping=groups, source=result.source)
+        stage.write_table("means.parquet", result.means, MEANS, grouping=groups, source=result.source)
         stage.path("results.md").write_text(average_markdown(result, path.name))
     return Outcome(stage.final_dir, result)
 
@@ -59,7 +58,7 @@ def compare(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
     from cobot_analysis import conventions
     from cobot_analysis.compare import DISTANCES, default_groups
     from cobot_analysis.reports.analysis import compare_markdown
-    from cobot_analysis.schema import table_metadata, write_table
+    from cobot_analysis.schema import table_metadata
 
     conv = conventions.get(convention or "continuous")
     path, ts = trajectories_input(out, trajectories)
@@ -77,7 +76,7 @@ def compare(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
         if stage.skipped:
             return Outcome.skip(stage)
         result = api.compare(ts, mts, against=against, comparison=comparison, any_vs_any=same, by=groups, convention=conv.name)
-        write_table(result.distances, stage.path("distances.parquet"), DISTANCES, grouping=groups, convention=conv.name)
+        stage.write_table("distances.parquet", result.distances, DISTANCES, grouping=groups, convention=conv.name)
         stage.path("results.md").write_text(compare_markdown(result, conv.comparison.sd_ddof))
     return Outcome(stage.final_dir, result)
 
@@ -103,7 +102,7 @@ def statistics(out: str | os.PathLike, *, config: str | os.PathLike | None = Non
     from cobot_analysis.console import track
     from cobot_analysis.compare import DISTANCES
     from cobot_analysis.reports.analysis import statistics_markdown
-    from cobot_analysis.schema import read_table, write_table
+    from cobot_analysis.schema import read_table
     from cobot_analysis.stats import analyses
     from cobot_analysis.stats import config as cfg
     from cobot_analysis.stats.sources import read_anthropometrics
@@ -144,7 +143,7 @@ def statistics(out: str | os.PathLike, *, config: str | os.PathLike | None = Non
         if result.unmatched:  # a typo, or data not there yet (e.g. no model compared): either way, said once
             warn(f"{config}: {len(result.unmatched)} filter value(s) match no row, their analyses are skipped (stats.md says "
                  f"why): {'; '.join(result.unmatched)}")
-        write_table(result.table, stage.path("stats.parquet"), analyses.STATS, config=str(config))
+        stage.write_table("stats.parquet", result.table, analyses.STATS, config=str(config))
         md, fragment = statistics_markdown(result, Path(config), len(ts), ts.n_samples, path.name)
         stage.path("stats.md").write_text(md)
         stage.path("results.md").write_text(fragment)
@@ -157,7 +156,6 @@ def reconstruct(out: str | os.PathLike, *, trajectories: str | os.PathLike | Non
     from cobot_analysis.console import track
     from cobot_analysis.reconstruct import RECONSTRUCTION, read_wrt_table, relative_pose_table
     from cobot_analysis.reports.analysis import reconstruct_markdown
-    from cobot_analysis.schema import write_table
 
     path, ts = trajectories_input(out, trajectories)
     if not ts.meta["entity"].eq("table").any():
@@ -179,7 +177,7 @@ def reconstruct(out: str | os.PathLike, *, trajectories: str | os.PathLike | Non
             result = api.reconstruct(ts, relative_pose=published, scenario=scenario, progress=track)
         except InputError as exc:
             raise InputError(exc.detail, path=path, remedy=exc.remedy) from None
-        write_table(result.reconstruction, stage.path("reconstruction.parquet"), RECONSTRUCTION)
+        stage.write_table("reconstruction.parquet", result.reconstruction, RECONSTRUCTION)
         stage.path("results.md").write_text(reconstruct_markdown(result))
     return Outcome(stage.final_dir, result)
 

@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import asdict
 from pathlib import Path
@@ -56,7 +55,7 @@ def import_markers(out: str | os.PathLike, protocol: str | os.PathLike, *, jobs:
     (options: those of ``api.import_markers``)."""
     from cobot_analysis.io.markers import plan_import
     from cobot_analysis.reports.data import import_summary
-    from cobot_analysis.schema import MARKERS, TRIALS, write_table
+    from cobot_analysis.schema import MARKERS, TRIALS
 
     keep_all = options.pop("keep_all_markers", False)
     plan = plan_import(protocol, keep_all=keep_all, **options)
@@ -69,8 +68,8 @@ def import_markers(out: str | os.PathLike, protocol: str | os.PathLike, *, jobs:
         for r in result.refused:
             warn(f"skipped trial {r.trial}: {r.reason}")
         stage.path("results.md").write_text(import_summary(plan.protocol, result.imported, result.refused, plan.limits))
-        write_table(result.markers, stage.path("markers.parquet"), MARKERS, **result.meta)
-        write_table(result.trials, stage.path("trials.parquet"), TRIALS, study=plan.protocol.study)
+        stage.write_table("markers.parquet", result.markers, MARKERS, **result.meta)
+        stage.write_table("trials.parquet", result.trials, TRIALS, study=plan.protocol.study)
     return Outcome(stage.final_dir, result)
 
 
@@ -81,7 +80,7 @@ def import_published(out: str | os.PathLike, dataset: str, path: str | os.PathLi
     from cobot_analysis.errors import InputError
     from cobot_analysis.io import published as pub
     from cobot_analysis.reports.data import pair_results_markdown, walking_results_markdown
-    from cobot_analysis.schema import TRAJECTORIES, write_table
+    from cobot_analysis.schema import TRAJECTORIES
 
     gamma_limit = pub.GAMMA_LIMIT if gamma_limit is None else gamma_limit
     if dataset not in pub.DATASETS:
@@ -104,13 +103,13 @@ def import_published(out: str | os.PathLike, dataset: str, path: str | os.PathLi
         else:
             warn(f"pair-carriage-2022: {len(facts['plain_angle_means'])} means flagged plain_angle_mean "
                  "(table orientation off its configuration: angles averaged as plain numbers; see results.md)")
-            write_table(result.durations, stage.path("durations.parquet"), pub.DURATIONS, study=pub.PAIRS)
-            write_table(result.subject_wrt_table, stage.path("subject_wrt_table.parquet"), pub.SUBJECT_WRT_TABLE, study=pub.PAIRS)
+            stage.write_table("durations.parquet", result.durations, pub.DURATIONS, study=pub.PAIRS)
+            stage.write_table("subject_wrt_table.parquet", result.subject_wrt_table, pub.SUBJECT_WRT_TABLE, study=pub.PAIRS)
             text = pair_results_markdown(facts)
-        write_table(result.trajectories, stage.path("trajectories.parquet"), TRAJECTORIES, study=dataset,
+        stage.write_table("trajectories.parquet", result.trajectories, TRAJECTORIES, study=dataset,
                     n_samples=pub.N_SAMPLES, source=str(path.resolve()))
         stage.path("results.md").write_text(text)
-        stage.path("facts.json").write_text(json.dumps(facts, indent=2, default=str) + "\n")
+        stage.write_json("facts.json", facts, default=str)
     return Outcome(stage.final_dir, result)
 
 
@@ -121,7 +120,7 @@ def preprocess(out: str | os.PathLike, *, markers: str | os.PathLike | None = No
     from cobot_analysis.preprocess import gaps
     from cobot_analysis.preprocess.stage import Params
     from cobot_analysis.reports.data import preprocess_summary
-    from cobot_analysis.schema import TRAJECTORIES, write_table
+    from cobot_analysis.schema import TRAJECTORIES
 
     markers_path = Path(markers) if markers is not None else find_input(out, "markers.parquet", ["import"], "--markers")
     trials_path = Path(trials) if trials is not None else markers_path.with_name("trials.parquet")
@@ -133,8 +132,8 @@ def preprocess(out: str | os.PathLike, *, markers: str | os.PathLike | None = No
         for r in result.refused:
             warn(f"skipped recording {r.trial}: {r.reason}")
         params = asdict(p)
-        write_table(result.trajectories, stage.path("trajectories.parquet"), TRAJECTORIES, stage="preprocess", **params)
-        write_table(result.gaps, stage.path("gaps.parquet"), gaps.GAPS, stage="preprocess", max_gap=p.max_gap)
+        stage.write_table("trajectories.parquet", result.trajectories, TRAJECTORIES, stage="preprocess", **params)
+        stage.write_table("gaps.parquet", result.gaps, gaps.GAPS, stage="preprocess", max_gap=p.max_gap)
         stage.path("results.md").write_text(preprocess_summary(result.trajectories, result.gaps, p, result.n_recordings,
                                                                result.refused))
     return Outcome(stage.final_dir, result)

@@ -48,7 +48,6 @@ def localisation(out: str | os.PathLike, bags: list[str | os.PathLike] | None = 
     from cobot_analysis.localisation.poses import POSES
     from cobot_analysis.localisation.tables import ERRORS, GOALS, RUNS
     from cobot_analysis.reports import localisation as report
-    from cobot_analysis.schema import write_table
 
     if not bags:
         base = Path(out) / SYNTH_STAGE
@@ -68,11 +67,11 @@ def localisation(out: str | os.PathLike, bags: list[str | os.PathLike] | None = 
         if stage.skipped:
             return Outcome.skip(stage)
         result = analyse(bags, opts, labels, maps, jobs=jobs, scheduler=scheduler)
-        write_table(result.poses, stage.path("poses.parquet"), POSES, time_base=opts.time)
-        write_table(result.runs, stage.path("localisation.parquet"), RUNS)
-        write_table(result.errors, stage.path("errors.parquet"), ERRORS)
+        stage.write_table("poses.parquet", result.poses, POSES, time_base=opts.time)
+        stage.write_table("localisation.parquet", result.runs, RUNS)
+        stage.write_table("errors.parquet", result.errors, ERRORS)
         if result.goals is not None:
-            write_table(result.goals, stage.path("goals.parquet"), GOALS, tol_xy=opts.rule.tol_xy, tol_yaw=opts.rule.tol_yaw)
+            stage.write_table("goals.parquet", result.goals, GOALS, tol_xy=opts.rule.tol_xy, tol_yaw=opts.rule.tol_yaw)
         names = []
         if figures:
             results = result.per_run

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from cobot_analysis import api, registry
-from cobot_analysis.api.models import held_weights, plan_generate
+from cobot_analysis.api.models import ioc_spec, plan_generate
 from cobot_analysis.errors import InputError
 from cobot_analysis.stages import Outcome
 from cobot_analysis.workspace import Stage, find_input
@@ -35,7 +35,6 @@ def generate(out: str | os.PathLike, *, model: str = "improved", weights: Any = 
     from cobot_analysis import conventions
     from cobot_analysis.models.outputs import GENERATED
     from cobot_analysis.reports.models import generate_markdown
-    from cobot_analysis.schema import write_table
 
     inputs = [Path(weights)] if weights and Path(weights).is_file() else []
     _, conv, _ = plan_generate(model, weights=weights, cases=[], duration=duration, convention=convention)  # options first
@@ -62,7 +61,7 @@ def generate(out: str | os.PathLike, *, model: str = "improved", weights: Any = 
         result = api.generate(model, start=start, goal=goal, cases=cases, study=study, weights=weights, samples=samples,
                               intervals=intervals, duration=duration, v_nominal=v_nominal, max_iter=max_iter,
                               convention=conv.name, jobs=jobs, scheduler=scheduler)
-        write_table(result.generated, stage.path("generated.parquet"), GENERATED, n_samples=samples, n_intervals=intervals,
+        stage.write_table("generated.parquet", result.generated, GENERATED, n_samples=samples, n_intervals=intervals,
                     convention=conv.name)
         stage.path("results.md").write_text(generate_markdown(result, conventions.get(conv.name).summary))
     return Outcome(stage.final_dir, result)
@@ -81,14 +80,13 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
 
     from cobot_analysis import conventions
     from cobot_analysis.models.outputs import ioc_distances_schema
-    from cobot_analysis.models.presets import names_for
     from cobot_analysis.reports.models import fit_ioc_markdown
-    from cobot_analysis.schema import write_table
 
     conv = conventions.get(convention or "continuous")
-    if model not in ("improved", "table", "coupled"):
-        raise InputError(f"fit-ioc fits the improved, table or coupled model, not {model!r}", remedy="use --model improved, table or coupled")
-    conv.oc_rule(model)
+    spec = ioc_spec(model, convention=conv.name, start_weights=start_weights, fit=fit, optimizer=optimizer,
+                    max_evaluations=max_evaluations, intervals=intervals, v_nominal=v_nominal)  # options checked first
+    if model == "coupled" and per == "subject":
+        raise InputError("--per subject is for the walking study", remedy="fit the coupled model over the pair means (--per all)")
     traj_path = Path(trajectories) if trajectories is not None else None
     if traj_path is None:
         try:
@@ -107,17 +105,10 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
     mean_df = read_trajectories(means) if means is not None else read_trajectories(traj_path)
     mean_src = means if means is not None else traj_path
     traj_df = read_trajectories(traj_path) if traj_path is not None else None
-    # the checks of the options, before the stage starts (names, held weights, start weights)
-    all_names = names_for(model)
-    fitted = fit or [n for n in all_names if n not in held_weights(model, conv.name)]
-    bad = [n for n in fitted if n not in all_names]
-    if bad or not fitted:
-        raise InputError(f"--fit names {bad or '(none)'} are not weights of the model ({', '.join(all_names)})", remedy="e.g. --fit a1,a2,a4")
-    spec_params = _spec_params(model, conv.name, start_weights, tuple(fitted), optimizer, max_evaluations, intervals, v_nominal)
     inputs = [p for p in (means, traj_path) if p is not None]
     if start_weights and Path(start_weights).is_file():
         inputs.append(Path(start_weights))
-    params = {"spec": spec_params, "per": per, "subjects": subjects, "goal": goal, "compare": compare, "seed": seed}
+    params = {"spec": spec.__dict__, "per": per, "subjects": subjects, "goal": goal, "compare": compare, "seed": seed}
     # own stages: the coupled fit never replaces the table fit, nor per-subject fits the fit over the means
     name = registry.directory("fit-ioc-coupled" if model == "coupled" else "fit-ioc-subjects" if per == "subject" else "fit-ioc",
                               conv.name)
@@ -130,15 +121,15 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
     with Stage(out, name, inputs=inputs, params=params, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
-        result = api.fit_ioc(mean_df, trials=traj_df, model=model, start_weights=start_weights, fit=fitted, optimizer=optimizer,
+        result = api.fit_ioc(mean_df, trials=traj_df, model=model, start_weights=start_weights, fit=list(spec.fitted), optimizer=optimizer,
                              max_evaluations=max_evaluations, per=per, subjects=subjects, goal=goal, intervals=intervals,
                              v_nominal=v_nominal, compare=compare, convention=conv.name, resume=resume,
                              checkpoint=Path(out) / f".{name}.checkpoint", jobs=jobs, scheduler=scheduler, means_source=mean_src,
                              trials_source=traj_path or out, durations=durations, on_evaluation=on_evaluation)
-        stage.path("weights.json").write_text(json.dumps(result.weights_json(), indent=2, default=float) + "\n")
+        stage.write_json("weights.json", result.weights_json())
         for k, r in result.results.items():  # each fit also as a file usable with --weights
             stage.path(f"weights/{k}.json").write_text(json.dumps({"convention": conv.name, "weights": r.weights}, indent=2) + "\n")
-        write_table(result.distances, stage.path("distances.parquet"), ioc_distances_schema(coupled=result.coupled is not None),
+        stage.write_table("distances.parquet", result.distances, ioc_distances_schema(coupled=result.coupled is not None),
                     convention=conv.name)
         result.fits_table().to_csv(stage.path("fits.csv"), index=False)
         stage.path("results.md").write_text(fit_ioc_markdown(result, stage, optimizer=optimizer, intervals=intervals,
@@ -146,28 +137,12 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
     return Outcome(stage.final_dir, result)
 
 
-def _spec_params(model, convention, start_weights, fitted, optimizer, max_evaluations, intervals, v_nominal) -> dict:
-    """The IOC specification as the manifest records it (``IOCSpec.__dict__``), computed before the fit."""
-    from cobot_analysis.models.ioc import IOCSpec
-    from cobot_analysis.models.presets import load_weights, names_for, weights_vector
-
-    all_names = names_for(model)
-    w0 = weights_vector(load_weights(None if start_weights == "ones" else start_weights, model), model)
-    if start_weights == "ones":
-        for n in fitted:
-            w0[all_names.index(n)] = 1.0
-    spec = IOCSpec(model=model, start_weights=tuple(map(float, w0)), fitted=tuple(fitted), optimizer=optimizer,
-                   max_evaluations=max_evaluations, n_intervals=intervals, v_nominal=v_nominal, convention=convention,
-                   **({"max_iter": 100} if convention == "published" else {}))
-    return spec.__dict__
-
-
 def velocity_commands(out: str | os.PathLike, *, generated: str | os.PathLike | None = None, trial: str | None = None,
                       rate: float = 10.0, v_max: float = 0.1, omega_max: float = 7.0, fmt: str = "csv",
                       force: bool = False) -> Outcome:
     """``velocity-commands``: ``commands.csv`` (or ``.parquet``) of one generated path."""
     from cobot_analysis.models.outputs import GENERATED, VELOCITY_COMMANDS
-    from cobot_analysis.schema import read_table, write_table
+    from cobot_analysis.schema import read_table
 
     path = Path(generated) if generated is not None else find_input(out, "generated.parquet", ["generate", "generate-published"], "--generated")
     df = read_table(path, GENERATED)
@@ -179,7 +154,7 @@ def velocity_commands(out: str | os.PathLike, *, generated: str | os.PathLike | 
         if fmt == "csv":
             cmd.commands.to_csv(stage.path("commands.csv"), index=False, float_format="%.6g")
         else:
-            write_table(cmd.commands, stage.path("commands.parquet"), VELOCITY_COMMANDS, rate=rate, v_max=v_max,
+            stage.write_table("commands.parquet", cmd.commands, VELOCITY_COMMANDS, rate=rate, v_max=v_max,
                         omega_max_deg_s=omega_max)
         stage.path("results.md").write_text(
             f"## Velocity commands\n\nTrajectory {cmd.trial} at {rate:g} Hz: {len(cmd.commands)} commands, saturated at "

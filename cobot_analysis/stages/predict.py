@@ -31,7 +31,7 @@ def predict(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
     from cobot_analysis.models.prediction.sweep import (PREDICTION_COMPARISON, PREDICTION_SUMMARY, PREDICTION_WINDOWS, PREDICTIONS,
                                                         WorkDir)
     from cobot_analysis.reports import prediction as report
-    from cobot_analysis.schema import TRAJECTORIES, read_table, write_table
+    from cobot_analysis.schema import TRAJECTORIES, read_table
 
     of_weights = weights_convention(weights) or "continuous"
     config = prediction_config(settings=settings, predictors=predictors, weights=weights, convention=convention,
@@ -73,10 +73,10 @@ def predict(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
             warn(f"predict: {failed} OC windows failed to converge (left out of every predictor's metrics)")
         meta = {"weights": weights or f"walking-2021 (walkers) / {conv.prediction.table_weights} (tables)", "g0": g0, "g1": g1,
                 "convention": conv.name}
-        write_table(metrics, stage.path("predictions.parquet"), PREDICTIONS, **meta)
-        write_table(windows, stage.path("prediction_windows.parquet"), PREDICTION_WINDOWS, **meta)
-        write_table(result.summary_table, stage.path("prediction_summary.parquet"), PREDICTION_SUMMARY, **meta)
-        write_table(result.comparison, stage.path("prediction_comparison.parquet"), PREDICTION_COMPARISON, **meta)
+        stage.write_table("predictions.parquet", metrics, PREDICTIONS, **meta)
+        stage.write_table("prediction_windows.parquet", windows, PREDICTION_WINDOWS, **meta)
+        stage.write_table("prediction_summary.parquet", result.summary_table, PREDICTION_SUMMARY, **meta)
+        stage.write_table("prediction_comparison.parquet", result.comparison, PREDICTION_COMPARISON, **meta)
         example = report.example_trajectory(metrics, trajs, config)
         for stem, fig in report.figures(metrics, example, config).items():
             stage.savefig(fig, stem)
