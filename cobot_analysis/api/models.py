@@ -312,7 +312,16 @@ def goal_rule(goal: str, df: pd.DataFrame) -> tuple | None:
 def ioc_spec(model: str, *, convention: str = "continuous", start_weights: str | None = None, fit: list[str] | None = None,
              optimizer: str = "powell", max_evaluations: int = 2000, intervals: int = 50, v_nominal: float = 1.0):
     """The IOC's specification (``ioc.IOCSpec``), every option checked: the model, the weights to fit (default:
-    all but ``held_weights``), the start weights (a preset, a weights.json, or ``"ones"``: every fitted weight 1)."""
+    all but ``held_weights``), the start weights (a preset, a weights.json, or ``"ones"``: every fitted weight 1).
+
+        >>> from cobot_analysis.api.models import ioc_spec
+        >>> spec = ioc_spec("improved", start_weights="ones", fit=["a1", "a2"])
+        >>> spec.fitted, spec.start_weights[:4], spec.n_intervals
+        (('a1', 'a2'), (7.87, 1.0, 1.0, 1e-06), 50)
+        >>> ioc_spec("improved", fit=["a9"])
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: --fit names ['a9'] are not weights of the model (...); e.g. --fit a1,a2,a4
+    """
     from cobot_analysis import conventions
     from cobot_analysis.models.ioc import IOCSpec
     from cobot_analysis.models.presets import load_weights, names_for, weights_vector
