@@ -62,13 +62,17 @@ def documented_defaults(name: str, text: str) -> dict[str, object]:
 
 
 def test_documented_defaults_are_the_functions():
-    """The defaults docs/api.md shows are those of the functions (localise: of its checked options)."""
+    """The signatures docs/api.md shows name every parameter of the functions, with their defaults
+    (localise: the options it checks with localisation_options)."""
     text = DOC.read_text()
     for name in api.EXPORTS:
         obj = getattr(api, name)
         if not inspect.isfunction(obj):
             continue
         params = dict(inspect.signature(obj).parameters)
+        block = re.search(rf"^{name}\((.*?)\)(?:\s*->|\n```)", text, re.M | re.S).group(1)
+        missing = [p for p, v in params.items() if v.kind is not v.VAR_KEYWORD and not re.search(rf"\b{p}\b", block)]
+        assert not missing, f"docs/api.md: the signature of {name} lacks {missing}"
         if name == "localise":
             from cobot_analysis.api.localisation import localisation_options
 
