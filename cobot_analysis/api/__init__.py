@@ -6,11 +6,13 @@ them, keyword-only options with the command line's names and defaults, and retur
 that carries its tables (and ``summary()``). Nothing is written to disk: ``cobot_analysis.stages``
 runs the same functions into a workspace, which is what the command line does.
 
-    import cobot_analysis.api as ca
-
-    walks = ca.import_published("walking-2020", "datasets/walking-2020").trajectories
-    means = ca.average(walks).means
-    distances = ca.compare(walks, means).distances
+    >>> import cobot_analysis.api as ca
+    >>> from cobot_analysis.synth.tables import walking_table
+    >>> walks = walking_table(n_subjects=3, n_conditions=2, n_trials=2)   # or ca.import_published(...).trajectories
+    >>> means = ca.average(walks).means
+    >>> distances = ca.compare(walks, means).distances
+    >>> len(distances), sorted(distances["comparison"].unique())
+    (12, ['individual-mean'])
 
 See docs/api.md for every function and docs/examples/ for two worked examples.
 """

@@ -22,23 +22,52 @@ Trajectories = "pd.DataFrame | str | os.PathLike | TrajectorySet"
 
 def trajectory_set(table: Any, what: tuple[str, ...] = ("trajectories", "means", "generated_trajectories")) -> TrajectorySet:
     """A trajectories table (DataFrame, or the path of a Parquet file a stage wrote) as a ``TrajectorySet``
-    (one row of metadata and N samples of x, y, theta, gamma per trajectory)."""
+    (one row of metadata and N samples of x, y, theta, gamma per trajectory); ``what``: the tables a path
+    may hold.
+
+        >>> from cobot_analysis.api import trajectory_set
+        >>> from cobot_analysis.synth.tables import walking_table
+        >>> ts = trajectory_set(walking_table(n_subjects=2, n_conditions=1, n_trials=1))
+        >>> len(ts), ts.n_samples, ts.x.shape
+        (2, 40, (2, 40))
+        >>> trajectory_set(walking_table(n_subjects=1, n_conditions=1, n_trials=1).drop(columns="kind"))
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: trajectory table lacks column 'kind'; add it: 'trial' for a recording, 'mean' for a mean trajectory (docs/schemas.md, trajectories)
+    """
     from cobot_analysis.compare import pivot, read_trajectory_set
 
     if isinstance(table, TrajectorySet):
         return table
     if isinstance(table, pd.DataFrame):
+        if "kind" not in table.columns:  # every analysis selects on it (a file a stage wrote always has it)
+            raise InputError("trajectory table lacks column 'kind'",
+                             remedy="add it: 'trial' for a recording, 'mean' for a mean trajectory (docs/schemas.md, trajectories)")
         return pivot(table)
     return read_trajectory_set(Path(table), what)
 
 
 def study_of(ts: TrajectorySet) -> str:
+    """The study of a set (``a+b`` when it mixes studies).
+
+        >>> from cobot_analysis.api import study_of, trajectory_set
+        >>> from cobot_analysis.synth.tables import walking_table
+        >>> study_of(trajectory_set(walking_table(n_subjects=1, n_conditions=1, n_trials=1)))
+        'synthetic-walking'
+    """
     studies = sorted(ts.meta["study"].dropna().astype(str).unique())
     return studies[0] if len(studies) == 1 else "+".join(studies)
 
 
 def check_by(by: list[str] | None, columns, path=None) -> list[str] | None:
-    """The grouping columns asked for (``--by``), refused when one is not a column of the trajectories."""
+    """The grouping columns asked for (``--by``), refused when one is not a column of the trajectories.
+
+        >>> from cobot_analysis.api import check_by
+        >>> check_by(["condition"], ["trial", "condition"])
+        ['condition']
+        >>> check_by(["speed"], ["trial", "condition"])
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: --by names unknown column(s) ['speed']; use columns of the trajectories: trial, condition
+    """
     if not by:
         return None
     bad = [c for c in by if c not in columns]
@@ -74,8 +103,12 @@ def average(trajectories: Any, *, by: list[str] | None = None, max_spread: float
         >>> from cobot_analysis.api import average
         >>> from cobot_analysis.synth.tables import walking_table
         >>> result = average(walking_table(n_subjects=3, n_conditions=2, n_trials=2))
-        >>> result.means.drop_duplicates("trial")[["condition", "n_trials"]].to_string(index=False)
-        'condition  n_trials\n    E4015         6\n    E4030         6'
+        >>> result.groups, result.n_averaged
+        (['study', 'condition', 'entity'], 12)
+        >>> print(result.means.drop_duplicates("trial")[["condition", "n_trials"]].to_string(index=False))
+        condition  n_trials
+            E1500         6
+            N1500         6
     """
     from cobot_analysis.averaging import MAX_FRAME_SPREAD, MEANS, check_groups, mean_trajectories, spread_warnings
     from cobot_analysis.compare import default_groups
@@ -133,6 +166,15 @@ def compare(trajectories: Any, means: Any, *, against: Any = None, comparison: s
         >>> d = compare(walks, average(walks).means).distances
         >>> d["comparison"].unique().tolist(), len(d)
         (['individual-mean'], 12)
+
+    Model paths (``generate``, under the comparison's convention) against the means of their condition:
+
+        >>> from cobot_analysis.api import generate, walking_cases
+        >>> cases = [c for c in walking_cases("continuous") if c[0] in ("N1500", "E1500")]
+        >>> paths = generate("clothoid", cases=cases, study="synthetic-walking", jobs=1).generated
+        >>> m = compare(walks, average(walks).means, against=paths, comparison="model").distances.query("comparison == 'model'")
+        >>> sorted(m["condition"]), bool(m["d_xy"].between(0.0, 0.5).all())
+        (['E1500', 'N1500'], True)
     """
     from cobot_analysis import conventions
     from cobot_analysis.compare import WALKING_GROUPS, against_set, against_vs_mean, any_vs_any as any_any, compare_sets
@@ -147,10 +189,25 @@ def compare(trajectories: Any, means: Any, *, against: Any = None, comparison: s
     same = check_by(any_vs_any, list(ts.meta.columns))
     other = None
     if against is not None:
-        if isinstance(against, (pd.DataFrame, TrajectorySet)):
-            raise InputError("--against must be the path of a trajectory table (generate's generated.parquet)",
-                             remedy="pass the Parquet file that generate wrote")
-        other = against_set(Path(against), mts.n_samples, conv)
+        if isinstance(against, TrajectorySet):
+            raise InputError("--against must be a trajectory table (generate's generated table, or its Parquet file)",
+                             remedy="pass the DataFrame or the Parquet file that generate wrote")
+        if isinstance(against, pd.DataFrame):  # against_set reads a file: the table goes through a temporary one
+            import tempfile
+
+            against_name = "the against table"  # its name in messages
+            with tempfile.TemporaryDirectory() as tmp:
+                file = Path(tmp) / "against.parquet"
+                table = against.copy()
+                table.attrs = {}
+                table.to_parquet(file)
+                try:
+                    other = against_set(file, mts.n_samples, conv)
+                except InputError as exc:
+                    raise InputError(str(exc).replace(str(file), against_name)) from None
+            against = against_name
+        else:
+            other = against_set(Path(against), mts.n_samples, conv)
     if (ts.meta["kind"] == "model").all():
         raise InputError("the trajectories are generated paths (kind = model), not trials",
                          remedy="pass the model paths as `against` (compare --against generated.parquet) and the measured "
@@ -198,9 +255,24 @@ def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *
                progress=None) -> StatisticsResult:
     """Every statistical question of a study (Kruskal-Wallis, Mann-Whitney, Fisher, ANOVA, Pearson, ...,
     with effect sizes and Holm correction within each family; docs/methods.md sec. 4). ``config``: a study
-    file (``cobot_analysis.study``, docs/statistics.md) as a path, a loaded ``Study`` or ``StudyConfig``;
-    None or a file without questions: the default descriptive questions (each distance and travel time
-    by each factor, and the tests the design allows)."""
+    file (``cobot_analysis.study``, docs/statistics.md) as a path, the same document as a dict, a loaded
+    ``Study`` or ``StudyConfig``; None or a file without questions: the default descriptive questions (each
+    distance and travel time by each factor, and the tests the design allows). ``distances``: the table of
+    ``compare``; ``durations`` (published pair study) and ``anthropometrics`` (subjects' weight and height)
+    feed the questions that use them.
+
+        >>> from cobot_analysis.api import average, compare, statistics
+        >>> from cobot_analysis.synth.tables import walking_table
+        >>> walks = walking_table(n_subjects=3, n_conditions=2, n_trials=3, subject_effect=0.2)
+        >>> distances = compare(walks, average(walks).means).distances
+        >>> question = {"id": "W1.1", "description": "d_xy across subjects", "source": "distances",
+        ...             "filter": {"comparison": "individual-mean"}, "value": "d_xy", "group": "subject",
+        ...             "test": "kruskal", "family": "study"}
+        >>> result = statistics(walks, distances, config={"study": "synthetic-walking", "analysis": [question]})
+        >>> row = result.table.iloc[0]
+        >>> row["test"], int(row["n"]), row["levels"], bool(row["p"] < 0.05)   # the planted subject effect
+        ('kruskal', 18, 'S01, S02, S03', True)
+    """
     from cobot_analysis import study as st
     from cobot_analysis.compare import DISTANCES
     from cobot_analysis.schema import read_table
@@ -208,6 +280,8 @@ def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *
     from cobot_analysis.stats import config as cfg
     from cobot_analysis.stats.sources import build_sources
 
+    if isinstance(config, dict):
+        config = st.parse(config, Path("study.toml"))
     ts = trajectory_set(trajectories, ("trajectories",))
     name = study_of(ts)
     path = None
@@ -247,8 +321,17 @@ class ReconstructResult:
 def reconstruct(trajectories: Any, *, relative_pose: dict | None = None, scenario: int = 3, progress=None) -> ReconstructResult:
     """Each subject rebuilt from the table pose and the subject's mean pose in the table frame
     (docs/methods.md sec. 8), compared with the measured trajectory: from the scenario-``scenario`` trials
-    themselves and, when given, from a published relative pose (``reconstruct.read_wrt_table``)."""
-    from cobot_analysis import reconstruct as rc
+    themselves and, when given, from a published relative pose (``reconstruct.read_wrt_table``).
+
+        >>> from cobot_analysis.api import reconstruct
+        >>> from cobot_analysis.synth.tables import pair_table
+        >>> rec = reconstruct(pair_table(n_pairs=2, goals=1)).reconstruction
+        >>> sorted(rec["entity"].unique()), sorted(rec["relative_pose"].unique()), len(rec)
+        (['subject1', 'subject2'], ['trials'], 16)
+        >>> bool(rec["d_xy"].between(0.0, 0.5).all())   # m: a subject stays beside the table
+        True
+    """
+    import cobot_analysis.reconstruct as rc
 
     ts = trajectory_set(trajectories, ("trajectories",))
     if not ts.meta["entity"].eq("table").any():

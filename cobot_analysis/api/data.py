@@ -49,9 +49,24 @@ def import_markers(protocol: str | os.PathLike | ImportPlan, *, units: str = "au
     refused ones are left out and listed in ``result.refused`` (``cobot_analysis.refusals``); without
     it, or when every trial is refused, they are named together in one ``InputError``.
 
-        >>> from cobot_analysis.api import import_markers                      # doctest: +SKIP
-        >>> result = import_markers("study/protocol.yaml")                    # doctest: +SKIP
-        >>> result.trials[["trial", "rate", "n_frames"]]                      # doctest: +SKIP
+    A synthetic walking study of 2 subjects x 1 start condition x 1 repetition, written as C3D files:
+
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> from cobot_analysis.api import import_markers
+        >>> from cobot_analysis.synth import walking
+        >>> tmp = tempfile.TemporaryDirectory()
+        >>> protocol = walking.generate(Path(tmp.name), n_subjects=2, n_trials=1, conditions=["E4015"])
+        >>> result = import_markers(protocol, jobs=1)
+        >>> print(result.trials[["trial", "subject", "condition", "rate", "source_format"]].to_string(index=False))
+              trial subject condition  rate source_format
+        S01_E4015_1     S01     E4015 200.0           c3d
+        S02_E4015_1     S02     E4015 200.0           c3d
+        >>> result.meta["pelvis_markers"]["S01_E4015_1"], result.meta["source_units"]["S01_E4015_1"]
+        ({'walker': ['LASI', 'RASI', 'LPSI', 'RPSI']}, 'mm')
+        >>> bool(result.markers[["x", "y", "z"]].abs().max().max() < 10)   # metres, whatever the file's unit
+        True
+        >>> tmp.cleanup()
     """
     from cobot_analysis.io.markers import import_or_refuse, imported_tables, plan_import, refusal_error
     from cobot_analysis.parallel import map_tasks
@@ -87,11 +102,19 @@ class PublishedResult:
 
 
 def import_published(dataset: str, path: str | os.PathLike, *, gamma_limit: float | None = None) -> PublishedResult:
-    """Read a published CoBot dataset (``walking-2020`` or ``pair-carriage-2022``) from its folder.
+    """Read a published CoBot dataset (``walking-2020`` or ``pair-carriage-2022``) from its folder
+    (docs/methods.md sec. 1.1, 1.2); ``gamma_limit`` (rad, default 0.5) flags implausible gamma.
 
-        >>> from cobot_analysis.api import import_published                                   # doctest: +SKIP
+    The datasets are not part of the package (``import-published -h`` says where they live); reading one
+    takes a few seconds, so only the checks run here:
+
+        >>> from cobot_analysis.api import import_published
         >>> walking = import_published("walking-2020", "../shared/datasets/walking-2020")    # doctest: +SKIP
-        >>> walking.facts["orientation_missing_subject"]                                      # doctest: +SKIP
+        >>> walking.summary()                                                                # doctest: +SKIP
+        'walking-2020: ... trajectories'
+        >>> import_published("walking-2021", "datasets/walking-2020")
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: unknown dataset 'walking-2021'; use one of walking-2020, pair-carriage-2022
     """
     from cobot_analysis.errors import InputError
     from cobot_analysis.io import published as pub
@@ -127,16 +150,27 @@ class PreprocessResult:
         return asdict(self.params)
 
 
-def preprocess(markers: str | os.PathLike, trials: str | os.PathLike | None = None, *, jobs: int | None = None,
+def preprocess(markers: str | os.PathLike | ImportResult, trials: str | os.PathLike | None = None, *, jobs: int | None = None,
                scheduler: str | None = None, **options: Any) -> PreprocessResult:
     """Fill short gaps, low-pass filter, compute pelvis / table kinematics, segment and time-normalise the
-    recordings of an import (``markers.parquet``, ``trials.parquet`` beside it by default). ``options`` are
-    the fields of ``preprocess.stage.Params`` (``max_gap``, ``cutoff``, ``order``, ``n_samples``, ...,
-    ``skip_bad``), with the CLI's defaults.
+    recordings of an import (docs/methods.md sec. 2): ``markers`` is the result of ``import_markers``, or
+    the path of the ``markers.parquet`` the ``import`` stage wrote (``trials.parquet`` beside it by
+    default). ``options`` are the fields of ``preprocess.stage.Params`` (``max_gap``, ``cutoff``,
+    ``order``, ``order_convention``, ``n_samples`` (``--samples``), ..., ``skip_bad``), with the CLI's defaults.
 
-        >>> from cobot_analysis.api import preprocess                                  # doctest: +SKIP
-        >>> result = preprocess("ws/import/markers.parquet", cutoff=6.0)              # doctest: +SKIP
-        >>> result.trajectories.query("sample == 0")[["trial", "travel_time"]]         # doctest: +SKIP
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> from cobot_analysis.api import import_markers, preprocess
+        >>> from cobot_analysis.synth import walking
+        >>> tmp = tempfile.TemporaryDirectory()
+        >>> protocol = walking.generate(Path(tmp.name), n_subjects=2, n_trials=1, conditions=["E4015"])
+        >>> result = preprocess(import_markers(protocol, jobs=1), n_samples=100, jobs=1)
+        >>> result.summary()
+        '2 trajectories from 2 recordings'
+        >>> walks = result.trajectories
+        >>> walks.groupby("trial")["sample"].count().tolist(), sorted(walks["entity"].unique())
+        ([100, 100], ['walker'])
+        >>> tmp.cleanup()
     """
     from cobot_analysis.errors import InputError
     from cobot_analysis.preprocess.stage import process
@@ -144,8 +178,22 @@ def preprocess(markers: str | os.PathLike, trials: str | os.PathLike | None = No
     unknown = sorted(set(options) - set(Params.__dataclass_fields__))
     if unknown:
         raise InputError(f"unknown preprocess option(s) {unknown}", remedy=f"use {', '.join(Params.__dataclass_fields__)}")
+    p = Params(**options)
+    if isinstance(markers, ImportResult):  # the stage reads the markers from Parquet, a few columns at a time
+        import tempfile
+
+        from cobot_analysis.schema import MARKERS, TRIALS, write_table
+
+        if trials is not None:
+            raise InputError("trials is given with an import result, which holds its own trials",
+                             remedy="pass the import result alone")
+        with tempfile.TemporaryDirectory() as tmp:
+            write_table(markers.markers, Path(tmp) / "markers.parquet", MARKERS, **markers.meta)
+            write_table(markers.trials, Path(tmp) / "trials.parquet", TRIALS, study=markers.plan.protocol.study)
+            traj, gap_df, n, refused = process(Path(tmp) / "markers.parquet", Path(tmp) / "trials.parquet", p, jobs=jobs,
+                                               scheduler=scheduler)
+        return PreprocessResult(p, traj, gap_df, n, refused)
     markers = Path(markers)
     trials = Path(trials) if trials is not None else markers.with_name("trials.parquet")
-    p = Params(**options)
     traj, gap_df, n, refused = process(markers, trials, p, jobs=jobs, scheduler=scheduler)
     return PreprocessResult(p, traj, gap_df, n, refused)

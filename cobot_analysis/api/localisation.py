@@ -16,6 +16,14 @@ from cobot_analysis.errors import InputError
 
 
 def floats(text: str, n: int, option: str) -> tuple[float, ...]:
+    """``n`` comma-separated finite numbers of an option (``--delay-window 0,1.5``).
+
+        >>> floats("0,1.5", 2, "--delay-window")
+        (0.0, 1.5)
+        >>> floats("0", 2, "--delay-window")
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: --delay-window needs 2 comma-separated numbers, got '0'; e.g. --delay-window 0,0
+    """
     try:
         values = tuple(float(v) for v in text.split(","))
     except ValueError:
@@ -26,7 +34,13 @@ def floats(text: str, n: int, option: str) -> tuple[float, ...]:
 
 
 def at_least(value: float | None, option: str, low: float = 0.0, strict: bool = True, example: str = "") -> None:
-    """Range check of a number option (before any work): one line naming the option."""
+    """Range check of a number option (before any work): one line naming the option.
+
+        >>> at_least(0.08, "--tol-xy", strict=False)
+        >>> at_least(-1.0, "--tol-xy", strict=False, example="0.08")
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: --tol-xy must be >= 0, got -1; e.g. --tol-xy 0.08
+    """
     if value is None:
         return
     if not math.isfinite(value) or value < low or (strict and value == low):
@@ -35,7 +49,13 @@ def at_least(value: float | None, option: str, low: float = 0.0, strict: bool = 
 
 
 def run_labels(bags: list[Path]) -> list[str]:
-    """Run labels: the bags' stems (their names where two stems are the same)."""
+    """Run labels: the bags' stems (their names where two stems are the same, and for a ROS2 bag directory);
+    ``localise`` below shows ``run`` for ``run.bag``.
+
+        >>> from pathlib import Path
+        >>> run_labels([Path("robot/run_ros2")])
+        ['run_ros2']
+    """
     stems = [b.stem if b.is_file() else b.name for b in bags]
     return [b.name if stems.count(s) > 1 else s for b, s in zip(bags, stems)]
 
@@ -78,7 +98,16 @@ def localisation_options(bags: list[Path], *, truth: str = "/mocap/pose", icp: s
                          goals_csv: str | os.PathLike | None = None, goal_topic: str = "/goal", speed_threshold: float = 0.02,
                          yaw_rate_threshold: float = 0.03, min_stop: float = 3.0, tol_xy: float = 0.08, tol_yaw: float = 0.07,
                          distance_window: float = 2.0, up: str = "auto", min_samples: int = 20):
-    """(Options, labels, maps): the options of ``localise`` checked (one line naming the option otherwise)."""
+    """(Options, labels, maps): the options of ``localise`` checked (one line naming the option otherwise).
+
+        >>> from pathlib import Path
+        >>> opts, labels, maps = localisation_options([Path("run.bag")], delay_window="0,2", label=["lab-run"])
+        >>> opts.window, opts.alignment, labels, maps
+        ((0.0, 2.0), 'mean', ['lab-run'], [''])
+        >>> localisation_options([Path("run.bag")], alignment="umeyama")
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: --alignment must be mean, se3, yaw or none, not 'umeyama'
+    """
     from cobot_analysis.localisation.analysis import Options
     from cobot_analysis.localisation.goals import StopRule, read_goals_csv
 
@@ -136,9 +165,21 @@ def localise(bags: list[str | os.PathLike], *, jobs: int | None = None, schedule
     ``options``: those of ``localisation_options`` (the command line's, e.g. ``truth="/mocap/pose"``,
     ``icp="/icp/pose"``, ``delay=None`` to estimate it, ``alignment="mean"``).
 
-        >>> from cobot_analysis.api import localise                                  # doctest: +SKIP
-        >>> r = localise(["run.bag"], truth="/mocap/pose", icp="/icp/pose")          # doctest: +SKIP
-        >>> r.runs[["run", "delay", "ape_rmse"]]                                     # doctest: +SKIP
+    A synthetic run of 14 s to one goal, ICP planted 0.55 s late and offset by (0.12, -0.085, 0.045) m:
+
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> from cobot_analysis.api import localise
+        >>> from cobot_analysis.localisation import synth
+        >>> tmp = tempfile.TemporaryDirectory()
+        >>> bag = synth.write_ros1(synth.make_run(synth.SynthParams(n_goals=1, stop=3.0, speed=0.3)), Path(tmp.name) / "run.bag")
+        >>> r = localise([bag], truth="/mocap/pose", icp="/icp/pose")
+        >>> r.run_lines()
+        ['run: delay 0.547 ± 0.003 s, RMSE 9.0 mm, goals 1/1']
+        >>> run = r.runs.iloc[0]
+        >>> round(float(run["offset_x"]), 2), round(float(run["offset_y"]), 2), round(float(run["offset_z"]), 2)
+        (0.12, -0.08, 0.04)
+        >>> tmp.cleanup()
     """
     bags = [Path(b) for b in bags]
     for b in bags:
@@ -150,7 +191,20 @@ def localise(bags: list[str | os.PathLike], *, jobs: int | None = None, schedule
 
 def analyse(bags: list[Path], opts, labels: list[str], maps: list[str], *, jobs: int | None = None,
             scheduler: str | None = None) -> LocalisationResult:
-    """Analyse each bag with checked options (``localisation_options``)."""
+    """Analyse each bag with checked options (``localisation_options``): ``localise`` without its checks
+    of the paths; the ``localisation`` stage calls it after recording the checked options.
+
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> from cobot_analysis.localisation import synth
+        >>> tmp = tempfile.TemporaryDirectory()
+        >>> bag = synth.write_mcap(synth.make_run(synth.SynthParams(n_goals=1, stop=3.0, speed=0.3)), Path(tmp.name) / "run.mcap")
+        >>> opts, labels, maps = localisation_options([bag], delay=0.55)
+        >>> r = analyse([bag], opts, labels, maps)
+        >>> float(r.runs.loc[0, "delay"]), r.runs.loc[0, "delay_method"], int(r.runs.loc[0, "n"]) == len(r.errors)
+        (0.55, 'given', True)
+        >>> tmp.cleanup()
+    """
     from cobot_analysis.localisation.analysis import analyse_run
     from cobot_analysis.parallel import map_tasks
 
@@ -166,7 +220,21 @@ def analyse(bags: list[Path], opts, labels: list[str], maps: list[str], *, jobs:
 
 
 def bag_topics(bag: str | os.PathLike) -> tuple[list[dict], list[dict]]:
-    """The topics of a bag (topic, type, count, rate, start, end, pose-like) and its tf frame pairs."""
+    """The topics of a bag (topic, type, count, rate, start, end, pose-like) and its tf frame pairs: what
+    to pass as ``truth`` / ``icp`` to ``localise`` (a topic, or ``tf:PARENT->CHILD``).
+
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> from cobot_analysis.localisation import synth
+        >>> tmp = tempfile.TemporaryDirectory()
+        >>> bag = synth.write_ros1(synth.make_run(synth.SynthParams(n_goals=1, stop=3.0, speed=0.3)), Path(tmp.name) / "run.bag")
+        >>> topics, frames = bag_topics(bag)
+        >>> [(t["topic"], t["type"], t["rate"]) for t in topics if t["topic"] in ("/mocap/pose", "/icp/pose")]
+        [('/icp/pose', 'geometry_msgs/PoseStamped', 10.0), ('/mocap/pose', 'geometry_msgs/PoseStamped', 200.0)]
+        >>> [(f["parent"], f["child"]) for f in frames if not f["static"]]
+        [('map', 'odom'), ('odom', 'base_link')]
+        >>> tmp.cleanup()
+    """
     from cobot_analysis.localisation.bags import bag_info
 
     return bag_info(Path(bag))

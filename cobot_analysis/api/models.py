@@ -58,7 +58,14 @@ def _generate_task(task):
 def resolve_convention(convention: str | None, weights: Any, models: list[str]):
     """The convention of a model run: the one asked for, else the one the weights were made under
     (``presets.weights_convention``), else ``continuous``; a model the weights' convention has no rule for
-    (the unicycle under the published one) runs under ``continuous``."""
+    (the unicycle under the published one) runs under ``continuous``.
+
+        >>> from cobot_analysis.api.models import resolve_convention
+        >>> resolve_convention(None, None, ["improved"]).name      # the default preset: the papers' weights
+        'published'
+        >>> resolve_convention(None, None, ["unicycle"]).name, resolve_convention("continuous", None, ["improved"]).name
+        ('continuous', 'continuous')
+    """
     from cobot_analysis import conventions
     from cobot_analysis.models.presets import weights_convention
 
@@ -87,9 +94,19 @@ def generate(model: str = "improved", *, start: tuple[float, float, float] | Non
     (travel time, mean speed), reported beside the model's (``comparison.measured_pace``).
 
         >>> from cobot_analysis.api import generate
-        >>> path = generate("clothoid", start=(-1.5, -3.4, 0.0)).generated
-        >>> round(float(path["x"].iloc[-1]), 6), round(float(path["y"].iloc[-1]), 6)
-        (0.0, 0.0)
+        >>> result = generate("clothoid", start=(-1.5, -3.4, 0.0), samples=50, jobs=1)
+        >>> path = result.generated
+        >>> result.summary(), len(path), path["trial"].iloc[0]
+        ('1 trajectory', 50, 'clothoid')
+        >>> end = path.iloc[-1]
+        >>> round(abs(float(end["x"])) + abs(float(end["y"])), 6), round(float(end["theta"]), 4)   # at the walking goal
+        (0.0, 1.5708)
+
+    An OC model on a coarse grid (a second or two): the path ends at the goal too.
+
+        >>> oc = generate("improved", start=(-1.5, -3.4, 0.0), samples=50, intervals=20, jobs=1)
+        >>> oc.convention, bool(abs(oc.generated[["x", "y"]].iloc[-1]).max() < 0.01)
+        ('published', True)
     """
     from cobot_analysis.models import refuse_unreached
     from cobot_analysis.parallel import map_tasks
@@ -112,7 +129,16 @@ def plan_generate(model: str, *, weights: Any = None, start: tuple | None = None
                   cases: list | None = None, duration: str | None = None, convention: str | None = None):
     """(models, convention, cases) of a ``generate`` run, every option checked before any solve: the model
     name, the weights, the convention (``resolve_convention``), ``duration`` (not under the published
-    convention), and each case's start and goal (``cases``, else ``start`` to ``goal``)."""
+    convention), and each case's start and goal (``cases``, else ``start`` to ``goal``).
+
+        >>> from cobot_analysis.api.models import plan_generate
+        >>> models, conv, cases = plan_generate("all", start=(-1.5, -3.4, 0.0))
+        >>> models, conv.name, cases
+        (['unicycle', 'clothoid', 'mombaur', 'improved', 'table'], 'continuous', [('', (-1.5, -3.4, 0.0), (0.0, 0.0, 1.5707963267948966))])
+        >>> plan_generate("improved", start=(0.0, 0.0, 1.0))
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: start equals goal (closer than 1 cm); ...
+    """
     from cobot_analysis.design import WALKING_GOAL
     from cobot_analysis.models import MODELS, check_endpoints
     from cobot_analysis.models.presets import load_weights
@@ -140,7 +166,13 @@ def walking_cases(convention: str, means: pd.DataFrame | None = None, *, goal: t
     """The (condition, start, goal) of the walking study's conditions, as the model comparison of ``fit-ioc``
     takes them (``models.comparison.study_cases``): from the measured ``means`` (continuous: their start
     poses, the design goal; published: the authors' start and goal poses), or, without means under the
-    continuous convention, the design's starts."""
+    continuous convention, the design's starts.
+
+        >>> from cobot_analysis.api import walking_cases
+        >>> cases = walking_cases("continuous")
+        >>> len(cases), cases[0]
+        (40, ('N1500', (-0.0, -0.9, 1.5707963267948966), (0.0, 0.0, 1.5707963267948966)))
+    """
     from cobot_analysis.design import WALKING_CONDITIONS, WALKING_GOAL, walking_condition
     from cobot_analysis.models.comparison import study_cases
 
@@ -172,7 +204,20 @@ def velocity_commands(generated: pd.DataFrame, *, trial: str | None = None, rate
                       omega_max: float = 7.0, path=None) -> VelocityCommands:
     """Velocity commands for a walking robot following a generated path (docs/methods.md sec. 10):
     v = (p_sim(t+1) - p_real(t)) f in the robot frame, open loop, saturated at ``v_max`` (m/s, x and y) and
-    ``omega_max`` (deg/s, yaw)."""
+    ``omega_max`` (deg/s, yaw). ``generated``: the table of ``generate``; ``trial``: which of its paths
+    (default: the only one).
+
+        >>> import math
+        >>> from cobot_analysis.api import generate, velocity_commands
+        >>> path = generate("clothoid", start=(-1.5, -3.4, 0.0), jobs=1).generated
+        >>> cmd = velocity_commands(path, rate=10.0, v_max=0.1)
+        >>> cmd.trial, cmd.rate, len(cmd.commands) > 0
+        ('clothoid', 10.0, True)
+        >>> float(cmd.commands[["v_x", "v_y"]].abs().max().max())   # saturated at v_max (m/s)
+        0.1
+        >>> round(float(cmd.commands["omega"].abs().max()), 6) == round(math.radians(7.0), 6)   # omega_max 7 deg/s, in rad/s
+        True
+    """
     import math
 
     from cobot_analysis.models.velocity_commands import check_time_law, resample_path, velocity_commands as commands
@@ -241,7 +286,12 @@ class FitResult:
 
 def held_weights(model: str, convention: str) -> tuple[str, ...]:
     """The weights an IOC holds at their start value by default (``models.ioc.held_weights``,
-    docs/methods.md sec. 6, 11)."""
+    docs/methods.md sec. 6, 11).
+
+        >>> from cobot_analysis.api.models import held_weights
+        >>> held_weights("improved", "published")
+        ('a0', 'a5', 'a6', 'b0')
+    """
     from cobot_analysis.models.ioc import held_weights as held
 
     return held(model, convention)
@@ -249,7 +299,15 @@ def held_weights(model: str, convention: str) -> tuple[str, ...]:
 
 def goal_rule(goal: str, df: pd.DataFrame) -> tuple | None:
     """The goal of each OC problem: ``design`` (the walking goal), ``end`` (None: the last measured pose),
-    ``auto`` (design when every condition is a walking-study one)."""
+    ``auto`` (design when every condition is a walking-study one).
+
+        >>> import pandas as pd
+        >>> from cobot_analysis.api.models import goal_rule
+        >>> goal_rule("auto", pd.DataFrame({"condition": ["E4015", "N1500"]}))
+        (0.0, 0.0, 1.5707963267948966)
+        >>> goal_rule("auto", pd.DataFrame({"condition": ["d1_p4"]})) is None   # not a walking condition: the last pose
+        True
+    """
     from cobot_analysis.design import WALKING_GOAL, walking_condition
 
     if goal == "end":
@@ -267,7 +325,16 @@ def goal_rule(goal: str, df: pd.DataFrame) -> tuple | None:
 def ioc_spec(model: str, *, convention: str = "continuous", start_weights: str | None = None, fit: list[str] | None = None,
              optimizer: str = "powell", max_evaluations: int = 2000, intervals: int = 50, v_nominal: float = 1.0):
     """The IOC's specification (``ioc.IOCSpec``), every option checked: the model, the weights to fit (default:
-    all but ``held_weights``), the start weights (a preset, a weights.json, or ``"ones"``: every fitted weight 1)."""
+    all but ``held_weights``), the start weights (a preset, a weights.json, or ``"ones"``: every fitted weight 1).
+
+        >>> from cobot_analysis.api.models import ioc_spec
+        >>> spec = ioc_spec("improved", start_weights="ones", fit=["a1", "a2"])
+        >>> spec.fitted, spec.start_weights[:4], spec.n_intervals
+        (('a1', 'a2'), (7.87, 1.0, 1.0, 1e-06), 50)
+        >>> ioc_spec("improved", fit=["a9"])
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: --fit names ['a9'] are not weights of the model (...); e.g. --fit a1,a2,a4
+    """
     from cobot_analysis import conventions
     from cobot_analysis.models.ioc import IOCSpec
     from cobot_analysis.models.presets import load_weights, names_for, weights_vector
@@ -304,7 +371,22 @@ def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: s
     ``start_weights``: a preset, a weights.json, or ``"ones"`` (every fitted weight 1). ``checkpoint``: a
     directory where the upper level's evaluations are logged after every iteration (``resume`` continues).
     ``on_evaluation(fit, n, D, best)`` reports progress. ``method``: ``bilevel`` (the published method) or
-    ``single-level`` (docs/methods.md sec. 6.1; improved and table models, continuous convention)."""
+    ``single-level`` (docs/methods.md sec. 6.1; improved and table models, continuous convention). A fit is
+    long (minutes to hours at the CLI's defaults); the example fits two means on a coarse grid with a
+    budget of 20 evaluations:
+
+        >>> from cobot_analysis.api import average, fit_ioc
+        >>> from cobot_analysis.synth.tables import walking_table
+        >>> means = average(walking_table(n_subjects=3, n_conditions=2, n_trials=2)).means
+        >>> fit = fit_ioc(means, intervals=20, max_evaluations=20, compare=False, jobs=1)
+        >>> fit.names   # the weights the data determine (models.ioc.held_weights holds the others)
+        ('a2', 'a3', 'a4')
+        >>> r = fit.results["all"]
+        >>> r.evaluations <= 20, bool(r.objective <= r.start_objective)   # D does not go up from the start weights
+        (True, True)
+        >>> sorted(fit.weights_json())
+        ['convention', 'fits', 'model', 'weights', 'weights_order']
+    """
     from cobot_analysis import conventions
     from cobot_analysis.models.comparison import compare_models, compared_models, coupled_distances, orientation_of, subject_distances
     from cobot_analysis.models.ioc import fit as ioc_fit, pair_targets_from_table, targets_from_table

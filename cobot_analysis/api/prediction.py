@@ -62,7 +62,16 @@ def prediction_config(*, settings: str = DEFAULT_SETTINGS, predictors: str = "oc
                       orientation: str = "auto", v_nominal: float = 1.0, goal=None, candidates: str | None = None):
     """The sweep's configuration (``SweepConfig``) from the command line's options; the convention defaults to
     the one the weights were made under (``presets.weights_convention``; continuous when unknown). ``goal``
-    (x, y, theta) and ``candidates`` ("x,y;x,y") for the goal-aware predictors (docs/methods.md sec. 7.1)."""
+    (x, y, theta) and ``candidates`` ("x,y;x,y") for the goal-aware predictors (docs/methods.md sec. 7.1).
+
+        >>> from cobot_analysis.api.prediction import prediction_config
+        >>> c = prediction_config(settings="10:20", predictors="cv,ctrv")
+        >>> c.settings, c.predictors, c.convention.name   # the default weights are the papers': published
+        (((10, 20),), ('cv', 'ctrv'), 'published')
+        >>> prediction_config(predictors="oc,kalman")
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: --predictors: unknown predictor(s) kalman; use some of oc, cv, ctrv, goal, goal-inferred
+    """
     from cobot_analysis import conventions
     from cobot_analysis.models.presets import load_weights, weights_convention
     from cobot_analysis.models.prediction.goal import check_goal, parse_candidates
@@ -82,7 +91,15 @@ def prediction_config(*, settings: str = DEFAULT_SETTINGS, predictors: str = "oc
 def select(df: pd.DataFrame, config, *, studies: list[str] | None = None, entities: list[str] | None = None, kind: str = "all",
            limit: int | None = None, every: int = 1, path=None) -> tuple[list, list[str]]:
     """The trajectories to predict (``studies``, ``entities``, ``kind``, every ``every``-th, the first ``limit``)
-    and the labels of those left out for lack of N0 consecutive finite positions."""
+    and the labels of those left out for lack of N0 consecutive finite positions.
+
+        >>> from cobot_analysis.api.prediction import prediction_config, select
+        >>> from cobot_analysis.synth.tables import walking_table
+        >>> trajs, left_out = select(walking_table(n_subjects=2, n_conditions=2, n_trials=1),
+        ...                          prediction_config(settings="10:20", predictors="cv"), limit=3)
+        >>> [t.label for t in trajs], left_out
+        (['synthetic-walking/S00_E1500_0/walker', 'synthetic-walking/S00_N1500_0/walker', 'synthetic-walking/S01_E1500_0/walker'], [])
+    """
     from cobot_analysis.models.prediction.sweep import predictable_windows, trajectories_from_table
 
     if kind not in ("trial", "mean", "all"):
@@ -114,13 +131,22 @@ def predict(trajectories: pd.DataFrame | str | os.PathLike, *, settings: str = D
     each (N0, N_OC) of ``settings`` and each predictor (``oc``: receding-horizon OC; ``cv``: constant
     velocity; ``ctrv``: constant turn rate and velocity), and assess the predictions: delta_xy,
     delta_theta, d_pred (docs/methods.md sec. 7), ADE / FDE. ``work``: a directory that keeps finished
-    (trajectory, setting) results, so an interrupted run resumes.
+    (trajectory, setting) results, so an interrupted run resumes. The convention defaults to the one the
+    weights were made under (``published`` for the presets; docs/methods.md sec. 11).
+
+    One synthetic walk of 40 samples, N0 = 10, N_OC = 20: N - N0 + 1 = 31 windows per predictor.
 
         >>> from cobot_analysis.api import predict
         >>> from cobot_analysis.synth.tables import walking_table
-        >>> r = predict(walking_table(n_subjects=1, n_conditions=1, n_trials=1), settings="10:20", predictors="cv")
+        >>> walk = walking_table(n_subjects=1, n_conditions=1, n_trials=1, missing_theta=0)
+        >>> r = predict(walk, settings="10:20", predictors="oc,cv", convention="continuous", jobs=1)
         >>> r.summary()
-        '1 trajectory x 1 setting x 1 predictor, 21 windows per predictor'
+        '1 trajectory x 1 setting x 2 predictors, 31 windows per predictor'
+        >>> p = r.predictions.set_index("predictor")
+        >>> int(p.loc["oc", "n_failed"]), bool(p.loc["oc", "delta_xy"] < 0.01)   # m, a near-straight walk
+        (0, True)
+        >>> sorted(r.summary_table["metric"].unique())
+        ['ade', 'd_pred', 'delta_theta', 'delta_xy', 'fde']
     """
     import tempfile
 
@@ -143,7 +169,19 @@ def predict(trajectories: pd.DataFrame | str | os.PathLike, *, settings: str = D
 def assess(trajs: list, config, work: str | os.PathLike, *, unpredictable: list[str] = (), jobs: int | None = None,
            scheduler: str | None = None) -> PredictionResult:
     """Predict the selected trajectories (``select``) with ``config`` and assess the predictions; finished
-    (trajectory, setting) results are kept in ``work`` and reused."""
+    (trajectory, setting) results are kept in ``work`` and reused.
+
+        >>> import tempfile
+        >>> from cobot_analysis.api.prediction import assess, prediction_config, select
+        >>> from cobot_analysis.synth.tables import walking_table
+        >>> config = prediction_config(settings="10:20", predictors="cv")
+        >>> trajs, _ = select(walking_table(n_subjects=1, n_conditions=1, n_trials=1), config)
+        >>> with tempfile.TemporaryDirectory() as work:
+        ...     first = assess(trajs, config, work, jobs=1)
+        ...     again = assess(trajs, config, work, jobs=1)
+        >>> first.resumed, again.resumed, again.predictions["delta_xy"].equals(first.predictions["delta_xy"])
+        (0, 1, True)
+    """
     from cobot_analysis.models.prediction.sweep import WorkDir, compare_table, run_sweep, summary_table
 
     metrics, windows, resumed = run_sweep(trajs, config, WorkDir(Path(work)), jobs=jobs, scheduler=scheduler)
