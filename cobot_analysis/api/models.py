@@ -97,7 +97,7 @@ def generate(model: str = "improved", *, start: tuple[float, float, float] | Non
         >>> result = generate("clothoid", start=(-1.5, -3.4, 0.0), samples=50, jobs=1)
         >>> path = result.generated
         >>> result.summary(), len(path), path["trial"].iloc[0]
-        ('1 trajectory', 50, 'clothoid')
+        ('1 trajectory, all at their goal, mean speed 1 m/s', 50, 'clothoid')
         >>> end = path.iloc[-1]
         >>> round(abs(float(end["x"])) + abs(float(end["y"])), 6), round(float(end["theta"]), 4)   # at the walking goal
         (0.0, 1.5708)
