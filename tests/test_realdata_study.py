@@ -10,6 +10,7 @@ import pytest
 
 PROTOCOL = """\
 study: realdata-gait
+allow_outside: true        # the recordings stay where they are, outside the protocol's folder (docs/protocol.md)
 marker_map:                # pyomeca's ISB names (Daphnee:ASISr) -> canonical
   ASISr: RASI
   ASISl: LASI
