@@ -107,6 +107,19 @@ def finished(stage: str, what: str, where) -> None:
         console.print(f"[green]{escape(stage)}[/green]: {escape(str(what))} -> {escape(str(where))}", soft_wrap=True)
 
 
+def finished_with_refusals(stage: str, done) -> None:
+    """The end of ``import`` and ``preprocess``: their summary line (when the stage ran), then exit 3 when
+    some trials were refused (the good ones went on; ``cobot_analysis.refusals``)."""
+    from cobot_analysis.console import info
+    from cobot_analysis.refusals import exit_code
+
+    if not done.skipped:
+        info(f"[green]{stage}[/green]: {done.result.summary()} -> {done.directory}")
+    code = exit_code(done.directory)
+    if code:
+        raise typer.Exit(code)
+
+
 def count(n: int, noun: str, plural: str | None = None) -> str:
     """``1 figure``, ``2 figures`` (``plural`` where it is not noun + s)."""
     return f"{n} {noun if n == 1 else plural or noun + 's'}"

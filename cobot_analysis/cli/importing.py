@@ -8,7 +8,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from cobot_analysis.cli.app import DEFAULT_OUT_PATH, PANEL_DATA, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, app, examples
+from cobot_analysis.cli.app import DEFAULT_OUT_PATH, PANEL_DATA, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, app, examples, finished_with_refusals
 
 
 class Units(str, Enum):
@@ -47,17 +47,11 @@ def import_command(
     trial is checked before anything is written: the bad ones are left out and listed, exit code 3
     (or, with --strict, named together and nothing written).
     """
-    from cobot_analysis.console import info
     from cobot_analysis.io.markers import parse_map_options
-    from cobot_analysis.refusals import exit_code
     from cobot_analysis.stages import data
 
     done = data.import_markers(out, protocol, units=units.value, marker_map=parse_map_options(map_ or []),
                                marker_map_file=marker_map, keep_all_markers=keep_all_markers, skip_bad=skip_bad,
                                lab_extent=lab_extent, max_speed=max_speed, max_spike=max_spike, jobs=jobs, scheduler=scheduler,
                                force=force)
-    if not done.skipped:
-        info(f"[green]import[/green]: {done.result.summary()} -> {done.directory}")
-    code = exit_code(done.directory)
-    if code:
-        raise typer.Exit(code)  # done, some trials refused (cobot_analysis.refusals)
+    finished_with_refusals("import", done)

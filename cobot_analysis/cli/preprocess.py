@@ -8,7 +8,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from cobot_analysis.cli.app import PANEL_PROCESS, DEFAULT_OUT_PATH, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, app, examples
+from cobot_analysis.cli.app import PANEL_PROCESS, DEFAULT_OUT_PATH, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, app, examples, finished_with_refusals
 
 
 class OrderConvention(str, Enum):
@@ -61,8 +61,6 @@ def preprocess_command(
     the pelvis and table markers) and results.md (gap and quality summary). A walk or carriage that
     runs off the start or end of its recording is flagged 'truncated'.
     """
-    from cobot_analysis.console import info
-    from cobot_analysis.refusals import exit_code
     from cobot_analysis.stages import data
 
     done = data.preprocess(out, markers=markers, trials=trials, max_gap=max_gap, cutoff=cutoff, order=order,
@@ -71,8 +69,4 @@ def preprocess_command(
                            min_duration=min_duration, gamma_min_speed=gamma_min_speed, keep_approach=keep_approach,
                            orientation_markers=orientation_markers.value, skip_bad=skip_bad, jobs=jobs, scheduler=scheduler,
                            force=force)
-    if not done.skipped:
-        info(f"[green]preprocess[/green]: {done.result.summary()} -> {done.directory}")
-    code = exit_code(done.directory)
-    if code:
-        raise typer.Exit(code)  # done, some trials refused (cobot_analysis.refusals)
+    finished_with_refusals("preprocess", done)
