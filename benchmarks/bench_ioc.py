@@ -25,7 +25,7 @@ def main() -> None:
     ap.add_argument("--synthetic", type=int)
     ap.add_argument("--paths", type=int, default=0, help="first N targets (0: all)")
     ap.add_argument("--intervals", type=int, default=50)
-    ap.add_argument("--fit", default="a0,a1,a2,a3,a4,b1,b2,b3")
+    ap.add_argument("--fit", default="a2,a3,a4", help="the continuous walker's fitted set (held_weights)")
     ap.add_argument("--noise", type=float, default=0.0)
     args = ap.parse_args()
 

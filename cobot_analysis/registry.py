@@ -47,6 +47,8 @@ STAGES: tuple[StageSpec, ...] = (
     StageSpec("fit-ioc", True, "models.fit_ioc"),
     StageSpec("fit-ioc-subjects", True, "models.fit_ioc"),
     StageSpec("fit-ioc-coupled", True, "models.fit_ioc"),
+    StageSpec("fit-ioc-single", True, "models.fit_ioc"),  # the single-level method beside the bi-level fit-ioc
+    StageSpec("fit-ioc-subjects-single", True, "models.fit_ioc"),
     StageSpec("generate", True, "models.generate"),
     StageSpec("velocity-commands", True, "models.velocity_commands"),
     StageSpec("predict", True, "predict.predict"),

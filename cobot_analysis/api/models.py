@@ -6,7 +6,8 @@ nothing is written."""
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
@@ -265,6 +266,10 @@ class FitResult:
     paths: dict | None = None  # "published" / "fitted" -> generated path per mean target (figure)
     means_source: str = ""
     mean_keys: pd.DataFrame | None = None  # scenario, condition, direction per mean trial (pair study: the pace beside durations)
+    method: str = "bilevel"
+    seconds: dict[str, float] = field(default_factory=dict)  # fit -> wall time of the fit (s)
+    uncertainty: dict[str, dict] = field(default_factory=dict)  # fit -> verdicts, intervals (models.ioc.uncertainty)
+    subjects_test: list[dict] | None = None  # per subject: do the subjects' weights differ (uncertainty.subjects_differ)
 
     def summary(self) -> str:
         n_paths = sum(len(self.fits[k]) for k in self.results)
@@ -276,12 +281,20 @@ class FitResult:
     def weights_json(self) -> dict:
         return {"model": self.model, "convention": self.convention, "weights_order": list(self.all_names),
                 "weights": self.results["all"].weights if "all" in self.results else None,
-                "fits": {k: r.to_json() for k, r in self.results.items()}}
+                "method": self.method,
+                "fits": {k: {**r.to_json(), "seconds": self.seconds.get(k), "uncertainty": self.uncertainty.get(k)}
+                         for k, r in self.results.items()},
+                **({"subjects_differ": self.subjects_test} if self.subjects_test is not None else {})}
 
     def fits_table(self) -> pd.DataFrame:
-        return pd.DataFrame([{"fit": k, "objective": r.objective, "start_objective": r.start_objective,
-                              "evaluations": r.evaluations, "iterations": r.iterations, "failed": r.failed, **r.weights}
-                             for k, r in self.results.items()])
+        rows = []
+        for k, r in self.results.items():
+            u = self.uncertainty.get(k, {})
+            bounds = {f"{n}_{e}": u["intervals"][n][i] for n in self.names for i, e in enumerate(("lo", "hi"))} if u else {}
+            rows.append({"fit": k, "method": self.method, "objective": r.objective, "start_objective": r.start_objective,
+                         "evaluations": r.evaluations, "iterations": r.iterations, "failed": r.failed,
+                         "seconds": self.seconds.get(k), **r.weights, **bounds})
+        return pd.DataFrame(rows)
 
 
 def held_weights(model: str, convention: str) -> tuple[str, ...]:
@@ -364,14 +377,18 @@ def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: s
             resume: bool = False, checkpoint: str | os.PathLike | None = None, jobs: int | None = None,
             scheduler: str | None = None, means_source: str | os.PathLike = "", trials_source: str | os.PathLike | None = None,
             durations: pd.DataFrame | None = None,
-            on_evaluation: Callable[[str, int, float, float], None] | None = None, method: str = "bilevel") -> FitResult:
+            on_evaluation: Callable[[str, int, float, float], None] | None = None, method: str = "bilevel",
+            bootstrap: int = 200, seed: int = 0) -> FitResult:
     """Bi-level inverse optimal control (docs/methods.md sec. 6): fit the OC cost weights of ``model``
     (``improved``, ``table`` or ``coupled``) to the mean trajectories (``per="all"``) or to each subject's
     trials (``per="subject"``). ``fit``: the weights to fit (default: all but those ``held_weights`` holds);
     ``start_weights``: a preset, a weights.json, or ``"ones"`` (every fitted weight 1). ``checkpoint``: a
     directory where the upper level's evaluations are logged after every iteration (``resume`` continues).
     ``on_evaluation(fit, n, D, best)`` reports progress. ``method``: ``bilevel`` (the published method) or
-    ``single-level`` (docs/methods.md sec. 6.1; improved and table models, continuous convention). A fit is
+    ``single-level`` (docs/methods.md sec. 6.1; improved and table models, continuous convention).
+    ``bootstrap``: after each fit, the curvature of D at the fitted weights, each weight's verdict and its
+    interval from ``bootstrap`` resamples of the fitted units (docs/methods.md sec. 6.3; 0: none); per
+    subject, also whether the subjects' weights differ. A fit is
     long (minutes to hours at the CLI's defaults); the example fits two means on a coarse grid with a
     budget of 20 evaluations:
 
@@ -394,7 +411,7 @@ def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: s
     from cobot_analysis.models.ioc.single_level import as_ioc_result, check_method, check_spec, fit_single_level
     from cobot_analysis.parallel import default_jobs, executor
 
-    check_method(method)
+    check_method(method, bootstrap)
     if model not in ("improved", "table", "coupled"):
         raise InputError(f"fit-ioc fits the improved, table or coupled model, not {model!r}", remedy="use --model improved, table or coupled")
     conv = conventions.get(convention or "continuous")
@@ -437,17 +454,30 @@ def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: s
             check_spec(spec, len(targets))
     checkpoint = Path(checkpoint) if checkpoint is not None else None
     n_chunks = 4 * (default_jobs() if jobs is None else jobs) if scheduler is None else 8
-    results = {}
+    results, seconds, uncertainty = {}, {}, {}
     with executor(jobs, scheduler) as pool:
         for key, targets in fits.items():
             safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in key)
             report = (lambda n, f, best, key=key: on_evaluation(key, n, f, best)) if on_evaluation else None
+            t0 = time.perf_counter()
             if method == "single-level":
                 results[key] = as_ioc_result(fit_single_level(spec, targets))
-                continue
-            results[key] = ioc_fit(spec, targets, pool=pool, chunks=n_chunks,
-                                   checkpoint=checkpoint / f"{safe}.json" if checkpoint else None, resume=resume,
-                                   on_evaluation=report)
+            else:
+                results[key] = ioc_fit(spec, targets, pool=pool, chunks=n_chunks,
+                                       checkpoint=checkpoint / f"{safe}.json" if checkpoint else None, resume=resume,
+                                       on_evaluation=report)
+            seconds[key] = time.perf_counter() - t0
+            if bootstrap and model != "coupled":
+                uncertainty[key] = weight_uncertainty(spec, targets, results[key].weights, bootstrap, seed=seed,
+                                                      checkpoint=checkpoint / f"{safe}.curvature.json" if checkpoint else None,
+                                                      resume=resume)
+    subjects_test = None
+    if per == "subject" and uncertainty:
+        from cobot_analysis.models.ioc.uncertainty import subjects_differ
+
+        subjects_test = subjects_differ({k: {n: results[k].weights[n] for n in names} for k in uncertainty},
+                                        {k: u["sd_log10"] for k, u in uncertainty.items()},
+                                        {k: u["verdicts"] for k, u in uncertainty.items()})
     # distances: fitted model per trajectory; full model comparison on the means
     coupled = None
     if model == "coupled":  # published and fitted weights, both cold-started, per carrier
@@ -483,7 +513,22 @@ def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: s
     return FitResult(model, conv.name, all_names, names, w0, start_weights or DEFAULT_PRESET[model], spec, per, goal, fits,
                      results, dist, mean_targets, comparison, models, coupled, paths, str(means_source),
                      mean_df.groupby("trial")[["scenario", "condition", "direction"]].first()
-                     if {"scenario", "condition", "direction"} <= set(mean_df.columns) else None)
+                     if {"scenario", "condition", "direction"} <= set(mean_df.columns) else None,
+                     method, seconds, uncertainty, subjects_test)
+
+
+def weight_uncertainty(spec, targets: list, weights: dict[str, float], n_resamples: int, *, seed: int = 0,
+                       checkpoint: Path | None = None, resume: bool = False) -> dict:
+    """Verdict and bootstrap interval of each fitted weight at ``weights`` (docs/methods.md sec. 6.3,
+    ``models.ioc.uncertainty``): {"D", "verdicts", "intervals", "sd_log10", "resamples", "eigenvalues",
+    "failed_solves"}."""
+    from cobot_analysis.models.ioc import uncertainty as unc
+
+    c = unc.curvature(spec, targets, weights, checkpoint=checkpoint, resume=resume)
+    b = unc.bootstrap(c, n_resamples, seed=seed)
+    return {"D": c.D, "verdicts": unc.verdicts(spec.fitted, c.H, c.D, weights), "intervals": b["intervals"],
+            "sd_log10": b["sd_log10"], "resamples": n_resamples, "eigenvalues": np.linalg.eigvalsh(c.H).tolist(),
+            "failed_solves": c.failed}
 
 
 def _figure_paths(model: str, targets: list, fitted: dict, conv) -> dict:

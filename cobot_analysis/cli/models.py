@@ -113,6 +113,7 @@ def fit_ioc_command(
     resume: Annotated[bool, typer.Option("--resume", help="Continue from the checkpoint of an interrupted run with the same inputs and options.")] = False,
     convention: ConventionOpt = None,
     method: Annotated[str, typer.Option("--method", help="bilevel (the published method) or single-level (one NLP with the lower level's KKT conditions; improved and table models, continuous convention; docs/methods.md 6.1).")] = "bilevel",
+    bootstrap: Annotated[int, typer.Option("--bootstrap", min=0, help="Resamples of the fitted units (means, or a subject's trials) for each weight's 95 % interval, with its identifiability verdict (docs/methods.md 6.3); 0: neither. --resume reuses the finished curvature evaluations.")] = 200,
     seed: SeedOpt = 0,
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
@@ -125,7 +126,8 @@ def fit_ioc_command(
     fit), figures and results.md. The coupled model writes the same into OUT/fit-ioc-coupled/ (the
     table or walker fit in OUT/fit-ioc/ stays), with the distances of each carrier; --per subject
     writes OUT/fit-ioc-subjects/ (start them from the fit over the means with
-    --start-weights OUT/fit-ioc/weights.json). The log of upper-level evaluations is checkpointed in
+    --start-weights OUT/fit-ioc/weights.json); --method single-level writes OUT/fit-ioc-single/
+    (OUT/fit-ioc-subjects-single/), beside the bi-level fit. The log of upper-level evaluations is checkpointed in
     OUT/.<stage>.checkpoint after every upper-level iteration (--resume continues from it).
     """
     from cobot_analysis.console import progress
@@ -150,7 +152,7 @@ def fit_ioc_command(
                               optimizer=optimizer.value, max_evaluations=max_evaluations, per=per.value, subjects=subjects,
                               goal=goal.value, intervals=intervals, v_nominal=v_nominal, compare=compare, resume=resume,
                               convention=convention, seed=seed, jobs=jobs, scheduler=scheduler, force=force, method=method,
-                              on_evaluation=on_evaluation)
+                              bootstrap=bootstrap, on_evaluation=on_evaluation)
         for key, task in tasks.items():
             evaluations = done.result.results[key].evaluations
             bar.update(task, total=evaluations, completed=evaluations)

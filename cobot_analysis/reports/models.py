@@ -427,9 +427,64 @@ def pace_lines(mean_keys: pd.DataFrame | None, targets, per_target: list[dict], 
             "(docs/methods.md sec. 6).", ""]
 
 
-def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal: float, durations: pd.DataFrame | None) -> str:
+def uncertainty_lines(result) -> list[str]:
+    """Markdown: each fitted weight with its bootstrap interval and identifiability verdict per fit
+    (docs/methods.md sec. 6.3), and, per subject, whether the subjects' weights differ."""
+    if not result.uncertainty:
+        return []
+    n = next(iter(result.uncertainty.values()))["resamples"]
+    lines = [f"Each fitted weight with its 95 % interval ({n} bootstrap resamples of the fitted "
+             f"{'means' if result.per == 'all' else 'trials'}, a quadratic refit each) and what the data determine "
+             "(curvature of D at the fit, docs/methods.md sec. 6.3); a weight the data do not determine has no interval.", "",
+             "| fit | weight | fitted | 95 % interval | verdict |", "|---|---|---|---|---|"]
+    for k, u in result.uncertainty.items():
+        w = result.results[k].weights
+        for name in result.names:
+            v = u["verdicts"][name]
+            lo, hi = u["intervals"][name]
+            cell = f"{lo:.3g} .. {hi:.3g}" if v.startswith("determined") else "–"
+            lines.append(f"| {k} | {name} | {w[name]:.3g} | {cell} | {v} |")
+    lines.append("")
+    failed = sum(u["failed_solves"] for u in result.uncertainty.values())
+    if failed:
+        lines += [f"{failed} lower-level solves of the curvature did not converge (their points carry no information).", ""]
+    if result.subjects_test:
+        lines += ["Do the subjects' weights differ? Cochran's Q on log10 of each weight with the bootstrap standard "
+                  "deviations, chi2(subjects - 1), Holm-adjusted over the weights; subjects where the weight is not "
+                  "determined left out (docs/methods.md sec. 6.3).", "",
+                  "| weight | subjects | Q | df | p | p (Holm) | subjects differ |", "|---|---|---|---|---|---|---|"]
+        for r in result.subjects_test:
+            differ = "–" if r["differ"] is None else ("yes" if r["differ"] else "no")
+            lines.append(f"| {r['weight']} | {r['subjects']} | {r['Q']:.3g} | {r['df']} | {r['p']:.3g} | {r['p_holm']:.3g} | {differ} |")
+        lines.append("")
+    return lines
+
+
+def methods_side_by_side(result, other: dict | None) -> list[str]:
+    """Markdown: the single-level fit beside the workspace's bi-level fit (D, weights, time)."""
+    if other is None:
+        return ["No bi-level fit in this workspace to compare with (run fit-ioc without --method first).", ""]
+    names = result.names
+    lines = [f"Single-level and bi-level fits side by side (the bi-level fit from {other['path']}); both D re-solved "
+             "exactly by the lower level at the fitted weights.", "",
+             "| fit | method | D | time (s) | " + " | ".join(names) + " |", "|---|---|---|---|" + "---|" * len(names)]
+    for k, r in result.results.items():
+        b = other["fits"].get(k)
+        if b is not None:
+            t = b.get("seconds")
+            lines.append(f"| {k} | bi-level | {b['objective']:.4f} | {'' if t is None else f'{t:.1f}'} | "
+                         + " | ".join(f"{b['weights'][n]:.3g}" for n in names) + " |")
+        lines.append(f"| {k} | single-level | {r.objective:.4f} | {result.seconds.get(k, float('nan')):.1f} | "
+                     + " | ".join(f"{r.weights[n]:.3g}" for n in names) + " |")
+    return lines + [""]
+
+
+def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal: float, durations: pd.DataFrame | None,
+                     other: dict | None = None) -> str:
     """The IOC's results fragment: the fits (D, evaluations, weights at the start and fitted), their flags,
-    the model comparison with its statistics and figures (drawn into ``stage``)."""
+    each weight's interval and verdict, the single-level fit beside the bi-level one (``other``: the
+    workspace's bi-level weights.json), the model comparison with its statistics and figures (drawn into
+    ``stage``)."""
     from cobot_analysis import conventions
 
     conv = conventions.get(result.convention)
@@ -448,7 +503,7 @@ def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal
                  "convention, docs/methods.md sec. 5.5, 11), from the solution at the best weights so far and from a rest "
                  "and a straight-line guess, the least cost kept")
     start_weights = result.start_label
-    single = any(r.message.startswith("single-level") for r in result.results.values())  # models.ioc.single_level.as_ioc_result
+    single = result.method == "single-level"
     if single:
         lower = lower.replace(", warm-started from the solution at the best weights so far", ", its KKT conditions constraints of the NLP")
     lines = [f"## Inverse optimal control ({model} model{', one fit per subject' if per == 'subject' else ''}, "
@@ -476,9 +531,13 @@ def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal
                      + " | ".join(f"{r.weights[n]:.3g}" for n in names) + " |")
     lines.append("")
     for k, r in results.items():
+        # with the curvature at hand, a weight at a search limit is judged by its verdict (below), not flagged
         lines += [("" if per == "all" else f"Fit {k}: ") + duration_flag(r.per_target, v_nominal, conv.name)
-                  + " " + weight_limit_flag(r.weights, names)
+                  + ("" if k in result.uncertainty else " " + weight_limit_flag(r.weights, names))
                   + (f" Optimiser: {r.message.strip()}" if per == "all" else ""), ""]
+    lines += uncertainty_lines(result)
+    if single:
+        lines += methods_side_by_side(result, other)
     if conv.name == "published" and "a0" not in names and model != "coupled":
         lines += ["a0 is held at its start value under the published convention: a constant per node, it adds a0 N to J "
                   "on a held horizon and a0 / dt to the duration rule's J / T, so no path depends on it (docs/methods.md "

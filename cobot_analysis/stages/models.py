@@ -89,11 +89,14 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
             max_evaluations: int = 2000, per: str = "all", subjects: int | None = None, goal: str = "auto", intervals: int = 50,
             v_nominal: float = 1.0, compare: bool = True, resume: bool = False, convention: str | None = None, seed: int = 0,
             jobs: int | None = None, scheduler: str | None = None, force: bool = False, on_evaluation=None,
-            method: str = "bilevel") -> Outcome:
+            method: str = "bilevel", bootstrap: int = 200) -> Outcome:
     """``fit-ioc`` (``fit-ioc-subjects`` with ``per="subject"``, ``fit-ioc-coupled`` for the coupled model, each
     ``-published`` under the published convention): weights.json, weights/<fit>.json, distances.parquet,
     fits.csv, figures and results.md. The upper level's evaluations are checkpointed in
-    ``OUT/.<stage>.checkpoint`` after every iteration (``resume`` continues from it)."""
+    ``OUT/.<stage>.checkpoint`` after every iteration (``resume`` continues from it). The single-level
+    method writes its own stage (``fit-ioc-single``, ``fit-ioc-subjects-single``) beside the bi-level one,
+    and its report shows the bi-level fit of the workspace beside its own. ``bootstrap``: resamples of
+    the weights' intervals (0: no intervals nor verdicts)."""
     import pandas as pd
 
     from cobot_analysis import conventions
@@ -101,7 +104,7 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
     from cobot_analysis.models.outputs import ioc_distances_schema
     from cobot_analysis.reports.models import fit_ioc_markdown
 
-    check_method(method)
+    check_method(method, bootstrap)
     conv = conventions.get(convention or "continuous")
     spec = ioc_spec(model, convention=conv.name, start_weights=start_weights, fit=fit, optimizer=optimizer,
                     max_evaluations=max_evaluations, intervals=intervals, v_nominal=v_nominal)  # options checked first
@@ -128,12 +131,15 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
     inputs = [p for p in (means, traj_path) if p is not None]
     if start_weights and Path(start_weights).is_file():
         inputs.append(Path(start_weights))
-    params = {"spec": spec.__dict__, "per": per, "subjects": subjects, "goal": goal, "compare": compare, "seed": seed}
-    if method != "bilevel":  # the bi-level stages keep their manifest (and are not re-run)
+    params = {"spec": spec.__dict__, "per": per, "subjects": subjects, "goal": goal, "compare": compare, "seed": seed,
+              "bootstrap": bootstrap}
+    if method != "bilevel":
         params["method"] = method
-    # own stages: the coupled fit never replaces the table fit, nor per-subject fits the fit over the means
-    name = registry.directory("fit-ioc-coupled" if model == "coupled" else "fit-ioc-subjects" if per == "subject" else "fit-ioc",
-                              conv.name)
+    # own stages: the coupled fit never replaces the table fit, nor per-subject fits the fit over the means, nor the
+    # single-level fit the bi-level one
+    base = "fit-ioc-coupled" if model == "coupled" else "fit-ioc-subjects" if per == "subject" else "fit-ioc"
+    name = registry.directory(base + ("-single" if method == "single-level" else ""), conv.name)
+    other = _bilevel_fit(out, registry.directory(base, conv.name)) if method == "single-level" else None
     durations = None
     if model == "coupled":
         try:
@@ -147,7 +153,8 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
                              max_evaluations=max_evaluations, per=per, subjects=subjects, goal=goal, intervals=intervals,
                              v_nominal=v_nominal, compare=compare, convention=conv.name, resume=resume,
                              checkpoint=Path(out) / f".{name}.checkpoint", jobs=jobs, scheduler=scheduler, means_source=mean_src,
-                             trials_source=traj_path or out, durations=durations, on_evaluation=on_evaluation, method=method)
+                             trials_source=traj_path or out, durations=durations, on_evaluation=on_evaluation, method=method,
+                             bootstrap=bootstrap, seed=seed)
         stage.write_json("weights.json", result.weights_json())
         for k, r in result.results.items():  # each fit also as a file usable with --weights
             stage.path(f"weights/{k}.json").write_text(json.dumps({"convention": conv.name, "weights": r.weights}, indent=2) + "\n")
@@ -155,8 +162,18 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
                     convention=conv.name)
         result.fits_table().to_csv(stage.path("fits.csv"), index=False)
         stage.path("results.md").write_text(fit_ioc_markdown(result, stage, optimizer=optimizer, intervals=intervals,
-                                                             v_nominal=v_nominal, durations=durations))
+                                                             v_nominal=v_nominal, durations=durations, other=other))
     return Outcome(stage.final_dir, result)
+
+
+def _bilevel_fit(out, directory: str) -> dict | None:
+    """The bi-level fit of the workspace (``OUT/<directory>/weights.json``) for the single-level report,
+    None when there is none."""
+    path = Path(out) / directory / "weights.json"
+    if not path.is_file():
+        return None
+    data = json.loads(path.read_text())
+    return {"path": str(path), "fits": data.get("fits", {})}
 
 
 def velocity_commands(out: str | os.PathLike, *, generated: str | os.PathLike | None = None, trial: str | None = None,

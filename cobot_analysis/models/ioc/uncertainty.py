@@ -1,77 +1,162 @@
-"""Uncertainty and identifiability of fitted weights (docs/methods.md sec. 6.4).
+"""Uncertainty and identifiability of fitted weights (docs/methods.md sec. 6.3).
 
-Identifiability at the optimum: the Hessian H of the fit's objective D (the lower level re-solved,
-warm, at each point) with respect to y = log10 of the fitted weights, by central differences of
-step ``h``; its eigen-decomposition H = V diag(mu) V'. A direction v is *sloppy* when moving y by a
-factor of 2 along it raises D by less than ``rel_tol`` D (0.5 mu (log10 2)^2 < rel_tol D). Verdict per
-weight j, from its weight in the sloppy directions s_j = sum_{sloppy} v_ij^2:
+Curvature at the fit: with y = log10 of the fitted weights and D(y) = (1/n) sum_i D_i(y) (each
+target's lower level re-solved, warm from its path at the fitted weights plus the two cold guesses,
+the least cost kept, as ``fit.solve_target``), every target's D_i is evaluated on the central-
+difference stencil of step ``h`` around the fit (1 + 2k + 2 k(k-1)/2 points for k weights), giving
+per target a value D_i, a gradient g_i and a Hessian H_i, and their means D, g, H.
 
+Verdicts, from the eigen-decomposition H = V diag(mu) V': a direction is *sloppy* when moving y by a
+factor of 2 along it raises D by less than ``rel_tol`` D (0.5 mu (log10 2)^2 < rel_tol D). For weight
+j, s_j = sum_{sloppy} V_ji^2:
 - s_j < 0.1: "determined";
-- else, in the sloppy direction where |v_ij| is largest, another weight k moving with the same sign
+- else, in the sloppy direction where |V_ji| is largest, another weight k moving with the same sign
   and at least half the amplitude: "only its ratio to k is determined" (D changes little when both
   are scaled together);
 - else "not determined by these data".
+A weight within 0.01 of a log10 search limit carries "(at the search limit ...)" beside its verdict.
 
-A weight on a search limit (within 0.01 of a log10 bound) is flagged "at the search limit" beside the
-verdict: the value there bounds the estimate; the curvature (the lower level is solved outside the
-box too) says whether the data would have determined it.
-
-Bootstrap: resample the fitted units (the targets) with replacement, refit with the single-level
-method warm-started from the full fit (its weights and paths), percentile intervals.
+Bootstrap over the fitted units (targets): resample b draws n targets with replacement (counts c_i)
+and refits the local quadratic model of its objective along the directions the full data determine
+(the non-sloppy eigenvectors V_s of H; the sloppy ones held at the fit),
+    y_b = y* + V_s z_b,  z_b = argmin_{y in [-7, 3]^k}  sum_i c_i (g_i' V_s z + 0.5 z' V_s' H_i V_s z),
+95 % percentile intervals of 10^(y_b - y_full + y*), y_full the same refit of all targets once (a fit
+stopped short of its optimum moves every resample by that step, which is no sampling spread); a weight that is not determined gets the search box as its interval. The refit is one quadratic
+(Newton) step of each resample's own objective from the full fit, not a re-run of the fit: exact when
+D_i is quadratic in y over the interval, and it needs no lower-level solve beyond the stencil; refitting along a sloppy direction would only return the resample noise of a
+flat D (an exact gauge, e.g. the time scale, does not move at all). The stencil's evaluations are checkpointed (``resume``).
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
-from dataclasses import replace
+import os
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-from cobot_analysis.models.ioc.fit import LOG_BOUNDS, IOCSpec, solve_target
+from cobot_analysis.models.ioc.fit import LOG_BOUNDS, IOCSpec, fit_key, solve_target
 from cobot_analysis.models.ioc.targets import Target
 from cobot_analysis.models.presets import names_for
 
 FACTOR_2 = math.log10(2.0)
+STEP = 0.05  # log10 units of the central differences
+RESAMPLES = 200  # the default bootstrap count
 
 
-def objective_at(spec: IOCSpec, targets: list[Target], w: np.ndarray, guesses: list) -> float:
-    """D at weights w: the mean of the lower levels re-solved warm from ``guesses`` (the exact D)."""
-    return float(np.mean([solve_target(spec, w, t, g)[0]["D"] for t, g in zip(targets, guesses)]))
+@dataclass
+class Curvature:
+    """D and its derivatives in y = log10 of ``fitted`` at ``y``, per target (``Di``, ``gi``, ``Hi``) and
+    their means (``D``, ``g``, ``H``)."""
+
+    fitted: tuple[str, ...]
+    y: np.ndarray
+    Di: np.ndarray  # (n,)
+    gi: np.ndarray  # (n, k)
+    Hi: np.ndarray  # (n, k, k)
+    failed: int  # lower-level solves that failed on the stencil (their D_i held at the centre value)
+
+    @property
+    def D(self) -> float:
+        return float(self.Di.mean())
+
+    @property
+    def g(self) -> np.ndarray:
+        return self.gi.mean(axis=0)
+
+    @property
+    def H(self) -> np.ndarray:
+        return self.Hi.mean(axis=0)
 
 
-def log_hessian(spec: IOCSpec, targets: list[Target], weights: dict[str, float], guesses: list,
-                h: float = 0.05) -> tuple[float, np.ndarray]:
-    """(D, H): D at ``weights`` and the central-difference Hessian of D in log10 of ``spec.fitted``."""
+def stencil(k: int, h: float = STEP) -> list[np.ndarray]:
+    """The central-difference points: 0, +-h e_i, then +-h (e_i + e_j) for i > j."""
+    E = np.eye(k) * h
+    pts = [np.zeros(k)] + [s * E[i] for i in range(k) for s in (1, -1)]
+    pts += [s * (E[i] + E[j]) for i in range(k) for j in range(i) for s in (1, -1)]
+    return pts
+
+
+def curvature(spec: IOCSpec, targets: list[Target], weights: dict[str, float], *, h: float = STEP,
+              checkpoint: Path | None = None, resume: bool = False) -> Curvature:
+    """Every target's D_i on the stencil around ``weights`` (module docstring); ``checkpoint``: a JSON
+    file the evaluated stencil points are written to, one point at a time (``resume`` reuses them)."""
     names = names_for(spec.model)
     w = np.array([weights[n] for n in names])
     idx = [names.index(n) for n in spec.fitted]
-    k = len(idx)
-
-    def D(dy: np.ndarray) -> float:
+    k, n = len(idx), len(targets)
+    key = hashlib.sha256(json.dumps([fit_key(spec, targets), list(map(float, w)), h]).encode()).hexdigest()[:16]
+    done: list = []
+    if resume and checkpoint is not None and checkpoint.is_file():
+        data = json.loads(checkpoint.read_text())
+        done = data["points"] if data.get("key") == key else []
+    # the centre: every lower level from the cold guesses; its paths are the stencil's warm starts
+    guesses: list = [("rest", "line")] * n
+    points = stencil(k, h)
+    values = np.zeros((len(points), n))
+    for p, dy in enumerate(points):
+        # logged points are reused; the centre is solved again when points remain (its paths warm-start them)
+        if p < len(done) and (p > 0 or len(done) == len(points)):
+            values[p] = done[p]
+            continue
         wy = w.copy()
         wy[idx] = w[idx] * 10.0 ** dy
-        return objective_at(spec, targets, wy, guesses)
-
-    d0 = D(np.zeros(k))
-    H = np.zeros((k, k))
-    E = np.eye(k) * h
-    plus = [D(E[i]) for i in range(k)]
-    minus = [D(-E[i]) for i in range(k)]
+        for i, t in enumerate(targets):
+            d, sol = solve_target(spec, wy, t, guesses[i])
+            if p == 0 and d["success"]:
+                guesses[i] = sol.primal
+            values[p, i] = d["D"] if d["success"] else math.nan
+        if p >= len(done):
+            done.append(values[p].tolist())
+        if checkpoint is not None:
+            checkpoint.parent.mkdir(parents=True, exist_ok=True)
+            tmp = checkpoint.with_name(f".{checkpoint.name}.tmp")
+            tmp.write_text(json.dumps({"key": key, "points": done}))
+            os.replace(tmp, checkpoint)
+    bad = np.isnan(values)
+    failed = int(bad.sum())
+    values = np.where(bad, values[0][None, :], values)  # a failed solve: no information from that point
+    values = np.where(np.isnan(values), 0.0, values)
+    D0 = values[0]
+    gi, Hi = np.zeros((n, k)), np.zeros((n, k, k))
+    p = 1
+    plus, minus = {}, {}
     for i in range(k):
-        H[i, i] = (plus[i] - 2 * d0 + minus[i]) / h**2
+        plus[i], minus[i] = values[p], values[p + 1]
+        p += 2
+        gi[:, i] = (plus[i] - minus[i]) / (2 * h)
+        Hi[:, i, i] = (plus[i] - 2 * D0 + minus[i]) / h**2
+    for i in range(k):
         for j in range(i):
-            H[i, j] = H[j, i] = (D(E[i] + E[j]) - plus[i] - plus[j] + 2 * d0 - minus[i] - minus[j] + D(-E[i] - E[j])) / (2 * h**2)
-    return d0, H
+            pp, mm = values[p], values[p + 1]
+            p += 2
+            Hi[:, i, j] = Hi[:, j, i] = (pp - plus[i] - plus[j] + 2 * D0 - minus[i] - minus[j] + mm) / (2 * h**2)
+    return Curvature(tuple(spec.fitted), np.log10(w[idx]), D0, gi, Hi, failed)
+
+
+def sloppy_directions(H: np.ndarray, D: float, rel_tol: float = 1e-3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(mu, V, sloppy): the eigen-decomposition of H and a mask of its sloppy directions (module docstring)."""
+    mu, V = np.linalg.eigh((H + H.T) / 2)
+    return mu, V, 0.5 * np.maximum(mu, 0.0) * FACTOR_2**2 < rel_tol * D
+
+
+def determined(H: np.ndarray, D: float, rel_tol: float = 1e-3) -> np.ndarray:
+    """Mask of the weights with less than 10 % of their weight in the sloppy directions."""
+    _, V, sloppy = sloppy_directions(H, D, rel_tol)
+    return (V[:, sloppy] ** 2).sum(axis=1) < 0.1
 
 
 def verdicts(fitted, H: np.ndarray, D: float, weights: dict[str, float], rel_tol: float = 1e-3) -> dict[str, str]:
     """The plain verdict of each fitted weight (module docstring)."""
-    mu, V = np.linalg.eigh((H + H.T) / 2)
-    sloppy = [i for i in range(len(mu)) if 0.5 * max(mu[i], 0.0) * FACTOR_2**2 < rel_tol * D]
+    mu, V, mask = sloppy_directions(H, D, rel_tol)
+    sloppy = list(np.flatnonzero(mask))
+    ok = determined(H, D, rel_tol)
     out = {}
     for j, n in enumerate(fitted):
-        s = sum(V[j, i]**2 for i in sloppy)
-        if s < 0.1:
+        if ok[j]:
             verdict = "determined"
         else:
             i = max(sloppy, key=lambda i: abs(V[j, i]))
@@ -84,29 +169,87 @@ def verdicts(fitted, H: np.ndarray, D: float, weights: dict[str, float], rel_tol
     return out
 
 
-def bootstrap(spec: IOCSpec, targets: list[Target], weights: dict[str, float], primals: list, n_resamples: int = 200,
-              seed: int = 0, level: float = 0.95, on_resample=None) -> dict:
-    """Percentile intervals of the fitted weights over ``n_resamples`` resamples of the targets (with
-    replacement), each fitted single-level from the full fit's weights and paths. Returns
-    {"samples": (n_ok, k) array, "intervals": {name: (lo, hi)}, "failed": count}."""
-    from cobot_analysis.models.ioc.single_level import fit_single_level
+def quadratic_refit(c: Curvature, counts: np.ndarray, basis: np.ndarray | None = None) -> np.ndarray:
+    """y minimising sum_i counts_i (g_i' dy + 0.5 dy' H_i dy) within the search box, dy = basis z
+    (default: every direction) (module docstring)."""
+    from scipy.optimize import LinearConstraint, minimize
 
-    names = names_for(spec.model)
-    w_full = tuple(float(weights[n]) for n in names)
+    B = np.eye(len(c.y)) if basis is None else basis
+    if B.shape[1] == 0:
+        return c.y.copy()
+    g = counts @ c.gi / counts.sum() @ B
+    H = B.T @ (np.einsum("i,ijk->jk", counts, c.Hi) / counts.sum()) @ B
+    H = (H + H.T) / 2
+    try:  # the Newton step, when H is positive definite and the step stays in the box
+        z = -np.linalg.solve(H, g)
+        y = c.y + B @ z
+        if np.all(np.linalg.eigvalsh(H) > 0) and np.all((y >= LOG_BOUNDS[0]) & (y <= LOG_BOUNDS[1])):
+            return y
+    except np.linalg.LinAlgError:
+        pass
+    box = LinearConstraint(B, LOG_BOUNDS[0] - c.y, LOG_BOUNDS[1] - c.y)
+    r = minimize(lambda z: (g @ z + 0.5 * z @ H @ z, g + H @ z), np.zeros(B.shape[1]), jac=True,
+                 method="SLSQP", constraints=[box], options={"ftol": 1e-12, "maxiter": 500})
+    return c.y + B @ r.x
+
+
+def bootstrap(c: Curvature, n_resamples: int = RESAMPLES, seed: int = 0, level: float = 0.95, rel_tol: float = 1e-3) -> dict:
+    """Percentile intervals of the fitted weights over ``n_resamples`` resamples of the targets (module
+    docstring): each resample refitted along the directions the full data determine (the sloppy ones
+    held); a weight that is not determined gets the search box as its interval. Returns
+    {"samples": (B, k) weights, "intervals": {name: (lo, hi)}, "sd_log10": {name: sd}}."""
     rng = np.random.default_rng(seed)
-    samples, failed = [], 0
-    for b in range(n_resamples):
-        pick = rng.integers(0, len(targets), len(targets))
-        r = fit_single_level(replace(spec, start_weights=w_full), [targets[i] for i in pick],
-                             start=[primals[i] for i in pick], verify=False)
-        if r.success:
-            samples.append([r.weights[n] for n in spec.fitted])
-        else:
-            failed += 1
-        if on_resample:
-            on_resample(b + 1, r.success)
-    S = np.array(samples).reshape(-1, len(spec.fitted))
+    n = len(c.Di)
+    _, V, sloppy = sloppy_directions(c.H, c.D, rel_tol)
+    ok = determined(c.H, c.D, rel_tol)
+    B = V[:, ~sloppy]
+    S = np.array([quadratic_refit(c, np.bincount(rng.integers(0, n, n), minlength=n).astype(float), B)
+                  for _ in range(n_resamples)]).reshape(-1, len(c.y))
+    # centred on the fit: a fit stopped short of its optimum (budget, tolerance) moves every resample by the
+    # same full-data step, which is not sampling spread
+    S = np.clip(S - quadratic_refit(c, np.ones(n), B) + c.y, *LOG_BOUNDS)
     a = 100 * (1 - level) / 2
-    intervals = {n: (float(np.percentile(S[:, j], a)), float(np.percentile(S[:, j], 100 - a))) if len(S) else (math.nan, math.nan)
-                 for j, n in enumerate(spec.fitted)}
-    return {"samples": S, "intervals": intervals, "failed": failed}
+    W = 10.0 ** S
+    box = (10.0 ** LOG_BOUNDS[0], 10.0 ** LOG_BOUNDS[1])
+    return {"samples": W,
+            "intervals": {name: (float(np.percentile(W[:, j], a)), float(np.percentile(W[:, j], 100 - a))) if ok[j] else box
+                          for j, name in enumerate(c.fitted)},
+            "sd_log10": {name: float(S[:, j].std(ddof=1)) if ok[j] and len(S) > 1 else math.inf for j, name in enumerate(c.fitted)}}
+
+
+def subjects_differ(estimates: dict[str, dict[str, float]], sd_log10: dict[str, dict[str, float]],
+                    verdict: dict[str, dict[str, str]] | None = None) -> list[dict]:
+    """Whether the subjects' weights differ, weight by weight: Cochran's heterogeneity statistic on
+    y_s = log10 w_s with the bootstrap standard deviations s_s,
+        Q = sum_s (y_s - ybar)^2 / s_s^2,  ybar = sum_s y_s / s_s^2 / sum_s 1 / s_s^2,
+    Q ~ chi2(S - 1) when every subject has the same weight; p-values Holm-adjusted over the weights.
+    Subjects where the weight is not "determined" (``verdict``) or has no spread are left out of that
+    weight's test. Returns one row per weight: weight, subjects, Q, df, p, p_holm, differ (p_holm < 0.05)."""
+    from scipy.stats import chi2
+
+    names = sorted({n for e in estimates.values() for n in e})
+    rows = []
+    for n in names:
+        ys, ss = [], []
+        for s, e in estimates.items():
+            sd = sd_log10.get(s, {}).get(n, math.nan)
+            ok = verdict is None or verdict.get(s, {}).get(n, "").startswith("determined")
+            if ok and np.isfinite(sd) and sd > 0 and n in e:
+                ys.append(math.log10(e[n]))
+                ss.append(sd)
+        row = {"weight": n, "subjects": len(ys), "Q": math.nan, "df": len(ys) - 1, "p": math.nan}
+        if len(ys) >= 2:
+            y, wt = np.array(ys), 1.0 / np.array(ss) ** 2
+            ybar = float((wt * y).sum() / wt.sum())
+            q = float((wt * (y - ybar) ** 2).sum())
+            row.update(Q=q, p=float(chi2.sf(q, len(ys) - 1)))
+        rows.append(row)
+    tested = sorted((r for r in rows if np.isfinite(r["p"])), key=lambda r: r["p"])
+    m, running = len(tested), 0.0
+    for i, r in enumerate(tested):  # Holm: p_(i) (m - i), kept monotone
+        running = max(running, min(1.0, r["p"] * (m - i)))
+        r["p_holm"] = running
+    for r in rows:
+        r.setdefault("p_holm", math.nan)
+        r["differ"] = bool(r["p_holm"] < 0.05) if np.isfinite(r["p_holm"]) else None
+    return rows
