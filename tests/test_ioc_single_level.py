@@ -125,7 +125,7 @@ def test_time_scale_gauge_is_reported_as_a_ratio():
     c = curvature(spec, targets, {n: float(W[names.index(n)]) for n in names})
     mu, V = np.linalg.eigh(c.H)
     gauge = np.array([1.0, 1.0, 0.0]) / np.sqrt(2)
-    assert abs(gauge @ c.H @ gauge) < 1e-3 * mu.max()  # flat along the gauge
+    assert abs(gauge @ c.H @ gauge) < 1e-2 * mu.max()  # flat along the gauge (a3 ~ 1e-6 not scaled, solver tolerance)
     v = verdicts(spec.fitted, c.H, c.D, {n: float(W[names.index(n)]) for n in names})
     assert v == {"a1": "only its ratio to a2 is determined", "a2": "only its ratio to a1 is determined", "a4": "determined"}
     b = bootstrap(c, n_resamples=50)
@@ -227,11 +227,22 @@ def test_fit_ioc_single_level_end_to_end_and_too_few_paths(cli, tmp_path):
     assert code == 2 and "4 paths cannot determine 5 weights" in err and len(err.strip().splitlines()) == 1
     assert not (bad / "fit-ioc").exists()
     out = tmp_path / "ws"
-    start = tmp_path / "start.json"  # twice the true a1 and b1
-    start.write_text(json.dumps({"convention": "continuous", "weights": {**dict(zip(names_for("improved"), W)), "a1": 8.0, "b1": 20.0}}))
-    code, _, err = cli("fit-ioc", "--out", out, "--trajectories", src, "--method", "single-level",
-                       "--fit", "a1,b1", "--start-weights", start, "--intervals", "20", "--no-compare", "-j", "1")
+    start = tmp_path / "start.json"  # twice the true a2 and a4
+    start.write_text(json.dumps({"convention": "continuous", "weights": {**dict(zip(names_for("improved"), W)),
+                                                                          "a2": 2 * W[2], "a4": 2 * W[4]}}))
+    common = ("--out", out, "--trajectories", src, "--fit", "a2,a4", "--start-weights", start, "--intervals", "20",
+              "--no-compare", "-j", "1")
+    code, _, err = cli("fit-ioc", *common, "--max-evaluations", "4", "--bootstrap", "0")
     assert code == 0, err
-    fit = json.loads((out / "fit-ioc" / "weights.json").read_text())["fits"]["all"]
-    assert fit["objective"] < fit["start_objective"], fit
-    assert "Single-level IOC (docs/methods.md sec. 6.1)" in (out / "fit-ioc" / "results.md").read_text()
+    bilevel = (out / "fit-ioc" / "weights.json").read_text()
+    code, _, err = cli("fit-ioc", *common, "--method", "single-level")
+    assert code == 0, err
+    assert (out / "fit-ioc" / "weights.json").read_text() == bilevel  # the bi-level fit is not overwritten
+    single = json.loads((out / "fit-ioc-single" / "weights.json").read_text())
+    fit, b = single["fits"]["all"], json.loads(bilevel)["fits"]["all"]
+    assert single["method"] == "single-level" and fit["objective"] < fit["start_objective"], fit
+    text = (out / "fit-ioc-single" / "results.md").read_text()
+    assert "Single-level IOC (docs/methods.md sec. 6.1)" in text
+    assert f"| all | bi-level | {b['objective']:.4f} | {b['seconds']:.1f} |" in text
+    assert f"| all | single-level | {fit['objective']:.4f} |" in text
+    assert set(fit["uncertainty"]["verdicts"]) == {"a2", "a4"} and "| all | a2 |" in text

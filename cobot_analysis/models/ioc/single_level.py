@@ -186,8 +186,7 @@ def check_spec(spec: IOCSpec, n_targets: int) -> None:
 
 def fit_single_level(spec: IOCSpec, targets: list[Target], *, start: list | None = None, start_weights=None,
                      eps: float = SMOOTHING, max_iter: int = 300, tol: float = 1e-8, verify: bool = True,
-                     print_level: int = 0, hessian: str = "limited-memory", complementarity: bool = True,
-                     ipopt: dict | None = None) -> SingleLevelResult:
+                     print_level: int = 0) -> SingleLevelResult:
     """Fit ``spec.fitted`` to ``targets`` in one NLP (module docstring).
 
     ``start``: lower-level primal vectors per target to start from (e.g. the bi-level fit's), else
@@ -237,38 +236,33 @@ def fit_single_level(spec: IOCSpec, targets: list[Target], *, start: list | None
         wfull[i] = wf[j]  # linear: the KKT conditions are linear in w (log10 w made the NLP harder to solve)
     e = np.zeros((nz + nl, 1))
     e[iT] = 1.0
-    K = kkt.map(n, "serial")(Z, Lam, ca.repmat(wfull, 1, n), ca.DM(P))
-    if complementarity:
-        K = K + ca.DM(e) @ (nu_hi - nu_lo)
+    K = kkt.map(n, "serial")(Z, Lam, ca.repmat(wfull, 1, n), ca.DM(P)) + ca.DM(e) @ (nu_hi - nu_lo)
     lbT = np.log(T_BOUNDS[0] * np.array(T0))
     ubT = np.log(T_BOUNDS[1] * np.array(T0))
     comp = ca.vertcat(nu_lo * (Z[iT, :] - lbT[None, :]), nu_hi * (ubT[None, :] - Z[iT, :]))  # <= delta
     D = ca.sum2(Dfun.map(n, "serial")(Z, ca.DM(data))) / n
-    V = ca.vertcat(wf, ca.vec(Z), ca.vec(Lam), nu_lo.T, nu_hi.T) if complementarity else ca.vertcat(wf, ca.vec(Z), ca.vec(Lam))
+    V = ca.vertcat(wf, ca.vec(Z), ca.vec(Lam), nu_lo.T, nu_hi.T)
     lb, ub = np.full(V.numel(), -np.inf), np.full(V.numel(), np.inf)
     lb[:len(fi)], ub[:len(fi)] = 10.0 ** LOG_BOUNDS[0], 10.0 ** LOG_BOUNDS[1]
     for i in range(n):  # log T within the lower level's bounds
         idx = len(fi) + i * nz + ocp._xi[:, N_STATE]
         lb[idx], ub[idx] = lbT[i], ubT[i]
-    v0 = np.concatenate([w0[fi], Z0.ravel(order="F"), L0.ravel(order="F")])
-    if complementarity:
-        lb[-2 * n:] = 0.0
-        v0 = np.concatenate([v0, np.maximum(-nu0, 0), np.maximum(nu0, 0)])
+    lb[-2 * n:] = 0.0
+    v0 = np.concatenate([w0[fi], Z0.ravel(order="F"), L0.ravel(order="F"), np.maximum(-nu0, 0), np.maximum(nu0, 0)])
     # log T off its bounds by 1 % (an interior point's start; an exact bound value jams the barrier)
     v0 = np.clip(v0, np.where(np.isfinite(lb) & (lb != 0), lb + 0.01, lb), np.where(np.isfinite(ub), ub - 0.01, ub))
     v0[:len(fi)] = np.clip(w0[fi], lb[:len(fi)], ub[:len(fi)])
-    if complementarity:
-        g = ca.vertcat(ca.vec(K), ca.vec(comp))
-        lbg = np.concatenate([np.zeros(K.numel()), np.full(2 * n, -np.inf)])
-        ubg = np.concatenate([np.zeros(K.numel()), np.full(2 * n, COMPLEMENTARITY)])
-    else:
-        g, lbg, ubg = ca.vec(K), np.zeros(K.numel()), np.zeros(K.numel())
-    iopts = {"print_level": print_level, "sb": "yes", "tol": tol, "max_iter": max_iter, "mu_strategy": "monotone",
-             "bound_push": 1e-10, "bound_frac": 1e-10, "hessian_approximation": hessian}
-    if hessian == "limited-memory":
-        iopts["limited_memory_max_history"] = 20
-    iopts.update(ipopt or {})
-    solver = ca.nlpsol("single_level", "ipopt", {"x": V, "f": D, "g": g}, {"print_time": False, "ipopt": iopts})
+    g = ca.vertcat(ca.vec(K), ca.vec(comp))
+    lbg = np.concatenate([np.zeros(K.numel()), np.full(2 * n, -np.inf)])
+    ubg = np.concatenate([np.zeros(K.numel()), np.full(2 * n, COMPLEMENTARITY)])
+    solver = ca.nlpsol("single_level", "ipopt", {"x": V, "f": D, "g": g},
+                       {"print_time": False, "ipopt": {"print_level": print_level, "sb": "yes", "tol": tol,
+                                                        "max_iter": max_iter, "mu_strategy": "monotone",
+                                                        "bound_push": 1e-10, "bound_frac": 1e-10,
+                                                        # the exact Hessian (third derivatives of the OC problem) did
+                                                        # not converge even on noise-free synthetic paths
+                                                        "hessian_approximation": "limited-memory",
+                                                        "limited_memory_max_history": 20}})
     r = solver(x0=v0, lbx=lb, ubx=ub, lbg=lbg, ubg=ubg)
     st = solver.stats()
     v = np.asarray(r["x"]).ravel()
@@ -300,7 +294,7 @@ def check_method(method: str, bootstrap: int = 0) -> None:
     """The fit's method name and bootstrap count (bad input: one line, before anything is written)."""
     if method not in METHODS:
         raise InputError(f"unknown --method {method!r}", remedy=f"use one of {', '.join(METHODS)}")
-    if bootstrap and bootstrap < 2:
+    if bootstrap == 1 or bootstrap < 0:
         raise InputError(f"--bootstrap {bootstrap}: a bootstrap needs at least 2 resamples", remedy="use --bootstrap 200 (or 0 for none)")
 
 

@@ -10,7 +10,7 @@ Verdicts, from the eigen-decomposition H = V diag(mu) V': a direction is *sloppy
 factor of 2 along it raises D by less than ``rel_tol`` D (0.5 mu (log10 2)^2 < rel_tol D). For weight
 j, s_j = sum_{sloppy} V_ji^2:
 - s_j < 0.1: "determined";
-- else, in the sloppy direction where |V_ji| is largest, another weight k moving with the same sign
+- else, in the flattest sloppy direction where the weight takes part (V_ji^2 >= 0.1), another weight k moving with the same sign
   and at least half the amplitude: "only its ratio to k is determined" (D changes little when both
   are scaled together);
 - else "not determined by these data".
@@ -159,7 +159,7 @@ def verdicts(fitted, H: np.ndarray, D: float, weights: dict[str, float], rel_tol
         if ok[j]:
             verdict = "determined"
         else:
-            i = max(sloppy, key=lambda i: abs(V[j, i]))
+            i = min((i for i in sloppy if V[j, i] ** 2 >= 0.1), key=lambda i: mu[i], default=max(sloppy, key=lambda i: abs(V[j, i])))
             partners = [fitted[k] for k in range(len(fitted)) if k != j and V[k, i] * V[j, i] > 0 and abs(V[k, i]) >= 0.5 * abs(V[j, i])]
             verdict = f"only its ratio to {partners[0]} is determined" if partners else "not determined by these data"
         y = math.log10(max(weights[n], 1e-300))
