@@ -1,10 +1,10 @@
 """Benchmark: single-level against bi-level IOC on the same targets, in one run (docs/benchmarks.md).
 
     python benchmarks/bench_ioc.py --means WS/average/means.parquet [--paths 37] [--intervals 50]
-    python benchmarks/bench_ioc.py --synthetic 8 --intervals 20 --fit a1,a2,b1
+    python benchmarks/bench_ioc.py --synthetic 8 --intervals 20 --fit a2,a4
 
-``--means``: the walking means (improved model, goal (0, 0, pi/2), every weight but a5, a6, b0 fitted,
-from the walking-2021 preset, as ``fit-ioc``); ``--synthetic N``: N paths of the model at the
+``--means``: the walking means (improved model, goal (0, 0, pi/2), a2, a3, a4 fitted from the walking-2021
+preset, as ``fit-ioc`` under the continuous convention: a0, a1 and the unused b0..b3 held); ``--synthetic N``: N paths of the model at the
 walking-2021 weights (noise ``--noise`` m), the fit started at twice the fitted weights. Both methods
 in-process, one after the other, on one core (the bi-level fit's lower levels inline, ``--jobs 1``);
 prints wall time, the exact D (lower level re-solved) and the weights of each, and the time ratio.

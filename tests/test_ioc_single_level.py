@@ -110,6 +110,8 @@ def test_verdicts_on_known_curvatures():
     assert v["b1"] == "not determined by these data (at the search limit 1000)"
     v = verdicts(("a1", "a2", "b1"), np.diag([1.0, 2.0, 3.0]), D=0.1, weights={**w, "b1": 3.0})
     assert set(v.values()) == {"determined"}
+    assert set(verdicts(("a1", "a2"), np.eye(2), 0.1, w, lack=0.3).values()) == {
+        "not judged: D is not smooth at the fit (a quadratic leaves 30 % of its change over the stencil unexplained)"}
 
 
 def test_time_scale_gauge_is_reported_as_a_ratio():
@@ -126,7 +128,8 @@ def test_time_scale_gauge_is_reported_as_a_ratio():
     mu, V = np.linalg.eigh(c.H)
     gauge = np.array([1.0, 1.0, 0.0]) / np.sqrt(2)
     assert abs(gauge @ c.H @ gauge) < 1e-2 * mu.max()  # flat along the gauge (a3 ~ 1e-6 not scaled, solver tolerance)
-    v = verdicts(spec.fitted, c.H, c.D, {n: float(W[names.index(n)]) for n in names})
+    assert c.lack_of_fit < 0.02  # D is smooth here: a quadratic explains it on the stencil
+    v = verdicts(spec.fitted, c.H, c.D, {n: float(W[names.index(n)]) for n in names}, lack=c.lack_of_fit)
     assert v == {"a1": "only its ratio to a2 is determined", "a2": "only its ratio to a1 is determined", "a4": "determined"}
     b = bootstrap(c, n_resamples=50)
     assert b["intervals"]["a1"] == (1e-7, 1e3)  # the gauge direction is not bounded by the data

@@ -526,7 +526,8 @@ def weight_uncertainty(spec, targets: list, weights: dict[str, float], n_resampl
 
     c = unc.curvature(spec, targets, weights, checkpoint=checkpoint, resume=resume)
     b = unc.bootstrap(c, n_resamples, seed=seed)
-    return {"D": c.D, "verdicts": unc.verdicts(spec.fitted, c.H, c.D, weights), "intervals": b["intervals"],
+    return {"D": c.D, "verdicts": unc.verdicts(spec.fitted, c.H, c.D, weights, lack=c.lack_of_fit), "intervals": b["intervals"],
+            "lack_of_fit": c.lack_of_fit,
             "sd_log10": b["sd_log10"], "resamples": n_resamples, "eigenvalues": np.linalg.eigvalsh(c.H).tolist(),
             "failed_solves": c.failed}
 

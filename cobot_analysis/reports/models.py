@@ -505,7 +505,9 @@ def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal
     start_weights = result.start_label
     single = result.method == "single-level"
     if single:
-        lower = lower.replace(", warm-started from the solution at the best weights so far", ", its KKT conditions constraints of the NLP")
+        lower = lower.replace(", from the solution at the best weights so far and from a rest and a straight-line guess, the least cost kept",
+                              ", its KKT conditions constraints of the NLP; the D reported re-solves it from the NLP's paths and from a "
+                              "rest and a straight-line guess, the least cost kept")
     lines = [f"## Inverse optimal control ({model} model{', one fit per subject' if per == 'subject' else ''}, "
              f"{conv.name} convention)", "",
              (f"Single-level IOC (docs/methods.md sec. 6.1): one IPOPT NLP over ({', '.join(names)}), every path and the "

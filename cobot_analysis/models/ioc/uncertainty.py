@@ -1,8 +1,10 @@
 """Uncertainty and identifiability of fitted weights (docs/methods.md sec. 6.3).
 
 Curvature at the fit: with y = log10 of the fitted weights and D(y) = (1/n) sum_i D_i(y) (each
-target's lower level re-solved, warm from its path at the fitted weights plus the two cold guesses,
-the least cost kept, as ``fit.solve_target``), every target's D_i is evaluated on the central-
+target's lower level solved at the fit from the two cold guesses, the least cost kept, then at the
+other points warm from that path only, so D_i follows one branch of lower-level solutions: a start
+facing away from the goal has several local minima, and the best of several guesses would jump
+between them inside the stencil), every target's D_i is evaluated on the central-
 difference stencil of step ``h`` around the fit (1 + 2k + 2 k(k-1)/2 points for k weights), giving
 per target a value D_i, a gradient g_i and a Hessian H_i, and their means D, g, H.
 
@@ -15,6 +17,9 @@ j, s_j = sum_{sloppy} V_ji^2:
   are scaled together);
 - else "not determined by these data".
 A weight within 0.01 of a log10 search limit carries "(at the search limit ...)" beside its verdict.
+No verdict at all ("not judged: D is not smooth at the fit") when a quadratic fitted by least squares
+to D on the stencil (k >= 2: more points than coefficients) leaves more than ``ROUGH`` of D's rms change
+unexplained: the lower level's paths then change regime within the stencil, and curvature means nothing.
 
 Bootstrap over the fitted units (targets): resample b draws n targets with replacement (counts c_i)
 and refits the local quadratic model of its objective along the directions the full data determine
@@ -44,6 +49,7 @@ from cobot_analysis.models.presets import names_for
 
 FACTOR_2 = math.log10(2.0)
 STEP = 0.05  # log10 units of the central differences
+ROUGH = 0.1  # lack of fit of the quadratic model above which D is not smooth enough at the fit for a verdict
 RESAMPLES = 200  # the default bootstrap count
 
 
@@ -58,6 +64,7 @@ class Curvature:
     gi: np.ndarray  # (n, k)
     Hi: np.ndarray  # (n, k, k)
     failed: int  # lower-level solves that failed on the stencil (their D_i held at the centre value)
+    lack_of_fit: float = 0.0  # rms residual of a quadratic fitted to D on the stencil / rms change of D (k >= 2)
 
     @property
     def D(self) -> float:
@@ -105,7 +112,10 @@ def curvature(spec: IOCSpec, targets: list[Target], weights: dict[str, float], *
         wy = w.copy()
         wy[idx] = w[idx] * 10.0 ** dy
         for i, t in enumerate(targets):
-            d, sol = solve_target(spec, wy, t, guesses[i])
+            # off the centre, warm from the centre's path only: D_i along the branch of lower-level solutions the centre
+            # is on (the cold guesses would let D_i jump to another local minimum inside the stencil)
+            g = guesses[i] if p == 0 or isinstance(guesses[i], tuple) else (guesses[i],)
+            d, sol = solve_target(spec, wy, t, g)
             if p == 0 and d["success"]:
                 guesses[i] = sol.primal
             values[p, i] = d["D"] if d["success"] else math.nan
@@ -134,7 +144,18 @@ def curvature(spec: IOCSpec, targets: list[Target], weights: dict[str, float], *
             pp, mm = values[p], values[p + 1]
             p += 2
             Hi[:, i, j] = Hi[:, j, i] = (pp - plus[i] - plus[j] + 2 * D0 - minus[i] - minus[j] + mm) / (2 * h**2)
-    return Curvature(tuple(spec.fitted), np.log10(w[idx]), D0, gi, Hi, failed)
+    return Curvature(tuple(spec.fitted), np.log10(w[idx]), D0, gi, Hi, failed, lack_of_fit(points, values.mean(axis=1)))
+
+
+def lack_of_fit(points: list[np.ndarray], D: np.ndarray) -> float:
+    """rms residual of the least-squares quadratic through D at the stencil points, over the rms change
+    of D from the centre (0 for k = 1: the stencil then holds no more points than the quadratic)."""
+    P = np.array(points)
+    k = P.shape[1]
+    A = np.column_stack([np.ones(len(P))] + [P[:, i] for i in range(k)] + [P[:, i] * P[:, j] for i in range(k) for j in range(i + 1)])
+    r = D - A @ np.linalg.lstsq(A, D, rcond=None)[0]
+    change = np.sqrt(np.mean((D - D[0]) ** 2))
+    return float(np.sqrt(np.mean(r**2)) / change) if change > 0 else 0.0
 
 
 def sloppy_directions(H: np.ndarray, D: float, rel_tol: float = 1e-3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -149,8 +170,12 @@ def determined(H: np.ndarray, D: float, rel_tol: float = 1e-3) -> np.ndarray:
     return (V[:, sloppy] ** 2).sum(axis=1) < 0.1
 
 
-def verdicts(fitted, H: np.ndarray, D: float, weights: dict[str, float], rel_tol: float = 1e-3) -> dict[str, str]:
-    """The plain verdict of each fitted weight (module docstring)."""
+def verdicts(fitted, H: np.ndarray, D: float, weights: dict[str, float], rel_tol: float = 1e-3,
+             lack: float = 0.0) -> dict[str, str]:
+    """The plain verdict of each fitted weight (module docstring); ``lack``: the stencil's lack of fit."""
+    if lack > ROUGH:
+        return {n: f"not judged: D is not smooth at the fit (a quadratic leaves {100 * lack:.0f} % of its change "
+                   f"over the stencil unexplained)" for n in fitted}
     mu, V, mask = sloppy_directions(H, D, rel_tol)
     sloppy = list(np.flatnonzero(mask))
     ok = determined(H, D, rel_tol)
@@ -201,8 +226,8 @@ def bootstrap(c: Curvature, n_resamples: int = RESAMPLES, seed: int = 0, level: 
     rng = np.random.default_rng(seed)
     n = len(c.Di)
     _, V, sloppy = sloppy_directions(c.H, c.D, rel_tol)
-    ok = determined(c.H, c.D, rel_tol)
-    B = V[:, ~sloppy]
+    ok = determined(c.H, c.D, rel_tol) & (c.lack_of_fit <= ROUGH)
+    B = V[:, ~sloppy & ok.any()]
     S = np.array([quadratic_refit(c, np.bincount(rng.integers(0, n, n), minlength=n).astype(float), B)
                   for _ in range(n_resamples)]).reshape(-1, len(c.y))
     # centred on the fit: a fit stopped short of its optimum (budget, tolerance) moves every resample by the
