@@ -402,7 +402,9 @@ def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: s
         >>> r.evaluations <= 20, bool(r.objective <= r.start_objective)   # D does not go up from the start weights
         (True, True)
         >>> sorted(fit.weights_json())
-        ['convention', 'fits', 'model', 'weights', 'weights_order']
+        ['convention', 'fits', 'method', 'model', 'weights', 'weights_order']
+        >>> sorted(fit.uncertainty["all"]["verdicts"]) == list(fit.names)   # each weight's verdict (and interval)
+        True
     """
     from cobot_analysis import conventions
     from cobot_analysis.models.comparison import compare_models, compared_models, coupled_distances, orientation_of, subject_distances
@@ -468,7 +470,7 @@ def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: s
                                        on_evaluation=report)
             seconds[key] = time.perf_counter() - t0
             if bootstrap and model != "coupled":
-                uncertainty[key] = weight_uncertainty(spec, targets, results[key].weights, bootstrap, seed=seed,
+                uncertainty[key] = _weight_uncertainty(spec, targets, results[key].weights, bootstrap, seed=seed,
                                                       checkpoint=checkpoint / f"{safe}.curvature.json" if checkpoint else None,
                                                       resume=resume)
     subjects_test = None
@@ -517,7 +519,7 @@ def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: s
                      method, seconds, uncertainty, subjects_test)
 
 
-def weight_uncertainty(spec, targets: list, weights: dict[str, float], n_resamples: int, *, seed: int = 0,
+def _weight_uncertainty(spec, targets: list, weights: dict[str, float], n_resamples: int, *, seed: int = 0,
                        checkpoint: Path | None = None, resume: bool = False) -> dict:
     """Verdict and bootstrap interval of each fitted weight at ``weights`` (docs/methods.md sec. 6.3,
     ``models.ioc.uncertainty``): {"D", "verdicts", "intervals", "sd_log10", "resamples", "eigenvalues",

@@ -446,7 +446,8 @@ STAGE_METRICS: dict[str, Callable[[Outputs, Collector, dict], None]] = {
     "synth-walking": _synth_study, "synth-pairs": _synth_study, "synth-localisation": _synth_localisation,
     "import": _import, "import-published": _import_published, "preprocess": _preprocess, "average": _average,
     "compare": _compare, "stats": _stats, "reconstruct": _reconstruct, "fit-ioc": _fit_ioc, "fit-ioc-subjects": _fit_ioc,
-    "fit-ioc-coupled": _fit_ioc, "generate": _generate, "predict": _predict, "localisation": _localisation,
+    "fit-ioc-coupled": _fit_ioc, "fit-ioc-single": _fit_ioc, "fit-ioc-subjects-single": _fit_ioc,
+    "generate": _generate, "predict": _predict, "localisation": _localisation,
     "report": _report, "velocity-commands": _velocity_commands,
 }
 
