@@ -204,6 +204,9 @@ def test_fit_ioc_refuses_an_unknown_method(cli, tmp_path):
     assert code == 2
     assert "--method" in err and "single-level" in err and len(err.strip().splitlines()) == 1
     assert not any(tmp_path.iterdir())
+    code, out, err = cli("fit-ioc", "--out", tmp_path, "--bootstrap", "1", "--no-compare")
+    assert code == 2 and "--bootstrap 1" in err and len(err.strip().splitlines()) == 1
+    assert not any(tmp_path.iterdir())
 
 
 def test_fit_ioc_single_level_end_to_end_and_too_few_paths(cli, tmp_path):
