@@ -173,15 +173,14 @@ def determined(H: np.ndarray, D: float, rel_tol: float = 1e-3) -> np.ndarray:
 def verdicts(fitted, H: np.ndarray, D: float, weights: dict[str, float], rel_tol: float = 1e-3,
              lack: float = 0.0) -> dict[str, str]:
     """The plain verdict of each fitted weight (module docstring); ``lack``: the stencil's lack of fit."""
-    if lack > ROUGH:
-        return {n: f"not judged: D is not smooth at the fit (a quadratic leaves {100 * lack:.0f} % of its change "
-                   f"over the stencil unexplained)" for n in fitted}
     mu, V, mask = sloppy_directions(H, D, rel_tol)
     sloppy = list(np.flatnonzero(mask))
     ok = determined(H, D, rel_tol)
     out = {}
     for j, n in enumerate(fitted):
-        if ok[j]:
+        if lack > ROUGH:
+            verdict = f"not judged: D is not smooth at the fit (a quadratic leaves {100 * lack:.0f} % of its change over the stencil unexplained)"
+        elif ok[j]:
             verdict = "determined"
         else:
             i = min((i for i in sloppy if V[j, i] ** 2 >= 0.1), key=lambda i: mu[i], default=max(sloppy, key=lambda i: abs(V[j, i])))
