@@ -4,7 +4,8 @@ Curvature at the fit: with y = log10 of the fitted weights and D(y) = (1/n) sum_
 target's lower level solved at the fit from the two cold guesses, the least cost kept, then at the
 other points warm from that path only, so D_i follows one branch of lower-level solutions: a start
 facing away from the goal has several local minima, and the best of several guesses would jump
-between them inside the stencil), every target's D_i is evaluated on the central-
+between them inside the stencil; published convention: the duration rule at the fit, its horizon held
+at the other points, as the fit holds it), every target's D_i is evaluated on the central-
 difference stencil of step ``h`` around the fit (1 + 2k + 2 k(k-1)/2 points for k weights), giving
 per target a value D_i, a gradient g_i and a Hessian H_i, and their means D, g, H.
 
@@ -101,7 +102,8 @@ def curvature(spec: IOCSpec, targets: list[Target], weights: dict[str, float], *
         data = json.loads(checkpoint.read_text())
         done = data["points"] if data.get("key") == key else []
     # the centre: every lower level from the cold guesses; its paths are the stencil's warm starts
-    guesses: list = [("rest", "line")] * n
+    published = spec.convention == "published"
+    guesses: list = [None if published else ("rest", "line")] * n
     points = stencil(k, h)
     values = np.zeros((len(points), n))
     for p, dy in enumerate(points):
@@ -114,10 +116,11 @@ def curvature(spec: IOCSpec, targets: list[Target], weights: dict[str, float], *
         for i, t in enumerate(targets):
             # off the centre, warm from the centre's path only: D_i along the branch of lower-level solutions the centre
             # is on (the cold guesses would let D_i jump to another local minimum inside the stencil)
-            g = guesses[i] if p == 0 or isinstance(guesses[i], tuple) else (guesses[i],)
+            # (published: the centre's solution seeds the held horizon, as in the fit)
+            g = guesses[i] if p == 0 or published or isinstance(guesses[i], tuple) else (guesses[i],)
             d, sol = solve_target(spec, wy, t, g)
             if p == 0 and d["success"]:
-                guesses[i] = sol.primal
+                guesses[i] = sol if published else sol.primal
             values[p, i] = d["D"] if d["success"] else math.nan
         if p >= len(done):
             done.append(values[p].tolist())
