@@ -455,7 +455,8 @@ def uncertainty_lines(result) -> list[str]:
                   "| weight | subjects | Q | df | p | p (Holm) | subjects differ |", "|---|---|---|---|---|---|---|"]
         for r in result.subjects_test:
             differ = "–" if r["differ"] is None else ("yes" if r["differ"] else "no")
-            lines.append(f"| {r['weight']} | {r['subjects']} | {r['Q']:.3g} | {r['df']} | {r['p']:.3g} | {r['p_holm']:.3g} | {differ} |")
+            cells = [f"{r['Q']:.3g}", str(r["df"]), f"{r['p']:.3g}", f"{r['p_holm']:.3g}"] if r["differ"] is not None else ["–"] * 4
+            lines.append(f"| {r['weight']} | {r['subjects']} | " + " | ".join(cells) + f" | {differ} |")
         lines.append("")
     return lines
 

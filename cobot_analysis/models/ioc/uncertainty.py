@@ -264,7 +264,7 @@ def subjects_differ(estimates: dict[str, dict[str, float]], sd_log10: dict[str, 
             if ok and np.isfinite(sd) and sd > 0 and n in e:
                 ys.append(math.log10(e[n]))
                 ss.append(sd)
-        row = {"weight": n, "subjects": len(ys), "Q": math.nan, "df": len(ys) - 1, "p": math.nan}
+        row = {"weight": n, "subjects": len(ys), "Q": math.nan, "df": max(len(ys) - 1, 0), "p": math.nan}
         if len(ys) >= 2:
             y, wt = np.array(ys), 1.0 / np.array(ss) ** 2
             ybar = float((wt * y).sum() / wt.sum())
