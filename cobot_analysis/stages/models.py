@@ -140,6 +140,8 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
     base = "fit-ioc-coupled" if model == "coupled" else "fit-ioc-subjects" if per == "subject" else "fit-ioc"
     name = registry.directory(base + ("-single" if method == "single-level" else ""), conv.name)
     other = _bilevel_fit(out, registry.directory(base, conv.name)) if method == "single-level" else None
+    if other is not None:  # the report shows it: a new bi-level fit redoes the single-level stage's report
+        inputs.append(Path(other["path"]))
     durations = None
     if model == "coupled":
         try:
