@@ -252,3 +252,31 @@ def test_fit_ioc_single_level_end_to_end_and_too_few_paths(cli, tmp_path):
     assert f"| all | bi-level | {b['objective']:.4f} | {b['seconds']:.1f} |" in text
     assert f"| all | single-level | {fit['objective']:.4f} |" in text
     assert set(fit["uncertainty"]["verdicts"]) == {"a2", "a4"} and "| all | a2 |" in text
+
+
+def test_curvature_resumes_from_its_checkpoint(tmp_path, monkeypatch):
+    """The stencil's points are logged one by one: a finished log is reused without a solve, an
+    interrupted one is completed to the same values (--resume of the bootstrap)."""
+    import json
+
+    from cobot_analysis.models.ioc import uncertainty
+    from cobot_analysis.models.ioc.recovery import synthetic_targets
+
+    spec = replace(SPEC, fitted=("a2", "a4"))
+    targets = synthetic_targets(spec, W, 2, noise=0.01)
+    weights = dict(zip(names_for("improved"), map(float, W)))
+    ck = tmp_path / "all.curvature.json"
+    full = uncertainty.curvature(spec, targets, weights, checkpoint=ck)
+    data = json.loads(ck.read_text())
+    assert len(data["points"]) == 7  # 1 + 2k + k(k-1)
+    data["points"] = data["points"][:3]  # interrupted after 3 of 7 points
+    ck.write_text(json.dumps(data))
+    again = uncertainty.curvature(spec, targets, weights, checkpoint=ck, resume=True)
+    np.testing.assert_allclose(again.Hi, full.Hi, atol=1e-9)
+
+    def no_solve(*_a, **_k):
+        raise AssertionError("a finished checkpoint needs no solve")
+
+    monkeypatch.setattr(uncertainty, "solve_target", no_solve)
+    done = uncertainty.curvature(spec, targets, weights, checkpoint=ck, resume=True)
+    np.testing.assert_allclose(done.H, full.H) and np.testing.assert_allclose(done.gi, full.gi)
