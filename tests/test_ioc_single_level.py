@@ -152,6 +152,7 @@ def test_quadratic_bootstrap_on_known_curvatures():
     counts = np.bincount(rng.integers(0, n, n), minlength=n).astype(float)
     np.testing.assert_allclose(quadratic_refit(c, counts), counts @ m / counts.sum(), atol=1e-5)
     b = bootstrap(c, 400, seed=2)
+    assert b["on_box"] == 0  # positive definite: every resample's minimum inside the box
     for j, name in enumerate(("a2", "a4")):
         lo, hi = np.log10(b["intervals"][name])
         se = m[:, j].std(ddof=1) / np.sqrt(n)

@@ -530,7 +530,7 @@ def _weight_uncertainty(spec, targets: list, weights: dict[str, float], n_resamp
     b = unc.bootstrap(c, n_resamples, seed=seed)
     return {"D": c.D, "verdicts": unc.verdicts(spec.fitted, c.H, c.D, weights, lack=c.lack_of_fit), "intervals": b["intervals"],
             "lack_of_fit": c.lack_of_fit,
-            "sd_log10": b["sd_log10"], "resamples": n_resamples, "eigenvalues": np.linalg.eigvalsh(c.H).tolist(),
+            "sd_log10": b["sd_log10"], "resamples": n_resamples, "on_box": b["on_box"], "eigenvalues": np.linalg.eigvalsh(c.H).tolist(),
             "failed_solves": c.failed}
 
 

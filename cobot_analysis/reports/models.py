@@ -445,6 +445,11 @@ def uncertainty_lines(result) -> list[str]:
             cell = f"{lo:.3g} .. {hi:.3g}" if v.startswith("determined") else "–"
             lines.append(f"| {k} | {name} | {w[name]:.3g} | {cell} | {v} |")
     lines.append("")
+    boxed = {k: u["on_box"] for k, u in result.uncertainty.items() if u.get("on_box")}
+    if boxed:
+        lines += ["Resamples whose quadratic model has no minimum inside the search box (refitted on its edge; they "
+                  "widen the intervals): " + ", ".join(f"{k} {v} of {u_n}" for k, v in boxed.items()
+                                                       for u_n in [result.uncertainty[k]["resamples"]]) + ".", ""]
     failed = sum(u["failed_solves"] for u in result.uncertainty.values())
     if failed:
         lines += [f"{failed} lower-level solves of the curvature did not converge (their points carry no information).", ""]

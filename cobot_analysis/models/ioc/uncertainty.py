@@ -224,7 +224,8 @@ def bootstrap(c: Curvature, n_resamples: int = RESAMPLES, seed: int = 0, level: 
     """Percentile intervals of the fitted weights over ``n_resamples`` resamples of the targets (module
     docstring): each resample refitted along the directions the full data determine (the sloppy ones
     held); a weight that is not determined gets the search box as its interval. Returns
-    {"samples": (B, k) weights, "intervals": {name: (lo, hi)}, "sd_log10": {name: sd}}."""
+    {"samples": (B, k) weights, "intervals": {name: (lo, hi)}, "sd_log10": {name: sd}, "on_box": resamples whose
+    quadratic has no minimum inside the search box (refit on its edge)}."""
     rng = np.random.default_rng(seed)
     n = len(c.Di)
     _, V, sloppy = sloppy_directions(c.H, c.D, rel_tol)
@@ -234,6 +235,7 @@ def bootstrap(c: Curvature, n_resamples: int = RESAMPLES, seed: int = 0, level: 
                   for _ in range(n_resamples)]).reshape(-1, len(c.y))
     # centred on the fit: a fit stopped short of its optimum (budget, tolerance) moves every resample by the
     # same full-data step, which is not sampling spread
+    on_box = int(np.sum(np.any((np.abs(S - LOG_BOUNDS[0]) < 0.01) | (np.abs(S - LOG_BOUNDS[1]) < 0.01), axis=1))) if ok.any() else 0
     S = np.clip(S - quadratic_refit(c, np.ones(n), B) + c.y, *LOG_BOUNDS)
     a = 100 * (1 - level) / 2
     W = 10.0 ** S
@@ -241,7 +243,8 @@ def bootstrap(c: Curvature, n_resamples: int = RESAMPLES, seed: int = 0, level: 
     return {"samples": W,
             "intervals": {name: (float(np.percentile(W[:, j], a)), float(np.percentile(W[:, j], 100 - a))) if ok[j] else box
                           for j, name in enumerate(c.fitted)},
-            "sd_log10": {name: float(S[:, j].std(ddof=1)) if ok[j] and len(S) > 1 else math.inf for j, name in enumerate(c.fitted)}}
+            "sd_log10": {name: float(S[:, j].std(ddof=1)) if ok[j] and len(S) > 1 else math.inf for j, name in enumerate(c.fitted)},
+            "on_box": on_box}
 
 
 def subjects_differ(estimates: dict[str, dict[str, float]], sd_log10: dict[str, dict[str, float]],
