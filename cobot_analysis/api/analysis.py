@@ -14,8 +14,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from cobot_analysis import registry
 from cobot_analysis.compare import TrajectorySet
 from cobot_analysis.errors import InputError
+from cobot_analysis.metrics import analysis as headline
+from cobot_analysis.metrics.records import Metrics, collect
 
 Trajectories = "pd.DataFrame | str | os.PathLike | TrajectorySet"
 
@@ -92,6 +95,20 @@ class AverageResult:
     def summary(self) -> str:
         return f"{self.means.drop_duplicates(['trial', 'entity']).shape[0]} means"
 
+    def metrics(self, *, stage: str = "average") -> Metrics:
+        """Headline numbers (``metrics.analysis.average``): means and trials behind them per entity, spread."""
+        return collect(stage, headline.average, self.means)
+
+    def figures(self) -> dict[str, Any]:
+        """Matplotlib figures by name (``fig.savefig(...)`` writes one): ``means``, one panel per mean path with
+        its orientation arrows (``reports.figures.paths``)."""
+        from cobot_analysis.reports.figures import paths
+
+        panels = [{"title": str(trial), "means": [(g["x"].to_numpy(), g["y"].to_numpy(),
+                                                   g["theta"].to_numpy() if g["theta"].notna().any() else None, entity)]}
+                  for (trial, entity), g in self.means.sort_values("sample").groupby(["trial", "entity"], sort=True)]
+        return {"means": paths(panels, title=f"{self.study}: mean paths")}
+
 
 def average(trajectories: Any, *, by: list[str] | None = None, max_spread: float | None = None) -> AverageResult:
     """Mean trajectory per condition (sample-wise mean of positions; circular mean of angles, trajectories
@@ -150,6 +167,24 @@ class CompareResult:
 
     def summary(self) -> str:
         return f"{len(self.distances)} compared pairs"
+
+    def metrics(self, *, stage: str | None = None) -> Metrics:
+        """Headline numbers (``metrics.analysis.compare``): d_xy, d_theta, d_gamma mean and sd per comparison
+        and entity; ``stage`` defaults to ``compare`` (``compare-published`` under the published convention)."""
+        return collect(stage or registry.directory("compare", self.convention), headline.compare, self.distances)
+
+    def figures(self) -> dict[str, Any]:
+        """Matplotlib figures by name: ``d_xy``, ``d_theta``, ``d_gamma``, box plots of each distance per
+        comparison and entity (``reports.figures.boxplots``; a distance with no finite value is left out)."""
+        from cobot_analysis.reports.figures import boxplots
+
+        figs = {}
+        for d, unit in (("d_xy", "m"), ("d_theta", "rad"), ("d_gamma", "rad")):
+            if d in self.distances and self.distances[d].notna().any():
+                groups = {f"{c}\n{e}": g[d] for (c, e), g in self.distances.groupby(["comparison", "entity"], sort=True)}
+                figs[d] = boxplots(groups, f"{d} ({unit})", f"{d} per comparison ({self.convention} convention)",
+                                   xlabel="comparison, entity")
+        return figs
 
 
 def compare(trajectories: Any, means: Any, *, against: Any = None, comparison: str = "against",
@@ -249,6 +284,11 @@ class StatisticsResult:
         return (f"{int(ok.sum())} tests run, {int((~ok).sum())} skipped (reason in the table); "
                 f"{int(self.table['significant'].sum())} significant after Holm within each family.")
 
+    def metrics(self, *, stage: str = "stats") -> Metrics:
+        """Headline numbers (``metrics.analysis.statistics``): per question the test, n, statistic, p, Holm p,
+        effect size, or why it was skipped (``stage``: ``stats-published`` for the published convention's)."""
+        return collect(stage, headline.statistics, self.table)
+
 
 def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *, config: Any = None,
                durations: pd.DataFrame | None = None, anthropometrics: pd.DataFrame | None = None,
@@ -316,6 +356,10 @@ class ReconstructResult:
 
     def summary(self) -> str:
         return f"{len(self.reconstruction)} reconstructions"
+
+    def metrics(self, *, stage: str = "reconstruct") -> Metrics:
+        """Headline numbers (``metrics.analysis.reconstruct``): accuracy of the rebuilt subjects."""
+        return collect(stage, headline.reconstruct, self.reconstruction)
 
 
 def reconstruct(trajectories: Any, *, relative_pose: dict | None = None, scenario: int = 3, progress=None) -> ReconstructResult:
