@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from cobot_analysis.models.outputs import GENERATED
 from cobot_analysis.regression.extract import stage_metrics
 from cobot_analysis.schema import TRAJECTORIES, write_table
 from cobot_analysis.synth.tables import pair_table
@@ -112,4 +113,43 @@ def test_model_and_prediction_results(walking):
         check(pred)
         assert set(pred.result.figures()) and all(f.axes for f in pred.result.figures().values())
     trial = gen.result.generated["trial"].iloc[0]
-    check(models.velocity_commands(out, generated=out / "generate" / "generated.parquet", trial=trial))
+    cmd = models.velocity_commands(out, generated=out / "generate-published" / "generated.parquet", trial=trial)
+    check(cmd)
+
+
+def test_fit_ioc_and_velocity_commands_take_parquet_paths(walking):
+    """The one input type: the documented table or the path of its Parquet file, same answer; the fit's figures."""
+    import cobot_analysis.api as ca
+    from cobot_analysis.reports.figures import check_figure
+
+    out = walking[0]
+    means = out / "average" / "means.parquet"
+    by_path = ca.fit_ioc(means, trials=out / "preprocess" / "trajectories.parquet", intervals=20, max_evaluations=2, jobs=1)
+    by_table = ca.fit_ioc(walking[1]["average"].result.means, intervals=20, max_evaluations=2, compare=False, jobs=1)
+    assert by_path.results["all"].objective == by_table.results["all"].objective
+    assert by_path.means_source == str(means)
+    figures = by_path.figures()
+    assert sorted(figures) == ["distances_boxplot", "paths"] and all(check_figure(f) == [] for f in figures.values())
+    generated = ca.generate("clothoid", start=(-1.5, -3.4, 0.0), jobs=1).generated
+    path = write_table(generated, out / "clothoid.parquet", GENERATED)
+    assert ca.velocity_commands(path).commands.equals(ca.velocity_commands(generated).commands)
+
+
+def test_analysis_and_model_figures_render():
+    """Each figure has data, units on its axes and a legend naming its series (reports.figures.check_figure)."""
+    import cobot_analysis.api as ca
+    from cobot_analysis.reports.figures import check_figure
+    from cobot_analysis.synth.tables import walking_table
+
+    walks = walking_table(n_subjects=3, n_conditions=2, n_trials=2)
+    means = ca.average(walks)
+    pairs = ca.average(pair_table(n_pairs=2, goals=1))
+    figures = {"average": means.figures(), "pairs": pairs.figures(), "compare": ca.compare(walks, means.means).figures(),
+               "generate": ca.generate("all", start=(-1.5, -3.4, 0.0), jobs=1).figures()}
+    assert {k: sorted(v) for k, v in figures.items()} == {
+        "average": ["means"], "pairs": ["means"], "compare": ["d_gamma", "d_theta", "d_xy"], "generate": ["paths"]}
+    assert len(figures["average"]["means"].axes) >= 2  # one panel per mean (2 conditions), plus the legend's
+    for name, figs in figures.items():
+        for stem, fig in figs.items():
+            assert check_figure(fig) == [], (name, stem)
+    assert ca.fit_ioc(means.means, intervals=20, max_evaluations=2, compare=False, jobs=1).figures() == {}  # drawn with the comparison

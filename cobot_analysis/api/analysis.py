@@ -96,18 +96,40 @@ class AverageResult:
         return f"{self.means.drop_duplicates(['trial', 'entity']).shape[0]} means"
 
     def metrics(self, *, stage: str = "average") -> Metrics:
-        """Headline numbers (``metrics.analysis.average``): means and trials behind them per entity, spread."""
+        """Headline numbers (``metrics.analysis.average``): means and trials behind them per entity, spread; the
+        numbers the ``average`` stage writes to ``metrics.json``.
+
+            >>> from cobot_analysis.api import average
+            >>> from cobot_analysis.synth.tables import walking_table
+            >>> numbers = average(walking_table(n_subjects=3, n_conditions=2, n_trials=2)).metrics()
+            >>> numbers.stage, numbers.study, numbers[0]
+            ('average', 'synthetic-walking', Metric(name='average.means', value=2, unit='count', stage='average', convention=None))
+            >>> numbers.as_dict()["average.walker.trials"]   # 3 subjects x 2 trials behind each of the 2 means
+            12
+        """
         return collect(stage, headline.average, self.means)
 
     def figures(self) -> dict[str, Any]:
-        """Matplotlib figures by name (``fig.savefig(...)`` writes one): ``means``, one panel per mean path with
-        its orientation arrows (``reports.figures.paths``)."""
+        """Matplotlib figures by name (``fig.savefig(...)`` writes one): ``means``, one panel per mean (every entity
+        of it; titled by its groups' values, e.g. the condition) with orientation arrows (``reports.figures.paths``).
+
+            >>> from cobot_analysis.api import average
+            >>> from cobot_analysis.synth.tables import walking_table
+            >>> figures = average(walking_table(n_subjects=2, n_conditions=2, n_trials=1)).figures()
+            >>> [(name, type(fig).__name__, [ax.get_title() for ax in fig.axes]) for name, fig in figures.items()]
+            [('means', 'Figure', ['E1500', 'N1500'])]
+        """
         from cobot_analysis.reports.figures import paths
 
-        panels = [{"title": str(trial), "means": [(g["x"].to_numpy(), g["y"].to_numpy(),
-                                                   g["theta"].to_numpy() if g["theta"].notna().any() else None, entity)]}
-                  for (trial, entity), g in self.means.sort_values("sample").groupby(["trial", "entity"], sort=True)]
-        return {"means": paths(panels, title=f"{self.study}: mean paths")}
+        keys = [k for k in self.groups if k in self.means and k not in ("study", "entity")]
+        panels = []
+        for _, t in self.means.sort_values("sample").groupby(keys or ["trial"], sort=True, dropna=False):
+            values = [t[k].iloc[0] for k in keys if t[k].notna().any()]
+            title = " ".join(f"{v:.3g}" if isinstance(v, float) else str(v) for v in values) or str(t["trial"].iloc[0])
+            panels.append({"title": title, "means": [
+                (g["x"].to_numpy(), g["y"].to_numpy(), g["theta"].to_numpy() if g["theta"].notna().any() else None, entity)
+                for entity, g in t.groupby("entity", sort=True)]})
+        return {"means": paths(panels, title=f"{self.study}: mean trajectories")}
 
 
 def average(trajectories: Any, *, by: list[str] | None = None, max_spread: float | None = None) -> AverageResult:
@@ -170,7 +192,15 @@ class CompareResult:
 
     def metrics(self, *, stage: str | None = None) -> Metrics:
         """Headline numbers (``metrics.analysis.compare``): d_xy, d_theta, d_gamma mean and sd per comparison
-        and entity; ``stage`` defaults to ``compare`` (``compare-published`` under the published convention)."""
+        and entity; ``stage`` defaults to ``compare`` (``compare-published`` under the published convention).
+
+            >>> from cobot_analysis.api import average, compare
+            >>> from cobot_analysis.synth.tables import walking_table
+            >>> walks = walking_table(n_subjects=3, n_conditions=2, n_trials=2)
+            >>> numbers = compare(walks, average(walks).means, convention="published").metrics()
+            >>> numbers.stage, numbers.convention, numbers.as_dict()["compare.individual-mean.walker.n"]
+            ('compare-published', 'published', 12)
+        """
         return collect(stage or registry.directory("compare", self.convention), headline.compare, self.distances)
 
     def figures(self) -> dict[str, Any]:

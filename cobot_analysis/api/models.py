@@ -54,13 +54,14 @@ class GenerateResult:
         arrows (``reports.figures.paths``)."""
         from cobot_analysis.reports.figures import paths
 
-        styles = dict(zip(self.models, ["-", "--", ":", "-.", (0, (5, 1))]))
+        styles = dict(zip(self.models, ["-", "--", ":", "-.", (0, (3, 1, 1, 1, 1, 1))]))
         panels = []
         for condition, c in self.generated.sort_values("sample").groupby("condition", sort=False):
             panels.append({"title": str(condition) or "path", "means": [
                 (g["x"].to_numpy(), g["y"].to_numpy(), g["theta"].to_numpy(), "walker", styles.get(m, "-"), str(m))
                 for m, g in c.groupby("model", sort=False)]})
-        return {"paths": paths(panels, title=f"generated paths ({self.convention} convention)")}
+        return {"paths": paths(panels, title=f"generated paths ({self.convention} convention)",
+                               names={"arrows": "orientation θ of the paths"})}
 
 
 def _span(v: pd.Series) -> str:

@@ -12,7 +12,7 @@ reconstruct), ``models`` (fit-ioc, generate, velocity-commands), ``prediction``,
     >>> from cobot_analysis.synth.tables import walking_table
     >>> numbers = ca.average(walking_table(n_subjects=3, n_conditions=2, n_trials=2)).metrics().as_dict()
     >>> numbers["average.means"], numbers["average.walker.trials"]
-    (2, 6)
+    (2, 12)
 """
 
 from cobot_analysis.metrics.records import Collector, Metric, Metrics
