@@ -166,6 +166,11 @@ def predict(trajectories: pd.DataFrame | str | os.PathLike, *, settings: str = D
         (0, True)
         >>> sorted(r.summary_table["metric"].unique())
         ['ade', 'd_pred', 'delta_theta', 'delta_xy', 'fde']
+        >>> numbers = r.metrics()   # the headline numbers: what the predict stage writes to metrics.json
+        >>> numbers.stage, numbers.convention, numbers.as_dict()["predict.10:20.oc.windows_used"]
+        ('predict', 'continuous', 31)
+        >>> sorted(r.figures())     # matplotlib Figures by name, as the stage writes them
+        ['prediction_at_k', 'prediction_error_vs_distance', 'prediction_overlay']
     """
     import tempfile
 

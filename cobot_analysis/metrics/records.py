@@ -107,7 +107,7 @@ class Metrics(list):
         return {m.name: m.value for m in self}
 
 
-def stage_convention(stage: str) -> str | None:
+def convention_of(stage: str) -> str | None:
     """The convention a stage directory's metrics carry: ``published`` for a ``-published`` twin, else
     ``continuous``; None for a stage without conventions (``registry.is_model_stage``)."""
     if not registry.is_model_stage(stage):
@@ -117,7 +117,7 @@ def stage_convention(stage: str) -> str | None:
 
 def collect(stage: str, fill, *tables: Any) -> Metrics:
     """The records ``fill(collector, *tables)`` adds for the stage directory ``stage``."""
-    out = Collector(stage, stage_convention(stage))
+    out = Collector(stage, convention_of(stage))
     fill(out, *tables)
     return Metrics(checked(out.items), stage, out.convention, out.study)
 
