@@ -153,3 +153,12 @@ def test_analysis_and_model_figures_render():
         for stem, fig in figs.items():
             assert check_figure(fig) == [], (name, stem)
     assert ca.fit_ioc(means.means, intervals=20, max_evaluations=2, compare=False, jobs=1).figures() == {}  # drawn with the comparison
+
+
+def test_the_metrics_package_example_runs():
+    import doctest
+
+    import cobot_analysis.metrics
+
+    result = doctest.testmod(cobot_analysis.metrics, report=True)
+    assert result.attempted > 0 and result.failed == 0
