@@ -43,7 +43,7 @@ def _return_freed_memory() -> None:
     freed them, where the tables written afterwards cannot reuse them (peak memory of a 10-minute
     run: 205 -> 183 MiB). A fixed threshold of 128 KiB (glibc's initial one); no-op elsewhere.
     Arrow's buffers (the tables written) come from the same C allocator instead of Arrow's own
-    mimalloc or jemalloc pool, which keeps what it frees (peak 188 -> 168 MiB)."""
+    mimalloc or jemalloc pool, which keeps what it frees (peak 188 -> 178 MiB)."""
     import ctypes
 
     import pyarrow as pa

@@ -77,7 +77,9 @@ class IndexedBag:
                 order = np.argsort(off, kind="stable")
                 ct, off = ct[order], off[order]
                 start, size = self._starts(arr, off, ids[topic])
-                out = data.setdefault(topic, np.empty((total[topic], size), np.uint8))
+                out = data.get(topic)
+                if out is None:
+                    out = data[topic] = np.empty((total[topic], size), np.uint8)
                 if size != out.shape[1] or int(start.max()) + size > len(arr):
                     return None
                 if self.container == "mcap" and np.any(_u64s(arr, off + 15).astype(np.int64) != ct):
