@@ -501,7 +501,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     from cobot_analysis.models.comparison import compare_models, compared_models, coupled_distances, orientation_of, subject_distances
     from cobot_analysis.models.ioc import fit as ioc_fit, pair_targets_from_table, targets_from_table
     from cobot_analysis.models.presets import DEFAULT_PRESET, PRESETS, names_for, weights_vector
-    from cobot_analysis.models.ioc.single_level import as_ioc_result, check_method, check_spec, fit_single_level
+    from cobot_analysis.models.ioc.single_level import as_ioc_result, check_method, check_spec, fit_trust_region
     from cobot_analysis.parallel import default_jobs, executor
 
     check_method(method, bootstrap)
@@ -560,7 +560,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             report = (lambda n, f, best, key=key: on_evaluation(key, n, f, best)) if on_evaluation else None
             t0 = time.perf_counter()
             if method == "single-level":
-                results[key] = as_ioc_result(fit_single_level(spec, targets))
+                results[key] = as_ioc_result(fit_trust_region(spec, targets))
             else:
                 results[key] = ioc_fit(spec, targets, pool=pool, chunks=n_chunks,
                                        checkpoint=checkpoint / f"{safe}.json" if checkpoint else None, resume=resume,

@@ -186,12 +186,13 @@ def check_spec(spec: IOCSpec, n_targets: int) -> None:
 
 def fit_single_level(spec: IOCSpec, targets: list[Target], *, start: list | None = None, start_weights=None,
                      eps: float = SMOOTHING, max_iter: int = 300, tol: float = 1e-8, verify: bool = True,
-                     print_level: int = 0) -> SingleLevelResult:
+                     print_level: int = 0, box: tuple | None = None) -> SingleLevelResult:
     """Fit ``spec.fitted`` to ``targets`` in one NLP (module docstring).
 
     ``start``: lower-level primal vectors per target to start from (e.g. the bi-level fit's), else
     the lower level solved at the starting weights (``start_weights`` or ``spec.start_weights``) as
-    the bi-level fit's reference step does; the multipliers by least squares at those paths."""
+    the bi-level fit's reference step does; the multipliers by least squares at those paths.
+    ``box``: (lower, upper) bounds of the fitted weights inside the search box (``fit_trust_region``)."""
     import casadi as ca
 
     from cobot_analysis.models.dynamics import N_STATE
@@ -244,6 +245,8 @@ def fit_single_level(spec: IOCSpec, targets: list[Target], *, start: list | None
     V = ca.vertcat(wf, ca.vec(Z), ca.vec(Lam), nu_lo.T, nu_hi.T)
     lb, ub = np.full(V.numel(), -np.inf), np.full(V.numel(), np.inf)
     lb[:len(fi)], ub[:len(fi)] = 10.0 ** LOG_BOUNDS[0], 10.0 ** LOG_BOUNDS[1]
+    if box is not None:
+        lb[:len(fi)], ub[:len(fi)] = np.maximum(lb[:len(fi)], box[0]), np.minimum(ub[:len(fi)], box[1])
     for i in range(n):  # log T within the lower level's bounds
         idx = len(fi) + i * nz + ocp._xi[:, N_STATE]
         lb[idx], ub[idx] = lbT[i], ubT[i]
@@ -288,6 +291,37 @@ def fit_single_level(spec: IOCSpec, targets: list[Target], *, start: list | None
                              success=bool(st.get("success", False)), seconds=time.perf_counter() - t0, failed=failed,
                              at_duration_bound=at_bound, kkt_residual=kres, per_target=terms,
                              primals=[Zs[:, i].copy() for i in range(n)])
+
+
+def fit_trust_region(spec: IOCSpec, targets: list[Target], *, delta: float = 0.3, steps: int = 8,
+                     inner_iter: int = 25) -> SingleLevelResult:
+    """A sequence of single-level NLPs (``fit_single_level``), each from the lower level solved at the
+    current weights w_k, its fitted weights bounded to 10^(+-delta) w_k (a trust region in log10 w),
+    ``inner_iter`` IPOPT iterations; the step is accepted when D re-solved at the new weights is below
+    D at w_k (delta doubled, at most 1), else rejected (delta / 3); ``steps`` NLPs at most
+    (docs/methods.md sec. 6.1). Returns the last accepted NLP's result with the time and iterations of all."""
+    from dataclasses import replace
+
+    names = names_for(spec.model)
+    fi = [names.index(n) for n in spec.fitted]
+    t0, w, D_w, best, last, total, accepted = time.perf_counter(), np.array(spec.start_weights, float), None, None, None, 0, 0
+    for _ in range(steps):
+        y = np.log10(np.clip(w[fi], 10.0 ** LOG_BOUNDS[0], 10.0 ** LOG_BOUNDS[1]))
+        last = fit_single_level(replace(spec, start_weights=tuple(w)), targets, max_iter=inner_iter,
+                                box=(10.0 ** (y - delta), 10.0 ** (y + delta)))
+        total += last.iterations
+        start_objective = last.start_objective if D_w is None else start_objective
+        D_w = last.start_objective if D_w is None else D_w
+        if last.objective < D_w:  # accepted: the re-solved lower levels are closer to the data
+            best, D_w, accepted = last, last.objective, accepted + 1
+            w = np.array([last.weights[n] for n in names])
+            delta = min(2 * delta, 1.0)
+        else:
+            delta /= 3
+    if best is None:  # no step accepted: the start weights stand
+        best = replace(last, weights=dict(zip(names, map(float, spec.start_weights))), objective=start_objective, per_target=[])
+    return replace(best, start_objective=start_objective, iterations=total, seconds=time.perf_counter() - t0,
+                   status=f"trust region: {accepted} of {steps} NLPs accepted (last: {last.status})", success=accepted > 0)
 
 
 def check_method(method: str, bootstrap: int = 0) -> None:
