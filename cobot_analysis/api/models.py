@@ -391,6 +391,7 @@ def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: s
     from cobot_analysis.models.comparison import compare_models, compared_models, coupled_distances, orientation_of, subject_distances
     from cobot_analysis.models.ioc import fit as ioc_fit, pair_targets_from_table, targets_from_table
     from cobot_analysis.models.presets import DEFAULT_PRESET, PRESETS, names_for, weights_vector
+    from cobot_analysis.models.ioc.pace import target_durations
     from cobot_analysis.models.ioc.single_level import as_ioc_result, check_method, check_spec, fit_single_level
     from cobot_analysis.parallel import default_jobs, executor
 
@@ -436,6 +437,8 @@ def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: s
         for targets in fits.values():
             check_spec(spec, len(targets))
     checkpoint = Path(checkpoint) if checkpoint is not None else None
+    mean_keys = mean_df.groupby("trial")[["scenario", "condition", "direction"]].first() \
+        if {"scenario", "condition", "direction"} <= set(mean_df.columns) else None
     n_chunks = 4 * (default_jobs() if jobs is None else jobs) if scheduler is None else 8
     results = {}
     with executor(jobs, scheduler) as pool:
@@ -445,9 +448,12 @@ def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: s
             if method == "single-level":
                 results[key] = as_ioc_result(fit_single_level(spec, targets))
                 continue
+            # the time gauge fitted to the subjects' durations (models.ioc.pace; continuous, fit over the means)
+            measured_T = target_durations(targets, trials=trial_df, durations=durations, mean_keys=mean_keys) \
+                if key == "all" and conv.name == "continuous" and model in ("improved", "table") else None
             results[key] = ioc_fit(spec, targets, pool=pool, chunks=n_chunks,
                                    checkpoint=checkpoint / f"{safe}.json" if checkpoint else None, resume=resume,
-                                   on_evaluation=report)
+                                   on_evaluation=report, measured_T=measured_T)
     # distances: fitted model per trajectory; full model comparison on the means
     coupled = None
     if model == "coupled":  # published and fitted weights, both cold-started, per carrier
@@ -481,9 +487,7 @@ def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: s
     dist["convention"] = conv.name
     dist = dist.drop(columns=["converged"]).assign(converged=dist["converged"].astype(bool))
     return FitResult(model, conv.name, all_names, names, w0, start_weights or DEFAULT_PRESET[model], spec, per, goal, fits,
-                     results, dist, mean_targets, comparison, models, coupled, paths, str(means_source),
-                     mean_df.groupby("trial")[["scenario", "condition", "direction"]].first()
-                     if {"scenario", "condition", "direction"} <= set(mean_df.columns) else None)
+                     results, dist, mean_targets, comparison, models, coupled, paths, str(means_source), mean_keys)
 
 
 def _figure_paths(model: str, targets: list, fitted: dict, conv) -> dict:

@@ -49,7 +49,13 @@ def generate(out: str | os.PathLike, *, model: str = "improved", weights: Any = 
         if path is not None:
             means_df = read_trajectories(path)
             inputs.append(path)
-            measured = measured_pace(means_df)
+            try:  # the subjects' trials: their own pace where the means hold no travel time
+                trials_path = find_input(out, "trajectories.parquet", ["import-published", "preprocess"], "--trajectories")
+                trials_df = read_trajectories(trials_path)
+                inputs.append(trials_path)
+            except InputError:
+                trials_df = None
+            measured = measured_pace(means_df, trials_df)
         cases = api.walking_cases(conv.name, means_df, goal=goal, path=path)
     models, conv, cases = plan_generate(model, weights=weights, start=start, goal=goal, cases=cases, duration=duration,
                                         convention=convention)
@@ -135,7 +141,7 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
     name = registry.directory("fit-ioc-coupled" if model == "coupled" else "fit-ioc-subjects" if per == "subject" else "fit-ioc",
                               conv.name)
     durations = None
-    if model == "coupled":
+    if model in ("coupled", "table"):  # the pair study's durations: the coupled section, the table fit's time gauge
         try:
             durations = pd.read_parquet(find_input(out, "durations.parquet", ["import-published"], "--means"))
         except InputError:

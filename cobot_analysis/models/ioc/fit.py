@@ -40,7 +40,8 @@ from cobot_analysis.errors import InputError
 from cobot_analysis.models.ioc.targets import PairTarget, Target
 from cobot_analysis.models.presets import names_for
 
-T_BOUNDS = (0.4, 2.5)  # free duration T within these multiples of T0 (ocp.WalkerOCP.solve, coupled.CoupledOCP.solve)
+T_BOUNDS = (0.4, 2.5)  # free T within these multiples of T0: coupled model (coupled.CoupledOCP.solve), single level; the
+# continuous walker rules keep their own, wider ones (conventions.OCRule.T_bounds)
 FAILED_D = 10.0  # objective term of a lower level that did not converge (m-equivalent; >> any real D)
 OPTIMIZERS = ("powell", "nelder-mead")
 LOG_BOUNDS = (-7.0, 3.0)  # log10 of a fitted weight
@@ -119,10 +120,10 @@ def distances(t: Target, x, y, theta, convention="continuous") -> dict[str, floa
     return path_distances((t.x, t.y, t.theta), (x, y, theta), comparison, measured_gamma=gamma)
 
 
-def duration_terms(T: float, T0: float) -> dict:
-    """T, T0 and whether T sits on a bound of ``T_BOUNDS`` x T0 (relative 1e-3): -1 lower, +1 upper, 0 inside."""
+def duration_terms(T: float, T0: float, bounds: tuple[float, float] = T_BOUNDS) -> dict:
+    """T, T0 and whether T sits on a bound of ``bounds`` x T0 (relative 1e-3): -1 lower, +1 upper, 0 inside."""
     r = T / T0
-    at = -1 if abs(r / T_BOUNDS[0] - 1) < 1e-3 else (1 if abs(r / T_BOUNDS[1] - 1) < 1e-3 else 0)
+    at = -1 if abs(r / bounds[0] - 1) < 1e-3 else (1 if abs(r / bounds[1] - 1) < 1e-3 else 0)
     return {"T": T, "T0": T0, "T_at_bound": at}
 
 
@@ -206,7 +207,9 @@ def solve_target(spec: IOCSpec, w: np.ndarray, t: Target, guess):
     r = resample(sol, len(t.x))
     d = distances(t, r["x"], r["y"], r["theta"])
     d["D"] = d["d_xy"] + spec.angle_weight * d[f"d_{spec.angle}"]
-    d.update(duration_terms(sol.T, initial_duration(t.start, t.goal, spec.v_nominal)))
+    from cobot_analysis.conventions import CONTINUOUS
+
+    d.update(duration_terms(sol.T, initial_duration(t.start, t.goal, spec.v_nominal), CONTINUOUS.oc_rule(model).T_bounds))
     d["length"] = float(np.hypot(np.diff(r["x"]), np.diff(r["y"])).sum())  # m: the time law is length / T
     d["success"] = True
     return d, sol
@@ -253,6 +256,7 @@ class IOCResult:
     message: str = ""
     held_objective: float | None = None  # published, held horizons: D the optimiser saw at the fitted weights
     horizons_changed: int | None = None  # targets whose horizon the duration rule moves at the fitted weights
+    pace: dict | None = None  # continuous, measured durations given: the time-gauge calibration (models.ioc.pace)
 
     def to_json(self) -> dict:
         d = asdict(self)
@@ -311,8 +315,13 @@ class _Interrupted(Exception):
 
 def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, checkpoint: Path | None = None,
         resume: bool = False, on_evaluation: Callable[[int, float, float], None] | None = None,
-        interrupt_after: int | None = None) -> IOCResult:
+        interrupt_after: int | None = None, measured_T=None) -> IOCResult:
     """Fit ``spec.fitted`` to ``targets``; ``pool`` is a concurrent.futures executor (None: in-process).
+
+    ``measured_T``: the subjects' duration of each target (nan: none). Under the continuous convention
+    (walker and table models) the fitted weights' time gauge is then fitted to them (``pace.calibrate``:
+    a1..a3 x c^4, the same D) and the result holds the calibrated weights, their per-target terms and
+    ``pace``; without it the pace is the one the held a0, a1 give.
 
     ``interrupt_after``: stop (KeyboardInterrupt) after that many new evaluations (tests of resume).
     """
@@ -415,7 +424,26 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
                 new[i] = d
         changed = sum(1 for a, b in zip(terms, new) if a["success"] and b["success"] and abs(a["T"] - b["T"]) > 1e-9)
         held, terms, objective = objective, new, float(np.mean([d["D"] for d in new]))
-    return IOCResult(spec=spec, weights=dict(zip(names_for(spec.model), map(float, w_best))), objective=objective,
+    weights, pace = dict(zip(names_for(spec.model), map(float, w_best))), None
+    if measured_T is not None and spec.convention != "published" and spec.model in ("improved", "table"):
+        from dataclasses import asdict as as_dict
+
+        from cobot_analysis.models.ioc.pace import calibrate
+        from cobot_analysis.models.presets import weights_vector
+
+        def solve(w: dict) -> list[dict]:
+            res = run(evaluate_chunk, [(spec, weights_vector(w, spec.model), [targets[i] for i in p], [guesses[i] for i in p])
+                                       for p in parts])
+            out: list = [None] * len(targets)
+            for p, r in zip(parts, res):
+                for i, (d, _) in zip(p, r):
+                    out[i] = d
+            return out
+
+        cal = calibrate(solve, weights, terms, measured_T)
+        weights, terms, objective = cal.weights, cal.terms, cal.D_after
+        pace = {k: v for k, v in as_dict(cal).items() if k not in ("weights", "terms")}
+    return IOCResult(spec=spec, weights=weights, objective=objective,
                      start_objective=start_objective, evaluations=len(cache), iterations=iteration,
                      failed=sum(not d["success"] for d in terms), per_target=terms, message=str(res.message),
-                     held_objective=held, horizons_changed=changed)
+                     held_objective=held, horizons_changed=changed, pace=pace)
