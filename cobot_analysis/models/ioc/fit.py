@@ -94,7 +94,7 @@ def held_weights(model: str, convention="continuous") -> tuple[str, ...]:
       held) makes the time-scaled path X(t / c) optimal, since the time and path terms of J grow as
       c and the acceleration terms as c^-3; the time-normalised paths D compares are the same, only
       the duration changes (c T). The data cannot tell these weights apart, so a1 stays at its start
-      value and the fit leaves the pace of the start weights to it.
+      value during the search; the pace is fitted afterwards to measured durations (``pace.calibrate``).
     Under the published convention the goal is the terminal cost: b0 fixes the scale, and a0, a
     constant per node, moves no path on a held horizon. The walker's a5, a6 belong to the Mombaur
     model."""
