@@ -426,8 +426,6 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
         held, terms, objective = objective, new, float(np.mean([d["D"] for d in new]))
     weights, pace = dict(zip(names_for(spec.model), map(float, w_best))), None
     if measured_T is not None and spec.convention != "published" and spec.model in ("improved", "table"):
-        from dataclasses import asdict as as_dict
-
         from cobot_analysis.models.ioc.pace import calibrate
         from cobot_analysis.models.presets import weights_vector
 
@@ -442,7 +440,7 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
 
         cal = calibrate(solve, weights, terms, measured_T)
         weights, terms, objective = cal.weights, cal.terms, cal.D_after
-        pace = {k: v for k, v in as_dict(cal).items() if k not in ("weights", "terms")}
+        pace = {k: v for k, v in asdict(cal).items() if k not in ("weights", "terms")}
     return IOCResult(spec=spec, weights=weights, objective=objective,
                      start_objective=start_objective, evaluations=len(cache), iterations=iteration,
                      failed=sum(not d["success"] for d in terms), per_target=terms, message=str(res.message),

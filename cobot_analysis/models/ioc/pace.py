@@ -86,16 +86,6 @@ class PaceResult:
     notes: list[str] = field(default_factory=list)
     terms: list[dict] = field(default_factory=list, repr=False)  # the lower level's terms at the calibrated weights
 
-    def summary(self) -> dict:
-        T, M, L = (np.asarray(v, float) for v in (self.calibrated_T, self.measured_T, self.length))
-        ok = np.isfinite(T) & np.isfinite(M)
-        v, vm = L / T, np.where(ok, L / M, np.nan)
-        return {"c": self.c, "T_model_min": float(np.nanmin(T)), "T_model_max": float(np.nanmax(T)),
-                "speed_model_min": float(np.nanmin(v)), "speed_model_max": float(np.nanmax(v)),
-                "rms_T_error": float(np.sqrt(np.mean((T[ok] - M[ok]) ** 2))) if ok.any() else float("nan"),
-                "speed_measured_min": float(np.nanmin(vm)) if ok.any() else float("nan"),
-                "speed_measured_max": float(np.nanmax(vm)) if ok.any() else float("nan")}
-
 
 def calibrate(solve, weights: dict[str, float], per_target: list[dict], measured_T) -> PaceResult:
     """Fit the time gauge c of ``weights`` to ``measured_T`` (one per target, nan: none) from the model's
