@@ -449,7 +449,7 @@ def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: s
                 results[key] = as_ioc_result(fit_single_level(spec, targets))
                 continue
             # the time gauge fitted to the subjects' durations (models.ioc.pace; continuous, fit over the means)
-            measured_T = target_durations(targets, trials=trial_df, durations=durations, mean_keys=mean_keys) \
+            measured_T = target_durations(targets, means=mean_df, trials=trial_df, durations=durations, mean_keys=mean_keys) \
                 if key == "all" and conv.name == "continuous" and model in ("improved", "table") else None
             results[key] = ioc_fit(spec, targets, pool=pool, chunks=n_chunks,
                                    checkpoint=checkpoint / f"{safe}.json" if checkpoint else None, resume=resume,

@@ -112,25 +112,32 @@ def calibrate(solve, weights: dict[str, float], per_target: list[dict], measured
                       notes=notes, terms=after)
 
 
-def target_durations(targets, *, trials: pd.DataFrame | None = None, durations: pd.DataFrame | None = None,
-                     mean_keys: pd.DataFrame | None = None) -> np.ndarray | None:
-    """The subjects' duration of each target (nan where none), or None when the data hold none:
-    from ``durations`` (the pair study's durations.parquet: mean over the trials of the same scenario,
-    condition and direction as the mean, ``mean_keys`` those columns per mean trial), else from the
-    ``trials`` of the target's condition (``subject_durations``: travel times or velocity rows)."""
+def target_durations(targets, *, means: pd.DataFrame | None = None, trials: pd.DataFrame | None = None,
+                     durations: pd.DataFrame | None = None, mean_keys: pd.DataFrame | None = None) -> np.ndarray | None:
+    """The subjects' duration of each target (nan where none), or None when the data hold none: the
+    target's own travel time in ``means`` (its trial's rows) where it holds one; else from ``durations``
+    (the pair study's durations.parquet: mean over the trials of the same scenario, condition and
+    direction as the mean, ``mean_keys`` those columns per mean trial); else from the ``trials`` of the
+    target's condition (``subject_durations``: travel times or velocity rows)."""
     keys = ["scenario", "condition", "direction"]
     out = np.full(len(targets), np.nan)
+    if means is not None and "travel_time" in means:
+        own = means.groupby("trial")["travel_time"].first()
+        out[:] = [float(own.get(t.trial, np.nan)) for t in targets]
+        out[~(out > 0)] = np.nan
+        if np.isfinite(out).all():
+            return out
     if durations is not None and mean_keys is not None and set(keys + ["duration"]) <= set(durations.columns) \
             and set(keys) <= set(mean_keys.columns):
         measured = durations.groupby(keys)["duration"].mean()
         for i, t in enumerate(targets):
             if t.trial in mean_keys.index:
                 k = tuple(mean_keys.loc[t.trial, keys])
-                if k in measured.index:
+                if k in measured.index and not np.isfinite(out[i]):
                     out[i] = float(measured.loc[k])
-    elif trials is not None and not trials.empty:
-        by_condition = measured_by_condition(trials)
+    elif trials is not None and not trials.empty and "condition" in trials:
+        by_condition = measured_by_condition(trials[trials["condition"].fillna("").astype(str) != ""])
         for i, t in enumerate(targets):
-            if t.condition in by_condition:
+            if t.condition and t.condition in by_condition and not np.isfinite(out[i]):
                 out[i] = by_condition[t.condition][0]
     return out if np.isfinite(out).any() else None
