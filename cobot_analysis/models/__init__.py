@@ -133,8 +133,9 @@ def generate(model: str, start: Sequence[float], goal: Sequence[float], weights=
     ``n_samples`` in time; ``published``, the solution's nodes (one per step of the authors' node
     step; ``n_samples`` is ignored for OC models). When the OC problem does not converge: raises
     ``SolverError`` (``on_failure="raise"``) or returns the solver's last iterate with
-    ``converged`` false and the reason in ``status`` (``"flag"``; never a silent result). The goal
-    columns are described in the module docstring.
+    ``converged`` false and the reason in ``status`` (``"flag"``; never a silent result). A duration on a
+    bound of its search (``conventions.OCRule.T_bounds`` x T0) is said in ``status`` too: the time law is
+    then the bound's, not the weights'. The goal columns are described in the module docstring.
     """
     from cobot_analysis import conventions
     from cobot_analysis.models.oc import node_arrays
