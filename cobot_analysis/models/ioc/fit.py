@@ -319,9 +319,11 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
     """Fit ``spec.fitted`` to ``targets``; ``pool`` is a concurrent.futures executor (None: in-process).
 
     ``measured_T``: the subjects' duration of each target (nan: none). Under the continuous convention
-    (walker and table models) the fitted weights' time gauge is then fitted to them (``pace.calibrate``:
-    a1..a3 x c^4, the same D) and the result holds the calibrated weights, their per-target terms and
-    ``pace``; without it the pace is the one the held a0, a1 give.
+    (walker and table models) the start weights' time gauge is fitted to them first (the search then
+    runs at the subjects' pace; ``spec.start_weights`` of the result are those), and the fitted weights'
+    after the search (``pace.calibrate``: a1..a3 x c^4, the same D); the result holds the calibrated
+    weights, their per-target terms and ``pace`` (with ``c_start``); without it the pace is the one the
+    held a0, a1 give.
 
     ``interrupt_after``: stop (KeyboardInterrupt) after that many new evaluations (tests of resume).
     """
@@ -341,6 +343,25 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
         futures = [pool.submit(tasks_fn, task) for task in collect]
         return [f.result() for f in futures]
 
+    paced = measured_T is not None and spec.convention != "published" and spec.model in ("improved", "table")
+    c_start = None
+    if paced:  # the start weights' time gauge first (pace.py): the search runs at the subjects' pace, where the
+        # cold guesses' duration T0 is near the optimum (far from it, they miss the least-cost local minimum)
+        from dataclasses import replace
+
+        from cobot_analysis.models.ioc.pace import scale_time, time_gauge
+        from cobot_analysis.models.presets import weights_vector
+
+        w0 = spec.weights(spec.z0())
+        first = run(reference_chunk, [(spec, w0, [targets[i] for i in p]) for p in parts])
+        T = [np.nan] * len(targets)
+        for p, res in zip(parts, first):
+            for i, (d, _) in zip(p, res):
+                T[i] = d["T"] if d["success"] else np.nan
+        c_start = time_gauge(T, measured_T)
+        if np.isfinite(c_start):
+            w = scale_time(dict(zip(names_for(spec.model), map(float, spec.start_weights))), c_start)
+            spec = replace(spec, start_weights=tuple(map(float, weights_vector(w, spec.model))))
     # reference solutions at the starting weights: the warm start of every later evaluation
     w0 = spec.weights(spec.z0())
     ref = run(reference_chunk, [(spec, w0, [targets[i] for i in p]) for p in parts])
@@ -425,9 +446,8 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
         changed = sum(1 for a, b in zip(terms, new) if a["success"] and b["success"] and abs(a["T"] - b["T"]) > 1e-9)
         held, terms, objective = objective, new, float(np.mean([d["D"] for d in new]))
     weights, pace = dict(zip(names_for(spec.model), map(float, w_best))), None
-    if measured_T is not None and spec.convention != "published" and spec.model in ("improved", "table"):
+    if paced:
         from cobot_analysis.models.ioc.pace import calibrate
-        from cobot_analysis.models.presets import weights_vector
 
         def solve(w: dict) -> list[dict]:
             res = run(evaluate_chunk, [(spec, weights_vector(w, spec.model), [targets[i] for i in p], [guesses[i] for i in p])
@@ -440,7 +460,7 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
 
         cal = calibrate(solve, weights, terms, measured_T)
         weights, terms, objective = cal.weights, cal.terms, cal.D_after
-        pace = {k: v for k, v in asdict(cal).items() if k not in ("weights", "terms")}
+        pace = {k: v for k, v in asdict(cal).items() if k not in ("weights", "terms")} | {"c_start": c_start}
     return IOCResult(spec=spec, weights=weights, objective=objective,
                      start_objective=start_objective, evaluations=len(cache), iterations=iteration,
                      failed=sum(not d["success"] for d in terms), per_target=terms, message=str(res.message),
