@@ -458,6 +458,28 @@ def test_report_figures_of_the_published_data(datasets, tmp_path, cli):
         plt.close("all")
 
 
+def test_a_few_named_paths_get_their_own_colour_and_start(tmp_path):
+    """Three walks of three labs in one panel: each in its own colour, named by the legend, its start
+    marked (faint lines of one colour hid who walked where and which way); a crowd stays faint."""
+    t = np.linspace(0, 1, 50)
+    lines = [(x0 + sgn * 3.6 * t, y0 + 0.05 * np.sin(6 * t), "walker", who)
+             for x0, y0, sgn, who in ((-2.0, 0.3, 1, "BTK-A"), (-1.8, 0.6, 1, "BTK-B"), (2.2, 0.0, -1, "BTK-C"))]
+    fig = figures.paths([{"title": "walk", "lines": lines, "means": []}], ncols=1, share=True)
+    reviewable(fig)
+    ax = data_axes(fig)[0]
+    drawn = {line.get_label(): line for line in ax.lines}
+    assert {"BTK-A", "BTK-B", "BTK-C", "start of a path"} <= set(drawn)
+    assert len({drawn[n].get_color() for n in ("BTK-A", "BTK-B", "BTK-C")}) == 3
+    assert {"BTK-A", "BTK-B", "BTK-C"} <= set(legend_texts(fig))
+    starts = [line for line in ax.lines if line.get_label() == "start of a path"]
+    assert sorted(float(s.get_xdata()[0]) for s in starts) == [-2.0, -1.8, 2.2]
+    crowd = [(x, y, e, f"S{k:02d}") for k in range(4) for x, y, e, _ in lines]  # 12 paths: one faint collection
+    fig = figures.paths([{"title": "walk", "lines": crowd, "means": []}], ncols=1)
+    reviewable(fig)
+    ax = data_axes(fig)[0]
+    assert not ax.lines and len(ax.collections) == 1
+
+
 # ---- localisation --------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def loc_results(tmp_path_factory):

@@ -71,7 +71,7 @@ def predict(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
         result = assess(trajs, config, work.root, unpredictable=unpredictable, jobs=jobs, scheduler=scheduler)
         metrics, windows = result.predictions, result.windows
         if result.resumed:
-            info(f"predict: {result.resumed} trajectories resumed from {work.root}")
+            info(f"predict: {result.resumed} {'trajectory' if result.resumed == 1 else 'trajectories'} resumed from {work.root}")
         skipped = metrics.drop_duplicates(["study", "trial", "entity", "n0", "n_oc"])["n_skipped"].sum()
         if skipped:
             n_traj = metrics.loc[metrics["n_skipped"] > 0, ["study", "trial", "entity"]].drop_duplicates().shape[0]
