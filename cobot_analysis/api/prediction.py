@@ -92,7 +92,16 @@ def stratified(trajectories: list, k: int) -> list:
     """A stratified sample: ``k`` trajectories of each condition (study, entity, condition), in the order
     of ``trajectories``. The condition of rank r (in that order) with n trajectories gives its numbers
     (r + j n / k) mod n, j = 0..k-1 (rounded down): evenly spaced, from an offset that moves on with the
-    condition, so that subjects and repetitions take turns across conditions."""
+    condition, so that subjects and repetitions take turns across conditions.
+
+        >>> from cobot_analysis.api.prediction import prediction_config, stratified
+        >>> from cobot_analysis.models.prediction.sweep import trajectories_from_table
+        >>> from cobot_analysis.synth.tables import walking_table
+        >>> walks = trajectories_from_table(walking_table(n_subjects=2, n_conditions=3, n_trials=2, n=30),
+        ...                                 prediction_config(settings="10:20", predictors="cv"))
+        >>> [t.trial for t in stratified(walks, 1)]   # one of each condition, each from the next position
+        ['S00_E1500_0', 'S00_N1500_1', 'S01_S1500_0']
+    """
     groups: dict[tuple, list] = {}
     for t in trajectories:
         groups.setdefault((t.study, t.entity, t.meta.get("condition", "")), []).append(t)
