@@ -69,6 +69,7 @@ def predict(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
         info(f"predict ({conv.name} convention): {len(trajs)} trajectories x {n_set} setting{'s' * (n_set != 1)} x "
              f"{n_pred} predictor{'s' * (n_pred != 1)}")
         result = assess(trajs, config, work.root, unpredictable=unpredictable, jobs=jobs, scheduler=scheduler)
+        stage.result = result  # its own numbers are the stage's metrics.json
         metrics, windows = result.predictions, result.windows
         if result.resumed:
             info(f"predict: {result.resumed} {'trajectory' if result.resumed == 1 else 'trajectories'} resumed from {work.root}")
