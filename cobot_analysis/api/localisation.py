@@ -13,6 +13,8 @@ from typing import Any
 import pandas as pd
 
 from cobot_analysis.errors import InputError
+from cobot_analysis.metrics import localisation as headline
+from cobot_analysis.metrics.records import Metrics, collect
 
 
 def floats(text: str, n: int, option: str) -> tuple[float, ...]:
@@ -77,6 +79,25 @@ class LocalisationResult:
 
     def summary(self) -> str:
         return f"{len(self.per_run)} run(s)"
+
+    def metrics(self, *, stage: str = "localisation") -> Metrics:
+        """Headline numbers (``metrics.localisation.localisation``): per run, delay, offsets, per-axis errors,
+        APE, drift and goal accuracy."""
+        return collect(stage, headline.localisation, self.runs)
+
+    def figures(self) -> dict[str, Any]:
+        """Matplotlib figures by name, those the stage writes (``reports.localisation``): ``paths``, ``error_time``,
+        ``error_distribution``, ``delay_cost`` and one ``timeseries_<run>`` per run."""
+        import re
+
+        from cobot_analysis.reports import localisation as report
+
+        runs = self.per_run
+        figs = {"paths": report.figure_paths(runs), "error_time": report.figure_error_time(runs),
+                "error_distribution": report.figure_error_distribution(runs), "delay_cost": report.figure_delay(runs)}
+        for r in runs:
+            figs["timeseries_" + re.sub(r"[^A-Za-z0-9_-]+", "_", r["run"])] = report.figure_timeseries(r)
+        return figs
 
     def run_lines(self) -> list[str]:
         """One line per run: delay, RMSE, goals, warnings."""
@@ -213,10 +234,11 @@ def analyse(bags: list[Path], opts, labels: list[str], maps: list[str], *, jobs:
     results = map_tasks(analyse_run, tasks, jobs=n_jobs, scheduler=scheduler, description="localisation runs",
                         status=lambda r: f"{r['run']}: delay {r['row']['delay']:.3f} s")
     goal_frames = [r["goals"] for r in results if r["goals"] is not None]
+    # The runs' pose frames are views of their streams: once concatenated, neither is kept (-9 MiB on a 10-minute run).
+    poses = pd.concat([p for r in results for p in r.pop("poses")], ignore_index=True)
     return LocalisationResult(opts, labels, maps, pd.DataFrame([r["row"] for r in results]),
                               pd.concat([r["samples"] for r in results], ignore_index=True),
-                              pd.concat(goal_frames, ignore_index=True) if goal_frames else None,
-                              pd.concat([p for r in results for p in r["poses"]], ignore_index=True), results)
+                              pd.concat(goal_frames, ignore_index=True) if goal_frames else None, poses, results)
 
 
 def bag_topics(bag: str | os.PathLike) -> tuple[list[dict], list[dict]]:
