@@ -453,12 +453,14 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             intervals: int = 50, v_nominal: float = 1.0, compare: bool = True, convention: str | None = None,
             resume: bool = False, checkpoint: str | os.PathLike | None = None, jobs: int | None = None,
             scheduler: str | None = None, means_source: str | os.PathLike = "", trials_source: str | os.PathLike | None = None,
+            durations: pd.DataFrame | None = None,
             on_evaluation: Callable[[str, int, float, float], None] | None = None, method: str = "bilevel") -> FitResult:
     """Bi-level inverse optimal control (docs/methods.md sec. 6): fit the OC cost weights of ``model``
     (``improved``, ``table`` or ``coupled``) to the mean trajectories (``per="all"``) or to each subject's
     trials (``per="subject"``). ``means`` and ``trials``: means or trajectories tables (DataFrames, or the
     paths of the Parquet files the stages wrote; ``means_source`` / ``trials_source`` name a DataFrame's file
-    in messages). ``fit``: the weights to fit (default: all but those ``held_weights`` holds);
+    in messages). ``durations``: the pair study's trial durations (durations.parquet), for the time gauge of the
+    table fit (``models.ioc.pace``; walking fits take the trials' travel times or velocity rows). ``fit``: the weights to fit (default: all but those ``held_weights`` holds);
     ``start_weights``: a preset, a weights.json, or ``"ones"`` (every fitted weight 1). ``checkpoint``: a
     directory where the upper level's evaluations are logged after every iteration (``resume`` continues).
     ``on_evaluation(fit, n, D, best)`` reports progress. ``method``: ``bilevel`` (the published method) or

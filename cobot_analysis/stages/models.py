@@ -142,7 +142,7 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
                              max_evaluations=max_evaluations, per=per, subjects=subjects, goal=goal, intervals=intervals,
                              v_nominal=v_nominal, compare=compare, convention=conv.name, resume=resume,
                              checkpoint=Path(out) / f".{name}.checkpoint", jobs=jobs, scheduler=scheduler, means_source=mean_src,
-                             trials_source=traj_path or out, on_evaluation=on_evaluation, method=method)
+                             trials_source=traj_path or out, durations=durations, on_evaluation=on_evaluation, method=method)
         stage.result = result  # its own numbers are the stage's metrics.json
         stage.write_json("weights.json", result.weights_json())
         for k, r in result.results.items():  # each fit also as a file usable with --weights
