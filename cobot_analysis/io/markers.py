@@ -262,6 +262,25 @@ def import_or_refuse(task: TrialTask) -> ImportedTrial | Refused:
         return Refused.of(task.trial, task.path, exc)
 
 
+def trial_rows(t: ImportedTrial):
+    """One trial's rows of the markers table as Arrow (``schema.MARKERS``, ``long_table`` order): what a
+    worker hands back for the parent to write as the trial's row group."""
+    from cobot_analysis.schema import MARKERS, to_arrow
+
+    return to_arrow(long_table([t]), MARKERS)
+
+
+def import_rows_or_refuse(task: TrialTask) -> tuple[ImportedTrial, Any] | Refused:
+    """``import_or_refuse`` that also builds the trial's marker rows (``trial_rows``) in the worker; the
+    trial is returned without its samples (``xyz`` keeps its frames, no markers: ``n_frames`` stays)."""
+    t = import_or_refuse(task)
+    if isinstance(t, Refused):
+        return t
+    rows = trial_rows(t)
+    t.xyz = t.xyz[:, :0]
+    return t, rows
+
+
 def refusal_error(refused: list[Refused], n_trials: int, where: str | os.PathLike, stage: str) -> InputError:
     """One ``InputError`` naming every refused trial of a stage (``refusals.error``)."""
     return refusals.error(refused, n_trials, stage)
@@ -405,6 +424,12 @@ def plan_import(protocol_path: str | os.PathLike, *, units: str = "auto", marker
 
 def imported_tables(plan: ImportPlan, imported: list[ImportedTrial], refused: list[Refused]) -> tuple[pd.DataFrame, pd.DataFrame, dict[str, Any]]:
     """(markers long table, trials table, the markers file's metadata) of the trials imported."""
+    trials, meta = imported_summary(plan, imported, refused)
+    return long_table(imported), trials, meta
+
+
+def imported_summary(plan: ImportPlan, imported: list[ImportedTrial], refused: list[Refused]) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """(trials table, the markers file's metadata) of the trials imported (their samples not needed)."""
     protocol = plan.protocol
     kept = protocol.trials[protocol.trials["trial"].astype(str).isin({t.trial for t in imported})]
     trials = trials_table(Protocol(protocol.path, protocol.study, kept, rate=protocol.rate), imported)
@@ -415,7 +440,61 @@ def imported_tables(plan: ImportPlan, imported: list[ImportedTrial], refused: li
             "source_format": {t.trial: t.source_format for t in imported},
             "pelvis_markers": {t.trial: {e: list(m) for e, m in t.pelvis.items()} for t in imported},
             "skipped": {r.trial: r.reason for r in refused}, **plan.limits}
-    return long_table(imported), trials, meta
+    return trials, meta
+
+
+@dataclass
+class Streamed:
+    """What ``stream_import`` wrote: the trials imported (samples dropped), the refused ones, and the
+    counts of marker samples written and occluded."""
+
+    imported: list[ImportedTrial]
+    refused: list[Refused]
+    n_samples: int = 0
+    n_occluded: int = 0
+
+
+def stream_import(plan: ImportPlan, markers_path: Path, *, jobs: int | None = None, scheduler: str | None = None) -> Streamed:
+    """Import every trial of ``plan`` and write its markers to ``markers_path`` as they come: each worker
+    reads, checks and builds its trial's rows (``import_rows_or_refuse``), the parent appends them as one
+    Parquet row group per trial, in protocol order, and keeps only the per-trial summaries, so memory
+    does not grow with the number of trials. The file's metadata (rates, units, pelvis markers,
+    refusals: ``imported_summary``) is added when every trial is done; the caller refuses the run
+    (and discards the file) when trials were refused without ``skip_bad``."""
+    import base64
+    import json
+
+    import pyarrow.parquet as pq
+
+    from cobot_analysis.parallel import imap_tasks
+    from cobot_analysis.schema import METADATA_KEY, MARKERS
+
+    out = Streamed([], [])
+    writer = None
+    try:
+        for r in imap_tasks(import_rows_or_refuse, plan.tasks, jobs=jobs, scheduler=scheduler, description="import"):
+            if isinstance(r, Refused):
+                out.refused.append(r)
+                continue
+            trial, rows = r
+            if writer is None:  # the table's metadata (METADATA_KEY) is added at the end, when it is known
+                schema = rows.schema.with_metadata({k: v for k, v in rows.schema.metadata.items() if k != METADATA_KEY})
+                writer = pq.ParquetWriter(markers_path, schema, compression="zstd",
+                                          use_dictionary=["trial", "entity", "marker", "frame", "occluded"])
+            writer.write_table(rows, row_group_size=max(len(rows), 1))
+            out.imported.append(trial)
+            out.n_samples += len(rows)
+            out.n_occluded += sum(c.true_count for c in rows.column("occluded").chunks)
+        if writer is not None:
+            _, meta = imported_summary(plan, out.imported, out.refused)
+            text = json.dumps({**MARKERS.metadata(), **meta}, default=str).encode()
+            # in the footer's key-value metadata and in the Arrow schema stored there (what pyarrow reads)
+            final = writer.schema.with_metadata({**writer.schema.metadata, METADATA_KEY: text})
+            writer.add_key_value_metadata({METADATA_KEY: text, b"ARROW:schema": base64.b64encode(final.serialize().to_pybytes())})
+    finally:
+        if writer is not None:
+            writer.close()
+    return out
 
 
 def _protocol_csv(protocol_path: Path, key: str) -> Path | None:

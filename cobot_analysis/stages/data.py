@@ -57,20 +57,19 @@ def import_markers(out: str | os.PathLike, protocol: str | os.PathLike, *, jobs:
     (options: those of ``api.import_markers``)."""
     from cobot_analysis.io.markers import plan_import
     from cobot_analysis.reports.data import import_summary
-    from cobot_analysis.schema import MARKERS, TRIALS
+    from cobot_analysis.schema import TRIALS
 
     keep_all = options.pop("keep_all_markers", False)
     plan = plan_import(protocol, keep_all=keep_all, **options)
     with Stage(out, "import", inputs=plan.inputs, params=plan.params, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
-        result = api.import_markers(plan, jobs=jobs, scheduler=scheduler)
+        result = api.import_markers(plan, jobs=jobs, scheduler=scheduler, markers_path=stage.path("markers.parquet"))
         for note in result.notes:
             warn(note)
         refusals.record(stage, result.refused, len(plan.tasks), "import")
         stage.path("results.md").write_text(import_summary(plan.protocol, result.imported, result.refused, plan.limits,
                                                            plan.params["outside_files"]))
-        stage.write_table("markers.parquet", result.markers, MARKERS, **result.meta)
         stage.write_table("trials.parquet", result.trials, TRIALS, study=plan.protocol.study)
     return Outcome(stage.final_dir, result)
 
