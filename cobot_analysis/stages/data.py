@@ -118,13 +118,13 @@ def preprocess(out: str | os.PathLike, *, markers: str | os.PathLike | None = No
                jobs: int | None = None, scheduler: str | None = None, force: bool = False, **options: Any) -> Outcome:
     """``preprocess``: ``import/markers.parquet`` -> ``preprocess/trajectories.parquet``, ``gaps.parquet`` and
     ``results.md`` (options: the fields of ``preprocess.stage.Params``)."""
-    from cobot_analysis.preprocess import gaps
+    markers_path = Path(markers) if markers is not None else find_input(out, "markers.parquet", ["import"], "--markers")
+    trials_path = Path(trials) if trials is not None else markers_path.with_name("trials.parquet")
+    from cobot_analysis.preprocess import gaps  # after the cheap checks: these import pandas
     from cobot_analysis.preprocess.stage import Params
     from cobot_analysis.reports.data import preprocess_summary
     from cobot_analysis.schema import TRAJECTORIES
 
-    markers_path = Path(markers) if markers is not None else find_input(out, "markers.parquet", ["import"], "--markers")
-    trials_path = Path(trials) if trials is not None else markers_path.with_name("trials.parquet")
     p = Params(**options)
     with Stage(out, "preprocess", inputs=[markers_path, trials_path], params=asdict(p), force=force) as stage:
         if stage.skipped:
