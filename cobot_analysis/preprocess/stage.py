@@ -317,7 +317,8 @@ def _read_marker_rows(path: Path, row_groups: tuple[int, ...] | None = None, pf=
 
     cols = ["trial", "frame", "entity", "marker", "x", "y", "z", "occluded"]
     pf = pf or pq.ParquetFile(path, read_dictionary=["trial", "entity", "marker"])
-    missing = [c for c in cols if c not in pf.schema_arrow.names]
+    names = set(pf.schema_arrow.names)  # (schema_arrow is rebuilt at each access)
+    missing = [c for c in cols if c not in names]
     if missing:
         raise InputError(f"markers table lacks columns {missing}", path=path, remedy="re-run `cobot-analysis import`")
     trial_ids: dict[str, int] = {}
