@@ -163,10 +163,11 @@ def map_tasks(fn: Callable[..., R], items: Sequence[Any], *, jobs: int | None = 
 def imap_tasks(fn: Callable[..., R], items: Sequence[Any], *, jobs: int | None = None, scheduler: str | None = None,
                description: str = "tasks", window: int | None = None) -> Iterator[R]:
     """``fn(item)`` for each item, yielded in order as they finish, with a progress bar: at most ``window``
-    tasks (default 4 per worker) are submitted ahead of the one awaited, so the results a caller
-    consumes one by one (e.g. writes and drops) are never all held at once. An exception in a task is
-    re-raised here; the executor then stops the other tasks."""
-    ahead = window or 4 * max(jobs or default_jobs(), 1)
+    tasks (default 16 per worker, so that one slow task does not leave the other workers idle) are
+    submitted ahead of the one awaited, so the results a caller consumes one by one (e.g. writes and
+    drops) are never all held at once. An exception in a task is re-raised here; the executor then
+    stops the other tasks."""
+    ahead = window or 16 * max(jobs or default_jobs(), 1)
     with executor(jobs, scheduler) as ex, progress() as bar:
         task = bar.add_task(description, total=len(items), status="")
         pending: list[Future] = []

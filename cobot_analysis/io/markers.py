@@ -24,9 +24,10 @@ a sampling rate outside 1 Hz-10 kHz, an invalid declared rate (0, negative, NaN:
 infinite, outside the lab, jumps, single-sample spikes), and an implausible length scale. Scale check: the median inter-ASIS distance |LASI - RASI| of adults is
 0.15-0.40 m (for a table-only recording, |TAB1 - TAB2| is 0.5-2.5 m); a value 1000 times too
 large or too small means mm and m were confused. Pelvis heights are not used: labs differ in
-their vertical axis and floor origin, distances do not. Every trial is checked before anything
-is written, and all refused trials are named in one error (or skipped and listed with
-``--skip-bad``).
+their vertical axis and floor origin, distances do not. Every trial is checked before the stage
+keeps anything (the markers are written trial by trial into the stage's temporary directory,
+``stream_import``, which a refused run discards), and all refused trials are named in one error (or
+skipped and listed with ``--skip-bad``).
 """
 
 from __future__ import annotations
