@@ -605,7 +605,9 @@ def process(markers_path: Path, trials_path: Path, p: Params, *, jobs: int | Non
     from cobot_analysis.parallel import chunked, default_jobs, map_tasks
 
     check_memory(p, trials_path)
-    recordings = load_recordings(markers_path, trials_path, lazy=True)
+    # local workers read their trials' row groups themselves; a Dask cluster's workers get the arrays
+    # (they may not see this file system)
+    recordings = load_recordings(markers_path, trials_path, lazy=scheduler is None)
     import scipy.interpolate  # noqa: F401 - imported once here, inherited by forked workers
 
     for r in recordings:  # bad parameters are reported before any long work
