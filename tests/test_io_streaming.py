@@ -75,3 +75,17 @@ def test_a_trial_listed_nowhere_in_the_row_groups_is_refused(imported, tmp_path)
     write_table(trials.iloc[1:], tmp_path / "trials.parquet", TRIALS, study="s")
     with pytest.raises(InputError, match=f"marker rows of trials \\['{trials['trial'][0]}'\\]"):
         load_recordings(Path(tmp / "streamed.parquet"), tmp_path / "trials.parquet", lazy=True)
+
+
+def test_a_refused_streamed_import_leaves_no_file(tmp_path):
+    from cobot_analysis.errors import InputError
+
+    protocol = walking.generate(tmp_path / "study", n_subjects=2, n_trials=1, conditions=["E4015"])
+    bad = sorted((protocol.parent / "raw").glob("*.c3d"))[0]
+    bad.write_bytes(bad.read_bytes()[:600])  # truncated: refused
+    with pytest.raises(InputError, match="1 of 2 trials refused|refused"):
+        api.import_markers(protocol, jobs=1, skip_bad=False, markers_path=tmp_path / "m.parquet")
+    assert not (tmp_path / "m.parquet").exists()
+    kept = api.import_markers(protocol, jobs=1, markers_path=tmp_path / "m.parquet")  # skip_bad: the good trial kept
+    assert [t.trial for t in kept.imported] == ["S02_E4015_1"] and len(kept.refused) == 1
+    assert table_metadata(tmp_path / "m.parquet")["skipped"].keys() == {"S01_E4015_1"}

@@ -89,6 +89,7 @@ def import_markers(protocol: str | os.PathLike | ImportPlan, *, units: str = "au
     if markers_path is not None:
         streamed = stream_import(plan, Path(markers_path), jobs=jobs, scheduler=scheduler)
         if streamed.refused and (not plan.params["skip_bad"] or not streamed.imported):
+            Path(markers_path).unlink(missing_ok=True)  # a refused import leaves no file
             raise refusal_error(streamed.refused, len(plan.tasks), plan.protocol.path, "import")
         trials, meta = imported_summary(plan, streamed.imported, streamed.refused)
         return ImportResult(plan, None, trials, meta, streamed.refused, streamed.imported, Path(markers_path),

@@ -495,6 +495,7 @@ def stream_import(plan: ImportPlan, markers_path: Path, *, jobs: int | None = No
 
     out = Streamed([], [])
     writer = None
+    done = False
     try:
         for r in imap_tasks(import_rows_or_refuse, plan.tasks, jobs=jobs, scheduler=scheduler, description="import"):
             if isinstance(r, Refused):
@@ -518,9 +519,12 @@ def stream_import(plan: ImportPlan, markers_path: Path, *, jobs: int | None = No
             # in the footer's key-value metadata and in the Arrow schema stored there (what pyarrow reads)
             final = writer.schema.with_metadata({**writer.schema.metadata, METADATA_KEY: text})
             writer.add_key_value_metadata({METADATA_KEY: text, b"ARROW:schema": base64.b64encode(final.serialize().to_pybytes())})
+        done = True
     finally:
         if writer is not None:
             writer.close()
+        if not done:  # an error or an interrupt: no partial file
+            Path(markers_path).unlink(missing_ok=True)
     return out
 
 
