@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 from cobot_analysis.models.outputs import GENERATED
@@ -115,8 +116,10 @@ def test_model_and_prediction_results(walking):
         pred = predict.predict(out, kind="trial", settings="50:100", every=4, convention=conv, jobs=1)
         check(pred)
         assert set(pred.result.figures()) and all(f.axes for f in pred.result.figures().values())
-    trial = gen.result.generated["trial"].iloc[0]
-    cmd = models.velocity_commands(out, generated=out / "generate-published" / "generated.parquet", trial=trial)
+    # velocity commands of a continuous path (a published path's time law is refused: tests/test_models_goal.py)
+    continuous = out / "generate" / "generated.parquet"
+    trial = pd.read_parquet(continuous)["trial"].iloc[0]
+    cmd = models.velocity_commands(out, generated=continuous, trial=trial)
     check(cmd)
 
 

@@ -413,19 +413,24 @@ def _indexed_streams(path: Path, specs: dict[str, PoseSpec], time: str, optional
     if bag is None:
         return None
     specs = {k: v for k, v in specs.items() if k not in optional or v.topic in bag.topics}
+    topics = sorted({spec.topic for spec in specs.values()})
+    if not all(bag.topics.get(topic) in POSE_TYPES for topic in topics):
+        return None
+    messages = bag.read(topics)
+    if messages is None:
+        return None
     read = {}
     for name, spec in specs.items():
-        msgtype = bag.topics.get(spec.topic)
-        msgs = bag.read(spec.topic) if msgtype in POSE_TYPES else None
-        got = _layout_rows(msgs.data, msgtype, bag.ros1) if msgs is not None and len(msgs.record_ns) else None
+        msgtype, msgs = bag.topics[spec.topic], messages[spec.topic]
+        got = _layout_rows(msgs.data, msgtype, bag.ros1)
         if got is None:
             return None
         rows, frame_id = got
         record = msgs.record_ns * 1e-9
-        msgs = None  # the serialised messages are no longer needed
         if time == "record":
             rows[:, 0] = record
         read[name] = (rows, frame_id, record)
+    messages = msgs = None  # the serialised messages are no longer needed
     return {name: _stream(path, str(spec), read[name][0], _frame(read[name][1]), continuous=name not in sparse,
                           record=read[name][2]) for name, spec in specs.items()}
 
@@ -626,20 +631,21 @@ def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continu
         rows, order = rows[~dup], order[~dup]
         t = rows[:, 0]
     xyz, quat = rows[:, 1:4], normalise(rows[:, 4:8])
+    if len(rows) > 1:  # speed and turn rate between consecutive poses
+        dt = np.diff(t)
+        speed = np.linalg.norm(np.diff(xyz, axis=0), axis=1) / dt
+        turn = _turn(quat[1:], quat[:-1]) / dt
     if continuous and len(rows) > 2:
         lone = np.zeros(len(rows), bool)
         lone[0] = t[1] - t[0] > max(STAMP_STEP, t[-1] - t[1])
         lone[-1] = t[-1] - t[-2] > max(STAMP_STEP, t[-2] - t[0])
         refuse("a stamp far from all others (further from them than they span)", lone)
-        dt, dt2 = np.diff(t), t[2:] - t[:-2]
+        dt2 = t[2:] - t[:-2]
         refuse(f"a position spike (to and from its neighbours faster than {MAX_SPEED:g} m/s)",
-               _isolated(np.linalg.norm(np.diff(xyz, axis=0), axis=1) / dt > MAX_SPEED,
-                         np.linalg.norm(xyz[2:] - xyz[:-2], axis=1) / dt2 > MAX_SPEED))
+               _isolated(speed > MAX_SPEED, np.linalg.norm(xyz[2:] - xyz[:-2], axis=1) / dt2 > MAX_SPEED))
         refuse(f"an orientation spike (to and from its neighbours faster than {MAX_TURN:g} rad/s)",
-               _isolated(_turn(quat[1:], quat[:-1]) / dt > MAX_TURN, _turn(quat[2:], quat[:-2]) / dt2 > MAX_TURN))
+               _isolated(turn > MAX_TURN, _turn(quat[2:], quat[:-2]) / dt2 > MAX_TURN))
     if len(rows) > 1:
-        speed = np.linalg.norm(np.diff(xyz, axis=0), axis=1) / np.diff(t)
-        turn = _turn(quat[1:], quat[:-1]) / np.diff(t)
         fast = (speed > MAX_SPEED) | (turn > MAX_TURN)
         if fast.any():
             note(f"{int(fast.sum())} jump(s) between consecutive poses faster than {MAX_SPEED:g} m/s or {MAX_TURN:g} rad/s "

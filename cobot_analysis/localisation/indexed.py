@@ -17,13 +17,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 
 ROS1_MAGIC = b"#ROSBAG V2.0\n"
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 _U32 = struct.Struct("<I").unpack_from
 _U64 = struct.Struct("<Q").unpack_from
 _U16 = struct.Struct("<H").unpack_from
-_BLOCK = 4096  # rows gathered at a time (bounds the index arrays numpy builds)
 
 
 class Unexpected(Exception):
@@ -48,42 +48,54 @@ class IndexedBag:
     _conns: dict[str, list[int]] = field(default_factory=dict)  # topic -> connection / channel ids
     _chunks: list = field(default_factory=list)  # per chunk: (data reader, {id: (times_ns, offsets)})
 
-    def read(self, topic: str) -> Messages | None:
-        """The messages of ``topic`` in record order (file order for ROS1, log-time order for MCAP),
-        or None when they do not share one size and record layout."""
+    def read(self, topics: list[str]) -> dict[str, Messages] | None:
+        """The messages of each topic in record order (file order for ROS1, log-time order for MCAP),
+        or None when a topic has none or its messages do not share one size and record layout. One
+        pass over the chunks: each chunk holding a wanted message is read and decompressed once."""
         try:
-            return self._read(topic)
+            return self._read(topics)
         except Exception:  # noqa: BLE001 - anything unexpected: the general reader reads and reports
             return None
 
-    def _read(self, topic: str) -> Messages | None:
-        ids = self._conns[topic]
-        chunks = [(chunk, [index[i] for i in ids if i in index]) for chunk, index in self._chunks]
-        chunks = [(chunk, entries) for chunk, entries in chunks if entries]
-        total = sum(len(e[0]) for _, entries in chunks for e in entries)
-        if total == 0:
+    def _read(self, topics: list[str]) -> dict[str, Messages] | None:
+        ids = {topic: self._conns[topic] for topic in topics}
+        chunks = [(chunk, {topic: [index[i] for i in ids[topic] if i in index] for topic in topics})
+                  for chunk, index in self._chunks]
+        chunks = [(chunk, {topic: e for topic, e in wanted.items() if e}) for chunk, wanted in chunks]
+        chunks = [(chunk, wanted) for chunk, wanted in chunks if wanted]
+        total = {topic: sum(len(e[0]) for _, wanted in chunks for e in wanted.get(topic, ())) for topic in topics}
+        if min(total.values(), default=0) == 0:
             return None
-        t, data, k = np.empty(total, np.int64), None, 0
-        for chunk, entries in chunks:
-            ct = np.concatenate([e[0] for e in entries])
-            off = np.concatenate([e[1] for e in entries])
-            order = np.argsort(off, kind="stable")
-            ct, off = ct[order], off[order]
+        t = {topic: np.empty(n, np.int64) for topic, n in total.items()}
+        data: dict[str, np.ndarray] = {}
+        k = dict.fromkeys(topics, 0)
+        for chunk, wanted in chunks:
             arr = np.frombuffer(chunk(), dtype=np.uint8)
-            start, size = self._starts(arr, off, ids)
-            if data is None:
-                data = np.empty((total, size), np.uint8)
-            if size != data.shape[1] or int(start.max()) + size > len(arr):
-                return None
-            if self.container == "mcap" and np.any(_u64s(arr, off + 15).astype(np.int64) != ct):
-                return None  # the general reader takes the log time from the message record itself
-            t[k:k + len(ct)] = ct
-            data[k:k + len(ct)] = _gather(arr, start, size)
-            k += len(ct)
-        if self.container == "mcap":  # the general reader merges MCAP chunks by log time
-            order = np.argsort(t, kind="stable")
-            t, data = t[order], data[order]
-        return Messages(t.astype(np.int64), data)
+            for topic, entries in wanted.items():
+                ct = np.concatenate([e[0] for e in entries])
+                off = np.concatenate([e[1] for e in entries])
+                order = np.argsort(off, kind="stable")
+                ct, off = ct[order], off[order]
+                start, size = self._starts(arr, off, ids[topic])
+                out = data.get(topic)
+                if out is None:
+                    out = data[topic] = np.empty((total[topic], size), np.uint8)
+                if size != out.shape[1] or int(start.max()) + size > len(arr):
+                    return None
+                if self.container == "mcap" and np.any(_u64s(arr, off + 15).astype(np.int64) != ct):
+                    return None  # the general reader takes the log time from the message record itself
+                j = k[topic]
+                t[topic][j:j + len(ct)] = ct
+                out[j:j + len(ct)] = _gather(arr, start, size)
+                k[topic] = j + len(ct)
+        msgs = {}
+        for topic in topics:
+            tt, dd = t[topic], data[topic]
+            if self.container == "mcap":  # the general reader merges MCAP chunks by log time
+                order = np.argsort(tt, kind="stable")
+                tt, dd = tt[order], dd[order]
+            msgs[topic] = Messages(tt, dd)
+        return msgs
 
     def _starts(self, arr: np.ndarray, off: np.ndarray, ids: list[int]) -> tuple[np.ndarray, int]:
         """Start of each message's data and the one data size (``Unexpected`` if they differ)."""
@@ -127,13 +139,11 @@ def _u64s(arr: np.ndarray, at: np.ndarray) -> np.ndarray:
 
 
 def _gather(arr: np.ndarray, start: np.ndarray, width: int) -> np.ndarray:
-    """Rows ``arr[start[i]:start[i] + width]`` as an ``(n, width)`` array."""
-    out = np.empty((len(start), width), np.uint8)
-    cols = np.arange(width)
-    for k in range(0, len(start), _BLOCK):
-        s = start[k:k + _BLOCK]
-        out[k:k + len(s)] = arr[s[:, None] + cols]
-    return out
+    """Rows ``arr[start[i]:start[i] + width]`` as an ``(n, width)`` array (rows of a sliding-window view:
+    one copy per row instead of one index per byte; ``IndexError`` past the end, as plain indexing)."""
+    if width == 0:
+        return np.empty((len(start), 0), np.uint8)
+    return sliding_window_view(arr, width)[start]
 
 
 def _fields(header: bytes) -> dict[str, bytes]:
