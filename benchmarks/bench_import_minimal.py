@@ -9,7 +9,11 @@ low-pass at 10 Hz run forward-backward (``scipy.signal`` ``butter`` + ``filtfilt
 no kinematics beyond the centre: the floor the pipeline's two stages are compared with. Ours:
 ``cobot-analysis import PROTOCOL --jobs N`` then ``preprocess --jobs N``, fresh processes, into an
 empty workspace. The two alternate in pairs (the order alternating too); printed: the median of
-the per-pair ratios of the wall times ours / minimal, and each side's median wall time.
+the per-pair ratios of the wall times ours / minimal (and of the CPU times, user + system of all
+processes, which a shared machine distorts less), each side's median wall time, and the peak memory
+of our two commands (sum of the RSS of the process and its workers, sampled every 50 ms).
+``--scaling`` adds ``import`` + ``preprocess --jobs 1`` to each round and prints the median speed-up
+of ``--jobs N`` over ``--jobs 1`` (issue 22: at least 1.7x with 2 jobs).
 """
 
 from __future__ import annotations
@@ -62,10 +66,28 @@ if __name__ == "__main__":
 '''
 
 
-def wall(cmd: list[str]) -> float:
+def run(cmd: list[str]) -> tuple[float, float, float]:
+    """Wall time (s), CPU time of the process and its children (s), peak memory of the process tree (MiB)."""
+    import resource
+
+    import psutil
+
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
-    return time.perf_counter() - t0
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL)
+    peak = 0
+    tree = psutil.Process(proc.pid)
+    while proc.poll() is None:
+        try:
+            peak = max(peak, sum(p.memory_info().rss for p in [tree, *tree.children(recursive=True)]))
+        except psutil.Error:
+            pass
+        time.sleep(0.05)
+    wall = time.perf_counter() - t0
+    if proc.returncode:
+        raise SystemExit(f"{' '.join(cmd)}: exit {proc.returncode}")
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime, peak / 2**20
 
 
 def main() -> None:
@@ -74,6 +96,7 @@ def main() -> None:
     ap.add_argument("--pairs", type=int, default=3)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--study", type=Path, help="existing study directory (protocol.yaml, raw/*.c3d)")
+    ap.add_argument("--scaling", action="store_true", help="also time ours with --jobs 1 (speed-up of --jobs N)")
     args = ap.parse_args()
     tmp = Path(tempfile.mkdtemp(prefix="bench-import-minimal-"))
     load0 = os.getloadavg()
@@ -93,26 +116,36 @@ def main() -> None:
         script.write_text(MINIMAL)
         cli = [sys.executable, "-m", "cobot_analysis", "-q"]
 
-        def ours() -> float:
+        def ours(jobs: int) -> tuple[float, float, float]:
             ws = tmp / "ws"
             shutil.rmtree(ws, ignore_errors=True)
-            return (wall([*cli, "import", str(protocol), "--out", str(ws), "--jobs", str(args.jobs)])
-                    + wall([*cli, "preprocess", "--out", str(ws), "--jobs", str(args.jobs)]))
+            a = run([*cli, "import", str(protocol), "--out", str(ws), "--jobs", str(jobs)])
+            b = run([*cli, "preprocess", "--out", str(ws), "--jobs", str(jobs)])
+            return a[0] + b[0], a[1] + b[1], max(a[2], b[2])
 
-        def minimal() -> float:
-            return wall([sys.executable, str(script), str(raw), str(tmp / "minimal.parquet"), str(args.jobs)])
+        def minimal() -> tuple[float, float, float]:
+            return run([sys.executable, str(script), str(raw), str(tmp / "minimal.parquet"), str(args.jobs)])
 
-        pairs = []
+        pairs, scaling = [], []
         for k in range(args.pairs):
-            o, m = (ours(), minimal()) if k % 2 == 0 else (minimal(), ours())[::-1]
+            o, m = (ours(args.jobs), minimal()) if k % 2 == 0 else (minimal(), ours(args.jobs))[::-1]
             pairs.append((o, m))
-            print(f"pair {k + 1}: ours {o:.1f} s, minimal {m:.1f} s, ratio {o / m:.2f}", file=sys.stderr)
+            print(f"pair {k + 1}: ours {o[0]:.1f} s (CPU {o[1]:.1f} s, {o[2]:.0f} MiB), minimal {m[0]:.1f} s (CPU {m[1]:.1f} s), "
+                  f"ratio {o[0] / m[0]:.2f} (CPU {o[1] / m[1]:.2f})", file=sys.stderr)
+            if args.scaling:
+                one = ours(1)
+                scaling.append(one[0] / o[0])
+                print(f"  ours --jobs 1: {one[0]:.1f} s (CPU {one[1]:.1f} s): speed-up of --jobs {args.jobs} {one[0] / o[0]:.2f}",
+                      file=sys.stderr)
         load1 = os.getloadavg()
-        ratio = statistics.median(o / m for o, m in pairs)
+        ratio = statistics.median(o[0] / m[0] for o, m in pairs)
+        cpu = statistics.median(o[1] / m[1] for o, m in pairs)
         print(f"{started:%Y-%m-%d %H:%M} UTC, {os.cpu_count()} cores, load average {load0[0]:.1f} before, {load1[0]:.1f} after; "
               f"{n_files} C3D files, --jobs {args.jobs}, {args.pairs} alternating pairs: import + preprocess "
-              f"{statistics.median(o for o, _ in pairs):.1f} s, minimal script {statistics.median(m for _, m in pairs):.1f} s, "
-              f"ratio (median of pairs) **{ratio:.2f}** (target <= 1.3)")
+              f"{statistics.median(o[0] for o, _ in pairs):.1f} s, minimal script {statistics.median(m[0] for _, m in pairs):.1f} s, "
+              f"ratio (median of pairs) **{ratio:.2f}** (target <= 1.3; CPU time ratio {cpu:.2f}); peak memory of ours "
+              f"{max(o[2] for o, _ in pairs):.0f} MiB"
+              + (f"; --jobs {args.jobs} over --jobs 1: **{statistics.median(scaling):.2f}x** (target >= 1.7)" if scaling else ""))
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 

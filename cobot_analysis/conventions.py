@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from cobot_analysis.errors import InputError
 
 NAMES = ("published", "continuous")
+WIDE_T_BOUNDS = (0.1, 10.0)  # the continuous walker rules' free-duration bounds (x T0)
 
 
 @dataclass(frozen=True)
@@ -35,6 +36,7 @@ class OCRule:
     heading: str = "raw"  # heading error of the terminal cost: "raw" (thf - theta) | "wrap-once" (+-2 pi once)
     psi_eps: float = 0.05  # m, psi^2 r^2 / (r^2 + eps^2) near the goal
     goal: str = "cost"  # "cost": goal and rest weighted by the terminal cost (b0..b3) | "constraint": X(T) = (goal, at rest)
+    T_bounds: tuple[float, float] = (0.4, 2.5)  # "free": T within these multiples of T0 = d / v_nominal + 1 s
 
 
 @dataclass(frozen=True)
@@ -101,9 +103,11 @@ CONTINUOUS = Convention(
              "regularised at the goal, time-normalised pointwise distances, prediction at the real sampling period "
              "from an estimated velocity, sample sd"),
     oc={
-        "unicycle": OCRule("midpoint", "free", goal="constraint"),
-        "improved": OCRule("midpoint", "free", goal="constraint"),
-        "table": OCRule("midpoint", "free", goal="constraint"),
+        # the goal a constraint, T -> 0 and T -> inf both cost without bound: the duration's bounds are a guard
+        # only, wide enough for the pace of any weights (the table-2022 weights: 6-8 T0), docs/methods.md sec. 5.5
+        "unicycle": OCRule("midpoint", "free", goal="constraint", T_bounds=WIDE_T_BOUNDS),
+        "improved": OCRule("midpoint", "free", goal="constraint", T_bounds=WIDE_T_BOUNDS),
+        "table": OCRule("midpoint", "free", goal="constraint", T_bounds=WIDE_T_BOUNDS),
         "mombaur": OCRule("midpoint", "grid", goal="constraint"),
         "coupled": OCRule("midpoint", "free", goal="constraint"),
     },

@@ -160,6 +160,31 @@ def map_tasks(fn: Callable[..., R], items: Sequence[Any], *, jobs: int | None = 
     return results
 
 
+def imap_tasks(fn: Callable[..., R], items: Sequence[Any], *, jobs: int | None = None, scheduler: str | None = None,
+               description: str = "tasks", window: int | None = None) -> Iterator[R]:
+    """``fn(item)`` for each item, yielded in order as they finish, with a progress bar: at most ``window``
+    tasks (default 16 per worker, so that one slow task does not leave the other workers idle) are
+    submitted ahead of the one awaited, so the results a caller consumes one by one (e.g. writes and
+    drops) are never all held at once. An exception in a task is re-raised here; the executor then
+    stops the other tasks."""
+    ahead = window or 16 * max(jobs or default_jobs(), 1)
+    with executor(jobs, scheduler) as ex, progress() as bar:
+        task = bar.add_task(description, total=len(items), status="")
+        pending: list[Future] = []
+        it = iter(items)
+        for item in it:
+            pending.append(ex.submit(fn, item))
+            if len(pending) > ahead:
+                break
+        while pending:
+            result = pending.pop(0).result()
+            for item in it:
+                pending.append(ex.submit(fn, item))
+                break
+            bar.update(task, advance=1, status="")
+            yield result
+
+
 def chunked(items: Sequence[T], size: int) -> Iterable[Sequence[T]]:
     """Consecutive slices of ``size`` items (to amortise per-task overhead on many small tasks)."""
     for start in range(0, len(items), size):

@@ -4,6 +4,10 @@ metrics with the committed baseline (``cobot-analysis metrics check``), or rewri
     python tests/regression.py                 # every study; exit 1 if a metric moved, 2 on bad input
     python tests/regression.py walking-2020    # one study
     python tests/regression.py --update        # rewrite the baselines, printing every change
+    python tests/regression.py --verbose       # also every step and every metric's row ("ok" included)
+
+By default a check prints only what failed (the failing step, or the rows of the metrics that are not
+ok) and, at the end, one line per study with its counts.
 
 The published studies need ``../shared/datasets`` (or ``$COBOT_DATASETS``) and are skipped, saying
 so, without it. Steps run in-process, exactly as typed on the command line (``cobot_analysis.cli.run``).
@@ -14,6 +18,8 @@ analysis workspace's tables: their metrics carry the convention, and a baseline 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import os
 import shutil
 import sys
@@ -114,25 +120,42 @@ STUDIES: dict[str, Study] = {
 
 
 
-def run_study(name: str, study: Study, root: Path, datasets: Path | None, jobs: int, update: bool, baselines: Path) -> int:
-    """Run one study's steps, then check (or update) its baseline; the exit code of the first failure."""
+def run_study(name: str, study: Study, root: Path, datasets: Path | None, jobs: int, update: bool, baselines: Path,
+              verbose: bool = False) -> tuple[int, str]:
+    """Run one study's steps, then check (or update) its baseline: the exit code of the first failure and
+    the summary line of the check ("passed: 1783 metrics: ..."). Quiet unless ``verbose`` or failing:
+    the steps are printed with ``verbose`` only (a failing one always), the check's table lists every
+    metric with ``verbose``, else only those not ok (nothing at all when every metric passes)."""
     from cobot_analysis.cli import run
 
     workspaces, steps = study.plan(root, datasets, ["--jobs", str(jobs)])
     for argv in steps:
-        print(f"$ cobot-analysis {' '.join(argv)}", flush=True)
+        if verbose:
+            print(f"$ cobot-analysis {' '.join(argv)}", flush=True)
         code = run(["-q", *argv])
         if code != 0:
             print(f"{name}: step failed with exit code {code}: cobot-analysis {' '.join(argv)}", flush=True)
-            return code
-    action = "update" if update else "check"
-    return run(["metrics", action, str(baselines / study.baseline), *map(str, workspaces)])
+            return code, ""
+    check = ["metrics", "update" if update else "check", str(baselines / study.baseline), *map(str, workspaces)]
+    if update or verbose:
+        code = run(check)
+        return code, ""
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        code = run([*check, "--failures-only"])
+    lines = printed.getvalue().splitlines()
+    last = next((line for line in reversed(lines) if line.startswith(("passed: ", "FAILED: "))), "")
+    if code != 0:
+        print(f"{name}:\n" + "\n".join(lines), flush=True)
+    return code, last.split("; not ok")[0]
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("studies", nargs="*", choices=[[], *STUDIES], metavar="STUDY", help=f"default: all ({', '.join(STUDIES)})")
     parser.add_argument("--update", action="store_true", help="rewrite the baselines (printing every change) instead of checking")
+    parser.add_argument("--verbose", "-v", action="store_true",
+                        help="print every step and every metric's row of the check (default: only failures and one line per study)")
     parser.add_argument("--jobs", type=int, default=2, help="worker processes of the heavy stages (default 2)")
     parser.add_argument("--keep", type=Path, help="keep the workspaces in this directory (default: a temporary one, removed)")
     parser.add_argument("--baselines", type=Path, default=BASELINES, help="baseline directory (default tests/baselines)")
@@ -140,27 +163,28 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("MPLBACKEND", "Agg")
     datasets = datasets_dir()
     root = args.keep or Path(tempfile.mkdtemp(prefix="cobot-regression-"))
-    results: list[tuple[str, str, float]] = []
+    results: list[tuple[str, str, float, str]] = []
     try:
         for name in args.studies or list(STUDIES):
             study = STUDIES[name]
             if study.needs_datasets and datasets is None:
                 print(f"{name}: skipped: published datasets not found (set $COBOT_DATASETS or place them in ../shared/datasets)",
                       flush=True)
-                results.append((name, "skipped (no datasets)", 0.0))
+                results.append((name, "skipped (no datasets)", 0.0, ""))
                 continue
-            print(f"\n=== {name} ({'update' if args.update else 'check'} {args.baselines / study.baseline})", flush=True)
+            if args.update or args.verbose:
+                print(f"\n=== {name} ({'update' if args.update else 'check'} {args.baselines / study.baseline})", flush=True)
             t0 = time.perf_counter()
-            code = run_study(name, study, root, datasets, args.jobs, args.update, args.baselines)
+            code, counts = run_study(name, study, root, datasets, args.jobs, args.update, args.baselines, args.verbose)
             results.append((name, {0: "passed" if not args.update else "updated", 1: "FAILED"}.get(code, f"error (exit {code})"),
-                            time.perf_counter() - t0))
+                            time.perf_counter() - t0, counts.partition(": ")[2]))
     finally:
         if args.keep is None:
             shutil.rmtree(root, ignore_errors=True)
     print("\nmetric regression:")
-    for name, status, seconds in results:
-        print(f"  {name:20s} {status:22s} {seconds:6.1f} s")
-    failed = [s for _, s, _ in results if s not in ("passed", "updated", "skipped (no datasets)")]
+    for name, status, seconds, counts in results:
+        print(f"  {name:20s} {status:22s} {seconds:6.1f} s  {counts}".rstrip())
+    failed = [s for _, s, _, _ in results if s not in ("passed", "updated", "skipped (no datasets)")]
     return 0 if not failed else 2 if any(s.startswith("error") for s in failed) else 1
 
 

@@ -43,7 +43,7 @@ def examples_of(text: str) -> list[str]:
     out, current = [], ""
     for line in lines[start + 1:]:
         part = line.strip()
-        if not part:
+        if not part or part == "\b":  # the epilog's mark that click keeps the block's lines as they are
             continue
         current += part
         if current.endswith("\\"):

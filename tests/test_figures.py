@@ -458,6 +458,28 @@ def test_report_figures_of_the_published_data(datasets, tmp_path, cli):
         plt.close("all")
 
 
+def test_a_few_named_paths_get_their_own_colour_and_start(tmp_path):
+    """Three walks of three labs in one panel: each in its own colour, named by the legend, its start
+    marked (faint lines of one colour hid who walked where and which way); a crowd stays faint."""
+    t = np.linspace(0, 1, 50)
+    lines = [(x0 + sgn * 3.6 * t, y0 + 0.05 * np.sin(6 * t), "walker", who)
+             for x0, y0, sgn, who in ((-2.0, 0.3, 1, "BTK-A"), (-1.8, 0.6, 1, "BTK-B"), (2.2, 0.0, -1, "BTK-C"))]
+    fig = figures.paths([{"title": "walk", "lines": lines, "means": []}], ncols=1, share=True)
+    reviewable(fig)
+    ax = data_axes(fig)[0]
+    drawn = {line.get_label(): line for line in ax.lines}
+    assert {"BTK-A", "BTK-B", "BTK-C", "start of a path"} <= set(drawn)
+    assert len({drawn[n].get_color() for n in ("BTK-A", "BTK-B", "BTK-C")}) == 3
+    assert {"BTK-A", "BTK-B", "BTK-C"} <= set(legend_texts(fig))
+    starts = [line for line in ax.lines if line.get_label() == "start of a path"]
+    assert sorted(float(s.get_xdata()[0]) for s in starts) == [-2.0, -1.8, 2.2]
+    crowd = [(x, y, e, f"S{k:02d}") for k in range(4) for x, y, e, _ in lines]  # 12 paths: one faint collection
+    fig = figures.paths([{"title": "walk", "lines": crowd, "means": []}], ncols=1)
+    reviewable(fig)
+    ax = data_axes(fig)[0]
+    assert not ax.lines and len(ax.collections) == 1
+
+
 # ---- localisation --------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def loc_results(tmp_path_factory):
@@ -509,6 +531,68 @@ def test_motion_capture_line_stays_visible_over_the_icp(loc_results):
         assert truth.get_zorder() > icp.get_zorder()
         assert pixels_of(fig, ax, truth.get_color()) > 300, ax.get_ylabel()
         assert pixels_of(fig, ax, icp.get_color(), alpha=icp.get_alpha(), tol=0.2) > 100, ax.get_ylabel()
+
+
+def _noisy_runs(n_runs: int = 3, n: int = 1414, rate: float = 10.0, seed: int = 0) -> list[dict]:
+    """Runs as the localisation stage hands them to its figures: white errors of the synthetic robot's
+    size (sd 6 mm per axis, 4 mrad in yaw) at an ICP's 10 Hz over about 140 s."""
+    rng = np.random.default_rng(seed)
+    runs = []
+    for i in range(n_runs):
+        e = {a: rng.normal(0, 0.006 if a != "yaw" else 0.0041, n) for a in ("x", "y", "z", "yaw")}
+        s = pd.DataFrame({"t_truth": 100.0 + np.arange(n) / rate, **{f"err_{a}": v for a, v in e.items()},
+                          "err_xyz": np.sqrt(e["x"] ** 2 + e["y"] ** 2 + e["z"] ** 2)})
+        runs.append({"run": f"run{i}.mcap", "samples": s})
+    return runs
+
+
+def test_error_distribution_yaw_ticks_do_not_overlap():
+    """Yaw errors of a few milliradians: drawn in rad their ticks ("-0.015-0.010") ran into each other;
+    in mrad they do not, and no title says "-0.0"."""
+    from cobot_analysis.reports import localisation as report
+
+    fig = report.figure_error_distribution(_noisy_runs(seed=1))  # in rad: '−0.015' and '−0.010' overlap
+    reviewable(fig)
+    yaw = [ax for ax in fig.axes if ax.get_xlabel().startswith("error yaw")]
+    assert len(yaw) == 1 and yaw[0].get_xlabel().endswith("(mrad)")
+    ticks = [float(t.get_text().replace("\u2212", "-")) for t in yaw[0].get_xticklabels() if t.get_text()]
+    assert max(abs(v) for v in ticks) >= 5  # mrad, not rad
+    assert not any("-0.0," in ax.get_title() for ax in fig.axes)
+
+
+def test_rolling_band_is_the_running_median_and_quantiles():
+    from cobot_analysis.reports.localisation import rolling_band
+
+    t = np.arange(200) / 10.0  # 20 s at 10 Hz
+    e = np.where(t < 10, 1.0, 3.0) + np.tile([-0.5, 0.5], 100)
+    b = rolling_band(t, e, window=2.0, band=(0.1, 0.9))
+    far = ((np.abs(b["t"] - 10) > 1.5) & b["t"].between(1.5, 18.5)).to_numpy()  # whole windows, off the step
+    assert np.allclose(b["median"][far], np.where(b["t"][far] < 10, 1.0, 3.0))
+    assert np.allclose(b["low"][far], np.where(b["t"][far] < 10, 0.5, 2.5))
+    assert np.allclose(b["high"][far], np.where(b["t"][far] < 10, 1.5, 3.5))
+    # time based: a gap in the stamps does not widen the window to the samples beyond it
+    t2 = np.r_[np.arange(50) / 10.0, 100 + np.arange(50) / 10.0]
+    b2 = rolling_band(t2, np.r_[np.zeros(50), np.ones(50)], window=2.0)
+    assert b2["median"].iloc[49] == 0.0 and b2["median"].iloc[50] == 1.0
+
+
+def test_error_time_is_a_running_median_and_band_over_light_points():
+    """The raw errors of every pose drawn as light points (a line joining white noise is a solid band),
+    the running median a steady line: its spread is a fraction of the raw error's."""
+    from cobot_analysis.reports import localisation as report
+
+    runs = _noisy_runs()
+    fig = report.figure_error_time(runs)
+    reviewable(fig)
+    assert len(data_axes(fig)) == 2 * len(runs)
+    for ax in fig.axes:
+        raw = next(line for line in ax.lines if line.get_label() == "error of each ICP pose")
+        assert raw.get_linestyle() == "None" and raw.get_marker() == "."
+        med = next(line for line in ax.lines if line.get_label().startswith("running median"))
+        assert np.std(med.get_ydata()) < 0.3 * np.std(raw.get_ydata())
+        assert any(type(c).__name__ in ("PolyCollection", "FillBetweenPolyCollection") for c in ax.collections)
+    yaw = [ax for ax in fig.axes if ax.get_ylabel() == "yaw error (mrad)"]
+    assert len(yaw) == len(runs) and "RMSE 4.1 mrad" in yaw[0].get_title()
 
 
 def test_checker_finds_overlapping_tick_labels():

@@ -120,3 +120,73 @@ def test_fit_ioc_comparison_equals_generate_then_compare(tmp_path):
     b = outside.set_index("condition").sort_index()
     for k in ("d_xy", "d_theta", "d_gamma"):
         assert np.allclose(a[k].to_numpy(float), b[k].to_numpy(float), rtol=1e-9, atol=1e-12), k
+
+
+# ---- the time law fitted to the subjects' durations (models.ioc.pace, docs/methods.md sec. 6.4) -------------
+def test_time_gauge_is_the_least_squares_scale():
+    from cobot_analysis.models.ioc.pace import scale_time, time_gauge
+
+    T = np.array([2.0, 3.0, 5.0, np.nan])
+    assert time_gauge(T, 1.3 * T) == pytest.approx(1.3)
+    M = np.array([2.4, 4.0, 6.0, 7.0])  # the nan pair is left out: c = sum T M / sum T^2
+    assert time_gauge(T, M) == pytest.approx((2 * 2.4 + 3 * 4 + 5 * 6) / (4 + 9 + 25))
+    assert np.isnan(time_gauge([np.nan], [1.0]))
+    w = scale_time({"a0": 7.0, "a1": 1.0, "a2": 2.0, "a3": 3.0, "a4": 5.0}, 2.0)
+    assert w == {"a0": 7.0, "a1": 16.0, "a2": 32.0, "a3": 48.0, "a4": 5.0}
+
+
+def test_calibration_recovers_a_planted_time_scale():
+    """Durations planted at 1.3 x the model's: c = 1.3, the re-solved paths take the planted durations, D unchanged."""
+    from cobot_analysis.models.ioc import IOCSpec, targets_from_table
+    from cobot_analysis.models.ioc.fit import solve_target
+    from cobot_analysis.models.ioc.pace import calibrate
+    from cobot_analysis.models.presets import WALKER_WEIGHTS
+
+    targets = targets_from_table(_means(["N1500", "E4015", "S0640"]), goal=WALKING_GOAL)
+    w = PRESETS["walking-2021"]
+    spec = IOCSpec(model="improved", start_weights=tuple(weights_vector(w)), n_intervals=20)
+
+    def solve(weights):
+        return [solve_target(spec, weights_vector(weights), t, ("rest", "line"))[0] for t in targets]
+
+    before = solve(w)
+    planted = 1.3 * np.array([d["T"] for d in before])
+    cal = calibrate(solve, w, before, planted)
+    assert cal.c == pytest.approx(1.3, rel=1e-9)
+    assert set(cal.weights) == set(WALKER_WEIGHTS) and cal.weights["a1"] == pytest.approx(w["a1"] * 1.3 ** 4)
+    assert cal.weights["a0"] == w["a0"] and cal.weights["a4"] == w["a4"]
+    assert np.allclose(cal.calibrated_T, planted, rtol=1e-4)
+    assert cal.D_after == pytest.approx(cal.D_before, abs=1e-5)
+    assert cal.at_bound == 0 and not cal.notes
+
+
+def test_fitted_continuous_paths_walk_at_the_subjects_pace():
+    """fit-ioc (continuous) on synthetic walks of known travel times: the weights it writes generate
+    paths whose durations are the subjects' (one time scale for all: within 15 %) and speeds human."""
+    from cobot_analysis.api import average, fit_ioc
+    from cobot_analysis.models.ioc.pace import subject_durations
+    from cobot_analysis.synth.tables import walking_table
+
+    trials = walking_table(n_subjects=3, n_conditions=3, n_trials=2, missing_theta=0.0)
+    fit = fit_ioc(average(trials).means, trials=trials, intervals=20, max_evaluations=3, compare=False, jobs=1)
+    r = fit.results["all"]
+    assert r.pace is not None and r.pace["n_measured"] == len(fit.mean_targets) and r.pace["at_bound"] == 0
+    subjects = subject_durations(trials).groupby("condition")["duration"].mean()
+    for t in fit.mean_targets:
+        g = generate("improved", t.start, t.goal, weights=r.weights, convention="continuous").iloc[-1]
+        assert g.goal_reached and g.status == "ok"
+        assert g.travel_time == pytest.approx(subjects[t.condition], rel=0.15), t.condition
+        assert 0.5 < g.mean_speed < 2.0
+
+
+def test_a_duration_on_its_bound_is_flagged():
+    """Weights that price time at almost nothing ask for a duration beyond the search's upper bound: the
+    path says so (status), and so does generate's summary."""
+    from cobot_analysis.reports.models import generated_section
+
+    w = dict(PRESETS["walking-2021"], a0=1e-9, a4=1e-9)
+    df = generate("improved", (-4.0, -1.4, 0.0), WALKING_GOAL, weights=w, convention="continuous")
+    last = df.iloc[-1]
+    assert last.goal_reached and last.status.startswith("duration on a bound")
+    text = "\n".join(generated_section(df, "continuous"))
+    assert "1 durations on a bound" in text

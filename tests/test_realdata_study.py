@@ -68,4 +68,6 @@ def test_a_study_of_three_labs_runs_from_import_to_report(realdata, tmp_path, cl
     assert "pyomeca_markers_analogs.c3d" in report and "Refused trials" in report
     assert "no questions declared: default descriptive statistics" in report
     assert "W1" not in report and "Q1" not in report
+    # nothing compared (three frames): a sentence, not a table of headers alone
+    assert "No pair of trajectories was compared" in report and "| comparison | entity |" not in report
     assert (tmp_path / "report" / "paths.png").stat().st_size > 1000

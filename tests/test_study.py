@@ -128,7 +128,7 @@ def test_describe_of_a_numeric_column_is_its_distribution_not_value_counts():
     a = Analysis(id="FW", description="", source="distances", value="d_xy", test="describe", family="d", group="g")
     df = pd.DataFrame({"g": ["a", "a", "b"], "d_xy": [0.7538013844222866, 0.5, 0.25]})
     row = analyses._run_one(a, df, {"a": df["d_xy"][:2].to_numpy(), "b": df["d_xy"][2:].to_numpy()}, 0.05)
-    assert row["summary"] == "a: 0.627 [0.563, 0.69], 0.627 +- 0.179; b: 0.25 [0.25, 0.25], 0.25 +- 0"
+    assert row["summary"] == "a: 0.627 [0.563, 0.69], 0.627 +- 0.179; b: 0.25 (n = 1)"  # one value: no spread
     codes = analyses._run_one(a, df, {"a": np.array([1, 1, 3]), "b": np.array([2])}, 0.05)
     assert codes["summary"] == "a: 1: 2, 3: 1; b: 2: 1"  # integer codes (scenarios): counts
 

@@ -24,36 +24,42 @@ class ImportResult:
     occluded), ``trials`` (one row per trial), ``meta`` (rates, units, formats, pelvis markers, skipped)."""
 
     plan: ImportPlan
-    markers: pd.DataFrame
+    markers: pd.DataFrame | None  # None when the markers were streamed to ``markers_path``
     trials: pd.DataFrame
     meta: dict[str, Any]
     refused: list[Refused]
     imported: list[ImportedTrial]  # the trials imported (their arrays dropped: ``markers`` holds them)
+    markers_path: Path | None = None
+    n_samples: int = 0
+    n_occluded: int = 0
 
     @property
     def notes(self) -> list[str]:
         return [n for t in self.imported for n in t.notes]
 
     def summary(self) -> str:
-        n_occ = int(self.markers["occluded"].sum())
         skipped = f", {len(self.refused)} refused (listed above and in results.md)" if self.refused else ""
-        return (f"{len(self.trials)} trials{skipped}, {len(self.markers)} marker samples "
-                f"({n_occ / max(len(self.markers), 1):.1%} occluded)")
+        return (f"{len(self.trials)} trials{skipped}, {self.n_samples} marker samples "
+                f"({self.n_occluded / max(self.n_samples, 1):.1%} occluded)")
 
     def metrics(self, *, stage: str = "import") -> Metrics:
         """Headline numbers (``metrics.data.import_markers``): recordings, frames, marker samples, rate."""
-        return collect(stage, headline.import_markers, self.trials, len(self.markers))
+        return collect(stage, headline.import_markers, self.trials, self.n_samples)
 
 
 def import_markers(protocol: str | os.PathLike | ImportPlan, *, units: str = "auto", marker_map: dict[str, str] | None = None,
                    marker_map_file: str | os.PathLike | None = None, keep_all_markers: bool = False, skip_bad: bool = True,
                    lab_extent: float = LAB_EXTENT, max_speed: float = MAX_SPEED, max_spike: float = MAX_SPIKE,
-                   jobs: int | None = None, scheduler: str | None = None) -> ImportResult:
+                   jobs: int | None = None, scheduler: str | None = None,
+                   markers_path: str | os.PathLike | None = None) -> ImportResult:
     """Import every trial of a protocol (C3D, Vicon Nexus CSV, Qualisys TSV; docs/protocol.md).
 
     Every trial is read and checked before anything is returned: with ``skip_bad`` (the default) the
     refused ones are left out and listed in ``result.refused`` (``cobot_analysis.refusals``); without
-    it, or when every trial is refused, they are named together in one ``InputError``.
+    it, or when every trial is refused, they are named together in one ``InputError``. With
+    ``markers_path``, the markers are written there trial by trial as Parquet (``io.markers.stream_import``:
+    memory flat in the number of trials) and ``result.markers`` is None; else they are returned in
+    ``result.markers``.
 
     A synthetic walking study of 2 subjects x 1 start condition x 1 repetition, written as C3D files:
 
@@ -74,21 +80,29 @@ def import_markers(protocol: str | os.PathLike | ImportPlan, *, units: str = "au
         True
         >>> tmp.cleanup()
     """
-    from cobot_analysis.io.markers import import_or_refuse, imported_tables, plan_import, refusal_error
+    from cobot_analysis.io.markers import import_or_refuse, imported_summary, imported_tables, plan_import, refusal_error, stream_import
     from cobot_analysis.parallel import map_tasks
 
     plan = protocol if isinstance(protocol, ImportPlan) else plan_import(
         protocol, units=units, marker_map=marker_map, marker_map_file=marker_map_file, keep_all=keep_all_markers,
         skip_bad=skip_bad, lab_extent=lab_extent, max_speed=max_speed, max_spike=max_spike)
+    if markers_path is not None:
+        streamed = stream_import(plan, Path(markers_path), jobs=jobs, scheduler=scheduler)
+        if streamed.refused and (not plan.params["skip_bad"] or not streamed.imported):
+            Path(markers_path).unlink(missing_ok=True)  # a refused import leaves no file
+            raise refusal_error(streamed.refused, len(plan.tasks), plan.protocol.path, "import")
+        trials, meta = imported_summary(plan, streamed.imported, streamed.refused)
+        return ImportResult(plan, None, trials, meta, streamed.refused, streamed.imported, Path(markers_path),
+                            streamed.n_samples, streamed.n_occluded)
     results = map_tasks(import_or_refuse, plan.tasks, jobs=jobs, scheduler=scheduler, description="import")
     refused = [r for r in results if isinstance(r, Refused)]
     imported: list[ImportedTrial] = [r for r in results if isinstance(r, ImportedTrial)]
     if refused and (not plan.params["skip_bad"] or not imported):
         raise refusal_error(refused, len(plan.tasks), plan.protocol.path, "import")
     markers, trials, meta = imported_tables(plan, imported, refused)
-    for t in imported:  # the long table holds a copy of the arrays
-        t.xyz = t.xyz[:0]
-    return ImportResult(plan, markers, trials, meta, refused, imported)
+    for t in imported:  # the long table holds a copy of the arrays (their frames are kept: n_frames)
+        t.xyz = t.xyz[:, :0]
+    return ImportResult(plan, markers, trials, meta, refused, imported, None, len(markers), int(markers["occluded"].sum()))
 
 
 @dataclass
@@ -203,10 +217,11 @@ def preprocess(markers: str | os.PathLike | ImportResult, trials: str | os.PathL
             raise InputError("trials is given with an import result, which holds its own trials",
                              remedy="pass the import result alone")
         with tempfile.TemporaryDirectory() as tmp:
-            write_table(markers.markers, Path(tmp) / "markers.parquet", MARKERS, **markers.meta)
+            path = markers.markers_path or Path(tmp) / "markers.parquet"  # streamed (markers_path) or in memory
+            if markers.markers is not None:
+                write_table(markers.markers, path, MARKERS, **markers.meta)
             write_table(markers.trials, Path(tmp) / "trials.parquet", TRIALS, study=markers.plan.protocol.study)
-            traj, gap_df, n, refused = process(Path(tmp) / "markers.parquet", Path(tmp) / "trials.parquet", p, jobs=jobs,
-                                               scheduler=scheduler)
+            traj, gap_df, n, refused = process(path, Path(tmp) / "trials.parquet", p, jobs=jobs, scheduler=scheduler)
         return PreprocessResult(p, traj, gap_df, n, refused)
     markers = Path(markers)
     trials = Path(trials) if trials is not None else markers.with_name("trials.parquet")

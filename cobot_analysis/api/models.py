@@ -466,13 +466,15 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             intervals: int = 50, v_nominal: float = 1.0, compare: bool = True, convention: str | None = None,
             resume: bool = False, checkpoint: str | os.PathLike | None = None, jobs: int | None = None,
             scheduler: str | None = None, means_source: str | os.PathLike = "", trials_source: str | os.PathLike | None = None,
+            durations: pd.DataFrame | None = None,
             on_evaluation: Callable[[str, int, float, float], None] | None = None, method: str = "bilevel",
             bootstrap: int = 200, seed: int = 0) -> FitResult:
     """Bi-level inverse optimal control (docs/methods.md sec. 6): fit the OC cost weights of ``model``
     (``improved``, ``table`` or ``coupled``) to the mean trajectories (``per="all"``) or to each subject's
     trials (``per="subject"``). ``means`` and ``trials``: means or trajectories tables (DataFrames, or the
     paths of the Parquet files the stages wrote; ``means_source`` / ``trials_source`` name a DataFrame's file
-    in messages). ``fit``: the weights to fit (default: all but those ``held_weights`` holds);
+    in messages). ``durations``: the pair study's trial durations (durations.parquet), for the time gauge of the
+    table fit (``models.ioc.pace``; walking fits take the trials' travel times or velocity rows). ``fit``: the weights to fit (default: all but those ``held_weights`` holds);
     ``start_weights``: a preset, a weights.json, or ``"ones"`` (every fitted weight 1). ``checkpoint``: a
     directory where the upper level's evaluations are logged after every iteration (``resume`` continues).
     ``on_evaluation(fit, n, D, best)`` reports progress. ``method``: ``bilevel`` (the published method) or
@@ -501,6 +503,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     from cobot_analysis.models.comparison import compare_models, compared_models, coupled_distances, orientation_of, subject_distances
     from cobot_analysis.models.ioc import fit as ioc_fit, pair_targets_from_table, targets_from_table
     from cobot_analysis.models.presets import DEFAULT_PRESET, PRESETS, names_for, weights_vector
+    from cobot_analysis.models.ioc.pace import target_durations
     from cobot_analysis.models.ioc.single_level import as_ioc_result, check_method, check_spec, fit_trust_region
     from cobot_analysis.parallel import default_jobs, executor
 
@@ -552,6 +555,8 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         for targets in fits.values():
             check_spec(spec, len(targets))
     checkpoint = Path(checkpoint) if checkpoint is not None else None
+    mean_keys = mean_df.groupby("trial")[["scenario", "condition", "direction"]].first() \
+        if {"scenario", "condition", "direction"} <= set(mean_df.columns) else None
     n_chunks = 4 * (default_jobs() if jobs is None else jobs) if scheduler is None else 8
     results, seconds, uncertainty = {}, {}, {}
     with executor(jobs, scheduler) as pool:
@@ -562,9 +567,12 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             if method == "single-level":
                 results[key] = as_ioc_result(fit_trust_region(spec, targets))
             else:
+                # the time gauge fitted to the subjects' durations (models.ioc.pace; continuous, fit over the means)
+                measured_T = target_durations(targets, means=mean_df, trials=trial_df, durations=durations, mean_keys=mean_keys) \
+                    if key == "all" and conv.name == "continuous" and model in ("improved", "table") else None
                 results[key] = ioc_fit(spec, targets, pool=pool, chunks=n_chunks,
                                        checkpoint=checkpoint / f"{safe}.json" if checkpoint else None, resume=resume,
-                                       on_evaluation=report)
+                                       on_evaluation=report, measured_T=measured_T)
             seconds[key] = time.perf_counter() - t0
             if bootstrap and model != "coupled":
                 uncertainty[key] = _weight_uncertainty(spec, targets, results[key].weights, bootstrap, seed=seed,
@@ -610,9 +618,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     dist["convention"] = conv.name
     dist = dist.drop(columns=["converged"]).assign(converged=dist["converged"].astype(bool))
     return FitResult(model, conv.name, all_names, names, w0, start_weights or DEFAULT_PRESET[model], spec, per, goal, fits,
-                     results, dist, mean_targets, comparison, models, coupled, paths, str(means_source),
-                     mean_df.groupby("trial")[["scenario", "condition", "direction"]].first()
-                     if {"scenario", "condition", "direction"} <= set(mean_df.columns) else None,
+                     results, dist, mean_targets, comparison, models, coupled, paths, str(means_source), mean_keys,
                      method, seconds, uncertainty, subjects_test)
 
 

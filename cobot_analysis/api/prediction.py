@@ -107,10 +107,35 @@ def prediction_config(*, settings: str = DEFAULT_SETTINGS, predictors: str = "oc
     return config
 
 
+def stratified(trajectories: list, k: int) -> list:
+    """A stratified sample: ``k`` trajectories of each condition (study, entity, condition), in the order
+    of ``trajectories``. The condition of rank r (in that order) with n trajectories gives its numbers
+    (r + j n / k) mod n, j = 0..k-1 (rounded down): evenly spaced, from an offset that moves on with the
+    condition, so that subjects and repetitions take turns across conditions.
+
+        >>> from cobot_analysis.api.prediction import prediction_config, stratified
+        >>> from cobot_analysis.models.prediction.sweep import trajectories_from_table
+        >>> from cobot_analysis.synth.tables import walking_table
+        >>> walks = trajectories_from_table(walking_table(n_subjects=2, n_conditions=3, n_trials=2, n=30),
+        ...                                 prediction_config(settings="10:20", predictors="cv"))
+        >>> [t.trial for t in stratified(walks, 1)]   # one of each condition, each from the next position
+        ['S00_E1500_0', 'S00_N1500_1', 'S01_S1500_0']
+    """
+    groups: dict[tuple, list] = {}
+    for t in trajectories:
+        groups.setdefault((t.study, t.entity, t.meta.get("condition", "")), []).append(t)
+    chosen = set()
+    for rank, members in enumerate(groups.values()):
+        n, m = len(members), min(k, len(members))
+        chosen.update(id(members[(rank + j * n // m) % n]) for j in range(m))
+    return [t for t in trajectories if id(t) in chosen]
+
+
 def select(df: pd.DataFrame, config, *, studies: list[str] | None = None, entities: list[str] | None = None, kind: str = "all",
-           limit: int | None = None, every: int = 1, path=None) -> tuple[list, list[str]]:
-    """The trajectories to predict (``studies``, ``entities``, ``kind``, every ``every``-th, the first ``limit``)
-    and the labels of those left out for lack of N0 consecutive finite positions.
+           limit: int | None = None, every: int = 1, path=None, per_condition: int | None = None) -> tuple[list, list[str]]:
+    """The trajectories to predict (``studies``, ``entities``, ``kind``, ``per_condition`` of each condition
+    (``stratified``), every ``every``-th, the first ``limit``) and the labels of those left out for lack of
+    N0 consecutive finite positions.
 
         >>> from cobot_analysis.api.prediction import prediction_config, select
         >>> from cobot_analysis.synth.tables import walking_table
@@ -129,7 +154,10 @@ def select(df: pd.DataFrame, config, *, studies: list[str] | None = None, entiti
         df = df[df["entity"].isin(entities)]
     if kind != "all":
         df = df[df["kind"] == kind]
-    trajs = trajectories_from_table(df, config, path)[::every]
+    trajs = trajectories_from_table(df, config, path)
+    if per_condition:
+        trajs = stratified(trajs, per_condition)
+    trajs = trajs[::every]
     if limit:
         trajs = trajs[:limit]
     n0_min = min(n0 for n0, _ in config.settings)
@@ -145,7 +173,8 @@ def predict(trajectories: pd.DataFrame | str | os.PathLike, *, settings: str = D
             weights: str | None = None, convention: str | None = None, g0: float = 10.0, g1: float = 10.0,
             t_oc: float | None = None, orientation: str = "auto", v_nominal: float = 1.0, studies: list[str] | None = None,
             entities: list[str] | None = None, kind: str = "all", limit: int | None = None, every: int = 1,
-            work: str | os.PathLike | None = None, jobs: int | None = None, scheduler: str | None = None) -> PredictionResult:
+            per_condition: int | None = None, work: str | os.PathLike | None = None, jobs: int | None = None,
+            scheduler: str | None = None) -> PredictionResult:
     """Predict every trajectory at every sample k from its last N0 samples over N_OC - N0 samples ahead, for
     each (N0, N_OC) of ``settings`` and each predictor (``oc``: receding-horizon OC; ``cv``: constant
     velocity; ``ctrv``: constant turn rate and velocity), and assess the predictions: delta_xy,
@@ -183,7 +212,7 @@ def predict(trajectories: pd.DataFrame | str | os.PathLike, *, settings: str = D
         path = Path(trajectories)
         trajectories = read_table(path, TRAJECTORIES)
     trajs, unpredictable = select(trajectories, config, studies=studies, entities=entities, kind=kind, limit=limit, every=every,
-                                  path=path)
+                                  path=path, per_condition=per_condition)
     if work is not None:
         return assess(trajs, config, work, unpredictable=unpredictable, jobs=jobs, scheduler=scheduler)
     with tempfile.TemporaryDirectory() as tmp:

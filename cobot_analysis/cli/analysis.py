@@ -147,4 +147,6 @@ def report_command(
 
     done = analysis.report(out, study, to=to, study_file=study_file, force=force)
     figures = len(list(done.result.glob("*.png")))
-    finished(f"report ({study})" if study else "report", count(figures, "figure"), done.result / "README.md")
+    finished(f"report ({study})" if study else "report",
+             count(figures, "figure") + (" (the report up to date in the workspace, copied)" if done.skipped else ""),
+             done.result / "README.md")

@@ -6,6 +6,7 @@ Command modules in this package register their commands on ``app`` (or on a sub-
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Annotated, Optional
 
@@ -90,7 +91,60 @@ def normalise_args(group, args: list[str]) -> tuple[list[str], list[str]]:
     return [*hoisted, *head, *tail], notes
 
 
-class CobotGroup(TyperGroup):
+#: a hyphen inside a word ("import-published", "walking-2021"): no place to break a help line.
+_WORD_HYPHEN = re.compile(r"(?<=\w)-(?=\w)")
+_NO_BREAK = "\u2011"  # stands for such a hyphen while click wraps the text
+
+
+class HelpFormatter(typer.Context.formatter_class):
+    """click's help formatter (wraps at the terminal width, keeps ``\\b`` blocks), except that it never
+    breaks a line at a hyphen: paths (OUT/import-published/...) and defaults (walking-2021) stay whole."""
+
+    def _whole_words(self, write, *args) -> None:
+        start = len(self.buffer)
+        write(*args)
+        self.buffer[start:] = [s.replace(_NO_BREAK, "-") for s in self.buffer[start:]]
+
+    def write_text(self, text: str) -> None:
+        self._whole_words(super().write_text, _WORD_HYPHEN.sub(_NO_BREAK, text))
+
+    def write_dl(self, rows, col_max: int = 30, col_spacing: int = 2) -> None:
+        rows = [(a, _WORD_HYPHEN.sub(_NO_BREAK, b)) for a, b in rows]
+        self._whole_words(super().write_dl, rows, col_max, col_spacing)
+
+
+class HelpContext(typer.Context):
+    formatter_class = HelpFormatter
+
+
+class PanelGroup(TyperGroup):
+    """A group whose help lists its commands under their panel headings (``PANELS`` order), each with
+    the first paragraph of its help, wrapped at the terminal width; its commands format their help
+    with ``HelpFormatter``."""
+
+    context_class = HelpContext
+
+    def get_command(self, ctx, cmd_name: str):
+        cmd = super().get_command(ctx, cmd_name)
+        if cmd is not None and not isinstance(cmd, TyperGroup):
+            cmd.context_class = HelpContext
+        return cmd
+
+    def format_commands(self, ctx, formatter) -> None:
+        panels: dict[str, list[tuple[str, str]]] = {}
+        for name in self.list_commands(ctx):
+            cmd = self.get_command(ctx, name)
+            if cmd is None or cmd.hidden:
+                continue
+            panel = getattr(cmd, "rich_help_panel", None) or "Commands"
+            first = " ".join((cmd.short_help or (cmd.help or "").split("\n\n")[0]).split())
+            panels.setdefault(panel, []).append((name, first))
+        for panel, rows in sorted(panels.items(), key=lambda kv: PANELS.index(kv[0]) if kv[0] in PANELS else len(PANELS)):
+            with formatter.section(panel):
+                formatter.write_dl(rows)
+
+
+class CobotGroup(PanelGroup):
     """The top-level group: normalises the command line (``normalise_args``) before parsing it."""
 
     def parse_args(self, ctx, args):
@@ -127,7 +181,7 @@ def count(n: int, noun: str, plural: str | None = None) -> str:
 
 def examples(*lines: str) -> str:
     """The ``Examples:`` block of a command's help (``tests/test_cli_examples.py`` runs every line)."""
-    return "Examples:\n\n" + "\n".join(f"  {line}" for line in lines)
+    return "Examples:\n\n\b\n" + "\n".join(f"  {line}" for line in lines)  # \b: click keeps the lines as they are
 
 
 EXIT_CODES = ("Exit codes: 0 success, 1 internal error, 2 bad usage or bad input, 130 interrupted (Ctrl-C), "
@@ -140,10 +194,13 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    # click's plain help, wrapped at the terminal width: rich's option tables cut option names, defaults
+    # and paths short ("--orientation-mark…") at 80 columns (tests/test_cli_help.py)
+    rich_markup_mode=None,
     context_settings={"help_option_names": ["-h", "--help"]},
 )
 synth_app = typer.Typer(help="Generate a deterministic synthetic study (raw C3D, trials, bags) with its ground truth.",
-                        no_args_is_help=True)
+                        cls=PanelGroup, no_args_is_help=True, rich_markup_mode=None)
 app.add_typer(synth_app, name="synth", rich_help_panel="Data")
 
 # Panels that group the commands in --help, in pipeline order.
@@ -153,6 +210,7 @@ PANEL_ANALYSIS = "Analysis"
 PANEL_MODELS = "Models"
 PANEL_LOCALISATION = "Localisation"
 PANEL_REPORT = "Reports"
+PANELS = [PANEL_DATA, PANEL_PROCESS, PANEL_ANALYSIS, PANEL_MODELS, PANEL_LOCALISATION, PANEL_REPORT]
 
 # ---- options shared by stages --------------------------------------------------------------------
 OutOpt = Annotated[Path, typer.Option("--out", "-o", help="Workspace directory: one sub-directory per stage.")]

@@ -12,10 +12,10 @@ from typing import Annotated
 
 import typer
 
-from cobot_analysis.cli.app import PANEL_REPORT, app, examples
+from cobot_analysis.cli.app import PANEL_REPORT, PanelGroup, app, examples
 
 metrics_app = typer.Typer(help="Stage metrics (metrics.json) against a committed baseline: show, check, update.",
-                          no_args_is_help=True)
+                          cls=PanelGroup, no_args_is_help=True, rich_markup_mode=None)
 app.add_typer(metrics_app, name="metrics", rich_help_panel=PANEL_REPORT)
 
 BaselineArg = Annotated[Path, typer.Argument(help="Baseline JSON (e.g. tests/baselines/walking-2020.json); tolerances next to it.")]

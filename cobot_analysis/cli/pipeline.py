@@ -37,7 +37,9 @@ DEMO_SIZES = {
 
 
 DEMO_IOC_EVALUATIONS = 6  # upper-level evaluations of the demo's IOC, per convention
-DEMO_PREDICT_EVERY = 60  # the demo predicts every 60th walking trial (20 of the 1200)
+#: the demo predicts this many walking trials of each start condition (a stratified sample: 40 of the 1200
+#: trials at the default size, every condition, the subjects taking turns; api.prediction.stratified)
+DEMO_PREDICT_PER_CONDITION = 1
 
 
 def demo_steps(out: Path, size: str, jobs: int | None) -> dict[str, list[list[str]]]:
@@ -55,9 +57,9 @@ def demo_steps(out: Path, size: str, jobs: int | None) -> dict[str, list[list[st
             # a short IOC: DEMO_IOC_EVALUATIONS upper-level evaluations (a full fit: make walking)
             ["fit-ioc", "--out", str(walking), "--convention", conv, "--max-evaluations", str(DEMO_IOC_EVALUATIONS),
              "--no-compare", *j],
-            # a short prediction: every DEMO_PREDICT_EVERY-th trial, (N0, N_OC) = (50, 100)
+            # a short prediction: DEMO_PREDICT_PER_CONDITION trial(s) of each condition, (N0, N_OC) = (50, 100)
             ["predict", "--out", str(walking), "--kind", "trial", "--convention", conv, "--settings", "50:100",
-             "--every", str(DEMO_PREDICT_EVERY), *j],
+             "--per-condition", str(DEMO_PREDICT_PER_CONDITION), *j],
         ]
     return {
         "walking": [

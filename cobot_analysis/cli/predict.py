@@ -35,6 +35,7 @@ def predict_command(
     kind: Annotated[str, typer.Option("--kind", help="'trial', 'mean' or 'all' trajectories.")] = "all",
     limit: Annotated[Optional[int], typer.Option("--limit", min=1, help="Only the first N trajectories (a quick look).")] = None,
     every: Annotated[int, typer.Option("--every", min=1, help="Only every K-th trajectory (in study, trial, entity order): a spread-out subset.")] = 1,
+    per_condition: Annotated[Optional[int], typer.Option("--per-condition", min=1, help="Only K trajectories of each condition (study, entity, condition), evenly spaced in its list, the subjects taking turns across conditions: a stratified subset (before --every and --limit).")] = None,
     stage_name: Annotated[str, typer.Option("--stage-name", help="Stage directory in OUT (NAME-published under the published convention): another name keeps a second sweep (e.g. with fitted weights) beside the first.")] = "predict",
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
@@ -53,7 +54,7 @@ def predict_command(
 
     done = predict(out, trajectories=trajectories, settings=settings, predictors=predictors, weights=weights, convention=convention,
                    g0=g0, g1=g1, t_oc=t_oc, orientation=orientation, v_nominal=nominal_speed, studies=study, entities=entity,
-                   kind=kind, limit=limit, every=every, stage_name=stage_name, jobs=jobs, scheduler=scheduler, force=force,
+                   kind=kind, limit=limit, every=every, per_condition=per_condition, stage_name=stage_name, jobs=jobs, scheduler=scheduler, force=force,
                    goal=goal, candidates=candidates, horizons=horizons)
     if not done.skipped:
         finished(f"predict ({done.result.config.convention.name})", done.result.summary(), done.directory)

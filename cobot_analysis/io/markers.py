@@ -24,15 +24,17 @@ a sampling rate outside 1 Hz-10 kHz, an invalid declared rate (0, negative, NaN:
 infinite, outside the lab, jumps, single-sample spikes), and an implausible length scale. Scale check: the median inter-ASIS distance |LASI - RASI| of adults is
 0.15-0.40 m (for a table-only recording, |TAB1 - TAB2| is 0.5-2.5 m); a value 1000 times too
 large or too small means mm and m were confused. Pelvis heights are not used: labs differ in
-their vertical axis and floor origin, distances do not. Every trial is checked before anything
-is written, and all refused trials are named in one error (or skipped and listed with
-``--skip-bad``).
+their vertical axis and floor origin, distances do not. Every trial is checked before the stage
+keeps anything (the markers are written trial by trial into the stage's temporary directory,
+``stream_import``, which a refused run discards), and all refused trials are named in one error (or
+skipped and listed with ``--skip-bad``).
 """
 
 from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -262,6 +264,47 @@ def import_or_refuse(task: TrialTask) -> ImportedTrial | Refused:
         return Refused.of(task.trial, task.path, exc)
 
 
+def trial_rows(t: ImportedTrial):
+    """One trial's rows of the markers table as Arrow (``schema.MARKERS``; ``long_table`` order and types,
+    built from the arrays without pandas): what a worker hands back for the parent to write as the
+    trial's row group."""
+    import pyarrow as pa
+
+    n_frames, n_markers, _ = t.xyz.shape
+    frames = np.arange(n_frames)
+
+    def labels(values: list[str]) -> Any:  # dictionary<int32, string>, one entry per marker, repeated per frame
+        names = sorted(set(values))
+        codes = np.repeat(np.array([names.index(v) for v in values], dtype=np.int32), n_frames)
+        return pa.DictionaryArray.from_arrays(codes, pa.array(names, pa.string()))
+
+    x, y, z = (np.ascontiguousarray(t.xyz[:, :, k].T).ravel() for k in range(3))
+    arrays = [pa.DictionaryArray.from_arrays(np.zeros(n_frames * n_markers, np.int32), pa.array([t.trial], pa.string())),
+              np.tile(frames, n_markers), np.tile(frames / t.rate, n_markers), labels(t.entities), labels(t.markers),
+              *(pa.array(v, from_pandas=True) for v in (x, y, z)), np.isnan(x)]  # NaN (occluded) stored as null
+    return pa.Table.from_arrays(arrays, schema=_markers_schema())
+
+
+@lru_cache(maxsize=1)
+def _markers_schema():
+    """The Arrow schema of the markers table as ``schema.to_arrow`` gives it for ``long_table``'s frame."""
+    from cobot_analysis.schema import MARKERS, to_arrow
+
+    one = ImportedTrial("t", ["walker"], ["LASI"], np.zeros((1, 1, 3)), 1.0, "m", "c3d", "")
+    return to_arrow(long_table([one]), MARKERS).schema
+
+
+def import_rows_or_refuse(task: TrialTask) -> tuple[ImportedTrial, Any] | Refused:
+    """``import_or_refuse`` that also builds the trial's marker rows (``trial_rows``) in the worker; the
+    trial is returned without its samples (``xyz`` keeps its frames, no markers: ``n_frames`` stays)."""
+    t = import_or_refuse(task)
+    if isinstance(t, Refused):
+        return t
+    rows = trial_rows(t)
+    t.xyz = t.xyz[:, :0]
+    return t, rows
+
+
 def refusal_error(refused: list[Refused], n_trials: int, where: str | os.PathLike, stage: str) -> InputError:
     """One ``InputError`` naming every refused trial of a stage (``refusals.error``)."""
     return refusals.error(refused, n_trials, stage)
@@ -405,6 +448,12 @@ def plan_import(protocol_path: str | os.PathLike, *, units: str = "auto", marker
 
 def imported_tables(plan: ImportPlan, imported: list[ImportedTrial], refused: list[Refused]) -> tuple[pd.DataFrame, pd.DataFrame, dict[str, Any]]:
     """(markers long table, trials table, the markers file's metadata) of the trials imported."""
+    trials, meta = imported_summary(plan, imported, refused)
+    return long_table(imported), trials, meta
+
+
+def imported_summary(plan: ImportPlan, imported: list[ImportedTrial], refused: list[Refused]) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """(trials table, the markers file's metadata) of the trials imported (their samples not needed)."""
     protocol = plan.protocol
     kept = protocol.trials[protocol.trials["trial"].astype(str).isin({t.trial for t in imported})]
     trials = trials_table(Protocol(protocol.path, protocol.study, kept, rate=protocol.rate), imported)
@@ -415,7 +464,68 @@ def imported_tables(plan: ImportPlan, imported: list[ImportedTrial], refused: li
             "source_format": {t.trial: t.source_format for t in imported},
             "pelvis_markers": {t.trial: {e: list(m) for e, m in t.pelvis.items()} for t in imported},
             "skipped": {r.trial: r.reason for r in refused}, **plan.limits}
-    return long_table(imported), trials, meta
+    return trials, meta
+
+
+@dataclass
+class Streamed:
+    """What ``stream_import`` wrote: the trials imported (samples dropped), the refused ones, and the
+    counts of marker samples written and occluded."""
+
+    imported: list[ImportedTrial]
+    refused: list[Refused]
+    n_samples: int = 0
+    n_occluded: int = 0
+
+
+def stream_import(plan: ImportPlan, markers_path: Path, *, jobs: int | None = None, scheduler: str | None = None) -> Streamed:
+    """Import every trial of ``plan`` and write its markers to ``markers_path`` as they come: each worker
+    reads, checks and builds its trial's rows (``import_rows_or_refuse``), the parent appends them as one
+    Parquet row group per trial, in protocol order, and keeps only the per-trial summaries, so memory
+    does not grow with the number of trials. The file's metadata (rates, units, pelvis markers,
+    refusals: ``imported_summary``) is added when every trial is done; the caller refuses the run
+    (and discards the file) when trials were refused without ``skip_bad``."""
+    import base64
+    import json
+
+    import pyarrow.parquet as pq
+
+    from cobot_analysis.parallel import imap_tasks
+    from cobot_analysis.schema import METADATA_KEY, MARKERS
+
+    out = Streamed([], [])
+    writer = None
+    done = False
+    try:
+        for r in imap_tasks(import_rows_or_refuse, plan.tasks, jobs=jobs, scheduler=scheduler, description="import"):
+            if isinstance(r, Refused):
+                out.refused.append(r)
+                continue
+            trial, rows = r
+            if writer is None:  # the table's metadata (METADATA_KEY) is added at the end, when it is known
+                schema = rows.schema.with_metadata({k: v for k, v in rows.schema.metadata.items() if k != METADATA_KEY})
+                # LZ4 (not the pipeline's zstd): as small for these coordinates (+9 %), half the CPU to write
+                # and read; statistics of the labels and frames only (the trial's say which row group is whose)
+                writer = pq.ParquetWriter(markers_path, schema, compression="lz4",
+                                          use_dictionary=["trial", "entity", "marker", "frame", "occluded"],
+                                          write_statistics=["trial", "entity", "marker", "frame"])
+            writer.write_table(rows, row_group_size=max(len(rows), 1))
+            out.imported.append(trial)
+            out.n_samples += len(rows)
+            out.n_occluded += sum(c.true_count for c in rows.column("occluded").chunks)
+        if writer is not None:
+            _, meta = imported_summary(plan, out.imported, out.refused)
+            text = json.dumps({**MARKERS.metadata(), **meta}, default=str).encode()
+            # in the footer's key-value metadata and in the Arrow schema stored there (what pyarrow reads)
+            final = writer.schema.with_metadata({**writer.schema.metadata, METADATA_KEY: text})
+            writer.add_key_value_metadata({METADATA_KEY: text, b"ARROW:schema": base64.b64encode(final.serialize().to_pybytes())})
+        done = True
+    finally:
+        if writer is not None:
+            writer.close()
+        if not done:  # an error or an interrupt: no partial file
+            Path(markers_path).unlink(missing_ok=True)
+    return out
 
 
 def _protocol_csv(protocol_path: Path, key: str) -> Path | None:

@@ -36,7 +36,8 @@ def fit_ioc(out: Collector, weights: dict[str, Any], distances) -> None:
 
 def generate(out: Collector, generated, models: list[str], cases: list) -> None:
     """generate: per model, paths, duration T, optimal cost and end error to the goal of each case
-    (``cases``: [condition, start, goal]; a path's trial is ``model_condition``, or ``model``)."""
+    (``cases``: [condition, start, goal]; a path's trial is ``model_condition``, or ``model``); where the
+    table has them, the paths at their goal and the time law (mean speed = path length / T)."""
     import numpy as np
 
     ends = generated.sort_values("sample").groupby("trial").tail(1)
@@ -49,6 +50,11 @@ def generate(out: Collector, generated, models: list[str], cases: list) -> None:
         if len(known):
             err = [np.hypot(r.x - goals[r.trial][0], r.y - goals[r.trial][1]) for r in known.itertuples()]
             out.add((*key, "end_error", "max"), float(max(err)), "m")
+        if "goal_reached" in e:
+            out.count((*key, "goal_reached"), int(e["goal_reached"].fillna(False).astype(bool).sum()))
+        if "mean_speed" in e:
+            out.mean_sd((*key, "mean_speed"), e["mean_speed"], "m/s")
+            out.add((*key, "mean_speed", "min"), float(e["mean_speed"].min()), "m/s")
 
 
 def velocity_commands(out: Collector, commands) -> None:

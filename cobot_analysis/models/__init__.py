@@ -133,8 +133,9 @@ def generate(model: str, start: Sequence[float], goal: Sequence[float], weights=
     ``n_samples`` in time; ``published``, the solution's nodes (one per step of the authors' node
     step; ``n_samples`` is ignored for OC models). When the OC problem does not converge: raises
     ``SolverError`` (``on_failure="raise"``) or returns the solver's last iterate with
-    ``converged`` false and the reason in ``status`` (``"flag"``; never a silent result). The goal
-    columns are described in the module docstring.
+    ``converged`` false and the reason in ``status`` (``"flag"``; never a silent result). A duration on a
+    bound of its search (``conventions.OCRule.T_bounds`` x T0) is said in ``status`` too: the time law is
+    then the bound's, not the weights'. The goal columns are described in the module docstring.
     """
     from cobot_analysis import conventions
     from cobot_analysis.models.oc import node_arrays
@@ -178,12 +179,17 @@ def generate(model: str, start: Sequence[float], goal: Sequence[float], weights=
         from cobot_analysis.models.oc.duration import initial_duration
 
         T0 = initial_duration(start, goal, v_nominal)
-        if min(abs(sol.T / T0 - b) for b in (0.4, 2.0, 2.5)) < 1e-3:
+        how = duration or conv.oc_rule(model).duration  # free: the rule's bounds; search: duration.search_duration's
+        lo, hi = conv.oc_rule(model).T_bounds if how == "free" else (0.4, 2.0)
+        at_bound = how in ("free", "search") and min(abs(sol.T / T0 / b - 1) for b in (lo, hi)) < 1e-3
+        if at_bound:
             from cobot_analysis.console import warn
 
             warn(f"{trial}: the optimal duration lies at a bound of the search interval (T = {sol.T:.2f} s = "
-                 f"{sol.T / T0:.2f} x T0): the weights favour a duration outside [0.4, 2.5] x T0")
+                 f"{sol.T / T0:.2f} x T0): the weights favour a duration outside [{lo:g}, {hi:g}] x T0")
         arrays = resample(sol, n_samples, kind)
     status = "" if sol.success else f"solver did not converge ({sol.solver}: {sol.status}, {sol.iterations} iterations)"
+    if conv.name != "published" and sol.success and at_bound:  # a time law the bound chose, not the weights
+        status = f"duration on a bound of its search ({sol.T / T0:.2f} x T0)"
     return _frame(arrays, model=model, weights_label=str(label), entity=entity, trial=trial, condition=condition,
                   study=study, cost=sol.cost, convention=conv.name, goal=goal, converged=sol.success, status=status)

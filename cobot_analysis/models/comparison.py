@@ -82,12 +82,17 @@ def study_cases(means: pd.DataFrame, convention, goal, *, path=None) -> list[tup
     return [(t.condition, t.start, t.goal) for t in sorted(targets, key=lambda t: order[t.condition])]
 
 
-def measured_pace(means: pd.DataFrame) -> dict[str, tuple[float, float]]:
+def measured_pace(means: pd.DataFrame, trials: pd.DataFrame | None = None) -> dict[str, tuple[float, float]]:
     """condition -> (travel time (s), mean speed = path length / travel time (m/s)) of the walking means
-    whose data hold a travel time (the published walking-2020 means do not)."""
+    whose data hold a travel time; for the others (the published walking-2020 means), the subjects'
+    own from their ``trials`` (``ioc.pace.measured_by_condition``: travel times or velocity rows)."""
     from cobot_analysis.models import mean_speed
+    from cobot_analysis.models.ioc.pace import measured_by_condition
 
     out = {}
+    if trials is not None and "kind" in trials:
+        walking = _walking_means(trials[trials["kind"] == "trial"].assign(kind="mean"))
+        out.update(measured_by_condition(walking) if not walking.empty else {})
     if "travel_time" not in means:
         return out
     for _, g in _walking_means(means).groupby("trial", sort=False):

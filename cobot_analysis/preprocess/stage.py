@@ -154,7 +154,9 @@ def check_memory(p: Params, trials_path: Path) -> None:
 
 @dataclass
 class Recording:
-    """One recording's markers as dense arrays ``(T, 3)`` (NaN = missing) and its trials row."""
+    """One recording's markers as dense arrays ``(T, 3)`` (NaN = missing) and its trials row; ``row_groups``:
+    the row groups of the markers file that hold its rows, when they are read by the worker that
+    processes it (``load_markers``) rather than up front."""
 
     trial: str
     rate: float
@@ -162,15 +164,21 @@ class Recording:
     markers: dict[tuple[str, str], np.ndarray] = field(default_factory=dict)
     source: str = ""  # the raw file (else the markers file), for error messages
     limits: dict[str, float] = field(default_factory=dict)  # plausibility limits of the import (lab_extent, max_speed, max_spike)
+    row_groups: tuple[int, ...] | None = None
 
 
 # ---- reading --------------------------------------------------------------------------------------
-def load_recordings(markers_path: Path, trials_path: Path) -> list[Recording]:
+def load_recordings(markers_path: Path, trials_path: Path, *, lazy: bool = False) -> list[Recording]:
     """Read the markers the stage uses and the trials table; one ``Recording`` per trial.
 
     Only the pelvis and table-corner rows are kept (``_read_marker_rows``), so memory stays at
     about 4 markers x frames x trials. Raises ``InputError`` for foreign or broken files,
     trials without marker rows, and marker rows of unknown trials.
+
+    ``lazy``: when every row group of the markers file holds one trial (its Parquet statistics say
+    so, as ``import`` writes it), only the trials' row groups are listed here (``Recording.row_groups``)
+    and each recording's markers are read by ``load_markers`` where it is processed: memory no
+    longer grows with the number of trials. Other files are read up front.
     """
 
     trials = read_table(trials_path, TRIALS)
@@ -184,25 +192,31 @@ def load_recordings(markers_path: Path, trials_path: Path) -> list[Recording]:
     if meta.get("table") != MARKERS.name:
         raise InputError(f"is not a markers table (found {meta.get('table')!r})", path=markers_path,
                          remedy="pass the markers.parquet written by `cobot-analysis import`")
-    try:
-        names, tcode, slots, slot, frame, xyz = _read_marker_rows(markers_path)
-    except InputError:
-        raise
-    except Exception as exc:  # pyarrow raises several types for corrupt files or missing columns
-        raise InputError(f"cannot read the marker columns ({type(exc).__name__}: {exc})", path=markers_path,
-                         remedy="re-run `cobot-analysis import`") from exc
+    index = _trial_row_groups(markers_path) if lazy else None
+    if index is None:
+        try:
+            names, tcode, slots, slot, frame, xyz = _read_marker_rows(markers_path)
+        except InputError:
+            raise
+        except Exception as exc:  # pyarrow raises several types for corrupt files or missing columns
+            raise InputError(f"cannot read the marker columns ({type(exc).__name__}: {exc})", path=markers_path,
+                             remedy="re-run `cobot-analysis import`") from exc
+        present = {names[i] for i in np.unique(tcode)}
+    else:
+        present = set(index)
     limits = {"lab_extent": float(meta.get("lab_extent") or LAB_EXTENT), "max_speed": float(meta.get("max_speed") or MAX_SPEED),
               "max_spike": float(meta.get("max_spike") or MAX_SPIKE)}
     known = set(trials["trial"].astype(str))
-    stray = sorted({names[i] for i in np.unique(tcode)} - known)
+    stray = sorted(present - known)
     if stray:
         raise InputError(f"marker rows of trials {stray[:3]} that {trials_path.name} does not list", path=markers_path,
                          remedy="pass the trials.parquet written with these markers (same import)")
-    if np.any(np.diff(tcode) < 0):
-        order = np.argsort(tcode, kind="stable")
-        tcode, slot, frame, xyz = tcode[order], slot[order], frame[order], xyz[order]
-    bounds = np.searchsorted(tcode, np.arange(len(names) + 1))
-    where = {name: i for i, name in enumerate(names)}
+    if index is None:
+        if np.any(np.diff(tcode) < 0):
+            order = np.argsort(tcode, kind="stable")
+            tcode, slot, frame, xyz = tcode[order], slot[order], frame[order], xyz[order]
+        bounds = np.searchsorted(tcode, np.arange(len(names) + 1))
+        where = {name: i for i, name in enumerate(names)}
     recordings = []
     for _, row in trials.iterrows():
         trial = str(row["trial"])
@@ -212,23 +226,74 @@ def load_recordings(markers_path: Path, trials_path: Path) -> list[Recording]:
                              remedy="re-run `cobot-analysis import` (the rate comes from the raw file or the protocol)")
         rec = Recording(trial, rate, {c: row.get(c) for c in TRIAL_COLUMNS}, source=str(row.get("file") if isinstance(row.get("file"), str) and row.get("file") else markers_path),
                         limits=limits)
-        i = where.get(trial)
-        a, b = (bounds[i], bounds[i + 1]) if i is not None else (0, 0)
-        if a == b:
-            raise InputError(f"trial {trial} has no pelvis or table marker samples (empty trial)", path=markers_path,
-                             remedy="check the raw file and its labels, or remove the trial from the protocol")
-        f = frame[a:b]
-        if f.min() < 0:
-            raise InputError(f"trial {trial} has negative frame numbers", path=markers_path, remedy="re-run `cobot-analysis import`")
-        n = int(f.max()) + 1
-        s = slot[a:b]
-        present, inverse = np.unique(s, return_inverse=True)
-        dense = np.full((len(present), n, 3), np.nan)
-        dense[inverse, f] = xyz[a:b]
-        for k, code in enumerate(present):
-            rec.markers[slots[code]] = dense[k]
+        if index is not None:
+            rec.row_groups = tuple(index.get(trial, ()))
+            if not rec.row_groups:
+                _no_samples(trial, markers_path)
+        else:
+            i = where.get(trial)
+            a, b = (bounds[i], bounds[i + 1]) if i is not None else (0, 0)
+            _fill(rec, slots, slot[a:b], frame[a:b], xyz[a:b], markers_path)
         recordings.append(rec)
     return recordings
+
+
+def _no_samples(trial: str, markers_path: Path) -> None:
+    raise InputError(f"trial {trial} has no pelvis or table marker samples (empty trial)", path=markers_path,
+                     remedy="check the raw file and its labels, or remove the trial from the protocol")
+
+
+def _fill(rec: Recording, slots: list, slot: np.ndarray, frame: np.ndarray, xyz: np.ndarray, markers_path: Path) -> None:
+    """``rec.markers``: one dense ``(frames, 3)`` array per marker from its rows (frame numbers from 0)."""
+    if len(frame) == 0:
+        _no_samples(rec.trial, markers_path)
+    if frame.min() < 0:
+        raise InputError(f"trial {rec.trial} has negative frame numbers", path=markers_path, remedy="re-run `cobot-analysis import`")
+    n = int(frame.max()) + 1
+    present, inverse = np.unique(slot, return_inverse=True)
+    dense = np.full((len(present), n, 3), np.nan)
+    dense[inverse, frame] = xyz
+    for k, code in enumerate(present):
+        rec.markers[slots[code]] = dense[k]
+
+
+def _trial_row_groups(markers_path: Path) -> dict[str, list[int]] | None:
+    """``{trial: [row groups]}`` when the statistics of the ``trial`` column say that every row group
+    of the file holds the rows of one trial; None otherwise (or when unknown)."""
+    import pyarrow.parquet as pq
+
+    try:
+        md = pq.ParquetFile(markers_path).metadata
+        j = md.schema.to_arrow_schema().get_field_index("trial")
+        index: dict[str, list[int]] = {}
+        for i in range(md.num_row_groups):
+            stats = md.row_group(i).column(j).statistics
+            if stats is None or not stats.has_min_max or stats.min != stats.max or stats.null_count:
+                return None
+            index.setdefault(str(stats.min), []).append(i)
+        return index
+    except Exception:  # noqa: BLE001 - unreadable here: the up-front reading names the problem
+        return None
+
+
+def load_markers(rec: Recording, markers_path: Path, pf=None) -> Recording:
+    """Fill ``rec.markers`` from its row groups of the markers file (``Recording.row_groups``), checking
+    that they hold its rows only; ``pf``: the file already open (``pq.ParquetFile``)."""
+    if rec.row_groups is None:
+        return rec
+    try:
+        names, tcode, slots, slot, frame, xyz = _read_marker_rows(markers_path, rec.row_groups, pf)
+    except InputError:
+        raise
+    except Exception as exc:  # pyarrow raises several types for corrupt files or missing columns
+        raise InputError(f"cannot read the marker columns ({type(exc).__name__}: {exc})", path=markers_path,
+                         remedy="re-run `cobot-analysis import`") from exc
+    other = {names[i] for i in np.unique(tcode)} - {rec.trial}
+    if other:
+        raise InputError(f"marker rows of trials {sorted(other)[:3]} in the row groups of trial {rec.trial} "
+                         "(the file's statistics disagree with its rows)", path=markers_path, remedy="re-run `cobot-analysis import`")
+    _fill(rec, slots, slot, frame, xyz, markers_path)
+    return rec
 
 
 def _codes(column) -> tuple[np.ndarray, list]:
@@ -241,8 +306,9 @@ def _codes(column) -> tuple[np.ndarray, list]:
     return arr.indices.fill_null(-1).to_numpy(zero_copy_only=False), arr.dictionary.to_pylist()
 
 
-def _read_marker_rows(path: Path):
-    """The pelvis / table-corner rows of a markers file, row group by row group, as numpy arrays.
+def _read_marker_rows(path: Path, row_groups: tuple[int, ...] | None = None, pf=None):
+    """The pelvis / table-corner rows of a markers file (of ``row_groups``, default all), row group by
+    row group, as numpy arrays.
 
     Strings stay dictionary-encoded (never materialised): returns ``(trial names, trial code per
     row, slot keys [(entity, marker)], slot code per row, frame, xyz with NaN where occluded)``.
@@ -250,14 +316,15 @@ def _read_marker_rows(path: Path):
     import pyarrow.parquet as pq
 
     cols = ["trial", "frame", "entity", "marker", "x", "y", "z", "occluded"]
-    pf = pq.ParquetFile(path, read_dictionary=["trial", "entity", "marker"])
-    missing = [c for c in cols if c not in pf.schema_arrow.names]
+    pf = pf or pq.ParquetFile(path, read_dictionary=["trial", "entity", "marker"])
+    names = set(pf.schema_arrow.names)  # (schema_arrow is rebuilt at each access)
+    missing = [c for c in cols if c not in names]
     if missing:
         raise InputError(f"markers table lacks columns {missing}", path=path, remedy="re-run `cobot-analysis import`")
     trial_ids: dict[str, int] = {}
     slot_ids: dict[tuple[str, str], int] = {}
     parts = []
-    for i in range(pf.num_row_groups):
+    for i in range(pf.num_row_groups) if row_groups is None else row_groups:
         rg = pf.read_row_group(i, columns=cols)
         m_idx, m_dict = _codes(rg.column("marker"))
         keep_local = np.array([m in USED_MARKERS for m in m_dict] + [False])  # index -1 (null) -> False
@@ -489,9 +556,20 @@ def _trajectory(base: dict[str, Any], entity: str, k: dict[str, np.ndarray], on:
     return {**base, "entity": entity, "quality": quality}, numeric
 
 
-def _process_chunk(item: tuple[list[Recording], Params]) -> list[dict[str, Any] | Refused]:
-    recs, p = item
-    return [process_or_refuse(r, p) for r in recs]
+def _process_chunk(item: tuple[Path, list[Recording], Params]) -> list[dict[str, Any] | Refused]:
+    """Read (``load_markers``, the file opened once) and process recordings; each one's markers are
+    dropped once it is done."""
+    import pyarrow.parquet as pq
+
+    markers_path, recs, p = item
+    pf = None
+    out = []
+    for r in recs:
+        if r.row_groups is not None and pf is None:
+            pf = pq.ParquetFile(markers_path, read_dictionary=["trial", "entity", "marker"])
+        out.append(process_or_refuse(load_markers(r, markers_path, pf), p))
+        r.markers = {}
+    return out
 
 
 # ---- assembling -----------------------------------------------------------------------------------
@@ -527,7 +605,9 @@ def process(markers_path: Path, trials_path: Path, p: Params, *, jobs: int | Non
     from cobot_analysis.parallel import chunked, default_jobs, map_tasks
 
     check_memory(p, trials_path)
-    recordings = load_recordings(markers_path, trials_path)
+    # local workers read their trials' row groups themselves; a Dask cluster's workers get the arrays
+    # (they may not see this file system)
+    recordings = load_recordings(markers_path, trials_path, lazy=scheduler is None)
     import scipy.interpolate  # noqa: F401 - imported once here, inherited by forked workers
 
     for r in recordings:  # bad parameters are reported before any long work
@@ -538,7 +618,7 @@ def process(markers_path: Path, trials_path: Path, p: Params, *, jobs: int | Non
                              remedy="change --cutoff / --order / --order-convention") from exc
     n_jobs = 1 if scheduler is None and (jobs or default_jobs()) <= 1 else (jobs or default_jobs())
     size = max(1, min(25, len(recordings) // (4 * n_jobs) or 1))
-    chunks = [(list(c), p) for c in chunked(recordings, size)]
+    chunks = [(markers_path, list(c), p) for c in chunked(recordings, size)]
     del recordings
     done = [r for chunk in map_tasks(_process_chunk, chunks, jobs=n_jobs, scheduler=scheduler,
                                      description="preprocess") for r in chunk]

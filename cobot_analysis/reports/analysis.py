@@ -13,7 +13,7 @@ def average_markdown(result, source: str) -> str:
     first = means[means["sample"].eq(0)]
     lines = ["## Mean trajectories", "",
              f"- Input: `{source}` ({result.study}); {result.source}.",
-             f"- Grouping: {', '.join(result.groups)}; {n_means} mean trajectories; trials per mean "
+             f"- Grouping: {', '.join(result.groups)}; {n_means} mean {'trajectory' if n_means == 1 else 'trajectories'}; trials per mean "
              f"{int(first['n_trials'].min())} to {int(first['n_trials'].max())}.",
              "- Positions: sample-wise arithmetic mean; angles: circular mean (theta unwrapped along the path), "
              "trajectories without orientation excluded from the angle means only; band = mean +- 1.96 sd.",
@@ -42,11 +42,13 @@ def compare_markdown(result, sd_ddof: int) -> str:
              "symmetry = forward vs time-reversed return; angular distances only where both trajectories have "
              "orientation.", "",
              "| comparison | entity | n | d_xy mean +- sd | d_theta mean +- sd | d_gamma mean +- sd |", "|---|---|---|---|---|---|"]
+    single, frames = (getattr(result, "excluded", {}) or {}).get("single", 0), (getattr(result, "excluded", {}) or {}).get("frames", 0)
+    if summary.empty:  # no table of headers alone
+        lines[-2:] = ["No pair of trajectories was compared" + (" (below: which were left out and why)." if single or frames else ".")]
     for (comp, ent), r in summary.iterrows():
         fmt = [f"{r[(k, 'mean')]:.3f} +- {r[(k, 'std')]:.3f} (n={int(r[(k, 'count')])})" if r[(k, "count")] else "n/a"
                for k in ("d_xy", "d_theta", "d_gamma")]
         lines.append(f"| {comp} | {ent} | {int(r[('d_xy', 'count')])} | " + " | ".join(fmt) + " |")
-    single, frames = (getattr(result, "excluded", {}) or {}).get("single", 0), (getattr(result, "excluded", {}) or {}).get("frames", 0)
     if single or frames:
         lines += ["", f"Not compared with their mean (left out of the individual-mean rows and of the statistics): {single} "
                       "trial(s) whose mean is of that trial alone (the distance would be 0), "

@@ -97,8 +97,9 @@ def _path_panels(ts, means, keys: list[str], title_of, select=None, scenario=Non
                 panels[key] = {"title": title_of(key), "lines": [], "means": [], "key": key}
                 order.append(key)
             ent = m["entity"].iloc[i]
-            if kind == "lines":
-                panels[key]["lines"].append((src.x[i], src.y[i], ent))
+            if kind == "lines":  # named by subject (walking) or trial: figures.paths names a few of them
+                who = m["subject"].iloc[i] if "subject" in m.columns and pd.notna(m["subject"].iloc[i]) else m["trial"].iloc[i]
+                panels[key]["lines"].append((src.x[i], src.y[i], ent, str(who)))
             elif "frames_differ" in str(m["quality"].iloc[i] if "quality" in m.columns else ""):
                 if "mean not drawn" not in panels[key]["title"]:  # averaging.frame_spread: no path anyone walked
                     panels[key]["title"] += "\n(mean not drawn: trials in different frames)"

@@ -179,21 +179,30 @@ def figure_legend(fig, axes_list, ncols: int = 3, title: str | None = None, grou
                       title_fontproperties={"size": 10}, frameon=False, handler_map={Quiver: arrow_handler()})
 
 
+#: at most this many named trajectories in a figure: each gets its own colour and legend entry.
+FEW_PATHS = 10
+
+
 def paths(panels: list[dict], ncols: int = 4, arrows: int = 8, title: str = "", *, share: str | bool = False,
           col_titles: list[str] | None = None, size: float = 2.6, names: dict | None = None):
-    """One square axis per panel: ``{"title", "lines": [(x, y, entity)], "means": [(x, y, theta, entity[,
+    """One square axis per panel: ``{"title", "lines": [(x, y, entity[, name])], "means": [(x, y, theta, entity[,
     linestyle[, name]])], optional "cell": (row, column)}``; without cells, reading order with ``ncols``
     columns. ``share``: "row" gives each row one scale, True the whole figure, False each panel its own.
 
     Legend (with ``title`` above it): "<entity>: <names['lines']>" for the thin lines, "<entity>: <name>"
     for each mean (default names['means']), "<entity>: <names['arrows']>" for its arrows (7 % of the
-    panel side), and the start of the means; the entity is left out when the figure shows only one."""
+    panel side), and the start of the means; the entity is left out when the figure shows only one.
+    A figure of at most ``FEW_PATHS`` named trajectories (e.g. a few recordings of a small study) draws
+    each in its own colour, named by the legend, with its start marked: thin faint lines are for crowds."""
     from matplotlib.collections import LineCollection
 
     names = {"lines": "individual trajectories", "means": "mean", "arrows": "orientation θ of the mean", **(names or {})}
     cells = [tuple(p["cell"]) if p.get("cell") is not None else divmod(i, ncols) for i, p in enumerate(panels)] or [(0, 0)]
     fig, axes = path_grid(cells, size)
     entities = {e for p in panels for _, _, e, *_ in p.get("lines", [])} | {m[3] for p in panels for m in p.get("means", [])}
+    line_names = [ln[3] if len(ln) > 3 else None for p in panels for ln in p.get("lines", [])]
+    few = 0 < len(line_names) <= FEW_PATHS and None not in line_names
+    palette = {n: f"C{k}" for k, n in enumerate(sorted(set(line_names), key=str))} if few else {}
 
     def who(ent, what):
         return what if len(entities) <= 1 else f"{NAMES.get(ent, ent)}: {what}"
@@ -202,7 +211,13 @@ def paths(panels: list[dict], ncols: int = 4, arrows: int = 8, title: str = "", 
     panel_titles(used, cells, [p.get("title", "") for p in panels], col_titles)
     for i, (ax, panel) in enumerate(zip(used, panels)):
         by_entity = {}
-        for x, y, ent, *_ in panel.get("lines", []):
+        for x, y, ent, *name in panel.get("lines", []):
+            if few:
+                ax.plot(x, y, color=palette[name[0]], lw=1.2, zorder=2, label=who(ent, str(name[0])))
+                ok = np.flatnonzero(np.isfinite(x) & np.isfinite(y))
+                if len(ok):
+                    ax.plot(x[ok[:1]], y[ok[:1]], "o", color="k", ms=4, mfc="white", mec="k", zorder=5, label="start of a path")
+                continue
             by_entity.setdefault(ent, []).append(np.column_stack([x, y]))
         for ent, segs in by_entity.items():  # one collection per entity: fast with thousands of paths
             ax.add_collection(LineCollection(segs, colors=COLORS.get(ent, "k"), linewidths=0.5, alpha=0.35, zorder=1,
@@ -211,7 +226,8 @@ def paths(panels: list[dict], ncols: int = 4, arrows: int = 8, title: str = "", 
             ls = style[0] if style else "-"
             name = style[1] if len(style) > 1 and style[1] else names["means"]
             ax.plot(x, y, color=COLORS.get(ent, "k"), lw=1.8, ls=ls, zorder=3, label=who(ent, name))
-            ax.plot(x[:1], y[:1], "o", color="k", ms=4, mfc="white", mec="k", zorder=5, label="start of a mean path")
+            ax.plot(x[:1], y[:1], "o", color="k", ms=4, mfc="white", mec="k", zorder=5,
+                    label="start of a path" if few else "start of a mean path")
     keys = [r if share == "row" else (0 if share else -1 - i) for i, (r, _) in enumerate(cells[:len(panels)])]
     sides = square_groups(used, keys)
     for i, (ax, panel) in enumerate(zip(used, panels)):

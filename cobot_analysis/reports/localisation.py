@@ -21,8 +21,24 @@ ICP_STYLE = {"color": "tab:orange", "marker": ".", "ls": "none", "ms": 3.5, "alp
 
 
 def _scale(a: str) -> tuple[float, str]:
-    """Display factor and unit of an error on axis ``a`` (positions in mm, yaw in rad)."""
-    return (1.0, "rad") if a == "yaw" else (1000.0, "mm")
+    """Display factor and unit of an error on axis ``a``: positions in mm, yaw in mrad (ticks of a few
+    milliradians written in rad, "-0.015", collide on a histogram's x axis)."""
+    return (1000.0, "mrad") if a == "yaw" else (1000.0, "mm")
+
+
+#: the window of the running statistics of ``figure_error_time`` (s, centred): at the 10 Hz of an ICP
+#: it holds about 50 poses, enough for a steady median and 10-90 % band, short next to a run of minutes.
+ROLLING_WINDOW = 5.0
+ROLLING_BAND = (0.10, 0.90)
+
+
+def rolling_band(t, e, window: float = ROLLING_WINDOW, band: tuple[float, float] = ROLLING_BAND) -> pd.DataFrame:
+    """Running median and ``band`` quantiles of the error ``e`` sampled at times ``t`` (s) over a centred
+    window of ``window`` seconds (time based: gaps in the ICP do not stretch it); columns t, median, low, high."""
+    s = pd.Series(np.asarray(e, float), index=pd.to_timedelta(np.asarray(t, float), unit="s")).sort_index()
+    roll = s.rolling(pd.Timedelta(seconds=window), center=True, min_periods=1)
+    return pd.DataFrame({"t": s.index.total_seconds(), "median": roll.median().to_numpy(),
+                         "low": roll.quantile(band[0]).to_numpy(), "high": roll.quantile(band[1]).to_numpy()})
 
 
 def figure_paths(results: list[dict]):
@@ -76,35 +92,52 @@ def figure_timeseries(r: dict):
 
 
 def figure_error_time(results: list[dict]):
-    """Position and yaw error over time, one row per run (same scales), with the RMSE."""
+    """Position and yaw error over time, one row per run (same scales), as evo draws an error (the raw
+    values light, its statistics on top): the running median and 10-90 % band over ``ROLLING_WINDOW``
+    seconds (``rolling_band``) and the RMSE of the run (position) / ± RMSE (yaw)."""
+    from matplotlib.ticker import MaxNLocator
+
     plt = pyplot()
     n = len(results)
-    fig, axes = plt.subplots(n, 2, figsize=(11, 1.9 * n + 0.8), sharex=True, sharey="col", squeeze=False, layout="constrained")
+    lo, hi = (round(100 * q) for q in ROLLING_BAND)
+    fig, axes = plt.subplots(n, 2, figsize=(11, 1.9 * n + 0.9), sharex=True, sharey="col", squeeze=False, layout="constrained")
     for (ax_p, ax_y), r in zip(axes, results):
         s = r["samples"]
-        t = s["t_truth"] - s["t_truth"].iloc[0]
-        e, y = 1000 * s["err_xyz"].to_numpy(), s["err_yaw"].to_numpy()
-        ax_p.plot(t, e, lw=0.7, color="tab:blue", label="3-D position error")
-        ax_p.axhline(np.sqrt(np.nanmean(e ** 2)), color="k", ls="--", lw=1, label="RMSE of the run")
-        ax_y.plot(t, y, lw=0.7, color="tab:purple", label="yaw error (aligned ICP - motion capture)")
-        ax_y.axhline(np.sqrt(np.nanmean(y ** 2)), color="k", ls=":", lw=1, label="± yaw RMSE of the run")
-        ax_y.axhline(-np.sqrt(np.nanmean(y ** 2)), color="k", ls=":", lw=1)
+        t = (s["t_truth"] - s["t_truth"].iloc[0]).to_numpy()
+        for ax, e, color, what in ((ax_p, 1000 * s["err_xyz"].to_numpy(), "tab:blue", "3-D position"),
+                                   (ax_y, 1000 * s["err_yaw"].to_numpy(), "tab:purple", "yaw")):
+            ok = np.isfinite(e)
+            b = rolling_band(t[ok], e[ok])
+            ax.plot(t, e, ls="none", marker=".", ms=1.5, mew=0, color="0.55", zorder=1, label="error of each ICP pose")
+            ax.fill_between(b["t"], b["low"], b["high"], color=color, alpha=0.25, lw=0, zorder=2,
+                            label=f"{lo}-{hi} % of the poses within {ROLLING_WINDOW:g} s")
+            ax.plot(b["t"], b["median"], lw=1.3, color=color, zorder=3, label=f"running median ({ROLLING_WINDOW:g} s)")
+            rmse = np.sqrt(np.nanmean(e ** 2))
+            if what == "yaw":
+                ax.axhline(rmse, color="k", ls=":", lw=1, zorder=4, label="± yaw RMSE of the run")
+                ax.axhline(-rmse, color="k", ls=":", lw=1, zorder=4)
+                ax.set_title(f"{r['run']}: yaw error (aligned ICP - motion capture), RMSE {rmse:.1f} mrad", fontsize=9)
+            else:
+                ax.axhline(rmse, color="k", ls="--", lw=1, zorder=4, label="RMSE of the run")
+                ax.set_title(f"{r['run']}: 3-D position error, RMSE {rmse:.1f} mm", fontsize=9)
+            ax.yaxis.set_major_locator(MaxNLocator(5, steps=[1, 2, 2.5, 5, 10]))
         ax_p.set_ylabel("position error (mm)")
-        ax_y.set_ylabel("yaw error (rad)")
-        ax_p.set_title(f"{r['run']}: 3-D position error, RMSE {np.sqrt(np.nanmean(e ** 2)):.1f} mm", fontsize=9)
-        ax_y.set_title(f"{r['run']}: yaw error, RMSE {np.sqrt(np.nanmean(y ** 2)):.4f} rad", fontsize=9)
+        ax_y.set_ylabel("yaw error (mrad)")
     for ax in axes[-1]:
         ax.set_xlabel("time (s)")
     handles, labels = [], []
     for ax in axes[0]:
-        h, lab = ax.get_legend_handles_labels()
-        handles, labels = handles + h, labels + lab
-    fig.legend(handles, labels, loc="outside upper center", ncols=4, frameon=False)
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            if lab not in labels:
+                handles, labels = handles + [h], labels + [lab]
+    fig.legend(handles, labels, loc="outside upper center", ncols=3, frameon=False, markerscale=4)
     return fig
 
 
 def figure_error_distribution(results: list[dict]):
-    """Histograms of the signed errors per axis, one row per run (same bins per axis)."""
+    """Histograms of the signed errors per axis, one row per run (same bins per axis; yaw in mrad)."""
+    from matplotlib.ticker import MaxNLocator
+
     plt = pyplot()
     n = len(results)
     axes_names = ("x", "y", "z", "yaw")
@@ -118,13 +151,18 @@ def figure_error_distribution(results: list[dict]):
             ax = axes[i][j]
             v = v[np.isfinite(v)]
             ax.hist(v, bins=bins, color="tab:blue", alpha=0.75)
-            d = 4 if a == "yaw" else 1
+            ax.xaxis.set_major_locator(MaxNLocator(6))
             sd = np.std(v, ddof=1) if len(v) > 1 else np.nan
-            ax.set_title(f"{r['run']}: {a}, mean {np.mean(v):.{d}f}, sd {sd:.{d}f} {unit} (n = {len(v)})", fontsize=8)
+            ax.set_title(f"{r['run']}: {a}, mean {_num(np.mean(v))}, sd {_num(sd)} {unit} (n = {len(v)})", fontsize=8)
             if i == n - 1:
                 ax.set_xlabel(f"error {a}, aligned ICP - motion capture ({unit})")
             ax.set_ylabel("ICP poses (count)")
     return fig
+
+
+def _num(x: float, digits: int = 1) -> str:
+    """``x`` to ``digits`` decimals without a negative zero ("-0.0" -> "0.0")."""
+    return f"{round(x, digits) + 0.0:.{digits}f}" if np.isfinite(x) else "-"
 
 
 def figure_delay(results: list[dict]):

@@ -166,12 +166,14 @@ def figure_boxplots(df: pd.DataFrame, angle: str = "gamma"):
 
 
 # ---- T at its bound (every model) ----------------------------------------------------------------
-def duration_flag(terms: list[dict], v_nominal: float = 1.0, convention: str = "continuous") -> str:
-    """Markdown line: how many converged lower levels put the duration T on a bound: of ``ioc.T_BOUNDS``
-    x T0 (continuous; there the fitted weights ask for a duration the problem does not allow), or of the
-    authors' duration search, T < 200 d steps (published; J / T decreases with T, so the rule ends there)."""
+def duration_flag(terms: list[dict], v_nominal: float = 1.0, convention: str = "continuous", bounds=None) -> str:
+    """Markdown line: how many converged lower levels put the duration T on a bound: of ``bounds`` x T0
+    (continuous, default ``ioc.T_BOUNDS``, the walker rules' ``OCRule.T_bounds``; there the fitted weights ask
+    for a duration the problem does not allow), or of the authors' duration search, T < 200 d steps
+    (published; J / T decreases with T, so the rule ends there)."""
     from cobot_analysis.models.ioc import T_BOUNDS
 
+    T_BOUNDS = bounds or T_BOUNDS
     ok = [d for d in terms if d.get("success")]
     lo = sum(d.get("T_at_bound", 0) == -1 for d in ok)
     hi = sum(d.get("T_at_bound", 0) == 1 for d in ok)
@@ -392,17 +394,32 @@ def generated_section(df: pd.DataFrame, convention, measured: dict[str, tuple[fl
            if ends["model"].nunique() > 1 else "")
         + (". The authors' duration rule ends on its upper bound (20 s per metre of start-goal distance, docs/methods.md "
            "sec. 11): the shape of the path is what the papers compare, its timing is no human pace; time-dependent "
-           "outputs (velocities, velocity-commands) need the continuous convention." if conv.name == "published" else ".")
-        + (" The subjects' own travel times are in the table." if measured else
-           " The input holds no subjects' travel times to compare with (the published walking-2020 means have none)."), ""]
+           "outputs (velocities, velocity-commands) need the continuous convention" if conv.name == "published" else "")
+        + f"; {int(((v < 0.5) | (v > 2.0)).sum())} of {n} outside 0.5-2 m/s"
+        + (f"; **{int(ends['status'].astype(str).str.startswith('duration on a bound').sum())} durations on a bound of "
+           "their search** (status column)" if ends["status"].astype(str).str.startswith("duration on a bound").any() else "")
+        + ("." + (f" The subjects' own ({_subject_pace(ends, measured)}) are in the table: their travel times, or where the data "
+                  "hold none (walking-2020) path length / the mean of their recorded speed (models.ioc.pace.subject_durations)."
+                  if measured else
+                  " The input holds no subjects' durations to compare with (no travel times, no velocity rows).")), ""]
     return summary + lines + [""]
 
 
-def pace_lines(mean_keys: pd.DataFrame | None, targets, per_target: list[dict], durations: pd.DataFrame | None) -> list[str]:
+def _subject_pace(ends: pd.DataFrame, measured: dict) -> str:
+    """'T a-b s, mean speed a-b m/s' of the subjects on the generated paths' conditions."""
+    m = np.array([measured[t] for t in ends.index if t in measured])
+    if not len(m):
+        return "none on these paths"
+    return f"T {m[:, 0].min():.2f}-{m[:, 0].max():.2f} s, mean speed {m[:, 1].min():.3g}-{m[:, 1].max():.3g} m/s"
+
+
+def pace_lines(mean_keys: pd.DataFrame | None, targets, per_target: list[dict], durations: pd.DataFrame | None,
+               pace: dict | None = None) -> list[str]:
     """Markdown: duration T and mean speed (path length / T) of the fitted paths (continuous convention),
-    beside the measured trials' (``durations``: the pair study's durations.parquet, mean over the trials
-    of the same scenario, goal and direction as each mean; ``mean_keys``: those columns per mean trial),
-    and how many T sit on a bound."""
+    how many T sit on a bound, and beside them the subjects': with ``pace`` (``IOCResult.pace``, the time
+    gauge fitted to the subjects' durations, docs/methods.md sec. 6.4) per target; else the pair study's
+    ``durations`` (mean over the trials of the same scenario, goal and direction as each mean;
+    ``mean_keys``: those columns per mean trial)."""
     ok = [(t, d) for t, d in zip(targets, per_target) if d.get("success") and d.get("length") is not None]
     if not ok:
         return []
@@ -410,7 +427,10 @@ def pace_lines(mean_keys: pd.DataFrame | None, targets, per_target: list[dict], 
     v = np.array([d["length"] / d["T"] for _, d in ok])
     bound = sum(d.get("T_at_bound", 0) != 0 for _, d in ok)
     line = (f"Time law of the fitted paths: T {T.min():.2f}-{T.max():.2f} s, mean speed (path length / T) "
-            f"{v.min():.3g}-{v.max():.3g} m/s (median {np.median(v):.3g}); {bound} of {len(ok)} durations on a bound")
+            f"{v.min():.3g}-{v.max():.3g} m/s (median {np.median(v):.3g}); "
+            + (f"**{bound} of {len(ok)} durations on a bound**" if bound else f"no duration on a bound ({len(ok)} paths)"))
+    if pace is not None:
+        return _gauge_lines(line, targets, per_target, pace)
     keys = ["scenario", "condition", "direction"]
     if durations is None or mean_keys is None or not set(keys + ["duration", "mean_velocity"]) <= set(durations.columns) or \
             not set(keys) <= set(mean_keys.columns):
@@ -485,6 +505,40 @@ def methods_side_by_side(result, other: dict | None) -> list[str]:
     return lines + [""]
 
 
+def _gauge_lines(line: str, targets, per_target: list[dict], pace: dict) -> list[str]:
+    """The time-gauge calibration's summary and its per-target table (model beside subjects)."""
+    M = np.asarray(pace["measured_T"], float)
+    T0 = np.asarray(pace["model_T"], float)
+    rows, speeds, errors = [], [], []
+    for t, d, m in zip(targets, per_target, M):
+        if not d.get("success"):
+            rows.append(f"| {t.trial} | – | – | {m:.2f} | – | failed |")
+            continue
+        L = d.get("length", np.nan)
+        sm = L / m if np.isfinite(m) else np.nan
+        speeds.append((L / d["T"], sm))
+        if np.isfinite(m):
+            errors.append(d["T"] - m)
+        rows.append(f"| {t.trial} | {d['T']:.2f} | {L / d['T']:.2f} | " + (f"{m:.2f} | {sm:.2f} |" if np.isfinite(m) else "– | – |")
+                    + (" on a bound |" if d.get("T_at_bound", 0) else " |"))
+    sp = np.array(speeds)
+    sub = sp[np.isfinite(sp[:, 1])] if len(sp) else sp
+    outside = int(np.sum((sp[:, 0] < 0.5) | (sp[:, 0] > 2.0))) if len(sp) else 0
+    text = (f"**Time gauge fitted to the subjects' durations** (docs/methods.md sec. 6.4): the fitted weights walk each "
+            f"path in c times the duration when a1, a2, a3 are multiplied by c^4 (the same time-normalised paths, the same D); "
+            f"least squares of the model's durations against the subjects' ({pace['n_measured']} paths with a duration) "
+            f"gives c = {pace['c']:.3f} (durations before: {np.nanmin(T0):.2f}-{np.nanmax(T0):.2f} s). The weights written are "
+            f"the calibrated ones; re-solved there, D = {pace['D_after']:.4f} (before {pace['D_before']:.4f}), "
+            f"rms duration error {np.sqrt(np.mean(np.square(errors))):.2f} s, model mean speed {sp[:, 0].min():.2f}-"
+            f"{sp[:, 0].max():.2f} m/s against the subjects' {np.nanmin(sub[:, 1]):.2f}-{np.nanmax(sub[:, 1]):.2f} m/s "
+            f"(path length / the subjects' duration); {outside} of {len(sp)} model paths outside 0.5-2 m/s.")
+    if pace.get("notes"):
+        text += " **" + "; ".join(pace["notes"]) + ".**"
+    return [line + ".", "", text, "",
+            "| target | model T (s) | model mean speed (m/s) | subjects' T (s) | model path length / subjects' T (m/s) | flag |",
+            "|---|---|---|---|---|---|", *rows, ""]
+
+
 def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal: float, durations: pd.DataFrame | None,
                      other: dict | None = None) -> str:
     """The IOC's results fragment: the fits (D, evaluations, weights at the start and fitted), their flags,
@@ -540,7 +594,8 @@ def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal
     lines.append("")
     for k, r in results.items():
         # with the curvature at hand, a weight at a search limit is judged by its verdict (below), not flagged
-        lines += [("" if per == "all" else f"Fit {k}: ") + duration_flag(r.per_target, v_nominal, conv.name)
+        lines += [("" if per == "all" else f"Fit {k}: ") + duration_flag(r.per_target, v_nominal, conv.name,
+                                                                          None if model == "coupled" else conv.oc_rule(model).T_bounds)
                   + ("" if k in result.uncertainty else " " + weight_limit_flag(r.weights, names))
                   + (f" Optimiser: {r.message.strip()}" if per == "all" else ""), ""]
     lines += uncertainty_lines(result)
@@ -555,7 +610,7 @@ def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal
                       f"fitted weights; the duration rule run again there moves the horizon of {r.horizons_changed} of "
                       f"{len(fits[k])} paths (D = {r.objective:.4f}).", ""]
     if conv.name == "continuous" and model != "coupled" and per == "all":
-        lines += pace_lines(result.mean_keys, fits["all"], results["all"].per_target, durations)
+        lines += pace_lines(result.mean_keys, fits["all"], results["all"].per_target, durations, results["all"].pace)
     if result.coupled is not None:
         lines += coupled_section(results["all"], result.coupled, result.mean_targets, stage, durations)
     if result.comparison is not None:

@@ -57,21 +57,20 @@ def import_markers(out: str | os.PathLike, protocol: str | os.PathLike, *, jobs:
     (options: those of ``api.import_markers``)."""
     from cobot_analysis.io.markers import plan_import
     from cobot_analysis.reports.data import import_summary
-    from cobot_analysis.schema import MARKERS, TRIALS
+    from cobot_analysis.schema import TRIALS
 
     keep_all = options.pop("keep_all_markers", False)
     plan = plan_import(protocol, keep_all=keep_all, **options)
     with Stage(out, "import", inputs=plan.inputs, params=plan.params, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
-        result = api.import_markers(plan, jobs=jobs, scheduler=scheduler)
+        result = api.import_markers(plan, jobs=jobs, scheduler=scheduler, markers_path=stage.path("markers.parquet"))
         stage.result = result  # its own numbers are the stage's metrics.json
         for note in result.notes:
             warn(note)
         refusals.record(stage, result.refused, len(plan.tasks), "import")
         stage.path("results.md").write_text(import_summary(plan.protocol, result.imported, result.refused, plan.limits,
                                                            plan.params["outside_files"]))
-        stage.write_table("markers.parquet", result.markers, MARKERS, **result.meta)
         stage.write_table("trials.parquet", result.trials, TRIALS, study=plan.protocol.study)
     return Outcome(stage.final_dir, result)
 
@@ -121,13 +120,13 @@ def preprocess(out: str | os.PathLike, *, markers: str | os.PathLike | None = No
                jobs: int | None = None, scheduler: str | None = None, force: bool = False, **options: Any) -> Outcome:
     """``preprocess``: ``import/markers.parquet`` -> ``preprocess/trajectories.parquet``, ``gaps.parquet`` and
     ``results.md`` (options: the fields of ``preprocess.stage.Params``)."""
-    from cobot_analysis.preprocess import gaps
+    markers_path = Path(markers) if markers is not None else find_input(out, "markers.parquet", ["import"], "--markers")
+    trials_path = Path(trials) if trials is not None else markers_path.with_name("trials.parquet")
+    from cobot_analysis.preprocess import gaps  # after the cheap checks: these import pandas
     from cobot_analysis.preprocess.stage import Params
     from cobot_analysis.reports.data import preprocess_summary
     from cobot_analysis.schema import TRAJECTORIES
 
-    markers_path = Path(markers) if markers is not None else find_input(out, "markers.parquet", ["import"], "--markers")
-    trials_path = Path(trials) if trials is not None else markers_path.with_name("trials.parquet")
     p = Params(**options)
     with Stage(out, "preprocess", inputs=[markers_path, trials_path], params=asdict(p), force=force) as stage:
         if stage.skipped:

@@ -37,7 +37,13 @@ def generate(out: str | os.PathLike, *, model: str = "improved", weights: Any = 
         if path is not None:
             means_df = read_trajectories(path)
             inputs.append(path)
-            measured = measured_pace(means_df)
+            try:  # the subjects' trials: their own pace where the means hold no travel time
+                trials_path = find_input(out, "trajectories.parquet", ["import-published", "preprocess"], "--trajectories")
+                trials_df = read_trajectories(trials_path)
+                inputs.append(trials_path)
+            except InputError:
+                trials_df = None
+            measured = measured_pace(means_df, trials_df)
         cases = api.walking_cases(conv.name, means_df, goal=goal, path=path)
     models, conv, cases = plan_generate(model, weights=weights, start=start, goal=goal, cases=cases, duration=duration,
                                         convention=convention)
@@ -132,7 +138,7 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
     if other is not None:  # the report shows it: a new bi-level fit redoes the single-level stage's report
         inputs.append(Path(other["path"]))
     durations = None
-    if model == "coupled":
+    if model in ("coupled", "table"):  # the pair study's durations: the coupled section, the table fit's time gauge
         try:
             durations = pd.read_parquet(find_input(out, "durations.parquet", ["import-published"], "--means"))
         except InputError:
@@ -144,7 +150,7 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
                              max_evaluations=max_evaluations, per=per, subjects=subjects, goal=goal, intervals=intervals,
                              v_nominal=v_nominal, compare=compare, convention=conv.name, resume=resume,
                              checkpoint=Path(out) / f".{name}.checkpoint", jobs=jobs, scheduler=scheduler, means_source=mean_src,
-                             trials_source=traj_path or out, on_evaluation=on_evaluation, method=method,
+                             trials_source=traj_path or out, durations=durations, on_evaluation=on_evaluation, method=method,
                              bootstrap=bootstrap, seed=seed)
         stage.result = result  # its own numbers are the stage's metrics.json
         stage.write_json("weights.json", result.weights_json())

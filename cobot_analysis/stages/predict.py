@@ -22,7 +22,7 @@ def predict(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
             predictors: str = "oc,cv,ctrv", weights: str | None = None, convention: str | None = None, g0: float = 10.0,
             g1: float = 10.0, t_oc: float | None = None, orientation: str = "auto", v_nominal: float = 1.0,
             studies: list[str] | None = None, entities: list[str] | None = None, kind: str = "all", limit: int | None = None,
-            every: int = 1, stage_name: str = "predict", jobs: int | None = None, scheduler: str | None = None,
+            every: int = 1, per_condition: int | None = None, stage_name: str = "predict", jobs: int | None = None, scheduler: str | None = None,
             force: bool = False, goal=None, candidates: str | None = None, horizons: str | None = None) -> Outcome:
     """``predict``: predictions.parquet, prediction_windows.parquet, prediction_summary.parquet,
     prediction_comparison.parquet, figures and results.md; with ``horizons`` also the horizon sweep
@@ -50,26 +50,29 @@ def predict(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
     inputs = [Path(weights)] if "oc" in config.predictors and weights and Path(weights).is_file() else []
     path = Path(trajectories) if trajectories is not None else find_input(out, "trajectories.parquet", ["preprocess", "import-published"], "--trajectories")
     df = read_table(path, TRAJECTORIES)
-    trajs, unpredictable = select(df, config, studies=studies, entities=entities, kind=kind, limit=limit, every=every, path=path)
+    trajs, unpredictable = select(df, config, studies=studies, entities=entities, kind=kind, limit=limit, every=every, path=path,
+                                  per_condition=per_condition)
     if unpredictable:
         n0_min = min(n0 for n0, _ in config.settings)
         warn(f"predict: {len(unpredictable)} trajectories left out, fewer than N0 = {n0_min} consecutive finite positions: "
              + ", ".join(unpredictable[:5]) + (" ..." if len(unpredictable) > 5 else ""))
     params = {"convention": conv.name, "config": config.params(), "study": studies, "entity": entities, "kind": kind,
-              "limit": limit, "every": every, "horizons": horizon_list}
+              "limit": limit, "every": every, "horizons": horizon_list,
+              **({"per_condition": per_condition} if per_condition else {})}  # absent when unused: earlier stages stay current
     work = WorkDir(Path(out) / WORK)  # shared by every sweep: its results are keyed by trajectory, setting and options
     with Stage(out, directory, inputs=[path, *inputs], params=params, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
         if force:
             work.clear()  # --force recomputes everything
-        info(f"predict ({conv.name} convention): {len(trajs)} trajectories x {len(config.settings)} settings x "
-             f"{len(config.predictors)} predictors")
+        n_set, n_pred = len(config.settings), len(config.predictors)
+        info(f"predict ({conv.name} convention): {len(trajs)} trajectories x {n_set} setting{'s' * (n_set != 1)} x "
+             f"{n_pred} predictor{'s' * (n_pred != 1)}")
         result = assess(trajs, config, work.root, unpredictable=unpredictable, jobs=jobs, scheduler=scheduler)
         stage.result = result  # its own numbers are the stage's metrics.json
         metrics, windows = result.predictions, result.windows
         if result.resumed:
-            info(f"predict: {result.resumed} trajectories resumed from {work.root}")
+            info(f"predict: {result.resumed} {'trajectory' if result.resumed == 1 else 'trajectories'} resumed from {work.root}")
         skipped = metrics.drop_duplicates(["study", "trial", "entity", "n0", "n_oc"])["n_skipped"].sum()
         if skipped:
             n_traj = metrics.loc[metrics["n_skipped"] > 0, ["study", "trial", "entity"]].drop_duplicates().shape[0]

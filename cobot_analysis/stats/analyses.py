@@ -68,8 +68,11 @@ def _summary(groups: dict) -> str:
         if not len(v):
             parts.append(f"{k}: none")
             continue
+        if len(v) == 1:  # one value: no spread to give (a sample sd of 0 would claim one)
+            parts.append(f"{k}: {v[0]:.3g} (n = 1)")
+            continue
         q1, med, q3 = np.percentile(v, [25, 50, 75])
-        parts.append(f"{k}: {med:.3g} [{q1:.3g}, {q3:.3g}], {v.mean():.3g} +- {v.std(ddof=1) if len(v) > 1 else 0:.3g}")
+        parts.append(f"{k}: {med:.3g} [{q1:.3g}, {q3:.3g}], {v.mean():.3g} +- {v.std(ddof=1):.3g}")
     return "; ".join(parts)
 
 

@@ -40,7 +40,8 @@ from cobot_analysis.errors import InputError
 from cobot_analysis.models.ioc.targets import PairTarget, Target
 from cobot_analysis.models.presets import names_for
 
-T_BOUNDS = (0.4, 2.5)  # free duration T within these multiples of T0 (ocp.WalkerOCP.solve, coupled.CoupledOCP.solve)
+T_BOUNDS = (0.4, 2.5)  # free T within these multiples of T0: coupled model (coupled.CoupledOCP.solve), single level; the
+# continuous walker rules keep their own, wider ones (conventions.OCRule.T_bounds)
 FAILED_D = 10.0  # objective term of a lower level that did not converge (m-equivalent; >> any real D)
 OPTIMIZERS = ("powell", "nelder-mead")
 LOG_BOUNDS = (-7.0, 3.0)  # log10 of a fitted weight
@@ -93,7 +94,7 @@ def held_weights(model: str, convention="continuous") -> tuple[str, ...]:
       held) makes the time-scaled path X(t / c) optimal, since the time and path terms of J grow as
       c and the acceleration terms as c^-3; the time-normalised paths D compares are the same, only
       the duration changes (c T). The data cannot tell these weights apart, so a1 stays at its start
-      value and the fit leaves the pace of the start weights to it.
+      value during the search; the pace is fitted afterwards to measured durations (``pace.calibrate``).
     Under the published convention the goal is the terminal cost: b0 fixes the scale, and a0, a
     constant per node, moves no path on a held horizon. The walker's a5, a6 belong to the Mombaur
     model."""
@@ -119,10 +120,10 @@ def distances(t: Target, x, y, theta, convention="continuous") -> dict[str, floa
     return path_distances((t.x, t.y, t.theta), (x, y, theta), comparison, measured_gamma=gamma)
 
 
-def duration_terms(T: float, T0: float) -> dict:
-    """T, T0 and whether T sits on a bound of ``T_BOUNDS`` x T0 (relative 1e-3): -1 lower, +1 upper, 0 inside."""
+def duration_terms(T: float, T0: float, bounds: tuple[float, float] = T_BOUNDS) -> dict:
+    """T, T0 and whether T sits on a bound of ``bounds`` x T0 (relative 1e-3): -1 lower, +1 upper, 0 inside."""
     r = T / T0
-    at = -1 if abs(r / T_BOUNDS[0] - 1) < 1e-3 else (1 if abs(r / T_BOUNDS[1] - 1) < 1e-3 else 0)
+    at = -1 if abs(r / bounds[0] - 1) < 1e-3 else (1 if abs(r / bounds[1] - 1) < 1e-3 else 0)
     return {"T": T, "T0": T0, "T_at_bound": at}
 
 
@@ -206,7 +207,9 @@ def solve_target(spec: IOCSpec, w: np.ndarray, t: Target, guess):
     r = resample(sol, len(t.x))
     d = distances(t, r["x"], r["y"], r["theta"])
     d["D"] = d["d_xy"] + spec.angle_weight * d[f"d_{spec.angle}"]
-    d.update(duration_terms(sol.T, initial_duration(t.start, t.goal, spec.v_nominal)))
+    from cobot_analysis.conventions import CONTINUOUS
+
+    d.update(duration_terms(sol.T, initial_duration(t.start, t.goal, spec.v_nominal), CONTINUOUS.oc_rule(model).T_bounds))
     d["length"] = float(np.hypot(np.diff(r["x"]), np.diff(r["y"])).sum())  # m: the time law is length / T
     d["success"] = True
     return d, sol
@@ -253,6 +256,7 @@ class IOCResult:
     message: str = ""
     held_objective: float | None = None  # published, held horizons: D the optimiser saw at the fitted weights
     horizons_changed: int | None = None  # targets whose horizon the duration rule moves at the fitted weights
+    pace: dict | None = None  # continuous, measured durations given: the time-gauge calibration (models.ioc.pace)
 
     def to_json(self) -> dict:
         d = asdict(self)
@@ -311,8 +315,15 @@ class _Interrupted(Exception):
 
 def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, checkpoint: Path | None = None,
         resume: bool = False, on_evaluation: Callable[[int, float, float], None] | None = None,
-        interrupt_after: int | None = None) -> IOCResult:
+        interrupt_after: int | None = None, measured_T=None) -> IOCResult:
     """Fit ``spec.fitted`` to ``targets``; ``pool`` is a concurrent.futures executor (None: in-process).
+
+    ``measured_T``: the subjects' duration of each target (nan: none). Under the continuous convention
+    (walker and table models) the start weights' time gauge is fitted to them first (the search then
+    runs at the subjects' pace; ``spec.start_weights`` of the result are those), and the fitted weights'
+    after the search (``pace.calibrate``: a1..a3 x c^4, the same D); the result holds the calibrated
+    weights, their per-target terms and ``pace`` (with ``c_start``); without it the pace is the one the
+    held a0, a1 give.
 
     ``interrupt_after``: stop (KeyboardInterrupt) after that many new evaluations (tests of resume).
     """
@@ -332,6 +343,25 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
         futures = [pool.submit(tasks_fn, task) for task in collect]
         return [f.result() for f in futures]
 
+    paced = measured_T is not None and spec.convention != "published" and spec.model in ("improved", "table")
+    c_start = None
+    if paced:  # the start weights' time gauge first (pace.py): the search runs at the subjects' pace, where the
+        # cold guesses' duration T0 is near the optimum (far from it, they miss the least-cost local minimum)
+        from dataclasses import replace
+
+        from cobot_analysis.models.ioc.pace import scale_time, time_gauge
+        from cobot_analysis.models.presets import weights_vector
+
+        w0 = spec.weights(spec.z0())
+        first = run(reference_chunk, [(spec, w0, [targets[i] for i in p]) for p in parts])
+        T = [np.nan] * len(targets)
+        for p, res in zip(parts, first):
+            for i, (d, _) in zip(p, res):
+                T[i] = d["T"] if d["success"] else np.nan
+        c_start = time_gauge(T, measured_T)
+        if np.isfinite(c_start):
+            w = scale_time(dict(zip(names_for(spec.model), map(float, spec.start_weights))), c_start)
+            spec = replace(spec, start_weights=tuple(map(float, weights_vector(w, spec.model))))
     # reference solutions at the starting weights: the warm start of every later evaluation
     w0 = spec.weights(spec.z0())
     ref = run(reference_chunk, [(spec, w0, [targets[i] for i in p]) for p in parts])
@@ -415,7 +445,23 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
                 new[i] = d
         changed = sum(1 for a, b in zip(terms, new) if a["success"] and b["success"] and abs(a["T"] - b["T"]) > 1e-9)
         held, terms, objective = objective, new, float(np.mean([d["D"] for d in new]))
-    return IOCResult(spec=spec, weights=dict(zip(names_for(spec.model), map(float, w_best))), objective=objective,
+    weights, pace = dict(zip(names_for(spec.model), map(float, w_best))), None
+    if paced:
+        from cobot_analysis.models.ioc.pace import calibrate
+
+        def solve(w: dict) -> list[dict]:
+            res = run(evaluate_chunk, [(spec, weights_vector(w, spec.model), [targets[i] for i in p], [guesses[i] for i in p])
+                                       for p in parts])
+            out: list = [None] * len(targets)
+            for p, r in zip(parts, res):
+                for i, (d, _) in zip(p, r):
+                    out[i] = d
+            return out
+
+        cal = calibrate(solve, weights, terms, measured_T)
+        weights, terms, objective = cal.weights, cal.terms, cal.D_after
+        pace = {k: v for k, v in asdict(cal).items() if k not in ("weights", "terms")} | {"c_start": c_start}
+    return IOCResult(spec=spec, weights=weights, objective=objective,
                      start_objective=start_objective, evaluations=len(cache), iterations=iteration,
                      failed=sum(not d["success"] for d in terms), per_target=terms, message=str(res.message),
-                     held_objective=held, horizons_changed=changed)
+                     held_objective=held, horizons_changed=changed, pace=pace)

@@ -21,7 +21,7 @@ def solve_model(model: str, start, goal, weights, *, convention="continuous", n_
 
     ``weights``: the 11-vector (a0..a6, b0..b3). Continuous convention: the goal pose at rest is a
     terminal constraint (``OCRule.goal``; b0..b3 unused), ``n_intervals`` intervals,
-    ``duration`` (default the convention's rule: free, grid for the Mombaur form, or "search" /
+    ``duration`` (default the convention's rule: free within ``rule.T_bounds`` x T0, grid for the Mombaur form, or "search" /
     "fixed" at ``T``), ``guess``: "rest", "line", a previous primal vector (warm start) or a sequence of
     those (the best converged solution is kept). Published convention: the authors' node step and
     duration rule (``duration.nelder_mead_duration`` / ``last_node_duration``), every horizon from
@@ -48,7 +48,8 @@ def solve_model(model: str, start, goal, weights, *, convention="continuous", n_
     best = None
     for g in guesses:
         if duration == "free":
-            sol = get_ocp(OCPShape(n_intervals, dyn, free_time=True, solver=solver, max_iter=max_iter, goal=rule.goal)).solve(start, goal, weights, T0, guess=g)
+            sol = get_ocp(OCPShape(n_intervals, dyn, free_time=True, solver=solver, max_iter=max_iter, goal=rule.goal)).solve(
+                start, goal, weights, T0, guess=g, T_bounds=rule.T_bounds)
         else:
             ocp = get_ocp(OCPShape(n_intervals, dyn, free_time=False, solver=solver, max_iter=max_iter, goal=rule.goal))
             if duration == "search":

@@ -1,0 +1,91 @@
+"""Import written trial by trial (one Parquet row group per trial, by workers' rows) and preprocess
+reading each trial's row groups where it is processed: same tables as the in-memory path (issue 22)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+import pyarrow.parquet as pq
+import pytest
+
+from cobot_analysis import api
+from cobot_analysis.preprocess.stage import Params, _trial_row_groups, load_recordings, process
+from cobot_analysis.schema import MARKERS, TRIALS, read_table, table_metadata, write_table
+from cobot_analysis.synth import walking
+
+
+@pytest.fixture(scope="module")
+def imported(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("streaming")
+    protocol = walking.generate(tmp / "study", n_subjects=2, n_trials=1, conditions=["E4015", "N1500"])
+    memory = api.import_markers(protocol, jobs=1)
+    write_table(memory.markers, tmp / "whole" / "markers.parquet", MARKERS, **memory.meta)
+    write_table(memory.trials, tmp / "whole" / "trials.parquet", TRIALS, study=memory.plan.protocol.study)
+    streamed = api.import_markers(protocol, jobs=2, markers_path=tmp / "streamed.parquet")
+    write_table(streamed.trials, tmp / "trials.parquet", TRIALS, study=streamed.plan.protocol.study)
+    return tmp, memory, streamed
+
+
+def _labels_as_text(df: pd.DataFrame) -> pd.DataFrame:
+    return df.astype({c: str for c in ("trial", "entity", "marker")})
+
+
+def test_streamed_markers_equal_the_in_memory_table(imported):
+    tmp, memory, streamed = imported
+    assert streamed.markers is None and streamed.markers_path == tmp / "streamed.parquet"
+    whole, parts = read_table(tmp / "whole" / "markers.parquet", MARKERS), read_table(tmp / "streamed.parquet", MARKERS)
+    pd.testing.assert_frame_equal(_labels_as_text(whole), _labels_as_text(parts), check_exact=True)
+    assert table_metadata(tmp / "streamed.parquet") == table_metadata(tmp / "whole" / "markers.parquet")
+    # what pyarrow reads (the Arrow schema stored in the file) carries the stage metadata too
+    assert pq.read_schema(tmp / "streamed.parquet").metadata[b"cobot_analysis"] == pq.read_schema(
+        tmp / "whole" / "markers.parquet").metadata[b"cobot_analysis"]
+    pd.testing.assert_frame_equal(memory.trials, streamed.trials)
+    assert (streamed.n_samples, streamed.n_occluded) == (len(whole), int(whole["occluded"].sum())) and streamed.summary() == memory.summary()
+
+
+def test_each_trial_is_one_row_group_and_read_there(imported):
+    tmp, memory, _ = imported
+    index = _trial_row_groups(tmp / "streamed.parquet")
+    assert index == {t: [i] for i, t in enumerate(memory.trials["trial"])}
+    assert _trial_row_groups(tmp / "whole" / "markers.parquet") is None  # one row group for all: read up front
+    lazy = load_recordings(tmp / "streamed.parquet", tmp / "trials.parquet", lazy=True)
+    assert [r.row_groups for r in lazy] == [(i,) for i in range(len(lazy))] and all(not r.markers for r in lazy)
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_preprocess_of_the_streamed_file_equals_the_whole_file(imported, jobs):
+    tmp, _, _ = imported
+    a = process(tmp / "whole" / "markers.parquet", tmp / "whole" / "trials.parquet", Params(), jobs=jobs)
+    b = process(tmp / "streamed.parquet", tmp / "trials.parquet", Params(), jobs=jobs)
+    pd.testing.assert_frame_equal(a[0], b[0], check_exact=True)
+    pd.testing.assert_frame_equal(a[1], b[1], check_exact=True)
+    assert a[2] == b[2] == 4 and not a[3] and not b[3]
+
+
+def test_a_trial_listed_nowhere_in_the_row_groups_is_refused(imported, tmp_path):
+    from cobot_analysis.errors import InputError
+
+    tmp, memory, _ = imported
+    trials = memory.trials.copy()
+    extra = trials.iloc[[0]].assign(trial="ghost")
+    write_table(pd.concat([trials, extra], ignore_index=True), tmp_path / "trials.parquet", TRIALS, study="s")
+    with pytest.raises(InputError, match="trial ghost has no pelvis or table marker samples"):
+        load_recordings(Path(tmp / "streamed.parquet"), tmp_path / "trials.parquet", lazy=True)
+    write_table(trials.iloc[1:], tmp_path / "trials.parquet", TRIALS, study="s")
+    with pytest.raises(InputError, match=f"marker rows of trials \\['{trials['trial'][0]}'\\]"):
+        load_recordings(Path(tmp / "streamed.parquet"), tmp_path / "trials.parquet", lazy=True)
+
+
+def test_a_refused_streamed_import_leaves_no_file(tmp_path):
+    from cobot_analysis.errors import InputError
+
+    protocol = walking.generate(tmp_path / "study", n_subjects=2, n_trials=1, conditions=["E4015"])
+    bad = sorted((protocol.parent / "raw").glob("*.c3d"))[0]
+    bad.write_bytes(bad.read_bytes()[:600])  # truncated: refused
+    with pytest.raises(InputError, match="1 of 2 trials refused|refused"):
+        api.import_markers(protocol, jobs=1, skip_bad=False, markers_path=tmp_path / "m.parquet")
+    assert not (tmp_path / "m.parquet").exists()
+    kept = api.import_markers(protocol, jobs=1, markers_path=tmp_path / "m.parquet")  # skip_bad: the good trial kept
+    assert [t.trial for t in kept.imported] == ["S02_E4015_1"] and len(kept.refused) == 1
+    assert table_metadata(tmp_path / "m.parquet")["skipped"].keys() == {"S01_E4015_1"}

@@ -1,0 +1,31 @@
+"""What the report and the statistics table say of a small study (the five recordings of three labs):
+one value per group is given as such, not with a spread of 0; no table of headers alone."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import pandas as pd
+
+from cobot_analysis.reports.analysis import compare_markdown
+from cobot_analysis.stats.analyses import _summary
+
+
+def test_describe_gives_one_value_without_a_spread():
+    assert _summary({"BTK-A": [3.14], "BTK-B": [1.0, 2.0, 3.0], "none": []}) == \
+        "BTK-A: 3.14 (n = 1); BTK-B: 2 [1.5, 2.5], 2 +- 1; none: none"
+
+
+def _result(rows: list[dict], **excluded) -> SimpleNamespace:
+    cols = ["comparison", "entity", "d_xy", "d_theta", "d_gamma"]
+    return SimpleNamespace(distances=pd.DataFrame(rows, columns=cols), convention="continuous", excluded=excluded)
+
+
+def test_no_compared_pair_gives_a_sentence_not_an_empty_table():
+    md = compare_markdown(_result([], single=0, frames=3), sd_ddof=1)
+    assert "| comparison |" not in md
+    assert "No pair of trajectories was compared (below: which were left out and why)." in md
+    assert "3 trial(s) whose mean mixes trajectories that do not share a frame" in md
+    md = compare_markdown(_result([{"comparison": "individual-mean", "entity": "walker", "d_xy": 0.1, "d_theta": 0.2,
+                                    "d_gamma": 0.3}] * 2), sd_ddof=1)
+    assert "| individual-mean | walker | 2 | 0.100 +- 0.000 (n=2)" in md
