@@ -46,7 +46,8 @@ SIGMA = 0.08  # m: path error of the improved OC against human paths (docs/metho
 LAB_EXTENT = 10.0  # m: |x|, |y| of a goal in the studies' frames (their paths lie within 6 m of the origin)
 ARRIVED = 0.01  # m: closer to the goal than this the walker is predicted to stay
 DENSE = 200  # points of the plan's arc-length table
-MIN_SPEED = 0.05  # m/s: below this the duration guess uses this speed
+MIN_SPEED = 0.05  # m/s: below this the walker stands: its direction of travel is undefined
+NOMINAL_SPEED = 1.0  # m/s: duration guess of a plan from standing (the sweep's assumed mean walking speed)
 
 
 def check_goal(goal, option: str = "--goal") -> tuple[float, float, float]:
@@ -80,7 +81,9 @@ def quadratic_fit(n: int, dt: float) -> np.ndarray:
 
 def state_estimate(past: np.ndarray, filt: np.ndarray, travel: bool = False) -> np.ndarray:
     """X_k = (x, y, theta, v_forw, v_orth, omega) at the last sample of ``past`` (see module docstring);
-    ``travel``: theta is the direction of travel (v_orth = 0) even where it was measured."""
+    ``travel``: theta is the direction of travel (v_orth = 0) even where it was measured. A walker
+    slower than ``MIN_SPEED`` stands: its direction of travel is noise, so theta is the measured one
+    (else the direction of the whole past's displacement) and omega = 0."""
     m = filt.shape[1]
     p = past[-m:]
     if np.isfinite(p[:, 2]).all() and not travel:
@@ -88,37 +91,51 @@ def state_estimate(past: np.ndarray, filt: np.ndarray, travel: bool = False) -> 
     else:  # direction of travel
         angles = np.unwrap(np.arctan2(np.gradient(p[:, 1]), np.gradient(p[:, 0])))
     (x, vx), (y, vy), (th, om) = filt @ p[:, 0], filt @ p[:, 1], filt @ angles
+    if math.hypot(vx, vy) < MIN_SPEED:
+        om = 0.0
+        if math.isfinite(past[-1, 2]):
+            th = float(past[-1, 2])
+        else:
+            d = past[-1, :2] - past[np.isfinite(past[:, :2]).all(axis=1)][0, :2]
+            th = math.atan2(d[1], d[0]) if np.hypot(*d) > 0 else th
     c, s = math.cos(th), math.sin(th)
     return np.array([x, y, th, c * vx + s * vy, -s * vx + c * vy, om])
 
 
 class Planner:
-    """The improved OC from a state to a goal, warm-started from its previous plan (module docstring, 2-3)."""
+    """The improved OC from a state to a goal pose at rest, warm-started from its previous plan (module
+    docstring, 2-3)."""
 
     def __init__(self, weights: np.ndarray, dt: float, n_intervals: int = N_INTERVALS, tol: float = 1e-6):
         from cobot_analysis.models.oc.problem import OCPShape, get_ocp
 
-        self.ocp = get_ocp(OCPShape(n_intervals=n_intervals, free_time=True, tol=tol))
+        self.ocp = get_ocp(OCPShape(n_intervals=n_intervals, free_time=True, tol=tol, goal="constraint"))
         self.weights, self.dt = weights, float(dt)
         self._warm: np.ndarray | None = None
+        self.status = ""  # why the last plan failed
 
     def reset(self) -> None:
         self._warm = None
 
     def plan(self, x0: np.ndarray, goal) -> "object | None":
-        """The OC solution from ``x0`` to ``goal`` (heading on the branch nearest x0's), or None if it failed."""
-        gth = goal[2]
-        if math.isfinite(gth):
-            gth = x0[2] + math.remainder(gth - x0[2], 2 * math.pi)
-        else:
-            gth = x0[2]  # heading unknown: no cost on it (b1 = 0 in the weights)
+        """The OC solution from ``x0`` to ``goal`` at rest, or None if it failed or missed the goal.
+
+        The goal heading goes on the branch nearest x0's; an unknown heading (NaN) is the bearing of the
+        goal from x0 (the walker arrives walking straight in)."""
+        from cobot_analysis.models import goal_check
+
+        gth = goal[2] if math.isfinite(goal[2]) else math.atan2(goal[1] - x0[1], goal[0] - x0[0])
+        target = (goal[0], goal[1], x0[2] + math.remainder(gth - x0[2], 2 * math.pi))
         dist = math.hypot(goal[0] - x0[0], goal[1] - x0[1])
-        speed = max(math.hypot(x0[3], x0[4]), MIN_SPEED)
-        T0 = max(dist / speed, 10 * self.dt)
+        speed = math.hypot(x0[3], x0[4])
+        T0 = max(dist / (speed if speed >= MIN_SPEED else NOMINAL_SPEED), 10 * self.dt)
         guess = self._warm if self._warm is not None else "rest"
-        sol = self.ocp.solve(x0[:3], (goal[0], goal[1], gth), self.weights, T0, guess=guess, start_velocity=x0[3:])
+        sol = self.ocp.solve(x0[:3], target, self.weights, T0, guess=guess, start_velocity=x0[3:])
         if not sol.success and self._warm is not None:  # a stale warm start: once more from rest
-            sol = self.ocp.solve(x0[:3], (goal[0], goal[1], gth), self.weights, T0, guess="rest", start_velocity=x0[3:])
+            sol = self.ocp.solve(x0[:3], target, self.weights, T0, guess="rest", start_velocity=x0[3:])
+        if sol.success and not goal_check(sol.X[:, 0], sol.X[:, 1], sol.X[:, 2], target)["goal_reached"]:
+            sol.success, sol.status = False, "plan misses the goal"  # a converged solve is not a result
+        self.status = "" if sol.success else f"{sol.solver}: {sol.status}"
         self._warm = sol.primal if sol.success else None
         return sol if sol.success else None
 
@@ -148,13 +165,11 @@ class Planner:
         return out
 
 
-def _weights(weights, entity_default: str = "walking-2021", heading: bool = True) -> np.ndarray:
+def _weights(weights, entity_default: str = "walking-2021") -> np.ndarray:
+    """The improved model's weight vector (its b0..b3 unused: the goal is a constraint)."""
     from cobot_analysis.models.presets import load_weights, weights_vector
 
-    w = weights_vector(load_weights(weights or entity_default, "improved"), "improved")
-    if not heading:
-        w[8] = 0.0  # b1: the goal heading is unknown
-    return w
+    return weights_vector(load_weights(weights or entity_default, "improved"), "improved")
 
 
 class GoalPredictor(Predictor):
@@ -170,7 +185,7 @@ class GoalPredictor(Predictor):
         self.goal = check_goal(goal)
         super().__init__(n0, n_oc, dt)
         self.filter = quadratic_fit(min(int(fit), self.n0), self.dt)
-        self.planner = Planner(_weights(weights, heading=math.isfinite(self.goal[2])), self.dt, n_intervals)
+        self.planner = Planner(_weights(weights), self.dt, n_intervals)
 
     def reset(self) -> None:
         super().reset()
@@ -208,7 +223,7 @@ class GoalInferencePredictor(Predictor):
         super().__init__(n0, n_oc, dt)
         self.sigma = float(sigma)
         self.filter = quadratic_fit(min(int(fit), self.n0), self.dt)
-        w = _weights(weights, heading=False)
+        w = _weights(weights)
         self.planners = [Planner(w, self.dt, n_intervals) for _ in self.candidates]
         self._length = max(self.horizon, self.n0)  # a plan long enough to cover a whole past window later
 
