@@ -34,8 +34,6 @@ towards the most probable goal.
 from __future__ import annotations
 
 import math
-from collections import deque
-
 import numpy as np
 
 from cobot_analysis.errors import InputError
@@ -232,7 +230,8 @@ class GoalInferencePredictor(Predictor):
         for p in getattr(self, "planners", ()):
             p.reset()
         self._k = -1
-        self._plans: deque = deque()  # (sample, (M, L + 1, 2) plans)
+        self._segment: tuple[int, np.ndarray] | None = None  # (j, (M, L + 1, 2) plans made at sample j)
+        self._evidence = np.zeros(len(getattr(self, "candidates", ())))  # log-likelihoods of the finished segments
         self.posterior = None
         self.history: list[tuple[int, np.ndarray]] = []
 
@@ -243,7 +242,14 @@ class GoalInferencePredictor(Predictor):
     def on_skip(self) -> None:
         for p in self.planners:
             p.reset()
-        self._plans.clear()
+        self._segment = None  # the finished segments' evidence stays
+
+    def _loglik(self, past: np.ndarray, k: int) -> np.ndarray:
+        """log p(samples j..k | g) = -d_g^2 / 2 sigma^2 of the current segment (0 where g's plan failed)."""
+        j, plans = self._segment
+        seen = past[len(past) - (k - j + 1):, :2]  # samples j..k
+        d = np.nanmean(np.hypot(*(plans[:, : k - j + 1] - seen[None]).transpose(2, 0, 1)), axis=1)
+        return np.where(np.isfinite(d), -0.5 * (d / self.sigma) ** 2, 0.0)
 
     def predict(self, past: np.ndarray) -> np.ndarray | None:
         k = self._k
@@ -252,20 +258,16 @@ class GoalInferencePredictor(Predictor):
         ok = np.array([p is not None for p in paths])
         if not ok.any():
             return None
-        plans = np.stack([p[:, :2] if p is not None else np.full((self._length + 1, 2), np.nan) for p in paths])
-        self._plans.append((k, plans))
-        while self._plans and self._plans[0][0] < k - self.n0 + 1:
-            self._plans.popleft()
-        j0, old = self._plans[0]
-        seen = past[len(past) - (k - j0 + 1):, :2]  # samples j0..k
-        d = np.nanmean(np.hypot(*(old[:, : k - j0 + 1] - seen[None]).transpose(2, 0, 1)), axis=1)
-        d = np.where(np.isfinite(d) & ok, d, np.inf)
-        logp = -0.5 * (d / self.sigma) ** 2
-        logp -= logp.max()
-        post = np.exp(logp)
+        if self._segment is not None and k - self._segment[0] + 1 >= self.n0:  # a segment of N0 samples is finished
+            self._evidence = self._evidence + self._loglik(past, k)
+            self._segment = None
+        if self._segment is None:
+            self._segment = (k, np.stack([p[:, :2] if p is not None else np.full((self._length + 1, 2), np.nan) for p in paths]))
+        logp = self._evidence + self._loglik(past, k)
+        post = np.exp(logp - logp.max())
         self.posterior = post / post.sum()
         self.history.append((k, self.posterior.copy()))
-        return paths[int(np.argmax(self.posterior))][: self.horizon + 1]
+        return paths[int(np.argmax(np.where(ok, self.posterior, -1.0)))][: self.horizon + 1]
 
 
 # ---- the studies' goals ---------------------------------------------------------------------------
