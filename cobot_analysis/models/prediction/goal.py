@@ -69,6 +69,23 @@ def check_candidates(candidates, option: str = "--candidates") -> np.ndarray:
     return np.array(cands, dtype=float)
 
 
+def check_reachable(trajectories, goal, n0: int, weights_for, option: str = "--goal") -> None:
+    """Refuse a goal the model does not reach: the plan (``Planner``, cold) from each trajectory's first
+    window with a finite past (N0 samples) to ``goal`` must converge and end on it, else ``InputError``
+    naming ``option`` and the trajectory."""
+    for traj in trajectories:
+        finite = np.isfinite(traj.poses[:, :2]).all(axis=1).astype(int)
+        starts = np.flatnonzero(np.convolve(finite, np.ones(n0, dtype=int), mode="valid") == n0)
+        if not starts.size or not traj.dt > 0:
+            continue
+        past = traj.seen[starts[0]: starts[0] + n0]
+        planner = Planner(_weights(weights_for(traj.entity)), traj.dt)
+        if plan_path(planner, state_estimate(past, quadratic_fit(min(5, n0), traj.dt), travel=True), goal, 1) is None:
+            raise InputError(f"{option} ({goal[0]:g}, {goal[1]:g}, {goal[2]:g}): the walking model cannot reach it from "
+                             f"{traj.label} (its plan failed: {planner.status})",
+                             remedy=f"give a goal the walker can reach, in the study frame (m, rad), or leave 'goal' out of --predictors")
+
+
 def quadratic_fit(n: int, dt: float) -> np.ndarray:
     """(2, n) filter: rows give the value and the derivative at the last of ``n`` samples ``dt`` apart
     of the least-squares quadratic (a line when n < 3)."""
