@@ -9,26 +9,27 @@ Window at sample k (the measured past ``C_{k-N0+1} .. C_k``):
    ``v_forw = cos(th) x' + sin(th) y'``, ``v_orth = -sin(th) x' + cos(th) y'``, ``omega = th'``. The
    heading is the direction of travel (so v_orth = 0), even where theta was measured: the measured
    pelvis orientation of walking-2020 swings with the gait at up to 50 rad/s, which put into the
-   start state (omega) curls the plan.
+   start state (omega) curls the plan. Below ``MIN_SPEED`` the walker stands: theta is the measured
+   one (else the past's displacement direction) and omega = 0.
 2. Plan: the improved OC of docs/methods.md sec. 5.5 (continuous convention: integrated running cost,
    exact-in-time step, free duration, ``models.oc.problem``) on ``N_INTERVALS`` intervals from that
-   state (pose *and* velocity: the path starts at the measured speed) to the goal; warm-started from the
-   previous window's plan. The goal heading is put on the branch nearest the current heading.
+   state (pose *and* velocity: the path starts at the measured speed) to the goal pose at rest, a
+   terminal constraint (``OCPShape(goal="constraint")``); warm-started from the previous window's plan.
+   The goal heading is put on the branch nearest the current heading; an unknown one is the goal's
+   bearing from x0. A plan that fails or misses the goal (``models.goal_check``) is no prediction.
 3. Read at the person's pace: the plan's path (cubic Hermite in x, y, theta between its nodes) walked
    at the measured speed ``v_k = sqrt(v_forw^2 + v_orth^2)``: prediction j (sample k + j) is the plan's
-   pose at arc length ``min(j T_s v_k, L)``, ``L`` the plan's length (the walker stops at its end). The
-   plan's own time law is not used: under the continuous convention with the published weights it is
-   not a human one (docs/methods.md sec. 11); only its path is.
+   pose at arc length ``min(j T_s v_k, L)``, ``L`` the plan's length (the walker stops at the goal). The
+   plan's own time law is not used (its speed scale is a0's, not identified by the published fits).
 
 Candidate goals (``GoalInferencePredictor``, the goal not known): the same plan towards every candidate
-g in G, every window. The candidates are positions (their heading unknown: the terminal heading cost b1
-is dropped). The evidence for g at window k is how well the plan towards g made at the oldest sample
-j0 still in the window (``j0 = max(k - N0 + 1, N0 - 1)``) explains the samples measured since:
-``d_g = (1/(k - j0 + 1)) sum_{i=j0..k} ||c_i - x*_g,i||`` and
-``p(g | past) = exp(-d_g^2 / 2 sigma^2) / sum_g' exp(-d_g'^2 / 2 sigma^2)``, recomputed window after
-window (uniform at the first window). ``sigma = SIGMA`` m, the size of the improved OC's path error
-against human paths (docs/methods.md sec. 5.5: d_xy about 0.08 m). The prediction is the plan
-towards the most probable goal.
+g in G, every window. The candidates are positions (heading: the bearing, as above). Evidence is
+accumulated over disjoint segments of N0 samples: the plans made at a segment's first sample j are
+kept, and the segment's log-likelihood of g is ``-d_g^2 / 2 sigma^2`` with
+``d_g = (1/(k - j + 1)) sum_{i=j..k} ||c_i - x*_g,i||``;
+``log p(g | past) = sum over the finished segments + the current one's`` (normalised). ``sigma = SIGMA``
+m, the size of the improved OC's path error against human paths (docs/methods.md sec. 5.5: d_xy about
+0.08 m). The prediction is the plan towards the most probable goal.
 """
 
 from __future__ import annotations
