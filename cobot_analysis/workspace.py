@@ -200,6 +200,7 @@ class Stage:
         self._started = ""
         self._lock: int | None = None
         self.outputs: dict[str, Any] = {}  # what the stage wrote, kept in memory: its metrics are computed from it
+        self.result: Any = None  # the API result of the run: its own numbers (.metrics()) are the stage's metrics.json
         self._stage_lock: int | None = None
 
     # -- skip logic -----------------------------------------------------------------------------
@@ -399,10 +400,11 @@ class Stage:
         return paths
 
     def _write_metrics(self) -> None:
-        """``metrics.json``: the stage's headline numbers, for ``cobot-analysis metrics check``."""
+        """``metrics.json``: the stage's headline numbers (its ``result``'s, else read from its outputs), for
+        ``cobot-analysis metrics check``."""
         from cobot_analysis.regression.extract import write_stage_metrics
 
-        write_stage_metrics(self.name, self.dir, self.params, self.outputs)
+        write_stage_metrics(self.name, self.dir, self.params, self.outputs, self.result)
 
     def _write_manifest(self) -> None:
         outputs = [

@@ -32,6 +32,13 @@ def test_walking_study_from_c3d_to_statistics(tmp_path, capsys):
     assert stats.loc["subjects", "test"] == "kruskal" and stats.loc["distance", "test"] == "pearson"
     figure = found["figure"]
     assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and figure.stat().st_size > 10_000
+    ind = d[d["comparison"] == "individual-mean"]["d_xy"]
+    numbers = found["metrics"]  # the compare result's headline numbers are the distances' own
+    assert numbers["compare.individual-mean.walker.n"] == 32
+    assert numbers["compare.individual-mean.walker.d_xy.mean"] == ind.mean()
+    assert numbers["compare.individual-mean.walker.d_xy.sd"] == ind.std(ddof=1)
+    assert [p.name for p in found["figures"]] == ["means.png", "d_xy.png", "d_theta.png", "d_gamma.png"]
+    assert all(p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in found["figures"])
 
 
 def test_robot_run_from_bag_to_localisation_errors(tmp_path, capsys):
@@ -49,3 +56,8 @@ def test_robot_run_from_bag_to_localisation_errors(tmp_path, capsys):
     assert np.isfinite(found["errors"][["err_x", "err_y", "err_z", "err_yaw"]].to_numpy()).all()
     assert "/mocap/pose" in printed and "/icp/pose" in printed and f"delay {run['delay']:.4f}" in printed
     assert found["figure"].stat().st_size > 10_000
+    numbers = found["metrics"]  # the result's headline numbers are the run's own
+    assert numbers["localisation.runs"] == 1 and numbers["localisation.run.delay"] == run["delay"]
+    assert numbers["localisation.run.associated"] == run["n"] and numbers["localisation.run.ape_rmse"] == run["ape_rmse"]
+    assert sorted(p.stem for p in found["figures"]) == ["delay_cost", "error_distribution", "error_time", "paths", "timeseries_run"]
+    assert all(p.stat().st_size > 10_000 for p in found["figures"])

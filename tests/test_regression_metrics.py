@@ -272,3 +272,23 @@ def test_committed_baselines_have_a_tolerance_for_every_metric_and_a_runner():
     loc = baseline_metrics(load_baseline(BASELINES / "localisation.json"))
     assert {k for k in loc if k.startswith("localisation.") and k.endswith(".delay")} == {f"localisation.{r}.delay" for r in ("run.bag", "run_ros2", "run.mcap")}
     assert all(v.value == pytest.approx(0.55, abs=0.01) for k, v in loc.items() if k.endswith(".delay"))  # planted 0.55 s
+
+
+def test_a_stage_writes_its_results_own_numbers(tmp_path):
+    """metrics.json is the run's API result's metrics() (Stage.result), not re-read from the stage's files
+    (here there are none: reading them would record an error instead)."""
+    from cobot_analysis.metrics.records import collect
+    from cobot_analysis.workspace import Stage
+
+    class Result:
+        def metrics(self, *, stage):
+            return collect(stage, lambda out: out.count("means", 7))
+
+    with Stage(tmp_path, "average") as stage:
+        stage.result = Result()
+    payload = json.loads((tmp_path / "average" / "metrics.json").read_text())
+    assert "error" not in payload
+    assert payload["metrics"] == [{"name": "average.means", "value": 7, "unit": "count", "stage": "average", "convention": None}]
+    with Stage(tmp_path, "compare-published", force=True) as stage:  # a model stage: its convention from its directory
+        stage.result = Result()
+    assert _records(tmp_path / "compare-published")["compare.means"]["convention"] == "published"

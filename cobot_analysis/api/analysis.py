@@ -14,8 +14,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from cobot_analysis import registry
 from cobot_analysis.compare import TrajectorySet
 from cobot_analysis.errors import InputError
+from cobot_analysis.metrics import analysis as headline
+from cobot_analysis.metrics.records import Metrics, collect
 
 Trajectories = "pd.DataFrame | str | os.PathLike | TrajectorySet"
 
@@ -92,6 +95,42 @@ class AverageResult:
     def summary(self) -> str:
         return f"{self.means.drop_duplicates(['trial', 'entity']).shape[0]} means"
 
+    def metrics(self, *, stage: str = "average") -> Metrics:
+        """Headline numbers (``metrics.analysis.average``): means and trials behind them per entity, spread; the
+        numbers the ``average`` stage writes to ``metrics.json``.
+
+            >>> from cobot_analysis.api import average
+            >>> from cobot_analysis.synth.tables import walking_table
+            >>> numbers = average(walking_table(n_subjects=3, n_conditions=2, n_trials=2)).metrics()
+            >>> numbers.stage, numbers.study, numbers[0]
+            ('average', 'synthetic-walking', Metric(name='average.means', value=2, unit='count', stage='average', convention=None))
+            >>> numbers.as_dict()["average.walker.trials"]   # 3 subjects x 2 trials behind each of the 2 means
+            12
+        """
+        return collect(stage, headline.average, self.means)
+
+    def figures(self) -> dict[str, Any]:
+        """Matplotlib figures by name (``fig.savefig(...)`` writes one): ``means``, one panel per mean (every entity
+        of it; titled by its groups' values, e.g. the condition) with orientation arrows (``reports.figures.paths``).
+
+            >>> from cobot_analysis.api import average
+            >>> from cobot_analysis.synth.tables import walking_table
+            >>> figures = average(walking_table(n_subjects=2, n_conditions=2, n_trials=1)).figures()
+            >>> [(name, type(fig).__name__, [ax.get_title() for ax in fig.axes]) for name, fig in figures.items()]
+            [('means', 'Figure', ['E1500', 'N1500'])]
+        """
+        from cobot_analysis.reports.figures import paths
+
+        keys = [k for k in self.groups if k in self.means and k not in ("study", "entity")]
+        panels = []
+        for _, t in self.means.sort_values("sample").groupby(keys or ["trial"], sort=True, dropna=False):
+            values = [t[k].iloc[0] for k in keys if t[k].notna().any()]
+            title = " ".join(f"{v:.3g}" if isinstance(v, float) else str(v) for v in values) or str(t["trial"].iloc[0])
+            panels.append({"title": title, "means": [
+                (g["x"].to_numpy(), g["y"].to_numpy(), g["theta"].to_numpy() if g["theta"].notna().any() else None, entity)
+                for entity, g in t.groupby("entity", sort=True)]})
+        return {"means": paths(panels, title=f"{self.study}: mean trajectories")}
+
 
 def average(trajectories: Any, *, by: list[str] | None = None, max_spread: float | None = None) -> AverageResult:
     """Mean trajectory per condition (sample-wise mean of positions; circular mean of angles, trajectories
@@ -150,6 +189,32 @@ class CompareResult:
 
     def summary(self) -> str:
         return f"{len(self.distances)} compared pairs"
+
+    def metrics(self, *, stage: str | None = None) -> Metrics:
+        """Headline numbers (``metrics.analysis.compare``): d_xy, d_theta, d_gamma mean and sd per comparison
+        and entity; ``stage`` defaults to ``compare`` (``compare-published`` under the published convention).
+
+            >>> from cobot_analysis.api import average, compare
+            >>> from cobot_analysis.synth.tables import walking_table
+            >>> walks = walking_table(n_subjects=3, n_conditions=2, n_trials=2)
+            >>> numbers = compare(walks, average(walks).means, convention="published").metrics()
+            >>> numbers.stage, numbers.convention, numbers.as_dict()["compare.individual-mean.walker.n"]
+            ('compare-published', 'published', 12)
+        """
+        return collect(stage or registry.directory("compare", self.convention), headline.compare, self.distances)
+
+    def figures(self) -> dict[str, Any]:
+        """Matplotlib figures by name: ``d_xy``, ``d_theta``, ``d_gamma``, box plots of each distance per
+        comparison and entity (``reports.figures.boxplots``; a distance with no finite value is left out)."""
+        from cobot_analysis.reports.figures import boxplots
+
+        figs = {}
+        for d, unit in (("d_xy", "m"), ("d_theta", "rad"), ("d_gamma", "rad")):
+            if d in self.distances and self.distances[d].notna().any():
+                groups = {f"{c}\n{e}": g[d] for (c, e), g in self.distances.groupby(["comparison", "entity"], sort=True)}
+                figs[d] = boxplots(groups, f"{d} ({unit})", f"{d} per comparison ({self.convention} convention)",
+                                   xlabel="comparison, entity")
+        return figs
 
 
 def compare(trajectories: Any, means: Any, *, against: Any = None, comparison: str = "against",
@@ -249,6 +314,11 @@ class StatisticsResult:
         return (f"{int(ok.sum())} tests run, {int((~ok).sum())} skipped (reason in the table); "
                 f"{int(self.table['significant'].sum())} significant after Holm within each family.")
 
+    def metrics(self, *, stage: str = "stats") -> Metrics:
+        """Headline numbers (``metrics.analysis.statistics``): per question the test, n, statistic, p, Holm p,
+        effect size, or why it was skipped (``stage``: ``stats-published`` for the published convention's)."""
+        return collect(stage, headline.statistics, self.table)
+
 
 def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *, config: Any = None,
                durations: pd.DataFrame | None = None, anthropometrics: pd.DataFrame | None = None,
@@ -316,6 +386,10 @@ class ReconstructResult:
 
     def summary(self) -> str:
         return f"{len(self.reconstruction)} reconstructions"
+
+    def metrics(self, *, stage: str = "reconstruct") -> Metrics:
+        """Headline numbers (``metrics.analysis.reconstruct``): accuracy of the rebuilt subjects."""
+        return collect(stage, headline.reconstruct, self.reconstruction)
 
 
 def reconstruct(trajectories: Any, *, relative_pose: dict | None = None, scenario: int = 3, progress=None) -> ReconstructResult:

@@ -13,6 +13,8 @@ import pandas as pd
 
 from cobot_analysis.io.markers import ImportedTrial, ImportPlan, Refused
 from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, MAX_SPIKE
+from cobot_analysis.metrics import data as headline
+from cobot_analysis.metrics.records import Metrics, collect
 from cobot_analysis.preprocess.stage import Params
 
 
@@ -37,6 +39,10 @@ class ImportResult:
         skipped = f", {len(self.refused)} refused (listed above and in results.md)" if self.refused else ""
         return (f"{len(self.trials)} trials{skipped}, {len(self.markers)} marker samples "
                 f"({n_occ / max(len(self.markers), 1):.1%} occluded)")
+
+    def metrics(self, *, stage: str = "import") -> Metrics:
+        """Headline numbers (``metrics.data.import_markers``): recordings, frames, marker samples, rate."""
+        return collect(stage, headline.import_markers, self.trials, len(self.markers))
 
 
 def import_markers(protocol: str | os.PathLike | ImportPlan, *, units: str = "auto", marker_map: dict[str, str] | None = None,
@@ -97,6 +103,10 @@ class PublishedResult:
     durations: pd.DataFrame | None = None
     subject_wrt_table: pd.DataFrame | None = None
 
+    def metrics(self, *, stage: str = "import-published") -> Metrics:
+        """Headline numbers (``metrics.data.import_published``): every fact checked against the dataset README."""
+        return collect(stage, headline.import_published, self.trajectories, self.facts)
+
     def summary(self) -> str:
         return f"{self.dataset}: {self.trajectories.groupby(['trial', 'entity'], observed=True).ngroups} trajectories"
 
@@ -148,6 +158,11 @@ class PreprocessResult:
 
     def params_dict(self) -> dict[str, Any]:
         return asdict(self.params)
+
+    def metrics(self, *, stage: str = "preprocess") -> Metrics:
+        """Headline numbers (``metrics.data.preprocess``): trajectories per entity and direction, travel times and
+        distances, quality flags, marker gaps."""
+        return collect(stage, headline.preprocess, self.trajectories, self.gaps)
 
 
 def preprocess(markers: str | os.PathLike | ImportResult, trials: str | os.PathLike | None = None, *, jobs: int | None = None,

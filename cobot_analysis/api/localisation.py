@@ -13,6 +13,8 @@ from typing import Any
 import pandas as pd
 
 from cobot_analysis.errors import InputError
+from cobot_analysis.metrics import localisation as headline
+from cobot_analysis.metrics.records import Metrics, collect
 
 
 def floats(text: str, n: int, option: str) -> tuple[float, ...]:
@@ -77,6 +79,25 @@ class LocalisationResult:
 
     def summary(self) -> str:
         return f"{len(self.per_run)} run(s)"
+
+    def metrics(self, *, stage: str = "localisation") -> Metrics:
+        """Headline numbers (``metrics.localisation.localisation``): per run, delay, offsets, per-axis errors,
+        APE, drift and goal accuracy."""
+        return collect(stage, headline.localisation, self.runs)
+
+    def figures(self) -> dict[str, Any]:
+        """Matplotlib figures by name, those the stage writes (``reports.localisation``): ``paths``, ``error_time``,
+        ``error_distribution``, ``delay_cost`` and one ``timeseries_<run>`` per run."""
+        import re
+
+        from cobot_analysis.reports import localisation as report
+
+        runs = self.per_run
+        figs = {"paths": report.figure_paths(runs), "error_time": report.figure_error_time(runs),
+                "error_distribution": report.figure_error_distribution(runs), "delay_cost": report.figure_delay(runs)}
+        for r in runs:
+            figs["timeseries_" + re.sub(r"[^A-Za-z0-9_-]+", "_", r["run"])] = report.figure_timeseries(r)
+        return figs
 
     def run_lines(self) -> list[str]:
         """One line per run: delay, RMSE, goals, warnings."""

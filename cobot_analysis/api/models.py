@@ -13,7 +13,10 @@ from typing import Any, Callable
 import numpy as np
 import pandas as pd
 
+from cobot_analysis import registry
 from cobot_analysis.errors import InputError
+from cobot_analysis.metrics import models as headline
+from cobot_analysis.metrics.records import Metrics, collect
 
 MODEL_CHOICES = ("unicycle", "clothoid", "mombaur", "improved", "table", "all")
 
@@ -39,6 +42,26 @@ class GenerateResult:
         return (f"{n} {'trajectory' if n == 1 else 'trajectories'}"
                 + (f", {missed} not reaching their goal (results.md)" if missed else ", all at their goal")
                 + f", mean speed {_span(ends['mean_speed'])} m/s")
+
+    def metrics(self, *, stage: str | None = None) -> Metrics:
+        """Headline numbers (``metrics.models.generate``): per model, paths, duration T, cost and the largest end
+        error to the goal; ``stage`` defaults to ``generate`` (``generate-published`` under the published convention)."""
+        return collect(stage or registry.directory("generate", self.convention), headline.generate, self.generated,
+                       self.models, self.cases)
+
+    def figures(self) -> dict[str, Any]:
+        """Matplotlib figures by name: ``paths``, one panel per case with every model's path and orientation
+        arrows (``reports.figures.paths``)."""
+        from cobot_analysis.reports.figures import paths
+
+        styles = dict(zip(self.models, ["-", "--", ":", "-.", (0, (3, 1, 1, 1, 1, 1))]))
+        panels = []
+        for condition, c in self.generated.sort_values("sample").groupby("condition", sort=False):
+            panels.append({"title": str(condition) or "path", "means": [
+                (g["x"].to_numpy(), g["y"].to_numpy(), g["theta"].to_numpy(), "walker", styles.get(m, "-"), str(m))
+                for m, g in c.groupby("model", sort=False)]})
+        return {"paths": paths(panels, title=f"generated paths ({self.convention} convention)",
+                               names={"arrows": "orientation θ of the paths"})}
 
 
 def _span(v: pd.Series) -> str:
@@ -199,13 +222,18 @@ class VelocityCommands:
         return (f"{len(self.commands)} commands of {self.trial} at {self.rate:g} Hz, "
                 f"{self.commands['saturated'].mean() * 100:.0f} % saturated")
 
+    def metrics(self, *, stage: str = "velocity-commands") -> Metrics:
+        """Headline numbers (``metrics.models.velocity_commands``): commands and the share saturated."""
+        return collect(stage, headline.velocity_commands, self.commands)
 
-def velocity_commands(generated: pd.DataFrame, *, trial: str | None = None, rate: float = 10.0, v_max: float = 0.1,
-                      omega_max: float = 7.0, path=None) -> VelocityCommands:
+
+def velocity_commands(generated: pd.DataFrame | str | os.PathLike, *, trial: str | None = None, rate: float = 10.0,
+                      v_max: float = 0.1, omega_max: float = 7.0, path=None) -> VelocityCommands:
     """Velocity commands for a walking robot following a generated path (docs/methods.md sec. 10):
     v = (p_sim(t+1) - p_real(t)) f in the robot frame, open loop, saturated at ``v_max`` (m/s, x and y) and
-    ``omega_max`` (deg/s, yaw). ``generated``: the table of ``generate``; ``trial``: which of its paths
-    (default: the only one).
+    ``omega_max`` (deg/s, yaw). ``generated``: the table of ``generate`` (DataFrame, or the path of the
+    ``generated.parquet`` the stage wrote); ``trial``: which of its paths (default: the only one); ``path``:
+    the file a DataFrame came from, named in messages.
 
         >>> import math
         >>> from cobot_analysis.api import generate, velocity_commands
@@ -217,10 +245,19 @@ def velocity_commands(generated: pd.DataFrame, *, trial: str | None = None, rate
         0.1
         >>> round(float(cmd.commands["omega"].abs().max()), 6) == round(math.radians(7.0), 6)   # omega_max 7 deg/s, in rad/s
         True
+        >>> velocity_commands("no/generated.parquet")
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: no/generated.parquet: file not found; run the stage that writes generated_trajectories first or check --out
     """
     import math
 
+    from cobot_analysis.models.outputs import GENERATED
     from cobot_analysis.models.velocity_commands import check_time_law, resample_path, velocity_commands as commands
+    from cobot_analysis.schema import read_table
+
+    if not isinstance(generated, pd.DataFrame):
+        path = Path(generated)
+        generated = read_table(path, GENERATED)
 
     trials = list(dict.fromkeys(generated["trial"]))
     if trial is None:
@@ -272,6 +309,30 @@ class FitResult:
         end_d = sum(r.objective for r in self.results.values()) / len(self.results)
         fitted = f"{n_paths} paths, D" if len(self.results) == 1 else f"{len(self.results)} fits, {n_paths} paths, mean D"
         return f"{fitted} {end_d:.3f} fitted ({start_d:.3f} at the start weights)"
+
+    @property
+    def stage(self) -> str:
+        """The stage directory of this fit: ``fit-ioc``, ``fit-ioc-subjects`` (per subject) or ``fit-ioc-coupled``,
+        with ``-published`` under the published convention."""
+        name = "fit-ioc-coupled" if self.model == "coupled" else "fit-ioc-subjects" if self.per == "subject" else "fit-ioc"
+        return registry.directory(name, self.convention)
+
+    def metrics(self, *, stage: str | None = None) -> Metrics:
+        """Headline numbers (``metrics.models.fit_ioc``): per fit, D at the start and fitted, evaluations, failed
+        solves, fitted weights; distances of each model to the paths (``stage`` defaults to ``self.stage``)."""
+        return collect(stage or self.stage, headline.fit_ioc, self.weights_json(), self.distances)
+
+    def figures(self) -> dict[str, Any]:
+        """Matplotlib figures by name, those the stage writes with ``compare`` (the improved and table models):
+        ``distances_boxplot`` (distances per compared model) and ``paths`` (the mean paths vs the model at the
+        published and fitted weights), by ``reports.models``; none without the comparison. The coupled model's
+        ``pair_paths`` is drawn by the stage only (``reports.models.coupled_section``)."""
+        from cobot_analysis.reports.models import figure_boxplots, figure_paths
+
+        if self.comparison is None:
+            return {}
+        return {"distances_boxplot": figure_boxplots(self.comparison, self.spec.angle),
+                "paths": figure_paths(self.mean_targets, self.paths, "mean (black) vs improved OC: published, fitted")}
 
     def weights_json(self) -> dict:
         return {"model": self.model, "convention": self.convention, "weights_order": list(self.all_names),
@@ -357,17 +418,47 @@ def ioc_spec(model: str, *, convention: str = "continuous", start_weights: str |
                    **({"max_iter": 100} if convention == "published" else {}))
 
 
-def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: str = "improved",
+def read_trajectories(table: pd.DataFrame | str | os.PathLike) -> pd.DataFrame:
+    """A trajectories or means table: a DataFrame as it is, or read from the Parquet file a stage wrote
+    (``means`` or ``trajectories``, as the file's metadata says; ``InputError`` for any other file).
+
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> from cobot_analysis.api import average
+        >>> from cobot_analysis.api.models import read_trajectories
+        >>> from cobot_analysis.averaging import MEANS
+        >>> from cobot_analysis.schema import write_table
+        >>> from cobot_analysis.synth.tables import walking_table
+        >>> tmp = tempfile.TemporaryDirectory()
+        >>> path = write_table(average(walking_table(n_subjects=2, n_conditions=1, n_trials=1)).means, Path(tmp.name) / "means.parquet", MEANS)
+        >>> sorted(read_trajectories(path)["kind"].unique())
+        ['mean']
+        >>> tmp.cleanup()
+    """
+    from cobot_analysis.averaging import MEANS
+    from cobot_analysis.schema import TRAJECTORIES, read_table, table_metadata
+
+    if isinstance(table, pd.DataFrame):
+        return table
+    try:
+        name = table_metadata(table).get("table")
+    except Exception:  # noqa: BLE001 - read_table below reports the file properly
+        name = None
+    return read_table(table, MEANS if name == "means" else TRAJECTORIES)
+
+
+def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | str | os.PathLike | None = None, model: str = "improved",
             start_weights: str | None = None, fit: list[str] | None = None, optimizer: str = "powell",
             max_evaluations: int = 2000, per: str = "all", subjects: int | None = None, goal: str = "auto",
             intervals: int = 50, v_nominal: float = 1.0, compare: bool = True, convention: str | None = None,
             resume: bool = False, checkpoint: str | os.PathLike | None = None, jobs: int | None = None,
             scheduler: str | None = None, means_source: str | os.PathLike = "", trials_source: str | os.PathLike | None = None,
-            durations: pd.DataFrame | None = None,
             on_evaluation: Callable[[str, int, float, float], None] | None = None, method: str = "bilevel") -> FitResult:
     """Bi-level inverse optimal control (docs/methods.md sec. 6): fit the OC cost weights of ``model``
     (``improved``, ``table`` or ``coupled``) to the mean trajectories (``per="all"``) or to each subject's
-    trials (``per="subject"``). ``fit``: the weights to fit (default: all but those ``held_weights`` holds);
+    trials (``per="subject"``). ``means`` and ``trials``: means or trajectories tables (DataFrames, or the
+    paths of the Parquet files the stages wrote; ``means_source`` / ``trials_source`` name a DataFrame's file
+    in messages). ``fit``: the weights to fit (default: all but those ``held_weights`` holds);
     ``start_weights``: a preset, a weights.json, or ``"ones"`` (every fitted weight 1). ``checkpoint``: a
     directory where the upper level's evaluations are logged after every iteration (``resume`` continues).
     ``on_evaluation(fit, n, D, best)`` reports progress. ``method``: ``bilevel`` (the published method) or
@@ -395,6 +486,12 @@ def fit_ioc(means: pd.DataFrame, *, trials: pd.DataFrame | None = None, model: s
     from cobot_analysis.parallel import default_jobs, executor
 
     check_method(method)
+    if not isinstance(means, pd.DataFrame):
+        means_source = means_source or means
+    if trials is not None and not isinstance(trials, pd.DataFrame):
+        trials_source = trials_source or trials
+    means = read_trajectories(means)
+    trials = read_trajectories(trials) if trials is not None else None
     if model not in ("improved", "table", "coupled"):
         raise InputError(f"fit-ioc fits the improved, table or coupled model, not {model!r}", remedy="use --model improved, table or coupled")
     conv = conventions.get(convention or "continuous")

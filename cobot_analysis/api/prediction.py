@@ -11,7 +11,10 @@ from typing import Any
 
 import pandas as pd
 
+from cobot_analysis import registry
 from cobot_analysis.errors import InputError
+from cobot_analysis.metrics import prediction as headline
+from cobot_analysis.metrics.records import Metrics, collect
 
 DEFAULT_SETTINGS = "25:100,50:100,75:100,50:200"
 
@@ -55,6 +58,22 @@ class PredictionResult:
         first = self.predictions.drop_duplicates(["study", "trial", "entity", "n0", "n_oc"])
         return (f"{n} {'trajectory' if n == 1 else 'trajectories'} x {len(c.settings)} setting{'s' if len(c.settings) != 1 else ''} x "
                 f"{len(c.predictors)} predictor{'s' if len(c.predictors) != 1 else ''}, {int(first['n_windows'].sum())} windows per predictor")
+
+    def metrics(self, *, stage: str | None = None) -> Metrics:
+        """Headline numbers (``metrics.prediction.predict``): per setting and predictor, each error's mean, sd and
+        r with the global distance, windows used and failed; OC vs each baseline. ``stage``: ``predict`` (or
+        ``predict-<label>``; ``-published`` under the published convention)."""
+        return collect(stage or registry.directory("predict", self.config.convention.name), headline.predict,
+                       self.predictions, self.summary_table, self.comparison)
+
+    def figures(self) -> dict[str, Any]:
+        """Matplotlib figures by name, those the stage writes (``reports.prediction.figures``): every prediction
+        of the median trajectory (``prediction_overlay``), the predictions at six samples (``prediction_at_k``),
+        the error against the global distance (``prediction_error_vs_distance``)."""
+        from cobot_analysis.reports import prediction as report
+
+        example = report.example_trajectory(self.predictions, self.trajectories, self.config)
+        return report.figures(self.predictions, example, self.config)
 
 
 def prediction_config(*, settings: str = DEFAULT_SETTINGS, predictors: str = "oc,cv,ctrv", weights: str | None = None,
@@ -147,6 +166,11 @@ def predict(trajectories: pd.DataFrame | str | os.PathLike, *, settings: str = D
         (0, True)
         >>> sorted(r.summary_table["metric"].unique())
         ['ade', 'd_pred', 'delta_theta', 'delta_xy', 'fde']
+        >>> numbers = r.metrics()   # the headline numbers: what the predict stage writes to metrics.json
+        >>> numbers.stage, numbers.convention, numbers.as_dict()["predict.10:20.oc.windows_used"]
+        ('predict', 'continuous', 31)
+        >>> sorted(r.figures())     # matplotlib Figures by name, as the stage writes them
+        ['prediction_at_k', 'prediction_error_vs_distance', 'prediction_overlay']
     """
     import tempfile
 

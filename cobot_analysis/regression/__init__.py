@@ -1,8 +1,9 @@
 """Metric regression: each stage's headline numbers in ``<stage>/metrics.json``, compared with a
 committed baseline (``cobot-analysis metrics check``).
 
-- ``extract``: what each stage reports (registry stage name -> function of the stage directory),
-  written by ``workspace.Stage`` when the stage succeeds; read back per workspace.
+- ``extract``: each stage's ``metrics.json``, written by ``workspace.Stage`` when the stage succeeds: the
+  run's API result's own numbers (``result.metrics()``, ``cobot_analysis.metrics``), else read from the
+  stage's outputs (registry stage name -> reader); read back per workspace.
 - ``baseline``: baselines, their tolerance rules, the comparison table and the update diff.
 """
 

@@ -11,6 +11,7 @@ One pattern for every stage (docs: DEVELOPERS.md)::
             if stage.skipped:
                 return Outcome.skip(stage)
             result = api.average(table, by=by)                       # the science: cobot_analysis.api
+            stage.result = result                                    # its metrics() are the stage's metrics.json
             stage.write_table("means.parquet", result.means, MEANS)  # outputs with their schema
             stage.path("results.md").write_text(fragments.average(result))  # the report: cobot_analysis.reports
         return Outcome(stage.final_dir, result)

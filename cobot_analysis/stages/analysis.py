@@ -41,6 +41,7 @@ def average(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
         if stage.skipped:
             return Outcome.skip(stage)
         result = api.average(path if not len(trials) else ts, by=groups, max_spread=max_spread)
+        stage.result = result  # its own numbers are the stage's metrics.json
         if not result.n_averaged:
             warn(f"{path}: no per-trial trajectories; the published means are carried over unchanged")
         for line in result.spread:
@@ -75,6 +76,7 @@ def compare(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
         if stage.skipped:
             return Outcome.skip(stage)
         result = api.compare(ts, mts, against=against, comparison=comparison, any_vs_any=same, by=groups, convention=conv.name)
+        stage.result = result  # its own numbers are the stage's metrics.json
         stage.write_table("distances.parquet", result.distances, DISTANCES, grouping=groups, convention=conv.name)
         stage.path("results.md").write_text(compare_markdown(result, conv.comparison.sd_ddof))
     return Outcome(stage.final_dir, result)
@@ -130,6 +132,7 @@ def statistics(out: str | os.PathLike, *, config: str | os.PathLike | None = Non
         if stage.skipped:
             return Outcome.skip(stage)
         result = api.statistics(ts, dist, config=study, durations=dur, anthropometrics=anthro, progress=track)
+        stage.result = result  # its own numbers are the stage's metrics.json
         if result.unmatched:  # a typo, or data not there yet: said once
             warn(f"{config}: {len(result.unmatched)} filter value(s) match no row, their analyses are skipped (stats.md says "
                  f"why): {'; '.join(result.unmatched)}")
@@ -170,6 +173,7 @@ def reconstruct(out: str | os.PathLike, *, trajectories: str | os.PathLike | Non
             return Outcome.skip(stage)
         try:
             result = api.reconstruct(ts, relative_pose=published, scenario=scenario, progress=track)
+            stage.result = result  # its own numbers are the stage's metrics.json
         except InputError as exc:
             raise InputError(exc.detail, path=path, remedy=exc.remedy) from None
         stage.write_table("reconstruction.parquet", result.reconstruction, RECONSTRUCTION)

@@ -65,6 +65,7 @@ def import_markers(out: str | os.PathLike, protocol: str | os.PathLike, *, jobs:
         if stage.skipped:
             return Outcome.skip(stage)
         result = api.import_markers(plan, jobs=jobs, scheduler=scheduler)
+        stage.result = result  # its own numbers are the stage's metrics.json
         for note in result.notes:
             warn(note)
         refusals.record(stage, result.refused, len(plan.tasks), "import")
@@ -96,6 +97,7 @@ def import_published(out: str | os.PathLike, dataset: str, path: str | os.PathLi
         if stage.skipped:
             return Outcome.skip(stage)
         result = api.import_published(dataset, path, gamma_limit=gamma_limit)
+        stage.result = result  # its own numbers are the stage's metrics.json
         facts = result.facts
         if dataset == pub.WALKING:
             text = walking_results_markdown(facts)
@@ -131,6 +133,7 @@ def preprocess(out: str | os.PathLike, *, markers: str | os.PathLike | None = No
         if stage.skipped:
             return Outcome.skip(stage)
         result = api.preprocess(markers_path, trials_path, jobs=jobs, scheduler=scheduler, **options)
+        stage.result = result  # its own numbers are the stage's metrics.json
         refusals.record(stage, result.refused, result.n_recordings + len(result.refused), "preprocess")
         params = asdict(p)
         stage.write_table("trajectories.parquet", result.trajectories, TRAJECTORIES, stage="preprocess", **params)

@@ -4,7 +4,6 @@ MCAP bags with their truth) and ``localisation`` (docs/methods.md sec. 9)."""
 from __future__ import annotations
 
 import os
-import re
 from pathlib import Path
 from typing import Any
 
@@ -67,6 +66,7 @@ def localisation(out: str | os.PathLike, bags: list[str | os.PathLike] | None = 
         if stage.skipped:
             return Outcome.skip(stage)
         result = analyse(bags, opts, labels, maps, jobs=jobs, scheduler=scheduler)
+        stage.result = result  # its own numbers are the stage's metrics.json
         stage.write_table("poses.parquet", result.poses, POSES, time_base=opts.time)
         stage.write_table("localisation.parquet", result.runs, RUNS)
         stage.write_table("errors.parquet", result.errors, ERRORS)
@@ -74,15 +74,8 @@ def localisation(out: str | os.PathLike, bags: list[str | os.PathLike] | None = 
             stage.write_table("goals.parquet", result.goals, GOALS, tol_xy=opts.rule.tol_xy, tol_yaw=opts.rule.tol_yaw)
         names = []
         if figures:
-            results = result.per_run
-            for fig, stem in [(report.figure_paths(results), "paths"), (report.figure_error_time(results), "error_time"),
-                              (report.figure_error_distribution(results), "error_distribution"),
-                              (report.figure_delay(results), "delay_cost")]:
+            for stem, fig in result.figures().items():
                 stage.savefig(fig, stem)
-                names.append(f"{stem}.png")
-            for r in results:
-                stem = "timeseries_" + re.sub(r"[^A-Za-z0-9_-]+", "_", r["run"])
-                stage.savefig(report.figure_timeseries(r), stem)
                 names.append(f"{stem}.png")
         stage.path("results.md").write_text(report.results_markdown(result.runs, names, opts.rule.tol_xy, opts.rule.tol_yaw))
     return Outcome(stage.final_dir, result)

@@ -9,22 +9,10 @@ from pathlib import Path
 from typing import Any
 
 from cobot_analysis import api, registry
-from cobot_analysis.api.models import ioc_spec, plan_generate
+from cobot_analysis.api.models import ioc_spec, plan_generate, read_trajectories
 from cobot_analysis.errors import InputError
 from cobot_analysis.stages import Outcome
 from cobot_analysis.workspace import Stage, find_input
-
-
-def read_trajectories(path: Path):
-    """A trajectories or means table (chosen by the file's metadata)."""
-    from cobot_analysis.averaging import MEANS
-    from cobot_analysis.schema import TRAJECTORIES, read_table, table_metadata
-
-    try:
-        name = table_metadata(path).get("table")
-    except Exception:  # noqa: BLE001 - read_table below reports the file properly
-        name = None
-    return read_table(path, MEANS if name == "means" else TRAJECTORIES)
 
 
 def generate(out: str | os.PathLike, *, model: str = "improved", weights: Any = None, start=None, goal=None,
@@ -62,6 +50,7 @@ def generate(out: str | os.PathLike, *, model: str = "improved", weights: Any = 
         result = api.generate(model, start=start, goal=goal, cases=cases, study=study, weights=weights, samples=samples,
                               intervals=intervals, duration=duration, v_nominal=v_nominal, max_iter=max_iter,
                               convention=conv.name, measured=measured, jobs=jobs, scheduler=scheduler)
+        stage.result = result  # its own numbers are the stage's metrics.json
         stage.write_table("generated.parquet", result.generated, GENERATED, n_samples=samples, n_intervals=intervals,
                     convention=conv.name)
         stage.path("results.md").write_text(generate_markdown(result, conventions.get(conv.name).summary))
@@ -147,7 +136,8 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
                              max_evaluations=max_evaluations, per=per, subjects=subjects, goal=goal, intervals=intervals,
                              v_nominal=v_nominal, compare=compare, convention=conv.name, resume=resume,
                              checkpoint=Path(out) / f".{name}.checkpoint", jobs=jobs, scheduler=scheduler, means_source=mean_src,
-                             trials_source=traj_path or out, durations=durations, on_evaluation=on_evaluation, method=method)
+                             trials_source=traj_path or out, on_evaluation=on_evaluation, method=method)
+        stage.result = result  # its own numbers are the stage's metrics.json
         stage.write_json("weights.json", result.weights_json())
         for k, r in result.results.items():  # each fit also as a file usable with --weights
             stage.path(f"weights/{k}.json").write_text(json.dumps({"convention": conv.name, "weights": r.weights}, indent=2) + "\n")
@@ -173,6 +163,7 @@ def velocity_commands(out: str | os.PathLike, *, generated: str | os.PathLike | 
     with Stage(out, "velocity-commands", inputs=[path], params=params, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
+        stage.result = cmd  # its own numbers are the stage's metrics.json
         if fmt == "csv":
             cmd.commands.to_csv(stage.path("commands.csv"), index=False, float_format="%.6g")
         else:

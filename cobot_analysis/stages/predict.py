@@ -70,6 +70,7 @@ def predict(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
         info(f"predict ({conv.name} convention): {len(trajs)} trajectories x {len(config.settings)} settings x "
              f"{len(config.predictors)} predictors")
         result = assess(trajs, config, work.root, unpredictable=unpredictable, jobs=jobs, scheduler=scheduler)
+        stage.result = result  # its own numbers are the stage's metrics.json
         metrics, windows = result.predictions, result.windows
         if result.resumed:
             info(f"predict: {result.resumed} trajectories resumed from {work.root}")

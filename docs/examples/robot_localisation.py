@@ -74,7 +74,18 @@ def main(out: str | Path = "robot-example") -> dict:
     plt.close(fig)
     print("figure:", figure)
 
-    return {"planted": planted, "run": run.to_dict(), "errors": errors, "topics": topics, "figure": figure}
+    # 5. the result's headline numbers (what the command line writes to metrics.json) and its own figures
+    numbers = result.metrics().as_dict()
+    print(f"metrics: {len(numbers)} numbers, e.g. localisation.run.ape_rmse = {numbers['localisation.run.ape_rmse']:.4f} m")
+    drawn = []
+    for name, fig in result.figures().items():  # paths, error_time, error_distribution, delay_cost, timeseries_run
+        drawn.append(out / f"{name}.png")
+        fig.savefig(drawn[-1], dpi=100, bbox_inches="tight")
+        plt.close(fig)
+    print("figures:", ", ".join(p.name for p in drawn))
+
+    return {"planted": planted, "run": run.to_dict(), "errors": errors, "topics": topics, "figure": figure,
+            "metrics": numbers, "figures": drawn}
 
 
 if __name__ == "__main__":

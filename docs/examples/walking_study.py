@@ -6,6 +6,9 @@ real data, start from your own protocol file instead. Then, all in memory (no wo
 
     import_markers -> preprocess -> average -> compare -> statistics -> a figure (matplotlib)
 
+with the headline numbers of a result (``.metrics()``, what the command line writes to ``metrics.json``)
+and the figures it draws itself (``.figures()``).
+
 Run it with ``python docs/examples/walking_study.py [OUT]`` (OUT: where the synthetic study and the
 figure go; default ``walking-example``). ``tests/test_examples.py`` runs it and checks its numbers.
 """
@@ -64,10 +67,17 @@ def main(out: str | Path = "walking-example") -> dict:
     print(f"preprocess: {n_walks} trajectories of {walks['sample'].nunique()} samples")
 
     # 4. mean path per start condition, 5. each walk's distance to its condition's mean
-    means = ca.average(walks).means
-    distances = ca.compare(walks, means).distances
+    averaged = ca.average(walks)
+    means = averaged.means
+    compared = ca.compare(walks, means)
+    distances = compared.distances
     per_subject = distances.groupby("subject")["d_xy"].mean()
     print("mean d_xy per subject (m):", ", ".join(f"{s} {v:.3f}" for s, v in per_subject.items()))
+    # the result's headline numbers (name -> value; units in compared.metrics()[i].unit)
+    numbers = compared.metrics().as_dict()
+    key = "compare.individual-mean.walker.d_xy"
+    print(f"d_xy to the condition's mean: {numbers[key + '.mean']:.3f} ± {numbers[key + '.sd']:.3f} m "
+          f"over {numbers['compare.individual-mean.walker.n']} walks")
 
     # 6. the statistics of the study's questions (Holm correction within each family)
     stats = ca.statistics(walks, distances, config=QUESTIONS)
@@ -91,8 +101,16 @@ def main(out: str | Path = "walking-example") -> dict:
     plt.close(fig)
     print("figure:", figure)
 
+    # 8. the figures the results draw themselves (matplotlib Figures by name): the means, the distances
+    drawn = []
+    for name, fig in {**averaged.figures(), **compared.figures()}.items():
+        drawn.append(out / f"{name}.png")
+        fig.savefig(drawn[-1], dpi=100, bbox_inches="tight")
+        plt.close(fig)
+    print("figures:", ", ".join(p.name for p in drawn))
+
     return {"trials": len(imported.trials), "trajectories": n_walks, "means": means.groupby("condition").ngroups,
-            "distances": distances, "stats": stats.table, "figure": figure}
+            "distances": distances, "stats": stats.table, "figure": figure, "metrics": numbers, "figures": drawn}
 
 
 if __name__ == "__main__":
