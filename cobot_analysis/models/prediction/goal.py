@@ -45,6 +45,8 @@ SIGMA = 0.08  # m: path error of the improved OC against human paths (docs/metho
 LAB_EXTENT = 10.0  # m: |x|, |y| of a goal in the studies' frames (their paths lie within 6 m of the origin)
 ARRIVED = 0.01  # m: closer to the goal than this the walker is predicted to stay
 DENSE = 200  # points of the plan's arc-length table
+MAX_ITER = 100  # solver iterations per plan: a warm 20-interval plan converges in tens; a stale warm start that
+# does not is solved again from rest (some ran for minutes from the warm start near a standing table)
 MIN_SPEED = 0.05  # m/s: below this the walker stands: its direction of travel is undefined
 NOMINAL_SPEED = 1.0  # m/s: duration guess of a plan from standing (the sweep's assumed mean walking speed)
 
@@ -125,7 +127,7 @@ class Planner:
     def __init__(self, weights: np.ndarray, dt: float, n_intervals: int = N_INTERVALS, tol: float = 1e-6):
         from cobot_analysis.models.oc.problem import OCPShape, get_ocp
 
-        self.ocp = get_ocp(OCPShape(n_intervals=n_intervals, free_time=True, tol=tol, goal="constraint"))
+        self.ocp = get_ocp(OCPShape(n_intervals=n_intervals, free_time=True, tol=tol, goal="constraint", max_iter=MAX_ITER))
         self.weights, self.dt = weights, float(dt)
         self._warm: np.ndarray | None = None
         self.status = ""  # why the last plan failed
