@@ -48,7 +48,8 @@ DENSE = 200  # points of the plan's arc-length table
 MAX_ITER = 100  # solver iterations per plan: a warm 20-interval plan converges in tens; a stale warm start that
 # does not is solved again from rest (some ran for minutes from the warm start near a standing table)
 MIN_SPEED = 0.05  # m/s: below this the walker stands: its direction of travel is undefined
-NOMINAL_SPEED = 1.0  # m/s: duration guess of a plan from standing (the sweep's assumed mean walking speed)
+NOMINAL_SPEED = 1.0  # m/s: the duration guess's pace at least (the sweep's assumed mean walking speed): a guess from
+# a walker barely moving (1.5 m in 30 s) made solves from rest run for minutes
 
 
 def check_goal(goal, option: str = "--goal") -> tuple[float, float, float]:
@@ -146,7 +147,7 @@ class Planner:
         target = (goal[0], goal[1], x0[2] + math.remainder(gth - x0[2], 2 * math.pi))
         dist = math.hypot(goal[0] - x0[0], goal[1] - x0[1])
         speed = math.hypot(x0[3], x0[4])
-        T0 = max(dist / (speed if speed >= MIN_SPEED else NOMINAL_SPEED), 10 * self.dt)
+        T0 = max(dist / max(speed, NOMINAL_SPEED), 10 * self.dt)  # a guess at a walking pace; T is free in [0.4, 2.5] T0
         guess = self._warm if self._warm is not None else "rest"
         sol = self.ocp.solve(x0[:3], target, self.weights, T0, guess=guess, start_velocity=x0[3:])
         if not sol.success and self._warm is not None:  # a stale warm start: once more from rest
