@@ -15,7 +15,9 @@
 
     python benchmarks/bench_predict.py horizons WALKING.parquet [--pairs PAIRS.parquet] [--every K] [--jobs 2]
         Wall time of the horizon sweep (models.prediction.horizons) at N0 = 50.
-    The windows benchmark also times the goal-aware predictor (goal known) per window on one core.
+    python benchmarks/bench_predict.py goal WALKING.parquet [--pairs PAIRS.parquet] [--n 6] [--weights W]
+        The goal-aware predictors per window on one core: goal on n walking trials; goal and goal-inferred
+        on n table means.
 
 TRAJECTORIES.parquet: e.g. the output of `cobot-analysis import-published walking-2020 ...`.
 BLAS is limited to one thread per process, as in the pipeline's pool.
@@ -74,7 +76,6 @@ def bench_windows(path: Path, n: int, convention: str) -> None:
         print(f"{label}: {len(times)} windows, {1 / times.mean():.0f} windows/s (mean {1e3 * times.mean():.2f} ms, "
               f"median {1e3 * np.median(times):.2f} ms, p95 {1e3 * np.percentile(times, 95):.2f} ms), "
               f"iterations median {np.median(iters):.0f}, failed {failed}")
-    bench_goal(trajs)
     for name in ("cv", "ctrv"):
         s = time.process_time()
         count = sum(make_predictor(name, 50, 100, t.dt).predict_offline(t.seen).shape[0] for t in trajs)
@@ -119,13 +120,16 @@ def bench_published_floor(path: Path, n: int, target: float = 60.0) -> None:
           f"{400 * fatrop / 2:.0f} s: {400 * fatrop / 2 / target:.2f} of the {target:.0f} s target")
 
 
-def bench_goal(trajs) -> None:
-    """The goal-aware predictor (goal known, the walking goal): windows per second of CPU time, one core."""
+def bench_goal(trajs, weights: str | None = None, name: str = "goal") -> None:
+    """A goal-aware predictor (``goal``: each trajectory's design goal; ``goal-inferred``: the study's candidate
+    goals): windows per second of CPU time, one core."""
     from cobot_analysis.models.prediction.predictor import make_predictor
+    from cobot_analysis.models.prediction.sweep import SweepConfig, predictor_options
 
+    config = SweepConfig(settings=((50, 100),), predictors=(name,), weights=weights)
     times, failed = [], 0
     for t in trajs:
-        p = make_predictor("goal", 50, 100, t.dt, goal=t.goal)
+        p = make_predictor(name, 50, 100, t.dt, **predictor_options(name, t, config))
         for pose in t.seen:
             s = time.process_time()
             path = p.update(pose)
@@ -133,8 +137,23 @@ def bench_goal(trajs) -> None:
                 times.append(time.process_time() - s)
         failed += p.failed
     times = np.array(times)
-    print(f"goal: {len(times)} windows, {1 / times.mean():.0f} windows/s (mean {1e3 * times.mean():.2f} ms, "
-          f"median {1e3 * np.median(times):.2f} ms, p95 {1e3 * np.percentile(times, 95):.2f} ms), failed {failed}")
+    print(f"{name} ({weights or 'entity preset'}): {len(times)} windows, {1 / times.mean():.0f} windows/s (mean {1e3 * times.mean():.2f} ms, "
+          f"median {1e3 * np.median(times):.2f} ms, p95 {1e3 * np.percentile(times, 95):.2f} ms, max {1e3 * times.max():.0f} ms), failed {failed}")
+
+
+def bench_goal_predictors(walking: Path, pairs: Path | None, n: int, weights: str | None) -> None:
+    """``goal`` on n walking trials (``weights``, else walking-2021); with ``pairs``, ``goal`` and ``goal-inferred``
+    on n table means (table-2022)."""
+    from cobot_analysis.models.prediction.sweep import SweepConfig, trajectories_from_table
+    from cobot_analysis.schema import TRAJECTORIES, read_table
+
+    bench_goal(load(walking, n), weights)
+    if pairs is not None:
+        df = read_table(pairs, TRAJECTORIES)
+        tables = trajectories_from_table(df[df["entity"] == "table"], SweepConfig(settings=((50, 100),)))
+        tables = tables[:: max(1, len(tables) // n)][:n]
+        bench_goal(tables)
+        bench_goal(tables, name="goal-inferred")
 
 
 def bench_horizons(walking: Path, pairs: Path | None, every: int, jobs: int) -> None:
@@ -145,7 +164,7 @@ def bench_horizons(walking: Path, pairs: Path | None, every: int, jobs: int) -> 
     from cobot_analysis.schema import TRAJECTORIES, read_table
 
     for path, entity, predictors in ((walking, "walker", ("oc", "goal", "cv", "ctrv")),
-                                     (pairs, "table", ("oc", "goal", "cv", "ctrv"))):  # goal-inferred: far slower (docs/benchmarks.md)
+                                     (pairs, "table", ("oc", "goal", "cv", "ctrv"))):  # goal-inferred: a solve can still hang (docs/benchmarks.md)
         if path is None:
             continue
         df = read_table(path, TRAJECTORIES)
@@ -199,6 +218,11 @@ def main() -> None:
     s.add_argument("--every", type=int, default=1)
     s.add_argument("--convention", choices=("continuous", "published"), default="continuous")
     s.add_argument("--predictors", default="oc,cv,ctrv")
+    g = sub.add_parser("goal")
+    g.add_argument("walking", type=Path)
+    g.add_argument("--pairs", type=Path)
+    g.add_argument("--n", type=int, default=6)
+    g.add_argument("--weights")
     h = sub.add_parser("horizons")
     h.add_argument("walking", type=Path)
     h.add_argument("--pairs", type=Path)
@@ -211,6 +235,8 @@ def main() -> None:
         bench_windows(a.trajectories, a.n, a.convention)
     elif a.what == "published-floor":
         bench_published_floor(a.trajectories, a.n)
+    elif a.what == "goal":
+        bench_goal_predictors(a.walking, a.pairs, a.n, a.weights)
     elif a.what == "horizons":
         bench_horizons(a.walking, a.pairs, a.every, a.jobs)
     else:

@@ -461,3 +461,25 @@ def test_goal_predictors_and_horizon_sweep_from_the_command_line(cli, tmp_path, 
     assert "Prediction error against the horizon" in text and "| whole path |" in text
     windows = pd.read_parquet(stage / "prediction_windows.parquet")
     assert set(windows["predictor"].astype(str)) == {"goal", "goal-inferred", "cv"}
+
+
+def test_goal_the_model_cannot_reach_exits_2_without_output(cli, tmp_path, traj_file, monkeypatch):
+    """A --goal whose plan fails (here: every solve reported failed, as an unreachable goal would be):
+    one line naming --goal, exit 2, nothing written, before any prediction."""
+    from cobot_analysis.models.oc.problem import WalkerOCP
+
+    solve = WalkerOCP.solve
+
+    def failing(self, *args, **kwargs):
+        sol = solve(self, *args, **kwargs)
+        if self.shape.goal == "constraint":
+            sol.success, sol.status = False, "Infeasible_Problem_Detected"
+        return sol
+
+    monkeypatch.setattr(WalkerOCP, "solve", failing)
+    out = tmp_path / "ws"
+    code, _, err = cli("predict", "--out", out, "--trajectories", traj_file(), "--predictors", "goal,cv",
+                       "--goal", "1.5", "1.5", "0", *FAST)
+    assert code == 2 and "--goal (1.5, 1.5, 0): the walking model cannot reach it" in err and "Infeasible" in err
+    assert len(err.strip().splitlines()) == 1
+    assert not out.exists() or not any(out.iterdir())

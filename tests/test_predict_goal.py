@@ -72,10 +72,31 @@ def test_goal_predictor_follows_a_straight_walk_to_its_goal():
     np.testing.assert_allclose(P[:, 0, :2], poses[19:, :2], atol=1e-9)  # starts on the walker
     assert np.nanmax(np.abs(P[..., 1])) < 1e-3  # stays on the line to the goal
     m = summarise(window_errors(poses, P, 20))
-    # over the whole remaining path (up to 2.8 m); what is left is the plan's end, short of its goal
-    # (0.24 m from 2.8 m away: the continuous OC with the published weights, issue 17 point 1)
-    assert m.delta_xy < 0.05 and m.ade < 0.015
-    assert np.hypot(*P[0, -1, :2]) < 0.25
+    # over the whole remaining path (up to 2.8 m): the plan ends at rest on the goal (its terminal
+    # constraint), walked at the measured speed, as the walker does
+    assert m.delta_xy < 0.01 and m.ade < 0.01
+    np.testing.assert_allclose(P[:, -1, :2], 0.0, atol=0.01)
+
+
+def test_plan_reaches_the_goal_at_rest_and_an_unknown_heading_is_the_goal_bearing():
+    from cobot_analysis.models.prediction.goal import Planner, _weights
+
+    planner = Planner(_weights("walking-2021"), DT)
+    x0 = np.array([-2.0, -1.0, 0.3, 1.1, 0.0, 0.0])
+    sol = planner.plan(x0, (0.0, 0.0, float("nan")))
+    bearing = np.arctan2(1.0, 2.0)
+    np.testing.assert_allclose(sol.X[-1], [0.0, 0.0, bearing, 0.0, 0.0, 0.0], atol=1e-6)
+    np.testing.assert_allclose(sol.X[0], x0, atol=1e-9)  # from the measured state, at the measured speed
+    path = planner.read(sol, 400, 1.1)
+    assert np.hypot(*np.diff(path[:, :2], axis=0).T).max() <= 1.1 * DT + 1e-9  # never faster than measured
+
+
+def test_standing_walker_keeps_its_heading():
+    """Below MIN_SPEED the direction of travel is noise: theta is the measured one and omega 0."""
+    rng = np.random.default_rng(1)
+    past = np.c_[1e-4 * rng.standard_normal((10, 2)), np.full(10, 0.7)]
+    x = state_estimate(past, quadratic_fit(5, DT), travel=True)
+    assert x[2] == 0.7 and x[5] == 0.0 and np.hypot(x[3], x[4]) < 0.05
 
 
 def test_goal_inferred_finds_the_goal_walked_to():

@@ -56,6 +56,10 @@ def predict(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
         n0_min = min(n0 for n0, _ in config.settings)
         warn(f"predict: {len(unpredictable)} trajectories left out, fewer than N0 = {n0_min} consecutive finite positions: "
              + ", ".join(unpredictable[:5]) + (" ..." if len(unpredictable) > 5 else ""))
+    if config.goal is not None and "goal" in config.predictors:
+        from cobot_analysis.models.prediction.goal import check_reachable
+
+        check_reachable(trajs, config.goal, min(n0 for n0, _ in config.settings), config.weights_for)
     params = {"convention": conv.name, "config": config.params(), "study": studies, "entity": entities, "kind": kind,
               "limit": limit, "every": every, "horizons": horizon_list,
               **({"per_condition": per_condition} if per_condition else {})}  # absent when unused: earlier stages stay current

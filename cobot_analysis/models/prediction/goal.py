@@ -9,33 +9,32 @@ Window at sample k (the measured past ``C_{k-N0+1} .. C_k``):
    ``v_forw = cos(th) x' + sin(th) y'``, ``v_orth = -sin(th) x' + cos(th) y'``, ``omega = th'``. The
    heading is the direction of travel (so v_orth = 0), even where theta was measured: the measured
    pelvis orientation of walking-2020 swings with the gait at up to 50 rad/s, which put into the
-   start state (omega) curls the plan.
+   start state (omega) curls the plan. Below ``MIN_SPEED`` the walker stands: theta is the measured
+   one (else the past's displacement direction) and omega = 0.
 2. Plan: the improved OC of docs/methods.md sec. 5.5 (continuous convention: integrated running cost,
    exact-in-time step, free duration, ``models.oc.problem``) on ``N_INTERVALS`` intervals from that
-   state (pose *and* velocity: the path starts at the measured speed) to the goal; warm-started from the
-   previous window's plan. The goal heading is put on the branch nearest the current heading.
+   state (pose *and* velocity: the path starts at the measured speed) to the goal pose at rest, a
+   terminal constraint (``OCPShape(goal="constraint")``); warm-started from the previous window's plan.
+   The goal heading is put on the branch nearest the current heading; an unknown one is the goal's
+   bearing from x0. A plan that fails or misses the goal (``models.goal_check``) is no prediction.
 3. Read at the person's pace: the plan's path (cubic Hermite in x, y, theta between its nodes) walked
    at the measured speed ``v_k = sqrt(v_forw^2 + v_orth^2)``: prediction j (sample k + j) is the plan's
-   pose at arc length ``min(j T_s v_k, L)``, ``L`` the plan's length (the walker stops at its end). The
-   plan's own time law is not used: under the continuous convention with the published weights it is
-   not a human one (docs/methods.md sec. 11); only its path is.
+   pose at arc length ``min(j T_s v_k, L)``, ``L`` the plan's length (the walker stops at the goal). The
+   plan's own time law is not used (its speed scale is a0's, not identified by the published fits).
 
 Candidate goals (``GoalInferencePredictor``, the goal not known): the same plan towards every candidate
-g in G, every window. The candidates are positions (their heading unknown: the terminal heading cost b1
-is dropped). The evidence for g at window k is how well the plan towards g made at the oldest sample
-j0 still in the window (``j0 = max(k - N0 + 1, N0 - 1)``) explains the samples measured since:
-``d_g = (1/(k - j0 + 1)) sum_{i=j0..k} ||c_i - x*_g,i||`` and
-``p(g | past) = exp(-d_g^2 / 2 sigma^2) / sum_g' exp(-d_g'^2 / 2 sigma^2)``, recomputed window after
-window (uniform at the first window). ``sigma = SIGMA`` m, the size of the improved OC's path error
-against human paths (docs/methods.md sec. 5.5: d_xy about 0.08 m). The prediction is the plan
-towards the most probable goal.
+g in G, every window. The candidates are positions (heading: the bearing, as above). Evidence is
+accumulated over disjoint segments of N0 samples: the plans made at a segment's first sample j are
+kept, and the segment's log-likelihood of g is ``-d_g^2 / 2 sigma^2`` with
+``d_g = (1/(k - j + 1)) sum_{i=j..k} ||c_i - x*_g,i||``;
+``log p(g | past) = sum over the finished segments + the current one's`` (normalised). ``sigma = SIGMA``
+m, the size of the improved OC's path error against human paths (docs/methods.md sec. 5.5: d_xy about
+0.08 m). The prediction is the plan towards the most probable goal.
 """
 
 from __future__ import annotations
 
 import math
-from collections import deque
-
 import numpy as np
 
 from cobot_analysis.errors import InputError
@@ -46,7 +45,11 @@ SIGMA = 0.08  # m: path error of the improved OC against human paths (docs/metho
 LAB_EXTENT = 10.0  # m: |x|, |y| of a goal in the studies' frames (their paths lie within 6 m of the origin)
 ARRIVED = 0.01  # m: closer to the goal than this the walker is predicted to stay
 DENSE = 200  # points of the plan's arc-length table
-MIN_SPEED = 0.05  # m/s: below this the duration guess uses this speed
+MAX_ITER = 100  # solver iterations per plan: a warm 20-interval plan converges in tens; a stale warm start that
+# does not is solved again from rest (some ran for minutes from the warm start near a standing table)
+MIN_SPEED = 0.05  # m/s: below this the walker stands: its direction of travel is undefined
+NOMINAL_SPEED = 1.0  # m/s: the duration guess's pace at least (the sweep's assumed mean walking speed): a guess from
+# a walker barely moving (1.5 m in 30 s) made solves from rest run for minutes
 
 
 def check_goal(goal, option: str = "--goal") -> tuple[float, float, float]:
@@ -70,6 +73,23 @@ def check_candidates(candidates, option: str = "--candidates") -> np.ndarray:
     return np.array(cands, dtype=float)
 
 
+def check_reachable(trajectories, goal, n0: int, weights_for, option: str = "--goal") -> None:
+    """Refuse a goal the model does not reach: the plan (``Planner``, cold) from each trajectory's first
+    window with a finite past (N0 samples) to ``goal`` must converge and end on it, else ``InputError``
+    naming ``option`` and the trajectory."""
+    for traj in trajectories:
+        finite = np.isfinite(traj.poses[:, :2]).all(axis=1).astype(int)
+        starts = np.flatnonzero(np.convolve(finite, np.ones(n0, dtype=int), mode="valid") == n0)
+        if not starts.size or not traj.dt > 0:
+            continue
+        past = traj.seen[starts[0]: starts[0] + n0]
+        planner = Planner(_weights(weights_for(traj.entity)), traj.dt)
+        if plan_path(planner, state_estimate(past, quadratic_fit(min(5, n0), traj.dt), travel=True), goal, 1) is None:
+            raise InputError(f"{option} ({goal[0]:g}, {goal[1]:g}, {goal[2]:g}): the walking model cannot reach it from "
+                             f"{traj.label} (its plan failed: {planner.status})",
+                             remedy=f"give a goal the walker can reach, in the study frame (m, rad), or leave 'goal' out of --predictors")
+
+
 def quadratic_fit(n: int, dt: float) -> np.ndarray:
     """(2, n) filter: rows give the value and the derivative at the last of ``n`` samples ``dt`` apart
     of the least-squares quadratic (a line when n < 3)."""
@@ -80,7 +100,9 @@ def quadratic_fit(n: int, dt: float) -> np.ndarray:
 
 def state_estimate(past: np.ndarray, filt: np.ndarray, travel: bool = False) -> np.ndarray:
     """X_k = (x, y, theta, v_forw, v_orth, omega) at the last sample of ``past`` (see module docstring);
-    ``travel``: theta is the direction of travel (v_orth = 0) even where it was measured."""
+    ``travel``: theta is the direction of travel (v_orth = 0) even where it was measured. A walker
+    slower than ``MIN_SPEED`` stands: its direction of travel is noise, so theta is the measured one
+    (else the direction of the whole past's displacement) and omega = 0."""
     m = filt.shape[1]
     p = past[-m:]
     if np.isfinite(p[:, 2]).all() and not travel:
@@ -88,37 +110,51 @@ def state_estimate(past: np.ndarray, filt: np.ndarray, travel: bool = False) -> 
     else:  # direction of travel
         angles = np.unwrap(np.arctan2(np.gradient(p[:, 1]), np.gradient(p[:, 0])))
     (x, vx), (y, vy), (th, om) = filt @ p[:, 0], filt @ p[:, 1], filt @ angles
+    if math.hypot(vx, vy) < MIN_SPEED:
+        om = 0.0
+        if math.isfinite(past[-1, 2]):
+            th = float(past[-1, 2])
+        else:
+            d = past[-1, :2] - past[np.isfinite(past[:, :2]).all(axis=1)][0, :2]
+            th = math.atan2(d[1], d[0]) if np.hypot(*d) > 0 else th
     c, s = math.cos(th), math.sin(th)
     return np.array([x, y, th, c * vx + s * vy, -s * vx + c * vy, om])
 
 
 class Planner:
-    """The improved OC from a state to a goal, warm-started from its previous plan (module docstring, 2-3)."""
+    """The improved OC from a state to a goal pose at rest, warm-started from its previous plan (module
+    docstring, 2-3)."""
 
     def __init__(self, weights: np.ndarray, dt: float, n_intervals: int = N_INTERVALS, tol: float = 1e-6):
         from cobot_analysis.models.oc.problem import OCPShape, get_ocp
 
-        self.ocp = get_ocp(OCPShape(n_intervals=n_intervals, free_time=True, tol=tol))
+        self.ocp = get_ocp(OCPShape(n_intervals=n_intervals, free_time=True, tol=tol, goal="constraint", max_iter=MAX_ITER))
         self.weights, self.dt = weights, float(dt)
         self._warm: np.ndarray | None = None
+        self.status = ""  # why the last plan failed
 
     def reset(self) -> None:
         self._warm = None
 
     def plan(self, x0: np.ndarray, goal) -> "object | None":
-        """The OC solution from ``x0`` to ``goal`` (heading on the branch nearest x0's), or None if it failed."""
-        gth = goal[2]
-        if math.isfinite(gth):
-            gth = x0[2] + math.remainder(gth - x0[2], 2 * math.pi)
-        else:
-            gth = x0[2]  # heading unknown: no cost on it (b1 = 0 in the weights)
+        """The OC solution from ``x0`` to ``goal`` at rest, or None if it failed or missed the goal.
+
+        The goal heading goes on the branch nearest x0's; an unknown heading (NaN) is the bearing of the
+        goal from x0 (the walker arrives walking straight in)."""
+        from cobot_analysis.models import goal_check
+
+        gth = goal[2] if math.isfinite(goal[2]) else math.atan2(goal[1] - x0[1], goal[0] - x0[0])
+        target = (goal[0], goal[1], x0[2] + math.remainder(gth - x0[2], 2 * math.pi))
         dist = math.hypot(goal[0] - x0[0], goal[1] - x0[1])
-        speed = max(math.hypot(x0[3], x0[4]), MIN_SPEED)
-        T0 = max(dist / speed, 10 * self.dt)
+        speed = math.hypot(x0[3], x0[4])
+        T0 = max(dist / max(speed, NOMINAL_SPEED), 10 * self.dt)  # a guess at a walking pace; T is free in [0.4, 2.5] T0
         guess = self._warm if self._warm is not None else "rest"
-        sol = self.ocp.solve(x0[:3], (goal[0], goal[1], gth), self.weights, T0, guess=guess, start_velocity=x0[3:])
+        sol = self.ocp.solve(x0[:3], target, self.weights, T0, guess=guess, start_velocity=x0[3:])
         if not sol.success and self._warm is not None:  # a stale warm start: once more from rest
-            sol = self.ocp.solve(x0[:3], (goal[0], goal[1], gth), self.weights, T0, guess="rest", start_velocity=x0[3:])
+            sol = self.ocp.solve(x0[:3], target, self.weights, T0, guess="rest", start_velocity=x0[3:])
+        if sol.success and not goal_check(sol.X[:, 0], sol.X[:, 1], sol.X[:, 2], target)["goal_reached"]:
+            sol.success, sol.status = False, "plan misses the goal"  # a converged solve is not a result
+        self.status = "" if sol.success else f"{sol.solver}: {sol.status}"
         self._warm = sol.primal if sol.success else None
         return sol if sol.success else None
 
@@ -148,13 +184,11 @@ class Planner:
         return out
 
 
-def _weights(weights, entity_default: str = "walking-2021", heading: bool = True) -> np.ndarray:
+def _weights(weights, entity_default: str = "walking-2021") -> np.ndarray:
+    """The improved model's weight vector (its b0..b3 unused: the goal is a constraint)."""
     from cobot_analysis.models.presets import load_weights, weights_vector
 
-    w = weights_vector(load_weights(weights or entity_default, "improved"), "improved")
-    if not heading:
-        w[8] = 0.0  # b1: the goal heading is unknown
-    return w
+    return weights_vector(load_weights(weights or entity_default, "improved"), "improved")
 
 
 class GoalPredictor(Predictor):
@@ -170,7 +204,7 @@ class GoalPredictor(Predictor):
         self.goal = check_goal(goal)
         super().__init__(n0, n_oc, dt)
         self.filter = quadratic_fit(min(int(fit), self.n0), self.dt)
-        self.planner = Planner(_weights(weights, heading=math.isfinite(self.goal[2])), self.dt, n_intervals)
+        self.planner = Planner(_weights(weights), self.dt, n_intervals)
 
     def reset(self) -> None:
         super().reset()
@@ -208,7 +242,7 @@ class GoalInferencePredictor(Predictor):
         super().__init__(n0, n_oc, dt)
         self.sigma = float(sigma)
         self.filter = quadratic_fit(min(int(fit), self.n0), self.dt)
-        w = _weights(weights, heading=False)
+        w = _weights(weights)
         self.planners = [Planner(w, self.dt, n_intervals) for _ in self.candidates]
         self._length = max(self.horizon, self.n0)  # a plan long enough to cover a whole past window later
 
@@ -217,7 +251,8 @@ class GoalInferencePredictor(Predictor):
         for p in getattr(self, "planners", ()):
             p.reset()
         self._k = -1
-        self._plans: deque = deque()  # (sample, (M, L + 1, 2) plans)
+        self._segment: tuple[int, np.ndarray] | None = None  # (j, (M, L + 1, 2) plans made at sample j)
+        self._evidence = np.zeros(len(getattr(self, "candidates", ())))  # log-likelihoods of the finished segments
         self.posterior = None
         self.history: list[tuple[int, np.ndarray]] = []
 
@@ -228,7 +263,14 @@ class GoalInferencePredictor(Predictor):
     def on_skip(self) -> None:
         for p in self.planners:
             p.reset()
-        self._plans.clear()
+        self._segment = None  # the finished segments' evidence stays
+
+    def _loglik(self, past: np.ndarray, k: int) -> np.ndarray:
+        """log p(samples j..k | g) = -d_g^2 / 2 sigma^2 of the current segment (0 where g's plan failed)."""
+        j, plans = self._segment
+        seen = past[len(past) - (k - j + 1):, :2]  # samples j..k
+        d = np.nanmean(np.hypot(*(plans[:, : k - j + 1] - seen[None]).transpose(2, 0, 1)), axis=1)
+        return np.where(np.isfinite(d), -0.5 * (d / self.sigma) ** 2, 0.0)
 
     def predict(self, past: np.ndarray) -> np.ndarray | None:
         k = self._k
@@ -237,20 +279,16 @@ class GoalInferencePredictor(Predictor):
         ok = np.array([p is not None for p in paths])
         if not ok.any():
             return None
-        plans = np.stack([p[:, :2] if p is not None else np.full((self._length + 1, 2), np.nan) for p in paths])
-        self._plans.append((k, plans))
-        while self._plans and self._plans[0][0] < k - self.n0 + 1:
-            self._plans.popleft()
-        j0, old = self._plans[0]
-        seen = past[len(past) - (k - j0 + 1):, :2]  # samples j0..k
-        d = np.nanmean(np.hypot(*(old[:, : k - j0 + 1] - seen[None]).transpose(2, 0, 1)), axis=1)
-        d = np.where(np.isfinite(d) & ok, d, np.inf)
-        logp = -0.5 * (d / self.sigma) ** 2
-        logp -= logp.max()
-        post = np.exp(logp)
+        if self._segment is not None and k - self._segment[0] + 1 >= self.n0:  # a segment of N0 samples is finished
+            self._evidence = self._evidence + self._loglik(past, k)
+            self._segment = None
+        if self._segment is None:
+            self._segment = (k, np.stack([p[:, :2] if p is not None else np.full((self._length + 1, 2), np.nan) for p in paths]))
+        logp = self._evidence + self._loglik(past, k)
+        post = np.exp(logp - logp.max())
         self.posterior = post / post.sum()
         self.history.append((k, self.posterior.copy()))
-        return paths[int(np.argmax(self.posterior))][: self.horizon + 1]
+        return paths[int(np.argmax(np.where(ok, self.posterior, -1.0)))][: self.horizon + 1]
 
 
 # ---- the studies' goals ---------------------------------------------------------------------------
