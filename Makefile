@@ -23,7 +23,8 @@ PUBLISHED_TABLE_IOC_ARGS ?= --max-evaluations 130
 PREDICT_ARGS ?=
 PUBLISHED_PREDICT_ARGS ?=
 PREDICT_FITTED_ARGS ?= --settings 50:100
-# the goal-aware predictor beside the thesis OC and the baselines, and the horizon sweep (docs/methods.md sec. 7.1, 7.2)
+# the goal-aware predictor beside the thesis OC and the baselines, and the horizon sweep (docs/methods.md sec. 7.1, 7.2);
+# on walking with the weights fitted under the continuous convention (weights are used in the convention they were fitted in)
 GOAL_PREDICT_ARGS ?= --settings 50:100 --predictors oc,goal,cv,ctrv --horizons 5,10,25,50,100,200,all
 SUBJECT_IOC_ARGS ?= --subjects 10 --max-evaluations 600
 COUPLED_IOC_ARGS ?= --max-evaluations 600
@@ -77,7 +78,7 @@ walking:
 	$(CLI) predict --out $(WALK) --kind trial --convention continuous --jobs $(JOBS) $(PREDICT_ARGS)
 	$(CLI) predict --out $(WALK) --kind trial --convention published --jobs $(JOBS) $(PUBLISHED_PREDICT_ARGS)
 	$(CLI) predict --out $(WALK) --kind trial --weights $(WALK)/fit-ioc/weights.json --stage-name predict-fitted --jobs $(JOBS) $(PREDICT_FITTED_ARGS)
-	$(CLI) predict --out $(WALK) --kind trial --convention continuous --stage-name predict-goal --jobs $(JOBS) $(GOAL_PREDICT_ARGS)
+	$(CLI) predict --out $(WALK) --kind trial --convention continuous --weights $(WALK)/fit-ioc/weights.json --stage-name predict-goal --jobs $(JOBS) $(GOAL_PREDICT_ARGS)
 	$(CLI) report walking-2020 --out $(WALK) --to reports/walking
 
 # per-subject IOC (after walking): one fit per subject over its trials, started from the fit over the means

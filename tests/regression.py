@@ -83,6 +83,10 @@ def _walking(root: Path, datasets: Path | None, j: list[str]) -> tuple[list[Path
         else:
             steps += [["fit-ioc", "--out", str(m), *tables, "--max-evaluations", "20", *options, *j],
                       ["generate", "--out", str(m), "--study", "walking-2020", "--weights", str(m / "fit-ioc" / "weights.json"),
+                       *options, *j],
+                      # the goal-aware predictor to the design goal, with the weights fitted just above
+                      ["predict", "--out", str(m), tables[2], tables[3], "--kind", "trial", "--every", "40", "--settings", "50:100",
+                       "--predictors", "goal,cv", "--weights", str(m / "fit-ioc" / "weights.json"), "--stage-name", "predict-goal",
                        *options, *j]]
         steps += [["predict", "--out", str(m), tables[2], tables[3], "--kind", "trial", "--every", "40", "--settings", "50:100",
                    *options, *j]]
