@@ -29,3 +29,16 @@ def test_no_compared_pair_gives_a_sentence_not_an_empty_table():
     md = compare_markdown(_result([{"comparison": "individual-mean", "entity": "walker", "d_xy": 0.1, "d_theta": 0.2,
                                     "d_gamma": 0.3}] * 2), sd_ddof=1)
     assert "| individual-mean | walker | 2 | 0.100 +- 0.000 (n=2)" in md
+
+
+def test_a_study_of_means_only_says_so_instead_of_zero_trajectories():
+    import numpy as np
+
+    from cobot_analysis.reports.builders import _data_section
+
+    meta = pd.DataFrame({"kind": ["mean"] * 3, "entity": ["table", "table", "subject1"]})
+    ts = SimpleNamespace(meta=meta, theta=np.zeros((3, 5)))
+    lines, results = [], []
+    _data_section(SimpleNamespace(title="Pairs"), {"ts": ts}, lines, results)
+    assert "No individual trials in the data: 3 mean trajectories (subject1: 1, table: 2)." in lines
+    assert "## Pairs: data" in results and not any("0 trajectories" in x for x in lines)

@@ -156,7 +156,15 @@ def _data_section(study, data: dict, lines: list[str], results: list[str]) -> No
     if ts is None:
         return
     tr = ts.meta[ts.meta["kind"].eq("trial")]
-    txt = [f"{len(tr)} trajectories (" + ", ".join(f"{e}: {n}" for e, n in tr["entity"].value_counts().sort_index().items()) + ")."]
+
+    def by_entity(rows) -> str:
+        return ", ".join(f"{e}: {n}" for e, n in rows["entity"].value_counts().sort_index().items())
+
+    if len(tr):
+        txt = [f"{len(tr)} trajectories ({by_entity(tr)})."]
+    else:  # a study published as means only (pair-carriage-2022): say so rather than "0 trajectories"
+        mn = ts.meta[ts.meta["kind"].eq("mean")]
+        txt = [f"No individual trials in the data: {len(mn)} mean trajectories ({by_entity(mn)})."]
     missing = ~np.isfinite(ts.theta).all(axis=1)
     if "subject" in tr.columns and tr["subject"].notna().any():
         per_subject = pd.Series(missing[tr.index]).groupby(tr["subject"].to_numpy()).sum()
