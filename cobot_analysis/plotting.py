@@ -12,6 +12,10 @@ STYLE = {
     "savefig.bbox": "tight",
 }
 
+# one colour per predictor in every figure of a report (overlays, horizon sweep)
+PREDICTOR_COLOURS = {"oc": "tab:blue", "cv": "tab:orange", "ctrv": "tab:green", "goal": "tab:red",
+                     "goal-inferred": "tab:purple"}
+
 
 def pyplot():
     """``matplotlib.pyplot`` on the Agg backend with ``STYLE`` applied."""

@@ -7,6 +7,7 @@ import numpy as np
 import pandas as pd
 
 from cobot_analysis.models.prediction.horizons import BASELINE, WHOLE, wins_from
+from cobot_analysis.plotting import PREDICTOR_COLOURS
 
 
 def horizon_markdown(summary: pd.DataFrame, inference: pd.DataFrame) -> list[str]:
@@ -62,7 +63,7 @@ def horizon_figure(summary: pd.DataFrame):
             ax = axes[row, j]
             for p, gp in g.groupby("predictor", sort=True):
                 gp = gp.assign(x=gp["horizon"].where(gp["horizon"] != WHOLE, x_whole)).sort_values("x")
-                ax.plot(gp["x"], gp[metric], "o-", label=p)
+                ax.plot(gp["x"], gp[metric], "o-", label=p, color=PREDICTOR_COLOURS.get(p))
             ax.set_xscale("log")
             ax.set_xticks(hs + [x_whole], [str(h) for h in hs] + ["whole"])
             ax.set_xlabel("horizon (samples ahead)")

@@ -212,7 +212,7 @@ def figures(metrics, traj, config) -> dict:
         options = predictor_options(name, traj, config)
         preds[name] = make_predictor(name, n0, n_oc, traj.dt, convention=config.convention, **options).predict_offline(traj.seen)
     xy = traj.poses[:, :2]
-    colours = {"oc": "tab:blue", "cv": "tab:orange", "ctrv": "tab:green", "goal": "tab:red", "goal-inferred": "tab:purple"}
+    from cobot_analysis.plotting import PREDICTOR_COLOURS as colours
     conv = config.convention
     span = np.nanmax(xy, axis=0) - np.nanmin(xy, axis=0)
     aspect = float(np.clip(span[1] / max(span[0], 1e-9), 0.3, 1.5))  # of the equal-aspect path panels
