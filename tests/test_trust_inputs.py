@@ -34,20 +34,21 @@ def _c3d_rate(value):
     return make
 
 
-def _vicon_rate(text):
+def _text_rate(writer, name: str, header: str, text: str):
+    """A text export whose declared rate line ``header + "200"`` says ``header + text`` instead."""
     def make(d):
-        f = write_vicon_csv(d / "a.csv", person(60))
-        f.write_text(f.read_text().replace("Trajectories\n200\n", f"Trajectories\n{text}\n"))
+        f = writer(d / name, person(60))
+        f.write_text(f.read_text().replace(f"{header}200\n", f"{header}{text}\n"))
         return f
     return make
+
+
+def _vicon_rate(text):
+    return _text_rate(write_vicon_csv, "a.csv", "Trajectories\n", text)
 
 
 def _qtm_rate(text):
-    def make(d):
-        f = write_qtm_tsv(d / "a.tsv", person(60))
-        f.write_text(f.read_text().replace("FREQUENCY\t200\n", f"FREQUENCY\t{text}\n"))
-        return f
-    return make
+    return _text_rate(write_qtm_tsv, "a.tsv", "FREQUENCY\t", text)
 
 
 #: the seven invalid declared rates of the issue: file maker, what the refusal says.
