@@ -324,6 +324,230 @@ def fit_trust_region(spec: IOCSpec, targets: list[Target], *, delta: float = 0.3
                    status=f"trust region: {accepted} of {steps} NLPs accepted (last: {last.status})", success=accepted > 0)
 
 
+def newton_functions(ocp, fitted: list[int]):
+    """casadi functions of one target, v = (z, lambda), w the 11 weights, p the parameters:
+    ``newton(v, w, p) -> (F, K, F_w)``: the KKT residual F = [grad_z L; g] (``kkt_functions``), its
+    Jacobian K in v (the lower level's KKT matrix, sparse) and dF/dw of the ``fitted`` weights;
+    ``second(v, w, p, mu) -> hess_(v, w_fitted) (mu' F)`` (sparse; the third derivatives of J and g
+    that the exact Hessian of D along the KKT manifold needs)."""
+    import casadi as ca
+
+    nlp = ocp._sx_nlp()
+    v, mu = ca.SX.sym("v", ocp.n_vars + ocp.n_cons), ca.SX.sym("mu", ocp.n_vars + ocp.n_cons)
+    z, lam = v[:ocp.n_vars], v[ocp.n_vars:]
+    w, p = ca.SX.sym("w", 11), ca.SX.sym("p", ocp.n_params)
+    wf = ca.vertcat(*[w[i] for i in fitted])
+    pe = ca.SX(p)
+    for i, s in enumerate(weight_slots(ocp)):
+        pe[int(s)] = w[i]
+    out = nlp(x=z, p=pe)
+    F = ca.vertcat(ca.gradient(out["f"] + ca.dot(lam, out["g"]), z), out["g"])
+    newton = ca.Function("newton", [v, w, p], [F, ca.jacobian(F, v), ca.densify(ca.jacobian(F, wf))])
+    second = ca.Function("second", [v, w, p, mu], [ca.hessian(ca.dot(mu, F), ca.vertcat(v, wf))[0]])
+    return newton, second
+
+
+def distance_derivatives(ocp, n_samples: int, angle: str, angle_weight: float, eps: float = SMOOTHING):
+    """casadi ``(D, grad_z D, hess_z D)(z, data)`` of the smoothed D (``distance_function``)."""
+    import casadi as ca
+
+    Dfun = distance_function(ocp, n_samples, angle, angle_weight, eps)
+    z, data = ca.SX.sym("z", ocp.n_vars), ca.SX.sym("data", 4 * n_samples)
+    D = Dfun(z, data)
+    H, g = ca.hessian(D, z)
+    return ca.Function("Dgh", [z, data], [D, g, H])
+
+
+class _Call:
+    """A casadi Function called through its ``FunctionBuffer`` on numpy arrays (no DM conversion);
+    sparse outputs come back as scipy CSC matrices of the output's sparsity."""
+
+    def __init__(self, f):
+        self.buffer, self.run = f.buffer()
+        self.args = [np.zeros(f.nnz_in(i)) for i in range(f.n_in())]
+        self.res = [np.zeros(f.nnz_out(i)) for i in range(f.n_out())]
+        self.sp = [f.sparsity_out(i) for i in range(f.n_out())]
+        self.ccs = [sp.get_ccs() for sp in self.sp]
+        for i, a in enumerate(self.args):
+            self.buffer.set_arg(i, memoryview(a))
+        for i, r in enumerate(self.res):
+            self.buffer.set_res(i, memoryview(r))
+
+    def __call__(self, *args):
+        from scipy.sparse import csc_matrix
+
+        for a, x in zip(self.args, args):
+            a[:] = np.ravel(x)
+        self.run()
+        out = []
+        for r, sp, (colind, row) in zip(self.res, self.sp, self.ccs):
+            if sp.is_dense():
+                out.append(r.reshape(sp.size2(), sp.size1()).T.copy() if sp.size2() > 1 else r.copy())
+            else:
+                out.append(csc_matrix((r.copy(), row, colind), shape=sp.shape))
+        return out
+
+
+class _Branch:
+    """One target's lower-level KKT point v = (z, lambda) at weights w, followed by Newton's method
+    on F(v; w) = 0 (``newton_functions``), with the sensitivity S = dv/dw_fitted, the smoothed D and
+    the derivatives of D along the branch."""
+
+    def __init__(self, calls, p, data, nz: int):
+        self.newton, self.second, self.Dgh = calls
+        self.p, self.data, self.nz = p, data, nz
+        self.v = self.S = None
+
+    def correct(self, v, w, tol: float, max_newton: int = 10) -> bool:
+        """Newton's method from v at weights w until max |F| <= tol, then S, D, grad D and the exact
+        Hessian of D(w) along the branch there. False (state unchanged) when it does not converge or
+        K is singular (a fold of the branch)."""
+        from scipy.sparse.linalg import splu
+
+        v = np.array(v, float)
+        for _ in range(max_newton):
+            F, K, Fw = self.newton(v, w, self.p)
+            try:
+                lu = splu(K)
+            except RuntimeError:
+                return False
+            res = float(np.max(np.abs(F)))
+            if not np.isfinite(res):
+                return False
+            if res <= tol:
+                break
+            v = v - lu.solve(F)
+        else:
+            return False
+        nz = self.nz
+        S = -lu.solve(Fw)  # K S + F_w = 0
+        D, gz, Hz = self.Dgh(v[:nz], self.data)
+        gv = np.concatenate([gz, np.zeros(len(v) - nz)])
+        mu = lu.solve(gv, trans="T")  # adjoint: K' mu = grad_v D
+        T = np.vstack([S, np.eye(S.shape[1])])
+        Q = self.second(v, w, self.p, mu)[0]
+        self.v, self.S, self.residual, self.D = v, S, res, float(D[0])
+        self.g = S[:nz].T @ gz  # dD/dw_fitted
+        # d2D/dw2 = S' hess D S + grad D' d2v/dw2, K d2v/dw2 = -T' hess(F) T (F is linear in w)
+        self.H = S[:nz].T @ (Hz @ S[:nz]) - T.T @ (Q @ T)
+        return True
+
+
+def trust_region_step(g: np.ndarray, H: np.ndarray, radius: float) -> np.ndarray:
+    """argmin_s g's + s'Hs/2 over |s| <= radius: s = -(H + mu I)^-1 g with the least mu >= 0 making
+    H + mu I positive definite and |s| <= radius (bisection on mu; Moré and Sorensen's condition)."""
+    eig, V = np.linalg.eigh(H)
+    lo = max(0.0, -eig[0]) * (1 + 1e-9) + 1e-15
+    step = lambda m: -np.linalg.solve(H + m * np.eye(len(g)), g)  # noqa: E731
+    if eig[0] > 0 and np.linalg.norm(step(0.0)) <= radius:
+        return step(0.0)
+    hi = lo + np.linalg.norm(g) / radius + abs(eig[-1])
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if np.linalg.norm(step(mid)) > radius else (lo, mid)
+    s = step(hi)
+    if eig[0] < 0 and np.linalg.norm(s) < radius:  # the hard case (g orthogonal to the negative curvature)
+        v = V[:, 0] * (-1.0 if g @ V[:, 0] > 0 else 1.0)
+        b = s @ v
+        s = s + (-b + math.sqrt(b * b + radius**2 - s @ s)) * v
+    return s
+
+
+def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | None = None, eps: float = SMOOTHING,
+                      radius: float = 0.3, max_steps: int = 40, tol: float = 1e-8, xtol: float = 1e-3,
+                      verify: bool = True) -> SingleLevelResult:
+    """The single-level NLP (module docstring) solved by a feasible-path trust-region SQP in
+    y = log10 of the fitted weights (docs/methods.md sec. 6.1): every iterate keeps each target's
+    KKT conditions F_n(z_n, lambda_n; w) = 0 (Newton's method on the lower level's KKT matrix K_n,
+    started from the linear predictor v_n + S_n dw, S_n = -K_n^-1 dF_n/dw), so the NLP's
+    constraints never leave their manifold. On it D(y) = (1/N) sum_n D_n(z_n(w)) has the gradient
+    g = (1/N) sum_n S_n' grad D_n (x w ln 10) and the model Hessian (1/N) sum_n S_n' hess D_n S_n
+    (second-order sensitivities left out, made positive semi-definite); the step minimises that
+    model within |dy| <= radius (Levenberg-Marquardt) and the search box, and is accepted when D
+    on the corrected paths falls by at least 10 % of the predicted decrease (radius x2 up to 1, or /4).
+    Stops when an accepted step is below ``xtol`` (log10), the radius falls below it, or after
+    ``max_steps`` steps. Start: the lower level solved at the start weights (``start``: given paths).
+    The D reported is the one of the lower level re-solved at the fitted weights (``verify``)."""
+    from cobot_analysis.conventions import CONTINUOUS
+    from cobot_analysis.models.dynamics import N_STATE
+    from cobot_analysis.models.oc.duration import initial_duration
+
+    t0 = time.perf_counter()
+    check_spec(spec, len(targets))
+    names = names_for(spec.model)
+    w = np.array(spec.start_weights, float)
+    fi = [names.index(n) for n in spec.fitted]
+    w[fi] = np.clip(w[fi], 10.0 ** LOG_BOUNDS[0], 10.0 ** LOG_BOUNDS[1])
+    ocp = lower_level(spec)
+    M = len(targets[0].x)
+    if any(len(t.x) != M for t in targets):
+        raise InputError("the targets have different numbers of samples", remedy="fit means or resampled trials (average)")
+    newton, second = newton_functions(ocp, fi)
+    calls = (_Call(newton), _Call(second), _Call(distance_derivatives(ocp, M, spec.angle, spec.angle_weight, eps)))
+    T0 = [initial_duration(t.start, t.goal, spec.v_nominal) for t in targets]
+    nz, nl = ocp.n_vars, ocp.n_cons
+    branches = [_Branch(calls, ocp.parameters(t.start, t.goal, w, T), target_data(t), nz) for t, T in zip(targets, T0)]
+    start_terms = []
+    if start is None:
+        start = []
+        for t in targets:
+            d, sol = solve_target(spec, w, t, ("rest", "line"))
+            start.append(sol.primal)
+            start_terms.append(d)
+    for b, z in zip(branches, start):  # the multipliers: F is linear in them, Newton's first step finds them
+        if not b.correct(np.concatenate([z, np.zeros(nl)]), w, tol):
+            raise RuntimeError("single-level: a lower-level solution at the start weights is not a regular KKT point")
+
+    def model(w):
+        """Gradient and Hessian of D in y = log10 w_fitted (w = 10^y: dw/dy = w ln 10)."""
+        c = w[fi] * math.log(10.0)
+        gw = np.mean([b.g for b in branches], axis=0)
+        Hw = np.mean([b.H for b in branches], axis=0)
+        return gw * c, 0.5 * (Hw + Hw.T) * np.outer(c, c) + np.diag(gw * c * math.log(10.0))
+
+    D = float(np.mean([b.D for b in branches]))
+    y = np.log10(w[fi])
+    steps = accepted = newton_fails = 0
+    while steps < max_steps and radius >= xtol:
+        g, H = model(w)
+        s = trust_region_step(g, H, radius)
+        s = np.clip(y + s, *LOG_BOUNDS) - y
+        pred = -(g @ s + 0.5 * s @ H @ s)
+        steps += 1
+        w_new = w.copy()
+        w_new[fi] = 10.0 ** (y + s)
+        old = [(b.v, b.S, b.D, b.g, b.H, b.residual) for b in branches]
+        ok = all(b.correct(b.v + b.S @ (w_new[fi] - w[fi]), w_new, tol) for b in branches)
+        D_new = float(np.mean([b.D for b in branches])) if ok else math.inf
+        newton_fails += not ok
+        if ok and pred > 0 and D - D_new >= 0.1 * pred:
+            accepted += 1
+            if D - D_new >= 0.75 * pred and np.linalg.norm(s) >= 0.99 * radius:
+                radius = min(2 * radius, 1.0)
+            w, y, D = w_new, y + s, D_new
+            if np.linalg.norm(s) < xtol:
+                break
+        else:
+            for b, o in zip(branches, old):
+                b.v, b.S, b.D, b.g, b.H, b.residual = o
+            radius /= 4
+    Zs = [b.v[:nz].copy() for b in branches]
+    rule = CONTINUOUS.oc_rule("table" if spec.model == "table" else "improved")
+    logT = np.array([z[ocp._xi[0, N_STATE]] for z in Zs])
+    at_bound = int(np.sum((np.abs(logT - np.log(rule.T_bounds[0] * np.array(T0))) < 1e-3)
+                          | (np.abs(logT - np.log(rule.T_bounds[1] * np.array(T0))) < 1e-3)))
+    terms = [solve_target(spec, w, t, z)[0] for t, z in zip(targets, Zs)] if verify else []
+    objective = float(np.mean([d["D"] for d in terms])) if terms else math.nan
+    start_objective = float(np.mean([d["D"] for d in start_terms])) if start_terms else math.nan
+    return SingleLevelResult(spec=spec, weights=dict(zip(names, map(float, w))), objective=objective, nlp_objective=D,
+                             start_objective=start_objective, iterations=steps,
+                             status=f"feasible-path SQP: {accepted} of {steps} steps accepted, radius {radius:.2g}"
+                                    f"{f', {newton_fails} Newton corrections failed' if newton_fails else ''}",
+                             success=accepted > 0, seconds=time.perf_counter() - t0,
+                             failed=sum(not d["success"] for d in terms), at_duration_bound=at_bound,
+                             kkt_residual=float(max(b.residual for b in branches)), per_target=terms, primals=Zs)
+
+
 def check_method(method: str, bootstrap: int = 0) -> None:
     """The fit's method name and bootstrap count (bad input: one line, before anything is written)."""
     if method not in METHODS:
