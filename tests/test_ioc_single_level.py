@@ -285,20 +285,6 @@ def test_curvature_resumes_from_its_checkpoint(tmp_path, monkeypatch):
     np.testing.assert_allclose(done.H, full.H) and np.testing.assert_allclose(done.gi, full.gi)
 
 
-def test_trust_region_sequence_recovers_noise_free_weights():
-    """fit-ioc's single-level method: NLPs bounded to 10^(+-0.3) of the current weights, from twice the
-    truth (log10 2 = 0.301 > 0.3: one NLP cannot reach it), accepted on the re-solved D."""
-    from cobot_analysis.models.ioc.recovery import synthetic_targets
-    from cobot_analysis.models.ioc.single_level import fit_trust_region
-
-    targets = synthetic_targets(SPEC, W, 6)
-    r = fit_trust_region(_perturbed(SPEC), targets, steps=4)
-    assert r.success and r.objective < 1e-3 < r.start_objective, (r.objective, r.start_objective, r.status)
-    for n in SPEC.fitted:
-        true = W[names_for("improved").index(n)]
-        assert abs(r.weights[n] / true - 1) < 0.01, (n, r.weights[n], true)
-
-
 def test_trust_region_step_on_analytic_models():
     """The model step: Newton's step inside the radius, on the radius otherwise (|s| = r, the
     Moré-Sorensen shift), and along the negative curvature of an indefinite model."""

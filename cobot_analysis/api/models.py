@@ -504,7 +504,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     from cobot_analysis.models.ioc import fit as ioc_fit, pair_targets_from_table, targets_from_table
     from cobot_analysis.models.presets import DEFAULT_PRESET, PRESETS, names_for, weights_vector
     from cobot_analysis.models.ioc.pace import target_durations
-    from cobot_analysis.models.ioc.single_level import as_ioc_result, check_method, check_spec, fit_trust_region
+    from cobot_analysis.models.ioc.single_level import as_ioc_result, check_method, check_spec, fit_feasible_path
     from cobot_analysis.parallel import default_jobs, executor
 
     check_method(method, bootstrap)
@@ -565,7 +565,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             report = (lambda n, f, best, key=key: on_evaluation(key, n, f, best)) if on_evaluation else None
             t0 = time.perf_counter()
             if method == "single-level":
-                results[key] = as_ioc_result(fit_trust_region(spec, targets))
+                results[key] = as_ioc_result(fit_feasible_path(spec, targets, pool=pool, chunks=n_chunks))
             else:
                 # the time gauge fitted to the subjects' durations (models.ioc.pace; continuous, fit over the means)
                 measured_T = target_durations(targets, means=mean_df, trials=trial_df, durations=durations, mean_keys=mean_keys) \

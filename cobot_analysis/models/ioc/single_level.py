@@ -26,6 +26,7 @@ KKT point inside the box (``at_duration_bound`` counts the targets that end with
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from dataclasses import asdict, dataclass, field
@@ -186,13 +187,12 @@ def check_spec(spec: IOCSpec, n_targets: int) -> None:
 
 def fit_single_level(spec: IOCSpec, targets: list[Target], *, start: list | None = None, start_weights=None,
                      eps: float = SMOOTHING, max_iter: int = 300, tol: float = 1e-8, verify: bool = True,
-                     print_level: int = 0, box: tuple | None = None) -> SingleLevelResult:
+                     print_level: int = 0) -> SingleLevelResult:
     """Fit ``spec.fitted`` to ``targets`` in one NLP (module docstring).
 
     ``start``: lower-level primal vectors per target to start from (e.g. the bi-level fit's), else
     the lower level solved at the starting weights (``start_weights`` or ``spec.start_weights``) as
-    the bi-level fit's reference step does; the multipliers by least squares at those paths.
-    ``box``: (lower, upper) bounds of the fitted weights inside the search box (``fit_trust_region``)."""
+    the bi-level fit's reference step does; the multipliers by least squares at those paths."""
     import casadi as ca
 
     from cobot_analysis.models.dynamics import N_STATE
@@ -245,8 +245,6 @@ def fit_single_level(spec: IOCSpec, targets: list[Target], *, start: list | None
     V = ca.vertcat(wf, ca.vec(Z), ca.vec(Lam), nu_lo.T, nu_hi.T)
     lb, ub = np.full(V.numel(), -np.inf), np.full(V.numel(), np.inf)
     lb[:len(fi)], ub[:len(fi)] = 10.0 ** LOG_BOUNDS[0], 10.0 ** LOG_BOUNDS[1]
-    if box is not None:
-        lb[:len(fi)], ub[:len(fi)] = np.maximum(lb[:len(fi)], box[0]), np.minimum(ub[:len(fi)], box[1])
     for i in range(n):  # log T within the lower level's bounds
         idx = len(fi) + i * nz + ocp._xi[:, N_STATE]
         lb[idx], ub[idx] = lbT[i], ubT[i]
@@ -291,37 +289,6 @@ def fit_single_level(spec: IOCSpec, targets: list[Target], *, start: list | None
                              success=bool(st.get("success", False)), seconds=time.perf_counter() - t0, failed=failed,
                              at_duration_bound=at_bound, kkt_residual=kres, per_target=terms,
                              primals=[Zs[:, i].copy() for i in range(n)])
-
-
-def fit_trust_region(spec: IOCSpec, targets: list[Target], *, delta: float = 0.3, steps: int = 8,
-                     inner_iter: int = 25) -> SingleLevelResult:
-    """A sequence of single-level NLPs (``fit_single_level``), each from the lower level solved at the
-    current weights w_k, its fitted weights bounded to 10^(+-delta) w_k (a trust region in log10 w),
-    ``inner_iter`` IPOPT iterations; the step is accepted when D re-solved at the new weights is below
-    D at w_k (delta doubled, at most 1), else rejected (delta / 3); ``steps`` NLPs at most
-    (docs/methods.md sec. 6.1). Returns the last accepted NLP's result with the time and iterations of all."""
-    from dataclasses import replace
-
-    names = names_for(spec.model)
-    fi = [names.index(n) for n in spec.fitted]
-    t0, w, D_w, best, last, total, accepted = time.perf_counter(), np.array(spec.start_weights, float), None, None, None, 0, 0
-    for _ in range(steps):
-        y = np.log10(np.clip(w[fi], 10.0 ** LOG_BOUNDS[0], 10.0 ** LOG_BOUNDS[1]))
-        last = fit_single_level(replace(spec, start_weights=tuple(w)), targets, max_iter=inner_iter,
-                                box=(10.0 ** (y - delta), 10.0 ** (y + delta)))
-        total += last.iterations
-        start_objective = last.start_objective if D_w is None else start_objective
-        D_w = last.start_objective if D_w is None else D_w
-        if last.objective < D_w:  # accepted: the re-solved lower levels are closer to the data
-            best, D_w, accepted = last, last.objective, accepted + 1
-            w = np.array([last.weights[n] for n in names])
-            delta = min(2 * delta, 1.0)
-        else:
-            delta /= 3
-    if best is None:  # no step accepted: the start weights stand
-        best = replace(last, weights=dict(zip(names, map(float, spec.start_weights))), objective=start_objective, per_target=[])
-    return replace(best, start_objective=start_objective, iterations=total, seconds=time.perf_counter() - t0,
-                   status=f"trust region: {accepted} of {steps} NLPs accepted (last: {last.status})", success=accepted > 0)
 
 
 def newton_functions(ocp, fitted: list[int]):
@@ -388,6 +355,15 @@ class _Call:
         return out
 
 
+@functools.lru_cache(maxsize=4)
+def branch_calls(spec: IOCSpec, fitted: tuple[int, ...], n_samples: int, eps: float = SMOOTHING) -> tuple:
+    """The casadi functions a ``_Branch`` calls, built once per lower-level shape, fitted set and
+    number of samples and reused by later fits (per-subject fits, repeated benchmarks)."""
+    ocp = lower_level(spec)
+    newton, second = newton_functions(ocp, list(fitted))
+    return _Call(newton), _Call(second), _Call(distance_derivatives(ocp, n_samples, spec.angle, spec.angle_weight, eps))
+
+
 class _Branch:
     """One target's lower-level KKT point v = (z, lambda) at weights w, followed by Newton's method
     on F(v; w) = 0 (``newton_functions``), with the sensitivity S = dv/dw_fitted, the smoothed D and
@@ -433,6 +409,19 @@ class _Branch:
         return True
 
 
+def correct_chunk(task) -> list:
+    """Worker task (top-level, picklable): Newton corrections of a chunk of branches at weights w,
+    task = (shape, fitted, n_samples, eps, tol, w, [(p, data, v), ...]); per branch its state
+    {v, S, D, g, H, residual} (``_Branch``) or None when Newton's method fails."""
+    shape, fitted, M, eps, tol, w, items = task
+    calls, nz = branch_calls(shape, fitted, M, eps), lower_level(shape).n_vars
+    out = []
+    for p, data, v in items:
+        b = _Branch(calls, p, data, nz)
+        out.append({k: getattr(b, k) for k in ("v", "S", "D", "g", "H", "residual")} if b.correct(v, w, tol) else None)
+    return out
+
+
 def trust_region_step(g: np.ndarray, H: np.ndarray, radius: float) -> np.ndarray:
     """argmin_s g's + s'Hs/2 over |s| <= radius: s = -(H + mu I)^-1 g with the least mu >= 0 making
     H + mu I positive definite and |s| <= radius (bisection on mu; Moré and Sorensen's condition)."""
@@ -455,7 +444,7 @@ def trust_region_step(g: np.ndarray, H: np.ndarray, radius: float) -> np.ndarray
 
 def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | None = None, eps: float = SMOOTHING,
                       radius: float = 0.3, max_steps: int = 40, tol: float = 1e-8, xtol: float = 1e-3,
-                      verify: bool = True) -> SingleLevelResult:
+                      verify: bool = True, pool=None, chunks: int = 2) -> SingleLevelResult:
     """The single-level NLP (module docstring) solved by a feasible-path trust-region SQP in
     y = log10 of the fitted weights (docs/methods.md sec. 6.1): every iterate keeps each target's
     KKT conditions F_n(z_n, lambda_n; w) = 0 (Newton's method on the lower level's KKT matrix K_n,
@@ -467,7 +456,10 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
     on the corrected paths falls by at least 10 % of the predicted decrease (radius x2 up to 1, or /4).
     Stops when an accepted step is below ``xtol`` (log10), the radius falls below it, or after
     ``max_steps`` steps. Start: the lower level solved at the start weights (``start``: given paths).
-    The D reported is the one of the lower level re-solved at the fitted weights (``verify``)."""
+    The D reported is the one of the lower level re-solved at the fitted weights (``verify``), as
+    the bi-level fit solves it (warm from the branch's path and from the two cold guesses, the least
+    cost kept). ``pool``: an executor for the lower-level solves and the Newton corrections (chunks of
+    targets; None: in-process), as the bi-level fit's."""
     from cobot_analysis.conventions import CONTINUOUS
     from cobot_analysis.models.dynamics import N_STATE
     from cobot_analysis.models.oc.duration import initial_duration
@@ -478,34 +470,54 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
     w = np.array(spec.start_weights, float)
     fi = [names.index(n) for n in spec.fitted]
     w[fi] = np.clip(w[fi], 10.0 ** LOG_BOUNDS[0], 10.0 ** LOG_BOUNDS[1])
+    from cobot_analysis.models.ioc.fit import evaluate_chunk, reference_chunk
+    from cobot_analysis.parallel import InlineExecutor
+
     ocp = lower_level(spec)
     M = len(targets[0].x)
     if any(len(t.x) != M for t in targets):
         raise InputError("the targets have different numbers of samples", remedy="fit means or resampled trials (average)")
-    newton, second = newton_functions(ocp, fi)
-    calls = (_Call(newton), _Call(second), _Call(distance_derivatives(ocp, M, spec.angle, spec.angle_weight, eps)))
+    shape = IOCSpec(model=spec.model, n_intervals=spec.n_intervals, max_iter=spec.max_iter, convention=spec.convention,
+                    angle_weight=spec.angle_weight)  # what the functions depend on: the cache key
     T0 = [initial_duration(t.start, t.goal, spec.v_nominal) for t in targets]
-    nz, nl = ocp.n_vars, ocp.n_cons
-    branches = [_Branch(calls, ocp.parameters(t.start, t.goal, w, T), target_data(t), nz) for t, T in zip(targets, T0)]
+    nz, nl, n = ocp.n_vars, ocp.n_cons, len(targets)
+    P = [ocp.parameters(t.start, t.goal, w, T) for t, T in zip(targets, T0)]
+    data = [target_data(t) for t in targets]
+    pool = pool or InlineExecutor()
+    parts = [list(range(i, n, max(1, min(chunks, n)))) for i in range(max(1, min(chunks, n)))]
+
+    def run(fn, make_task) -> list:
+        futures = [pool.submit(fn, make_task(p)) for p in parts]
+        out = [None] * n
+        for p, f in zip(parts, futures):
+            for i, r in zip(p, f.result()):
+                out[i] = r
+        return out
+
+    def correct(w, V) -> list | None:
+        """Every branch corrected at w from the vectors V (None if one fails)."""
+        out = run(correct_chunk, lambda p: (shape, tuple(fi), M, eps, tol, w, [(P[i], data[i], V[i]) for i in p]))
+        return None if any(r is None for r in out) else out
+
     start_terms = []
     if start is None:
-        start = []
-        for t in targets:
-            d, sol = solve_target(spec, w, t, ("rest", "line"))
-            start.append(sol.primal)
-            start_terms.append(d)
-    for b, z in zip(branches, start):  # the multipliers: F is linear in them, Newton's first step finds them
-        if not b.correct(np.concatenate([z, np.zeros(nl)]), w, tol):
-            raise RuntimeError("single-level: a lower-level solution at the start weights is not a regular KKT point")
+        ref = run(reference_chunk, lambda p: (spec, w, [targets[i] for i in p]))
+        start_terms = [d for d, _ in ref]
+        start = [primal for _, primal in ref]
+        if any(z is None for z in start):
+            raise RuntimeError("single-level: a lower level did not converge at the start weights")
+    branches = correct(w, [np.concatenate([z, np.zeros(nl)]) for z in start])  # F is linear in lambda: Newton finds it
+    if branches is None:
+        raise RuntimeError("single-level: a lower-level solution at the start weights is not a regular KKT point")
 
     def model(w):
         """Gradient and Hessian of D in y = log10 w_fitted (w = 10^y: dw/dy = w ln 10)."""
         c = w[fi] * math.log(10.0)
-        gw = np.mean([b.g for b in branches], axis=0)
-        Hw = np.mean([b.H for b in branches], axis=0)
+        gw = np.mean([b["g"] for b in branches], axis=0)
+        Hw = np.mean([b["H"] for b in branches], axis=0)
         return gw * c, 0.5 * (Hw + Hw.T) * np.outer(c, c) + np.diag(gw * c * math.log(10.0))
 
-    D = float(np.mean([b.D for b in branches]))
+    D = float(np.mean([b["D"] for b in branches]))
     y = np.log10(w[fi])
     steps = accepted = newton_fails = 0
     while steps < max_steps and radius >= xtol:
@@ -516,27 +528,24 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
         steps += 1
         w_new = w.copy()
         w_new[fi] = 10.0 ** (y + s)
-        old = [(b.v, b.S, b.D, b.g, b.H, b.residual) for b in branches]
-        ok = all(b.correct(b.v + b.S @ (w_new[fi] - w[fi]), w_new, tol) for b in branches)
-        D_new = float(np.mean([b.D for b in branches])) if ok else math.inf
-        newton_fails += not ok
-        if ok and pred > 0 and D - D_new >= 0.1 * pred:
+        new = correct(w_new, [b["v"] + b["S"] @ (w_new[fi] - w[fi]) for b in branches])  # predictor, corrector
+        D_new = float(np.mean([b["D"] for b in new])) if new is not None else math.inf
+        newton_fails += new is None
+        if new is not None and pred > 0 and D - D_new >= 0.1 * pred:
             accepted += 1
             if D - D_new >= 0.75 * pred and np.linalg.norm(s) >= 0.99 * radius:
                 radius = min(2 * radius, 1.0)
-            w, y, D = w_new, y + s, D_new
+            w, y, D, branches = w_new, y + s, D_new, new
             if np.linalg.norm(s) < xtol:
                 break
         else:
-            for b, o in zip(branches, old):
-                b.v, b.S, b.D, b.g, b.H, b.residual = o
             radius /= 4
-    Zs = [b.v[:nz].copy() for b in branches]
+    Zs = [b["v"][:nz].copy() for b in branches]
     rule = CONTINUOUS.oc_rule("table" if spec.model == "table" else "improved")
     logT = np.array([z[ocp._xi[0, N_STATE]] for z in Zs])
     at_bound = int(np.sum((np.abs(logT - np.log(rule.T_bounds[0] * np.array(T0))) < 1e-3)
                           | (np.abs(logT - np.log(rule.T_bounds[1] * np.array(T0))) < 1e-3)))
-    terms = [solve_target(spec, w, t, z)[0] for t, z in zip(targets, Zs)] if verify else []
+    terms = [d for d, _ in run(evaluate_chunk, lambda p: (spec, w, [targets[i] for i in p], [Zs[i] for i in p]))] if verify else []
     objective = float(np.mean([d["D"] for d in terms])) if terms else math.nan
     start_objective = float(np.mean([d["D"] for d in start_terms])) if start_terms else math.nan
     return SingleLevelResult(spec=spec, weights=dict(zip(names, map(float, w))), objective=objective, nlp_objective=D,
@@ -545,7 +554,7 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
                                     f"{f', {newton_fails} Newton corrections failed' if newton_fails else ''}",
                              success=accepted > 0, seconds=time.perf_counter() - t0,
                              failed=sum(not d["success"] for d in terms), at_duration_bound=at_bound,
-                             kkt_residual=float(max(b.residual for b in branches)), per_target=terms, primals=Zs)
+                             kkt_residual=float(max(b["residual"] for b in branches)), per_target=terms, primals=Zs)
 
 
 def check_method(method: str, bootstrap: int = 0) -> None:
@@ -558,12 +567,12 @@ def check_method(method: str, bootstrap: int = 0) -> None:
 
 def as_ioc_result(r: SingleLevelResult):
     """The single-level result in the bi-level fit's result type (``fit.IOCResult``: what the stage
-    writes): no upper-level evaluations, IPOPT's iterations and return status."""
+    writes): no upper-level evaluations, the NLP solver's iterations and status."""
     from cobot_analysis.console import warn
     from cobot_analysis.models.ioc.fit import IOCResult
 
     if not r.success or not r.objective < r.start_objective:
-        warn(f"single-level IOC: IPOPT {r.status}, D {r.objective:.4f} re-solved at the fitted weights against "
+        warn(f"single-level IOC: {r.status}, D {r.objective:.4f} re-solved at the fitted weights against "
              f"{r.start_objective:.4f} at the start: not a fit to report (use --method bilevel)")
     return IOCResult(spec=r.spec, weights=r.weights, objective=r.objective, start_objective=r.start_objective, evaluations=0,
                      iterations=r.iterations, failed=r.failed, per_target=r.per_target,
