@@ -7,8 +7,8 @@
 preset, as ``fit-ioc`` under the continuous convention: a0, a1 and the unused b0..b3 held; no pace
 calibration in either method); ``--synthetic N``: N paths of the model at the walking-2021 weights
 (noise ``--noise`` m), the fit started at twice the fitted weights. The single-level fit
-(``single_level.fit_feasible_path``) runs first, in this process, then the bi-level fit with its lower
-levels on ``--jobs`` worker processes (1: inline). Prints wall time, the exact D (lower level re-solved),
+(``single_level.fit_feasible_path``) runs first, then the bi-level fit, each with its lower levels (and
+the single-level Newton corrections) on ``--jobs`` worker processes (1: inline). Prints wall and CPU time (this process and its workers), the exact D (lower level re-solved),
 the weights, the peak resident memory of each, and the time ratio; ``--paths N`` takes N targets spread
 over the list.
 """
@@ -57,27 +57,34 @@ def main() -> None:
         targets = targets_from_table(df[df["kind"] == "mean"] if "kind" in df else df, entity="walker", goal=WALKING_GOAL)
     if args.paths and args.paths < len(targets):
         targets = [targets[i] for i in np.linspace(0, len(targets) - 1, args.paths).astype(int)]
+    def cpu() -> float:  # CPU seconds of this process and of its finished worker processes
+        return sum(resource.getrusage(who).ru_utime + resource.getrusage(who).ru_stime
+                   for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
+
     rows = []
-    t0 = time.perf_counter()
-    s = fit_feasible_path(spec, targets)
-    ts = time.perf_counter() - t0
-    mem_s = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    rows.append(("single-level", ts, s.objective, s.weights, f"{s.status}; D on the NLP's paths (smoothed) {s.nlp_objective:.4f}, "
-                 f"failed {s.failed}; peak memory {mem_s:.0f} MB"))
+    t0, c0 = time.perf_counter(), cpu()
+    with executor(args.jobs) as pool:
+        s = fit_feasible_path(spec, targets, pool=pool, chunks=args.jobs)
+    ts, cs = time.perf_counter() - t0, cpu() - c0
+    mem = lambda who: resource.getrusage(who).ru_maxrss / 1024  # noqa: E731  MB (Linux: kB)
+    mem_s = (mem(resource.RUSAGE_SELF), mem(resource.RUSAGE_CHILDREN))
+    split = ", ".join(f"{k} {v:.1f} s" for k, v in s.timing.items())
+    rows.append(("single-level", ts, cs, s.objective, s.weights, f"{s.status}; {split}; D on the NLP's paths (smoothed) {s.nlp_objective:.4f}, "
+                 f"failed {s.failed}; peak memory {mem_s[0]:.0f} MB main, {mem_s[1]:.0f} MB largest worker"))
     if not args.skip_bilevel:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), cpu()
         with executor(args.jobs) as pool:
             b = fit(spec, targets, pool=pool, chunks=4 * args.jobs)
-        tb = time.perf_counter() - t0
-        mem_b = max(mem_s, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024)
-        rows.append(("bilevel", tb, b.objective, b.weights, f"{b.evaluations} evaluations; peak memory {mem_b:.0f} MB per process"))
+        tb, cb = time.perf_counter() - t0, cpu() - c0
+        rows.append(("bilevel", tb, cb, b.objective, b.weights, f"{b.evaluations} evaluations; peak memory of the largest worker "
+                     f"so far {mem(resource.RUSAGE_CHILDREN):.0f} MB"))
     print(f"{len(targets)} paths, {args.intervals} intervals, fitted {','.join(spec.fitted)}, start D {s.start_objective:.4f}")
-    print("| method | time (s) | D | " + " | ".join(spec.fitted) + " | notes |")
-    print("|---|---|---|" + "---|" * len(spec.fitted) + "---|")
-    for m, t, D, wd, note in rows:
-        print(f"| {m} | {t:.1f} | {D:.4f} | " + " | ".join(f"{wd[n]:.4g}" for n in spec.fitted) + f" | {note} |")
+    print("| method | wall (s) | CPU (s) | D | " + " | ".join(spec.fitted) + " | notes |")
+    print("|---|---|---|---|" + "---|" * len(spec.fitted) + "---|")
+    for m, t, c, D, wd, note in rows:
+        print(f"| {m} | {t:.1f} | {c:.1f} | {D:.4f} | " + " | ".join(f"{wd[n]:.4g}" for n in spec.fitted) + f" | {note} |")
     if not args.skip_bilevel:
-        print(f"time ratio bilevel / single-level: {tb / ts:.2f}; D single-level / bilevel: {s.objective / b.objective:.4f}")
+        print(f"ratios bilevel / single-level: wall {tb / ts:.2f}, CPU {cb / cs:.2f}; D single-level / bilevel: {s.objective / b.objective:.4f}")
 
 
 if __name__ == "__main__":

@@ -58,6 +58,7 @@ class SingleLevelResult:
     at_duration_bound: int
     kkt_residual: float  # max |KKT| at the NLP's solution
     per_target: list[dict] = field(default_factory=list)
+    timing: dict = field(default_factory=dict)  # seconds: start (lower levels, multipliers), steps (with the re-solves)
     primals: list = field(default_factory=list, repr=False)  # the single-level paths (warm starts)
 
     def to_json(self) -> dict:
@@ -327,31 +328,37 @@ def distance_derivatives(ocp, n_samples: int, angle: str, angle_weight: float, e
 
 class _Call:
     """A casadi Function called through its ``FunctionBuffer`` on numpy arrays (no DM conversion);
-    sparse outputs come back as scipy CSC matrices of the output's sparsity."""
+    a sparse output comes back as a scipy CSC matrix of the output's sparsity (built once, its
+    values replaced at each call: use it before the next call)."""
 
     def __init__(self, f):
+        from scipy.sparse import csc_matrix
+
         self.buffer, self.run = f.buffer()
         self.args = [np.zeros(f.nnz_in(i)) for i in range(f.n_in())]
         self.res = [np.zeros(f.nnz_out(i)) for i in range(f.n_out())]
-        self.sp = [f.sparsity_out(i) for i in range(f.n_out())]
-        self.ccs = [sp.get_ccs() for sp in self.sp]
+        self.out = []
+        for i in range(f.n_out()):
+            sp = f.sparsity_out(i)
+            colind, row = sp.get_ccs()
+            self.out.append(None if sp.is_dense() else csc_matrix((self.res[i], row, colind), shape=sp.shape))
+        self.shapes = [f.sparsity_out(i).shape for i in range(f.n_out())]
         for i, a in enumerate(self.args):
             self.buffer.set_arg(i, memoryview(a))
         for i, r in enumerate(self.res):
             self.buffer.set_res(i, memoryview(r))
 
     def __call__(self, *args):
-        from scipy.sparse import csc_matrix
-
         for a, x in zip(self.args, args):
             a[:] = np.ravel(x)
         self.run()
         out = []
-        for r, sp, (colind, row) in zip(self.res, self.sp, self.ccs):
-            if sp.is_dense():
-                out.append(r.reshape(sp.size2(), sp.size1()).T.copy() if sp.size2() > 1 else r.copy())
+        for r, m, (n1, n2) in zip(self.res, self.out, self.shapes):
+            if m is None:
+                out.append(r.reshape(n2, n1).T.copy() if n2 > 1 else r.copy())
             else:
-                out.append(csc_matrix((r.copy(), row, colind), shape=sp.shape))
+                m.data = r.copy()
+                out.append(m)
         return out
 
 
@@ -364,6 +371,39 @@ def branch_calls(spec: IOCSpec, fitted: tuple[int, ...], n_samples: int, eps: fl
     return _Call(newton), _Call(second), _Call(distance_derivatives(ocp, n_samples, spec.angle, spec.angle_weight, eps))
 
 
+@functools.lru_cache(maxsize=8)
+def _ordering_of(key) -> np.ndarray:
+    from scipy.sparse import csc_matrix
+    from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+    n, row, colind = key
+    A = csc_matrix((np.ones(len(row)), np.array(row), np.array(colind)), shape=(n, n))
+    return np.asarray(reverse_cuthill_mckee((A + A.T).tocsr(), symmetric_mode=True))
+
+
+def _ordering(newton: _Call) -> np.ndarray:
+    """A reverse Cuthill-McKee permutation of the KKT matrix K (variables and multipliers of each
+    stage brought together: a band of width ~ 2 stages, factorised without fill)."""
+    K = newton.out[1]
+    return _ordering_of((K.shape[0], tuple(K.indices), tuple(K.indptr)))
+
+
+class _Factor:
+    """LU of K permuted symmetrically (``_ordering``), solving K x = b and K' x = b."""
+
+    def __init__(self, K, order):
+        from scipy.sparse.linalg import splu
+
+        self.order = order
+        self.lu = splu(K[order][:, order].tocsc(), permc_spec="NATURAL")
+
+    def solve(self, b, trans: bool = False):
+        b = np.asarray(b)
+        x = np.empty_like(b, dtype=float)
+        x[self.order] = self.lu.solve(b[self.order], trans="T" if trans else "N")
+        return x
+
+
 class _Branch:
     """One target's lower-level KKT point v = (z, lambda) at weights w, followed by Newton's method
     on F(v; w) = 0 (``newton_functions``), with the sensitivity S = dv/dw_fitted, the smoothed D and
@@ -371,6 +411,7 @@ class _Branch:
 
     def __init__(self, calls, p, data, nz: int):
         self.newton, self.second, self.Dgh = calls
+        self.order = _ordering(self.newton)
         self.p, self.data, self.nz = p, data, nz
         self.v = self.S = None
 
@@ -378,17 +419,16 @@ class _Branch:
         """Newton's method from v at weights w until max |F| <= tol, then S, D, grad D and the exact
         Hessian of D(w) along the branch there. False (state unchanged) when it does not converge or
         K is singular (a fold of the branch)."""
-        from scipy.sparse.linalg import splu
-
-        v = np.array(v, float)
+        v, last = np.array(v, float), math.inf
         for _ in range(max_newton):
             F, K, Fw = self.newton(v, w, self.p)
-            try:
-                lu = splu(K)
-            except RuntimeError:
-                return False
             res = float(np.max(np.abs(F)))
-            if not np.isfinite(res):
+            if not res < last:  # diverging (or nan): not this branch's neighbourhood
+                return False
+            last = res
+            try:
+                lu = _Factor(K, self.order)
+            except RuntimeError:
                 return False
             if res <= tol:
                 break
@@ -399,7 +439,7 @@ class _Branch:
         S = -lu.solve(Fw)  # K S + F_w = 0
         D, gz, Hz = self.Dgh(v[:nz], self.data)
         gv = np.concatenate([gz, np.zeros(len(v) - nz)])
-        mu = lu.solve(gv, trans="T")  # adjoint: K' mu = grad_v D
+        mu = lu.solve(gv, trans=True)  # adjoint: K' mu = grad_v D
         T = np.vstack([S, np.eye(S.shape[1])])
         Q = self.second(v, w, self.p, mu)[0]
         self.v, self.S, self.residual, self.D = v, S, res, float(D[0])
@@ -444,21 +484,25 @@ def trust_region_step(g: np.ndarray, H: np.ndarray, radius: float) -> np.ndarray
 
 def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | None = None, eps: float = SMOOTHING,
                       radius: float = 0.3, max_steps: int = 40, tol: float = 1e-8, xtol: float = 1e-3,
-                      verify: bool = True, pool=None, chunks: int = 2) -> SingleLevelResult:
+                      restarts: int = 2, pool=None, chunks: int = 2) -> SingleLevelResult:
     """The single-level NLP (module docstring) solved by a feasible-path trust-region SQP in
     y = log10 of the fitted weights (docs/methods.md sec. 6.1): every iterate keeps each target's
     KKT conditions F_n(z_n, lambda_n; w) = 0 (Newton's method on the lower level's KKT matrix K_n,
     started from the linear predictor v_n + S_n dw, S_n = -K_n^-1 dF_n/dw), so the NLP's
-    constraints never leave their manifold. On it D(y) = (1/N) sum_n D_n(z_n(w)) has the gradient
-    g = (1/N) sum_n S_n' grad D_n (x w ln 10) and the model Hessian (1/N) sum_n S_n' hess D_n S_n
-    (second-order sensitivities left out, made positive semi-definite); the step minimises that
-    model within |dy| <= radius (Levenberg-Marquardt) and the search box, and is accepted when D
-    on the corrected paths falls by at least 10 % of the predicted decrease (radius x2 up to 1, or /4).
+    constraints never leave their manifold. On it D(y) = (1/N) sum_n D_n(z_n(w)) (smoothed D) has
+    the gradient (1/N) sum_n S_n' grad D_n and the exact Hessian (1/N) sum_n (S_n' hess D_n S_n
+    - T_n' hess_(v,w)(mu_n' F_n) T_n), T_n = [S_n; I], K_n' mu_n = grad_v D_n (the adjoint; F is
+    linear in w), both carried to y by dw/dy = w ln 10; the step minimises that quadratic model
+    within |dy| <= radius (``trust_region_step``) and the search box, and is accepted when D on the
+    corrected paths falls by at least 10 % of the predicted decrease (radius x2 up to 1, or /4; a
+    failed correction is a rejected step).
     Stops when an accepted step is below ``xtol`` (log10), the radius falls below it, or after
     ``max_steps`` steps. Start: the lower level solved at the start weights (``start``: given paths).
-    The D reported is the one of the lower level re-solved at the fitted weights (``verify``), as
-    the bi-level fit solves it (warm from the branch's path and from the two cold guesses, the least
-    cost kept). ``pool``: an executor for the lower-level solves and the Newton corrections (chunks of
+    The D reported is the one of the lower level re-solved at the fitted weights, as the bi-level fit
+    solves it (warm from the branch's path and from the two cold guesses, the least cost kept). When
+    that re-solve lands on other paths (a lower-cost local minimum of some lower levels), the steps
+    start again on those (``restarts`` times at most) and the round with the least re-solved D is
+    kept. ``pool``: an executor for the lower-level solves and the Newton corrections (chunks of
     targets; None: in-process), as the bi-level fit's."""
     from cobot_analysis.conventions import CONTINUOUS
     from cobot_analysis.models.dynamics import N_STATE
@@ -509,52 +553,76 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
     branches = correct(w, [np.concatenate([z, np.zeros(nl)]) for z in start])  # F is linear in lambda: Newton finds it
     if branches is None:
         raise RuntimeError("single-level: a lower-level solution at the start weights is not a regular KKT point")
+    timing = {"start": time.perf_counter() - t0}
 
-    def model(w):
+    def model(w, branches):
         """Gradient and Hessian of D in y = log10 w_fitted (w = 10^y: dw/dy = w ln 10)."""
         c = w[fi] * math.log(10.0)
         gw = np.mean([b["g"] for b in branches], axis=0)
         Hw = np.mean([b["H"] for b in branches], axis=0)
         return gw * c, 0.5 * (Hw + Hw.T) * np.outer(c, c) + np.diag(gw * c * math.log(10.0))
 
-    D = float(np.mean([b["D"] for b in branches]))
-    y = np.log10(w[fi])
-    steps = accepted = newton_fails = 0
-    while steps < max_steps and radius >= xtol:
-        g, H = model(w)
-        s = trust_region_step(g, H, radius)
-        s = np.clip(y + s, *LOG_BOUNDS) - y
-        pred = -(g @ s + 0.5 * s @ H @ s)
-        steps += 1
-        w_new = w.copy()
-        w_new[fi] = 10.0 ** (y + s)
-        new = correct(w_new, [b["v"] + b["S"] @ (w_new[fi] - w[fi]) for b in branches])  # predictor, corrector
-        D_new = float(np.mean([b["D"] for b in new])) if new is not None else math.inf
-        newton_fails += new is None
-        if new is not None and pred > 0 and D - D_new >= 0.1 * pred:
-            accepted += 1
-            if D - D_new >= 0.75 * pred and np.linalg.norm(s) >= 0.99 * radius:
-                radius = min(2 * radius, 1.0)
-            w, y, D, branches = w_new, y + s, D_new, new
-            if np.linalg.norm(s) < xtol:
-                break
-        else:
-            radius /= 4
-    Zs = [b["v"][:nz].copy() for b in branches]
+    def sqp(w, branches, radius):
+        """Trust-region steps from (w, branches) (docstring): (w, branches, steps, accepted, Newton failures)."""
+        D, y = float(np.mean([b["D"] for b in branches])), np.log10(w[fi])
+        steps = accepted = fails = 0
+        while steps < max_steps and radius >= xtol:
+            g, H = model(w, branches)
+            s = np.clip(y + trust_region_step(g, H, radius), *LOG_BOUNDS) - y
+            pred = -(g @ s + 0.5 * s @ H @ s)
+            steps += 1
+            w_new = w.copy()
+            w_new[fi] = 10.0 ** (y + s)
+            new = correct(w_new, [b["v"] + b["S"] @ (w_new[fi] - w[fi]) for b in branches])  # predictor, corrector
+            D_new = float(np.mean([b["D"] for b in new])) if new is not None else math.inf
+            fails += new is None
+            if new is not None and pred > 0 and D - D_new >= 0.1 * pred:
+                accepted += 1
+                if D - D_new >= 0.75 * pred and np.linalg.norm(s) >= 0.99 * radius:
+                    radius = min(2 * radius, 1.0)
+                w, y, D, branches = w_new, y + s, D_new, new
+                if np.linalg.norm(s) < xtol:
+                    break
+            else:
+                radius /= 4
+        return w, branches, steps, accepted, fails
+
+    best, steps, accepted, fails, rounds = None, 0, 0, 0, 0
+    for _ in range(1 + restarts):
+        rounds += 1
+        w, branches, n_steps, n_acc, n_fail = sqp(w, branches, radius)
+        steps, accepted, fails = steps + n_steps, accepted + n_acc, fails + n_fail
+        Zs = [b["v"][:nz].copy() for b in branches]
+        solved = run(evaluate_chunk, lambda p: (spec, w, [targets[i] for i in p], [Zs[i] for i in p]))
+        objective = float(np.mean([d["D"] for d, _ in solved]))
+        if best is not None and not objective < best[0]:
+            break
+        best = (objective, w.copy(), branches, Zs, [d for d, _ in solved])
+        switched = [z_new is not None and np.abs(z_new - z).max() > 1e-4 for (_, z_new), z in zip(solved, Zs)]
+        if not any(switched):
+            break
+        # the re-solve found lower-cost paths (another local minimum of some lower levels): start again on them
+        restart = correct(w, [np.concatenate([z_new, np.zeros(nl)]) if sw else b["v"]
+                              for (_, z_new), sw, b in zip(solved, switched, branches)])
+        if restart is None:
+            break
+        branches = restart
+    objective, w, branches, Zs, terms = best
+    timing["steps"] = time.perf_counter() - t0 - timing["start"]
     rule = CONTINUOUS.oc_rule("table" if spec.model == "table" else "improved")
     logT = np.array([z[ocp._xi[0, N_STATE]] for z in Zs])
     at_bound = int(np.sum((np.abs(logT - np.log(rule.T_bounds[0] * np.array(T0))) < 1e-3)
                           | (np.abs(logT - np.log(rule.T_bounds[1] * np.array(T0))) < 1e-3)))
-    terms = [d for d, _ in run(evaluate_chunk, lambda p: (spec, w, [targets[i] for i in p], [Zs[i] for i in p]))] if verify else []
-    objective = float(np.mean([d["D"] for d in terms])) if terms else math.nan
     start_objective = float(np.mean([d["D"] for d in start_terms])) if start_terms else math.nan
-    return SingleLevelResult(spec=spec, weights=dict(zip(names, map(float, w))), objective=objective, nlp_objective=D,
+    return SingleLevelResult(spec=spec, weights=dict(zip(names, map(float, w))), objective=objective,
+                             nlp_objective=float(np.mean([b["D"] for b in branches])),
                              start_objective=start_objective, iterations=steps,
-                             status=f"feasible-path SQP: {accepted} of {steps} steps accepted, radius {radius:.2g}"
-                                    f"{f', {newton_fails} Newton corrections failed' if newton_fails else ''}",
+                             status=f"feasible-path SQP: {accepted} of {steps} steps accepted in {rounds} round(s)"
+                                    f"{f', {fails} Newton corrections failed' if fails else ''}",
                              success=accepted > 0, seconds=time.perf_counter() - t0,
                              failed=sum(not d["success"] for d in terms), at_duration_bound=at_bound,
-                             kkt_residual=float(max(b["residual"] for b in branches)), per_target=terms, primals=Zs)
+                             kkt_residual=float(max(b["residual"] for b in branches)), per_target=terms, timing=timing,
+                             primals=Zs)
 
 
 def check_method(method: str, bootstrap: int = 0) -> None:
