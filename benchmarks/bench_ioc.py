@@ -33,6 +33,7 @@ def main() -> None:
     ap.add_argument("--noise", type=float, default=0.0)
     ap.add_argument("--jobs", type=int, default=2, help="worker processes of the bi-level fit")
     ap.add_argument("--skip-bilevel", action="store_true")
+    ap.add_argument("--restarts", type=int, default=2, help="single-level restarts on re-solved paths (fit_feasible_path)")
     args = ap.parse_args()
 
     import pandas as pd
@@ -64,7 +65,7 @@ def main() -> None:
     rows = []
     t0, c0 = time.perf_counter(), cpu()
     with executor(args.jobs) as pool:
-        s = fit_feasible_path(spec, targets, pool=pool, chunks=args.jobs)
+        s = fit_feasible_path(spec, targets, pool=pool, chunks=args.jobs, restarts=args.restarts)
     ts, cs = time.perf_counter() - t0, cpu() - c0
     mem = lambda who: resource.getrusage(who).ru_maxrss / 1024  # noqa: E731  MB (Linux: kB)
     mem_s = (mem(resource.RUSAGE_SELF), mem(resource.RUSAGE_CHILDREN))
