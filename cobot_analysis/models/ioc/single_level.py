@@ -568,7 +568,12 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
         steps = accepted = fails = 0
         while steps < max_steps and radius >= xtol:
             g, H = model(w, branches)
-            s = np.clip(y + trust_region_step(g, H, radius), *LOG_BOUNDS) - y
+            lo, hi = LOG_BOUNDS  # a weight on a search limit that D pushes outward is held (projected step)
+            free = ~(((y <= lo + 1e-9) & (g > 0)) | ((y >= hi - 1e-9) & (g < 0)))
+            s = np.zeros_like(y)
+            if free.any():
+                s[free] = trust_region_step(g[free], H[np.ix_(free, free)], radius)
+            s = np.clip(y + s, lo, hi) - y
             pred = -(g @ s + 0.5 * s @ H @ s)
             steps += 1
             w_new = w.copy()
