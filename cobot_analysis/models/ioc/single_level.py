@@ -493,7 +493,8 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
     the gradient (1/N) sum_n S_n' grad D_n and the exact Hessian (1/N) sum_n (S_n' hess D_n S_n
     - T_n' hess_(v,w)(mu_n' F_n) T_n), T_n = [S_n; I], K_n' mu_n = grad_v D_n (the adjoint; F is
     linear in w), both carried to y by dw/dy = w ln 10; the step minimises that quadratic model
-    within |dy| <= radius (``trust_region_step``) and the search box, and is accepted when D on the
+    within |dy| <= radius (``trust_region_step``) and the search box (a weight on a search limit that
+    D pushes outward is held for the step), and is accepted when D on the
     corrected paths falls by at least 10 % of the predicted decrease (radius x2 up to 1, or /4; a
     failed correction is a rejected step).
     Stops when an accepted step is below ``xtol`` (log10), the radius falls below it, or after
