@@ -40,10 +40,12 @@ def script(name: str) -> str | None:
     return str(beside) if beside.is_file() else shutil.which(name)
 
 
-def run(cmd: list[str], codes: tuple[int, ...]) -> tuple[float, float]:
-    """Wall and CPU time (user + system, s) of one process; its exit code must be one of ``codes``."""
+def run(cmd: list[str], codes: tuple[int, ...], cwd: Path) -> tuple[float, float]:
+    """Wall and CPU time (user + system, s) of one process; its exit code must be one of ``codes``. It runs
+    in ``cwd`` (an empty directory: ``python -m`` puts the working directory first on the path, so from a
+    checkout it would import that checkout, not the package ``$PYTHONPATH`` or the installation names)."""
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=ENV)
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=ENV, cwd=cwd)
     _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - t0
     err = proc.stderr.read().decode(errors="replace")
@@ -72,20 +74,22 @@ def main() -> None:
         ours[f"{stage} --out EMPTY"] = ([py, "-m", "cobot_analysis", stage, "--out", str(empty)], (2,))
     ours["localisation MISSING.bag"] = ([py, "-m", "cobot_analysis", "localisation", str(empty / "missing.bag"), "--out", str(empty)], (2,))
     commands = {**refs, **ours}
+    package = subprocess.run([py, "-c", "import cobot_analysis; print(cobot_analysis.__file__)"], capture_output=True, text=True,
+                             env=ENV, cwd=empty).stdout.strip()
     load0 = os.getloadavg()
     for cmd, codes in commands.values():  # warm-up: bytecode and file caches
-        run(cmd, codes)
+        run(cmd, codes, empty)
     times: dict[str, list[tuple[float, float]]] = {name: [] for name in commands}
     names = list(commands)
     for r in range(args.rounds):
         order = names[r % len(names):] + names[:r % len(names)]
         for name in order:
-            times[name].append(run(*commands[name]))
+            times[name].append(run(*commands[name], empty))
     load1 = os.getloadavg()
     shutil.rmtree(empty, ignore_errors=True)
 
     print(f"{datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC, {os.cpu_count()} cores, {args.rounds} rounds, "
-          f"load average {load0[0]:.1f} -> {load1[0]:.1f}; {py}")
+          f"load average {load0[0]:.1f} -> {load1[0]:.1f}; {py}; cobot_analysis from {package}")
     head = f"{'command':34s} {'wall s':>7s} {'CPU s':>6s}" + "".join(f"  {'CPU / ' + ref:>22s}" for ref in refs)
     print(head)
     for name in names:
