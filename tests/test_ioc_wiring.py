@@ -2,7 +2,8 @@
 2 subjects' noisy trials, 20 intervals) fitted by the bi-level method, the single-level method and per
 subject, each with a 20-resample bootstrap; docs/results.md shows both methods side by side with each
 weight's interval and verdict, the study report lists every fit, and the metrics record the intervals,
-verdicts and the subjects-differ test exactly as weights.json holds them."""
+verdicts and the subjects-differ test exactly as weights.json holds them. The end-to-end tests share
+the fits (about 16 s of CPU) and are marked slow."""
 
 from __future__ import annotations
 
@@ -84,6 +85,7 @@ def test_verdict_categories():
                             "stencil unexplained)") == "not judged"
 
 
+@pytest.mark.slow  # the module's fits: about 16 s of CPU
 def test_results_md_shows_both_methods_with_intervals_and_verdicts(fits, tmp_path):
     from cobot_analysis.reports.results import write_results
 
@@ -114,6 +116,7 @@ def test_results_md_shows_both_methods_with_intervals_and_verdicts(fits, tmp_pat
     assert text.index("Bi-level IOC (docs/methods.md sec. 6)") < text.index("Single-level IOC (docs/methods.md sec. 6.1)")
 
 
+@pytest.mark.slow  # the module's fits: about 16 s of CPU
 def test_per_subject_section_shows_each_subjects_interval_and_the_subjects_test(fits):
     out, _ = fits
     doc = _doc(out, "fit-ioc-subjects")
@@ -133,6 +136,7 @@ def test_per_subject_section_shows_each_subjects_interval_and_the_subjects_test(
                     f"{'yes' if r['differ'] else 'no'} |") in text
 
 
+@pytest.mark.slow  # the module's fits: about 16 s of CPU
 def test_metrics_record_intervals_verdicts_and_the_subjects_test(fits):
     """The result's numbers are the files' (as the regression reads them), and they hold each weight's
     verdict category, its interval when determined, and the subjects-differ statistics."""
@@ -164,6 +168,7 @@ def test_metrics_record_intervals_verdicts_and_the_subjects_test(fits):
             assert (numbers[f"{key}.p"], numbers[f"{key}.p_holm"], numbers[f"{key}.differ"]) == (r["p"], r["p_holm"], r["differ"])
 
 
+@pytest.mark.slow  # the module's fits: about 16 s of CPU
 def test_study_report_lists_every_fit_side_by_side(fits):
     from cobot_analysis.reports.builders import ioc_stages, report_inputs
     from cobot_analysis.reports.models import ioc_overview
@@ -181,3 +186,20 @@ def test_study_report_lists_every_fit_side_by_side(fits):
                 assert row in text, row
     assert "Do the subjects' weights differ (fit-ioc-subjects, Cochran's Q" in text
     assert ioc_overview({}) == []
+
+
+@pytest.mark.slow  # the module's fits: about 16 s of CPU
+def test_single_level_budget_caps_its_trust_region_nlps(fits, tmp_path):
+    """--max-evaluations below the single-level method's own number of NLPs caps them (the regression's
+    short single-level fit); the fit still starts from, and never ends above, the start weights' D."""
+    from cobot_analysis.stages import models
+
+    out, runs = fits
+    src = runs["fit-ioc"].result.means_source
+    start = json.loads((out / "fit-ioc" / "weights.json").read_text())["fits"]["all"]["spec"]["start_weights"]
+    weights = tmp_path / "start.json"
+    weights.write_text(json.dumps({"convention": "continuous", "weights": dict(zip(names_for("improved"), start))}))
+    one = models.fit_ioc(tmp_path / "ws", trajectories=src, fit=list(FITTED), start_weights=str(weights), intervals=20,
+                         compare=False, jobs=1, bootstrap=0, method="single-level", max_evaluations=1).result.results["all"]
+    assert "of 1 NLPs" in one.message and "of 1 NLPs" not in runs["fit-ioc-single"].result.results["all"].message
+    assert one.objective <= one.start_objective

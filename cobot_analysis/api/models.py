@@ -478,8 +478,9 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     ``start_weights``: a preset, a weights.json, or ``"ones"`` (every fitted weight 1). ``checkpoint``: a
     directory where the upper level's evaluations are logged after every iteration (``resume`` continues).
     ``on_evaluation(fit, n, D, best)`` reports progress. ``method``: ``bilevel`` (the published method) or
-    ``single-level`` (docs/methods.md sec. 6.1; improved and table models, continuous convention).
-    ``bootstrap``: after each fit, the curvature of D at the fitted weights, each weight's verdict and its
+    ``single-level`` (docs/methods.md sec. 6.1; improved and table models, continuous convention);
+    ``max_evaluations``: the bi-level fit's budget of upper-level evaluations, the single-level fit's number
+    of trust-region NLPs when below the method's own. ``bootstrap``: after each fit, the curvature of D at the fitted weights, each weight's verdict and its
     interval from ``bootstrap`` resamples of the fitted units (docs/methods.md sec. 6.3; 0: none); per
     subject, also whether the subjects' weights differ. A fit is
     long (minutes to hours at the CLI's defaults); the example fits two means on a coarse grid with a
@@ -499,6 +500,8 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         >>> sorted(fit.uncertainty["all"]["verdicts"]) == list(fit.names)   # each weight's verdict (and interval)
         True
     """
+    import inspect
+
     from cobot_analysis import conventions
     from cobot_analysis.models.comparison import compare_models, compared_models, coupled_distances, orientation_of, subject_distances
     from cobot_analysis.models.ioc import fit as ioc_fit, pair_targets_from_table, targets_from_table
@@ -564,8 +567,9 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in key)
             report = (lambda n, f, best, key=key: on_evaluation(key, n, f, best)) if on_evaluation else None
             t0 = time.perf_counter()
-            if method == "single-level":
-                results[key] = as_ioc_result(fit_trust_region(spec, targets))
+            if method == "single-level":  # max_evaluations: its budget of trust-region NLPs, when below the method's own
+                steps = min(spec.max_evaluations, inspect.signature(fit_trust_region).parameters["steps"].default)
+                results[key] = as_ioc_result(fit_trust_region(spec, targets, steps=steps))
             else:
                 # the time gauge fitted to the subjects' durations (models.ioc.pace; continuous, fit over the means)
                 measured_T = target_durations(targets, means=mean_df, trials=trial_df, durations=durations, mean_keys=mean_keys) \
