@@ -174,7 +174,7 @@ def test_study_report_lists_every_fit_side_by_side(fits):
     from cobot_analysis.reports.models import ioc_overview
 
     out, _ = fits
-    assert ioc_stages(out) == ["fit-ioc", "fit-ioc-subjects", "fit-ioc-single"]
+    assert ioc_stages(out) == ["fit-ioc", "fit-ioc-single", "fit-ioc-subjects"]  # each method beside the other
     inputs = report_inputs(out)
     assert {k: v for k, v in inputs.items() if k.startswith("ioc:")} == {f"ioc:{s}": out / s / "weights.json" for s in ioc_stages(out)}
     text = "\n".join(ioc_overview({s: out / s / "weights.json" for s in ioc_stages(out)}))
@@ -203,3 +203,21 @@ def test_single_level_budget_caps_its_trust_region_nlps(fits, tmp_path):
                          compare=False, jobs=1, bootstrap=0, method="single-level", max_evaluations=1).result.results["all"]
     assert "of 1 NLPs" in one.message and "of 1 NLPs" not in runs["fit-ioc-single"].result.results["all"].message
     assert one.objective <= one.start_objective
+
+
+def test_a_single_level_fit_that_accepts_no_step_still_writes_its_stage(tmp_path):
+    """Started at the weights that drew the paths, the single-level NLP cannot lower D: no trust-region step
+    is accepted and the fit keeps the start weights; the stage is written all the same (its distances table
+    empty: it raised KeyError 'condition' on the pair study's table means, 2026-11-24)."""
+    from cobot_analysis.schema import TRAJECTORIES, write_table
+    from cobot_analysis.stages import models
+
+    table = _table()
+    src = write_table(table[table["kind"] == "mean"], tmp_path / "means.parquet", TRAJECTORIES)
+    outcome = models.fit_ioc(tmp_path / "ws", trajectories=src, fit=list(FITTED), intervals=20, compare=False, jobs=1,
+                             bootstrap=0, method="single-level", max_evaluations=1)
+    r = outcome.result.results["all"]
+    assert "0 of 1 NLPs accepted" in r.message
+    assert {n: r.weights[n] for n in FITTED} == {n: W[n] for n in FITTED}  # walking-2021, the default start
+    assert r.objective == r.start_objective < 1e-3
+    assert (outcome.directory / "results.md").is_file() and (outcome.directory / "weights.json").is_file()

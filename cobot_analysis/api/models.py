@@ -601,7 +601,9 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             rows.append({"model": "improved OC (fitted)", "fit": k, "trial": t.trial, "condition": t.condition, "subject": t.subject,
                          "orientation": "", "global_distance": t.global_distance, "d_xy": d["d_xy"], "d_theta": d["d_theta"],
                          "d_gamma": d["d_gamma"], "D": d["D"], "converged": d["success"]})
-    dist = pd.DataFrame(rows) if coupled is None else coupled[0]
+    # the columns named: a fit without per-path terms (a single-level fit that accepted no step) has no rows
+    dist = pd.DataFrame(rows, columns=["model", "fit", "trial", "condition", "subject", "orientation", "global_distance", "d_xy",
+                                       "d_theta", "d_gamma", "D", "converged"]) if coupled is None else coupled[0]
     comparison, models, paths = None, None, None
     if compare and "all" in results:
         models = compared_models(conv) if model == "improved" else {"table OC (published)": ("table", "table-2022")}

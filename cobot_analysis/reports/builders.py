@@ -45,13 +45,13 @@ def report_inputs(out: Path) -> dict[str, Path]:
 
 
 def ioc_stages(out: Path) -> list[str]:
-    """The workspace's IOC fit directories with a weights.json (the coupled fit has its own section), in
-    pipeline order: fit-ioc, fit-ioc-published, fit-ioc-subjects..., fit-ioc-single, fit-ioc-subjects-single."""
+    """The workspace's IOC fit directories with a weights.json (the coupled fit has its own section), each
+    bi-level fit followed by its single-level twin: fit-ioc, fit-ioc-published, fit-ioc-single, fit-ioc-subjects, ..."""
     from cobot_analysis import registry
 
-    names = ("fit-ioc", "fit-ioc-subjects", "fit-ioc-single", "fit-ioc-subjects-single")
+    names = ("fit-ioc", "fit-ioc-single", "fit-ioc-subjects", "fit-ioc-subjects-single")
     dirs = [d.name for d in Path(out).glob("fit-ioc*") if registry.base_stage(d.name) in names and (d / "weights.json").is_file()]
-    return sorted(dirs, key=lambda d: (registry.order(d), d))
+    return sorted(dirs, key=lambda d: (names.index(registry.base_stage(d)), d))
 
 
 def _load(inputs: dict) -> dict:
