@@ -480,7 +480,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     ``on_evaluation(fit, n, D, best)`` reports progress. ``method``: ``bilevel`` (the published method) or
     ``single-level`` (docs/methods.md sec. 6.1; improved and table models, continuous convention);
     ``max_evaluations``: the bi-level fit's budget of upper-level evaluations, the single-level fit's number
-    of trust-region NLPs when below the method's own. ``bootstrap``: after each fit, the curvature of D at
+    of steps (trust-region NLPs) when below the method's own. ``bootstrap``: after each fit, the curvature of D at
     the fitted weights, each weight's verdict and its interval from ``bootstrap`` resamples of the fitted units (docs/methods.md sec. 6.3; 0: none); per
     subject, also whether the subjects' weights differ. A fit is
     long (minutes to hours at the CLI's defaults); the example fits two means on a coarse grid with a
@@ -567,7 +567,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in key)
             report = (lambda n, f, best, key=key: on_evaluation(key, n, f, best)) if on_evaluation else None
             t0 = time.perf_counter()
-            if method == "single-level":  # max_evaluations: its budget of trust-region NLPs, when below the method's own
+            if method == "single-level":  # max_evaluations: its budget of steps, when below the method's own
                 steps = min(spec.max_evaluations, inspect.signature(fit_trust_region).parameters["steps"].default)
                 results[key] = as_ioc_result(fit_trust_region(spec, targets, steps=steps))
             else:
