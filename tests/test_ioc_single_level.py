@@ -212,6 +212,7 @@ def test_fit_ioc_refuses_an_unknown_method(cli, tmp_path):
     assert not any(tmp_path.iterdir())
 
 
+@pytest.mark.slow  # end to end: a bi-level and a single-level fit through the command (about 7 s idle)
 def test_fit_ioc_single_level_end_to_end_and_too_few_paths(cli, tmp_path):
     """fit-ioc --method single-level on 4 model paths (as means): the stage writes its weights and a report
     that names the method; fitting more weights than paths is refused (exit 2, nothing written)."""
@@ -285,6 +286,7 @@ def test_curvature_resumes_from_its_checkpoint(tmp_path, monkeypatch):
     np.testing.assert_allclose(done.H, full.H) and np.testing.assert_allclose(done.gi, full.gi)
 
 
+@pytest.mark.slow  # a long solve: a sequence of 4 single-level NLPs on 6 paths (about 5 s idle)
 def test_trust_region_sequence_recovers_noise_free_weights():
     """fit-ioc's single-level method: NLPs bounded to 10^(+-0.3) of the current weights, from twice the
     truth (log10 2 = 0.301 > 0.3: one NLP cannot reach it), accepted on the re-solved D."""

@@ -478,9 +478,10 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     ``start_weights``: a preset, a weights.json, or ``"ones"`` (every fitted weight 1). ``checkpoint``: a
     directory where the upper level's evaluations are logged after every iteration (``resume`` continues).
     ``on_evaluation(fit, n, D, best)`` reports progress. ``method``: ``bilevel`` (the published method) or
-    ``single-level`` (docs/methods.md sec. 6.1; improved and table models, continuous convention).
-    ``bootstrap``: after each fit, the curvature of D at the fitted weights, each weight's verdict and its
-    interval from ``bootstrap`` resamples of the fitted units (docs/methods.md sec. 6.3; 0: none); per
+    ``single-level`` (docs/methods.md sec. 6.1; improved and table models, continuous convention);
+    ``max_evaluations``: the bi-level fit's budget of upper-level evaluations, the single-level fit's number
+    of steps (trust-region NLPs) when below the method's own. ``bootstrap``: after each fit, the curvature of D at
+    the fitted weights, each weight's verdict and its interval from ``bootstrap`` resamples of the fitted units (docs/methods.md sec. 6.3; 0: none); per
     subject, also whether the subjects' weights differ. A fit is
     long (minutes to hours at the CLI's defaults); the example fits two means on a coarse grid with a
     budget of 20 evaluations:
@@ -499,6 +500,8 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         >>> sorted(fit.uncertainty["all"]["verdicts"]) == list(fit.names)   # each weight's verdict (and interval)
         True
     """
+    import inspect
+
     from cobot_analysis import conventions
     from cobot_analysis.models.comparison import compare_models, compared_models, coupled_distances, orientation_of, subject_distances
     from cobot_analysis.models.ioc import fit as ioc_fit, pair_targets_from_table, targets_from_table
@@ -564,8 +567,9 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in key)
             report = (lambda n, f, best, key=key: on_evaluation(key, n, f, best)) if on_evaluation else None
             t0 = time.perf_counter()
-            if method == "single-level":
-                results[key] = as_ioc_result(fit_trust_region(spec, targets))
+            if method == "single-level":  # max_evaluations: its budget of steps, when below the method's own
+                steps = min(spec.max_evaluations, inspect.signature(fit_trust_region).parameters["steps"].default)
+                results[key] = as_ioc_result(fit_trust_region(spec, targets, steps=steps))
             else:
                 # the time gauge fitted to the subjects' durations (models.ioc.pace; continuous, fit over the means)
                 measured_T = target_durations(targets, means=mean_df, trials=trial_df, durations=durations, mean_keys=mean_keys) \
@@ -597,7 +601,9 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             rows.append({"model": "improved OC (fitted)", "fit": k, "trial": t.trial, "condition": t.condition, "subject": t.subject,
                          "orientation": "", "global_distance": t.global_distance, "d_xy": d["d_xy"], "d_theta": d["d_theta"],
                          "d_gamma": d["d_gamma"], "D": d["D"], "converged": d["success"]})
-    dist = pd.DataFrame(rows) if coupled is None else coupled[0]
+    # the columns named: a fit without per-path terms (a single-level fit that accepted no step) has no rows
+    dist = pd.DataFrame(rows, columns=["model", "fit", "trial", "condition", "subject", "orientation", "global_distance", "d_xy",
+                                       "d_theta", "d_gamma", "D", "converged"]) if coupled is None else coupled[0]
     comparison, models, paths = None, None, None
     if compare and "all" in results:
         models = compared_models(conv) if model == "improved" else {"table OC (published)": ("table", "table-2022")}
