@@ -5,6 +5,7 @@ nothing is written."""
 
 from __future__ import annotations
 
+import math
 import os
 import time
 from dataclasses import dataclass, field
@@ -588,7 +589,9 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
 
         subjects_test = subjects_differ({k: {n: results[k].weights[n] for n in names} for k in uncertainty},
                                         {k: u["sd_log10"] for k, u in uncertainty.items()},
-                                        {k: u["verdicts"] for k, u in uncertainty.items()})
+                                        {k: u["verdicts"] for k, u in uncertainty.items()},
+                                        {k for k in uncertainty if all(math.isclose(results[k].weights[n], w0[all_names.index(n)], rel_tol=1e-9)
+                                                                       for n in names)})
     # distances: fitted model per trajectory; full model comparison on the means
     coupled = None
     if model == "coupled":  # published and fitted weights, both cold-started, per carrier
@@ -637,7 +640,8 @@ def _weight_uncertainty(spec, targets: list, weights: dict[str, float], n_resamp
 
     c = unc.curvature(spec, targets, weights, checkpoint=checkpoint, resume=resume)
     b = unc.bootstrap(c, n_resamples, seed=seed)
-    return {"D": c.D, "verdicts": unc.verdicts(spec.fitted, c.H, c.D, weights, lack=c.lack_of_fit), "intervals": b["intervals"],
+    verdicts = unc.interval_verdicts(unc.verdicts(spec.fitted, c.H, c.D, weights, lack=c.lack_of_fit), b["intervals"])
+    return {"D": c.D, "verdicts": verdicts, "intervals": b["intervals"],
             "lack_of_fit": c.lack_of_fit,
             "sd_log10": b["sd_log10"], "resamples": n_resamples, "on_box": b["on_box"], "eigenvalues": np.linalg.eigvalsh(c.H).tolist(),
             "failed_solves": c.failed}

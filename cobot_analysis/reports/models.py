@@ -483,7 +483,10 @@ def uncertainty_lines(result) -> list[str]:
     if result.subjects_test:
         lines += ["Do the subjects' weights differ? Cochran's Q on log10 of each weight with the bootstrap standard "
                   "deviations, chi2(subjects - 1), Holm-adjusted over the weights; subjects where the weight is not "
-                  "determined left out (docs/methods.md sec. 6.3).", "",
+                  "determined left out, and so are the subjects whose fit ended at the start weights every subject "
+                  "started from (docs/methods.md sec. 6.3)"
+                  + (": " + ", ".join(result.subjects_test[0]["at_start"]) if result.subjects_test[0].get("at_start") else "")
+                  + ".", "",
                   "| weight | subjects | Q | df | p | p (Holm) | subjects differ |", "|---|---|---|---|---|---|---|"]
         for r in result.subjects_test:
             differ = "–" if r["differ"] is None else ("yes" if r["differ"] else "no")
