@@ -1,5 +1,6 @@
 # Reproduce the reports of each study (see README.md).
-#   make walking        published walking-2020: import, means, distances, statistics, models, IOC, prediction, report;
+#   make walking        published walking-2020: import, means, distances, statistics, models, IOC (bi-level and
+#                       single-level, each with the bootstrap of its weights), prediction, report;
 #                       the model stages under both conventions (continuous -> STAGE/, published -> STAGE-published/)
 #   make walking-subjects  per-subject IOC fits on walking-2020 (after walking)
 #   make pairs          published pair-carriage-2022 (means) and the per-trial synthetic pair study
@@ -27,6 +28,11 @@ PREDICT_FITTED_ARGS ?= --settings 50:100
 # on walking with the weights fitted under the continuous convention (weights are used in the convention they were fitted in)
 GOAL_PREDICT_ARGS ?= --settings 50:100 --predictors oc,goal,cv,ctrv --horizons 5,10,25,50,100,200,all
 SUBJECT_IOC_ARGS ?= --subjects 10 --max-evaluations 600
+# the single-level IOC beside each bi-level fit over the means (docs/methods.md sec. 6.1; continuous convention only),
+# with the bootstrap of the weights' intervals and verdicts (--bootstrap, default 200, sec. 6.3); its own stage
+# fit-ioc-single/, whose report shows both fits side by side. About 5 min on the 37 walking means (loaded machine,
+# docs/benchmarks.md); --max-evaluations N below its number of steps is its budget
+SINGLE_IOC_ARGS ?=
 COUPLED_IOC_ARGS ?= --max-evaluations 600
 SPREDICT_ARGS ?= --every 10
 RESULTS_NOTE ?=
@@ -69,6 +75,7 @@ walking:
 	$(CLI) average --out $(WALK)
 	$(CLI) fit-ioc --out $(WALK) --jobs $(JOBS) $(IOC_ARGS)
 	$(CLI) fit-ioc --out $(WALK) --convention published --jobs $(JOBS) $(PUBLISHED_IOC_ARGS)
+	$(CLI) fit-ioc --out $(WALK) --method single-level --no-compare --jobs $(JOBS) $(SINGLE_IOC_ARGS)
 	$(CLI) generate --out $(WALK) --study walking-2020 --weights $(WALK)/fit-ioc/weights.json --jobs $(JOBS)
 	$(CLI) generate --out $(WALK) --study walking-2020 --convention published --jobs $(JOBS)
 	$(CLI) compare --out $(WALK) --against $(WALK)/generate/generated.parquet --comparison model
@@ -97,6 +104,7 @@ pairs-published:
 	$(CLI) fit-ioc --out $(PAIRS) --model table --jobs $(JOBS) $(IOC_ARGS)
 	$(CLI) fit-ioc --out $(PAIRS) --model table --convention published --jobs $(JOBS) $(PUBLISHED_TABLE_IOC_ARGS) $(PUBLISHED_IOC_ARGS)
 	$(CLI) fit-ioc --out $(PAIRS) --model coupled --jobs $(JOBS) $(COUPLED_IOC_ARGS)
+	$(CLI) fit-ioc --out $(PAIRS) --model table --method single-level --no-compare --jobs $(JOBS) $(SINGLE_IOC_ARGS)
 	$(CLI) predict --out $(PAIRS) --entity table --convention continuous --jobs $(JOBS) $(PREDICT_ARGS)
 	$(CLI) predict --out $(PAIRS) --entity table --convention published --jobs $(JOBS) $(PUBLISHED_PREDICT_ARGS)
 	$(CLI) predict --out $(PAIRS) --entity table --convention continuous --stage-name predict-goal --jobs $(JOBS) $(GOAL_PREDICT_ARGS)

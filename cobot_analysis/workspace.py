@@ -203,6 +203,12 @@ class Stage:
         self.result: Any = None  # the API result of the run: its own numbers (.metrics()) are the stage's metrics.json
         self._stage_lock: int | None = None
 
+    @property
+    def input_hashes(self) -> dict[str, str]:
+        """``{resolved path: SHA-256}`` of the input files, as hashed on entering the stage (for the manifest):
+        a stage that records its inputs' hashes elsewhere reuses them instead of hashing the files again."""
+        return {i["path"]: i["sha256"] for i in self._inputs}
+
     # -- skip logic -----------------------------------------------------------------------------
     def _previous_manifest(self) -> dict[str, Any] | None:
         try:

@@ -89,3 +89,47 @@ def test_a_refused_streamed_import_leaves_no_file(tmp_path):
     kept = api.import_markers(protocol, jobs=1, markers_path=tmp_path / "m.parquet")  # skip_bad: the good trial kept
     assert [t.trial for t in kept.imported] == ["S02_E4015_1"] and len(kept.refused) == 1
     assert table_metadata(tmp_path / "m.parquet")["skipped"].keys() == {"S01_E4015_1"}
+
+
+def test_each_raw_file_is_hashed_once_and_its_hash_recorded_twice(tmp_path, monkeypatch):
+    """The import stage hashes the raw files for its manifest; the trials table's sha256 reuses those hashes
+    (the worker does not hash the file again), and they are the files' SHA-256."""
+    import hashlib
+    import json
+
+    from cobot_analysis import provenance
+    from cobot_analysis.stages import data
+
+    protocol = walking.generate(tmp_path / "study", n_subjects=1, n_trials=2, conditions=["E4015"])
+    hashed = []
+    real = provenance.file_sha256
+    monkeypatch.setattr(provenance, "file_sha256", lambda p, *a: hashed.append(Path(p).name) or real(p, *a))
+    data.import_markers(tmp_path / "ws", protocol, jobs=1)  # in-process: the worker's calls are seen here
+    assert not [n for n in hashed if n.endswith(".c3d")]
+    trials = read_table(tmp_path / "ws" / "import" / "trials.parquet", TRIALS)
+    manifest = {Path(i["path"]).name: i["sha256"] for i in json.loads((tmp_path / "ws" / "import" / "manifest.json").read_text())["inputs"]}
+    raw = sorted((protocol.parent / "raw").glob("*.c3d"))
+    assert len(trials) == len(raw) == 2
+    for f, sha in zip(trials["file"], trials["sha256"]):
+        name = Path(f).name
+        assert sha == manifest[name] == hashlib.sha256((protocol.parent / "raw" / name).read_bytes()).hexdigest()
+
+
+def test_a_jump_is_named_whether_or_not_the_marker_is_always_visible():
+    """``check_positions`` checks the always-visible markers together and the others one by one: the
+    earliest jump of either kind is named, and all of them counted."""
+    import numpy as np
+
+    from cobot_analysis.errors import InputError
+    from cobot_analysis.io.plausibility import check_positions
+
+    xyz = np.zeros((50, 2, 3))
+    xyz[:, :, 0] = np.linspace(0, 0.5, 50)[:, None]  # 1 m/s at 100 Hz
+    xyz[20:, 0, 1] += 0.3  # A (always visible): 0.3 m between frames 19 and 20
+    xyz[5:8, 1] = np.nan  # B occluded in frames 5-7, then 1.2 m away (30 m/s): a jump between frames 4 and 8
+    xyz[8:, 1, 2] += 1.2
+    with pytest.raises(InputError, match=r"jump of marker B: 1\.2 m between frames 4 and 8 .*2 jumps over the limit in 2 marker"):
+        check_positions(xyz, ["A", "B"], 100.0, "x.c3d", max_spike=10.0)
+    xyz[8:, 1, 2] -= 1.2
+    with pytest.raises(InputError, match=r"jump of marker A: 0\.3 m between frames 19 and 20 \(t = 0\.190 s\), 30 m/s"):
+        check_positions(xyz, ["A", "B"], 100.0, "x.c3d", max_spike=10.0)

@@ -54,6 +54,7 @@ def _table(paths, subjects=0, seed=0):
     return pd.concat(frames, ignore_index=True)
 
 
+@pytest.mark.slow  # a long solve: a bi-level fit of up to 150 evaluations (about 7 s idle)
 def test_ioc_recovers_the_paths_of_planted_weights_and_their_pace_from_the_durations(planted_paths):
     """Error on the path, not on the weights: fitted paths within 5 mm (mean d_xy) of the planted ones.
     a1 is held (the time scale, docs/methods.md sec. 6): at a1 = 4 instead of the planted 8 the same
@@ -107,6 +108,7 @@ def test_targets_leave_out_missing_orientation_and_refuse_nan(planted_paths, tmp
     assert t.goal[2] == pytest.approx(t.theta[-1], abs=0.5)  # goal heading on the measured branch
 
 
+@pytest.mark.slow  # a long solve: three bi-level fits of 30 evaluations (about 5 s idle)
 def test_resumed_fit_equals_uninterrupted_fit(planted_paths, tmp_path):
     targets = _targets(planted_paths)[:2]
     spec = IOCSpec(start_weights=tuple(weights_vector(PRESETS["walking-2021"])), fitted=("a1", "a4"), max_evaluations=30)

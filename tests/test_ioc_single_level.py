@@ -212,6 +212,7 @@ def test_fit_ioc_refuses_an_unknown_method(cli, tmp_path):
     assert not any(tmp_path.iterdir())
 
 
+@pytest.mark.slow  # end to end: a bi-level and a single-level fit through the command (about 7 s idle)
 def test_fit_ioc_single_level_end_to_end_and_too_few_paths(cli, tmp_path):
     """fit-ioc --method single-level on 4 model paths (as means): the stage writes its weights and a report
     that names the method; fitting more weights than paths is refused (exit 2, nothing written)."""
@@ -347,3 +348,29 @@ def test_feasible_path_recovers_noise_free_weights():
     for n in SPEC.fitted:
         true = W[names_for("improved").index(n)]
         assert abs(r.weights[n] / true - 1) < 0.01, (n, r.weights[n], true)
+
+
+def test_interval_reaching_a_search_limit_is_not_determined():
+    """A weight the curvature calls determined but whose bootstrap interval reaches either search limit
+    becomes "not determined"; one inside the box keeps its verdict; other verdicts are untouched."""
+    from cobot_analysis.models.ioc.uncertainty import interval_verdicts
+
+    v = {"a2": "determined", "a3": "determined", "a4": "determined", "a1": "only its ratio to a2 is determined"}
+    out = interval_verdicts(v, {"a2": (7.3, 7.6), "a3": (1e-7, 586.0), "a4": (1.2, 1000.0), "a1": (1e-7, 1e3)})
+    assert out["a2"] == "determined" and out["a1"] == v["a1"]
+    assert out["a3"] == "not determined by these data (its 95 % interval reaches the search limit 1e-07)"
+    assert out["a4"] == "not determined by these data (its 95 % interval reaches the search limit 1000)"
+
+
+def test_subjects_at_the_start_weights_are_left_out_of_the_comparison():
+    """Subjects whose fit ended at the shared start weights carry no evidence of agreement: with them the
+    test would see identical estimates (Q = 0); without them it compares the subjects that moved."""
+    from cobot_analysis.models.ioc.uncertainty import subjects_differ
+
+    est = {"s1": {"a2": 10 ** 0.2}, "s2": {"a2": 10 ** 0.8}, "s3": {"a2": 10 ** 0.5}, "s4": {"a2": 10 ** 0.5}}
+    sd = {s: {"a2": 0.05} for s in est}
+    both = subjects_differ(est, sd)[0]
+    moved = subjects_differ(est, sd, at_start={"s3", "s4"})[0]
+    assert both["subjects"] == 4 and moved["subjects"] == 2 and moved["at_start"] == ["s3", "s4"]
+    assert moved["Q"] == pytest.approx(0.6 ** 2 / 0.05 ** 2 / 2)  # two subjects, equal sd: Q = (y1 - y2)^2 / (2 s^2)
+    assert moved["differ"] is True

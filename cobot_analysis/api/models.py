@@ -5,6 +5,7 @@ nothing is written."""
 
 from __future__ import annotations
 
+import math
 import os
 import time
 from dataclasses import dataclass, field
@@ -478,9 +479,10 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     ``start_weights``: a preset, a weights.json, or ``"ones"`` (every fitted weight 1). ``checkpoint``: a
     directory where the upper level's evaluations are logged after every iteration (``resume`` continues).
     ``on_evaluation(fit, n, D, best)`` reports progress. ``method``: ``bilevel`` (the published method) or
-    ``single-level`` (docs/methods.md sec. 6.1; improved and table models, continuous convention).
-    ``bootstrap``: after each fit, the curvature of D at the fitted weights, each weight's verdict and its
-    interval from ``bootstrap`` resamples of the fitted units (docs/methods.md sec. 6.3; 0: none); per
+    ``single-level`` (docs/methods.md sec. 6.1; improved and table models, continuous convention);
+    ``max_evaluations``: the bi-level fit's budget of upper-level evaluations, the single-level fit's number
+    of steps (trust-region NLPs) when below the method's own. ``bootstrap``: after each fit, the curvature of D at
+    the fitted weights, each weight's verdict and its interval from ``bootstrap`` resamples of the fitted units (docs/methods.md sec. 6.3; 0: none); per
     subject, also whether the subjects' weights differ. A fit is
     long (minutes to hours at the CLI's defaults); the example fits two means on a coarse grid with a
     budget of 20 evaluations:
@@ -499,6 +501,8 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         >>> sorted(fit.uncertainty["all"]["verdicts"]) == list(fit.names)   # each weight's verdict (and interval)
         True
     """
+    import inspect
+
     from cobot_analysis import conventions
     from cobot_analysis.models.comparison import compare_models, compared_models, coupled_distances, orientation_of, subject_distances
     from cobot_analysis.models.ioc import fit as ioc_fit, pair_targets_from_table, targets_from_table
@@ -564,8 +568,9 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in key)
             report = (lambda n, f, best, key=key: on_evaluation(key, n, f, best)) if on_evaluation else None
             t0 = time.perf_counter()
-            if method == "single-level":
-                results[key] = as_ioc_result(fit_feasible_path(spec, targets, pool=pool, chunks=n_chunks))
+            if method == "single-level":  # max_evaluations: its budget of steps, when below the method's own
+                steps = min(spec.max_evaluations, inspect.signature(fit_feasible_path).parameters["max_steps"].default)
+                results[key] = as_ioc_result(fit_feasible_path(spec, targets, pool=pool, chunks=n_chunks, max_steps=steps))
             else:
                 # the time gauge fitted to the subjects' durations (models.ioc.pace; continuous, fit over the means)
                 measured_T = target_durations(targets, means=mean_df, trials=trial_df, durations=durations, mean_keys=mean_keys) \
@@ -584,7 +589,9 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
 
         subjects_test = subjects_differ({k: {n: results[k].weights[n] for n in names} for k in uncertainty},
                                         {k: u["sd_log10"] for k, u in uncertainty.items()},
-                                        {k: u["verdicts"] for k, u in uncertainty.items()})
+                                        {k: u["verdicts"] for k, u in uncertainty.items()},
+                                        {k for k in uncertainty if all(math.isclose(results[k].weights[n], w0[all_names.index(n)], rel_tol=1e-9)
+                                                                       for n in names)})
     # distances: fitted model per trajectory; full model comparison on the means
     coupled = None
     if model == "coupled":  # published and fitted weights, both cold-started, per carrier
@@ -597,7 +604,9 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             rows.append({"model": "improved OC (fitted)", "fit": k, "trial": t.trial, "condition": t.condition, "subject": t.subject,
                          "orientation": "", "global_distance": t.global_distance, "d_xy": d["d_xy"], "d_theta": d["d_theta"],
                          "d_gamma": d["d_gamma"], "D": d["D"], "converged": d["success"]})
-    dist = pd.DataFrame(rows) if coupled is None else coupled[0]
+    # the columns named: a fit without per-path terms (a single-level fit that accepted no step) has no rows
+    dist = pd.DataFrame(rows, columns=["model", "fit", "trial", "condition", "subject", "orientation", "global_distance", "d_xy",
+                                       "d_theta", "d_gamma", "D", "converged"]) if coupled is None else coupled[0]
     comparison, models, paths = None, None, None
     if compare and "all" in results:
         models = compared_models(conv) if model == "improved" else {"table OC (published)": ("table", "table-2022")}
@@ -631,7 +640,8 @@ def _weight_uncertainty(spec, targets: list, weights: dict[str, float], n_resamp
 
     c = unc.curvature(spec, targets, weights, checkpoint=checkpoint, resume=resume)
     b = unc.bootstrap(c, n_resamples, seed=seed)
-    return {"D": c.D, "verdicts": unc.verdicts(spec.fitted, c.H, c.D, weights, lack=c.lack_of_fit), "intervals": b["intervals"],
+    verdicts = unc.interval_verdicts(unc.verdicts(spec.fitted, c.H, c.D, weights, lack=c.lack_of_fit), b["intervals"])
+    return {"D": c.D, "verdicts": verdicts, "intervals": b["intervals"],
             "lack_of_fit": c.lack_of_fit,
             "sd_log10": b["sd_log10"], "resamples": n_resamples, "on_box": b["on_box"], "eigenvalues": np.linalg.eigvalsh(c.H).tolist(),
             "failed_solves": c.failed}

@@ -108,6 +108,7 @@ class TrialTask:
     max_speed: float = MAX_SPEED
     max_spike: float = MAX_SPIKE
     invalid_rate: str = "refuse"
+    sha256: str | None = None  # the raw file's SHA-256 when the caller has it (the stage's input hashes): not hashed again
 
 
 @dataclass
@@ -176,6 +177,12 @@ def _scale_check(path: Path, units: str, pairs: list[tuple[np.ndarray, np.ndarra
                      path=path, remedy=f"check the units (--units mm|m) and the marker labels; {MAP_REMEDY}")
 
 
+@lru_cache(maxsize=1)
+def _no_rows() -> pd.DataFrame:
+    """An empty table, made once: the label resolver of a trial reads only the protocol's entities and map."""
+    return pd.DataFrame()
+
+
 def import_trial(task: TrialTask) -> ImportedTrial:
     """Read one trial file, resolve its labels and check it (see module docstring)."""
     from cobot_analysis.provenance import file_sha256
@@ -186,7 +193,8 @@ def import_trial(task: TrialTask) -> ImportedTrial:
         raise InputError("empty trial (no frames)", path=path, remedy="remove the trial from the protocol or re-export it")
     rate, rate_notes = trial_rate(raw.rate, RATE_SOURCES[fmt], task.protocol_rate, task.invalid_rate, path)
     notes = list(raw.notes) + rate_notes
-    resolver = Protocol(path=path, study="", trials=pd.DataFrame(), entities=task.entities, marker_map=task.marker_map)
+    none = _no_rows()
+    resolver = Protocol(path=path, study="", trials=none, subjects=none, pairs=none, entities=task.entities, marker_map=task.marker_map)
     resolved = [_resolve(resolver, key, task) for key in occurrence_keys(raw.labels, task.marker_map)]
     keep, seen = [], {}
     for j, (entity, marker) in enumerate(resolved):
@@ -253,7 +261,7 @@ def import_trial(task: TrialTask) -> ImportedTrial:
                      "table side |TAB1 - TAB2|")
     check_positions(xyz, [raw.labels[j] for j in keep], float(rate), path, lab_extent=task.lab_extent, max_speed=task.max_speed,
                     max_spike=task.max_spike)
-    return ImportedTrial(task.trial, ents, marks, xyz, float(rate), raw.units, fmt, file_sha256(path), notes, pelvis)
+    return ImportedTrial(task.trial, ents, marks, xyz, float(rate), raw.units, fmt, task.sha256 or file_sha256(path), notes, pelvis)
 
 
 def import_or_refuse(task: TrialTask) -> ImportedTrial | Refused:
@@ -505,9 +513,12 @@ def stream_import(plan: ImportPlan, markers_path: Path, *, jobs: int | None = No
             if writer is None:  # the table's metadata (METADATA_KEY) is added at the end, when it is known
                 schema = rows.schema.with_metadata({k: v for k, v in rows.schema.metadata.items() if k != METADATA_KEY})
                 # LZ4 (not the pipeline's zstd): as small for these coordinates (+9 %), half the CPU to write
-                # and read; statistics of the labels and frames only (the trial's say which row group is whose)
+                # and read; statistics of the labels and frames only (the trial's say which row group is whose);
+                # the coordinates byte-stream-split, not dictionary-encoded (1.0 instead of 1.5 ms per trial to
+                # write, 0.43 instead of 0.56 to read, +8 % size)
                 writer = pq.ParquetWriter(markers_path, schema, compression="lz4",
                                           use_dictionary=["trial", "entity", "marker", "frame", "occluded"],
+                                          column_encoding={c: "BYTE_STREAM_SPLIT" for c in ("x", "y", "z")},
                                           write_statistics=["trial", "entity", "marker", "frame"])
             writer.write_table(rows, row_group_size=max(len(rows), 1))
             out.imported.append(trial)

@@ -127,7 +127,15 @@ def check_positions(xyz: np.ndarray, labels: list[str], rate: float, path: str |
                              remedy=f"{REMEDY}; a lab larger than {lab_extent:g} m: import with --lab-extent")
     visible = ~np.isnan(xyz).any(axis=2)
     jumps = []  # (first frame, marker, next frame, step, speed, number of jumps of that marker)
-    for k in range(xyz.shape[1]):  # markers, never frames
+    always = np.flatnonzero(visible.all(axis=0)) if len(xyz) >= 2 else np.empty(0, int)
+    if always.size:  # markers visible in every frame, all at once: consecutive frames, speed = step x rate
+        step = np.linalg.norm(np.diff(xyz[:, always], axis=0), axis=2)
+        speed = step * rate
+        fast = speed > max_speed
+        for c in np.flatnonzero(fast.any(axis=0)):
+            i = int(np.argmax(fast[:, c]))
+            jumps.append((i, int(always[c]), i + 1, float(step[i, c]), float(speed[i, c]), int(fast[:, c].sum())))
+    for k in map(int, np.setdiff1d(np.arange(xyz.shape[1]), always)):  # the others, each over its visible frames
         idx = np.flatnonzero(visible[:, k])
         if len(idx) < 2:
             continue

@@ -42,17 +42,14 @@ def _return_freed_memory() -> None:
     otherwise rises to the size of the arrays freed and keeps them in the heap of the thread that
     freed them, where the tables written afterwards cannot reuse them (peak memory of a 10-minute
     run: 205 -> 183 MiB). A fixed threshold of 128 KiB (glibc's initial one); no-op elsewhere.
-    Arrow's buffers (the tables written) come from the same C allocator instead of Arrow's own
-    mimalloc or jemalloc pool, which keeps what it frees (peak 188 -> 178 MiB)."""
+    (Arrow's allocator is the command line's choice, not this library's: ``cli.main`` sets
+    ``ARROW_DEFAULT_MEMORY_POOL=system``.)"""
     import ctypes
-
-    import pyarrow as pa
 
     try:
         ctypes.CDLL(None).mallopt(-3, 128 * 1024)  # M_MMAP_THRESHOLD, in the C library the process has loaded
     except (OSError, AttributeError, TypeError):  # no glibc (macOS, musl: no mallopt; Windows: no CDLL(None))
         pass
-    pa.set_memory_pool(pa.system_memory_pool())
 
 
 def analyse_run(task: tuple[str, str, str, Options]) -> dict:

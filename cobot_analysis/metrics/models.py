@@ -9,10 +9,32 @@ from typing import Any
 from cobot_analysis.metrics.records import Collector, groups
 
 
+def verdict_category(verdict: str) -> str:
+    """The category of an identifiability verdict (``models.ioc.uncertainty.verdicts``, docs/methods.md
+    sec. 6.3), without its numbers: "determined", "ratio to <weight>", "not determined" or "not judged",
+    with " at the search limit" appended when the verdict says so.
+
+        >>> verdict_category("only its ratio to a1 is determined (at the search limit 1e-07)")
+        'ratio to a1 at the search limit'
+    """
+    head = verdict.split(" (at the search limit")[0]
+    if head.startswith("only its ratio to "):
+        category = "ratio to " + head[len("only its ratio to "):].split()[0]
+    elif head.startswith("not judged"):
+        category = "not judged"
+    elif head.startswith("not determined"):
+        category = "not determined"
+    else:
+        category = head
+    return category + (" at the search limit" if "(at the search limit" in verdict else "")
+
+
 def fit_ioc(out: Collector, weights: dict[str, Any], distances) -> None:
     """fit-ioc: D at the start and fitted, evaluations, fitted weights per fit (``weights``: the document of
-    ``weights.json``, as written); distances of each compared model to the means, per fit in
-    ``fit-ioc-subjects`` (docs/methods.md sec. 6)."""
+    ``weights.json``, as written), each fitted weight's identifiability verdict (``verdict_category``) and,
+    when determined, its bootstrap interval (``weights.<w>.lo`` / ``.hi``); per subject, the test of whether
+    the subjects' weights differ (``subjects_differ.<w>``: subjects, Q, p, p_holm, differ); distances of each
+    compared model to the means, per fit in ``fit-ioc-subjects`` (docs/methods.md sec. 6, 6.3)."""
     w = json.loads(json.dumps(weights, default=float))  # as Stage.write_json writes it
     for fit, r in (w.get("fits") or {}).items():
         per = r.get("per_target") or []
@@ -22,10 +44,25 @@ def fit_ioc(out: Collector, weights: dict[str, Any], distances) -> None:
         out.count((fit, "evaluations"), r.get("evaluations"))
         out.count((fit, "not_converged"), r.get("failed"))
         out.count((fit, "T_at_bound"), sum(1 for p in per if p.get("T_at_bound")))
+        u = r.get("uncertainty") or {}
         for name in (r.get("spec") or {}).get("fitted", []):
             out.add((fit, "weights", name), (r.get("weights") or {}).get(name))
+            verdict = (u.get("verdicts") or {}).get(name)
+            if verdict is None:
+                continue
+            out.add((fit, "verdict", name), verdict_category(verdict))
+            if verdict.startswith("determined"):  # the report gives no interval to a weight the data do not determine
+                lo, hi = u["intervals"][name]
+                out.add((fit, "weights", name, "lo"), lo)
+                out.add((fit, "weights", name, "hi"), hi)
+    for row in w.get("subjects_differ") or []:
+        key = ("subjects_differ", row["weight"])
+        out.count((*key, "subjects"), row.get("subjects"))
+        for stat in ("Q", "p", "p_holm"):
+            out.add((*key, stat), row.get(stat))
+        out.add((*key, "differ"), row.get("differ"))
     if distances is not None:
-        keys = ["model", *(["fit"] if out.stage == "fit-ioc-subjects" else []), "carrier"]
+        keys = ["model", *(["fit"] if out.prefix.startswith("fit-ioc-subjects") else []), "carrier"]  # -single too
         for key, g in groups(distances, keys, {"carrier": "carrier{}"}):
             out.count(("distances", *key, "n"), len(g))
             out.mean_sd(("distances", *key, "d_xy"), g["d_xy"], "m")

@@ -218,7 +218,9 @@ def load_recordings(markers_path: Path, trials_path: Path, *, lazy: bool = False
         bounds = np.searchsorted(tcode, np.arange(len(names) + 1))
         where = {name: i for i, name in enumerate(names)}
     recordings = []
-    for _, row in trials.iterrows():
+    rows = trials.copy(deep=False)
+    rows.attrs = {}  # iterrows deep-copies the table's metadata (every trial's rate, units...) into each row
+    for _, row in rows.iterrows():
         trial = str(row["trial"])
         rate = float(row["rate"]) if pd.notna(row.get("rate")) else float("nan")
         if not rate > 0:
@@ -325,7 +327,9 @@ def _read_marker_rows(path: Path, row_groups: tuple[int, ...] | None = None, pf=
     slot_ids: dict[tuple[str, str], int] = {}
     parts = []
     for i in range(pf.num_row_groups) if row_groups is None else row_groups:
-        rg = pf.read_row_group(i, columns=cols)
+        # one thread: Arrow's thread pool cost more than it saved on a row group (0.6 ms of CPU, 4.7 ms of wall
+        # time per trial instead of 0.55 ms with 2 workers on 2 shared cores)
+        rg = pf.read_row_group(i, columns=cols, use_threads=False)
         m_idx, m_dict = _codes(rg.column("marker"))
         keep_local = np.array([m in USED_MARKERS for m in m_dict] + [False])  # index -1 (null) -> False
         keep = keep_local[m_idx]

@@ -39,7 +39,19 @@ def report_inputs(out: Path) -> dict[str, Path]:
             if p.is_file():
                 found[name] = p
                 break
+    for d in ioc_stages(out):  # the IOC fits' weights.json (a changed fit redoes the report)
+        found[f"ioc:{d}"] = out / d / "weights.json"
     return found
+
+
+def ioc_stages(out: Path) -> list[str]:
+    """The workspace's IOC fit directories with a weights.json (the coupled fit has its own section), each
+    bi-level fit followed by its single-level twin: fit-ioc, fit-ioc-published, fit-ioc-single, fit-ioc-subjects, ..."""
+    from cobot_analysis import registry
+
+    names = ("fit-ioc", "fit-ioc-single", "fit-ioc-subjects", "fit-ioc-subjects-single")
+    dirs = [d.name for d in Path(out).glob("fit-ioc*") if registry.base_stage(d.name) in names and (d / "weights.json").is_file()]
+    return sorted(dirs, key=lambda d: (names.index(registry.base_stage(d)), d))
 
 
 def _load(inputs: dict) -> dict:
@@ -382,6 +394,9 @@ def build_report(study, inputs: dict, stage, out: Path) -> None:
                 if not stage.path(fig.name).exists():
                     shutil.copy2(fig, stage.path(fig.name))
     _stats_section(data, study, lines)
+    from cobot_analysis.reports.models import ioc_overview
+
+    lines += ioc_overview({k.split(":", 1)[1]: p for k, p in inputs.items() if k.startswith("ioc:")})
     stage.path("README.md").write_text("\n".join(lines) + "\n")
     stage.path("results.md").write_text("\n".join(results) + "\n" if results else
                                         f"## {study.title}: report\n\nSee README.md in the report stage (and the --to directory of `report`).\n")

@@ -447,6 +447,16 @@ def pace_lines(mean_keys: pd.DataFrame | None, targets, per_target: list[dict], 
             "(docs/methods.md sec. 6).", ""]
 
 
+def interval_cells(uncertainty: dict | None, name: str) -> tuple[str, str]:
+    """The 95 % interval and the verdict of weight ``name`` (``uncertainty``: one fit's entry of
+    weights.json); no interval for a weight the data do not determine, none at all without a bootstrap."""
+    if not uncertainty:
+        return "–", "not computed (--bootstrap 0)"
+    v = uncertainty["verdicts"][name]
+    lo, hi = uncertainty["intervals"][name]
+    return (f"{lo:.3g} .. {hi:.3g}" if v.startswith("determined") else "–"), v
+
+
 def uncertainty_lines(result) -> list[str]:
     """Markdown: each fitted weight with its bootstrap interval and identifiability verdict per fit
     (docs/methods.md sec. 6.3), and, per subject, whether the subjects' weights differ."""
@@ -460,10 +470,7 @@ def uncertainty_lines(result) -> list[str]:
     for k, u in result.uncertainty.items():
         w = result.results[k].weights
         for name in result.names:
-            v = u["verdicts"][name]
-            lo, hi = u["intervals"][name]
-            cell = f"{lo:.3g} .. {hi:.3g}" if v.startswith("determined") else "–"
-            lines.append(f"| {k} | {name} | {w[name]:.3g} | {cell} | {v} |")
+            lines.append(f"| {k} | {name} | {w[name]:.3g} | " + " | ".join(interval_cells(u, name)) + " |")
     lines.append("")
     boxed = {k: u["on_box"] for k, u in result.uncertainty.items() if u.get("on_box")}
     if boxed:
@@ -476,7 +483,10 @@ def uncertainty_lines(result) -> list[str]:
     if result.subjects_test:
         lines += ["Do the subjects' weights differ? Cochran's Q on log10 of each weight with the bootstrap standard "
                   "deviations, chi2(subjects - 1), Holm-adjusted over the weights; subjects where the weight is not "
-                  "determined left out (docs/methods.md sec. 6.3).", "",
+                  "determined left out, and so are the subjects whose fit ended at the start weights every subject "
+                  "started from (docs/methods.md sec. 6.3)"
+                  + (": " + ", ".join(result.subjects_test[0]["at_start"]) if result.subjects_test[0].get("at_start") else "")
+                  + ".", "",
                   "| weight | subjects | Q | df | p | p (Holm) | subjects differ |", "|---|---|---|---|---|---|---|"]
         for r in result.subjects_test:
             differ = "–" if r["differ"] is None else ("yes" if r["differ"] else "no")
@@ -487,7 +497,8 @@ def uncertainty_lines(result) -> list[str]:
 
 
 def methods_side_by_side(result, other: dict | None) -> list[str]:
-    """Markdown: the single-level fit beside the workspace's bi-level fit (D, weights, time)."""
+    """Markdown: the single-level fit beside the workspace's bi-level fit (D, weights, time), then each
+    weight by both methods with its interval and verdict (``other``: the bi-level weights.json's fits)."""
     if other is None:
         return ["No bi-level fit in this workspace to compare with (run fit-ioc without --method first).", ""]
     names = result.names
@@ -502,7 +513,53 @@ def methods_side_by_side(result, other: dict | None) -> list[str]:
                          + " | ".join(f"{b['weights'][n]:.3g}" for n in names) + " |")
         lines.append(f"| {k} | single-level | {r.objective:.4f} | {result.seconds.get(k, float('nan')):.1f} | "
                      + " | ".join(f"{r.weights[n]:.3g}" for n in names) + " |")
+    lines += ["", "Each fitted weight by both methods, with its 95 % bootstrap interval and identifiability verdict "
+              "(docs/methods.md sec. 6.3).", "",
+              "| fit | weight | bi-level | 95 % interval | verdict | single-level | 95 % interval | verdict |",
+              "|---|---|---|---|---|---|---|---|"]
+    for k, r in result.results.items():
+        b = other["fits"].get(k) or {}
+        for n in names:
+            bw = (b.get("weights") or {}).get(n)
+            bcells = interval_cells(b.get("uncertainty"), n) if bw is not None else ("–", "no bi-level fit")
+            lines.append(f"| {k} | {n} | {'–' if bw is None else f'{bw:.3g}'} | " + " | ".join(bcells)
+                         + f" | {r.weights[n]:.3g} | " + " | ".join(interval_cells(result.uncertainty.get(k), n)) + " |")
     return lines + [""]
+
+
+def ioc_overview(fits: dict[str, Path]) -> list[str]:
+    """Markdown: every IOC fit of a workspace side by side (``fits``: stage directory -> its weights.json,
+    e.g. ``fit-ioc``, ``fit-ioc-published``, ``fit-ioc-single``, ``fit-ioc-subjects``): per fit its method,
+    convention, D and time, each fitted weight with its 95 % bootstrap interval and verdict
+    (docs/methods.md sec. 6.3), and, per subject, whether the subjects' weights differ."""
+    import json
+
+    if not fits:
+        return []
+    lines = ["## Inverse optimal control: the fits side by side", "",
+             "Every IOC fit of the workspace (bi-level, docs/methods.md sec. 6; single-level, sec. 6.1), each fitted weight "
+             "with its 95 % bootstrap interval and what the data determine (sec. 6.3); the stages' own sections in "
+             "docs/results.md give the details.", "",
+             "| stage | method | convention | fit | D | time (s) | weight | fitted | 95 % interval | verdict |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    tests = []
+    for stage, path in fits.items():
+        doc = json.loads(Path(path).read_text())
+        method = "single-level" if doc.get("method") == "single-level" else "bi-level"
+        for k, r in (doc.get("fits") or {}).items():
+            t = r.get("seconds")
+            head = f"| {stage} | {method} | {doc.get('convention')} | {k} | {r['objective']:.4f} | {'–' if t is None else f'{t:.1f}'}"
+            for n in r["spec"]["fitted"]:
+                lines.append(f"{head} | {n} | {r['weights'][n]:.3g} | " + " | ".join(interval_cells(r.get("uncertainty"), n)) + " |")
+        if doc.get("subjects_differ"):
+            tests.append((stage, doc["subjects_differ"]))
+    lines.append("")
+    for stage, rows in tests:
+        cells = [f"{r['weight']}: " + ("not tested (fewer than 2 subjects where it is determined)" if r.get("differ") is None else
+                                       f"{'differ' if r['differ'] else 'do not differ'} (Q = {r['Q']:.3g}, {r['subjects']} subjects, "
+                                       f"p (Holm) = {r['p_holm']:.3g})") for r in rows]
+        lines += [f"Do the subjects' weights differ ({stage}, Cochran's Q, docs/methods.md sec. 6.3)? " + "; ".join(cells) + ".", ""]
+    return lines
 
 
 def _gauge_lines(line: str, targets, per_target: list[dict], pace: dict) -> list[str]:

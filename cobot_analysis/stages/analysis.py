@@ -7,8 +7,6 @@ import os
 import shutil
 from pathlib import Path
 
-import pandas as pd
-
 from cobot_analysis import api, conventions, registry
 from cobot_analysis.console import warn
 from cobot_analysis.errors import InputError
@@ -28,11 +26,11 @@ def trajectories_input(out: str | os.PathLike, path: str | os.PathLike | None):
 def average(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = None, by: list[str] | None = None,
             max_spread: float | None = None, force: bool = False) -> Outcome:
     """``average``: ``average/means.parquet`` and its results fragment."""
+    path, ts = trajectories_input(out, trajectories)  # refuses a missing input before the heavy imports below
     from cobot_analysis.averaging import MEANS, check_groups
     from cobot_analysis.compare import default_groups
     from cobot_analysis.reports.analysis import average_markdown
 
-    path, ts = trajectories_input(out, trajectories)
     groups = api.check_by(by, list(ts.meta.columns), path) or default_groups(ts.meta)
     trials = ts.subset(ts.meta["kind"].eq("trial").to_numpy())
     if len(trials):
@@ -56,12 +54,13 @@ def compare(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
             by: list[str] | None = None, convention: str | None = None, force: bool = False) -> Outcome:
     """``compare`` (``compare-published`` under the published convention): ``distances.parquet``."""
     from cobot_analysis import conventions
+
+    conv = conventions.get(convention or "continuous")
+    path, ts = trajectories_input(out, trajectories)  # refuses a missing input before the heavy imports below
     from cobot_analysis.compare import DISTANCES, default_groups
     from cobot_analysis.reports.analysis import compare_markdown
     from cobot_analysis.schema import table_metadata
 
-    conv = conventions.get(convention or "continuous")
-    path, ts = trajectories_input(out, trajectories)
     means_path = Path(means) if means is not None else find_input(out, "means.parquet", ["average"], "--means")
     mts = api.trajectory_set(means_path, ("means",))
     groups = api.check_by(by, list(ts.meta.columns), path) or table_metadata(means_path).get("grouping") or default_groups(ts.meta)
@@ -92,16 +91,17 @@ def statistics(out: str | os.PathLike, *, config: str | os.PathLike | None = Non
     ``compare-published/``, into ``stats-published/``."""
     from cobot_analysis import study as st
     from cobot_analysis.console import info, track
+
+    out = Path(out)
+    if config is not None:
+        st.load(config)  # validate a given study file before anything else
+    path, ts = trajectories_input(out, trajectories)  # refuses a missing input before the heavy imports below
     from cobot_analysis.compare import DISTANCES
     from cobot_analysis.reports.analysis import statistics_markdown
     from cobot_analysis.schema import read_table
     from cobot_analysis.stats import analyses
     from cobot_analysis.stats.sources import read_anthropometrics
 
-    out = Path(out)
-    if config is not None:
-        st.load(config)  # validate a given study file before anything else
-    path, ts = trajectories_input(out, trajectories)
     study = st.resolve(out, api.study_of(ts), Path(config) if config is not None else None)
     config = study.path
     conv = conventions.get(convention or "continuous")
@@ -152,10 +152,13 @@ def reconstruct(out: str | os.PathLike, *, trajectories: str | os.PathLike | Non
                 scenario: int = 3, force: bool = False) -> Outcome:
     """``reconstruct``: ``reconstruct/reconstruction.parquet`` and its results fragment."""
     from cobot_analysis.console import track
+
+    path, ts = trajectories_input(out, trajectories)  # refuses a missing input before the heavy imports below
+    import pandas as pd
+
     from cobot_analysis.reconstruct import RECONSTRUCTION, read_wrt_table, relative_pose_table
     from cobot_analysis.reports.analysis import reconstruct_markdown
 
-    path, ts = trajectories_input(out, trajectories)
     if not ts.meta["entity"].eq("table").any():
         raise InputError("no table trajectories to reconstruct the subjects from", path=path, remedy="use pair-study trajectories")
     imported = Path(out) / "import-published" / "subject_wrt_table.parquet"

@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import os
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
 
@@ -64,6 +64,8 @@ def import_markers(out: str | os.PathLike, protocol: str | os.PathLike, *, jobs:
     with Stage(out, "import", inputs=plan.inputs, params=plan.params, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
+        known = stage.input_hashes  # each raw file hashed once: for the manifest, and trials.parquet's sha256
+        plan.tasks = [replace(t, sha256=known.get(str(t.path))) for t in plan.tasks]  # (trial_file paths are resolved)
         result = api.import_markers(plan, jobs=jobs, scheduler=scheduler, markers_path=stage.path("markers.parquet"))
         stage.result = result  # its own numbers are the stage's metrics.json
         for note in result.notes:

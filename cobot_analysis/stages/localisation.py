@@ -42,12 +42,6 @@ def localisation(out: str | os.PathLike, bags: list[str | os.PathLike] | None = 
                  jobs: int | None = None, scheduler: str | None = None, force: bool = False, **options: Any) -> Outcome:
     """``localisation``: localisation.parquet (one row per bag), errors.parquet, goals.parquet, poses.parquet,
     figures and results.md; the bags default to the synthetic runs of ``synth localisation`` in ``out``."""
-
-    from cobot_analysis.api.localisation import analyse, localisation_options
-    from cobot_analysis.localisation.poses import POSES
-    from cobot_analysis.localisation.tables import ERRORS, GOALS, RUNS
-    from cobot_analysis.reports import localisation as report
-
     if not bags:
         base = Path(out) / SYNTH_STAGE
         bags = [base / f for f in SYNTH_FILES if (base / f).exists()]
@@ -58,6 +52,12 @@ def localisation(out: str | os.PathLike, bags: list[str | os.PathLike] | None = 
     for b in bags:
         if not b.exists():
             raise InputError("no such file or directory", path=b, remedy="check the path")
+    # a missing bag is refused above, before the heavy imports (pandas, pyarrow)
+    from cobot_analysis.api.localisation import analyse, localisation_options
+    from cobot_analysis.localisation.poses import POSES
+    from cobot_analysis.localisation.tables import ERRORS, GOALS, RUNS
+    from cobot_analysis.reports import localisation as report
+
     opts, labels, maps = localisation_options(bags, **options)
     goals = options.get("goals_csv")
     params = {"options": opts, "labels": labels, "maps": maps, "figures": figures}

@@ -18,6 +18,8 @@ j, s_j = sum_{sloppy} V_ji^2:
   are scaled together);
 - else "not determined by these data".
 A weight within 0.01 of a log10 search limit carries "(at the search limit ...)" beside its verdict.
+A "determined" weight whose bootstrap interval (below) reaches a search limit is not determined after
+all: resamples of the same data cannot exclude the limit (``interval_verdicts``).
 No verdict at all ("not judged: D is not smooth at the fit") when a quadratic fitted by least squares
 to D on the stencil (k >= 2: more points than coefficients) leaves more than ``ROUGH`` of D's rms change
 unexplained: the lower level's paths then change regime within the stencil, and curvature means nothing.
@@ -196,6 +198,18 @@ def verdicts(fitted, H: np.ndarray, D: float, weights: dict[str, float], rel_tol
     return out
 
 
+def interval_verdicts(verdicts: dict[str, str], intervals: dict[str, tuple[float, float]]) -> dict[str, str]:
+    """The verdicts with every "determined" weight whose 95 % interval reaches a search limit (within 0.01
+    in log10) turned into "not determined by these data" (module docstring)."""
+    out = dict(verdicts)
+    for n, v in verdicts.items():
+        lo, hi = (math.log10(max(x, 1e-300)) for x in intervals.get(n, (math.nan, math.nan)))
+        edge = LOG_BOUNDS[0] if abs(lo - LOG_BOUNDS[0]) < 0.01 else LOG_BOUNDS[1] if abs(hi - LOG_BOUNDS[1]) < 0.01 else None
+        if v.startswith("determined") and edge is not None:
+            out[n] = f"not determined by these data (its 95 % interval reaches the search limit {10.0 ** edge:g})"
+    return out
+
+
 def quadratic_refit(c: Curvature, counts: np.ndarray, basis: np.ndarray | None = None) -> np.ndarray:
     """y minimising sum_i counts_i (g_i' dy + 0.5 dy' H_i dy) within the search box, dy = basis z
     (default: every direction) (module docstring)."""
@@ -248,13 +262,15 @@ def bootstrap(c: Curvature, n_resamples: int = RESAMPLES, seed: int = 0, level: 
 
 
 def subjects_differ(estimates: dict[str, dict[str, float]], sd_log10: dict[str, dict[str, float]],
-                    verdict: dict[str, dict[str, str]] | None = None) -> list[dict]:
+                    verdict: dict[str, dict[str, str]] | None = None, at_start: set[str] = frozenset()) -> list[dict]:
     """Whether the subjects' weights differ, weight by weight: Cochran's heterogeneity statistic on
     y_s = log10 w_s with the bootstrap standard deviations s_s,
         Q = sum_s (y_s - ybar)^2 / s_s^2,  ybar = sum_s y_s / s_s^2 / sum_s 1 / s_s^2,
     Q ~ chi2(S - 1) when every subject has the same weight; p-values Holm-adjusted over the weights.
     Subjects where the weight is not "determined" (``verdict``) or has no spread are left out of that
-    weight's test. Returns one row per weight: weight, subjects, Q, df, p, p_holm, differ (p_holm < 0.05)."""
+    weight's test, and so are the subjects in ``at_start``, whose fit ended at the start weights shared by
+    every subject (their estimate is the start, not evidence that they agree). Returns one row per weight:
+    weight, subjects, Q, df, p, p_holm, differ (p_holm < 0.05), at_start (the subjects left out for that)."""
     from scipy.stats import chi2
 
     names = sorted({n for e in estimates.values() for n in e})
@@ -264,10 +280,11 @@ def subjects_differ(estimates: dict[str, dict[str, float]], sd_log10: dict[str, 
         for s, e in estimates.items():
             sd = sd_log10.get(s, {}).get(n, math.nan)
             ok = verdict is None or verdict.get(s, {}).get(n, "").startswith("determined")
-            if ok and np.isfinite(sd) and sd > 0 and n in e:
+            if ok and s not in at_start and np.isfinite(sd) and sd > 0 and n in e:
                 ys.append(math.log10(e[n]))
                 ss.append(sd)
-        row = {"weight": n, "subjects": len(ys), "Q": math.nan, "df": max(len(ys) - 1, 0), "p": math.nan}
+        row = {"weight": n, "subjects": len(ys), "Q": math.nan, "df": max(len(ys) - 1, 0), "p": math.nan,
+               "at_start": sorted(at_start & set(estimates))}
         if len(ys) >= 2:
             y, wt = np.array(ys), 1.0 / np.array(ss) ** 2
             ybar = float((wt * y).sum() / wt.sum())

@@ -1,0 +1,49 @@
+"""Start-up of the command line (issue 22): ``--help`` and a stage that refuses a missing input import none
+of the heavy libraries (their cost is measured by benchmarks/bench_startup.py, never asserted here), and
+the command line, not the library, chooses Arrow's allocator."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+HEAVY = ("pandas", "pyarrow", "numpy", "scipy", "casadi", "matplotlib")
+
+PROBE = """
+import json, sys
+from cobot_analysis.cli import run
+for argv in json.loads(sys.argv[1]):  # one process for all: each command is checked before the next runs
+    code = run(argv)
+    print(json.dumps({"argv": argv, "code": code, "heavy": [m for m in %r if m in sys.modules]}), flush=True)
+""" % (HEAVY,)
+
+
+def test_help_and_a_refused_input_import_no_heavy_library(tmp_path):
+    ws = str(tmp_path)
+    commands = [(["--help"], 0), (["localisation", "--help"], 0), (["average", "--out", ws], 2), (["compare", "--out", ws], 2),
+                (["stats", "--out", ws], 2), (["reconstruct", "--out", ws], 2),
+                (["localisation", f"{ws}/missing.bag", "--out", ws], 2)]
+    out = subprocess.run([sys.executable, "-c", PROBE, json.dumps([argv for argv, _ in commands])], capture_output=True,
+                         text=True, check=True).stdout
+    results = [json.loads(line) for line in out.splitlines() if line.startswith('{"argv"')]
+    assert [(r["argv"], r["code"], r["heavy"]) for r in results] == [(argv, code, []) for argv, code in commands]
+    assert not any(tmp_path.iterdir())  # the refusals wrote nothing
+
+
+def test_main_chooses_the_system_allocator_for_arrow_and_the_library_does_not():
+    env = {k: v for k, v in os.environ.items() if k != "ARROW_DEFAULT_MEMORY_POOL"}
+
+    def backend(code: str) -> list[str]:
+        return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout.split()
+
+    default = backend("import pyarrow as pa; print(pa.default_memory_pool().backend_name)")
+    # what a localisation run does to its process before reading a bag leaves Arrow's allocator alone
+    run = backend("import pyarrow as pa; from cobot_analysis.localisation.analysis import _return_freed_memory; "
+                  "_return_freed_memory(); print(pa.default_memory_pool().backend_name)")
+    assert run == default
+    main = backend("import os, sys; from cobot_analysis import cli; sys.argv = ['cobot-analysis', '--help']\n"
+                   "try:\n    cli.main()\nexcept SystemExit:\n    pass\n"
+                   "import pyarrow as pa; print(os.environ['ARROW_DEFAULT_MEMORY_POOL'], pa.default_memory_pool().backend_name)")
+    assert main[-2:] == ["system", "system"]
