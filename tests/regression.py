@@ -82,8 +82,8 @@ def _walking(root: Path, datasets: Path | None, j: list[str]) -> tuple[list[Path
                        "--comparison", "model", *options]]
         else:
             steps += [["fit-ioc", "--out", str(m), *tables, "--max-evaluations", "20", *options, *j],
-                      # the single-level method beside it (its D and weights guarded): one trust-region NLP on the
-                      # 20-interval grid, no bootstrap (about 40 s at load 7; all 8 NLPs on 50 intervals take minutes)
+                      # the single-level method beside it (its D and weights guarded): one feasible-path step per
+                      # round on the 20-interval grid, no bootstrap
                       ["fit-ioc", "--out", str(m), *tables, "--method", "single-level", "--max-evaluations", "1", "--intervals", "20",
                        "--bootstrap", "0", "--no-compare", *options, *j],
                       ["generate", "--out", str(m), "--study", "walking-2020", "--weights", str(m / "fit-ioc" / "weights.json"),

@@ -481,7 +481,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     ``on_evaluation(fit, n, D, best)`` reports progress. ``method``: ``bilevel`` (the published method) or
     ``single-level`` (docs/methods.md sec. 6.1; improved and table models, continuous convention);
     ``max_evaluations``: the bi-level fit's budget of upper-level evaluations, the single-level fit's number
-    of steps (trust-region NLPs) when below the method's own. ``bootstrap``: after each fit, the curvature of D at
+    of feasible-path steps per round when below the method's own. ``bootstrap``: after each fit, the curvature of D at
     the fitted weights, each weight's verdict and its interval from ``bootstrap`` resamples of the fitted units (docs/methods.md sec. 6.3; 0: none); per
     subject, also whether the subjects' weights differ. A fit is
     long (minutes to hours at the CLI's defaults); the example fits two means on a coarse grid with a

@@ -15,13 +15,13 @@ a terminal constraint) carries over. The KKT conditions are linear in w and lamb
 D_n = d_xy + 0.5 d_gamma (walker) or d_xy + 0.5 d_theta (table) of the path resampled to the measured
 samples as ``oc.resample`` does (cubic Hermite in time; the nodes sit at fixed fractions of T, so the
 resampling is linear in the nodes and in T times the node velocities), with |a| and the Euclidean
-norm smoothed to sqrt(a^2 + eps^2) - eps so IPOPT sees a twice differentiable objective. The D
-reported is never that one: the lower level is re-solved at the fitted weights with the bi-level
-fit's own solver (``fit.solve_target``, warm from the single-level path) and D computed exactly.
+norm smoothed to sqrt(a^2 + eps^2) - eps so that D is twice differentiable.
 
-The free duration's bounds (0.4, 2.5) x T0 stay bounds of log T; the stationarity conditions hold
-without bound multipliers, so a target whose lower-level optimum lies on a duration bound has no
-KKT point inside the box (``at_duration_bound`` counts the targets that end within 1e-3 of one).
+Solved by a feasible path (``fit_feasible_path``, docs/methods.md sec. 6.1): a trust-region step in
+log10 w with the exact gradient and Hessian of D along the manifold of KKT points, then each path's
+KKT system restored by Newton's method (its own sparse factorisation), so the constraints hold at
+every step. The D reported is never the smoothed one: the lower level is re-solved at the fitted
+weights as the bi-level fit solves it, and D computed exactly.
 """
 
 from __future__ import annotations
@@ -34,12 +34,11 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from cobot_analysis.errors import InputError
-from cobot_analysis.models.ioc.fit import LOG_BOUNDS, T_BOUNDS, IOCSpec, solve_target
+from cobot_analysis.models.ioc.fit import LOG_BOUNDS, IOCSpec
 from cobot_analysis.models.ioc.targets import Target
 from cobot_analysis.models.presets import names_for
 
 METHODS = ("bilevel", "single-level")
-COMPLEMENTARITY = 1e-8  # nu (log T - bound) <= this: the relaxed complementarity of the duration bounds
 SMOOTHING = 1e-4  # eps of the smoothed |.| (rad) and norm (m) in the NLP's D: < 1e-4 per sample
 
 
@@ -184,112 +183,6 @@ def check_spec(spec: IOCSpec, n_targets: int) -> None:
     if spec.model not in ("improved", "table") or spec.convention != "continuous":
         raise InputError(f"the single-level fit covers the improved and table models under the continuous convention, "
                          f"not {spec.model!r} / {spec.convention!r}", remedy="use --method bilevel for this fit")
-
-
-def fit_single_level(spec: IOCSpec, targets: list[Target], *, start: list | None = None, start_weights=None,
-                     eps: float = SMOOTHING, max_iter: int = 300, tol: float = 1e-8, verify: bool = True,
-                     print_level: int = 0) -> SingleLevelResult:
-    """Fit ``spec.fitted`` to ``targets`` in one NLP (module docstring).
-
-    ``start``: lower-level primal vectors per target to start from (e.g. the bi-level fit's), else
-    the lower level solved at the starting weights (``start_weights`` or ``spec.start_weights``) as
-    the bi-level fit's reference step does; the multipliers by least squares at those paths."""
-    import casadi as ca
-
-    from cobot_analysis.models.dynamics import N_STATE
-    from cobot_analysis.models.oc.duration import initial_duration
-
-    t0 = time.perf_counter()
-    check_spec(spec, len(targets))
-    names = names_for(spec.model)
-    w0 = np.array(spec.start_weights if start_weights is None else start_weights, float)
-    fi = [names.index(n) for n in spec.fitted]
-    w0[fi] = np.clip(w0[fi], 10.0 ** LOG_BOUNDS[0], 10.0 ** LOG_BOUNDS[1])
-    ocp = lower_level(spec)
-    kkt, grads = kkt_functions(ocp)
-    n, nz, nl = len(targets), ocp.n_vars, ocp.n_cons
-    M = len(targets[0].x)
-    if any(len(t.x) != M for t in targets):
-        raise InputError("the targets have different numbers of samples", remedy="fit means or resampled trials (average)")
-    Dfun = distance_function(ocp, M, spec.angle, spec.angle_weight, eps)
-    T0 = [initial_duration(t.start, t.goal, spec.v_nominal) for t in targets]
-    P = np.column_stack([ocp.parameters(t.start, t.goal, w0, T) for t, T in zip(targets, T0)])
-    data = np.column_stack([target_data(t) for t in targets])
-
-    # starting point: lower-level paths and least-squares multipliers
-    start_terms = []
-    if start is None:
-        start = []
-        for t in targets:
-            d, sol = solve_target(spec, w0, t, ("rest", "line"))
-            start.append(sol.primal)
-            start_terms.append(d)
-    Z0 = np.column_stack(start)
-    iT = int(ocp._xi[0, N_STATE])  # log T (first copy): the duration bounds' multipliers act on it
-    lam_nu = [multipliers(grads, Z0[:, i], w0, P[:, i], iT) for i in range(n)]
-    L0, nu0 = np.column_stack([a for a, _ in lam_nu]), np.array([b for _, b in lam_nu])
-
-    # the NLP: V = [w_fitted; vec(Z); vec(Lambda); nu_lo; nu_hi]
-    wf = ca.MX.sym("wf", len(fi))
-    Z, Lam = ca.MX.sym("Z", nz, n), ca.MX.sym("L", nl, n)
-    nu_lo, nu_hi = ca.MX.sym("nu_lo", 1, n), ca.MX.sym("nu_hi", 1, n)
-    wfull = ca.MX(ca.DM(w0))
-    for j, i in enumerate(fi):
-        wfull[i] = wf[j]  # linear: the KKT conditions are linear in w (log10 w made the NLP harder to solve)
-    e = np.zeros((nz + nl, 1))
-    e[iT] = 1.0
-    K = kkt.map(n, "serial")(Z, Lam, ca.repmat(wfull, 1, n), ca.DM(P)) + ca.DM(e) @ (nu_hi - nu_lo)
-    lbT = np.log(T_BOUNDS[0] * np.array(T0))
-    ubT = np.log(T_BOUNDS[1] * np.array(T0))
-    comp = ca.vertcat(nu_lo * (Z[iT, :] - lbT[None, :]), nu_hi * (ubT[None, :] - Z[iT, :]))  # <= delta
-    D = ca.sum2(Dfun.map(n, "serial")(Z, ca.DM(data))) / n
-    V = ca.vertcat(wf, ca.vec(Z), ca.vec(Lam), nu_lo.T, nu_hi.T)
-    lb, ub = np.full(V.numel(), -np.inf), np.full(V.numel(), np.inf)
-    lb[:len(fi)], ub[:len(fi)] = 10.0 ** LOG_BOUNDS[0], 10.0 ** LOG_BOUNDS[1]
-    for i in range(n):  # log T within the lower level's bounds
-        idx = len(fi) + i * nz + ocp._xi[:, N_STATE]
-        lb[idx], ub[idx] = lbT[i], ubT[i]
-    lb[-2 * n:] = 0.0
-    v0 = np.concatenate([w0[fi], Z0.ravel(order="F"), L0.ravel(order="F"), np.maximum(-nu0, 0), np.maximum(nu0, 0)])
-    # log T off its bounds by 1 % (an interior point's start; an exact bound value jams the barrier)
-    v0 = np.clip(v0, np.where(np.isfinite(lb) & (lb != 0), lb + 0.01, lb), np.where(np.isfinite(ub), ub - 0.01, ub))
-    v0[:len(fi)] = np.clip(w0[fi], lb[:len(fi)], ub[:len(fi)])
-    g = ca.vertcat(ca.vec(K), ca.vec(comp))
-    lbg = np.concatenate([np.zeros(K.numel()), np.full(2 * n, -np.inf)])
-    ubg = np.concatenate([np.zeros(K.numel()), np.full(2 * n, COMPLEMENTARITY)])
-    solver = ca.nlpsol("single_level", "ipopt", {"x": V, "f": D, "g": g},
-                       {"print_time": False, "ipopt": {"print_level": print_level, "sb": "yes", "tol": tol,
-                                                        "max_iter": max_iter, "mu_strategy": "monotone",
-                                                        "bound_push": 1e-10, "bound_frac": 1e-10,
-                                                        # the exact Hessian (third derivatives of the OC problem) did
-                                                        # not converge even on noise-free synthetic paths
-                                                        "hessian_approximation": "limited-memory",
-                                                        "limited_memory_max_history": 20}})
-    r = solver(x0=v0, lbx=lb, ubx=ub, lbg=lbg, ubg=ubg)
-    st = solver.stats()
-    v = np.asarray(r["x"]).ravel()
-    w = w0.copy()
-    w[fi] = v[:len(fi)]
-    Zs = v[len(fi):len(fi) + nz * n].reshape((nz, n), order="F")
-    logT = Zs[ocp._xi[0, N_STATE]]
-    at_bound = int(np.sum((np.abs(logT - np.log(T_BOUNDS[0] * np.array(T0))) < 1e-3)
-                          | (np.abs(logT - np.log(T_BOUNDS[1] * np.array(T0))) < 1e-3)))
-    kres = float(np.max(np.abs(np.asarray(r["g"])[:K.numel()])))
-
-    terms, failed = [], 0
-    if verify:
-        for i, t in enumerate(targets):
-            d, _ = solve_target(spec, w, t, Zs[:, i])
-            terms.append(d)
-        failed = sum(not d["success"] for d in terms)
-    objective = float(np.mean([d["D"] for d in terms])) if terms else math.nan
-    start_objective = float(np.mean([d["D"] for d in start_terms])) if start_terms else math.nan
-    return SingleLevelResult(spec=spec, weights=dict(zip(names, map(float, w))), objective=objective,
-                             nlp_objective=float(r["f"]), start_objective=start_objective,
-                             iterations=int(st.get("iter_count", -1)), status=str(st.get("return_status", "?")),
-                             success=bool(st.get("success", False)), seconds=time.perf_counter() - t0, failed=failed,
-                             at_duration_bound=at_bound, kkt_residual=kres, per_target=terms,
-                             primals=[Zs[:, i].copy() for i in range(n)])
 
 
 def newton_functions(ocp, fitted: list[int]):
