@@ -111,6 +111,22 @@ def test_goal_inferred_finds_the_goal_walked_to():
     assert post[len(post) // 2:, 0].min() > 0.8
 
 
+def test_goal_inferred_plans_cannot_hang_and_a_stopped_plan_is_a_counted_failure(monkeypatch):
+    """fatrop's inertia correction has no cap (max_iter does not bound a solve; one hung here), so the
+    candidate plans are IPOPT solves with a CPU limit. A limit that every solve hits (1 ns) must stop
+    each plan and count its window as failed, with the solver's reason, not hang or predict silently."""
+    import cobot_analysis.models.prediction.goal as goal
+
+    p = make_predictor("goal-inferred", 30, 60, DT, candidates=[(0.0, 0.0), (-2.0, 1.5)])
+    assert all(q.ocp.shape.solver == "ipopt" and 0 < q.ocp.shape.max_cpu_time <= 10 for q in p.planners)
+    monkeypatch.setattr(goal, "PLAN_CPU_LIMIT", 1e-9)
+    p = make_predictor("goal-inferred", 30, 60, DT, candidates=[(1.0, 0.0), (-2.0, 1.5)])  # never reached: every window plans
+    poses = straight_to_goal(60)
+    P = p.predict_offline(poses)
+    assert p.failed == 31 and np.isnan(P[..., :2]).all()  # every window of the 60-sample walk (N0 = 30)
+    assert all(q.status == "ipopt: Maximum_CpuTime_Exceeded" for q in p.planners)
+
+
 def test_goal_predictors_bad_input():
     with pytest.raises(InputError, match="the candidate-goal set is empty"):
         check_candidates([])
