@@ -151,3 +151,18 @@ def test_horizons_parse_and_wins_from():
     s = pd.DataFrame({"study": "s", "predictor": ["cv"] * 4 + ["goal"] * 4, "horizon": [5, 50, 100, WHOLE] * 2,
                       "delta_xy": [1, 2, 3, 4, 0.5, 3, 2, 2]})
     assert wins_from(s, "s", "goal") == 100  # better at 5, worse at 50, better from 100 to the whole path
+
+
+def test_inference_at_counts_trajectories_at_their_first_window_past_each_fraction():
+    import pandas as pd
+
+    from cobot_analysis.reports.horizons import horizon_markdown, inference_at
+
+    rows = [("a", k, w, p, c) for k, w, p, c in ((0, 0.1, 0.3, False), (1, 0.3, 0.4, False), (2, 0.6, 0.7, True), (3, 1.0, 0.9, True))]
+    rows += [("b", k, w, p, c) for k, w, p, c in ((0, 0.2, 0.5, True), (1, 0.5, 0.6, True), (2, 0.99, 0.2, False))]
+    inf = pd.DataFrame(rows, columns=["trial", "k", "walked", "p_true", "correct"]).assign(study="s", entity="table")
+    a = inference_at(inf)
+    assert a["n"].tolist() == [2, 2, 2, 2]
+    assert a["correct"].tolist() == [1, 2, 1, 1]  # 25 %: a k=1 (no), b k=1 (yes); 50 %: a k=2, b k=1; 75 and 99 %: a k=3, b k=2
+    np.testing.assert_allclose(a["p_true"], [0.5, 0.65, 0.55, 0.55])
+    assert "| 50% | 2/2 (100%) | 0.65 |" in horizon_markdown(pd.DataFrame(columns=["study", "predictor", "horizon", "n"]), inf)
