@@ -274,7 +274,9 @@ class GoalInferencePredictor(Predictor):
         """log p(samples j..k | g) = -d_g^2 / 2 sigma^2 of the current segment (0 where g's plan failed)."""
         j, plans = self._segment
         seen = past[len(past) - (k - j + 1):, :2]  # samples j..k
-        d = np.nanmean(np.hypot(*(plans[:, : k - j + 1] - seen[None]).transpose(2, 0, 1)), axis=1)
+        ok = np.isfinite(plans[:, 0, 0])  # a failed plan is all NaN: no evidence (and no mean of nothing)
+        d = np.full(len(plans), np.nan)
+        d[ok] = np.nanmean(np.hypot(*(plans[ok, : k - j + 1] - seen[None]).transpose(2, 0, 1)), axis=1)
         return np.where(np.isfinite(d), -0.5 * (d / self.sigma) ** 2, 0.0)
 
     def predict(self, past: np.ndarray) -> np.ndarray | None:
