@@ -107,7 +107,7 @@ pairs-published:
 	$(CLI) fit-ioc --out $(PAIRS) --model table --method single-level --no-compare --jobs $(JOBS) $(SINGLE_IOC_ARGS)
 	$(CLI) predict --out $(PAIRS) --entity table --convention continuous --jobs $(JOBS) $(PREDICT_ARGS)
 	$(CLI) predict --out $(PAIRS) --entity table --convention published --jobs $(JOBS) $(PUBLISHED_PREDICT_ARGS)
-	$(CLI) predict --out $(PAIRS) --entity table --convention continuous --stage-name predict-goal --jobs $(JOBS) $(GOAL_PREDICT_ARGS)
+	$(CLI) predict --out $(PAIRS) --entity table --convention continuous --stage-name predict-goal --jobs $(JOBS) $(GOAL_PREDICT_ARGS) --predictors oc,goal,goal-inferred,cv,ctrv
 	$(CLI) report pair-carriage-2022 --out $(PAIRS) --to reports/pairs
 
 pairs-synthetic:

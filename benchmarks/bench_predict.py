@@ -158,13 +158,13 @@ def bench_goal_predictors(walking: Path, pairs: Path | None, n: int, weights: st
 
 def bench_horizons(walking: Path, pairs: Path | None, every: int, jobs: int) -> None:
     """Wall time of the horizon sweep (N0 = 50, horizons 5..200 and the whole path) of oc, goal, cv, ctrv on the
-    walking trials (every ``every``-th) and on the pair study's table means."""
+    walking trials (every ``every``-th) and, with goal-inferred too, on the pair study's table means."""
     from cobot_analysis.models.prediction.horizons import horizon_sweep
     from cobot_analysis.models.prediction.sweep import SweepConfig, trajectories_from_table
     from cobot_analysis.schema import TRAJECTORIES, read_table
 
     for path, entity, predictors in ((walking, "walker", ("oc", "goal", "cv", "ctrv")),
-                                     (pairs, "table", ("oc", "goal", "cv", "ctrv"))):  # goal-inferred: a solve can still hang (docs/benchmarks.md)
+                                     (pairs, "table", ("oc", "goal", "goal-inferred", "cv", "ctrv"))):
         if path is None:
             continue
         df = read_table(path, TRAJECTORIES)

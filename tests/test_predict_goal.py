@@ -111,6 +111,22 @@ def test_goal_inferred_finds_the_goal_walked_to():
     assert post[len(post) // 2:, 0].min() > 0.8
 
 
+def test_goal_inferred_plans_cannot_hang_and_a_stopped_plan_is_a_counted_failure(monkeypatch):
+    """fatrop's inertia correction has no cap (max_iter does not bound a solve; one hung here), so the
+    candidate plans are IPOPT solves with a CPU limit. A limit that every solve hits (1 ns) must stop
+    each plan and count its window as failed, with the solver's reason, not hang or predict silently."""
+    import cobot_analysis.models.prediction.goal as goal
+
+    p = make_predictor("goal-inferred", 30, 60, DT, candidates=[(0.0, 0.0), (-2.0, 1.5)])
+    assert all(q.ocp.shape.solver == "ipopt" and 0 < q.ocp.shape.max_cpu_time <= 10 for q in p.planners)
+    monkeypatch.setattr(goal, "PLAN_CPU_LIMIT", 1e-9)
+    p = make_predictor("goal-inferred", 30, 60, DT, candidates=[(1.0, 0.0), (-2.0, 1.5)])  # never reached: every window plans
+    poses = straight_to_goal(60)
+    P = p.predict_offline(poses)
+    assert p.failed == 31 and np.isnan(P[..., :2]).all()  # every window of the 60-sample walk (N0 = 30)
+    assert all(q.status == "ipopt: Maximum_CpuTime_Exceeded" for q in p.planners)
+
+
 def test_goal_predictors_bad_input():
     with pytest.raises(InputError, match="the candidate-goal set is empty"):
         check_candidates([])
@@ -135,3 +151,18 @@ def test_horizons_parse_and_wins_from():
     s = pd.DataFrame({"study": "s", "predictor": ["cv"] * 4 + ["goal"] * 4, "horizon": [5, 50, 100, WHOLE] * 2,
                       "delta_xy": [1, 2, 3, 4, 0.5, 3, 2, 2]})
     assert wins_from(s, "s", "goal") == 100  # better at 5, worse at 50, better from 100 to the whole path
+
+
+def test_inference_at_counts_trajectories_at_their_first_window_past_each_fraction():
+    import pandas as pd
+
+    from cobot_analysis.reports.horizons import horizon_markdown, inference_at
+
+    rows = [("a", k, w, p, c) for k, w, p, c in ((0, 0.1, 0.3, False), (1, 0.3, 0.4, False), (2, 0.6, 0.7, True), (3, 1.0, 0.9, True))]
+    rows += [("b", k, w, p, c) for k, w, p, c in ((0, 0.2, 0.5, True), (1, 0.5, 0.6, True), (2, 0.99, 0.2, False))]
+    inf = pd.DataFrame(rows, columns=["trial", "k", "walked", "p_true", "correct"]).assign(study="s", entity="table")
+    a = inference_at(inf)
+    assert a["n"].tolist() == [2, 2, 2, 2]
+    assert a["correct"].tolist() == [1, 2, 1, 1]  # 25 %: a k=1 (no), b k=1 (yes); 50 %: a k=2, b k=1; 75 and 99 %: a k=3, b k=2
+    np.testing.assert_allclose(a["p_true"], [0.5, 0.65, 0.55, 0.55])
+    assert "| 50% | 2/2 (100%) | 0.65 |" in horizon_markdown(pd.DataFrame(columns=["study", "predictor", "horizon", "n"]), inf)

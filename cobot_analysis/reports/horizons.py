@@ -45,8 +45,22 @@ def horizon_markdown(summary: pd.DataFrame, inference: pd.DataFrame) -> list[str
         lines += ["Goal inference (goal-inferred, candidate goals of the study), by fraction of the path walked:", "",
                   "| walked | mean p(true goal) | most probable = true | windows |", "|---|---|---|---|"]
         lines += [f"| {iv.left:.0%}-{iv.right:.0%} | {r.p_true:.2f} | {r.correct:.0%} | {r.n} |" for iv, r in t.iterrows()]
+        a = inference_at(inference)
+        lines += ["", "Per trajectory, at the first window past each fraction of its path:", "",
+                  "| walked | trajectories whose most probable goal is the true one | mean p(true goal) |", "|---|---|---|"]
+        lines += [f"| {f:.0%} | {int(r.correct)}/{int(r.n)} ({r.correct / r.n:.0%}) | {r.p_true:.2f} |" for f, r in a.iterrows()]
         lines.append("")
     return lines
+
+
+def inference_at(inference: pd.DataFrame, fractions=(0.25, 0.5, 0.75, 0.99)) -> pd.DataFrame:
+    """Per fraction f of the path walked: over the trajectories, how many have their most probable goal the true
+    one at their first window with ``walked >= f`` (``correct``, of ``n``), and the mean p(true goal) there."""
+    rows = []
+    for f in fractions:
+        first = inference[inference["walked"] >= f].sort_values("k").groupby(["study", "trial", "entity"], observed=True).head(1)
+        rows.append({"walked": f, "correct": int(first["correct"].sum()), "n": len(first), "p_true": float(first["p_true"].mean())})
+    return pd.DataFrame(rows).set_index("walked")
 
 
 def horizon_figure(summary: pd.DataFrame):

@@ -319,9 +319,11 @@ def results_fragment(metrics, summary, comparison, config, example, unpredictabl
     ]
     first = metrics.drop_duplicates(["study", "trial", "entity", "n0", "n_oc"])
     skipped = int(first["n_skipped"].sum())
-    failed = int(metrics.loc[metrics["predictor"] == "oc", "n_failed"].sum()) if "oc" in config.predictors else 0
+    solved = [p for p in ("oc", "goal", "goal-inferred") if p in config.predictors]  # the OC-based ones: solves can fail
+    failed = ", ".join(f"{int(metrics.loc[metrics['predictor'] == p, 'n_failed'].sum())} {p}" for p in solved) or "0"
     lines.append(f"Windows: {int(first['n_windows'].sum())} per predictor, {skipped} skipped (NaN positions), "
-                 f"{failed} failed OC solves; metrics use the windows every predictor predicted."
+                 f"failed OC solves: {failed} (goal-inferred: every candidate's plan failed or hit its CPU limit); "
+                 "metrics use the windows every predictor predicted."
                  + (f" {len(unpredictable)} trajectories left out (no N0 consecutive finite positions)." if unpredictable else ""))
     lines += ["", "### Errors per setting (mean +- sd over trajectories; r = Pearson correlation with the global distance)", "",
               "| N0 | N_OC | predictor | delta_xy (m) | delta_theta (rad) | d_pred (m) | ADE (m) | FDE (m) | r(delta_xy, D) |",

@@ -42,6 +42,13 @@ authors' duration rules try many integer horizons, see ``duration.py``).
 Solver: fatrop (structure-exploiting interior point; variables ordered stage by stage,
 ``structure_detection='auto'``) with IPOPT (exact Hessian) on the same NLP as fallback; a solve
 that neither converges is returned with ``success=False`` and callers must not use it silently.
+``max_iter`` does not bound a fatrop solve: its inertia correction (fatrop ``FatropAlg::optimize``) loops
+``while (regularity != 0)`` without a cap, and a Jacobian still degenerate after its one delta_c
+regularisation repeats the same factorisation for ever (seen once, warm-started, in the goal-inferred
+predictor; from cold guesses in ``coupled.py``). IPOPT's inertia correction is capped
+(``max_hessian_perturbation``) and ``max_cpu_time`` bounds its CPU time: a caller that must always get
+an answer uses ``solver="ipopt"`` with ``max_cpu_time``; a solve stopped by it returns ``success=False``,
+status ``Maximum_CpuTime_Exceeded``.
 
 Evaluation (``_compiled_library``): the problem is written once, per stage (``_stage_functions``:
 stage cost c_k(z_k), step F(z_k), terminal cost c_N(x_N), z_k = (x_k, u_k)), and the functions
@@ -96,6 +103,7 @@ class OCPShape:
     solver: str = "fatrop"  # first solver tried; IPOPT is the fallback
     tol: float = 1e-8
     max_iter: int = 500
+    max_cpu_time: float = 0.0  # s of CPU per IPOPT solve (0: no limit); fatrop has no such bound (module docstring)
 
 
 @dataclass
@@ -240,6 +248,8 @@ class WalkerOCP:
             elif name == "ipopt":
                 opts = {"expand": True, "print_time": False, "show_eval_warnings": False,
                         "ipopt": {"print_level": 0, "sb": "yes", "tol": self.shape.tol, "max_iter": 2 * self.shape.max_iter}}
+                if self.shape.max_cpu_time > 0:
+                    opts["ipopt"]["max_cpu_time"] = self.shape.max_cpu_time
                 self._solvers[name] = ca.nlpsol(f"walker_{name}", name, self._sx_nlp(), opts)
             else:
                 raise ValueError(f"unknown solver {name!r}; expected one of {SOLVERS}")

@@ -48,6 +48,8 @@ DENSE = 200  # points of the plan's arc-length table
 MAX_ITER = 100  # solver iterations per plan: a warm 20-interval plan converges in tens; a stale warm start that
 # does not is solved again from rest (some ran for minutes from the warm start near a standing table)
 MIN_SPEED = 0.05  # m/s: below this the walker stands: its direction of travel is undefined
+PLAN_CPU_LIMIT = 1.0  # s of CPU per candidate plan (IPOPT's max_cpu_time): a plan takes milliseconds; one that does not
+# is stopped and counted as failed (models.oc.problem: fatrop's solves have no such bound)
 NOMINAL_SPEED = 1.0  # m/s: the duration guess's pace at least (the sweep's assumed mean walking speed): a guess from
 # a walker barely moving (1.5 m in 30 s) made solves from rest run for minutes
 
@@ -125,10 +127,12 @@ class Planner:
     """The improved OC from a state to a goal pose at rest, warm-started from its previous plan (module
     docstring, 2-3)."""
 
-    def __init__(self, weights: np.ndarray, dt: float, n_intervals: int = N_INTERVALS, tol: float = 1e-6):
+    def __init__(self, weights: np.ndarray, dt: float, n_intervals: int = N_INTERVALS, tol: float = 1e-6,
+                 solver: str = "fatrop", max_cpu_time: float = 0.0):
         from cobot_analysis.models.oc.problem import OCPShape, get_ocp
 
-        self.ocp = get_ocp(OCPShape(n_intervals=n_intervals, free_time=True, tol=tol, goal="constraint", max_iter=MAX_ITER))
+        self.ocp = get_ocp(OCPShape(n_intervals=n_intervals, free_time=True, tol=tol, goal="constraint", max_iter=MAX_ITER,
+                                    solver=solver, max_cpu_time=max_cpu_time))
         self.weights, self.dt = weights, float(dt)
         self._warm: np.ndarray | None = None
         self.status = ""  # why the last plan failed
@@ -243,7 +247,8 @@ class GoalInferencePredictor(Predictor):
         self.sigma = float(sigma)
         self.filter = quadratic_fit(min(int(fit), self.n0), self.dt)
         w = _weights(weights)
-        self.planners = [Planner(w, self.dt, n_intervals) for _ in self.candidates]
+        # IPOPT with a CPU limit: every plan returns (a fatrop solve hung once here, models.oc.problem)
+        self.planners = [Planner(w, self.dt, n_intervals, solver="ipopt", max_cpu_time=PLAN_CPU_LIMIT) for _ in self.candidates]
         self._length = max(self.horizon, self.n0)  # a plan long enough to cover a whole past window later
 
     def reset(self) -> None:
@@ -269,7 +274,9 @@ class GoalInferencePredictor(Predictor):
         """log p(samples j..k | g) = -d_g^2 / 2 sigma^2 of the current segment (0 where g's plan failed)."""
         j, plans = self._segment
         seen = past[len(past) - (k - j + 1):, :2]  # samples j..k
-        d = np.nanmean(np.hypot(*(plans[:, : k - j + 1] - seen[None]).transpose(2, 0, 1)), axis=1)
+        ok = np.isfinite(plans[:, 0, 0])  # a failed plan is all NaN: no evidence (and no mean of nothing)
+        d = np.full(len(plans), np.nan)
+        d[ok] = np.nanmean(np.hypot(*(plans[ok, : k - j + 1] - seen[None]).transpose(2, 0, 1)), axis=1)
         return np.where(np.isfinite(d), -0.5 * (d / self.sigma) ** 2, 0.0)
 
     def predict(self, past: np.ndarray) -> np.ndarray | None:
