@@ -627,8 +627,9 @@ def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal
                               "rest and a straight-line guess, the least cost kept")
     lines = [f"## Inverse optimal control ({model} model{', one fit per subject' if per == 'subject' else ''}, "
              f"{conv.name} convention)", "",
-             (f"Single-level IOC (docs/methods.md sec. 6.1): one IPOPT NLP over ({', '.join(names)}), every path and the "
-              f"multipliers of its lower level's KKT conditions, the D reported from the lower level re-solved at the fitted weights; "
+             (f"Single-level IOC (docs/methods.md sec. 6.1): one NLP over ({', '.join(names)}), every path and the "
+              f"multipliers of its lower level's KKT conditions, solved by a feasible path (trust-region steps in the weights, "
+              f"each path's KKT conditions restored by Newton's method), the D reported from the lower level re-solved at the fitted weights; "
               if single else
               f"Bi-level IOC (docs/methods.md sec. 6): upper level {optimizer} over log10 of ({', '.join(names)}), ")
              + f"bounds 1e-7..1e3, the other weights held at their start value "
