@@ -165,4 +165,7 @@ def test_inference_at_counts_trajectories_at_their_first_window_past_each_fracti
     assert a["n"].tolist() == [2, 2, 2, 2]
     assert a["correct"].tolist() == [1, 2, 1, 1]  # 25 %: a k=1 (no), b k=1 (yes); 50 %: a k=2, b k=1; 75 and 99 %: a k=3, b k=2
     np.testing.assert_allclose(a["p_true"], [0.5, 0.65, 0.55, 0.55])
-    assert "| 50% | 2/2 (100%) | 0.65 |" in horizon_markdown(pd.DataFrame(columns=["study", "predictor", "horizon", "n"]), inf)
+    text = horizon_markdown(pd.DataFrame(columns=["study", "predictor", "horizon", "n"]), inf)
+    assert "| 50% | 2/2 (100%) | 0.65 |" in text
+    # the walked-fraction bins start at 0 % (not pandas' -0 % of include_lowest) and count whole windows
+    assert "| 0%-20% | 0.40 | 50% | 2 |" in text and "-0%" not in text

@@ -44,7 +44,7 @@ def horizon_markdown(summary: pd.DataFrame, inference: pd.DataFrame) -> list[str
         t = inference.groupby("part", observed=True).agg(p_true=("p_true", "mean"), correct=("correct", "mean"), n=("k", "size"))
         lines += ["Goal inference (goal-inferred, candidate goals of the study), by fraction of the path walked:", "",
                   "| walked | mean p(true goal) | most probable = true | windows |", "|---|---|---|---|"]
-        lines += [f"| {iv.left:.0%}-{iv.right:.0%} | {r.p_true:.2f} | {r.correct:.0%} | {r.n} |" for iv, r in t.iterrows()]
+        lines += [f"| {max(iv.left, 0.0):.0%}-{iv.right:.0%} | {r.p_true:.2f} | {r.correct:.0%} | {int(r.n)} |" for iv, r in t.iterrows()]
         a = inference_at(inference)
         lines += ["", "Per trajectory, at the first window past each fraction of its path:", "",
                   "| walked | trajectories whose most probable goal is the true one | mean p(true goal) |", "|---|---|---|"]
