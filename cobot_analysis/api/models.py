@@ -501,14 +501,12 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         >>> sorted(fit.uncertainty["all"]["verdicts"]) == list(fit.names)   # each weight's verdict (and interval)
         True
     """
-    import inspect
-
     from cobot_analysis import conventions
     from cobot_analysis.models.comparison import compare_models, compared_models, coupled_distances, orientation_of, subject_distances
     from cobot_analysis.models.ioc import fit as ioc_fit, pair_targets_from_table, targets_from_table
     from cobot_analysis.models.presets import DEFAULT_PRESET, PRESETS, names_for, weights_vector
     from cobot_analysis.models.ioc.pace import target_durations
-    from cobot_analysis.models.ioc.single_level import as_ioc_result, check_method, check_spec, fit_feasible_path
+    from cobot_analysis.models.ioc.single_level import MAX_STEPS, as_ioc_result, check_method, check_spec, fit_feasible_path
     from cobot_analysis.parallel import default_jobs, executor
 
     check_method(method, bootstrap)
@@ -569,7 +567,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             report = (lambda n, f, best, key=key: on_evaluation(key, n, f, best)) if on_evaluation else None
             t0 = time.perf_counter()
             if method == "single-level":  # max_evaluations: its budget of steps, when below the method's own
-                steps = min(spec.max_evaluations, inspect.signature(fit_feasible_path).parameters["max_steps"].default)
+                steps = min(spec.max_evaluations, MAX_STEPS)
                 results[key] = as_ioc_result(fit_feasible_path(spec, targets, pool=pool, chunks=n_chunks, max_steps=steps))
             else:
                 # the time gauge fitted to the subjects' durations (models.ioc.pace; continuous, fit over the means)

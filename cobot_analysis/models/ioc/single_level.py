@@ -39,6 +39,7 @@ from cobot_analysis.models.ioc.targets import Target
 from cobot_analysis.models.presets import names_for
 
 METHODS = ("bilevel", "single-level")
+MAX_STEPS = 40  # the feasible-path fit's own budget of trust-region steps per round
 SMOOTHING = 1e-4  # eps of the smoothed |.| (rad) and norm (m) in the NLP's D: < 1e-4 per sample
 
 
@@ -376,7 +377,7 @@ def trust_region_step(g: np.ndarray, H: np.ndarray, radius: float) -> np.ndarray
 
 
 def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | None = None, eps: float = SMOOTHING,
-                      radius: float = 0.3, max_steps: int = 40, tol: float = 1e-8, xtol: float = 1e-3,
+                      radius: float = 0.3, max_steps: int = MAX_STEPS, tol: float = 1e-8, xtol: float = 1e-3,
                       restarts: int = 2, pool=None, chunks: int = 2) -> SingleLevelResult:
     """The single-level NLP (module docstring) solved by a feasible-path trust-region SQP in
     y = log10 of the fitted weights (docs/methods.md sec. 6.1): every iterate keeps each target's
