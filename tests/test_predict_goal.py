@@ -114,7 +114,10 @@ def test_goal_inferred_finds_the_goal_walked_to():
 def test_goal_inferred_plans_cannot_hang_and_a_stopped_plan_is_a_counted_failure(monkeypatch):
     """fatrop's inertia correction has no cap (max_iter does not bound a solve; one hung here), so the
     candidate plans are IPOPT solves with a CPU limit. A limit that every solve hits (1 ns) must stop
-    each plan and count its window as failed, with the solver's reason, not hang or predict silently."""
+    each plan and count its window as failed, with the solver's reason, not hang or predict silently.
+    IPOPT reads user CPU time (getrusage), whose tick accounting can show 0 s elapsed over a short
+    solve, so now and then a plan finishes under even a 1 ns limit (CI saw 30 of 31 windows fail):
+    the test asks that nearly every window fail and that failed windows, and only they, be NaN."""
     import cobot_analysis.models.prediction.goal as goal
 
     p = make_predictor("goal-inferred", 30, 60, DT, candidates=[(0.0, 0.0), (-2.0, 1.5)])
@@ -123,8 +126,10 @@ def test_goal_inferred_plans_cannot_hang_and_a_stopped_plan_is_a_counted_failure
     p = make_predictor("goal-inferred", 30, 60, DT, candidates=[(1.0, 0.0), (-2.0, 1.5)])  # never reached: every window plans
     poses = straight_to_goal(60)
     P = p.predict_offline(poses)
-    assert p.failed == 31 and np.isnan(P[..., :2]).all()  # every window of the 60-sample walk (N0 = 30)
-    assert all(q.status == "ipopt: Maximum_CpuTime_Exceeded" for q in p.planners)
+    nan = np.isnan(P[..., :2]).all(axis=tuple(range(1, P.ndim)))  # per window: no prediction at all
+    assert len(nan) == 31 and p.failed >= 28 and nan.sum() == p.failed  # the 60-sample walk has 31 windows (N0 = 30)
+    assert np.isfinite(P[~nan][..., :2]).all()
+    assert any(q.status == "ipopt: Maximum_CpuTime_Exceeded" for q in p.planners)
 
 
 def test_goal_predictors_bad_input():
