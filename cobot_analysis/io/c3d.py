@@ -83,7 +83,26 @@ def check_c3d_header(path: str | os.PathLike) -> dict[str, int | bool | float | 
 
     Raises ``InputError`` for a file that is not C3D, is truncated, or has an inconsistent header.
     """
-    path = Path(path)
+    return _check(Path(path))[0]
+
+
+class _Layout(NamedTuple):
+    """What the checks read of a C3D file, for ``_numpy_points``."""
+
+    head: bytes  # the 512-byte header
+    section: bytes  # the parameter section
+    records: list  # parameter records (``_walk_parameters``)
+    proc: int  # processor type (84 Intel, 85 DEC, 86 MIPS)
+    n_points: int
+    n_analog: int  # analog values per frame (header word 3)
+    first: int  # header words 4-5 as stored
+    last: int
+    data_start: int  # 512-byte block of the data section, from 1
+    params: dict  # (GROUP, NAME) -> (number of values, first value)
+
+
+def _check(path: Path) -> tuple[dict[str, int | bool | float | None], _Layout]:
+    """``check_c3d_header``, also returning what was read (``_Layout``)."""
     size = path.stat().st_size
     with open(path, "rb") as fh:
         head = fh.read(BLOCK)
@@ -128,7 +147,8 @@ def check_c3d_header(path: str | os.PathLike) -> dict[str, int | bool | float | 
     with open(path, "rb") as fh:
         fh.seek(param_start)
         section = fh.read(pblock[2] * BLOCK)
-    params = _walk_parameters(section, order, path, ieee=proc != 85)
+    records: list = []
+    params = _walk_parameters(section, order, path, ieee=proc != 85, records=records)
     used = params.get(("POINT", "USED"), (1, None))[1]
     if used is not None and used != n_points:
         raise InputError(f"corrupt C3D file (header announces {n_points} points, POINT:USED {used})", path=path,
@@ -149,7 +169,8 @@ def check_c3d_header(path: str | os.PathLike) -> dict[str, int | bool | float | 
     if rate is not None and np.isnan(rate):  # ezc3d fails on it (vector::_M_default_append): nothing to read
         raise InputError(f"invalid sampling rate: POINT:RATE is NaN (the header says {header_rate:g} Hz)", path=path,
                          remedy="re-export the trial from the capture software")
-    return {"points": n_points, "frames": n_frames, "float": is_float, "rate": rate, "header_rate": header_rate}
+    info = {"points": n_points, "frames": n_frames, "float": is_float, "rate": rate, "header_rate": header_rate}
+    return info, _Layout(head, section, records, proc, n_points, n_analog, first, last, data_start, params)
 
 
 def _check_consistency(params: dict, n_points: int, n_analog: int, first: int, last: int, data_start: int, is_float: bool,
@@ -190,11 +211,14 @@ def _check_consistency(params: dict, n_points: int, n_analog: int, first: int, l
                      f"says {'float' if scale < 0 else 'integer'}")
 
 
-def _walk_parameters(section: bytes, order: str, path: Path, ieee: bool = True) -> dict[tuple[str, str], tuple[int, float | None]]:
+def _walk_parameters(section: bytes, order: str, path: Path, ieee: bool = True,
+                     records: list | None = None) -> dict[tuple[str, str], tuple[int, float | None]]:
     """Walk the parameter records (C3D User Guide, "The parameter section") and check that each
     one lies inside the section, so that ezc3d never follows a corrupt pointer. Returns, keyed
     (GROUP, NAME), the number of values of each parameter and its first value when it is a number
-    (16-bit integer, or a float when ``ieee``: DEC floats are another format)."""
+    (16-bit integer, or a float when ``ieee``: DEC floats are another format). ``records`` (when
+    given) receives each record as ``(group id, raw name, type, dimensions, data offset, end,
+    next)``: ``end`` is where its description ends, ``next`` where its pointer leads (0: last)."""
     def corrupt(what: str) -> InputError:
         return InputError(f"corrupt C3D parameter section ({what})", path=path, remedy="re-export the trial from the capture software")
 
@@ -243,6 +267,9 @@ def _walk_parameters(section: bytes, order: str, path: Path, ieee: bool = True) 
             raise corrupt(f"description length {section[desc]} of {name.strip()!r} out of range")
         if desc + 1 + section[desc] > limit:
             raise corrupt(f"description of {name.strip()!r} past its record")
+        if records is not None:
+            records.append((gid, section[pos + 2:name_end], None if gid < 0 else dtype, None if gid < 0 else bytes(dims),
+                            None if gid < 0 else data, desc + 1 + section[desc], nxt if offset != 0 else 0))
         if offset == 0:
             break
         pos = nxt
@@ -251,6 +278,133 @@ def _walk_parameters(section: bytes, order: str, path: Path, ieee: bool = True) 
         g, n = next(k for k in keys if keys.count(k) > 1)
         raise corrupt(f"parameter {groups.get(g, '?')}:{n} given twice")
     return {(groups.get(g, "?"), n): (count, v) for g, n, count, v in found}
+
+
+def _canonical(name: bytes) -> bool:
+    """A record name as ezc3d and our checks both key it: no NUL, no padding, upper case."""
+    text = name.decode("latin-1")
+    return b"\0" not in name and text == text.strip().upper()
+
+
+def _decode_value(section: bytes, dtype: int, dims: bytes, at: int):
+    """A parameter's value in the form the ezc3d Python reader gives it (Intel byte order): a list
+    of strings for characters (one per column of the first dimension, NUL bytes dropped, trailing
+    spaces removed, UTF-8 with undecodable bytes kept as surrogates), else an array of the
+    dimensions in column-major order (bytes and 16-bit integers signed, floats widened)."""
+    shape = tuple(dims) or (1,)
+    count = int(np.prod(shape))
+    if dtype == -1:
+        width = shape[0]
+        if len(dims) == 1:
+            items = [section[at:at + width]] if width else []
+        else:
+            items = [section[at + k * width:at + (k + 1) * width] for k in range(count // width if width else int(np.prod(shape[1:])))]
+        return [b.replace(b"\0", b"").rstrip(b" ").decode("utf-8", "surrogateescape") for b in items]
+    kind = {1: "<i1", 2: "<i2", 4: "<f4"}[dtype]
+    values = np.frombuffer(section, dtype=kind, count=count, offset=at)
+    return (values.astype(float) if dtype == 4 else values.astype(int)).reshape(shape, order="F")
+
+
+def _numpy_points(path: Path, lay: _Layout) -> tuple[dict, np.ndarray] | None:
+    """The POINT parameters (as ``ezc3d`` gives them) and the positions ``[frames, points, 3]`` in
+    the file's unit, NaN where the residual is negative, read with numpy; None when the file is
+    outside what this reader handles (ezc3d then reads it).
+
+    Data section (C3D User Guide; ezc3d's reader): frame after frame, each point as x, y, z and a
+    fourth value, then the frame's analog values. Float data (POINT:SCALE < 0): x, y, z float32,
+    then (Intel) a 16-bit camera-mask word and a signed 16-bit residual word, the residual being
+    that word x |SCALE|. Integer data: x, y, z int16 x SCALE, then a camera-mask byte and a signed
+    residual byte x SCALE. A negative residual marks an invalid point: x, y, z = NaN.
+
+    Handled: Intel processor type, one POINT:SCALE, fewer than 65535 frames, first frame >= 1, a
+    parameter section that ezc3d reads record after record without a gap, canonical POINT and
+    ANALOG names, the analog values per frame ezc3d derives from ANALOG:USED x int(ANALOG:RATE /
+    POINT:RATE) equal to the header's, and the parameters ezc3d needs for the analog data of the
+    types it reads them as. Everything else (DEC and MIPS files among them) goes to ezc3d, the
+    reference this reader is tested against (tests/test_c3d_reader.py)."""
+    if lay.proc != 84 or not lay.n_points or lay.first == 0 or lay.last >= 65535 or lay.section[0] != 1:
+        return None
+    groups: dict[int, bytes] = {}
+    for gid, name, _, _, _, end, nxt in lay.records:
+        if nxt and end != nxt:  # ezc3d reads the next record where this one ends ("Bad c3d formatting")
+            return None
+        if gid < 0:
+            if -gid in groups or name in groups.values():
+                return None
+            groups[-gid] = name
+    canonical = {name.decode("latin-1").strip().upper(): gid for gid, name in groups.items()}
+    if "SHADOW" in canonical or canonical.get("POINT") is None:
+        return None
+    wanted = {g: canonical[g] for g in ("POINT", "ANALOG", "ROTATION") if g in canonical}
+    if any(not _canonical(groups[gid]) for gid in wanted.values()):
+        return None
+    found: dict[str, dict] = {g: {} for g in ("POINT", "ANALOG", "ROTATION")}
+    by_gid = {gid: found[g] for g, gid in wanted.items()}
+    for gid, name, dtype, dims, at, _, _ in lay.records:
+        if gid in by_gid:
+            if not _canonical(name):
+                return None
+            by_gid[gid][name.decode("latin-1")] = {"type": dtype, "value": _decode_value(lay.section, dtype, dims, at)}
+    point, analog, rotation = found["POINT"], found["ANALOG"], found["ROTATION"]
+
+    def number(group: dict, name: str, dtype: int):
+        """The first value of a parameter of type ``dtype``; None when absent; False when of another type or empty."""
+        if name not in group:
+            return None
+        p = group[name]
+        return p["value"].ravel()[0] if p["type"] == dtype and p["value"].size else False
+
+    used, scale, rate = number(point, "USED", 2), number(point, "SCALE", 4), number(point, "RATE", 4)
+    head_scale, = struct.unpack("<f", lay.head[12:16])
+    if used != lay.n_points or scale is None or scale is False or point["SCALE"]["value"].size != 1 or "SCALE2" in point:
+        return None
+    if not (np.isfinite(scale) and np.isfinite(head_scale) and scale != 0 and head_scale != 0 and (scale < 0) == (head_scale < 0)):
+        return None
+    if number(point, "DATA_START", 2) != lay.data_start or rate is None or rate is False or not np.isfinite(rate):
+        return None
+    n_frames = lay.last - lay.first + 1
+    frames = number(point, "FRAMES", 2)
+    if frames is False or frames not in (None, 0, n_frames):  # ezc3d takes a differing POINT:FRAMES as the frame count
+        return None
+    if any(k not in point or point[k]["type"] != -1 for k in ("LABELS", "UNITS")):
+        return None
+    channels = number(analog, "USED", 2)
+    if channels is False or (channels or 0) < 0:
+        return None
+    channels = channels or 0
+    if lay.n_analog or channels:
+        analog_rate = number(analog, "RATE", 4)
+        if analog_rate is None or analog_rate is False or not rate >= 1 or not np.isfinite(analog_rate) or analog_rate < 0:
+            return None
+        if int(analog_rate / rate) * channels != lay.n_analog:  # ezc3d's stride (updateHeader)
+            return None
+        for name, dtype in (("SCALE", 4), ("OFFSET", 2)):
+            p = analog.get(name)
+            if p is None or p["type"] != dtype or p["value"].size < channels:
+                return None
+        if number(analog, "GEN_SCALE", 4) is False:
+            return None
+    if "ROTATION" in wanted:  # ezc3d reads rotations (none here) and fails without these
+        if number(rotation, "USED", 2) != 0 or number(rotation, "DATA_START", 2) in (None, False) or \
+                (number(rotation, "RATIO", 2) in (None, False) and number(rotation, "RATE", 4) in (None, False)):
+            return None
+    is_float = scale < 0
+    size = 4 if is_float else 2
+    width = (4 * lay.n_points + lay.n_analog) * size  # bytes per frame
+    raw = np.fromfile(path, dtype=np.uint8, count=n_frames * width, offset=(lay.data_start - 1) * BLOCK)
+    if raw.size != n_frames * width:
+        return None
+    frames = raw.reshape(n_frames, width)[:, :16 * lay.n_points if is_float else 8 * lay.n_points]
+    if is_float:
+        values = frames.view("<f4").reshape(n_frames, lay.n_points, 4)
+        xyz = values[..., :3].astype(float)
+        invalid = frames.view("<i2").reshape(n_frames, lay.n_points, 8)[..., 7] < 0
+    else:
+        values = frames.view("<i2").reshape(n_frames, lay.n_points, 4)
+        xyz = values[..., :3].astype(float) * float(scale)
+        invalid = frames.view("<i1").reshape(n_frames, lay.n_points, 8)[..., 7] < 0
+    xyz[invalid] = np.nan
+    return point, xyz
 
 
 def _values(group: dict, name: str) -> list:
@@ -295,17 +449,11 @@ def model_outputs(point: dict) -> dict[str, str]:
     return out
 
 
-def read_c3d(path: str | os.PathLike, units: str | None = None) -> RawMarkers:
-    """Read the markers of a C3D file: ``(labels, xyz [frames, markers, 3] in m, rate, units, notes)``.
-
-    ``units`` overrides the file's ``POINT:UNITS`` (default when the file states none: mm, the
-    Vicon default). Model outputs stored as points (``model_outputs``) are left out and counted in
-    ``notes``: they are angles, moments, powers or forces, not positions.
-    """
+def _ezc3d_points(path: Path) -> tuple[dict, np.ndarray, float]:
+    """The POINT parameters, the positions ``[frames, points, 3]`` in the file's unit (NaN where the
+    residual is negative) and the header's frame rate, read by ezc3d."""
     import ezc3d
 
-    path = Path(path)
-    head = check_c3d_header(path)
     try:
         c3d = ezc3d.c3d(str(path), extract_forceplat_data=False)
         point = c3d["parameters"]["POINT"]
@@ -317,13 +465,37 @@ def read_c3d(path: str | os.PathLike, units: str | None = None) -> RawMarkers:
                          remedy="re-export the trial from the capture software") from exc
     if points.shape[2] == 0:
         raise InputError("empty trial (the C3D file holds no frames)", path=path, remedy="remove the trial from the protocol or re-export it")
+    positions = points[:3].transpose(2, 1, 0)
+    if residuals.size:
+        positions[np.transpose(residuals[0] < 0)] = np.nan
+    return point, positions, header_rate
+
+
+def read_c3d(path: str | os.PathLike, units: str | None = None, numpy: bool = True) -> RawMarkers:
+    """Read the markers of a C3D file: ``(labels, xyz [frames, markers, 3] in m, rate, units, notes)``.
+
+    ``units`` overrides the file's ``POINT:UNITS`` (default when the file states none: mm, the
+    Vicon default). Model outputs stored as points (``model_outputs``) are left out and counted in
+    ``notes``: they are angles, moments, powers or forces, not positions. After the checks
+    (``check_c3d_header``) the point data are read with numpy (``_numpy_points``) when the file is
+    within what that reader handles, else by ezc3d (``numpy=False``: always ezc3d, the reference).
+    """
+    path = Path(path)
+    head, layout = _check(path)
+    fast = _numpy_points(path, layout) if numpy else None
+    if fast is not None:
+        point, positions = fast
+        header_rate = head["header_rate"]
+    else:
+        point, positions, header_rate = _ezc3d_points(path)
     labels = [_text(s) for s in _values(point, "LABELS")]
     # Long label lists continue in LABELS2, LABELS3, ... (C3D convention for > 255 labels).
     for k in range(2, 100):
         if f"LABELS{k}" not in point:
             break
         labels += [_text(s) for s in _values(point, f"LABELS{k}")]
-    labels = labels[: points.shape[1]] + [f"*{i}" for i in range(len(labels), points.shape[1])]  # unlabelled: Vicon's "*N"
+    n_points = positions.shape[1]
+    labels = labels[:n_points] + [f"*{i}" for i in range(len(labels), n_points)]  # unlabelled: Vicon's "*N"
     stated = _text((_values(point, "UNITS") or [""])[0])
     source_units = (units or stated or "mm").lower()
     factor = to_metres_factor(source_units, path)
@@ -334,9 +506,7 @@ def read_c3d(path: str | os.PathLike, units: str | None = None) -> RawMarkers:
         kinds = sorted({outputs[labels[j]] for j in range(len(labels)) if labels[j] in outputs})
         notes = (f"{path.name}: {len(labels) - len(keep)} model outputs stored as POINT channels left out "
                  f"(not markers: {', '.join(kinds)})",)
-    xyz = points[:3, keep].transpose(2, 1, 0) * factor  # [frames, markers, 3]
-    if residuals.size:
-        xyz[np.transpose(residuals[0, keep] < 0)] = np.nan
+    xyz = positions[:, keep] * factor  # [frames, markers, 3]
     partial = np.isnan(xyz).any(axis=2) & ~np.isnan(xyz).all(axis=2)
     if partial.any():
         notes += (f"{path.name}: {int(partial.sum())} samples with a NaN coordinate counted as occluded",)
