@@ -310,11 +310,14 @@ def _numpy_points(path: Path, lay: _Layout) -> tuple[dict, np.ndarray] | None:
     the file's unit, NaN where the residual is negative, read with numpy; None when the file is
     outside what this reader handles (ezc3d then reads it).
 
-    Data section (C3D User Guide; ezc3d's reader): frame after frame, each point as x, y, z and a
-    fourth value, then the frame's analog values. Float data (POINT:SCALE < 0): x, y, z float32,
-    then (Intel) a 16-bit camera-mask word and a signed 16-bit residual word, the residual being
-    that word x |SCALE|. Integer data: x, y, z int16 x SCALE, then a camera-mask byte and a signed
-    residual byte x SCALE. A negative residual marks an invalid point: x, y, z = NaN.
+    Data section (C3D User Guide): frame after frame, each point as x, y, z and a fourth value (a
+    camera-mask part and a residual part), then the frame's analog values. Float data (POINT:SCALE
+    < 0): x, y, z float32; the point is invalid (x, y, z = NaN) when its fourth 4-byte value, read
+    as a float32, is negative: what the installed ezc3d (1.7.2) does, measured on random words in
+    tests/test_c3d_reader.py (its later sources read a camera word and a signed residual word;
+    the two differ only on damaged words, and the test pins the installed behaviour). Integer
+    data: x, y, z int16 x SCALE, then a camera-mask byte and a signed residual byte; a negative
+    residual byte marks an invalid point.
 
     Handled: Intel processor type, one POINT:SCALE, fewer than 65535 frames, first frame >= 1, a
     parameter section that ezc3d reads record after record without a gap, canonical POINT and
@@ -332,6 +335,8 @@ def _numpy_points(path: Path, lay: _Layout) -> tuple[dict, np.ndarray] | None:
             if -gid in groups or name in groups.values():
                 return None
             groups[-gid] = name
+    if any(gid >= 0 and gid not in groups for gid, *_ in lay.records):  # ezc3d fails on group 0, fills in unnamed ones
+        return None
     canonical = {name.decode("latin-1").strip().upper(): gid for gid, name in groups.items()}
     if "SHADOW" in canonical or canonical.get("POINT") is None:
         return None
@@ -398,7 +403,7 @@ def _numpy_points(path: Path, lay: _Layout) -> tuple[dict, np.ndarray] | None:
     if is_float:
         values = frames.view("<f4").reshape(n_frames, lay.n_points, 4)
         xyz = values[..., :3].astype(float)
-        invalid = frames.view("<i2").reshape(n_frames, lay.n_points, 8)[..., 7] < 0
+        invalid = values[..., 3] < 0  # the fourth value as a float32 (a NaN or -0.0 is not negative)
     else:
         values = frames.view("<i2").reshape(n_frames, lay.n_points, 4)
         xyz = values[..., :3].astype(float) * float(scale)
