@@ -4,7 +4,7 @@
 
 Generates the study with ``cobot_analysis.synth.walking.generate`` (unless --study names an
 existing one), then times, once each: the per-file C3D read (``io.c3d.read_c3d``, median over the
-files) and the whole CLI import (``--jobs 1`` and ``--jobs 2``, wall time in a fresh process).
+files, alternating with ``read_c3d(numpy=False)``: the same checks, ezc3d reading the data) and the whole CLI import (``--jobs 1`` and ``--jobs 2``, wall time in a fresh process).
 Prints a Markdown fragment for docs/benchmarks.md.
 """
 
@@ -44,11 +44,14 @@ def main() -> None:
                                     conditions=list(WALKING_CONDITIONS[: args.conditions]), jobs=2)
         print(f"generated in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
     files = sorted((protocol.parent / "raw").glob("*.c3d"))
-    times, frames = [], 0
-    for f in files:
+    times, ref_times, frames = [], [], 0
+    for f in files:  # alternating: our numpy reader, then ezc3d (the reference) on the same file
         t0 = time.perf_counter()
         raw = read_c3d(f)
         times.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        read_c3d(f, numpy=False)
+        ref_times.append(time.perf_counter() - t0)
         frames += raw.xyz.shape[0]
     n_markers = raw.xyz.shape[1]
     walls = {}
@@ -61,8 +64,9 @@ def main() -> None:
     load = os.getloadavg()[0]
     print(f"- {datetime.now(timezone.utc):%Y-%m-%d}, {platform.machine()}, {os.cpu_count()} cores, load average "
           f"{load:.1f} at the end; {len(files)} C3D files, {frames} frames x {n_markers} markers ({rows / 1e6:.1f} M rows).")
-    print(f"- `read_c3d` (header check + ezc3d): median {statistics.median(times) * 1000:.1f} ms per file "
-          f"({sum(times):.1f} s for all, one process).")
+    print(f"- `read_c3d` (checks + numpy reader): median {statistics.median(times) * 1000:.2f} ms per file "
+          f"({sum(times):.1f} s for all, one process); with ezc3d reading the data (`numpy=False`, alternating): "
+          f"{statistics.median(ref_times) * 1000:.2f} ms (ratio {statistics.median(times) / statistics.median(ref_times):.2f}).")
     for jobs, wall in walls.items():
         print(f"- `cobot-analysis import --jobs {jobs}`: {wall:.1f} s wall ({rows / wall / 1e6:.2f} M marker samples/s), "
               "process start and Parquet write included.")

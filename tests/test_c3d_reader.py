@@ -229,3 +229,33 @@ def test_damaged_files_refused_or_read_as_ezc3d(tmp_path, realdata):
         except AssertionError as exc:
             raise AssertionError(f"{what}: {exc}") from exc
     assert kinds["ok"] > 20 and kinds["refused"] > 20, kinds  # both outcomes exercised
+
+
+# ---- found by comparing the two readers on damaged parameters (targeted values) ---------------
+@pytest.mark.parametrize("value", [-1, -32768])
+def test_negative_rotation_count_refused(tmp_path, value):
+    """ROTATION:RATIO < 0 made ezc3d allocate without end (bad_alloc) or crash the process (a
+    segfault in get_rotations): refused by the checks, whichever reader follows."""
+    f = synthetic(tmp_path / "r.c3d", frames=20)
+    damage.c3d_set_parameter(f, "ROTATION", "RATIO", struct.pack("<h", value))
+    with pytest.raises(InputError, match=f"ROTATION:RATIO is {value}"):
+        C.read_c3d(f)
+
+
+def test_negative_point_frames_read_as_unsigned_and_refused(tmp_path):
+    """POINT:FRAMES -32768 is 32768 frames stored in a signed word: not the header's 20, refused (ezc3d
+    read until the end of the file, and crashed when the rotation data start was damaged too)."""
+    f = synthetic(tmp_path / "r.c3d", frames=20)
+    damage.c3d_set_parameter(f, "POINT", "FRAMES", struct.pack("<h", -32768))
+    with pytest.raises(InputError, match="POINT:FRAMES 32768"):
+        C.read_c3d(f)
+
+
+@pytest.mark.parametrize("rate", [float("nan"), float("inf"), -1.0, 1e30])
+def test_damaged_analog_rate_without_analogs_left_to_ezc3d(tmp_path, rate):
+    """ezc3d makes int(ANALOG:RATE / POINT:RATE) analog subframes per frame even without channels (a
+    NaN or huge ratio: bad_alloc): such files are not the numpy reader's, the outcome is ezc3d's."""
+    f = synthetic(tmp_path / "r.c3d", frames=20)
+    damage.c3d_set_parameter(f, "ANALOG", "RATE", struct.pack("<f", rate))
+    assert not uses_numpy(f)
+    assert_same(f)

@@ -13,7 +13,7 @@ segfault or hang in our tests, so the file is checked here first (C3D User Guide
   character scalar), a description is at most 127 characters (ezc3d reads its length
   as a signed byte and hung or crashed on longer ones), no parameter is given twice in a group,
   POINT:SCALE and POINT:RATE hold a value, POINT:USED must equal the header's point count, and ANALOG:SCALE and ANALOG:OFFSET must hold a value per analog channel (ezc3d
-  crashed or hung without them). Names may hold any bytes, as
+  crashed or hung without them); ROTATION:RATIO and ROTATION:USED are not negative (ezc3d crashed). Names may hold any bytes, as
   ezc3d reads them (Vicon Nexus writes names with spaces, e.g. PROCESSING:Marker Diameter).
 - consistency (``_check_consistency``): the header's analog values per frame equal ANALOG:USED x
   ANALOG:RATE / POINT:RATE, its frame range POINT:FRAMES, its data start POINT:DATA_START and its
@@ -158,6 +158,11 @@ def _check(path: Path) -> tuple[dict[str, int | bool | float | None], _Layout]:
             raise InputError(f"corrupt C3D parameter section (POINT:{name} holds no value)", path=path,
                              remedy="re-export the trial from the capture software")
     _check_consistency(params, n_points, n_analog, first, last, data_start, is_float, path)
+    for name in ("RATIO", "USED"):  # rotations per frame, rotation channels: ezc3d crashed (bad_alloc, segfault) on negatives
+        count = params.get(("ROTATION", name), (0, None))[1]
+        if count is not None and count < 0:
+            raise InputError(f"corrupt C3D parameter section (ROTATION:{name} is {count:g})", path=path,
+                             remedy="re-export the trial from the capture software")
     channels = params.get(("ANALOG", "USED"), (1, None))[1]
     for name in ("SCALE", "OFFSET") if n_analog and channels and channels > 0 else ():  # ezc3d crashed without them
         count = params.get(("ANALOG", name), (0, None))[0]
@@ -200,6 +205,8 @@ def _check_consistency(params: dict, n_points: int, n_analog: int, first: int, l
             raise refuse(f"the header announces {n_analog} analog values per frame for {channels} channels "
                          f"({n_analog // channels} samples per frame), ANALOG:RATE / POINT:RATE is {analog_rate:g} / {point_rate:g}")
     frames = value("POINT", "FRAMES")
+    if frames is not None and frames < 0 and frames == int(frames):  # a 16-bit count > 32767 read as signed
+        frames += 65536
     if frames is not None and last < 65535 and 0 < frames < 65535 and frames != last - first + 1:  # larger counts overflow
         raise refuse(f"the header announces frames {first}-{last} ({last - first + 1}), POINT:FRAMES {frames:g}")
     start = value("POINT", "DATA_START")
@@ -377,9 +384,11 @@ def _numpy_points(path: Path, lay: _Layout) -> tuple[dict, np.ndarray] | None:
     if channels is False or (channels or 0) < 0:
         return None
     channels = channels or 0
+    analog_rate = number(analog, "RATE", 4)
+    if analog_rate is False or (analog_rate is not None and not (np.isfinite(analog_rate) and 0 <= analog_rate < 1e4 * rate)):
+        return None  # ezc3d makes int(ANALOG:RATE / POINT:RATE) subframes per frame, even without channels
     if lay.n_analog or channels:
-        analog_rate = number(analog, "RATE", 4)
-        if analog_rate is None or analog_rate is False or not rate >= 1 or not np.isfinite(analog_rate) or analog_rate < 0:
+        if analog_rate is None or not rate >= 1:
             return None
         if int(analog_rate / rate) * channels != lay.n_analog:  # ezc3d's stride (updateHeader)
             return None
@@ -402,7 +411,8 @@ def _numpy_points(path: Path, lay: _Layout) -> tuple[dict, np.ndarray] | None:
     frames = raw.reshape(n_frames, width)[:, :16 * lay.n_points if is_float else 8 * lay.n_points]
     if is_float:
         values = frames.view("<f4").reshape(n_frames, lay.n_points, 4)
-        xyz = values[..., :3].astype(float)
+        with np.errstate(invalid="ignore"):  # signalling NaNs become quiet NaNs, as in ezc3d
+            xyz = values[..., :3].astype(float)
         invalid = values[..., 3] < 0  # the fourth value as a float32 (a NaN or -0.0 is not negative)
     else:
         values = frames.view("<i2").reshape(n_frames, lay.n_points, 4)
