@@ -31,6 +31,7 @@ become U+FFFD.
 
 from __future__ import annotations
 
+import math
 import os
 import struct
 from pathlib import Path
@@ -259,7 +260,7 @@ def _walk_parameters(section: bytes, order: str, path: Path, ieee: bool = True,
             if dtype not in (-1, 1, 2, 4) or ndims > 7 or body + 2 + ndims > limit or (dtype == -1 and ndims == 0):
                 raise corrupt(f"bad parameter type of {name.strip()!r}")  # ezc3d crashed on a character scalar
             dims = section[body + 2:body + 2 + ndims]
-            count = int(np.prod(list(dims))) if ndims else 1
+            count = math.prod(dims) if ndims else 1
             data = body + 2 + ndims
             desc = data + abs(dtype) * count
             scalar = None
@@ -299,13 +300,13 @@ def _decode_value(section: bytes, dtype: int, dims: bytes, at: int):
     spaces removed, UTF-8 with undecodable bytes kept as surrogates), else an array of the
     dimensions in column-major order (bytes and 16-bit integers signed, floats widened)."""
     shape = tuple(dims) or (1,)
-    count = int(np.prod(shape))
+    count = math.prod(shape)
     if dtype == -1:
         width = shape[0]
         if len(dims) == 1:
             items = [section[at:at + width]] if width else []
         else:
-            items = [section[at + k * width:at + (k + 1) * width] for k in range(count // width if width else int(np.prod(shape[1:])))]
+            items = [section[at + k * width:at + (k + 1) * width] for k in range(math.prod(shape[1:]))]
         return [b.replace(b"\0", b"").rstrip(b" ").decode("utf-8", "surrogateescape") for b in items]
     kind = {1: "<i1", 2: "<i2", 4: "<f4"}[dtype]
     values = np.frombuffer(section, dtype=kind, count=count, offset=at)
@@ -521,11 +522,13 @@ def read_c3d(path: str | os.PathLike, units: str | None = None, numpy: bool = Tr
         kinds = sorted({outputs[labels[j]] for j in range(len(labels)) if labels[j] in outputs})
         notes = (f"{path.name}: {len(labels) - len(keep)} model outputs stored as POINT channels left out "
                  f"(not markers: {', '.join(kinds)})",)
-    xyz = positions[:, keep] * factor  # [frames, markers, 3]
-    partial = np.isnan(xyz).any(axis=2) & ~np.isnan(xyz).all(axis=2)
+    xyz = (positions if len(keep) == n_points else positions[:, keep]) * factor  # [frames, markers, 3]
+    nan = np.isnan(xyz)
+    occluded = nan.any(axis=2)
+    partial = occluded & ~nan.all(axis=2)
     if partial.any():
         notes += (f"{path.name}: {int(partial.sum())} samples with a NaN coordinate counted as occluded",)
-    xyz = occlude(xyz)
+    xyz[occluded] = np.nan  # a sample with any NaN coordinate is occluded as a whole (``occlude``)
     # POINT:RATE as the file declares it (ezc3d replaces a zero one by the header's rate silently).
     rate = head["rate"] if head["rate"] is not None else float((_values(point, "RATE") or [header_rate])[0])
     if head["header_rate"] is not None and rate != head["header_rate"] and rate > 0 and head["header_rate"] > 0:
