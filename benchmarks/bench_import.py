@@ -4,7 +4,8 @@
 
 Generates the study with ``cobot_analysis.synth.walking.generate`` (unless --study names an
 existing one), then times, once each: the per-file C3D read (``io.c3d.read_c3d``, median over the
-files, alternating with ``read_c3d(numpy=False)``: the same checks, ezc3d reading the data) and the whole CLI import (``--jobs 1`` and ``--jobs 2``, wall time in a fresh process).
+files, alternating with ``read_c3d(numpy=False)``: the same checks, ezc3d reading the data) and
+the whole CLI import (``--jobs 1`` and ``--jobs 2``, wall time in a fresh process).
 Prints a Markdown fragment for docs/benchmarks.md.
 """
 

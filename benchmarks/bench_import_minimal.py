@@ -14,7 +14,9 @@ processes, which a shared machine distorts less), each side's median wall time, 
 of our two commands (the largest process, and the sum of the RSS of the process and its workers, sampled
 every 50 ms).
 ``--scaling`` adds ``import`` + ``preprocess --jobs 1`` to each round and prints the median speed-up
-of ``--jobs N`` over ``--jobs 1`` (issue 22: at least 1.7x with 2 jobs).
+of ``--jobs N`` over ``--jobs 1`` (issue 22: at least 1.7x with 2 jobs). ``--before DIR`` adds, to each
+round, ours run from the package in DIR (e.g. ``git archive <commit> | tar -x -C DIR``) and prints
+the median ratio now / before.
 """
 
 from __future__ import annotations
@@ -67,7 +69,7 @@ if __name__ == "__main__":
 '''
 
 
-def run(cmd: list[str]) -> tuple[float, float, float, float]:
+def run(cmd: list[str], env: dict | None = None, cwd: Path | None = None) -> tuple[float, float, float, float]:
     """Wall time (s), CPU time of the process and its children (s), peak memory of the process tree (sum of
     the RSS of the process and its workers; forked workers' shared pages counted twice) and of its largest
     process (MiB)."""
@@ -77,7 +79,7 @@ def run(cmd: list[str]) -> tuple[float, float, float, float]:
 
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL)
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, env=env, cwd=cwd)
     peak = one = 0
     tree = psutil.Process(proc.pid)
     while proc.poll() is None:
@@ -101,6 +103,7 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--study", type=Path, help="existing study directory (protocol.yaml, raw/*.c3d)")
     ap.add_argument("--scaling", action="store_true", help="also time ours with --jobs 1 (speed-up of --jobs N)")
+    ap.add_argument("--before", type=Path, help="a source tree of an earlier version: also time ours from it in each round")
     args = ap.parse_args()
     tmp = Path(tempfile.mkdtemp(prefix="bench-import-minimal-"))
     load0 = os.getloadavg()
@@ -120,18 +123,23 @@ def main() -> None:
         script.write_text(MINIMAL)
         cli = [sys.executable, "-m", "cobot_analysis", "-q"]
 
-        def ours(jobs: int) -> tuple[float, float, float, float]:
+        def ours(jobs: int, tree: Path | None = None) -> tuple[float, float, float, float]:
             ws = tmp / "ws"
             shutil.rmtree(ws, ignore_errors=True)
-            a = run([*cli, "import", str(protocol), "--out", str(ws), "--jobs", str(jobs)])
-            b = run([*cli, "preprocess", "--out", str(ws), "--jobs", str(jobs)])
+            env = None if tree is None else {**os.environ, "PYTHONPATH": str(tree.resolve())}
+            a = run([*cli, "import", str(protocol), "--out", str(ws), "--jobs", str(jobs)], env, cwd=tree)
+            b = run([*cli, "preprocess", "--out", str(ws), "--jobs", str(jobs)], env, cwd=tree)
             return a[0] + b[0], a[1] + b[1], max(a[2], b[2]), max(a[3], b[3])
 
         def minimal() -> tuple[float, float, float, float]:
             return run([sys.executable, str(script), str(raw), str(tmp / "minimal.parquet"), str(args.jobs)])
 
-        pairs, scaling = [], []
+        pairs, scaling, before = [], [], []
         for k in range(args.pairs):
+            if args.before:
+                old = ours(args.jobs, args.before)
+                before.append(old)
+                print(f"  before ({args.before}): {old[0]:.1f} s (CPU {old[1]:.1f} s)", file=sys.stderr)
             o, m = (ours(args.jobs), minimal()) if k % 2 == 0 else (minimal(), ours(args.jobs))[::-1]
             pairs.append((o, m))
             print(f"pair {k + 1}: ours {o[0]:.1f} s (CPU {o[1]:.1f} s, {o[2]:.0f} MiB, largest process {o[3]:.0f} MiB), "
@@ -151,7 +159,9 @@ def main() -> None:
               f"ratio (median of pairs) **{ratio:.2f}** (target <= 1.3; CPU time ratio {cpu:.2f}); peak memory of ours "
               f"{max(o[3] for o, _ in pairs):.0f} MiB in its largest process, {max(o[2] for o, _ in pairs):.0f} MiB summed over "
               f"the process tree (the minimal script's tree {max(m[2] for _, m in pairs):.0f} MiB)"
-              + (f"; --jobs {args.jobs} over --jobs 1: **{statistics.median(scaling):.2f}x** (target >= 1.7)" if scaling else ""))
+              + (f"; --jobs {args.jobs} over --jobs 1: **{statistics.median(scaling):.2f}x** (target >= 1.7)" if scaling else "")
+              + (f"; now / before ({args.before}): wall {statistics.median(o[0] / b[0] for (o, _), b in zip(pairs, before)):.2f}, "
+                 f"CPU {statistics.median(o[1] / b[1] for (o, _), b in zip(pairs, before)):.2f}" if before else ""))
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 

@@ -1,4 +1,5 @@
-"""C3D marker files: header check, then ezc3d.
+"""C3D marker files: header and parameter checks, then the point data read with numpy (ezc3d
+for the files outside what that reader handles).
 
 ezc3d reads a truncated C3D silently (fewer frames), and a corrupt parameter section made it
 segfault or hang in our tests, so the file is checked here first (C3D User Guide):
@@ -12,21 +13,27 @@ segfault or hang in our tests, so the file is checked here first (C3D User Guide
   must stay inside their record, character parameters have dimensions (ezc3d crashed on a
   character scalar), a description is at most 127 characters (ezc3d reads its length
   as a signed byte and hung or crashed on longer ones), no parameter is given twice in a group,
-  POINT:SCALE and POINT:RATE hold a value, POINT:USED must equal the header's point count, and ANALOG:SCALE and ANALOG:OFFSET must hold a value per analog channel (ezc3d
-  crashed or hung without them); ROTATION:RATIO and ROTATION:USED are not negative (ezc3d crashed). Names may hold any bytes, as
-  ezc3d reads them (Vicon Nexus writes names with spaces, e.g. PROCESSING:Marker Diameter).
+  POINT:SCALE and POINT:RATE hold a value, POINT:USED must equal the header's point count,
+  ANALOG:SCALE and ANALOG:OFFSET must hold a value per analog channel (ezc3d crashed or hung
+  without them), ROTATION:RATIO and ROTATION:USED are not negative (ezc3d crashed). Names may
+  hold any bytes, as ezc3d reads them (Vicon Nexus writes names with spaces, e.g.
+  PROCESSING:Marker Diameter).
 - consistency (``_check_consistency``): the header's analog values per frame equal ANALOG:USED x
-  ANALOG:RATE / POINT:RATE, its frame range POINT:FRAMES, its data start POINT:DATA_START and its
-  scale's sign POINT:SCALE's (else the data would be read with a wrong stride); POINT:RATE is read
-  as the file declares it (ezc3d replaces 0 by the header's rate and fails on NaN): a NaN is refused
-  here, 0 and negative rates by ``plausibility.trial_rate``.
+  ANALOG:RATE / POINT:RATE, its frame range POINT:FRAMES (a negative one read as the unsigned
+  16-bit count it is), its data start POINT:DATA_START and its scale's sign POINT:SCALE's (else
+  the data would be read with a wrong stride); POINT:RATE is read as the file declares it (ezc3d
+  replaces 0 by the header's rate and fails on NaN): a NaN is refused here, 0 and negative rates
+  by ``plausibility.trial_rate``.
 The byte order follows the processor type stored in the parameter section (84 Intel, 85 DEC,
 86 MIPS big-endian).
 
-Missing points: ezc3d returns NaN where the residual word is negative (how Vicon and ezc3d mark
-an occluded marker); any NaN coordinate makes the whole sample occluded (a NaN stored with a valid
-residual is counted in the notes). Labels are text as ezc3d decodes them; bytes that are not UTF-8
-become U+FFFD.
+Point data: ``_numpy_points`` reads them from the bytes when the file is of the common kind
+(Intel, one POINT:SCALE, a parameter section laid out record after record...), giving exactly
+what ezc3d gives (tests/test_c3d_reader.py); ezc3d reads the others (``_ezc3d_points``).
+Missing points: NaN where the point's residual is negative (how Vicon and ezc3d mark an occluded
+marker); any NaN coordinate makes the whole sample occluded (a NaN stored with a valid residual
+is counted in the notes). Labels are text as ezc3d decodes them; bytes that are not UTF-8 become
+U+FFFD.
 """
 
 from __future__ import annotations
@@ -480,7 +487,8 @@ def _ezc3d_points(path: Path) -> tuple[dict, np.ndarray, float]:
         raise InputError(f"unreadable C3D file ({type(exc).__name__}: {exc})", path=path,
                          remedy="re-export the trial from the capture software") from exc
     if points.shape[2] == 0:
-        raise InputError("empty trial (the C3D file holds no frames)", path=path, remedy="remove the trial from the protocol or re-export it")
+        raise InputError("empty trial (the C3D file holds no frames)", path=path,
+                         remedy="remove the trial from the protocol or re-export it")
     positions = points[:3].transpose(2, 1, 0)
     if residuals.size:
         positions[np.transpose(residuals[0] < 0)] = np.nan
