@@ -259,3 +259,26 @@ def test_damaged_analog_rate_without_analogs_left_to_ezc3d(tmp_path, rate):
     damage.c3d_set_parameter(f, "ANALOG", "RATE", struct.pack("<f", rate))
     assert not uses_numpy(f)
     assert_same(f)
+
+
+def test_import_stage_tables_equal_with_either_reader(tmp_path, monkeypatch):
+    """End to end: the markers and trials tables of `import` are the same whichever reader reads the C3D files."""
+    from cobot_analysis import api
+    from cobot_analysis.io import markers as M
+    from cobot_analysis.synth import walking
+
+    protocol = walking.generate(tmp_path / "study", n_subjects=1, n_trials=2, conditions=["E1500", "N0615"])
+    ours = api.import_markers(protocol, jobs=1)
+    calls = []
+
+    def reference(path, units=None):
+        calls.append(path)
+        return C.read_c3d(path, units=units, numpy=False)
+
+    monkeypatch.setitem(M.READERS, "c3d", reference)
+    ref = api.import_markers(protocol, jobs=1)
+    assert len(calls) == 4  # the reference read every file
+    assert len(ours.markers) > 10_000 and ours.markers["occluded"].any()
+    pd_testing = pytest.importorskip("pandas").testing
+    pd_testing.assert_frame_equal(ours.markers, ref.markers, check_exact=True)
+    pd_testing.assert_frame_equal(ours.trials, ref.trials, check_exact=True)
