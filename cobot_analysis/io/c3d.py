@@ -337,8 +337,9 @@ def _numpy_points(path: Path, lay: _Layout) -> tuple[dict, np.ndarray] | None:
     Handled: Intel processor type, one POINT:SCALE, fewer than 65535 frames, first frame >= 1, a
     parameter section that ezc3d reads record after record without a gap, canonical POINT and
     ANALOG names, the analog values per frame ezc3d derives from ANALOG:USED x int(ANALOG:RATE /
-    POINT:RATE) equal to the header's, and the parameters ezc3d needs for the analog data of the
-    types it reads them as. Everything else (DEC and MIPS files among them) goes to ezc3d, the
+    POINT:RATE) equal to the header's, the parameters ezc3d needs for the analog data of the
+    types it reads them as, and a TRIAL group when MANUFACTURER:COMPANY names Vicon (ezc3d fails
+    without it). Everything else (DEC and MIPS files among them) goes to ezc3d, the
     reference this reader is tested against (tests/test_c3d_reader.py)."""
     if lay.proc != 84 or not lay.n_points or lay.first == 0 or lay.last >= 65535 or lay.section[0] != 1:
         return None
@@ -366,6 +367,16 @@ def _numpy_points(path: Path, lay: _Layout) -> tuple[dict, np.ndarray] | None:
                 return None
             by_gid[gid][name.decode("latin-1")] = {"type": dtype, "value": _decode_value(lay.section, dtype, dims, at)}
     point, analog, rotation = found["POINT"], found["ANALOG"], found["ROTATION"]
+    # ezc3d looks up the TRIAL group (and fails without it) when MANUFACTURER:COMPANY names Vicon
+    exact = {name: gid for gid, name in groups.items()}
+    for gid, name, dtype, dims, at, _, _ in lay.records:
+        if gid == exact.get(b"MANUFACTURER") and name == b"COMPANY":
+            company = _decode_value(lay.section, dtype, dims, at) if dtype == -1 else None
+            if company is None or any("Vicon" in c for c in company):
+                if b"TRIAL" not in exact:
+                    return None
+        if gid == exact.get(b"TRIAL") and name in (b"ACTUAL_START_FIELD", b"ACTUAL_END_FIELD") and dtype != 2:
+            return None
 
     def number(group: dict, name: str, dtype: int):
         """The first value of a parameter of type ``dtype``; None when absent; False when of another type or empty."""
