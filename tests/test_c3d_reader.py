@@ -308,3 +308,18 @@ def test_vicon_file_without_trial_group_left_to_ezc3d(realdata, tmp_path):
     data[at:at + 5] = b"Qicon"
     f.write_bytes(bytes(data))
     assert uses_numpy(f) and assert_same(f) == "ok"
+
+
+@pytest.mark.parametrize("group,name", [("ANALOG", "SCALE"), ("ANALOG", "OFFSET"), ("POINT", "RATE"), ("POINT", "POINT")])
+def test_point_and_analog_names_in_lower_case_refused(realdata, tmp_path, group, name):
+    """ezc3d looks the POINT and ANALOG parameters up by exact name: with ANALOG:scale or offset in
+    lower case it crashed the process (found renaming every record of the real files); refused."""
+    f = tmp_path / "n.c3d"
+    data = bytearray((realdata / "c3d" / "pyomeca_markers_analogs.c3d").read_bytes())
+    rec = next(r for r in damage.c3d_parameter_records(bytes(data)) if r["name"] == name and (
+        r["gid"] < 0 if name == group else r["gid"] > 0 and next(
+            g for g in damage.c3d_parameter_records(bytes(data)) if g["gid"] == -r["gid"])["name"] == group))
+    data[rec["offset"] + 2:rec["offset"] + 2 + len(name)] = name.lower().encode()
+    f.write_bytes(bytes(data))
+    with pytest.raises(InputError, match=f"named '{name.lower()}', not in upper case"):
+        C.read_c3d(f)

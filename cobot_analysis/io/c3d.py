@@ -17,7 +17,8 @@ segfault or hang in our tests, so the file is checked here first (C3D User Guide
   ANALOG:SCALE and ANALOG:OFFSET must hold a value per analog channel (ezc3d crashed or hung
   without them), ROTATION:RATIO and ROTATION:USED are not negative (ezc3d crashed). Names may
   hold any bytes, as ezc3d reads them (Vicon Nexus writes names with spaces, e.g.
-  PROCESSING:Marker Diameter).
+  PROCESSING:Marker Diameter), except in the POINT and ANALOG groups, which must be named in
+  upper case without padding (``_check_names``: ezc3d looks them up by exact name and crashed).
 - consistency (``_check_consistency``): the header's analog values per frame equal ANALOG:USED x
   ANALOG:RATE / POINT:RATE, its frame range POINT:FRAMES (a negative one read as the unsigned
   16-bit count it is), its data start POINT:DATA_START and its scale's sign POINT:SCALE's (else
@@ -157,6 +158,7 @@ def _check(path: Path) -> tuple[dict[str, int | bool | float | None], _Layout]:
         section = fh.read(pblock[2] * BLOCK)
     records: list = []
     params = _walk_parameters(section, order, path, ieee=proc != 85, records=records)
+    _check_names(records, path)
     used = params.get(("POINT", "USED"), (1, None))[1]
     if used is not None and used != n_points:
         raise InputError(f"corrupt C3D file (header announces {n_points} points, POINT:USED {used})", path=path,
@@ -224,6 +226,20 @@ def _check_consistency(params: dict, n_points: int, n_analog: int, first: int, l
     if scale is not None and scale != 0 and n_points and (scale < 0) != is_float:
         raise refuse(f"the header's scale factor says {'float' if is_float else 'integer'} data, POINT:SCALE {scale:g} "
                      f"says {'float' if scale < 0 else 'integer'}")
+
+
+def _check_names(records: list, path: Path) -> None:
+    """The POINT and ANALOG groups and their parameters are named as the C3D User Guide writes them
+    (upper case, no padding): ezc3d looks them up by exact name, so a parameter named ``scale``
+    (checked here as SCALE) is absent for it, and it crashed on such files (ANALOG:scale, offset)."""
+    groups = {-gid: name for gid, name, *_ in records if gid < 0}
+    for gid, name, *_ in records:
+        group = groups.get(-gid if gid < 0 else gid, b"")
+        if group.decode("latin-1").strip().upper() in ("POINT", "ANALOG") and not _canonical(name):
+            what = "group" if gid < 0 else f"parameter of group {group.decode('latin-1').strip().upper()}"
+            raise InputError(f"corrupt C3D parameter section ({what} named {name.decode('latin-1')!r}, not in upper case "
+                             f"without padding as the C3D standard writes it)", path=path,
+                             remedy="re-export the trial from the capture software")
 
 
 def _walk_parameters(section: bytes, order: str, path: Path, ieee: bool = True,
