@@ -232,12 +232,12 @@ def test_damaged_files_refused_or_read_as_ezc3d(tmp_path, realdata):
     """Seeded mutations (benchmarks/fuzz_inputs.py) of synthetic float and integer files and of the
     real Intel files: the numpy reader never reads a file another way than ezc3d, and refuses what
     the reference refuses, with the same one line."""
-    _check_damaged(tmp_path, realdata, 100)
+    _check_damaged(tmp_path, realdata, 40)
 
 
 @pytest.mark.slow
 def test_many_damaged_files_refused_or_read_as_ezc3d(tmp_path, realdata):
-    """The same on 1500 mutations (the first 100 are the quick test's)."""
+    """The same on 1500 mutations (the first 40 are the quick test's)."""
     _check_damaged(tmp_path, realdata, 1500)
 
 
