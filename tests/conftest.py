@@ -42,6 +42,16 @@ def cli(capsys):
     return invoke
 
 
+@pytest.fixture(scope="session")
+def dask_scheduler():
+    """The address of one local Dask cluster (2 worker processes, 1 thread each), started for the whole
+    session by the first test that needs it: each of those tests compares a ``--scheduler`` run with the
+    local pool, and starting a cluster costs more than most of their runs."""
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        yield cluster.scheduler_address
+
+
 def realdata_dir() -> Path | None:
     """``$COBOT_REALDATA`` or ``../shared/realdata`` beside the project, if present."""
     env = os.environ.get("COBOT_REALDATA")
