@@ -42,11 +42,10 @@ def cli(capsys):
     return invoke
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture
 def dask_scheduler():
-    """The address of one local Dask cluster (2 worker processes, 1 thread each), started for the whole
-    session by the first test that needs it: each of those tests compares a ``--scheduler`` run with the
-    local pool, and starting a cluster costs more than most of their runs."""
+    """The address of a local Dask cluster (2 worker processes, 1 thread each) for one test, stopped after it
+    (an idle cluster kept for the session costs more CPU, about 4 s a minute, than starting one per test)."""
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
         yield cluster.scheduler_address
