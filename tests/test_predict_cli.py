@@ -439,6 +439,7 @@ def test_paper_rows_put_ours_beside_the_paper():
     assert paper_rows(metrics.assign(n0=25), PUBLISHED) == []  # the papers' setting only
 
 
+@pytest.mark.slow  # the predict command end to end with the goal predictors: about 4 s idle (the library: test_predict_goal.py)
 def test_goal_predictors_and_horizon_sweep_from_the_command_line(cli, tmp_path, traj_file):
     """goal (the goal given), goal-inferred (two candidates) and cv, with the horizon sweep: its
     tables, figure and results section; the goal-aware predictions start on the walker."""
