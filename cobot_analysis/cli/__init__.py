@@ -85,9 +85,10 @@ def main() -> None:
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(code)
-    if threading.active_count() == 1:
-        # Done and alone: run the exit handlers, flush, and end without the interpreter's teardown (freeing every
-        # module and object one by one: 0.1 s after pandas and pyarrow, a tenth of a localisation run).
+    if threading.active_count() == 1 and sys.gettrace() is None and sys.getprofile() is None:
+        # Done and alone (no other thread, no tracer or profiler waiting to write its results): run the exit
+        # handlers, flush, and end without the interpreter's teardown (freeing every module and object one by
+        # one: 0.1 s after pandas and pyarrow, a tenth of a localisation run).
         atexit._run_exitfuncs()
         for stream in (sys.stdout, sys.stderr):
             try:
