@@ -268,31 +268,43 @@ def branch_calls(spec: IOCSpec, fitted: tuple[int, ...], n_samples: int, eps: fl
     return _Call(newton), _Call(second), _Call(distance_derivatives(ocp, n_samples, spec.angle, spec.angle_weight, eps))
 
 
-@functools.lru_cache(maxsize=8)
-def _ordering_of(key) -> np.ndarray:
-    from scipy.sparse import csc_matrix
-    from scipy.sparse.csgraph import reverse_cuthill_mckee
-
-    n, row, colind = key
-    A = csc_matrix((np.ones(len(row)), np.array(row), np.array(colind)), shape=(n, n))
-    return np.asarray(reverse_cuthill_mckee((A + A.T).tocsr(), symmetric_mode=True))
-
-
-def _ordering(newton: _Call) -> np.ndarray:
+class _Permutation:
     """A reverse Cuthill-McKee permutation of the KKT matrix K (variables and multipliers of each
-    stage brought together: a band of width ~ 2 stages, factorised without fill)."""
-    K = newton.out[1]
-    return _ordering_of((K.shape[0], tuple(K.indices), tuple(K.indptr)))
+    stage brought together: a band of width ~ 2 stages, factorised without fill), and the map that
+    permutes K's stored values straight into the CSC arrays of K[order][:, order] (K's sparsity is
+    fixed: computed once per ``_Call``)."""
+
+    def __init__(self, K):
+        from scipy.sparse import csc_matrix
+        from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+        pattern = csc_matrix((np.arange(1.0, K.nnz + 1.0), K.indices, K.indptr), shape=K.shape)
+        self.order = np.asarray(reverse_cuthill_mckee((pattern + pattern.T).tocsr(), symmetric_mode=True))
+        P = pattern[self.order][:, self.order].tocsc()
+        P.sort_indices()
+        self.source, self.indices, self.indptr = P.data.astype(int) - 1, P.indices.copy(), P.indptr.copy()
+
+    def apply(self, K):
+        from scipy.sparse import csc_matrix
+
+        return csc_matrix((K.data[self.source], self.indices, self.indptr), shape=K.shape)
+
+
+def _permutation(newton: _Call) -> _Permutation:
+    """The ``_Permutation`` of the KKT matrix output of ``newton`` (kept on it)."""
+    if not hasattr(newton, "permutation"):
+        newton.permutation = _Permutation(newton.out[1])
+    return newton.permutation
 
 
 class _Factor:
-    """LU of K permuted symmetrically (``_ordering``), solving K x = b and K' x = b."""
+    """LU of K permuted symmetrically (``_Permutation``), solving K x = b and K' x = b."""
 
-    def __init__(self, K, order):
+    def __init__(self, K, perm: _Permutation):
         from scipy.sparse.linalg import splu
 
-        self.order = order
-        self.lu = splu(K[order][:, order].tocsc(), permc_spec="NATURAL")
+        self.order = perm.order
+        self.lu = splu(perm.apply(K), permc_spec="NATURAL")
 
     def solve(self, b, trans: bool = False):
         b = np.asarray(b)
@@ -308,7 +320,7 @@ class _Branch:
 
     def __init__(self, calls, p, data, nz: int):
         self.newton, self.second, self.Dgh = calls
-        self.order = _ordering(self.newton)
+        self.perm = _permutation(self.newton)
         self.p, self.data, self.nz = p, data, nz
         self.v = self.S = None
 
@@ -324,7 +336,7 @@ class _Branch:
                 return False
             last = res
             try:
-                lu = _Factor(K, self.order)
+                lu = _Factor(K, self.perm)
             except RuntimeError:
                 return False
             if res <= tol:
