@@ -425,15 +425,20 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
     linear in w), both carried to y by dw/dy = w ln 10; the step minimises that quadratic model
     within |dy| <= radius (``trust_region_step``) and the search box (a weight on a search limit that
     D pushes outward is held for the step), and is accepted when D on the
-    corrected paths falls by at least 10 % of the predicted decrease (radius x2 up to 1, or /4; a
-    failed correction is a rejected step).
+    corrected paths falls by at least 10 % of the predicted decrease (radius x2 up to 1, or /4; a path
+    whose correction fails, a fold of its branch, goes on from its lower level re-solved at the step's
+    weights; the step is rejected only if that fails too).
     Stops when an accepted step is below ``xtol`` (log10), the radius falls below it, or after
     ``max_steps`` steps. Start: the lower level solved at the start weights (``start``: given paths).
     The D reported is the one of the lower level re-solved at the fitted weights, as the bi-level fit
     solves it (warm from the branch's path and from the two cold guesses, the least cost kept). When
     that re-solve lands on other paths (a lower-cost local minimum of some lower levels), the steps
-    start again on those (``restarts`` times at most) and the round with the least re-solved D is
-    kept. ``pool``: an executor for the lower-level solves and the Newton corrections (chunks of
+    start again on those; when it does not and ``probe``, D is re-solved at the ``escape_probes`` and
+    the steps start again from the lowest if it is below (``restarts`` new rounds at most); the round
+    with the least re-solved D is kept. ``measured_T``: the subjects' duration per target (nan: none),
+    as the bi-level fit takes them (``fit.fit``): the start weights are carried to their time gauge
+    first, the fitted weights calibrated to it after (``pace.calibrate``; the result's ``pace``).
+    ``pool``: an executor for the lower-level solves and the Newton corrections (chunks of
     targets; None: in-process), as the bi-level fit's."""
     from dataclasses import replace
 
