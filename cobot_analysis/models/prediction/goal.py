@@ -10,7 +10,9 @@ Window at sample k (the measured past ``C_{k-N0+1} .. C_k``):
    heading is the direction of travel (so v_orth = 0), even where theta was measured: the measured
    pelvis orientation of walking-2020 swings with the gait at up to 50 rad/s, which put into the
    start state (omega) curls the plan. Below ``MIN_SPEED`` the walker stands: theta is the measured
-   one (else the past's displacement direction) and omega = 0.
+   one (else the past's displacement direction) and omega = 0. The plan starts with omega = 0
+   (``plan_start``): the rate of the direction of travel over a past shorter than a stride is the
+   gait's sway, not a turn of the path the model walks.
 2. Plan: the improved OC of docs/methods.md sec. 5.5 (continuous convention: integrated running cost,
    exact-in-time step, free duration, ``models.oc.problem``) on ``N_INTERVALS`` intervals from that
    state (pose *and* velocity: the path starts at the measured speed) to the goal pose at rest, a
@@ -95,7 +97,7 @@ def check_reachable(trajectories, goal, n0: int, weights_for, option: str = "--g
             continue
         past = traj.seen[starts[0]: starts[0] + n0]
         planner = Planner(_weights(weights_for(traj.entity)), traj.dt)
-        if plan_path(planner, state_estimate(past, quadratic_fit(min(5, n0), traj.dt), travel=True), goal, 1) is None:
+        if plan_path(planner, plan_start(past, quadratic_fit(min(5, n0), traj.dt)), goal, 1) is None:
             raise InputError(f"{option} ({goal[0]:g}, {goal[1]:g}, {goal[2]:g}): the walking model cannot reach it from "
                              f"{traj.label} (its plan failed: {planner.status})",
                              remedy=f"give a goal the walker can reach, in the study frame (m, rad), or leave 'goal' out of --predictors")
@@ -130,6 +132,17 @@ def state_estimate(past: np.ndarray, filt: np.ndarray, travel: bool = False) -> 
             th = math.atan2(d[1], d[0]) if np.hypot(*d) > 0 else th
     c, s = math.cos(th), math.sin(th)
     return np.array([x, y, th, c * vx + s * vy, -s * vx + c * vy, om])
+
+
+def plan_start(past: np.ndarray, filt: np.ndarray) -> np.ndarray:
+    """The goal plan's start state: ``state_estimate`` with the heading the direction of travel, and omega = 0.
+    The model walker has no gait: its omega is the turn rate of the gait-averaged path, which a past shorter
+    than a stride cannot separate from the gait's sway (on the walking-2020 trials, walked at 1 m/s, the
+    rate of the direction of travel had a median of 1.6 rad/s from the last 5 samples and 2.1 rad/s from
+    the whole past of 50: turning radii of 0.5 m). The turn is left to the plan (its a3 prices it)."""
+    x0 = state_estimate(past, filt, travel=True)
+    x0[5] = 0.0
+    return x0
 
 
 class Planner:
@@ -241,12 +254,12 @@ def continuation_error(trajectories, weights: np.ndarray, n0: int, fractions=CON
                 out.append(np.nan)
                 continue
             planner.reset()
-            p = plan_path(planner, state_estimate(past, filt, travel=True), traj.goal, n - 1 - k)
+            p = plan_path(planner, plan_start(past, filt), traj.goal, n - 1 - k)
             out.append(np.nan if p is None else float(np.nanmean(np.hypot(*(traj.poses[k:, :2] - p[:, :2]).T))))
     return np.array(out)
 
 
-def identify_turn_weight(trajectories, weights, n0: int, fractions=CONTINUATIONS) -> float:
+def identify_turn_weight(trajectories, weights, n0: int, fractions=CONTINUATIONS, fit: int = 5) -> float:
     """a3 of the goal plans identified where the data determine it: on continuations started in motion.
     ``argmin over log10 a3 in A3_BOUNDS`` of the mean ``continuation_error`` (Brent's bounded search, to
     0.05 in log10 a3), the other weights held; ``trajectories``: the study's mean paths with goals."""
@@ -257,7 +270,7 @@ def identify_turn_weight(trajectories, weights, n0: int, fractions=CONTINUATIONS
     def mean_error(log_a3: float) -> float:
         w = w0.copy()
         w[3] = 10.0 ** log_a3
-        d = continuation_error(trajectories, w, n0, fractions)
+        d = continuation_error(trajectories, w, n0, fractions, fit)
         return float(np.nanmean(d)) if np.isfinite(d).any() else np.inf
 
     lo, hi = np.log10(A3_BOUNDS)
@@ -292,7 +305,7 @@ class GoalPredictor(Predictor):
         self.planner.reset()
 
     def predict(self, past: np.ndarray) -> np.ndarray | None:
-        x0 = state_estimate(past, self.filter, travel=True)
+        x0 = plan_start(past, self.filter)
         return plan_path(self.planner, x0, self.goal, self.horizon)
 
 
@@ -354,7 +367,7 @@ class GoalInferencePredictor(Predictor):
 
     def predict(self, past: np.ndarray) -> np.ndarray | None:
         k = self._k
-        x0 = state_estimate(past, self.filter, travel=True)
+        x0 = plan_start(past, self.filter)
         paths = [plan_path(p, x0, (g[0], g[1], float("nan")), self._length) for p, g in zip(self.planners, self.candidates)]
         ok = np.array([p is not None for p in paths])
         if not ok.any():
