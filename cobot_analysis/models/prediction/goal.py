@@ -262,7 +262,8 @@ def continuation_error(trajectories, weights: np.ndarray, n0: int, fractions=CON
 def identify_turn_weight(trajectories, weights, n0: int, fractions=CONTINUATIONS, fit: int = 5) -> float:
     """a3 of the goal plans identified where the data determine it: on continuations started in motion.
     ``argmin over log10 a3 in A3_BOUNDS`` of the mean ``continuation_error`` (Brent's bounded search, to
-    0.05 in log10 a3), the other weights held; ``trajectories``: the study's mean paths with goals."""
+    0.05 in log10 a3; the value in 3 significant digits), the other weights held; ``trajectories``: the study's
+    mean paths with goals."""
     from scipy.optimize import minimize_scalar
 
     w0 = _weights(weights)
@@ -278,7 +279,7 @@ def identify_turn_weight(trajectories, weights, n0: int, fractions=CONTINUATIONS
     if not np.isfinite(res.fun):
         raise InputError("the goal plans' turning weight a3 cannot be identified: no continuation of a mean path could be planned",
                          remedy="give weights whose a3 is determined (--weights), or mean paths with goals in the trajectories")
-    return float(10.0 ** res.x)
+    return float(f"{10.0 ** res.x:.3g}")  # the search's tolerance (12 %) in 3 digits: a stable stage parameter
 
 
 class GoalPredictor(Predictor):
