@@ -1,11 +1,17 @@
 """Benchmark: single-level against bi-level IOC on the same targets, in one run (docs/benchmarks.md).
 
-    python benchmarks/bench_ioc.py --means WS/average/means.parquet [--paths 37] [--intervals 50] [--jobs 2]
+    python benchmarks/bench_ioc.py --workspace OUT/walking-2020 [--paths 37] [--intervals 50] [--jobs 2]
+    python benchmarks/bench_ioc.py --workspace OUT/pair-carriage-2022 --model table --jobs 2
+    python benchmarks/bench_ioc.py --means WS/average/means.parquet
     python benchmarks/bench_ioc.py --synthetic 8 --intervals 20 --fit a2,a4
 
-``--means``: the walking means (improved model, goal (0, 0, pi/2), a2, a3, a4 fitted from the walking-2021
-preset, as ``fit-ioc`` under the continuous convention: a0, a1 and the unused b0..b3 held; no pace
-calibration in either method); ``--synthetic N``: N paths of the model at the walking-2021 weights
+``--workspace``: the means of a workspace (average/means.parquet) fitted as ``fit-ioc`` fits them under the
+continuous convention (``--model improved``: the walking means, a2, a3, a4 from the walking-2021 preset;
+``table``: the pair study's per-scenario means, from table-2022), both methods with the time gauge fitted
+to the subjects' durations (import-published: the trials' speeds, or the pair study's durations.parquet);
+then the bi-level fit's weights re-solved with the single-level fit's paths as a further warm start
+(``single_level.cross_check``: both D from the same candidate paths). ``--means``: those means without
+durations (no pace in either method). ``--synthetic N``: N paths of the model at the walking-2021 weights
 (noise ``--noise`` m), the fit started at twice the fitted weights. The single-level fit
 (``single_level.fit_feasible_path``) runs first, then the bi-level fit, each with its lower levels (and
 the single-level Newton corrections) on ``--jobs`` worker processes (1: inline). Prints wall and CPU time (this process and its workers), the exact D (lower level re-solved),
@@ -23,13 +29,44 @@ from dataclasses import replace
 import numpy as np
 
 
+def workspace_targets(workspace: str, model: str, intervals: int, fit: str):
+    """(spec, targets, measured durations) of a workspace's means as ``fit-ioc --model MODEL`` builds them."""
+    from dataclasses import replace
+    from pathlib import Path
+
+    import pandas as pd
+
+    from cobot_analysis import conventions
+    from cobot_analysis.api.models import goal_rule, ioc_spec, read_trajectories
+    from cobot_analysis.models.ioc import targets_from_table
+    from cobot_analysis.models.ioc.pace import target_durations
+
+    ws = Path(workspace)
+    means = read_trajectories(ws / "average" / "means.parquet")
+    df = means[means["kind"] == "mean"] if "kind" in means else means
+    if "scenario" in df and df["scenario"].notna().any():
+        df = df[df["scenario"].notna()]
+    spec = replace(ioc_spec(model, fit=fit.split(",") if fit else None), n_intervals=intervals)
+    targets = targets_from_table(df, entity="table" if model == "table" else "walker", goal=goal_rule("auto", df),
+                                 convention=conventions.get("continuous"))
+    trials = read_trajectories(ws / "import-published" / "trajectories.parquet")
+    dpath = ws / "import-published" / "durations.parquet"
+    keys = ["scenario", "condition", "direction"]
+    measured_T = target_durations(targets, means=df, trials=trials[trials["kind"] == "trial"],
+                                  durations=pd.read_parquet(dpath) if dpath.is_file() else None,
+                                  mean_keys=df.groupby("trial")[keys].first() if set(keys) <= set(df.columns) else None)
+    return spec, targets, measured_T
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
+    ap.add_argument("--workspace")
+    ap.add_argument("--model", default="improved", choices=("improved", "table"))
     ap.add_argument("--means")
     ap.add_argument("--synthetic", type=int)
     ap.add_argument("--paths", type=int, default=0, help="N targets spread over the list (0: all)")
     ap.add_argument("--intervals", type=int, default=50)
-    ap.add_argument("--fit", default="a2,a3,a4", help="the continuous walker's fitted set (held_weights)")
+    ap.add_argument("--fit", default="a2,a3,a4", help="the fitted set (default: held_weights' complement)")
     ap.add_argument("--noise", type=float, default=0.0)
     ap.add_argument("--jobs", type=int, default=2, help="worker processes of the bi-level fit")
     ap.add_argument("--skip-bilevel", action="store_true")
@@ -41,10 +78,11 @@ def main() -> None:
     from cobot_analysis.design import WALKING_GOAL
     from cobot_analysis.models.ioc import IOCSpec, fit, targets_from_table
     from cobot_analysis.models.ioc.recovery import synthetic_targets
-    from cobot_analysis.models.ioc.single_level import fit_feasible_path
+    from cobot_analysis.models.ioc.single_level import cross_check, fit_feasible_path
     from cobot_analysis.models.presets import load_weights, names_for, weights_vector
     from cobot_analysis.parallel import executor
 
+    measured_T = None
     w = weights_vector(load_weights("walking-2021", "improved"), "improved")
     spec = IOCSpec(model="improved", start_weights=tuple(w), n_intervals=args.intervals, fitted=tuple(args.fit.split(",")))
     if args.synthetic:
@@ -53,6 +91,8 @@ def main() -> None:
         for n in spec.fitted:
             ws[names_for("improved").index(n)] *= 2
         spec = replace(spec, start_weights=tuple(ws))
+    elif args.workspace:
+        spec, targets, measured_T = workspace_targets(args.workspace, args.model, args.intervals, args.fit)
     else:
         df = pd.read_parquet(args.means)
         targets = targets_from_table(df[df["kind"] == "mean"] if "kind" in df else df, entity="walker", goal=WALKING_GOAL)
@@ -65,7 +105,7 @@ def main() -> None:
     rows = []
     t0, c0 = time.perf_counter(), cpu()
     with executor(args.jobs) as pool:
-        s = fit_feasible_path(spec, targets, pool=pool, chunks=args.jobs, restarts=args.restarts)
+        s = fit_feasible_path(spec, targets, pool=pool, chunks=args.jobs, restarts=args.restarts, measured_T=measured_T)
     ts, cs = time.perf_counter() - t0, cpu() - c0
     mem = lambda who: resource.getrusage(who).ru_maxrss / 1024  # noqa: E731  MB (Linux: kB)
     mem_s = (mem(resource.RUSAGE_SELF), mem(resource.RUSAGE_CHILDREN))
@@ -75,7 +115,8 @@ def main() -> None:
     if not args.skip_bilevel:
         t0, c0 = time.perf_counter(), cpu()
         with executor(args.jobs) as pool:
-            b = fit(spec, targets, pool=pool, chunks=4 * args.jobs)
+            b = fit(spec, targets, pool=pool, chunks=4 * args.jobs, measured_T=measured_T)
+            crossed = cross_check(spec, targets, s, b.weights, pool=pool, chunks=args.jobs)
         tb, cb = time.perf_counter() - t0, cpu() - c0
         rows.append(("bilevel", tb, cb, b.objective, b.weights, f"{b.evaluations} evaluations; peak memory of the largest worker "
                      f"so far {mem(resource.RUSAGE_CHILDREN):.0f} MB"))
@@ -86,6 +127,8 @@ def main() -> None:
         print(f"| {m} | {t:.1f} | {c:.1f} | {D:.4f} | " + " | ".join(f"{wd[n]:.4g}" for n in spec.fitted) + f" | {note} |")
     if not args.skip_bilevel:
         print(f"ratios bilevel / single-level: wall {tb / ts:.2f}, CPU {cb / cs:.2f}; D single-level / bilevel: {s.objective / b.objective:.4f}")
+        print(f"bilevel weights re-solved with the single-level paths as a further warm start (cross_check): D {crossed:.4f}; "
+              f"D single-level / that: {s.objective / crossed:.4f}")
 
 
 if __name__ == "__main__":

@@ -42,6 +42,15 @@ def cli(capsys):
     return invoke
 
 
+@pytest.fixture
+def dask_scheduler():
+    """The address of a local Dask cluster (2 worker processes, 1 thread each) for one test, stopped after it
+    (an idle cluster kept for the session costs more CPU, about 4 s a minute, than starting one per test)."""
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        yield cluster.scheduler_address
+
+
 def realdata_dir() -> Path | None:
     """``$COBOT_REALDATA`` or ``../shared/realdata`` beside the project, if present."""
     env = os.environ.get("COBOT_REALDATA")

@@ -3,6 +3,8 @@ bad input gives one line, exit code 2 and no stage directory."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import sys
 from pathlib import Path
 
@@ -26,14 +28,24 @@ def _workspace(tmp_path, df) -> Path:
 
 
 @pytest.fixture(scope="module")
-def pair_ws(tmp_path_factory):
-    """A small synthetic pair study run through every analysis command once."""
+def pair_study(tmp_path_factory):
+    """A small synthetic pair study run through every analysis command once, the report without a study
+    name (the workspace's): the workspace and what that report printed on stderr."""
     from cobot_analysis.cli import run
 
     ws = _workspace(tmp_path_factory.mktemp("pairs"), pair_table(seed=7, n_pairs=5, goals=4, n=20))
-    for args in (["average"], ["compare"], ["stats"], ["reconstruct"], ["report", "synthetic-pairs", "--to", str(ws.parent / "report")]):
+    for args in (["average"], ["compare"], ["stats"], ["reconstruct"]):
         assert run(["-q", *args, "--out", str(ws)]) == 0, args
-    return ws
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):  # the CLI's rich console writes to sys.stderr as it is at each print
+        code = run(["report", "--out", str(ws), "--to", str(ws.parent / "report")])
+    assert code == 0, err.getvalue()
+    return ws, err.getvalue()
+
+
+@pytest.fixture
+def pair_ws(pair_study):
+    return pair_study[0]
 
 
 def test_pair_study_every_question_has_a_row_and_figures(pair_ws):
@@ -78,15 +90,21 @@ def test_second_run_is_skipped_and_force_redoes(pair_ws, cli):
     assert code == 0 and "up to date" in err
 
 
-def test_report_takes_the_workspace_study_and_checks_a_given_name(pair_ws, cli):
-    to = pair_ws.parent / "report-again"
-    code, _, err = cli("report", "--out", pair_ws, "--to", to, "--force")  # no name: the workspace's study
-    assert code == 0, err
+def test_report_takes_the_workspace_study_and_checks_a_given_name(pair_study, cli):
+    pair_ws, err = pair_study  # the fixture's report: no name, so the workspace's study
+    first = pair_ws.parent / "report"
     lines = err.strip().splitlines()
     assert not any("warning" in line for line in lines)
-    figures = sorted(p.name for p in to.glob("*.png"))
-    assert figures == sorted(p.name for p in (pair_ws.parent / "report").glob("*.png")) and len(figures) > 5
-    assert lines[-1] == f"report: {len(figures)} figures -> {to / 'README.md'}"
+    figures = sorted(p.name for p in first.glob("*.png"))
+    assert len(figures) > 5 and lines[-1] == f"report: {len(figures)} figures -> {first / 'README.md'}"
+    # the workspace's study named: the same report (its parameters, the study, unchanged: up to date, copied)
+    to = pair_ws.parent / "report-again"
+    code, _, err = cli("report", "synthetic-pairs", "--out", pair_ws, "--to", to)
+    assert code == 0, err
+    lines = err.strip().splitlines()
+    assert lines[0] == f"report: up to date, skipped (--force redoes it) -> {pair_ws / 'report'}"
+    assert lines[-1].startswith(f"report (synthetic-pairs): {len(figures)} figures") and lines[-1].endswith(f"-> {to / 'README.md'}")
+    assert sorted(p.name for p in to.glob("*.png")) == figures
     code, _, err = cli("report", "pairs", "--out", pair_ws, "--to", to)  # the old short name, then the check
     lines = err.strip().splitlines()
     assert code == 2 and lines[0] == "warning: pairs is deprecated in `report`: use pair-carriage-2022"

@@ -107,8 +107,8 @@ def test_model_and_prediction_results(walking):
     out = walking[0]
     for conv in ("continuous", "published"):
         means = out / "average" / "means.parquet"
-        gen = models.generate(out, study="walking-2020", weights="walking-2021", convention=conv, jobs=1,
-                              **({"means": means} if conv == "published" else {}))
+        gen = models.generate(out, study="walking-2020", weights="walking-2021", convention=conv, jobs=1, intervals=20,
+                              **({"means": means} if conv == "published" else {}))  # 20 intervals: the numbers, not the paths
         numbers = check(gen)
         assert numbers.convention == conv and gen.directory.name == ("generate" if conv == "continuous" else "generate-published")
         fit = models.fit_ioc(out, max_evaluations=2, intervals=20, compare=False, convention=conv, jobs=1)

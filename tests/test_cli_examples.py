@@ -104,6 +104,31 @@ def test_help_examples_run_as_written(cli, help_examples, tmp_path, monkeypatch)
     assert (work / "walking-report" / "README.md").is_file() and (work / "pairs-report" / "README.md").is_file()
     assert (work / "walking" / "predict-fitted").is_dir() and (work / "walking" / "velocity-commands" / "commands.parquet").is_file()
     assert (work / "results.md").is_file() and (work / "robot-baseline.json").is_file()
+    check_small_demo(cli, work / "demo")  # the last example, `demo --size small`: the README's main job
+
+
+def check_small_demo(cli, out: Path) -> None:
+    """What `cobot-analysis demo --out OUT --size small` (run by the examples above: one run of the small demo
+    in the suite) must have made: every study end to end, the report, and nothing redone by a second run."""
+    import pandas as pd
+
+    from cobot_analysis.schema import TRAJECTORIES, read_table
+
+    report = (out / "report.md").read_text()
+    for section in ("Preprocessing", "Statistics", "Localisation accuracy"):
+        assert section in report
+    walking = read_table(out / "walking" / "preprocess" / "trajectories.parquet", TRAJECTORIES)
+    assert walking.groupby(["trial", "entity"]).ngroups == 16  # 2 subjects x 8 conditions x 1 trial
+    pairs = read_table(out / "pairs" / "preprocess" / "trajectories.parquet", TRAJECTORIES)
+    # 2 pairs x 3 goals x 3 scenarios recordings -> forward + return trials, 3 entities each
+    assert pairs.groupby(["trial", "entity"]).ngroups == 2 * 3 * 3 * 2 * 3
+    assert (out / "reports" / "walking" / "README.md").is_file() and (out / "reports" / "pairs" / "README.md").is_file()
+    runs = pd.read_parquet(out / "localisation" / "localisation" / "localisation.parquet")
+    assert len(runs) == 3  # ROS1, ROS2 and MCAP versions of the same run
+    # a second run finds every stage up to date and changes nothing
+    before = (out / "walking" / "preprocess" / "manifest.json").read_text()
+    assert cli("-q", "demo", "--out", out, "--size", "small", "--jobs", "1")[0] == 0
+    assert (out / "walking" / "preprocess" / "manifest.json").read_text() == before
 
 
 @pytest.mark.datasets

@@ -1,35 +1,10 @@
-"""The README's main job: `cobot-analysis demo` runs every study end to end and writes a report."""
+"""The README's main job: `cobot-analysis demo`. The small demo end to end (every study, the report, a second
+run that redoes nothing) is checked on the run of its `--help` example: tests/test_cli_examples.py,
+``check_small_demo`` (one run of the demo in the suite, not two)."""
 
 from __future__ import annotations
 
 from pathlib import Path
-
-import pandas as pd
-import pytest
-
-from cobot_analysis.schema import TRAJECTORIES, read_table
-
-
-@pytest.mark.slow
-def test_small_demo_runs_every_stage_and_writes_the_report(cli, tmp_path):
-    out = tmp_path / "demo"
-    code, _, err = cli("-q", "demo", "--out", out, "--size", "small", "--jobs", "1")
-    assert code == 0, err
-    report = (out / "report.md").read_text()
-    for section in ("Preprocessing", "Statistics", "Localisation accuracy"):
-        assert section in report
-    walking = read_table(out / "walking" / "preprocess" / "trajectories.parquet", TRAJECTORIES)
-    assert walking.groupby(["trial", "entity"]).ngroups == 16  # 2 subjects x 8 conditions x 1 trial
-    pairs = read_table(out / "pairs" / "preprocess" / "trajectories.parquet", TRAJECTORIES)
-    # 2 pairs x 3 goals x 3 scenarios recordings -> forward + return trials, 3 entities each
-    assert pairs.groupby(["trial", "entity"]).ngroups == 2 * 3 * 3 * 2 * 3
-    assert (out / "reports" / "walking" / "README.md").is_file() and (out / "reports" / "pairs" / "README.md").is_file()
-    runs = pd.read_parquet(out / "localisation" / "localisation" / "localisation.parquet")
-    assert len(runs) == 3  # ROS1, ROS2 and MCAP versions of the same run
-    # a second run finds every stage up to date and changes nothing
-    before = (out / "walking" / "preprocess" / "manifest.json").read_text()
-    assert cli("-q", "demo", "--out", out, "--size", "small", "--jobs", "1")[0] == 0
-    assert (out / "walking" / "preprocess" / "manifest.json").read_text() == before
 
 
 def test_demo_rejects_an_unknown_size(cli, tmp_path):

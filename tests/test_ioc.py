@@ -165,16 +165,13 @@ def test_fit_ioc_command_end_to_end_and_per_subject(planted_paths, tmp_path, cli
     assert "## Inverse optimal control (improved model, one fit per subject, continuous convention)" in (out / "fit-ioc-subjects" / "results.md").read_text()
 
 
-def test_fit_ioc_on_dask_equals_local_run(planted_paths, tmp_path, cli):
-    from distributed import LocalCluster
-
+def test_fit_ioc_on_dask_equals_local_run(planted_paths, tmp_path, cli, dask_scheduler):
     paths = {c: planted_paths[c] for c in CONDITIONS[:2]}
     src = write_table(_table(paths), tmp_path / "t.parquet", TRAJECTORIES)
     args = ["--trajectories", src, "--fit", "a1,a4", "--max-evaluations", "8", "--no-compare"]
     code, _, err = cli("fit-ioc", "--out", tmp_path / "local", *args, "-j", "1")
     assert code == 0, err
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
-        code, _, err = cli("fit-ioc", "--out", tmp_path / "dask", *args, "--scheduler", cluster.scheduler_address)
+    code, _, err = cli("fit-ioc", "--out", tmp_path / "dask", *args, "--scheduler", dask_scheduler)
     assert code == 0, err
     local = json.loads((tmp_path / "local" / "fit-ioc" / "weights.json").read_text())["fits"]["all"]
     dask = json.loads((tmp_path / "dask" / "fit-ioc" / "weights.json").read_text())["fits"]["all"]

@@ -358,3 +358,39 @@ def test_subjects_at_the_start_weights_are_left_out_of_the_comparison():
     assert both["subjects"] == 4 and moved["subjects"] == 2 and moved["at_start"] == ["s3", "s4"]
     assert moved["Q"] == pytest.approx(0.6 ** 2 / 0.05 ** 2 / 2)  # two subjects, equal sd: Q = (y1 - y2)^2 / (2 s^2)
     assert moved["differ"] is True
+
+
+def test_escape_probes_lie_in_the_plane_of_the_flattest_directions():
+    """The escape probes of a converged point: 8 directions (axes and diagonals) in the plane of the two
+    least-curved eigenvectors at each distance, none along the stiff one; clipped to the search box
+    without duplicates; one fitted weight: +-d along its axis."""
+    from cobot_analysis.models.ioc.fit import LOG_BOUNDS
+    from cobot_analysis.models.ioc.single_level import PROBE_DISTANCES, escape_probes
+
+    y = np.array([0.5, -1.0, -2.0])
+    pts = escape_probes(y, np.diag([5.0, 0.01, 0.04]))
+    assert len(pts) == 8 * len(PROBE_DISTANCES)
+    d = np.array(pts) - y
+    np.testing.assert_allclose(d[:, 0], 0.0, atol=1e-12)  # the stiff direction is left alone
+    np.testing.assert_allclose(sorted(set(np.round(np.linalg.norm(d, axis=1), 9))), PROBE_DISTANCES)
+    at_limit = escape_probes(np.array([LOG_BOUNDS[0]]), np.array([[0.1]]))  # one weight on the lower limit
+    np.testing.assert_allclose(np.ravel(at_limit), [LOG_BOUNDS[0] + d for d in PROBE_DISTANCES])
+
+
+def test_feasible_path_fits_the_time_gauge_to_measured_durations():
+    """With the subjects' durations (here the truth's walked 1.25 times slower), the fit starts at the
+    durations' time gauge and reports its own, as the bi-level fit: the weights come back as the truth
+    with a1..a3 x c^4, c = 1.25 to 1e-3, every duration c times the truth's, D ~ 0."""
+    from cobot_analysis.models.ioc.recovery import synthetic_targets
+    from cobot_analysis.models.ioc.single_level import fit_feasible_path
+
+    targets = synthetic_targets(SPEC, W, 6)
+    T = np.array([solve_target(SPEC, W, t, ("rest", "line"))[0]["T"] for t in targets])
+    r = fit_feasible_path(_perturbed(SPEC), targets, measured_T=1.25 * T)
+    assert abs(r.pace["c_start"] * r.pace["c"] / 1.25 - 1) < 1e-3  # a1 held: the start's gauge and the fit's make 1.25
+    np.testing.assert_allclose(r.pace["calibrated_T"], 1.25 * T, rtol=1e-3)
+    assert r.objective < 1e-4 and r.failed == 0, (r.objective, r.status)
+    names = names_for("improved")
+    for n in ("a1", *SPEC.fitted):
+        scale = 1.25 ** 4 if n in ("a1", "a2", "a3") else 1.0
+        assert abs(r.weights[n] / (W[names.index(n)] * scale) - 1) < 0.01, (n, r.weights[n], W[names.index(n)] * scale)

@@ -7,13 +7,11 @@ import pytest
 
 
 @pytest.mark.slow
-def test_generate_study_on_dask_equals_local_run(cli, tmp_path):
-    distributed = pytest.importorskip("distributed")
+def test_generate_study_on_dask_equals_local_run(cli, tmp_path, dask_scheduler):
     args = ("generate", "--study", "walking-2020", "--convention", "continuous", "--intervals", "20", "--samples", "40")
     code, _, err = cli(*args, "--out", tmp_path / "local", "--jobs", "2")
     assert code == 0, err
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
-        code, _, err = cli(*args, "--out", tmp_path / "dask", "--scheduler", cluster.scheduler_address)
+    code, _, err = cli(*args, "--out", tmp_path / "dask", "--scheduler", dask_scheduler)
     assert code == 0, err
     local = pd.read_parquet(tmp_path / "local" / "generate" / "generated.parquet")
     dask = pd.read_parquet(tmp_path / "dask" / "generate" / "generated.parquet")

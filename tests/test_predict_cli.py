@@ -47,6 +47,7 @@ def traj_file(tmp_path):
 
 
 FAST = ["--settings", "8:20,10:30", "-j", "1", "--convention", "continuous"]
+ONE_SETTING = ["--settings", "8:20", *FAST[2:]]  # where a second setting only repeats the windows' solves
 
 
 @pytest.mark.slow
@@ -223,12 +224,10 @@ def test_interrupted_sweep_resumes_without_redoing_finished_trajectories(tmp_pat
     pd.testing.assert_frame_equal(metrics[metrics["n0"] == 8].reset_index(drop=True), reference)
 
 
-def test_dask_cluster_gives_the_same_results_as_the_local_pool(tmp_path):
-    distributed = pytest.importorskip("distributed")
+def test_dask_cluster_gives_the_same_results_as_the_local_pool(tmp_path, dask_scheduler):
     trajs = trajectories_from_table(trajectories_table(n_traj=3), CONFIG)
     local, _, _ = run_sweep(trajs, CONFIG, WorkDir(tmp_path / "local"), jobs=1)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
-        dask, _, _ = run_sweep(trajs, CONFIG, WorkDir(tmp_path / "dask"), scheduler=cluster.scheduler_address)
+    dask, _, _ = run_sweep(trajs, CONFIG, WorkDir(tmp_path / "dask"), scheduler=dask_scheduler)
     pd.testing.assert_frame_equal(dask, local)
 
 
@@ -440,6 +439,7 @@ def test_paper_rows_put_ours_beside_the_paper():
     assert paper_rows(metrics.assign(n0=25), PUBLISHED) == []  # the papers' setting only
 
 
+@pytest.mark.slow  # the predict command end to end with the goal predictors: about 4 s idle (the library: test_predict_goal.py)
 def test_goal_predictors_and_horizon_sweep_from_the_command_line(cli, tmp_path, traj_file):
     """goal (the goal given), goal-inferred (two candidates) and cv, with the horizon sweep: its
     tables, figure and results section; the goal-aware predictions start on the walker."""
@@ -448,7 +448,8 @@ def test_goal_predictors_and_horizon_sweep_from_the_command_line(cli, tmp_path, 
     out = tmp_path / "ws"
     path = traj_file(n_traj=2)
     code, _, err = cli("predict", "--out", out, "--trajectories", path, "--predictors", "goal,goal-inferred,cv",
-                       "--goal", "1.5", "1.5", "0", "--candidates", "1.5,1.5;-3,-3", "--horizons", "5,20,all", *FAST)
+                       "--goal", "1.5", "1.5", "0", "--candidates", "1.5,1.5;-3,-3", "--horizons", "5,20,all",
+                       *ONE_SETTING)
     assert code == 0, err
     stage = out / "predict"
     errors = read_table(stage / "horizon_errors.parquet", HORIZON_ERRORS)

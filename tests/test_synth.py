@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -23,15 +24,24 @@ SMALL = ["N1500", "S4015", "O-0640"]  # 3 conditions: near / far, facing / away 
 
 
 def read_c3d(path):
-    """(labels, xyz (frames, markers, 3) in m with NaN where occluded, rate, units, residuals)."""
+    """(labels, xyz (frames, markers, 3) in m with NaN where occluded, rate, units, residuals), each file read
+    once per session (the study fixtures write their files once; the arrays are read-only)."""
+    labels, *rest = _read_c3d(str(path))
+    return [list(labels), *rest]
+
+
+@functools.lru_cache(maxsize=None)
+def _read_c3d(path: str):
     import ezc3d
 
-    c = ezc3d.c3d(str(path))
+    c = ezc3d.c3d(path)
     pts = c["data"]["points"]
-    labels = list(c["parameters"]["POINT"]["LABELS"]["value"])
+    labels = tuple(c["parameters"]["POINT"]["LABELS"]["value"])
     units = c["parameters"]["POINT"]["UNITS"]["value"][0]
     rate = c["parameters"]["POINT"]["RATE"]["value"][0]
-    return labels, np.transpose(pts[:3], (2, 1, 0)) / 1000.0, rate, units, c["data"]["meta_points"]["residuals"][0].T
+    xyz, residuals = np.transpose(pts[:3], (2, 1, 0)) / 1000.0, c["data"]["meta_points"]["residuals"][0].T
+    xyz.flags.writeable = residuals.flags.writeable = False
+    return labels, xyz, rate, units, residuals
 
 
 @pytest.fixture(scope="module")

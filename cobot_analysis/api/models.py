@@ -566,13 +566,14 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in key)
             report = (lambda n, f, best, key=key: on_evaluation(key, n, f, best)) if on_evaluation else None
             t0 = time.perf_counter()
+            # the time gauge fitted to the subjects' durations (models.ioc.pace; continuous, fit over the means)
+            measured_T = target_durations(targets, means=mean_df, trials=trial_df, durations=durations, mean_keys=mean_keys) \
+                if key == "all" and conv.name == "continuous" and model in ("improved", "table") else None
             if method == "single-level":  # max_evaluations: its budget of steps, when below the method's own
                 steps = min(spec.max_evaluations, MAX_STEPS)
-                results[key] = as_ioc_result(fit_feasible_path(spec, targets, pool=pool, chunks=n_chunks, max_steps=steps))
+                results[key] = as_ioc_result(fit_feasible_path(spec, targets, pool=pool, chunks=n_chunks, max_steps=steps,
+                                                               measured_T=measured_T))
             else:
-                # the time gauge fitted to the subjects' durations (models.ioc.pace; continuous, fit over the means)
-                measured_T = target_durations(targets, means=mean_df, trials=trial_df, durations=durations, mean_keys=mean_keys) \
-                    if key == "all" and conv.name == "continuous" and model in ("improved", "table") else None
                 results[key] = ioc_fit(spec, targets, pool=pool, chunks=n_chunks,
                                        checkpoint=checkpoint / f"{safe}.json" if checkpoint else None, resume=resume,
                                        on_evaluation=report, measured_T=measured_T)

@@ -40,6 +40,7 @@ from cobot_analysis.models.presets import names_for
 
 METHODS = ("bilevel", "single-level")
 MAX_STEPS = 40  # the feasible-path fit's own budget of trust-region steps per round
+PROBE_DISTANCES = (1.5, 3.0)  # log10 units: the escape probes' distances from a converged point (``escape_probes``)
 SMOOTHING = 1e-4  # eps of the smoothed |.| (rad) and norm (m) in the NLP's D: < 1e-4 per sample
 
 
@@ -59,6 +60,8 @@ class SingleLevelResult:
     kkt_residual: float  # max |KKT| at the NLP's solution
     per_target: list[dict] = field(default_factory=list)
     timing: dict = field(default_factory=dict)  # seconds: start (lower levels, multipliers), steps (with the re-solves)
+    pace: dict | None = None  # measured durations given: the time-gauge calibration (models.ioc.pace), as the bi-level fit's
+    probes: int = 0  # re-solved D at escape probes (``escape_probes``)
     primals: list = field(default_factory=list, repr=False)  # the single-level paths (warm starts)
 
     def to_json(self) -> dict:
@@ -265,31 +268,43 @@ def branch_calls(spec: IOCSpec, fitted: tuple[int, ...], n_samples: int, eps: fl
     return _Call(newton), _Call(second), _Call(distance_derivatives(ocp, n_samples, spec.angle, spec.angle_weight, eps))
 
 
-@functools.lru_cache(maxsize=8)
-def _ordering_of(key) -> np.ndarray:
-    from scipy.sparse import csc_matrix
-    from scipy.sparse.csgraph import reverse_cuthill_mckee
-
-    n, row, colind = key
-    A = csc_matrix((np.ones(len(row)), np.array(row), np.array(colind)), shape=(n, n))
-    return np.asarray(reverse_cuthill_mckee((A + A.T).tocsr(), symmetric_mode=True))
-
-
-def _ordering(newton: _Call) -> np.ndarray:
+class _Permutation:
     """A reverse Cuthill-McKee permutation of the KKT matrix K (variables and multipliers of each
-    stage brought together: a band of width ~ 2 stages, factorised without fill)."""
-    K = newton.out[1]
-    return _ordering_of((K.shape[0], tuple(K.indices), tuple(K.indptr)))
+    stage brought together: a band of width ~ 2 stages, factorised without fill), and the map that
+    permutes K's stored values straight into the CSC arrays of K[order][:, order] (K's sparsity is
+    fixed: computed once per ``_Call``)."""
+
+    def __init__(self, K):
+        from scipy.sparse import csc_matrix
+        from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+        pattern = csc_matrix((np.arange(1.0, K.nnz + 1.0), K.indices, K.indptr), shape=K.shape)
+        self.order = np.asarray(reverse_cuthill_mckee((pattern + pattern.T).tocsr(), symmetric_mode=True))
+        P = pattern[self.order][:, self.order].tocsc()
+        P.sort_indices()
+        self.source, self.indices, self.indptr = P.data.astype(int) - 1, P.indices.copy(), P.indptr.copy()
+
+    def apply(self, K):
+        from scipy.sparse import csc_matrix
+
+        return csc_matrix((K.data[self.source], self.indices, self.indptr), shape=K.shape)
+
+
+def _permutation(newton: _Call) -> _Permutation:
+    """The ``_Permutation`` of the KKT matrix output of ``newton`` (kept on it)."""
+    if not hasattr(newton, "permutation"):
+        newton.permutation = _Permutation(newton.out[1])
+    return newton.permutation
 
 
 class _Factor:
-    """LU of K permuted symmetrically (``_ordering``), solving K x = b and K' x = b."""
+    """LU of K permuted symmetrically (``_Permutation``), solving K x = b and K' x = b."""
 
-    def __init__(self, K, order):
+    def __init__(self, K, perm: _Permutation):
         from scipy.sparse.linalg import splu
 
-        self.order = order
-        self.lu = splu(K[order][:, order].tocsc(), permc_spec="NATURAL")
+        self.order = perm.order
+        self.lu = splu(perm.apply(K), permc_spec="NATURAL")
 
     def solve(self, b, trans: bool = False):
         b = np.asarray(b)
@@ -305,7 +320,7 @@ class _Branch:
 
     def __init__(self, calls, p, data, nz: int):
         self.newton, self.second, self.Dgh = calls
-        self.order = _ordering(self.newton)
+        self.perm = _permutation(self.newton)
         self.p, self.data, self.nz = p, data, nz
         self.v = self.S = None
 
@@ -321,7 +336,7 @@ class _Branch:
                 return False
             last = res
             try:
-                lu = _Factor(K, self.order)
+                lu = _Factor(K, self.perm)
             except RuntimeError:
                 return False
             if res <= tol:
@@ -376,9 +391,30 @@ def trust_region_step(g: np.ndarray, H: np.ndarray, radius: float) -> np.ndarray
     return s
 
 
+def escape_probes(y: np.ndarray, H: np.ndarray, distances=PROBE_DISTANCES) -> list[np.ndarray]:
+    """Points y + d u (log10 weights, clipped to the search box) around a converged point y, in the plane
+    of the two eigenvectors v1, v2 of the model Hessian H with the least curvature (the directions the
+    data determine least, where D is flat enough to hide another basin behind a low ridge): u along
+    +-v1, +-v2 and the four diagonals (one direction when one weight is fitted), d in ``distances``.
+    Duplicates (a clip onto a search limit) and y itself are left out."""
+    lam, V = np.linalg.eigh(0.5 * (H + H.T))
+    lo, hi = LOG_BOUNDS
+    flat = V[:, np.argsort(lam)[:2]]
+    dirs = [flat[:, 0]] if flat.shape[1] == 1 else [np.cos(a) * flat[:, 0] + np.sin(a) * flat[:, 1]
+                                                      for a in np.arange(8) * np.pi / 4]
+    out: list[np.ndarray] = []
+    for d in distances:
+        for u in (dirs if len(dirs) > 1 else [dirs[0], -dirs[0]]):
+            q = np.clip(y + d * u, lo, hi)
+            if np.abs(q - y).max() > 1e-6 and all(np.abs(q - o).max() > 1e-6 for o in out):
+                out.append(q)
+    return out
+
+
 def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | None = None, eps: float = SMOOTHING,
                       radius: float = 0.3, max_steps: int = MAX_STEPS, tol: float = 1e-8, xtol: float = 1e-3,
-                      restarts: int = 2, pool=None, chunks: int = 2) -> SingleLevelResult:
+                      restarts: int = 2, probe: bool = True, measured_T=None, pool=None,
+                      chunks: int = 2) -> SingleLevelResult:
     """The single-level NLP (module docstring) solved by a feasible-path trust-region SQP in
     y = log10 of the fitted weights (docs/methods.md sec. 6.1): every iterate keeps each target's
     KKT conditions F_n(z_n, lambda_n; w) = 0 (Newton's method on the lower level's KKT matrix K_n,
@@ -389,19 +425,28 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
     linear in w), both carried to y by dw/dy = w ln 10; the step minimises that quadratic model
     within |dy| <= radius (``trust_region_step``) and the search box (a weight on a search limit that
     D pushes outward is held for the step), and is accepted when D on the
-    corrected paths falls by at least 10 % of the predicted decrease (radius x2 up to 1, or /4; a
-    failed correction is a rejected step).
+    corrected paths falls by at least 10 % of the predicted decrease (radius x2 up to 1, or /4; a path
+    whose correction fails, a fold of its branch, goes on from its lower level re-solved at the step's
+    weights; the step is rejected only if that fails too).
     Stops when an accepted step is below ``xtol`` (log10), the radius falls below it, or after
     ``max_steps`` steps. Start: the lower level solved at the start weights (``start``: given paths).
     The D reported is the one of the lower level re-solved at the fitted weights, as the bi-level fit
     solves it (warm from the branch's path and from the two cold guesses, the least cost kept). When
     that re-solve lands on other paths (a lower-cost local minimum of some lower levels), the steps
-    start again on those (``restarts`` times at most) and the round with the least re-solved D is
-    kept. ``pool``: an executor for the lower-level solves and the Newton corrections (chunks of
+    start again on those; when it does not and ``probe``, D is re-solved at the ``escape_probes`` and
+    the steps start again from the lowest if it is below (``restarts`` new rounds at most); the round
+    with the least re-solved D is kept. ``measured_T``: the subjects' duration per target (nan: none),
+    as the bi-level fit takes them (``fit.fit``): the start weights are carried to their time gauge
+    first, the fitted weights calibrated to it after (``pace.calibrate``; the result's ``pace``).
+    ``pool``: an executor for the lower-level solves and the Newton corrections (chunks of
     targets; None: in-process), as the bi-level fit's."""
+    from dataclasses import replace
+
     from cobot_analysis.conventions import CONTINUOUS
     from cobot_analysis.models.dynamics import N_STATE
+    from cobot_analysis.models.ioc.pace import calibrate, scale_time, time_gauge
     from cobot_analysis.models.oc.duration import initial_duration
+    from cobot_analysis.models.presets import weights_vector
 
     t0 = time.perf_counter()
     check_spec(spec, len(targets))
@@ -433,14 +478,33 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
                 out[i] = r
         return out
 
-    def correct(w, V) -> list | None:
-        """Every branch corrected at w from the vectors V (None if one fails)."""
+    def correct(w, V, jump: bool = False) -> list | None:
+        """Every branch corrected at w from the vectors V (None if one fails). ``jump``: a branch whose
+        Newton correction fails (a fold: its path ends there) goes on from its lower level re-solved at w
+        (warm from the predicted path and from the cold guesses, the least cost kept), as the bi-level fit
+        would solve it there."""
         out = run(correct_chunk, lambda p: (shape, tuple(fi), M, eps, tol, w, [(P[i], data[i], V[i]) for i in p]))
+        lost = [i for i, r in enumerate(out) if r is None]
+        if lost and jump:
+            solved = evaluate_chunk((spec, w, [targets[i] for i in lost], [V[i][:nz] for i in lost]))
+            again = correct_chunk((shape, tuple(fi), M, eps, tol, w, [(P[i], data[i], np.concatenate([z, np.zeros(nl)]))
+                                                                    for i, (_, z) in zip(lost, solved) if z is not None]))
+            found = iter(again)
+            for i, (_, z) in zip(lost, solved):
+                out[i] = next(found) if z is not None else None
         return None if any(r is None for r in out) else out
 
-    start_terms = []
+    start_terms, c_start = [], None
     if start is None:
         ref = run(reference_chunk, lambda p: (spec, w, [targets[i] for i in p]))
+        if measured_T is not None:  # the start weights' time gauge first, as the bi-level fit (``fit.fit``): the
+            # lower levels' cold guesses (duration T0) then start near the optimal durations and find the least-cost
+            # local minima that they miss far from them (D itself is invariant to the gauge)
+            c_start = time_gauge([d["T"] if d["success"] else math.nan for d, _ in ref], measured_T)
+            if np.isfinite(c_start):
+                w = weights_vector(scale_time(dict(zip(names, map(float, w))), c_start), spec.model)
+                spec = replace(spec, start_weights=tuple(map(float, w)))
+                ref = run(reference_chunk, lambda p: (spec, w, [targets[i] for i in p]))
         start_terms = [d for d, _ in ref]
         start = [primal for _, primal in ref]
         if any(z is None for z in start):
@@ -473,7 +537,7 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
             steps += 1
             w_new = w.copy()
             w_new[fi] = 10.0 ** (y + s)
-            new = correct(w_new, [b["v"] + b["S"] @ (w_new[fi] - w[fi]) for b in branches])  # predictor, corrector
+            new = correct(w_new, [b["v"] + b["S"] @ (w_new[fi] - w[fi]) for b in branches], jump=True)  # predictor, corrector
             D_new = float(np.mean([b["D"] for b in new])) if new is not None else math.inf
             fails += new is None
             if new is not None and pred > 0 and D - D_new >= 0.1 * pred:
@@ -487,42 +551,102 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
                 radius /= 4
         return w, branches, steps, accepted, fails
 
-    best, steps, accepted, fails, rounds = None, 0, 0, 0, 0
-    for _ in range(1 + restarts):
+    def resolve(ws: list, Zs: list | None) -> list:
+        """The lower levels re-solved at each weight vector of ``ws`` as the bi-level fit solves them (warm from
+        ``Zs`` and from the two cold guesses, the least cost kept; ``Zs`` None: the cold guesses only): per
+        vector, (D, terms, primals)."""
+        futures = [[pool.submit(evaluate_chunk, (spec, wk, [targets[i] for i in p], [Zs[i] for i in p]))
+                    if Zs is not None else pool.submit(reference_chunk, (spec, wk, [targets[i] for i in p])) for p in parts]
+                   for wk in ws]
+        out = []
+        for fs in futures:
+            res = [None] * n
+            for p, f in zip(parts, fs):
+                for i, r in zip(p, f.result()):
+                    res[i] = r
+            out.append((float(np.mean([d["D"] for d, _ in res])), [d for d, _ in res], [z for _, z in res]))
+        return out
+
+    best, steps, accepted, fails, rounds, probes = None, 0, 0, 0, 0, 0
+    for k in range(1 + restarts):
         rounds += 1
         w, branches, n_steps, n_acc, n_fail = sqp(w, branches, radius)
         steps, accepted, fails = steps + n_steps, accepted + n_acc, fails + n_fail
         Zs = [b["v"][:nz].copy() for b in branches]
-        solved = run(evaluate_chunk, lambda p: (spec, w, [targets[i] for i in p], [Zs[i] for i in p]))
-        objective = float(np.mean([d["D"] for d, _ in solved]))
+        objective, terms, solved = resolve([w], Zs)[0]
         if best is not None and not objective < best[0]:
             break
-        best = (objective, w.copy(), branches, Zs, [d for d, _ in solved])
-        switched = [z_new is not None and np.abs(z_new - z).max() > 1e-4 for (_, z_new), z in zip(solved, Zs)]
-        if not any(switched):
+        best = (objective, w.copy(), branches, Zs, terms)
+        if k == restarts:
             break
-        # the re-solve found lower-cost paths (another local minimum of some lower levels): start again on them
-        restart = correct(w, [np.concatenate([z_new, np.zeros(nl)]) if sw else b["v"]
-                              for (_, z_new), sw, b in zip(solved, switched, branches)])
+        switched = [z_new is not None and np.abs(z_new - z).max() > 1e-4 for z_new, z in zip(solved, Zs)]
+        if any(switched):  # the re-solve found lower-cost paths (another local minimum of some lower levels)
+            w_next, V = w, [np.concatenate([z_new, np.zeros(nl)]) if sw else b["v"]
+                            for z_new, sw, b in zip(solved, switched, branches)]
+        elif probe:  # a shallow local minimum of D? re-solved D along the flat directions (``escape_probes``)
+            y = np.log10(w[fi])
+            points = escape_probes(y, model(w, branches)[1])
+            probes += len(points)
+            ws = []
+            for q in points:
+                ws.append(w.copy())
+                ws[-1][fi] = 10.0 ** q
+            res = resolve(ws, None)
+            found = [(D, j) for j, (D, _, Z) in enumerate(res) if all(z is not None for z in Z)]
+            if not found or min(found)[0] >= objective:
+                break
+            j = min(found)[1]
+            w_next, V = ws[j], [np.concatenate([z, np.zeros(nl)]) for z in res[j][2]]
+        else:
+            break
+        # start again on those paths
+        restart = correct(w_next, V)
         if restart is None:
             break
-        branches = restart
+        w, branches = w_next, restart
     objective, w, branches, Zs, terms = best
+    nlp_objective = float(np.mean([b["D"] for b in branches]))
     timing["steps"] = time.perf_counter() - t0 - timing["start"]
+    weights, pace = dict(zip(names, map(float, w))), None
+    if measured_T is not None:  # the fitted weights' time gauge (``pace.calibrate``), as the bi-level fit reports it
+        cal = calibrate(lambda wd: resolve([np.asarray(weights_vector(wd, spec.model), float)], Zs)[0][1], weights, terms,
+                        measured_T)
+        weights, terms, objective = cal.weights, cal.terms, cal.D_after
+        pace = {k: v for k, v in asdict(cal).items() if k not in ("weights", "terms")} | {"c_start": c_start}
     rule = CONTINUOUS.oc_rule("table" if spec.model == "table" else "improved")
     logT = np.array([z[ocp._xi[0, N_STATE]] for z in Zs])
     at_bound = int(np.sum((np.abs(logT - np.log(rule.T_bounds[0] * np.array(T0))) < 1e-3)
                           | (np.abs(logT - np.log(rule.T_bounds[1] * np.array(T0))) < 1e-3)))
     start_objective = float(np.mean([d["D"] for d in start_terms])) if start_terms else math.nan
-    return SingleLevelResult(spec=spec, weights=dict(zip(names, map(float, w))), objective=objective,
-                             nlp_objective=float(np.mean([b["D"] for b in branches])),
+    return SingleLevelResult(spec=spec, weights=weights, objective=objective, nlp_objective=nlp_objective,
                              start_objective=start_objective, iterations=steps,
                              status=f"feasible-path SQP: {accepted} of {steps} steps accepted in {rounds} round(s)"
-                                    f"{f', {fails} Newton corrections failed' if fails else ''}",
+                                    f"{f', {fails} Newton corrections failed' if fails else ''}"
+                                    f"{f', {probes} escape probes' if probes else ''}",
                              success=accepted > 0, seconds=time.perf_counter() - t0,
                              failed=sum(not d["success"] for d in terms), at_duration_bound=at_bound,
                              kkt_residual=float(max(b["residual"] for b in branches)), per_target=terms, timing=timing,
-                             primals=Zs)
+                             primals=Zs, pace=pace, probes=probes)
+
+
+def cross_check(spec: IOCSpec, targets: list[Target], result: SingleLevelResult, weights: dict[str, float], *, pool=None,
+                chunks: int = 2) -> float:
+    """D at another fit's ``weights`` (the bi-level fit's) with each lower level re-solved as that fit solves it
+    (the two cold guesses) and, as a further candidate, warm from the single-level fit's path, the least cost
+    kept: both fits' D then come from the same candidate paths. The paths are carried to the weights' time
+    gauge by scaling the weights instead (a1..a3 x c^4 with c^4 = a1 of the paths / a1 of ``weights``, which
+    moves no time-normalised path, ``pace.scale_time``)."""
+    from cobot_analysis.models.ioc.fit import evaluate_chunk
+    from cobot_analysis.models.ioc.pace import scale_time
+    from cobot_analysis.models.presets import weights_vector
+    from cobot_analysis.parallel import InlineExecutor
+
+    a1 = result.weights["a1"] / (result.pace["c"] ** 4 if result.pace else 1.0)  # a1 of the fit's paths
+    w = weights_vector(scale_time(weights, (a1 / weights["a1"]) ** 0.25), spec.model)
+    pool, n = pool or InlineExecutor(), len(targets)
+    parts = [list(range(i, n, max(1, min(chunks, n)))) for i in range(max(1, min(chunks, n)))]
+    futures = [pool.submit(evaluate_chunk, (spec, w, [targets[i] for i in p], [result.primals[i] for i in p])) for p in parts]
+    return float(np.mean([d["D"] for f in futures for d, _ in f.result()]))
 
 
 def check_method(method: str, bootstrap: int = 0) -> None:
@@ -543,5 +667,6 @@ def as_ioc_result(r: SingleLevelResult):
         warn(f"single-level IOC: {r.status}, D {r.objective:.4f} re-solved at the fitted weights against "
              f"{r.start_objective:.4f} at the start: not a fit to report (use --method bilevel)")
     return IOCResult(spec=r.spec, weights=r.weights, objective=r.objective, start_objective=r.start_objective, evaluations=0,
-                     iterations=r.iterations, failed=r.failed, per_target=r.per_target,
+                     iterations=r.iterations, failed=r.failed, per_target=r.per_target, pace=r.pace,
                      message=f"single-level: {r.status} (smoothed D {r.nlp_objective:.4f}, {r.seconds:.1f} s)")
+
