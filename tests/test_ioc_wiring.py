@@ -102,6 +102,9 @@ def test_results_md_shows_both_methods_with_intervals_and_verdicts(fits, tmp_pat
     # the single-level section: D of both, then each weight by both methods with its interval and verdict
     assert f"| all | bi-level | {bi['objective']:.4f} | {bi['seconds']:.1f} |" in text
     assert f"| all | single-level | {single['objective']:.4f} |" in text
+    # the bi-level weights re-solved also from the single-level paths (both D from the same candidate paths)
+    assert np.isfinite(single["against_D"]) and single["against_D"] >= 0
+    assert f"| all | bi-level weights, re-solved also from the single-level paths | {single['against_D']:.4f} |" in text
     for n in FITTED:
         row = (f"| all | {n} | {bi['weights'][n]:.3g} | {_cells(bi['uncertainty'], n)} | {single['weights'][n]:.3g} | "
                f"{_cells(single['uncertainty'], n)} |")

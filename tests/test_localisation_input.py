@@ -197,3 +197,25 @@ def test_bag_info_prints_long_topic_names_whole(cli, tmp_path):
     assert code == 0
     assert any(long in line for line in err.splitlines())  # the table, wider than 80 columns
     assert f"{long}\tgeometry_msgs/PoseStamped" in out
+
+
+def test_the_command_as_a_process_flushes_its_lines_and_exit_code(tmp_path, short, level):
+    """``cobot-analysis`` ends a finished command with ``os._exit`` (no interpreter teardown): what it printed
+    still reaches a pipe whole, its exit code is kept, and the tables are the in-process run's."""
+    import os
+    import subprocess
+
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).parents[1]), os.environ.get("PYTHONPATH", "")])}
+    cmd = [sys.executable, "-m", "cobot_analysis", "localisation", str(short[0] / "level.bag"), "--no-figures"]
+    ok = subprocess.run([*cmd, "--out", str(tmp_path / "ok")], capture_output=True, text=True, env=env, timeout=120)
+    assert ok.returncode == 0, ok.stderr
+    printed = ok.stdout + ok.stderr  # the console writes to stderr
+    assert printed.rstrip().endswith(f"localisation: 1 run(s) -> {tmp_path / 'ok' / 'localisation'}"), printed
+    assert f"level: delay {level['delay']:.3f} ± {level['delay_sd']:.3f} s" in printed
+    assert _runs(tmp_path / "ok").iloc[0].equals(level)
+    info = subprocess.run([sys.executable, "-m", "cobot_analysis", "bag-info", str(short[0] / "level.bag")], capture_output=True,
+                          text=True, env=env, timeout=120)  # a table on stdout: block-buffered in a pipe
+    assert info.returncode == 0 and info.stdout.endswith("\tdynamic\n"), info.stdout[-300:]
+    assert [ln.split("\t")[0] for ln in info.stdout.splitlines()[-3:]] == ["tf:base_link->os_sensor", "tf:map->odom", "tf:odom->base_link"]
+    bad = subprocess.run([*cmd, "--out", str(tmp_path / "bad"), "--tol-xy", "-1"], capture_output=True, text=True, env=env, timeout=120)
+    assert bad.returncode == 2 and "--tol-xy must be >= 0" in _one_line(bad.stdout + bad.stderr)

@@ -308,6 +308,7 @@ class FitResult:
     seconds: dict[str, float] = field(default_factory=dict)  # fit -> wall time of the fit (s)
     uncertainty: dict[str, dict] = field(default_factory=dict)  # fit -> verdicts, intervals (models.ioc.uncertainty)
     subjects_test: list[dict] | None = None  # per subject: do the subjects' weights differ (uncertainty.subjects_differ)
+    cross_checked: dict[str, float] = field(default_factory=dict)  # fit -> D of ``against``'s weights, re-solved also from this fit's paths
 
     def summary(self) -> str:
         n_paths = sum(len(self.fits[k]) for k in self.results)
@@ -344,7 +345,8 @@ class FitResult:
         return {"model": self.model, "convention": self.convention, "weights_order": list(self.all_names),
                 "weights": self.results["all"].weights if "all" in self.results else None,
                 "method": self.method,
-                "fits": {k: {**r.to_json(), "seconds": self.seconds.get(k), "uncertainty": self.uncertainty.get(k)}
+                "fits": {k: {**r.to_json(), "seconds": self.seconds.get(k), "uncertainty": self.uncertainty.get(k),
+                             **({"against_D": self.cross_checked[k]} if k in self.cross_checked else {})}
                          for k, r in self.results.items()},
                 **({"subjects_differ": self.subjects_test} if self.subjects_test is not None else {})}
 
@@ -469,7 +471,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             scheduler: str | None = None, means_source: str | os.PathLike = "", trials_source: str | os.PathLike | None = None,
             durations: pd.DataFrame | None = None,
             on_evaluation: Callable[[str, int, float, float], None] | None = None, method: str = "bilevel",
-            bootstrap: int = 200, seed: int = 0) -> FitResult:
+            bootstrap: int = 200, seed: int = 0, against: dict[str, dict[str, float]] | None = None) -> FitResult:
     """Bi-level inverse optimal control (docs/methods.md sec. 6): fit the OC cost weights of ``model``
     (``improved``, ``table`` or ``coupled``) to the mean trajectories (``per="all"``) or to each subject's
     trials (``per="subject"``). ``means`` and ``trials``: means or trajectories tables (DataFrames, or the
@@ -483,7 +485,9 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     ``max_evaluations``: the bi-level fit's budget of upper-level evaluations, the single-level fit's number
     of feasible-path steps per round when below the method's own. ``bootstrap``: after each fit, the curvature of D at
     the fitted weights, each weight's verdict and its interval from ``bootstrap`` resamples of the fitted units (docs/methods.md sec. 6.3; 0: none); per
-    subject, also whether the subjects' weights differ. A fit is
+    subject, also whether the subjects' weights differ. ``against``: another fit's weights per fit key (the
+    bi-level fit's); a single-level fit then re-solves them also from its own paths (``single_level.cross_check``),
+    so that both fits' D come from the same candidate paths (``FitResult.cross_checked``). A fit is
     long (minutes to hours at the CLI's defaults); the example fits two means on a coarse grid with a
     budget of 20 evaluations:
 
@@ -506,7 +510,8 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     from cobot_analysis.models.ioc import fit as ioc_fit, pair_targets_from_table, targets_from_table
     from cobot_analysis.models.presets import DEFAULT_PRESET, PRESETS, names_for, weights_vector
     from cobot_analysis.models.ioc.pace import target_durations
-    from cobot_analysis.models.ioc.single_level import MAX_STEPS, as_ioc_result, check_method, check_spec, fit_feasible_path
+    from cobot_analysis.models.ioc.single_level import (MAX_STEPS, as_ioc_result, check_method, check_spec, cross_check,
+                                                        fit_feasible_path)
     from cobot_analysis.parallel import default_jobs, executor
 
     check_method(method, bootstrap)
@@ -560,7 +565,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     mean_keys = mean_df.groupby("trial")[["scenario", "condition", "direction"]].first() \
         if {"scenario", "condition", "direction"} <= set(mean_df.columns) else None
     n_chunks = 4 * (default_jobs() if jobs is None else jobs) if scheduler is None else 8
-    results, seconds, uncertainty = {}, {}, {}
+    results, seconds, uncertainty, cross_checked = {}, {}, {}, {}
     with executor(jobs, scheduler) as pool:
         for key, targets in fits.items():
             safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in key)
@@ -571,8 +576,10 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
                 if key == "all" and conv.name == "continuous" and model in ("improved", "table") else None
             if method == "single-level":  # max_evaluations: its budget of steps, when below the method's own
                 steps = min(spec.max_evaluations, MAX_STEPS)
-                results[key] = as_ioc_result(fit_feasible_path(spec, targets, pool=pool, chunks=n_chunks, max_steps=steps,
-                                                               measured_T=measured_T))
+                raw = fit_feasible_path(spec, targets, pool=pool, chunks=n_chunks, max_steps=steps, measured_T=measured_T)
+                results[key] = as_ioc_result(raw)
+                if against and key in against:  # the other fit's D from the same candidate paths (single_level.cross_check)
+                    cross_checked[key] = cross_check(spec, targets, raw, against[key], pool=pool, chunks=n_chunks)
             else:
                 results[key] = ioc_fit(spec, targets, pool=pool, chunks=n_chunks,
                                        checkpoint=checkpoint / f"{safe}.json" if checkpoint else None, resume=resume,
@@ -627,7 +634,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     dist = dist.drop(columns=["converged"]).assign(converged=dist["converged"].astype(bool))
     return FitResult(model, conv.name, all_names, names, w0, start_weights or DEFAULT_PRESET[model], spec, per, goal, fits,
                      results, dist, mean_targets, comparison, models, coupled, paths, str(means_source), mean_keys,
-                     method, seconds, uncertainty, subjects_test)
+                     method, seconds, uncertainty, subjects_test, cross_checked)
 
 
 def _weight_uncertainty(spec, targets: list, weights: dict[str, float], n_resamples: int, *, seed: int = 0,

@@ -7,10 +7,12 @@ with it.
 
 from __future__ import annotations
 
+import atexit
 import importlib
 import os
 import pkgutil
 import sys
+import threading
 import traceback
 
 import typer
@@ -82,5 +84,16 @@ def main() -> None:
     if code >= 128:  # interrupted: exit now, without waiting for what the interrupt abandoned
         sys.stdout.flush()
         sys.stderr.flush()
+        os._exit(code)
+    if threading.active_count() == 1 and sys.gettrace() is None and sys.getprofile() is None:
+        # Done and alone (no other thread, no tracer or profiler waiting to write its results): run the exit
+        # handlers, flush, and end without the interpreter's teardown (freeing every module and object one by
+        # one: 0.1 s after pandas and pyarrow, a tenth of a localisation run).
+        atexit._run_exitfuncs()
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):  # a closed pipe: Python's own exit then returns 120 too
+                code = code or 120
         os._exit(code)
     sys.exit(code)

@@ -31,7 +31,7 @@ import numpy as np
 
 from cobot_analysis.console import warn
 from cobot_analysis.errors import InputError
-from cobot_analysis.localisation.poses import PoseStream, compose, invert, normalise, slerp
+from cobot_analysis.localisation.poses import PoseStream, compose, invert, normalise, row_norm, slerp
 
 POSE_TYPES = ("geometry_msgs/msg/PoseStamped", "nav_msgs/msg/Odometry", "geometry_msgs/msg/TransformStamped",
               "geometry_msgs/msg/PoseWithCovarianceStamped")
@@ -598,7 +598,7 @@ def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continu
                remedy=f"{DAMAGED}; or a clock that jumped: analyse with the record times (--time record)")
     drops = []
     finite = np.isfinite(rows).all(axis=1)
-    norm = np.linalg.norm(np.where(np.isfinite(rows[:, 4:8]), rows[:, 4:8], 0.0), axis=1)
+    norm = row_norm(np.where(np.isfinite(rows[:, 4:8]), rows[:, 4:8], 0.0))
     zero = finite & (norm < 1e-9)
     skew = finite & ~zero & (np.abs(norm - 1.0) > QUAT_TOL)
     for mask, what in ((~finite, "NaN/inf values"), (zero, "a zero orientation quaternion (orientation unset)"),
@@ -633,7 +633,7 @@ def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continu
     xyz, quat = rows[:, 1:4], normalise(rows[:, 4:8])
     if len(rows) > 1:  # speed and turn rate between consecutive poses
         dt = np.diff(t)
-        speed = np.linalg.norm(np.diff(xyz, axis=0), axis=1) / dt
+        speed = row_norm(np.diff(xyz, axis=0)) / dt
         turn = _turn(quat[1:], quat[:-1]) / dt
     if continuous and len(rows) > 2:
         lone = np.zeros(len(rows), bool)
@@ -642,7 +642,7 @@ def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continu
         refuse("a stamp far from all others (further from them than they span)", lone)
         dt2 = t[2:] - t[:-2]
         refuse(f"a position spike (to and from its neighbours faster than {MAX_SPEED:g} m/s)",
-               _isolated(speed > MAX_SPEED, np.linalg.norm(xyz[2:] - xyz[:-2], axis=1) / dt2 > MAX_SPEED))
+               _isolated(speed > MAX_SPEED, row_norm(xyz[2:] - xyz[:-2]) / dt2 > MAX_SPEED))
         refuse(f"an orientation spike (to and from its neighbours faster than {MAX_TURN:g} rad/s)",
                _isolated(turn > MAX_TURN, _turn(quat[2:], quat[:-2]) / dt2 > MAX_TURN))
     if len(rows) > 1:

@@ -147,12 +147,13 @@ def estimate_delay(truth: PoseStream, icp: PoseStream, window: tuple[float, floa
     ref = _channels(truth)
     tref = truth.t
 
-    slope = np.diff(ref, axis=0) / np.diff(tref)[:, None]
+    # Each truth interval as one row (channels at its start, slopes, start time): one gather per evaluation.
+    segments = np.column_stack([ref[:-1], np.diff(ref, axis=0) / np.diff(tref)[:, None], tref[:-1]])
 
     def truth_at(tq):
         """Linear interpolation of the 4 truth channels at ``tq`` (inside the truth span)."""
-        i = np.clip(np.searchsorted(tref, tq, side="right"), 1, len(tref) - 1) - 1
-        return ref[i] + (tq - tref[i])[:, None] * slope[i]
+        seg = segments.take(np.clip(np.searchsorted(tref, tq, side="right"), 1, len(tref) - 1) - 1, axis=0)
+        return seg[:, :4] + (tq - seg[:, 8])[:, None] * seg[:, 4:8]
 
     def residuals(d):
         p = truth_at(s - d)
@@ -162,8 +163,8 @@ def estimate_delay(truth: PoseStream, icp: PoseStream, window: tuple[float, floa
             r[:, :3] = q[:, :3] @ rot.T + t - p[:, :3]
         else:
             r[:, :3] -= r[:, :3].mean(axis=0)
-        r[:, 3] = wrap(r[:, 3])
-        r[:, 3] = wrap(r[:, 3] - circular_mean(r[:, 3]))
+        yaw = wrap(r[:, 3])  # finite (both streams are), so its circular mean needs no NaN handling
+        r[:, 3] = wrap(yaw - np.arctan2(np.sin(yaw).sum(), np.cos(yaw).sum()))
         return r
 
     def cost(d):
@@ -355,10 +356,11 @@ def compare(truth: PoseStream, icp: PoseStream, *, delay: float | None = None, w
     c_xyz, c_quat = al.apply(i_xyz, i_quat)
     c_yaw = np.unwrap(yaw_of(c_quat))
     err = np.column_stack([c_xyz - t_xyz, angle_diff(c_yaw, t_yaw)])
-    dist = np.interp(tq[valid], truth.t, travelled_distance(truth, distance_window))
+    travelled = travelled_distance(truth, distance_window)
+    dist = np.interp(tq[valid], truth.t, travelled)
     summary = summarise(err, dist)
     summary.update({"delay": dl.value, "delay_sd": dl.sd, "delay_method": dl.method, "delay_at_edge": dl.at_edge,
-                    "alignment": al.method, "association": association, "max_gap": max_gap, "distance": float(travelled_distance(truth, distance_window)[-1]),
+                    "alignment": al.method, "association": association, "max_gap": max_gap, "distance": float(travelled[-1]),
                     **{f"offset_{a}": float(v) for a, v in zip(AXES, al.offset)},
                     "duration": float(truth.t[-1] - truth.t[0]), "n_truth": int(len(truth)), "n_icp": int(len(icp))})
     samples = pd.DataFrame({

@@ -87,7 +87,7 @@ def goal_accuracy(truth: PoseStream, icp: PoseStream, goals: np.ndarray, alignme
     reached, icp_pose = [], []
     for a, b in stops:
         a2, b2 = (a + rule.trim, b - rule.trim) if b - a > 2 * rule.trim + 0.5 else (a, b)
-        m = (truth.t >= a2) & (truth.t <= b2)
+        m = slice(np.searchsorted(truth.t, a2, side="left"), np.searchsorted(truth.t, b2, side="right"))  # a2 <= t <= b2
         xyz = truth.xyz[m].mean(axis=0)
         yaw = float(circular_mean(truth.yaw[m]))
         rx, ryaw = alignment.to_icp_frame(xyz[None, :], yaw)

@@ -151,7 +151,8 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
                              v_nominal=v_nominal, compare=compare, convention=conv.name, resume=resume,
                              checkpoint=Path(out) / f".{name}.checkpoint", jobs=jobs, scheduler=scheduler, means_source=mean_src,
                              trials_source=traj_path or out, durations=durations, on_evaluation=on_evaluation, method=method,
-                             bootstrap=bootstrap, seed=seed)
+                             bootstrap=bootstrap, seed=seed,
+                             against={k: f["weights"] for k, f in other["fits"].items() if f.get("weights")} if other else None)
         stage.result = result  # its own numbers are the stage's metrics.json
         stage.write_json("weights.json", result.weights_json())
         for k, r in result.results.items():  # each fit also as a file usable with --weights
