@@ -120,13 +120,13 @@ def bench_published_floor(path: Path, n: int, target: float = 60.0) -> None:
           f"{400 * fatrop / 2:.0f} s: {400 * fatrop / 2 / target:.2f} of the {target:.0f} s target")
 
 
-def bench_goal(trajs, weights: str | None = None, name: str = "goal") -> None:
+def bench_goal(trajs, weights: str | None = None, name: str = "goal", turn_weight: float | None = None) -> None:
     """A goal-aware predictor (``goal``: each trajectory's design goal; ``goal-inferred``: the study's candidate
-    goals): windows per second of CPU time, one core."""
+    goals): windows per second of CPU time, one core; ``turn_weight``: the identified a3, as the stage uses it."""
     from cobot_analysis.models.prediction.predictor import make_predictor
     from cobot_analysis.models.prediction.sweep import SweepConfig, predictor_options
 
-    config = SweepConfig(settings=((50, 100),), predictors=(name,), weights=weights)
+    config = SweepConfig(settings=((50, 100),), predictors=(name,), weights=weights, turn_weight=turn_weight)
     times, failed = [], 0
     for t in trajs:
         p = make_predictor(name, 50, 100, t.dt, **predictor_options(name, t, config))
@@ -137,7 +137,7 @@ def bench_goal(trajs, weights: str | None = None, name: str = "goal") -> None:
                 times.append(time.process_time() - s)
         failed += p.failed
     times = np.array(times)
-    print(f"{name} ({weights or 'entity preset'}): {len(times)} windows, {1 / times.mean():.0f} windows/s (mean {1e3 * times.mean():.2f} ms, "
+    print(f"{name} ({weights or 'entity preset'}{f', a3 {turn_weight:.3g}' if turn_weight else ''}): {len(times)} windows, {1 / times.mean():.0f} windows/s (mean {1e3 * times.mean():.2f} ms, "
           f"median {1e3 * np.median(times):.2f} ms, p95 {1e3 * np.percentile(times, 95):.2f} ms, max {1e3 * times.max():.0f} ms), failed {failed}")
 
 
@@ -147,7 +147,12 @@ def bench_goal_predictors(walking: Path, pairs: Path | None, n: int, weights: st
     from cobot_analysis.models.prediction.sweep import SweepConfig, trajectories_from_table
     from cobot_analysis.schema import TRAJECTORIES, read_table
 
-    bench_goal(load(walking, n), weights)
+    from cobot_analysis.api.prediction import with_turn_weight
+
+    s = time.process_time()
+    walk_config = with_turn_weight(SweepConfig(settings=((50, 100),), predictors=("goal",), weights=weights), read_table(walking, TRAJECTORIES))
+    print(f"a3 of the goal plans identified on the walking means: {walk_config.turn_weight:.3g} ({time.process_time() - s:.1f} s CPU)")
+    bench_goal(load(walking, n), weights, turn_weight=walk_config.turn_weight)
     if pairs is not None:
         df = read_table(pairs, TRAJECTORIES)
         tables = trajectories_from_table(df[df["entity"] == "table"], SweepConfig(settings=((50, 100),)))
@@ -159,6 +164,7 @@ def bench_goal_predictors(walking: Path, pairs: Path | None, n: int, weights: st
 def bench_horizons(walking: Path, pairs: Path | None, every: int, jobs: int) -> None:
     """Wall time of the horizon sweep (N0 = 50, horizons 5..200 and the whole path) of oc, goal, cv, ctrv on the
     walking trials (every ``every``-th) and, with goal-inferred too, on the pair study's table means."""
+    from cobot_analysis.api.prediction import with_turn_weight
     from cobot_analysis.models.prediction.horizons import horizon_sweep
     from cobot_analysis.models.prediction.sweep import SweepConfig, trajectories_from_table
     from cobot_analysis.schema import TRAJECTORIES, read_table
@@ -167,9 +173,9 @@ def bench_horizons(walking: Path, pairs: Path | None, every: int, jobs: int) -> 
                                      (pairs, "table", ("oc", "goal", "goal-inferred", "cv", "ctrv"))):
         if path is None:
             continue
-        df = read_table(path, TRAJECTORIES)
-        df = df[(df["entity"] == entity) & ((df["kind"] == "trial") if entity == "walker" else True)]
-        config = SweepConfig(settings=((50, 100),), predictors=predictors)
+        table = read_table(path, TRAJECTORIES)
+        df = table[(table["entity"] == entity) & ((table["kind"] == "trial") if entity == "walker" else True)]
+        config = with_turn_weight(SweepConfig(settings=((50, 100),), predictors=predictors), table, entities=[entity])  # as the stage
         trajs = trajectories_from_table(df, config)[::every]
         s = time.perf_counter()
         horizon_sweep(trajs, config, 50, jobs=jobs)

@@ -174,3 +174,96 @@ def test_inference_at_counts_trajectories_at_their_first_window_past_each_fracti
     assert "| 50% | 2/2 (100%) | 0.65 |" in text
     # the walked-fraction bins start at 0 % (not pandas' -0 % of include_lowest) and count whole windows
     assert "| 0%-20% | 0.40 | 50% | 2 |" in text and "-0%" not in text
+
+
+def model_walks(a3: float) -> list:
+    """Paths of the goal plan itself (walking-2021 weights, a3 planted) from four states in motion to the
+    walking goal, sampled every DT in the plan's own time: their continuations are the model's."""
+    from cobot_analysis.models.prediction.goal import Planner, _weights
+    from cobot_analysis.models.prediction.sweep import Trajectory
+
+    goal = (0.0, 0.0, np.pi / 2)
+    out = []
+    for i, x0 in enumerate([(-2.0, -1.0, 0.0, 1.0, 0.0, 0.0), (1.5, -2.5, 2.5, 0.9, 0.0, 0.0),
+                            (-1.0, -3.0, 0.3, 1.2, 0.0, 0.0), (2.0, 0.5, -1.0, 1.0, 0.0, 0.0)]):
+        planner = Planner(_weights("walking-2021", a3=a3), DT)
+        sol = planner.plan(np.array(x0), goal)
+        poses = planner._at(sol, np.arange(0.0, sol.T, DT))
+        out.append(Trajectory("synthetic", f"t{i}", "walker", poses, DT, sol.T, "travel_time", True, {}, goal))
+    return out
+
+
+@pytest.mark.parametrize("a3", [1e-3, 0.05])
+def test_turn_weight_is_recovered_from_continuations_in_motion(a3):
+    """identify_turn_weight on the model's own paths started in motion gives back the planted a3 within a
+    factor 3 (the continuations are read at the measured pace, not in the plan's time law, and start with
+    omega = 0 where the model's own paths turn: 1e-3 -> 0.6e-3, 0.05 -> 0.02)."""
+    from cobot_analysis.models.prediction.goal import identify_turn_weight
+
+    found = identify_turn_weight(model_walks(a3), "walking-2021", 20)
+    assert abs(np.log10(found / a3)) < 0.5
+
+
+def test_turn_weight_on_its_bound_swings_the_plan_onto_the_goal():
+    """With a3 on the fits' lower bound a walker in motion turns its direction of travel at no cost: the
+    plan from 1 m/s along x to a goal 37 degrees to its left has swung past the goal's bearing within a
+    quarter second; with the identified scale of a3 (1e-2) it has not yet turned to the bearing, half as much."""
+    from cobot_analysis.models.prediction.goal import Planner, _weights, plan_path
+
+    x0 = np.array([-2.0, 0.0, 0.0, 1.0, 0.0, 0.0])
+    bearing = np.degrees(np.arctan2(1.5, 2.0))
+
+    def travel_direction_at_quarter_second(a3):
+        p = plan_path(Planner(_weights("walking-2021", a3=a3), DT), x0, (0.0, 1.5, float("nan")), 40)
+        d = p[25] - p[24]
+        return np.degrees(np.arctan2(d[1], d[0]))
+
+    on_bound, turned = travel_direction_at_quarter_second(1e-7), travel_direction_at_quarter_second(1e-2)
+    assert on_bound > bearing  # the defect, documented
+    assert turned < bearing and turned < on_bound / 2
+
+
+def test_turn_weight_is_identified_only_where_the_weights_leave_it_undetermined(tmp_path):
+    import json
+
+    import pandas as pd
+
+    from cobot_analysis.api.prediction import prediction_config, with_turn_weight
+    from cobot_analysis.models.prediction.goal import turn_weight_undetermined
+    from cobot_analysis.models.prediction.sweep import predictor_options
+
+    assert turn_weight_undetermined("walking-2021") and not turn_weight_undetermined("table-2022")
+    fitted = tmp_path / "weights.json"  # a fit that says a3 is undetermined, though not on the bound
+    fitted.write_text(json.dumps({"model": "improved", "convention": "continuous",
+                                  "weights": {"a0": 7.87, "a1": 4.0, "a2": 20.15, "a3": 0.5, "a4": 10.0},
+                                  "fits": {"all": {"uncertainty": {"verdicts": {"a3": "not determined by these data"}}}}}))
+    assert turn_weight_undetermined(str(fitted))
+    walks = model_walks(0.05)
+    rows = [pd.DataFrame({"study": "walking-2020", "trial": t.trial, "kind": "mean", "entity": "walker", "condition": "E1500",
+                          "sample": np.arange(len(t.poses)), "x": t.poses[:, 0], "y": t.poses[:, 1], "theta": t.poses[:, 2],
+                          "travel_time": t.duration}) for t in walks]
+    df = pd.concat(rows, ignore_index=True)
+    config = prediction_config(settings="20:40", predictors="goal,cv", weights="walking-2021", convention="continuous")
+    found = with_turn_weight(config, df).turn_weight
+    assert abs(np.log10(found / 0.05)) < 0.5
+    assert with_turn_weight(prediction_config(settings="20:40", predictors="oc,cv", convention="continuous"), df).turn_weight is None
+    table = prediction_config(settings="20:40", predictors="goal,cv", weights="table-2022", convention="continuous")
+    assert with_turn_weight(table, df).turn_weight is None  # table-2022 determines a3 (8.6e-2)
+    traj = walks[0]
+    from dataclasses import replace
+    assert predictor_options("goal", traj, replace(config, turn_weight=found))["turn_weight"] == found
+    assert "turn_weight" not in predictor_options("goal", traj, replace(table, turn_weight=found))
+
+
+def test_plan_starts_on_the_walker_at_its_velocity_without_the_sway_of_its_gait():
+    """plan_start: position and velocity of the quadratic fit, heading the direction of travel, omega = 0 (the
+    rate of the direction of travel of a swaying gait is not a turn)."""
+    from cobot_analysis.models.prediction.goal import plan_start
+
+    poses = walk("straight")  # 0.8-1.8 m/s along x with a 2 cm, 1 Hz sway: its direction of travel turns
+    for k in (60, 90, 150):
+        x = plan_start(poses[k - 49: k + 1], quadratic_fit(5, DT))
+        th = np.arctan2(np.gradient(poses[:, 1])[k], np.gradient(poses[:, 0])[k])
+        np.testing.assert_allclose(x[:2], poses[k, :2], atol=1e-4)
+        assert abs(x[2] - th) < 0.02 and abs(x[4]) < 5e-3 and x[5] == 0.0  # v_orth: the fitted heading is nearly atan2(y', x')
+        np.testing.assert_allclose(x[3], np.hypot(*np.gradient(poses[:, :2], DT, axis=0)[k]), rtol=0.02)

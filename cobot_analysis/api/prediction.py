@@ -107,6 +107,38 @@ def prediction_config(*, settings: str = DEFAULT_SETTINGS, predictors: str = "oc
     return config
 
 
+def with_turn_weight(config, df: pd.DataFrame, *, studies: list[str] | None = None, entities: list[str] | None = None):
+    """``config`` with the goal plans' turning weight a3 identified (``goal.identify_turn_weight``) on the mean
+    paths of ``df`` (``kind == "mean"``, the selected studies and entities) whose weights leave a3
+    undetermined (``goal.turn_weight_undetermined``); ``config`` itself when no goal predictor is swept, the
+    weights determine a3 or ``df`` holds no such mean (docs/methods.md sec. 7.1)."""
+    from dataclasses import replace
+
+    from cobot_analysis.models.prediction.goal import identify_turn_weight, turn_weight_undetermined
+    from cobot_analysis.models.prediction.sweep import trajectories_from_table
+
+    if not {"goal", "goal-inferred"} & set(config.predictors):
+        return config
+    means = df[df["kind"] == "mean"] if "kind" in df else df.iloc[:0]
+    if studies:
+        means = means[means["study"].isin(studies)]
+    if entities:
+        means = means[means["entity"].isin(entities)]
+    undetermined = [e for e in means["entity"].unique() if turn_weight_undetermined(config.weights_for(str(e)))]
+    means = means[means["entity"].isin(undetermined)]
+    if means.empty:
+        return config
+    n0 = config.settings[0][0]
+    trajs = [t for t in trajectories_from_table(means, replace(config, settings=((n0, n0 + 1),))) if t.goal is not None]
+    if not trajs:
+        return config
+    weights = {config.weights_for(t.entity) for t in trajs}
+    if len(weights) > 1:
+        raise InputError("the goal plans' a3 is identified for one set of weights; these mean paths use " + ", ".join(sorted(weights)),
+                         remedy="select one entity kind (--entity) or pass --weights")
+    return replace(config, turn_weight=identify_turn_weight(trajs, weights.pop(), n0))
+
+
 def stratified(trajectories: list, k: int) -> list:
     """A stratified sample: ``k`` trajectories of each condition (study, entity, condition), in the order
     of ``trajectories``. The condition of rank r (in that order) with n trajectories gives its numbers
@@ -213,6 +245,7 @@ def predict(trajectories: pd.DataFrame | str | os.PathLike, *, settings: str = D
         trajectories = read_table(path, TRAJECTORIES)
     trajs, unpredictable = select(trajectories, config, studies=studies, entities=entities, kind=kind, limit=limit, every=every,
                                   path=path, per_condition=per_condition)
+    config = with_turn_weight(config, trajectories, studies=studies, entities=entities)
     if work is not None:
         return assess(trajs, config, work, unpredictable=unpredictable, jobs=jobs, scheduler=scheduler)
     with tempfile.TemporaryDirectory() as tmp:

@@ -306,7 +306,9 @@ def results_fragment(metrics, summary, comparison, config, example, unpredictabl
         f"Convention: **{conv.name}** (docs/methods.md sec. 11): {conv.summary}.",
         f"{len(traj)} trajectories: {studies}; entities " + ", ".join(f"{e} ({n})" for e, n in traj.groupby("entity").size().items()) + ".",
         f"Predictors: {', '.join(config.predictors)}; settings (N0, N_OC): {', '.join(f'({a}, {b})' for a, b in config.settings)}; "
-        f"OC weights {config.weights or f'walking-2021 (walkers) / {conv.prediction.table_weights} (tables)'}, g0 = {config.g0}, g1 = {config.g1}.",
+        f"OC weights {config.weights or f'walking-2021 (walkers) / {conv.prediction.table_weights} (tables)'}, g0 = {config.g0}, g1 = {config.g1}."
+        + (f" Goal plans: a3 = {config.turn_weight:.3g}, identified on the continuations of the study's mean paths (the weights leave a3 "
+           "undetermined; docs/methods.md sec. 7.1)." if getattr(config, "turn_weight", None) is not None else ""),
         (f"T_OC: {sampled}. " if conv.prediction.node_dt is None else
          f"OC nodes: one of {conv.prediction.node_dt:g} s per sample whatever the sample period ({sampled}). ")
         + (f"{len(assumed)} trajectories have no recorded duration: assumed duration = path length / {config.nominal_speed:g} m/s "

@@ -9,7 +9,7 @@ import os
 from pathlib import Path
 
 from cobot_analysis import registry
-from cobot_analysis.api.prediction import DEFAULT_SETTINGS, assess, prediction_config, select
+from cobot_analysis.api.prediction import DEFAULT_SETTINGS, assess, prediction_config, select, with_turn_weight
 from cobot_analysis.console import info, warn
 from cobot_analysis.errors import InputError
 from cobot_analysis.stages import Outcome
@@ -56,6 +56,7 @@ def predict(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
         n0_min = min(n0 for n0, _ in config.settings)
         warn(f"predict: {len(unpredictable)} trajectories left out, fewer than N0 = {n0_min} consecutive finite positions: "
              + ", ".join(unpredictable[:5]) + (" ..." if len(unpredictable) > 5 else ""))
+    config = with_turn_weight(config, df, studies=studies, entities=entities)
     if config.goal is not None and "goal" in config.predictors:
         from cobot_analysis.models.prediction.goal import check_reachable
 

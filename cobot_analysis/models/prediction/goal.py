@@ -10,11 +10,19 @@ Window at sample k (the measured past ``C_{k-N0+1} .. C_k``):
    heading is the direction of travel (so v_orth = 0), even where theta was measured: the measured
    pelvis orientation of walking-2020 swings with the gait at up to 50 rad/s, which put into the
    start state (omega) curls the plan. Below ``MIN_SPEED`` the walker stands: theta is the measured
-   one (else the past's displacement direction) and omega = 0.
+   one (else the past's displacement direction) and omega = 0. The plan starts with omega = 0
+   (``plan_start``): the rate of the direction of travel over a past shorter than a stride is the
+   gait's sway, not a turn of the path the model walks.
 2. Plan: the improved OC of docs/methods.md sec. 5.5 (continuous convention: integrated running cost,
    exact-in-time step, free duration, ``models.oc.problem``) on ``N_INTERVALS`` intervals from that
    state (pose *and* velocity: the path starts at the measured speed) to the goal pose at rest, a
    terminal constraint (``OCPShape(goal="constraint")``); warm-started from the previous window's plan.
+   The turning weight a3 (price of the angular acceleration u3): the weights' own, unless they leave it
+   undetermined (``turn_weight_undetermined``: on the fits' lower bound), then the one identified on
+   the continuations of the study's mean paths (``identify_turn_weight``). Why: with a3 on its bound
+   turning the body at a constant body-frame velocity is free, so a plan started in motion swings its
+   direction of travel onto the goal at once (a human turns gradually); the fits started every path
+   at rest, where turning on the spot is free anyway, and could not see a3.
    The goal heading is put on the branch nearest the current heading; an unknown one is the goal's
    bearing from x0. A plan that fails or misses the goal (``models.goal_check``) is no prediction.
 3. Read at the person's pace: the plan's path (cubic Hermite in x, y, theta between its nodes) walked
@@ -50,6 +58,9 @@ MAX_ITER = 100  # solver iterations per plan: a warm 20-interval plan converges 
 MIN_SPEED = 0.05  # m/s: below this the walker stands: its direction of travel is undefined
 PLAN_CPU_LIMIT = 1.0  # s of CPU per candidate plan (IPOPT's max_cpu_time): a plan takes milliseconds; one that does not
 # is stopped and counted as failed (models.oc.problem: fatrop's solves have no such bound)
+A3_BOUNDS = (1e-7, 1e3)  # the IOC's bounds on a weight (docs/methods.md sec. 6): a3 is searched between them
+A3_UNDETERMINED = 1e-6  # a3 at or below this sits on a fit's lower bound (ours 1e-7, walking-2021's published 1e-6)
+CONTINUATIONS = (0.25, 0.5, 0.75)  # where along a mean path the continuations of identify_turn_weight start
 NOMINAL_SPEED = 1.0  # m/s: the duration guess's pace at least (the sweep's assumed mean walking speed): a guess from
 # a walker barely moving (1.5 m in 30 s) made solves from rest run for minutes
 
@@ -86,7 +97,7 @@ def check_reachable(trajectories, goal, n0: int, weights_for, option: str = "--g
             continue
         past = traj.seen[starts[0]: starts[0] + n0]
         planner = Planner(_weights(weights_for(traj.entity)), traj.dt)
-        if plan_path(planner, state_estimate(past, quadratic_fit(min(5, n0), traj.dt), travel=True), goal, 1) is None:
+        if plan_path(planner, plan_start(past, quadratic_fit(min(5, n0), traj.dt)), goal, 1) is None:
             raise InputError(f"{option} ({goal[0]:g}, {goal[1]:g}, {goal[2]:g}): the walking model cannot reach it from "
                              f"{traj.label} (its plan failed: {planner.status})",
                              remedy=f"give a goal the walker can reach, in the study frame (m, rad), or leave 'goal' out of --predictors")
@@ -121,6 +132,17 @@ def state_estimate(past: np.ndarray, filt: np.ndarray, travel: bool = False) -> 
             th = math.atan2(d[1], d[0]) if np.hypot(*d) > 0 else th
     c, s = math.cos(th), math.sin(th)
     return np.array([x, y, th, c * vx + s * vy, -s * vx + c * vy, om])
+
+
+def plan_start(past: np.ndarray, filt: np.ndarray) -> np.ndarray:
+    """The goal plan's start state: ``state_estimate`` with the heading the direction of travel, and omega = 0.
+    The model walker has no gait: its omega is the turn rate of the gait-averaged path, which a past shorter
+    than a stride cannot separate from the gait's sway (on the walking-2020 trials, walked at 1 m/s, the
+    rate of the direction of travel had a median of 1.6 rad/s from the last 5 samples and 2.1 rad/s from
+    the whole past of 50: turning radii of 0.5 m). The turn is left to the plan (its a3 prices it)."""
+    x0 = state_estimate(past, filt, travel=True)
+    x0[5] = 0.0
+    return x0
 
 
 class Planner:
@@ -188,11 +210,76 @@ class Planner:
         return out
 
 
-def _weights(weights, entity_default: str = "walking-2021") -> np.ndarray:
-    """The improved model's weight vector (its b0..b3 unused: the goal is a constraint)."""
+def _weights(weights, entity_default: str = "walking-2021", a3: float | None = None) -> np.ndarray:
+    """The improved model's weight vector (its b0..b3 unused: the goal is a constraint), a3 replaced by
+    ``a3`` when given."""
     from cobot_analysis.models.presets import load_weights, weights_vector
 
-    return weights_vector(load_weights(weights or entity_default, "improved"), "improved")
+    w = weights_vector(load_weights(weights or entity_default, "improved"), "improved")
+    if a3 is not None:
+        w[3] = float(a3)
+    return w
+
+
+def turn_weight_undetermined(weights) -> bool:
+    """The weights leave a3 undetermined: a fit said so (``fit-ioc``'s weights.json, uncertainty verdict)
+    or a3 sits on a fit's lower bound (``A3_UNDETERMINED``: the preset walking-2021, 1e-6)."""
+    import json
+    from pathlib import Path
+
+    if weights is not None and Path(str(weights)).is_file():
+        try:
+            fits = json.loads(Path(str(weights)).read_text()).get("fits", {})
+        except (ValueError, AttributeError):
+            fits = {}
+        verdicts = [str(f.get("uncertainty", {}).get("verdicts", {}).get("a3", "")) for f in fits.values() if isinstance(f, dict)]
+        if any(v.startswith("not determined") for v in verdicts):
+            return True
+    return bool(_weights(weights)[3] <= A3_UNDETERMINED)
+
+
+def continuation_error(trajectories, weights: np.ndarray, n0: int, fractions=CONTINUATIONS, fit: int = 5) -> np.ndarray:
+    """Per trajectory and start ``k = round(f (N - 1))``, f in ``fractions``: the plan from the state
+    estimated on the N0 samples up to k to the trajectory's goal, read at the measured pace, against the
+    measured rest of the path, ``d = (1/(N - k)) sum_{i=k}^{N-1} ||c_i - x*_i||`` (NaN: no finite past
+    or the plan failed). This is the IOC's path distance on paths that start in motion."""
+    out = []
+    for traj in trajectories:
+        n = len(traj.poses)
+        planner, filt = Planner(weights, traj.dt), quadratic_fit(min(fit, n0), traj.dt)
+        for f in fractions:
+            k = int(round(f * (n - 1)))
+            past = traj.seen[k - n0 + 1: k + 1]
+            if k < n0 - 1 or traj.goal is None or not np.isfinite(past[:, :2]).all():
+                out.append(np.nan)
+                continue
+            planner.reset()
+            p = plan_path(planner, plan_start(past, filt), traj.goal, n - 1 - k)
+            out.append(np.nan if p is None else float(np.nanmean(np.hypot(*(traj.poses[k:, :2] - p[:, :2]).T))))
+    return np.array(out)
+
+
+def identify_turn_weight(trajectories, weights, n0: int, fractions=CONTINUATIONS, fit: int = 5) -> float:
+    """a3 of the goal plans identified where the data determine it: on continuations started in motion.
+    ``argmin over log10 a3 in A3_BOUNDS`` of the mean ``continuation_error`` (Brent's bounded search, to
+    0.05 in log10 a3; the value in 3 significant digits), the other weights held; ``trajectories``: the study's
+    mean paths with goals."""
+    from scipy.optimize import minimize_scalar
+
+    w0 = _weights(weights)
+
+    def mean_error(log_a3: float) -> float:
+        w = w0.copy()
+        w[3] = 10.0 ** log_a3
+        d = continuation_error(trajectories, w, n0, fractions, fit)
+        return float(np.nanmean(d)) if np.isfinite(d).any() else np.inf
+
+    lo, hi = np.log10(A3_BOUNDS)
+    res = minimize_scalar(mean_error, bounds=(lo, hi), method="bounded", options={"xatol": 0.05})
+    if not np.isfinite(res.fun):
+        raise InputError("the goal plans' turning weight a3 cannot be identified: no continuation of a mean path could be planned",
+                         remedy="give weights whose a3 is determined (--weights), or mean paths with goals in the trajectories")
+    return float(f"{10.0 ** res.x:.3g}")  # the search's tolerance (12 %) in 3 digits: a stable stage parameter
 
 
 class GoalPredictor(Predictor):
@@ -202,13 +289,13 @@ class GoalPredictor(Predictor):
     min_past = 3
 
     def __init__(self, n0: int, n_oc: int, dt: float = 1.0, *, goal=None, weights: str | None = "walking-2021",
-                 fit: int = 5, n_intervals: int = N_INTERVALS):
+                 fit: int = 5, n_intervals: int = N_INTERVALS, turn_weight: float | None = None):
         if goal is None:
             raise InputError("the goal-aware predictor needs a goal", remedy="pass --goal x,y,theta or use goal-inferred with --candidates")
         self.goal = check_goal(goal)
         super().__init__(n0, n_oc, dt)
         self.filter = quadratic_fit(min(int(fit), self.n0), self.dt)
-        self.planner = Planner(_weights(weights), self.dt, n_intervals)
+        self.planner = Planner(_weights(weights, a3=turn_weight), self.dt, n_intervals)
 
     def reset(self) -> None:
         super().reset()
@@ -219,7 +306,7 @@ class GoalPredictor(Predictor):
         self.planner.reset()
 
     def predict(self, past: np.ndarray) -> np.ndarray | None:
-        x0 = state_estimate(past, self.filter, travel=True)
+        x0 = plan_start(past, self.filter)
         return plan_path(self.planner, x0, self.goal, self.horizon)
 
 
@@ -241,12 +328,12 @@ class GoalInferencePredictor(Predictor):
     min_past = 3
 
     def __init__(self, n0: int, n_oc: int, dt: float = 1.0, *, candidates=None, weights: str | None = "walking-2021",
-                 fit: int = 5, sigma: float = SIGMA, n_intervals: int = N_INTERVALS, goal=None):
+                 fit: int = 5, sigma: float = SIGMA, n_intervals: int = N_INTERVALS, goal=None, turn_weight: float | None = None):
         self.candidates = check_candidates(candidates)
         super().__init__(n0, n_oc, dt)
         self.sigma = float(sigma)
         self.filter = quadratic_fit(min(int(fit), self.n0), self.dt)
-        w = _weights(weights)
+        w = _weights(weights, a3=turn_weight)
         # IPOPT with a CPU limit: every plan returns (a fatrop solve hung once here, models.oc.problem)
         self.planners = [Planner(w, self.dt, n_intervals, solver="ipopt", max_cpu_time=PLAN_CPU_LIMIT) for _ in self.candidates]
         self._length = max(self.horizon, self.n0)  # a plan long enough to cover a whole past window later
@@ -281,7 +368,7 @@ class GoalInferencePredictor(Predictor):
 
     def predict(self, past: np.ndarray) -> np.ndarray | None:
         k = self._k
-        x0 = state_estimate(past, self.filter, travel=True)
+        x0 = plan_start(past, self.filter)
         paths = [plan_path(p, x0, (g[0], g[1], float("nan")), self._length) for p, g in zip(self.planners, self.candidates)]
         ok = np.array([p is not None for p in paths])
         if not ok.any():

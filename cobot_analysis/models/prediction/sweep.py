@@ -35,7 +35,7 @@ import hashlib
 import json
 import os
 import shutil
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -134,6 +134,7 @@ class SweepConfig:
     convention: Convention = CONTINUOUS  # docs/methods.md sec. 11
     goal: tuple[float, float, float] | None = None  # goal of the goal predictor; None: each trajectory's design goal
     candidates: tuple[tuple[float, float], ...] | None = None  # goal-inferred's candidates; None: the study's goals
+    turn_weight: float | None = None  # a3 of the goal plans where the weights leave it undetermined (goal.identify_turn_weight)
 
     def __post_init__(self) -> None:
         for n0, n_oc in self.settings:
@@ -162,7 +163,10 @@ class SweepConfig:
 
     def params(self) -> dict:
         """The configuration as JSON-ready parameters, the convention by its name."""
-        return {**asdict(self), "convention": self.convention.name}
+        params = {**asdict(self), "convention": self.convention.name}
+        if self.turn_weight is None:  # absent when unused: stages without it stay current
+            del params["turn_weight"]
+        return params
 
 
 @dataclass
@@ -287,8 +291,10 @@ def predictable_windows(traj: Trajectory, n0: int) -> int:
 def predictor_options(name: str, traj: Trajectory, config: SweepConfig) -> dict:
     """``make_predictor`` options of ``name`` for ``traj``: weights, tracking weights (oc), the design
     goal (goal) or the study's candidate goals (goal-inferred)."""
-    from cobot_analysis.models.prediction.goal import study_candidates
+    from cobot_analysis.models.prediction.goal import study_candidates, turn_weight_undetermined
 
+    if name in ("goal", "goal-inferred") and config.turn_weight is not None and turn_weight_undetermined(config.weights_for(traj.entity)):
+        return {**predictor_options(name, traj, replace(config, turn_weight=None)), "turn_weight": config.turn_weight}
     if name == "oc":
         return {"weights": config.weights_for(traj.entity), "g0": config.g0, "g1": config.g1}
     if name == "goal":
