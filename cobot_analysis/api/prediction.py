@@ -111,7 +111,18 @@ def with_turn_weight(config, df: pd.DataFrame, *, studies: list[str] | None = No
     """``config`` with the goal plans' turning weight a3 identified (``goal.identify_turn_weight``) on the mean
     paths of ``df`` (``kind == "mean"``, the selected studies and entities) whose weights leave a3
     undetermined (``goal.turn_weight_undetermined``); ``config`` itself when no goal predictor is swept, the
-    weights determine a3 or ``df`` holds no such mean (docs/methods.md sec. 7.1)."""
+    weights determine a3 or ``df`` holds no such mean (docs/methods.md sec. 7.1). With ``config.goal``
+    (``--goal``) the mean paths are continued to that goal, as the predictor plans.
+
+        >>> from cobot_analysis.api import average
+        >>> from cobot_analysis.api.prediction import prediction_config, with_turn_weight
+        >>> from cobot_analysis.synth.tables import walking_table
+        >>> means = average(walking_table(n_subjects=2, n_conditions=2, n_trials=2)).means
+        >>> c = prediction_config(settings="20:40", predictors="goal,cv", weights="walking-2021", convention="continuous",
+        ...                       goal=(0.0, 0.0, 1.5708))
+        >>> c.turn_weight is None, 1e-6 < with_turn_weight(c, means).turn_weight < 1e3   # a3 on its bound -> identified
+        (True, True)
+    """
     from dataclasses import replace
 
     from cobot_analysis.models.prediction.goal import identify_turn_weight, turn_weight_undetermined
@@ -129,7 +140,10 @@ def with_turn_weight(config, df: pd.DataFrame, *, studies: list[str] | None = No
     if means.empty:
         return config
     n0 = config.settings[0][0]
-    trajs = [t for t in trajectories_from_table(means, replace(config, settings=((n0, n0 + 1),))) if t.goal is not None]
+    trajs = trajectories_from_table(means, replace(config, settings=((n0, n0 + 1),)))
+    if config.goal is not None:  # --goal: the goal the predictor plans to (sweep.plan_options), the means' too
+        trajs = [replace(t, goal=tuple(config.goal)) for t in trajs]
+    trajs = [t for t in trajs if t.goal is not None]
     if not trajs:
         return config
     weights = {config.weights_for(t.entity) for t in trajs}
