@@ -103,7 +103,8 @@ def test_report_takes_the_workspace_study_and_checks_a_given_name(pair_study, cl
     assert code == 0, err
     lines = err.strip().splitlines()
     assert lines[0] == f"report: up to date, skipped (--force redoes it) -> {pair_ws / 'report'}"
-    assert lines[-1].startswith(f"report (synthetic-pairs): {len(figures)} figures") and lines[-1].endswith(f"-> {to / 'README.md'}")
+    assert lines[-1] == (f"report (synthetic-pairs): {len(figures)} figures (the report up to date in the workspace, copied) "
+                         f"-> {to / 'README.md'}")
     assert sorted(p.name for p in to.glob("*.png")) == figures
     code, _, err = cli("report", "pairs", "--out", pair_ws, "--to", to)  # the old short name, then the check
     lines = err.strip().splitlines()

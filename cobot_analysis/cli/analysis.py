@@ -146,7 +146,7 @@ def report_command(
     from cobot_analysis.stages import analysis
 
     done = analysis.report(out, study, to=to, study_file=study_file, force=force)
-    figures = len(list(done.result.glob("*.png")))
+    figures = len(list(done.copied_to.glob("*.png")))
     finished(f"report ({study})" if study else "report",
              count(figures, "figure") + (" (the report up to date in the workspace, copied)" if done.skipped else ""),
-             done.result / "README.md")
+             done.copied_to / "README.md")

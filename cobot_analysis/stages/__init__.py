@@ -30,6 +30,7 @@ class Outcome:
 
     directory: Path
     result: Any = None
+    copied_to: Path | None = None  # where the stage's outputs were also copied (``report --to``)
 
     @property
     def skipped(self) -> bool:

@@ -214,4 +214,4 @@ def report(out: str | os.PathLike, study: str | None = None, *, to: str | os.Pat
     if to.exists():
         shutil.rmtree(to)
     tmp.rename(to)
-    return Outcome(stage.final_dir, to)
+    return Outcome(stage.final_dir, None if stage.skipped else to, copied_to=to)
