@@ -58,7 +58,6 @@ MAX_ITER = 100  # solver iterations per plan: a warm 20-interval plan converges 
 MIN_SPEED = 0.05  # m/s: below this the walker stands: its direction of travel is undefined
 PLAN_CPU_LIMIT = 1.0  # s of CPU per candidate plan (IPOPT's max_cpu_time): a plan takes milliseconds; one that does not
 # is stopped and counted as failed (models.oc.problem: fatrop's solves have no such bound)
-A3_BOUNDS = (1e-7, 1e3)  # the IOC's bounds on a weight (docs/methods.md sec. 6): a3 is searched between them
 A3_UNDETERMINED = 1e-6  # a3 at or below this sits on a fit's lower bound (ours 1e-7, walking-2021's published 1e-6)
 CONTINUATIONS = (0.25, 0.5, 0.75)  # where along a mean path the continuations of identify_turn_weight start
 NOMINAL_SPEED = 1.0  # m/s: the duration guess's pace at least (the sweep's assumed mean walking speed): a guess from
@@ -261,10 +260,12 @@ def continuation_error(trajectories, weights: np.ndarray, n0: int, fractions=CON
 
 def identify_turn_weight(trajectories, weights, n0: int, fractions=CONTINUATIONS, fit: int = 5) -> float:
     """a3 of the goal plans identified where the data determine it: on continuations started in motion.
-    ``argmin over log10 a3 in A3_BOUNDS`` of the mean ``continuation_error`` (Brent's bounded search, to
-    0.05 in log10 a3; the value in 3 significant digits), the other weights held; ``trajectories``: the study's
-    mean paths with goals."""
+    ``argmin over log10 a3 in the IOC's search box`` (``ioc.fit.LOG_BOUNDS``) of the mean
+    ``continuation_error`` (Brent's bounded search, to 0.05 in log10 a3; the value in 3 significant
+    digits), the other weights held; ``trajectories``: the study's mean paths with goals."""
     from scipy.optimize import minimize_scalar
+
+    from cobot_analysis.models.ioc.fit import LOG_BOUNDS
 
     w0 = _weights(weights)
 
@@ -274,8 +275,7 @@ def identify_turn_weight(trajectories, weights, n0: int, fractions=CONTINUATIONS
         d = continuation_error(trajectories, w, n0, fractions, fit)
         return float(np.nanmean(d)) if np.isfinite(d).any() else np.inf
 
-    lo, hi = np.log10(A3_BOUNDS)
-    res = minimize_scalar(mean_error, bounds=(lo, hi), method="bounded", options={"xatol": 0.05})
+    res = minimize_scalar(mean_error, bounds=LOG_BOUNDS, method="bounded", options={"xatol": 0.05})
     if not np.isfinite(res.fun):
         raise InputError("the goal plans' turning weight a3 cannot be identified: no continuation of a mean path could be planned",
                          remedy="give weights whose a3 is determined (--weights), or mean paths with goals in the trajectories")
