@@ -267,3 +267,35 @@ def test_plan_starts_on_the_walker_at_its_velocity_without_the_sway_of_its_gait(
         np.testing.assert_allclose(x[:2], poses[k, :2], atol=1e-4)
         assert abs(x[2] - th) < 0.02 and abs(x[4]) < 5e-3 and x[5] == 0.0  # v_orth: the fitted heading is nearly atan2(y', x')
         np.testing.assert_allclose(x[3], np.hypot(*np.gradient(poses[:, :2], DT, axis=0)[k]), rtol=0.02)
+
+
+@pytest.mark.parametrize("side", [0.0, 0.3])
+def test_plan_near_the_goal_does_not_loop_after_a_reversed_window(tmp_path, side):
+    """A walker 0.3 m from the walking goal (0, 0, pi/2), at 1 m/s straight at it (its heading pi/2 off the goal's),
+    planned after a window whose estimated direction of travel was reversed (a back-step in the record, as in
+    walking-2020 E-0640_S10 0.45 m from its goal). Geometry bounds a plan that does not loop: it turns the heading by
+    the pose change |theta_f - theta_0| and swings back by less than half a turn (a loop adds a full one): total
+    turning <= |theta_f - theta_0| + pi; and it is no longer than the half circle on the chord, L <= (pi/2) d.
+    Warm-started from the reversed window's plan, the plan kept its loop (turning 7.7 rad beyond the pose change,
+    cost 165 against 27 from rest); and the plan does not depend on the windows before it."""
+    import json
+
+    from cobot_analysis.models.prediction.goal import Planner, _weights
+
+    w = tmp_path / "weights.json"  # the continuous fit-ioc weights of walking-2020, a3 identified (docs/methods.md 7.1)
+    w.write_text(json.dumps({"model": "improved", "convention": "continuous",
+                             "weights": {"a0": 7.87, "a1": 12.95, "a2": 7.82, "a3": 6.79e-3, "a4": 2.34}}))
+    goal, dt, d = (0.0, 0.0, np.pi / 2), 0.0087, 0.3
+    u = np.array([np.cos(side), np.sin(side)])
+    reversed_ = np.array([*(-d * u), side + np.pi, 1.0, 0.0, 0.0])
+    arriving = np.array([*(-(d - 0.01) * u), side, 1.0, 0.0, 0.0])
+    planner = Planner(_weights(str(w)), dt)
+    planner.plan(reversed_, goal)
+    sol = planner.plan(arriving, goal)
+    fresh = Planner(_weights(str(w)), dt).plan(arriving, goal)
+    np.testing.assert_allclose(sol.X, fresh.X, atol=1e-9)
+    dense = planner._at(sol, np.linspace(0.0, sol.T, 401))
+    turning = np.abs(np.diff(dense[:, 2])).sum()
+    length = np.hypot(*np.diff(dense[:, :2], axis=0).T).sum()
+    assert turning <= abs(dense[-1, 2] - dense[0, 2]) + np.pi
+    assert length <= np.pi / 2 * (d - 0.01)

@@ -16,7 +16,9 @@ Window at sample k (the measured past ``C_{k-N0+1} .. C_k``):
 2. Plan: the improved OC of docs/methods.md sec. 5.5 (continuous convention: integrated running cost,
    exact-in-time step, free duration, ``models.oc.problem``) on ``N_INTERVALS`` intervals from that
    state (pose *and* velocity: the path starts at the measured speed) to the goal pose at rest, a
-   terminal constraint (``OCPShape(goal="constraint")``); warm-started from the previous window's plan.
+   terminal constraint (``OCPShape(goal="constraint")``); solved from rest in every window, not warm-started
+   from the previous window's plan: a warm start kept the plans in a local minimum, a loop near the goal,
+   from window to window (docs/methods.md sec. 7.1).
    The turning weight a3 (price of the angular acceleration u3): the weights' own, unless they leave it
    undetermined (``turn_weight_undetermined``: on the fits' lower bound), then the one identified on
    the continuations of the study's mean paths (``identify_turn_weight``). Why: with a3 on its bound
@@ -48,13 +50,13 @@ import numpy as np
 from cobot_analysis.errors import InputError
 from cobot_analysis.models.prediction.base import Predictor
 
-N_INTERVALS = 20  # intervals of the plan: one solve per window, warm-started
+N_INTERVALS = 20  # intervals of the plan: one solve per window, from rest
 SIGMA = 0.08  # m: path error of the improved OC against human paths (docs/methods.md sec. 5.5)
 LAB_EXTENT = 10.0  # m: |x|, |y| of a goal in the studies' frames (their paths lie within 6 m of the origin)
 ARRIVED = 0.01  # m: closer to the goal than this the walker is predicted to stay
 DENSE = 200  # points of the plan's arc-length table
-MAX_ITER = 100  # solver iterations per plan: a warm 20-interval plan converges in tens; a stale warm start that
-# does not is solved again from rest (some ran for minutes from the warm start near a standing table)
+MAX_ITER = 100  # solver iterations per plan: a 20-interval plan converges in tens (some warm-started solves near a
+# standing table ran for minutes without a bound)
 MIN_SPEED = 0.05  # m/s: below this the walker stands: its direction of travel is undefined
 PLAN_CPU_LIMIT = 1.0  # s of CPU per candidate plan (IPOPT's max_cpu_time): a plan takes milliseconds; one that does not
 # is stopped and counted as failed (models.oc.problem: fatrop's solves have no such bound)
@@ -145,7 +147,7 @@ def plan_start(past: np.ndarray, filt: np.ndarray) -> np.ndarray:
 
 
 class Planner:
-    """The improved OC from a state to a goal pose at rest, warm-started from its previous plan (module
+    """The improved OC from a state to a goal pose at rest, solved from rest every window (module
     docstring, 2-3)."""
 
     def __init__(self, weights: np.ndarray, dt: float, n_intervals: int = N_INTERVALS, tol: float = 1e-6,
@@ -155,11 +157,7 @@ class Planner:
         self.ocp = get_ocp(OCPShape(n_intervals=n_intervals, free_time=True, tol=tol, goal="constraint", max_iter=MAX_ITER,
                                     solver=solver, max_cpu_time=max_cpu_time))
         self.weights, self.dt = weights, float(dt)
-        self._warm: np.ndarray | None = None
         self.status = ""  # why the last plan failed
-
-    def reset(self) -> None:
-        self._warm = None
 
     def plan(self, x0: np.ndarray, goal) -> "object | None":
         """The OC solution from ``x0`` to ``goal`` at rest, or None if it failed or missed the goal.
@@ -173,14 +171,10 @@ class Planner:
         dist = math.hypot(goal[0] - x0[0], goal[1] - x0[1])
         speed = math.hypot(x0[3], x0[4])
         T0 = max(dist / max(speed, NOMINAL_SPEED), 10 * self.dt)  # a guess at a walking pace; T is free in [0.4, 2.5] T0
-        guess = self._warm if self._warm is not None else "rest"
-        sol = self.ocp.solve(x0[:3], target, self.weights, T0, guess=guess, start_velocity=x0[3:])
-        if not sol.success and self._warm is not None:  # a stale warm start: once more from rest
-            sol = self.ocp.solve(x0[:3], target, self.weights, T0, guess="rest", start_velocity=x0[3:])
+        sol = self.ocp.solve(x0[:3], target, self.weights, T0, guess="rest", start_velocity=x0[3:])
         if sol.success and not goal_check(sol.X[:, 0], sol.X[:, 1], sol.X[:, 2], target)["goal_reached"]:
             sol.success, sol.status = False, "plan misses the goal"  # a converged solve is not a result
         self.status = "" if sol.success else f"{sol.solver}: {sol.status}"
-        self._warm = sol.primal if sol.success else None
         return sol if sol.success else None
 
     def read(self, sol, horizon: int, speed: float) -> np.ndarray:
@@ -252,7 +246,6 @@ def continuation_error(trajectories, weights: np.ndarray, n0: int, fractions=CON
             if k < n0 - 1 or traj.goal is None or not np.isfinite(past[:, :2]).all():
                 out.append(np.nan)
                 continue
-            planner.reset()
             p = plan_path(planner, plan_start(past, filt), traj.goal, n - 1 - k)
             out.append(np.nan if p is None else float(np.nanmean(np.hypot(*(traj.poses[k:, :2] - p[:, :2]).T))))
     return np.array(out)
@@ -297,14 +290,6 @@ class GoalPredictor(Predictor):
         self.filter = quadratic_fit(min(int(fit), self.n0), self.dt)
         self.planner = Planner(_weights(weights, a3=turn_weight), self.dt, n_intervals)
 
-    def reset(self) -> None:
-        super().reset()
-        if hasattr(self, "planner"):
-            self.planner.reset()
-
-    def on_skip(self) -> None:
-        self.planner.reset()
-
     def predict(self, past: np.ndarray) -> np.ndarray | None:
         x0 = plan_start(past, self.filter)
         return plan_path(self.planner, x0, self.goal, self.horizon)
@@ -340,8 +325,6 @@ class GoalInferencePredictor(Predictor):
 
     def reset(self) -> None:
         super().reset()
-        for p in getattr(self, "planners", ()):
-            p.reset()
         self._k = -1
         self._segment: tuple[int, np.ndarray] | None = None  # (j, (M, L + 1, 2) plans made at sample j)
         self._evidence = np.zeros(len(getattr(self, "candidates", ())))  # log-likelihoods of the finished segments
@@ -353,8 +336,6 @@ class GoalInferencePredictor(Predictor):
         return super().update(pose)
 
     def on_skip(self) -> None:
-        for p in self.planners:
-            p.reset()
         self._segment = None  # the finished segments' evidence stays
 
     def _loglik(self, past: np.ndarray, k: int) -> np.ndarray:
