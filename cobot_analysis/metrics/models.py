@@ -7,31 +7,12 @@ import json
 from typing import Any
 
 from cobot_analysis.metrics.records import Collector, groups
-
-
-def verdict_category(verdict: str) -> str:
-    """The category of an identifiability verdict (``models.ioc.uncertainty.verdicts``, docs/methods.md
-    sec. 6.3), without its numbers: "determined", "ratio to <weight>", "not determined" or "not judged",
-    with " at the search limit" appended when the verdict says so.
-
-        >>> verdict_category("only its ratio to a1 is determined (at the search limit 1e-07)")
-        'ratio to a1 at the search limit'
-    """
-    head = verdict.split(" (at the search limit")[0]
-    if head.startswith("only its ratio to "):
-        category = "ratio to " + head[len("only its ratio to "):].split()[0]
-    elif head.startswith("not judged"):
-        category = "not judged"
-    elif head.startswith("not determined"):
-        category = "not determined"
-    else:
-        category = head
-    return category + (" at the search limit" if "(at the search limit" in verdict else "")
+from cobot_analysis.models.ioc.uncertainty import verdict_category
 
 
 def fit_ioc(out: Collector, weights: dict[str, Any], distances) -> None:
     """fit-ioc: D at the start and fitted, evaluations, fitted weights per fit (``weights``: the document of
-    ``weights.json``, as written), each fitted weight's identifiability verdict (``verdict_category``) and,
+    ``weights.json``, as written), each fitted weight's identifiability verdict (``models.ioc.uncertainty.verdict_category``) and,
     when determined, its bootstrap interval (``weights.<w>.lo`` / ``.hi``); per subject, the test of whether
     the subjects' weights differ (``subjects_differ.<w>``: subjects, Q, p, p_holm, differ); distances of each
     compared model to the means, per fit in ``fit-ioc-subjects``; a single-level fit's cross-check of the

@@ -210,6 +210,27 @@ def interval_verdicts(verdicts: dict[str, str], intervals: dict[str, tuple[float
     return out
 
 
+def verdict_category(verdict: str) -> str:
+    """The category of an identifiability verdict (``verdicts``, ``interval_verdicts``; docs/methods.md
+    sec. 6.3), without its numbers: "determined", "ratio to <weight>", "not determined" or "not judged",
+    with " at the search limit" appended when the verdict says so.
+
+        >>> from cobot_analysis.models.ioc.uncertainty import verdict_category
+        >>> verdict_category("only its ratio to a1 is determined (at the search limit 1e-07)")
+        'ratio to a1 at the search limit'
+    """
+    head = verdict.split(" (at the search limit")[0]
+    if head.startswith("only its ratio to "):
+        category = "ratio to " + head[len("only its ratio to "):].split()[0]
+    elif head.startswith("not judged"):
+        category = "not judged"
+    elif head.startswith("not determined"):
+        category = "not determined"
+    else:
+        category = head
+    return category + (" at the search limit" if "(at the search limit" in verdict else "")
+
+
 def quadratic_refit(c: Curvature, counts: np.ndarray, basis: np.ndarray | None = None) -> np.ndarray:
     """y minimising sum_i counts_i (g_i' dy + 0.5 dy' H_i dy) within the search box, dy = basis z
     (default: every direction) (module docstring)."""

@@ -215,20 +215,27 @@ def _weights(weights, entity_default: str = "walking-2021", a3: float | None = N
 
 
 def turn_weight_undetermined(weights) -> bool:
-    """The weights leave a3 undetermined: a fit said so (``fit-ioc``'s weights.json, uncertainty verdict)
-    or a3 sits on a fit's lower bound (``A3_UNDETERMINED``: the preset walking-2021, 1e-6)."""
+    """The weights leave a3 undetermined: a fit in a ``fit-ioc`` weights.json says so (its uncertainty verdict on
+    a3, ``ioc.uncertainty.verdict_category`` "not determined"), or a3 sits on a fit's lower bound
+    (``A3_UNDETERMINED``: the preset walking-2021, 1e-6). The file is read once."""
     import json
     from pathlib import Path
 
-    if weights is not None and Path(str(weights)).is_file():
+    from cobot_analysis.models.ioc.uncertainty import verdict_category
+    from cobot_analysis.models.presets import PRESETS
+
+    spec, fits = weights, {}
+    if weights is not None and str(weights) not in PRESETS and Path(str(weights)).is_file():
         try:
-            fits = json.loads(Path(str(weights)).read_text()).get("fits", {})
-        except (ValueError, AttributeError):
-            fits = {}
-        verdicts = [str(f.get("uncertainty", {}).get("verdicts", {}).get("a3", "")) for f in fits.values() if isinstance(f, dict)]
-        if any(v.startswith("not determined") for v in verdicts):
-            return True
-    return bool(_weights(weights)[3] <= A3_UNDETERMINED)
+            doc = json.loads(Path(str(weights)).read_text())
+        except ValueError:
+            doc = None  # not JSON: load_weights below names the file
+        if isinstance(doc, dict) and isinstance(doc.get("weights"), dict):
+            spec, fits = doc["weights"], doc.get("fits") or {}
+    verdicts = [f.get("uncertainty", {}).get("verdicts", {}).get("a3") for f in fits.values() if isinstance(f, dict)]
+    if any(verdict_category(v) in ("not determined", "not determined at the search limit") for v in verdicts if isinstance(v, str)):
+        return True
+    return bool(_weights(spec)[3] <= A3_UNDETERMINED)
 
 
 def continuation_error(trajectories, weights: np.ndarray, n0: int, fractions=CONTINUATIONS, fit: int = 5) -> np.ndarray:
