@@ -299,3 +299,30 @@ def test_plan_near_the_goal_does_not_loop_after_a_reversed_window(tmp_path, side
     length = np.hypot(*np.diff(dense[:, :2], axis=0).T).sum()
     assert turning <= abs(dense[-1, 2] - dense[0, 2]) + np.pi
     assert length <= np.pi / 2 * (d - 0.01)
+
+
+def test_plan_of_a_walker_heading_away_turns_round_once(tmp_path, monkeypatch):
+    """A walker 1.5 m from the walking goal walking away from it at 1 m/s (walking-2020 O0615_S06, window 52) must turn
+    round and then to the goal's heading: a plan that turns a full turn more than its pose change has looped. From
+    rest alone the solve ended in a spin (93 rad, cost 148); from the straight line in a plan of cost 42: the plan is
+    the lower-cost of both guesses (goal.GUESSES)."""
+    import json
+
+    import cobot_analysis.models.prediction.goal as goal
+
+    w = tmp_path / "weights.json"  # the continuous fit-ioc weights of walking-2020, a3 identified (docs/methods.md 7.1)
+    w.write_text(json.dumps({"model": "improved", "convention": "continuous",
+                             "weights": {"a0": 7.87, "a1": 12.95, "a2": 7.82, "a3": 6.79e-3, "a4": 2.34}}))
+    x0 = np.array([-1.53, 0.24, 3.128, 1.005, 0.008, 0.0])
+
+    def turning(guesses):
+        monkeypatch.setattr(goal, "GUESSES", guesses)
+        planner = goal.Planner(goal._weights(str(w)), 0.0087)
+        sol = planner.plan(x0, (0.0, 0.0, np.pi / 2))
+        dense = planner._at(sol, np.linspace(0.0, sol.T, 401))
+        return np.abs(np.diff(dense[:, 2])).sum() - abs(dense[-1, 2] - dense[0, 2]), sol.cost
+
+    excess, cost = turning(goal.GUESSES)
+    assert excess <= 2 * np.pi
+    rest_excess, rest_cost = turning(("rest",))
+    assert rest_excess > 2 * np.pi and rest_cost > cost  # the defect, documented: the spin is a costlier local minimum
