@@ -70,7 +70,11 @@ def test_goal_predictor_follows_a_straight_walk_to_its_goal():
     P = p.predict_offline(poses)
     assert p.failed == 0
     np.testing.assert_allclose(P[:, 0, :2], poses[19:, :2], atol=1e-9)  # starts on the walker
-    assert np.nanmax(np.abs(P[..., 1])) < 1e-3  # stays on the line to the goal
+    far = np.hypot(*poses[19:, :2].T) >= 0.05  # room to stop: beyond its last 5 cm at 1 m/s
+    assert np.nanmax(np.abs(P[far][..., 1])) < 1e-3  # stays on the line to the goal
+    # within 3 cm the lowest-cost plan from 1 m/s is a hook (cost 19 against 60-89 for the straight stop, the duration on
+    # its guard, docs/methods.md 7.1), of no more than 3 cm
+    assert np.nanmax(np.abs(P[..., 1])) < 0.03
     m = summarise(window_errors(poses, P, 20))
     # over the whole remaining path (up to 2.8 m): the plan ends at rest on the goal (its terminal
     # constraint), walked at the measured speed, as the walker does
