@@ -16,11 +16,10 @@ Window at sample k (the measured past ``C_{k-N0+1} .. C_k``):
 2. Plan: the improved OC of docs/methods.md sec. 5.5 (continuous convention: integrated running cost,
    exact-in-time step, free duration, ``models.oc.problem``) on ``N_INTERVALS`` intervals from that
    state (pose *and* velocity: the path starts at the measured speed) to the goal pose at rest, a
-   terminal constraint (``OCPShape(goal="constraint")``); solved in every window from two initial guesses
-   (``GUESSES``: at rest at the start, the straight line to the goal), the lower-cost converged plan kept, and
-   not warm-started from the previous window's plan: a warm start kept the plans in a local minimum, a loop
-   near the goal, from window to window, and either guess alone ends in a spin now and then (docs/methods.md
-   sec. 7.1).
+   terminal constraint (``OCPShape(goal="constraint")``); solved afresh in every window, from rest at the start
+   state, and, where that plan spins (``spins``: a full turn beyond its pose change), from the straight line to
+   the goal too, the lower-cost plan kept; not warm-started from the previous window's plan: a warm start kept
+   the plans in a local minimum, a loop near the goal, from window to window (docs/methods.md sec. 7.1).
    The turning weight a3 (price of the angular acceleration u3): the weights' own, unless they leave it
    undetermined (``turn_weight_undetermined``: on the fits' lower bound), then the one identified on
    the continuations of the study's mean paths (``identify_turn_weight``). Why: with a3 on its bound
@@ -52,7 +51,7 @@ import numpy as np
 from cobot_analysis.errors import InputError
 from cobot_analysis.models.prediction.base import Predictor
 
-N_INTERVALS = 20  # intervals of the plan: solved afresh every window (GUESSES)
+N_INTERVALS = 20  # intervals of the plan: solved afresh every window
 SIGMA = 0.08  # m: path error of the improved OC against human paths (docs/methods.md sec. 5.5)
 LAB_EXTENT = 10.0  # m: |x|, |y| of a goal in the studies' frames (their paths lie within 6 m of the origin)
 ARRIVED = 0.01  # m: closer to the goal than this the walker is predicted to stay
@@ -64,7 +63,6 @@ PLAN_CPU_LIMIT = 1.0  # s of CPU per candidate plan (IPOPT's max_cpu_time): a pl
 # is stopped and counted as failed (models.oc.problem: fatrop's solves have no such bound)
 A3_UNDETERMINED = 1e-6  # a3 at or below this sits on a fit's lower bound (ours 1e-7, walking-2021's published 1e-6)
 CONTINUATIONS = (0.25, 0.5, 0.75)  # where along a mean path the continuations of identify_turn_weight start
-GUESSES = ("rest", "line")  # initial guesses of every plan (models.oc.problem): at rest at the start; the straight line
 NOMINAL_SPEED = 1.0  # m/s: the duration guess's pace at least (the sweep's assumed mean walking speed): a guess from
 # a walker barely moving (1.5 m in 30 s) made solves from rest run for minutes
 
@@ -149,6 +147,12 @@ def plan_start(past: np.ndarray, filt: np.ndarray) -> np.ndarray:
     return x0
 
 
+def spins(theta: np.ndarray) -> bool:
+    """The heading turns more than a full turn beyond the pose change, ``sum |dtheta| - |theta_N - theta_0| > 2 pi``
+    (theta at the plan's nodes, unwrapped): no walker's plan; a loop adds a full turn."""
+    return float(np.abs(np.diff(theta)).sum() - abs(theta[-1] - theta[0])) > 2 * math.pi
+
+
 class Planner:
     """The improved OC from a state to a goal pose at rest, solved afresh every window (module
     docstring, 2-3)."""
@@ -175,12 +179,14 @@ class Planner:
         speed = math.hypot(x0[3], x0[4])
         T0 = max(dist / max(speed, NOMINAL_SPEED), 10 * self.dt)  # a guess at a walking pace; T is free in [0.4, 2.5] T0
         sol = None
-        for guess in GUESSES:  # the model's plan is the lowest-cost one: each guess alone ends in a spin now and then
+        for guess in ("rest", "line"):
             s = self.ocp.solve(x0[:3], target, self.weights, T0, guess=guess, start_velocity=x0[3:])
             if s.success and not goal_check(s.X[:, 0], s.X[:, 1], s.X[:, 2], target)["goal_reached"]:
                 s.success, s.status = False, "plan misses the goal"  # a converged solve is not a result
             if sol is None or (s.success and (not sol.success or s.cost < sol.cost)):
                 sol = s
+            if sol.success and not spins(sol.X[:, 2]):  # a plausible plan: no second guess
+                break
         self.status = "" if sol.success else f"{sol.solver}: {sol.status}"
         return sol if sol.success else None
 
