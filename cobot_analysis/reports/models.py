@@ -406,11 +406,17 @@ def generated_section(df: pd.DataFrame, convention, measured: dict[str, tuple[fl
 
 
 def _subject_pace(ends: pd.DataFrame, measured: dict) -> str:
-    """'T a-b s, mean speed a-b m/s' of the subjects on the generated paths' conditions."""
-    m = np.array([measured[t] for t in ends.index if t in measured])
-    if not len(m):
+    """'T a-b s, mean speed a-b m/s, k of n outside 0.5-2 m/s; model T / subjects' T a-b' on the generated
+    paths' conditions: the human range the model's time law is judged against."""
+    have = [t for t in ends.index if t in measured]
+    if not have:
         return "none on these paths"
-    return f"T {m[:, 0].min():.2f}-{m[:, 0].max():.2f} s, mean speed {m[:, 1].min():.3g}-{m[:, 1].max():.3g} m/s"
+    m = np.array([measured[t] for t in have])
+    ratio = ends.loc[have, "travel_time"].to_numpy(float) / m[:, 0]
+    outside = int(np.sum((m[:, 1] < 0.5) | (m[:, 1] > 2.0)))
+    return (f"T {m[:, 0].min():.2f}-{m[:, 0].max():.2f} s, mean speed {m[:, 1].min():.3g}-{m[:, 1].max():.3g} m/s, "
+            f"{outside} of {len(m)} outside 0.5-2 m/s; model T / subjects' T {np.nanmin(ratio):.2f}-{np.nanmax(ratio):.2f}, "
+            f"median {np.nanmedian(ratio):.2f}")
 
 
 def pace_lines(mean_keys: pd.DataFrame | None, targets, per_target: list[dict], durations: pd.DataFrame | None,
