@@ -178,6 +178,10 @@ def test_fitted_continuous_paths_walk_at_the_subjects_pace():
         assert g.goal_reached and g.status == "ok"
         assert g.travel_time == pytest.approx(subjects[t.condition], rel=0.15), t.condition
         assert 0.5 < g.mean_speed < 2.0
+    from cobot_analysis.reports.models import pace_lines
+
+    text = "\n".join(pace_lines(fit.mean_keys, fit.mean_targets, r.per_target, None, r.pace))
+    assert f"0 of {len(fit.mean_targets)} model paths outside 0.5-2 m/s, the subjects' 0 of {len(fit.mean_targets)}." in text
 
 
 def test_a_duration_on_its_bound_is_flagged():

@@ -600,7 +600,8 @@ def _gauge_lines(line: str, targets, per_target: list[dict], pace: dict) -> list
             f"the calibrated ones; re-solved there, D = {pace['D_after']:.4f} (before {pace['D_before']:.4f}), "
             f"rms duration error {np.sqrt(np.mean(np.square(errors))):.2f} s, model mean speed {sp[:, 0].min():.2f}-"
             f"{sp[:, 0].max():.2f} m/s against the subjects' {np.nanmin(sub[:, 1]):.2f}-{np.nanmax(sub[:, 1]):.2f} m/s "
-            f"(path length / the subjects' duration); {outside} of {len(sp)} model paths outside 0.5-2 m/s.")
+            f"(path length / the subjects' duration); {outside} of {len(sp)} model paths outside 0.5-2 m/s, the subjects' "
+            f"{int(np.sum((sub[:, 1] < 0.5) | (sub[:, 1] > 2.0)))} of {len(sub)}.")
     if pace.get("notes"):
         text += " **" + "; ".join(pace["notes"]) + ".**"
     return [line + ".", "", text, "",
