@@ -27,7 +27,6 @@ import pandas as pd
 
 from cobot_analysis.errors import InputError
 from cobot_analysis.models.prediction.errors import truth_windows, window_errors
-from cobot_analysis.models.prediction.predictor import make_predictor
 from cobot_analysis.schema import Column, TableSchema
 
 HORIZONS = (5, 10, 25, 50, 100, 200, -1)  # samples ahead; -1: the whole remaining path
@@ -104,14 +103,20 @@ def parse_horizons(text: str) -> tuple[int, ...]:
 
 def trajectory_horizons(traj, config, n0: int, horizons=HORIZONS) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Horizon errors of every predictor of ``config`` on one trajectory, and the goal inference rows."""
-    from cobot_analysis.models.prediction.sweep import predictor_options
+    from cobot_analysis.models.prediction.sweep import trajectory_runs
 
+    return horizon_rows(traj, config, n0, horizons, trajectory_runs(traj, replace(config, settings=()), n0))
+
+
+def horizon_rows(traj, config, n0: int, horizons, runs: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """``trajectory_horizons`` from predictions already made (``sweep.trajectory_runs`` with this N0 run
+    over the whole path): the predict stage's sweep and its horizon sweep share one run per predictor."""
     n = len(traj.poses)
     h_max = n - n0
     preds, infer = {}, pd.DataFrame(columns=list(GOAL_INFERENCE.columns))
     for name in config.predictors:
-        p = make_predictor(name, n0, n0 + h_max, traj.dt, convention=config.convention, **predictor_options(name, traj, config))
-        preds[name] = p.predict_offline(traj.seen)
+        predictions, *_, p = runs[n0, name]
+        preds[name] = predictions[:, : h_max + 1]
         if name == "goal-inferred" and traj.goal is not None:
             infer = inference_rows(traj, p)
     valid = np.logical_and.reduce([np.isfinite(P[:, 0, :2]).all(axis=1) for P in preds.values()])
