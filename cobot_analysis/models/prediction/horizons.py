@@ -20,13 +20,14 @@ path's length walked at sample k (``goal_inference`` table).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import replace
 
 import numpy as np
 import pandas as pd
 
 from cobot_analysis.errors import InputError
-from cobot_analysis.models.prediction.errors import truth_windows, window_errors
+from cobot_analysis.models.prediction.errors import truth_windows
 from cobot_analysis.schema import Column, TableSchema
 
 HORIZONS = (5, 10, 25, 50, 100, 200, -1)  # samples ahead; -1: the whole remaining path
@@ -124,14 +125,16 @@ def horizon_rows(traj, config, n0: int, horizons, runs: dict) -> tuple[pd.DataFr
     k = np.arange(n0 - 1, n)
     rows = []
     for name, P in preds.items():
-        e = np.hypot(*(truth[..., :2] - P[..., :2]).transpose(2, 0, 1))  # (W, h_max + 1)
+        e = np.hypot(*(truth[..., :2] - P[..., :2]).transpose(2, 0, 1))  # (W, h_max + 1), NaN past the end
+        has = np.where(np.isfinite(P[:, 0, :2]).all(axis=1), 1.0, np.nan)
         for h in horizons:
+            hh = h_max if h == WHOLE else min(h, h_max)
+            with warnings.catch_warnings():  # all-NaN rows give NaN on purpose ("mean of empty slice")
+                warnings.simplefilter("ignore", RuntimeWarning)
+                dxy = np.nanmean(e[:, : hh + 1], axis=1) * has  # errors.window_errors(...).error_xy of P[:, :hh + 1]
             if h == WHOLE:
-                dxy = window_errors(traj.poses, P, n0).error_xy
                 fde = e[np.arange(len(k)), n - 1 - k]
             else:
-                hh = min(h, h_max)
-                dxy = window_errors(traj.poses, P[:, : hh + 1], n0).error_xy
                 fde = np.where(k + h <= n - 1, e[:, hh], np.nan) if h <= h_max else np.full(len(k), np.nan)
             use = valid & np.isfinite(dxy)
             rows.append({"convention": config.convention.name, "study": traj.study, "trial": traj.trial, "entity": traj.entity,
