@@ -15,6 +15,11 @@
 
     python benchmarks/bench_predict.py horizons WALKING.parquet [--pairs PAIRS.parquet] [--every K] [--jobs 2]
         Wall time of the horizon sweep (models.prediction.horizons) at N0 = 50.
+    python benchmarks/bench_predict.py stages WALKING.parquet [--pairs PAIRS.parquet] [--n 3] [--weights W]
+        CPU per trajectory of each prediction stage of the Makefile (issue 22 point 5), one process: predict
+        (4 settings, both conventions), predict-fitted, and the predict-goal stages with their horizon sweep,
+        the settings and the horizons predicted by one run per predictor (the stage) against two runs
+        (before: the horizon sweep predicted every window again), alternated per trajectory; the ratio.
     python benchmarks/bench_predict.py goal WALKING.parquet [--pairs PAIRS.parquet] [--n 6] [--weights W]
         The goal-aware predictors per window on one core: goal on n walking trials; goal and goal-inferred
         on n table means.
@@ -161,6 +166,61 @@ def bench_goal_predictors(walking: Path, pairs: Path | None, n: int, weights: st
         bench_goal(tables, name="goal-inferred")
 
 
+def bench_stages(walking: Path, pairs: Path | None, n: int, weights: str | None) -> None:
+    """CPU per trajectory (``time.process_time``, one process) of each prediction stage's work on n
+    trajectories after a warm-up one; the predict-goal stages with the horizon sweep by one run per
+    predictor (``trajectory_runs`` over the whole path: what the stage does) and by two (the settings,
+    then ``trajectory_horizons`` predicting again: before), alternated per trajectory."""
+    from cobot_analysis import conventions
+    from cobot_analysis.api.prediction import with_turn_weight
+    from cobot_analysis.models.prediction.horizons import HORIZONS, horizon_rows, trajectory_horizons
+    from cobot_analysis.models.prediction.sweep import (SweepConfig, predict_trajectory, setting_rows, trajectories_from_table,
+                                                        trajectory_runs)
+    from cobot_analysis.schema import TRAJECTORIES, read_table
+
+    def shared(t, c):
+        runs = trajectory_runs(t, c, 50)
+        return setting_rows(t, c, runs), horizon_rows(t, c, 50, HORIZONS, runs)
+
+    def separate(t, c):
+        return predict_trajectory(t, c), trajectory_horizons(t, c, 50, HORIZONS)
+
+    def cpu(f, t, c):
+        s = time.process_time()
+        f(t, c)
+        return time.process_time() - s
+
+    walk = read_table(walking, TRAJECTORIES)
+    published = conventions.get("published")
+    cases = [("predict (4 settings, continuous)", SweepConfig(), walk, "walker", None),
+             ("predict-published (4 settings)", SweepConfig(convention=published), walk, "walker", None),
+             ("predict-fitted (50:100)", SweepConfig(settings=((50, 100),), weights=weights), walk, "walker", None),
+             ("predict-goal walking (oc,goal,cv,ctrv + horizons)",
+              SweepConfig(settings=((50, 100),), predictors=("oc", "goal", "cv", "ctrv"), weights=weights), walk, "walker", True)]
+    if pairs is not None:
+        cases.append(("predict-goal pairs (oc,goal,goal-inferred,cv,ctrv + horizons)",
+                      SweepConfig(settings=((50, 100),), predictors=("oc", "goal", "goal-inferred", "cv", "ctrv")),
+                      read_table(pairs, TRAJECTORIES), "table", True))
+    for label, config, table, entity, horizons in cases:
+        config = with_turn_weight(config, table, entities=[entity])  # as the stage
+        df = table[(table["entity"] == entity) & ((table["kind"] == "trial") if entity == "walker" else True)]
+        trajs = trajectories_from_table(df, config)
+        trajs = trajs[:: max(1, len(trajs) // (n + 1))][: n + 1]
+        if not horizons:
+            predict_trajectory(trajs[0], config)  # NLP set-up and the compiled functions loaded once, outside the timing
+            per = sum(cpu(predict_trajectory, t, config) for t in trajs[1:]) / n
+            print(f"{label}: {per:.3f} s CPU per trajectory ({len(trajs) - 1} trajectories)")
+            continue
+        shared(trajs[0], config)
+        one, two = [], []
+        for i, t in enumerate(trajs[1:]):  # alternated: the load hits both alike
+            order = (shared, separate) if i % 2 == 0 else (separate, shared)
+            for f in order:
+                (one if f is shared else two).append(cpu(f, t, config))
+        print(f"{label}: one run {np.mean(one):.3f} s CPU per trajectory, two runs (before) {np.mean(two):.3f} s: "
+              f"ratio {np.mean(one) / np.mean(two):.2f} (per trajectory {', '.join(f'{a / b:.2f}' for a, b in zip(one, two))})")
+
+
 def bench_horizons(walking: Path, pairs: Path | None, every: int, jobs: int) -> None:
     """Wall time of the horizon sweep (N0 = 50, horizons 5..200 and the whole path) of oc, goal, cv, ctrv on the
     walking trials (every ``every``-th) and, with goal-inferred too, on the pair study's table means."""
@@ -229,6 +289,11 @@ def main() -> None:
     g.add_argument("--pairs", type=Path)
     g.add_argument("--n", type=int, default=6)
     g.add_argument("--weights")
+    st = sub.add_parser("stages")
+    st.add_argument("walking", type=Path)
+    st.add_argument("--pairs", type=Path)
+    st.add_argument("--n", type=int, default=3)
+    st.add_argument("--weights")
     h = sub.add_parser("horizons")
     h.add_argument("walking", type=Path)
     h.add_argument("--pairs", type=Path)
@@ -243,6 +308,8 @@ def main() -> None:
         bench_published_floor(a.trajectories, a.n)
     elif a.what == "goal":
         bench_goal_predictors(a.walking, a.pairs, a.n, a.weights)
+    elif a.what == "stages":
+        bench_stages(a.walking, a.pairs, a.n, a.weights)
     elif a.what == "horizons":
         bench_horizons(a.walking, a.pairs, a.every, a.jobs)
     else:

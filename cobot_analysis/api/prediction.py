@@ -51,6 +51,8 @@ class PredictionResult:
     comparison: pd.DataFrame
     unpredictable: list[str] = field(default_factory=list)
     resumed: int = 0
+    horizon_errors: pd.DataFrame | None = None  # the horizon sweep (assess(..., horizons=...)), schema horizon_errors
+    goal_inference: pd.DataFrame | None = None  # and its goal inference rows, schema goal_inference
 
     def summary(self) -> str:
         n = len(self.trajectories)
@@ -267,9 +269,10 @@ def predict(trajectories: pd.DataFrame | str | os.PathLike, *, settings: str = D
 
 
 def assess(trajs: list, config, work: str | os.PathLike, *, unpredictable: list[str] = (), jobs: int | None = None,
-           scheduler: str | None = None) -> PredictionResult:
+           scheduler: str | None = None, horizons: tuple | None = None) -> PredictionResult:
     """Predict the selected trajectories (``select``) with ``config`` and assess the predictions; finished
-    (trajectory, setting) results are kept in ``work`` and reused.
+    (trajectory, setting) results are kept in ``work`` and reused. ``horizons`` = (N0, horizon list): the
+    horizon sweep (docs/methods.md sec. 7.2) too, from the same predictions (``horizon_errors``, ``goal_inference``).
 
         >>> import tempfile
         >>> from cobot_analysis.api.prediction import assess, prediction_config, select
@@ -282,8 +285,10 @@ def assess(trajs: list, config, work: str | os.PathLike, *, unpredictable: list[
         >>> first.resumed, again.resumed, again.predictions["delta_xy"].equals(first.predictions["delta_xy"])
         (0, 1, True)
     """
-    from cobot_analysis.models.prediction.sweep import WorkDir, compare_table, run_sweep, summary_table
+    from cobot_analysis.models.prediction.sweep import WorkDir, compare_table, horizon_tables, run_sweep, summary_table
 
-    metrics, windows, resumed = run_sweep(trajs, config, WorkDir(Path(work)), jobs=jobs, scheduler=scheduler)
+    work = WorkDir(Path(work))
+    metrics, windows, resumed = run_sweep(trajs, config, work, jobs=jobs, scheduler=scheduler, horizons=horizons)
+    errors, inference = horizon_tables(trajs, config, work, horizons) if horizons is not None else (None, None)
     return PredictionResult(config, trajs, metrics, windows, summary_table(metrics, config.convention),
-                            compare_table(metrics, windows, config.convention), list(unpredictable), resumed)
+                            compare_table(metrics, windows, config.convention), list(unpredictable), resumed, errors, inference)

@@ -73,7 +73,8 @@ def predict(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
         n_set, n_pred = len(config.settings), len(config.predictors)
         info(f"predict ({conv.name} convention): {len(trajs)} trajectories x {n_set} setting{'s' * (n_set != 1)} x "
              f"{n_pred} predictor{'s' * (n_pred != 1)}")
-        result = assess(trajs, config, work.root, unpredictable=unpredictable, jobs=jobs, scheduler=scheduler)
+        sweep = None if horizon_list is None else (config.settings[0][0], horizon_list)  # the horizon sweep at the first N0
+        result = assess(trajs, config, work.root, unpredictable=unpredictable, jobs=jobs, scheduler=scheduler, horizons=sweep)
         stage.result = result  # its own numbers are the stage's metrics.json
         metrics, windows = result.predictions, result.windows
         if result.resumed:
@@ -104,20 +105,18 @@ def predict(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
             else:
                 text += "\n" + "\n".join(report.conventions_markdown(both) + ["", f"From this stage and `{other.name}`."]) + "\n"
         if horizon_list:
-            text += "\n" + "\n".join(write_horizons(stage, trajs, config, horizon_list, jobs=jobs, scheduler=scheduler)) + "\n"
+            text += "\n" + "\n".join(write_horizons(stage, result, config)) + "\n"
         stage.path("results.md").write_text(text)
     return Outcome(stage.final_dir, result)
 
 
-def write_horizons(stage, trajectories, config, horizons, *, jobs: int | None = None, scheduler: str | None = None) -> list[str]:
-    """The horizon sweep (docs/methods.md sec. 7.2) at the first setting's N0 into ``stage``:
-    ``horizon_errors.parquet``, ``horizon_summary.parquet``, ``goal_inference.parquet``, figure ``horizons``;
-    returns the results fragment."""
-    from cobot_analysis.models.prediction.horizons import (GOAL_INFERENCE, HORIZON_ERRORS, HORIZON_SUMMARY, horizon_summary,
-                                                           horizon_sweep)
+def write_horizons(stage, result, config) -> list[str]:
+    """The horizon sweep (docs/methods.md sec. 7.2) at the first setting's N0, computed by ``assess`` from the
+    sweep's own predictions, into ``stage``: ``horizon_errors.parquet``, ``horizon_summary.parquet``,
+    ``goal_inference.parquet``, figure ``horizons``; returns the results fragment."""
+    from cobot_analysis.models.prediction.horizons import GOAL_INFERENCE, HORIZON_ERRORS, HORIZON_SUMMARY, horizon_summary
     from cobot_analysis.reports.horizons import horizon_figure, horizon_markdown
-    n0 = config.settings[0][0]
-    errors, inference = horizon_sweep(trajectories, config, n0, horizons, jobs=jobs, scheduler=scheduler)
+    errors, inference = result.horizon_errors, result.goal_inference
     summary = horizon_summary(errors)
     stage.write_table("horizon_errors.parquet", errors, HORIZON_ERRORS, convention=config.convention.name)
     stage.write_table("horizon_summary.parquet", summary, HORIZON_SUMMARY, convention=config.convention.name)

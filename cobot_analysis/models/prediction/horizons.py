@@ -20,14 +20,14 @@ path's length walked at sample k (``goal_inference`` table).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import replace
 
 import numpy as np
 import pandas as pd
 
 from cobot_analysis.errors import InputError
-from cobot_analysis.models.prediction.errors import truth_windows, window_errors
-from cobot_analysis.models.prediction.predictor import make_predictor
+from cobot_analysis.models.prediction.errors import truth_windows
 from cobot_analysis.schema import Column, TableSchema
 
 HORIZONS = (5, 10, 25, 50, 100, 200, -1)  # samples ahead; -1: the whole remaining path
@@ -104,14 +104,20 @@ def parse_horizons(text: str) -> tuple[int, ...]:
 
 def trajectory_horizons(traj, config, n0: int, horizons=HORIZONS) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Horizon errors of every predictor of ``config`` on one trajectory, and the goal inference rows."""
-    from cobot_analysis.models.prediction.sweep import predictor_options
+    from cobot_analysis.models.prediction.sweep import trajectory_runs
 
+    return horizon_rows(traj, config, n0, horizons, trajectory_runs(traj, replace(config, settings=()), n0))
+
+
+def horizon_rows(traj, config, n0: int, horizons, runs: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """``trajectory_horizons`` from predictions already made (``sweep.trajectory_runs`` with this N0 run
+    over the whole path): the predict stage's sweep and its horizon sweep share one run per predictor."""
     n = len(traj.poses)
     h_max = n - n0
     preds, infer = {}, pd.DataFrame(columns=list(GOAL_INFERENCE.columns))
     for name in config.predictors:
-        p = make_predictor(name, n0, n0 + h_max, traj.dt, convention=config.convention, **predictor_options(name, traj, config))
-        preds[name] = p.predict_offline(traj.seen)
+        predictions, *_, p = runs[n0, name]
+        preds[name] = predictions[:, : h_max + 1]
         if name == "goal-inferred" and traj.goal is not None:
             infer = inference_rows(traj, p)
     valid = np.logical_and.reduce([np.isfinite(P[:, 0, :2]).all(axis=1) for P in preds.values()])
@@ -119,14 +125,16 @@ def trajectory_horizons(traj, config, n0: int, horizons=HORIZONS) -> tuple[pd.Da
     k = np.arange(n0 - 1, n)
     rows = []
     for name, P in preds.items():
-        e = np.hypot(*(truth[..., :2] - P[..., :2]).transpose(2, 0, 1))  # (W, h_max + 1)
+        e = np.hypot(*(truth[..., :2] - P[..., :2]).transpose(2, 0, 1))  # (W, h_max + 1), NaN past the end
+        has = np.where(np.isfinite(P[:, 0, :2]).all(axis=1), 1.0, np.nan)
         for h in horizons:
+            hh = h_max if h == WHOLE else min(h, h_max)
+            with warnings.catch_warnings():  # all-NaN rows give NaN on purpose ("mean of empty slice")
+                warnings.simplefilter("ignore", RuntimeWarning)
+                dxy = np.nanmean(e[:, : hh + 1], axis=1) * has  # errors.window_errors(...).error_xy of P[:, :hh + 1]
             if h == WHOLE:
-                dxy = window_errors(traj.poses, P, n0).error_xy
                 fde = e[np.arange(len(k)), n - 1 - k]
             else:
-                hh = min(h, h_max)
-                dxy = window_errors(traj.poses, P[:, : hh + 1], n0).error_xy
                 fde = np.where(k + h <= n - 1, e[:, hh], np.nan) if h <= h_max else np.full(len(k), np.nan)
             use = valid & np.isfinite(dxy)
             rows.append({"convention": config.convention.name, "study": traj.study, "trial": traj.trial, "entity": traj.entity,

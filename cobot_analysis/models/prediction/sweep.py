@@ -318,24 +318,39 @@ def predict_trajectory(traj: Trajectory, config: SweepConfig) -> tuple[pd.DataFr
     runs once per N0, with the longest horizon of the settings sharing that N0, and each setting
     takes the first N_OC - N0 + 1 samples of those predictions: (50,100) and (50,200) cost one pass.
     """
-    rows, windows = [], []
-    n = len(traj.poses)
-    has_theta = bool(np.isfinite(traj.poses[:, 2]).any())
+    return setting_rows(traj, config, trajectory_runs(traj, config))
+
+
+def trajectory_runs(traj: Trajectory, config: SweepConfig, whole_path_n0: int | None = None) -> dict:
+    """Each predictor run once per N0 of ``config`` over the longest horizon of the settings sharing it
+    (``predict_trajectory``): ``{(N0, name): (predictions, skipped, failed, options, predictor)}``.
+    ``whole_path_n0``: that N0 is run at least as far as the recording goes (H = N - N0), so the horizon
+    sweep (``horizons.horizon_rows``) reads the same predictions as the settings."""
     longest: dict[int, int] = {}
     for n0, n_oc in config.settings:
         longest[n0] = max(n_oc, longest.get(n0, 0))
-    conv = config.convention
-    node_dt = conv.prediction.node_dt or traj.dt  # seconds per OC node
-    runs = {}  # (N0, predictor) -> (predictions over the longest horizon, skipped, failed, options)
+    if whole_path_n0 is not None:
+        longest[whole_path_n0] = max(len(traj.poses), longest.get(whole_path_n0, 0))
+    runs = {}
     for n0, n_oc in longest.items():
         for name in config.predictors:
             options = predictor_options(name, traj, config)
-            predictor = make_predictor(name, n0, n_oc, traj.dt, convention=conv, **options)
-            runs[n0, name] = (predictor.predict_offline(traj.seen), predictor.skipped, predictor.failed, options)
+            predictor = make_predictor(name, n0, n_oc, traj.dt, convention=config.convention, **options)
+            runs[n0, name] = (predictor.predict_offline(traj.seen), predictor.skipped, predictor.failed, options, predictor)
+    return runs
+
+
+def setting_rows(traj: Trajectory, config: SweepConfig, runs: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(metrics rows, per-window rows) of every setting of ``config`` from ``trajectory_runs``."""
+    rows, windows = [], []
+    n = len(traj.poses)
+    has_theta = bool(np.isfinite(traj.poses[:, 2]).any())
+    conv = config.convention
+    node_dt = conv.prediction.node_dt or traj.dt  # seconds per OC node
     for n0, n_oc in config.settings:
         results = {}
         for name in config.predictors:
-            predictions, skipped, failed, options = runs[n0, name]
+            predictions, skipped, failed, options, _ = runs[n0, name]
             results[name] = (window_errors(traj.poses, predictions[:, : n_oc - n0 + 1], n0), skipped, failed, options)
         common = np.logical_and.reduce([err.valid for err, *_ in results.values()])
         k = np.arange(n0 - 1, n)
@@ -356,21 +371,34 @@ def predict_trajectory(traj: Trajectory, config: SweepConfig) -> tuple[pd.DataFr
     return pd.DataFrame(rows), pd.concat(windows, ignore_index=True)
 
 
-def sweep_task(item: tuple[Trajectory, SweepConfig, "WorkDir | None"]) -> tuple[Trajectory, pd.DataFrame, pd.DataFrame]:
-    """Task of the parallel sweep (top level so that process pools and Dask can pickle it).
+def sweep_task(item: tuple) -> tuple:
+    """Task of the parallel sweep (top level so that process pools and Dask can pickle it):
+    ``(trajectory, config, work[, horizons])`` -> ``(trajectory, metrics, windows[, horizon rows])``.
 
-    The task saves its result in the work directory itself when it can reach it (local pool, a
-    Dask cluster on this machine or a shared file system), so that every finished trajectory
-    survives an interruption; the caller saves it otherwise.
+    ``horizons`` = (N0, horizon list): also the horizon sweep's rows (``horizons.horizon_rows``) from the
+    same predictions (``trajectory_runs``). The task saves its result in the work directory itself when it
+    can reach it (local pool, a Dask cluster on this machine or a shared file system), so that every
+    finished trajectory survives an interruption; the caller saves it otherwise.
     """
-    traj, config, work = item
-    metrics, windows = predict_trajectory(traj, config)
+    traj, config, work, *rest = item
+    horizons = rest[0] if rest else None
+    if horizons is None:
+        metrics, windows = predict_trajectory(traj, config)
+        extra = ()
+    else:
+        from cobot_analysis.models.prediction.horizons import horizon_rows
+
+        runs = trajectory_runs(traj, config, horizons[0])
+        metrics, windows = setting_rows(traj, config, runs)
+        extra = (horizon_rows(traj, config, horizons[0], horizons[1], runs),)
     if work is not None:
         try:
             work.save(traj, config, metrics, windows)
+            if extra:
+                work.save_horizons(traj, config, horizons, *extra[0])
         except OSError:
             pass
-    return traj, metrics, windows
+    return (traj, metrics, windows, *extra)
 
 
 # ---- the resumable sweep ----------------------------------------------------------------------
@@ -427,36 +455,77 @@ class WorkDir:
         return (pd.concat([pd.read_parquet(m) for m, _ in parts], ignore_index=True),
                 pd.concat([pd.read_parquet(w) for _, w in parts], ignore_index=True))
 
+    def _horizon_paths(self, traj: Trajectory, config: SweepConfig, horizons: tuple) -> tuple[Path, Path]:
+        n0, hs = horizons
+        key = self.key(traj, config, ("horizons", int(n0), *map(int, hs)))  # settings replaced: the horizons at N0
+        return self.root / f"{key}.horizons.parquet", self.root / f"{key}.inference.parquet"
+
+    def horizons_missing(self, traj: Trajectory, config: SweepConfig, horizons: tuple) -> bool:
+        return not self._horizon_paths(traj, config, horizons)[0].is_file()
+
+    def save_horizons(self, traj: Trajectory, config: SweepConfig, horizons: tuple, errors: pd.DataFrame,
+                      inference: pd.DataFrame) -> None:
+        """The horizon sweep's rows of ``traj`` (``horizons.horizon_rows``); the errors file, written last, marks them finished."""
+        self.root.mkdir(parents=True, exist_ok=True)
+        e, i = self._horizon_paths(traj, config, horizons)
+        for df, path in ((inference, i), (errors, e)):
+            tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+            df.to_parquet(tmp, index=False)
+            os.replace(tmp, path)
+
+    def load_horizons(self, traj: Trajectory, config: SweepConfig, horizons: tuple) -> tuple[pd.DataFrame, pd.DataFrame]:
+        e, i = self._horizon_paths(traj, config, horizons)
+        return pd.read_parquet(e), pd.read_parquet(i)
+
     def clear(self) -> None:
         shutil.rmtree(self.root, ignore_errors=True)
 
 
 def run_sweep(trajectories: list[Trajectory], config: SweepConfig, work: WorkDir, *, jobs: int | None = None,
-              scheduler: str | None = None) -> tuple[pd.DataFrame, pd.DataFrame, int]:
+              scheduler: str | None = None, horizons: tuple | None = None) -> tuple[pd.DataFrame, pd.DataFrame, int]:
     """Predict every (trajectory, setting) not yet in ``work``; return (metrics, windows, number of
-    trajectories resumed, i.e. with every setting already finished)."""
+    trajectories resumed, i.e. with every setting already finished). ``horizons`` = (N0, horizon list):
+    the horizon sweep too, from the same predictions, kept in ``work`` (``horizon_tables`` reads it)."""
     from dataclasses import replace
 
     from cobot_analysis.parallel import map_tasks
 
-    todo = [(t, replace(config, settings=m)) for t in trajectories if (m := work.missing(t, config))]
+    todo = []
+    for t in trajectories:
+        missing = work.missing(t, config)
+        if horizons is not None and work.horizons_missing(t, config, horizons):
+            todo.append((t, config, work, horizons))  # one run serves every setting and the horizons
+        elif missing:
+            todo.append((t, replace(config, settings=missing), work))
 
     def keep(result) -> str:  # runs here as each trajectory arrives: save it unless its task did
-        traj, metrics, windows = result
+        traj, metrics, windows, *extra = result
         partial = replace(config, settings=tuple(dict.fromkeys(zip(metrics["n0"], metrics["n_oc"]))))
         if work.missing(traj, partial):
             work.save(traj, partial, metrics, windows)
+        if extra and work.horizons_missing(traj, config, horizons):
+            work.save_horizons(traj, config, horizons, *extra[0])
         return traj.trial
 
     if todo:
-        map_tasks(sweep_task, [(t, c, work) for t, c in todo], jobs=jobs, scheduler=scheduler,
-                  description="predict", status=keep)
+        map_tasks(sweep_task, todo, jobs=jobs, scheduler=scheduler, description="predict", status=keep)
     parts = [work.load(t, config) for t in trajectories]
     metrics = pd.concat([p[0] for p in parts], ignore_index=True)
     windows = pd.concat([p[1] for p in parts], ignore_index=True)
     for col in ("convention", "study", "trial", "entity", "predictor"):
         windows[col] = windows[col].astype("category")
     return metrics, windows, len(trajectories) - len(todo)
+
+
+def horizon_tables(trajectories: list[Trajectory], config: SweepConfig, work: WorkDir, horizons: tuple) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The horizon sweep's (errors, goal inference) of ``trajectories``, from ``work`` (``run_sweep(..., horizons=...)``)."""
+    from cobot_analysis.models.prediction.horizons import GOAL_INFERENCE
+
+    parts = [work.load_horizons(t, config, horizons) for t in trajectories]
+    errors = pd.concat([p[0] for p in parts], ignore_index=True)
+    infer = [p[1] for p in parts if len(p[1])]
+    inference = pd.concat(infer, ignore_index=True) if infer else pd.DataFrame(columns=list(GOAL_INFERENCE.columns))
+    return errors, inference
 
 
 # ---- summaries --------------------------------------------------------------------------------
