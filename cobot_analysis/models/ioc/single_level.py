@@ -15,7 +15,8 @@ a terminal constraint) carries over. The KKT conditions are linear in w and lamb
 D_n = d_xy + 0.5 d_gamma (walker) or d_xy + 0.5 d_theta (table) of the path resampled to the measured
 samples as ``oc.resample`` does (cubic Hermite in time; the nodes sit at fixed fractions of T, so the
 resampling is linear in the nodes and in T times the node velocities), with |a| and the Euclidean
-norm smoothed to sqrt(a^2 + eps^2) - eps so that D is twice differentiable.
+norm smoothed to sqrt(a^2 + eps^2) - eps so that D is twice differentiable; its gradient and Hessian by
+the chain rule through the resampling (``resampled_distance``), not symbolically.
 
 Solved by a feasible path (``fit_feasible_path``, docs/methods.md sec. 6.1): a trust-region step in
 log10 w with the exact gradient and Hessian of D along the manifold of KKT points, then each path's
@@ -35,13 +36,13 @@ import numpy as np
 
 from cobot_analysis.errors import InputError
 from cobot_analysis.models.ioc.fit import LOG_BOUNDS, IOCSpec
+from cobot_analysis.models.ioc.resampled_distance import SMOOTHING, ResampledDistance
 from cobot_analysis.models.ioc.targets import Target
 from cobot_analysis.models.presets import names_for
 
 METHODS = ("bilevel", "single-level")
 MAX_STEPS = 40  # the feasible-path fit's own budget of trust-region steps per round
 PROBE_DISTANCES = (1.5, 3.0)  # log10 units: the escape probes' distances from a converged point (``escape_probes``)
-SMOOTHING = 1e-4  # eps of the smoothed |.| (rad) and norm (m) in the NLP's D: < 1e-4 per sample
 
 
 @dataclass
@@ -110,53 +111,6 @@ def kkt_functions(ocp):
     return kkt, grads
 
 
-def hermite_matrices(n_intervals: int, n_samples: int) -> tuple[np.ndarray, np.ndarray]:
-    """(H0, H1) with path samples = H0 @ node values + T * H1 @ node time derivatives: the cubic
-    Hermite interpolant on nodes at s_k = k / N evaluated at s_j = j / (M - 1) (``oc.resample``)."""
-    N, M = n_intervals, n_samples
-    s = np.linspace(0.0, 1.0, M)
-    k = np.minimum((s * N).astype(int), N - 1)
-    h = 1.0 / N
-    tau = s * N - k
-    h00, h10 = 2 * tau**3 - 3 * tau**2 + 1, tau**3 - 2 * tau**2 + tau
-    h01, h11 = -2 * tau**3 + 3 * tau**2, tau**3 - tau**2
-    H0, H1 = np.zeros((M, N + 1)), np.zeros((M, N + 1))
-    rows = np.arange(M)
-    H0[rows, k], H0[rows, k + 1] = h00, h01
-    H1[rows, k], H1[rows, k + 1] = h10 * h, h11 * h
-    return H0, H1
-
-
-def distance_function(ocp, n_samples: int, angle: str, angle_weight: float, eps: float = SMOOTHING):
-    """casadi ``D(z, data)`` of one target, data = (x, y, theta, gamma) measured (M each):
-    smoothed d_xy + angle_weight d_angle (module docstring; gamma as ``distances.gamma_from_path``)."""
-    import casadi as ca
-
-    from cobot_analysis.models.dynamics import N_STATE
-
-    M = n_samples
-    z, data = ca.SX.sym("z", ocp.n_vars), ca.SX.sym("data", 4 * M)
-    col = lambda i: z[ocp._xi[:, i].tolist()]  # noqa: E731
-    x, y, th, vf, vo, om = (col(i) for i in range(N_STATE))
-    T = ca.exp(z[int(ocp._xi[0, N_STATE])])
-    H0, H1 = (ca.sparsify(ca.DM(H)) for H in hermite_matrices(ocp.N, M))
-    vx, vy = ca.cos(th) * vf - ca.sin(th) * vo, ca.sin(th) * vf + ca.cos(th) * vo
-    xs, ys, ths = H0 @ x + T * (H1 @ vx), H0 @ y + T * (H1 @ vy), H0 @ th + T * (H1 @ om)
-    mx, my, mth, mg = data[:M], data[M:2 * M], data[2 * M:3 * M], data[3 * M:]
-    sabs = lambda a: ca.sqrt(a**2 + eps**2) - eps  # noqa: E731
-    d_xy = ca.sum1(ca.sqrt((xs - mx)**2 + (ys - my)**2 + eps**2) - eps) / M
-    if angle == "gamma":  # wrap(mg - (heading - theta)), heading of the model's sample steps
-        dx, dy = xs[1:] - xs[:-1], ys[1:] - ys[:-1]
-        r = ca.sqrt(dx**2 + dy**2 + 1e-12)
-        ch, sh = dx / r, dy / r
-        a = mg[:-1] + ths[:-1]
-        diff = ca.atan2(ca.sin(a) * ch - ca.cos(a) * sh, ca.cos(a) * ch + ca.sin(a) * sh)
-        d_ang = ca.sum1(sabs(diff)) / (M - 1)
-    else:
-        d_ang = ca.sum1(sabs(ca.atan2(ca.sin(mth - ths), ca.cos(mth - ths)))) / M
-    return ca.Function("D", [z, data], [d_xy + angle_weight * d_ang])
-
-
 def target_data(t: Target) -> np.ndarray:
     """(x, y, theta, gamma) of a target, gamma from the measured path (continuous convention)."""
     from cobot_analysis.distances import gamma_from_path
@@ -212,17 +166,6 @@ def newton_functions(ocp, fitted: list[int]):
     return newton, second
 
 
-def distance_derivatives(ocp, n_samples: int, angle: str, angle_weight: float, eps: float = SMOOTHING):
-    """casadi ``(D, grad_z D, hess_z D)(z, data)`` of the smoothed D (``distance_function``)."""
-    import casadi as ca
-
-    Dfun = distance_function(ocp, n_samples, angle, angle_weight, eps)
-    z, data = ca.SX.sym("z", ocp.n_vars), ca.SX.sym("data", 4 * n_samples)
-    D = Dfun(z, data)
-    H, g = ca.hessian(D, z)
-    return ca.Function("Dgh", [z, data], [D, g, H])
-
-
 class _Call:
     """A casadi Function called through its ``FunctionBuffer`` on numpy arrays (no DM conversion);
     a sparse output comes back as a scipy CSC matrix of the output's sparsity (built once, its
@@ -265,7 +208,7 @@ def branch_calls(spec: IOCSpec, fitted: tuple[int, ...], n_samples: int, eps: fl
     number of samples and reused by later fits (per-subject fits, repeated benchmarks)."""
     ocp = lower_level(spec)
     newton, second = newton_functions(ocp, list(fitted))
-    return _Call(newton), _Call(second), _Call(distance_derivatives(ocp, n_samples, spec.angle, spec.angle_weight, eps))
+    return _Call(newton), _Call(second), ResampledDistance(ocp, n_samples, spec.angle, spec.angle_weight, eps)
 
 
 class _Permutation:
@@ -319,7 +262,7 @@ class _Branch:
     the derivatives of D along the branch."""
 
     def __init__(self, calls, p, data, nz: int):
-        self.newton, self.second, self.Dgh = calls
+        self.newton, self.second, self.distance = calls
         self.perm = _permutation(self.newton)
         self.p, self.data, self.nz = p, data, nz
         self.v = self.S = None
@@ -346,15 +289,15 @@ class _Branch:
             return False
         nz = self.nz
         S = -lu.solve(Fw)  # K S + F_w = 0
-        D, gz, Hz = self.Dgh(v[:nz], self.data)
+        D, gz, SHS = self.distance(v[:nz], self.data, S[:nz])
         gv = np.concatenate([gz, np.zeros(len(v) - nz)])
         mu = lu.solve(gv, trans=True)  # adjoint: K' mu = grad_v D
         T = np.vstack([S, np.eye(S.shape[1])])
         Q = self.second(v, w, self.p, mu)[0]
-        self.v, self.S, self.residual, self.D = v, S, res, float(D[0])
+        self.v, self.S, self.residual, self.D = v, S, res, D
         self.g = S[:nz].T @ gz  # dD/dw_fitted
         # d2D/dw2 = S' hess D S + grad D' d2v/dw2, K d2v/dw2 = -T' hess(F) T (F is linear in w)
-        self.H = S[:nz].T @ (Hz @ S[:nz]) - T.T @ (Q @ T)
+        self.H = SHS - T.T @ (Q @ T)
         return True
 
 
