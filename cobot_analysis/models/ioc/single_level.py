@@ -41,6 +41,7 @@ from cobot_analysis.models.ioc.targets import Target
 from cobot_analysis.models.presets import names_for
 
 METHODS = ("bilevel", "single-level")
+MAX_FOLDED = 0.5  # a step that ends the branches of more of the paths than this fraction is rejected unsolved
 MAX_STEPS = 40  # the feasible-path fit's own budget of trust-region steps per round
 PROBE_DISTANCES = (1.5, 3.0)  # log10 units: the escape probes' distances from a converged point (``escape_probes``)
 
@@ -314,6 +315,33 @@ def correct_chunk(task) -> list:
     return out
 
 
+def fold_chunk(task) -> list:
+    """Worker task: the branches of a chunk of paths that ended at weights w (a fold), each path's lower level
+    re-solved there warm from the predicted path (the local minimum it leads to) and corrected
+    (``correct_chunk``); when that fails, re-solved as the bi-level fit solves it (warm and from the two cold
+    guesses, the least cost kept). task = (spec, shape, fitted, n_samples, eps, tol, w, [(target, p, data, v),
+    ...]); per path the branch state or None."""
+    from cobot_analysis.models.ioc.fit import solve_target
+    from cobot_analysis.models.oc import solve_model
+
+    spec, shape, fitted, M, eps, tol, w, items = task
+    nl = lower_level(shape).n_cons
+    kw = {"n_intervals": spec.n_intervals, "duration": "free", "max_iter": spec.max_iter, "v_nominal": spec.v_nominal}
+    model = "table" if spec.model == "table" else "improved"
+    out = []
+    for t, p, data, v in items:
+        z, r = v[:len(v) - nl], None
+        sol = solve_model(model, t.start, t.goal, w, guess=[z], **kw)
+        if sol.success:
+            r = correct_chunk((shape, fitted, M, eps, tol, w, [(p, data, np.concatenate([sol.primal, np.zeros(nl)]))]))[0]
+        if r is None:
+            d, sol = solve_target(spec, w, t, z)
+            if d["success"]:
+                r = correct_chunk((shape, fitted, M, eps, tol, w, [(p, data, np.concatenate([sol.primal, np.zeros(nl)]))]))[0]
+        out.append(r)
+    return out
+
+
 def trust_region_step(g: np.ndarray, H: np.ndarray, radius: float) -> np.ndarray:
     """argmin_s g's + s'Hs/2 over |s| <= radius: s = -(H + mu I)^-1 g with the least mu >= 0 making
     H + mu I positive definite and |s| <= radius (bisection on mu; Moré and Sorensen's condition)."""
@@ -424,17 +452,18 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
     def correct(w, V, jump: bool = False) -> list | None:
         """Every branch corrected at w from the vectors V (None if one fails). ``jump``: a branch whose
         Newton correction fails (a fold: its path ends there) goes on from its lower level re-solved at w
-        (warm from the predicted path and from the cold guesses, the least cost kept), as the bi-level fit
-        would solve it there."""
+        (``fold_chunk``), unless the branches of more than ``MAX_FOLDED`` of the paths end there (a step too
+        long for the predictor: None without re-solving them)."""
         out = run(correct_chunk, lambda p: (shape, tuple(fi), M, eps, tol, w, [(P[i], data[i], V[i]) for i in p]))
         lost = [i for i, r in enumerate(out) if r is None]
-        if lost and jump:
-            solved = evaluate_chunk((spec, w, [targets[i] for i in lost], [V[i][:nz] for i in lost]))
-            again = correct_chunk((shape, tuple(fi), M, eps, tol, w, [(P[i], data[i], np.concatenate([z, np.zeros(nl)]))
-                                                                    for i, (_, z) in zip(lost, solved) if z is not None]))
-            found = iter(again)
-            for i, (_, z) in zip(lost, solved):
-                out[i] = next(found) if z is not None else None
+        if lost and jump and len(lost) <= MAX_FOLDED * n:
+            k = max(1, min(chunks, len(lost)))
+            futures = [(lost[j::k], pool.submit(fold_chunk, (spec, shape, tuple(fi), M, eps, tol, w,
+                                                             [(targets[i], P[i], data[i], V[i]) for i in lost[j::k]])))
+                       for j in range(k)]
+            for part, f in futures:
+                for i, r in zip(part, f.result()):
+                    out[i] = r
         return None if any(r is None for r in out) else out
 
     start_terms, c_start = [], None
