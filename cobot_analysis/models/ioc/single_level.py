@@ -523,12 +523,10 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
                 radius /= 4
         return w, branches, steps, accepted, fails
 
-    def resolve(ws: list, Zs: list | None) -> list:
+    def resolve(ws: list, Zs: list) -> list:
         """The lower levels re-solved at each weight vector of ``ws`` as the bi-level fit solves them (warm from
-        ``Zs`` and from the two cold guesses, the least cost kept; ``Zs`` None: the cold guesses only): per
-        vector, (D, terms, primals)."""
-        futures = [[pool.submit(evaluate_chunk, (spec, wk, [targets[i] for i in p], [Zs[i] for i in p]))
-                    if Zs is not None else pool.submit(reference_chunk, (spec, wk, [targets[i] for i in p])) for p in parts]
+        ``Zs`` and from the two cold guesses, the least cost kept): per vector, (D, terms, primals)."""
+        futures = [[pool.submit(evaluate_chunk, (spec, wk, [targets[i] for i in p], [Zs[i] for i in p])) for p in parts]
                    for wk in ws]
         out = []
         for fs in futures:
@@ -538,6 +536,24 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
                     res[i] = r
             out.append((float(np.mean([d["D"] for d, _ in res])), [d for d, _ in res], [z for _, z in res]))
         return out
+
+    def screen(ws: list, bound: float, D_now: list, batches: int = 6) -> dict:
+        """The weight vectors of ``ws`` whose D, the lower levels re-solved from the cold guesses, is below
+        ``bound``: {index: (D, primals)}. The paths are solved in batches, those with the largest D at the
+        current point (``D_now``) first, and a vector is dropped as soon as the sum of its paths' D exceeds
+        n bound (every D_n >= 0: its mean cannot end below) or a lower level fails: the same survivors as
+        re-solving every path at every vector."""
+        alive = {j: [0.0, [None] * n] for j in range(len(ws))}
+        for batch in np.array_split(np.argsort(-np.asarray(D_now), kind="stable"), min(batches, n)):
+            k = max(1, min(chunks, len(batch)))
+            subs = [(j, part, pool.submit(reference_chunk, (spec, ws[j], [targets[i] for i in part])))
+                    for j in alive for part in (batch[r::k] for r in range(k))]
+            for j, part, f in subs:
+                for i, (d, z) in zip(part, f.result()):
+                    alive[j][0] += d["D"]
+                    alive[j][1][i] = z
+            alive = {j: a for j, a in alive.items() if a[0] < n * bound and all(a[1][i] is not None for i in batch)}
+        return {j: (a[0] / n, a[1]) for j, a in alive.items()}
 
     best, steps, accepted, fails, rounds, probes = None, 0, 0, 0, 0, 0
     for k in range(1 + restarts):
@@ -563,12 +579,11 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
             for q in points:
                 ws.append(w.copy())
                 ws[-1][fi] = 10.0 ** q
-            res = resolve(ws, None)
-            found = [(D, j) for j, (D, _, Z) in enumerate(res) if all(z is not None for z in Z)]
-            if not found or min(found)[0] >= objective:
+            found = screen(ws, objective, [d["D"] for d in terms])
+            if not found:
                 break
-            j = min(found)[1]
-            w_next, V = ws[j], [np.concatenate([z, np.zeros(nl)]) for z in res[j][2]]
+            j = min(found, key=lambda j: found[j][0])
+            w_next, V = ws[j], [np.concatenate([z, np.zeros(nl)]) for z in found[j][1]]
         else:
             break
         # start again on those paths
