@@ -317,28 +317,18 @@ def correct_chunk(task) -> list:
 
 def fold_chunk(task) -> list:
     """Worker task: the branches of a chunk of paths that ended at weights w (a fold), each path's lower level
-    re-solved there warm from the predicted path (the local minimum it leads to) and corrected
-    (``correct_chunk``); when that fails, re-solved as the bi-level fit solves it (warm and from the two cold
-    guesses, the least cost kept). task = (spec, shape, fitted, n_samples, eps, tol, w, [(target, p, data, v),
-    ...]); per path the branch state or None."""
+    re-solved there as the bi-level fit solves it (warm from the predicted path and from the two cold
+    guesses, the least cost kept) and corrected (``correct_chunk``); task = (spec, shape, fitted, n_samples,
+    eps, tol, w, [(target, p, data, v), ...]); per path the branch state or None."""
     from cobot_analysis.models.ioc.fit import solve_target
-    from cobot_analysis.models.oc import solve_model
 
     spec, shape, fitted, M, eps, tol, w, items = task
     nl = lower_level(shape).n_cons
-    kw = {"n_intervals": spec.n_intervals, "duration": "free", "max_iter": spec.max_iter, "v_nominal": spec.v_nominal}
-    model = "table" if spec.model == "table" else "improved"
     out = []
     for t, p, data, v in items:
-        z, r = v[:len(v) - nl], None
-        sol = solve_model(model, t.start, t.goal, w, guess=[z], **kw)
-        if sol.success:
-            r = correct_chunk((shape, fitted, M, eps, tol, w, [(p, data, np.concatenate([sol.primal, np.zeros(nl)]))]))[0]
-        if r is None:
-            d, sol = solve_target(spec, w, t, z)
-            if d["success"]:
-                r = correct_chunk((shape, fitted, M, eps, tol, w, [(p, data, np.concatenate([sol.primal, np.zeros(nl)]))]))[0]
-        out.append(r)
+        d, sol = solve_target(spec, w, t, v[:len(v) - nl])
+        out.append(correct_chunk((shape, fitted, M, eps, tol, w, [(p, data, np.concatenate([sol.primal, np.zeros(nl)]))]))[0]
+                   if d["success"] else None)
     return out
 
 
