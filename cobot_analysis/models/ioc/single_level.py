@@ -474,7 +474,7 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
     branches = correct(w, [np.concatenate([z, np.zeros(nl)]) for z in start])  # F is linear in lambda: Newton finds it
     if branches is None:
         raise RuntimeError("single-level: a lower-level solution at the start weights is not a regular KKT point")
-    timing = {"start": time.perf_counter() - t0}
+    timing = {"start": time.perf_counter() - t0}  # seconds; "steps" below includes "probes" (the escape probes' solves)
 
     def model(w, branches):
         """Gradient and Hessian of D in y = log10 w_fitted (w = 10^y: dw/dy = w ln 10)."""
@@ -569,7 +569,9 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
             for q in points:
                 ws.append(w.copy())
                 ws[-1][fi] = 10.0 ** q
+            t_probe = time.perf_counter()
             found = screen(ws, objective, [d["D"] for d in terms])
+            timing["probes"] = timing.get("probes", 0.0) + time.perf_counter() - t_probe
             if not found:
                 break
             j = min(found, key=lambda j: found[j][0])
