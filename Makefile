@@ -91,6 +91,7 @@ walking:
 # per-subject IOC (after walking): one fit per subject over its trials, started from the fit over the means
 walking-subjects:
 	$(CLI) fit-ioc --out $(WALK) --per subject --start-weights $(WALK)/fit-ioc/weights.json --no-compare --jobs $(JOBS) $(SUBJECT_IOC_ARGS)
+	$(CLI) fit-ioc --out $(WALK) --per subject --method single-level --start-weights $(WALK)/fit-ioc/weights.json --no-compare --jobs $(JOBS) $(SUBJECT_IOC_ARGS)
 
 pairs: pairs-published pairs-synthetic
 

@@ -27,7 +27,7 @@ def test_hermite_resampling_matches_oc_resample():
     """The NLP's linear resampling reproduces oc.resample (cubic Hermite in time) to round-off."""
     from cobot_analysis.models.oc import resample
     from cobot_analysis.models.ioc.recovery import starts
-    from cobot_analysis.models.ioc.single_level import hermite_matrices
+    from cobot_analysis.models.ioc.resampled_distance import hermite_matrices
     from cobot_analysis.models.dynamics import world_velocity
     from cobot_analysis.models.ioc.targets import Target
 
@@ -40,6 +40,60 @@ def test_hermite_resampling_matches_oc_resample():
     vx, _ = world_velocity(sol.X[:, 2], sol.X[:, 3], sol.X[:, 4], "walker")
     np.testing.assert_allclose(H0 @ sol.X[:, 0] + sol.T * (H1 @ vx), r["x"], atol=1e-12)
     np.testing.assert_allclose(H0 @ sol.X[:, 2] + sol.T * (H1 @ sol.X[:, 5]), r["theta"], atol=1e-12)
+
+
+def _symbolic_distance(ocp, M, angle, angle_weight, eps):
+    """The smoothed D of ``resampled_distance`` written symbolically in casadi (its definition), with its
+    gradient and Hessian by casadi: the reference of the chain-rule derivatives."""
+    import casadi as ca
+
+    from cobot_analysis.models.dynamics import N_STATE
+    from cobot_analysis.models.ioc.resampled_distance import hermite_matrices
+
+    z, data = ca.SX.sym("z", ocp.n_vars), ca.SX.sym("data", 4 * M)
+    x, y, th, vf, vo, om = (z[ocp._xi[:, i].tolist()] for i in range(N_STATE))
+    T = ca.exp(z[int(ocp._xi[0, N_STATE])])
+    H0, H1 = (ca.DM(H) for H in hermite_matrices(ocp.N, M))
+    vx, vy = ca.cos(th) * vf - ca.sin(th) * vo, ca.sin(th) * vf + ca.cos(th) * vo
+    xs, ys, ths = H0 @ x + T * (H1 @ vx), H0 @ y + T * (H1 @ vy), H0 @ th + T * (H1 @ om)
+    mx, my, mth, mg = data[:M], data[M:2 * M], data[2 * M:3 * M], data[3 * M:]
+    sabs = lambda a: ca.sqrt(a**2 + eps**2) - eps  # noqa: E731
+    d_xy = ca.sum1(ca.sqrt((xs - mx)**2 + (ys - my)**2 + eps**2) - eps) / M
+    if angle == "gamma":
+        dx, dy = xs[1:] - xs[:-1], ys[1:] - ys[:-1]
+        a = mg[:-1] + ths[:-1]
+        d_ang = ca.sum1(sabs(ca.atan2(ca.sin(a) * dx - ca.cos(a) * dy, ca.cos(a) * dx + ca.sin(a) * dy))) / (M - 1)
+    else:
+        d_ang = ca.sum1(sabs(ca.atan2(ca.sin(mth - ths), ca.cos(mth - ths)))) / M
+    D = d_xy + angle_weight * d_ang
+    H, g = ca.hessian(D, z)
+    return ca.Function("Dgh", [z, data], [D, g, H])
+
+
+@pytest.mark.parametrize("angle", ["gamma", "theta"])
+def test_resampled_distance_derivatives_match_casadi(angle):
+    """D, its gradient and its Hessian by the chain rule (``ResampledDistance``, full Hessian with S = I,
+    and projected on 3 directions) equal casadi's symbolic derivatives of the same D to 1e-9 relative,
+    at a lower-level path perturbed off the optimum (both angle terms: walker gamma, table theta)."""
+    from cobot_analysis.models.ioc.recovery import synthetic_targets
+    from cobot_analysis.models.ioc.resampled_distance import SMOOTHING, ResampledDistance
+    from cobot_analysis.models.ioc.single_level import lower_level, target_data
+
+    ocp = lower_level(SPEC)
+    rng = np.random.default_rng(3)
+    for t in synthetic_targets(SPEC, W, 3, noise=0.02)[:2]:
+        M = len(t.x)
+        _, sol = solve_target(SPEC, W, t, ("rest", "line"))
+        z, data = sol.primal + rng.normal(0.0, 1e-2, ocp.n_vars), target_data(t)
+        D0, g0, H0 = (np.asarray(a.full() if hasattr(a, "full") else a) for a in
+                      _symbolic_distance(ocp, M, angle, 0.5, SMOOTHING)(z, data))
+        rd = ResampledDistance(ocp, M, angle, 0.5)
+        D, g, H = rd(z, data, np.eye(ocp.n_vars))
+        assert D > 0.01 and abs(D - D0.item()) <= 1e-12 * D
+        np.testing.assert_allclose(g, g0.ravel(), rtol=0, atol=1e-9 * abs(g0).max())
+        np.testing.assert_allclose(H, H0, rtol=0, atol=1e-9 * abs(H0).max())
+        S = rng.normal(size=(ocp.n_vars, 3))
+        np.testing.assert_allclose(rd(z, data, S)[2], S.T @ H0 @ S, rtol=1e-9, atol=1e-9 * abs(S.T @ H0 @ S).max())
 
 
 def test_kkt_holds_at_a_lower_level_solution():
@@ -289,14 +343,15 @@ def test_branch_derivatives_match_finite_differences():
     D on the branch re-corrected at w +- h (noisy target: D and its derivatives are not zero)."""
     from cobot_analysis.models.ioc.recovery import synthetic_targets
     from cobot_analysis.models.ioc.single_level import (
-        _Branch, _Call, distance_derivatives, lower_level, newton_functions, target_data)
+        _Branch, _Call, lower_level, newton_functions, target_data)
+    from cobot_analysis.models.ioc.resampled_distance import ResampledDistance
     from cobot_analysis.models.oc.duration import initial_duration
 
     t = synthetic_targets(SPEC, W, 3, noise=0.02)[1]
     ocp = lower_level(SPEC)
     fi = [names_for("improved").index(n) for n in SPEC.fitted]
     newton, second = newton_functions(ocp, fi)
-    calls = (_Call(newton), _Call(second), _Call(distance_derivatives(ocp, len(t.x), SPEC.angle, SPEC.angle_weight)))
+    calls = (_Call(newton), _Call(second), ResampledDistance(ocp, len(t.x), SPEC.angle, SPEC.angle_weight))
     b = _Branch(calls, ocp.parameters(t.start, t.goal, W, initial_duration(t.start, t.goal)), target_data(t), ocp.n_vars)
     _, sol = solve_target(SPEC, W, t, ("rest", "line"))
     assert b.correct(np.concatenate([sol.primal, np.zeros(ocp.n_cons)]), W, 1e-9)

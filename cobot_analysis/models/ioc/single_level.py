@@ -15,7 +15,8 @@ a terminal constraint) carries over. The KKT conditions are linear in w and lamb
 D_n = d_xy + 0.5 d_gamma (walker) or d_xy + 0.5 d_theta (table) of the path resampled to the measured
 samples as ``oc.resample`` does (cubic Hermite in time; the nodes sit at fixed fractions of T, so the
 resampling is linear in the nodes and in T times the node velocities), with |a| and the Euclidean
-norm smoothed to sqrt(a^2 + eps^2) - eps so that D is twice differentiable.
+norm smoothed to sqrt(a^2 + eps^2) - eps so that D is twice differentiable; its gradient and Hessian by
+the chain rule through the resampling (``resampled_distance``), not symbolically.
 
 Solved by a feasible path (``fit_feasible_path``, docs/methods.md sec. 6.1): a trust-region step in
 log10 w with the exact gradient and Hessian of D along the manifold of KKT points, then each path's
@@ -35,13 +36,14 @@ import numpy as np
 
 from cobot_analysis.errors import InputError
 from cobot_analysis.models.ioc.fit import LOG_BOUNDS, IOCSpec
+from cobot_analysis.models.ioc.resampled_distance import SMOOTHING, ResampledDistance
 from cobot_analysis.models.ioc.targets import Target
 from cobot_analysis.models.presets import names_for
 
 METHODS = ("bilevel", "single-level")
+MAX_FOLDED = 0.5  # a step that ends the branches of more of the paths than this fraction is rejected unsolved
 MAX_STEPS = 40  # the feasible-path fit's own budget of trust-region steps per round
 PROBE_DISTANCES = (1.5, 3.0)  # log10 units: the escape probes' distances from a converged point (``escape_probes``)
-SMOOTHING = 1e-4  # eps of the smoothed |.| (rad) and norm (m) in the NLP's D: < 1e-4 per sample
 
 
 @dataclass
@@ -110,53 +112,6 @@ def kkt_functions(ocp):
     return kkt, grads
 
 
-def hermite_matrices(n_intervals: int, n_samples: int) -> tuple[np.ndarray, np.ndarray]:
-    """(H0, H1) with path samples = H0 @ node values + T * H1 @ node time derivatives: the cubic
-    Hermite interpolant on nodes at s_k = k / N evaluated at s_j = j / (M - 1) (``oc.resample``)."""
-    N, M = n_intervals, n_samples
-    s = np.linspace(0.0, 1.0, M)
-    k = np.minimum((s * N).astype(int), N - 1)
-    h = 1.0 / N
-    tau = s * N - k
-    h00, h10 = 2 * tau**3 - 3 * tau**2 + 1, tau**3 - 2 * tau**2 + tau
-    h01, h11 = -2 * tau**3 + 3 * tau**2, tau**3 - tau**2
-    H0, H1 = np.zeros((M, N + 1)), np.zeros((M, N + 1))
-    rows = np.arange(M)
-    H0[rows, k], H0[rows, k + 1] = h00, h01
-    H1[rows, k], H1[rows, k + 1] = h10 * h, h11 * h
-    return H0, H1
-
-
-def distance_function(ocp, n_samples: int, angle: str, angle_weight: float, eps: float = SMOOTHING):
-    """casadi ``D(z, data)`` of one target, data = (x, y, theta, gamma) measured (M each):
-    smoothed d_xy + angle_weight d_angle (module docstring; gamma as ``distances.gamma_from_path``)."""
-    import casadi as ca
-
-    from cobot_analysis.models.dynamics import N_STATE
-
-    M = n_samples
-    z, data = ca.SX.sym("z", ocp.n_vars), ca.SX.sym("data", 4 * M)
-    col = lambda i: z[ocp._xi[:, i].tolist()]  # noqa: E731
-    x, y, th, vf, vo, om = (col(i) for i in range(N_STATE))
-    T = ca.exp(z[int(ocp._xi[0, N_STATE])])
-    H0, H1 = (ca.sparsify(ca.DM(H)) for H in hermite_matrices(ocp.N, M))
-    vx, vy = ca.cos(th) * vf - ca.sin(th) * vo, ca.sin(th) * vf + ca.cos(th) * vo
-    xs, ys, ths = H0 @ x + T * (H1 @ vx), H0 @ y + T * (H1 @ vy), H0 @ th + T * (H1 @ om)
-    mx, my, mth, mg = data[:M], data[M:2 * M], data[2 * M:3 * M], data[3 * M:]
-    sabs = lambda a: ca.sqrt(a**2 + eps**2) - eps  # noqa: E731
-    d_xy = ca.sum1(ca.sqrt((xs - mx)**2 + (ys - my)**2 + eps**2) - eps) / M
-    if angle == "gamma":  # wrap(mg - (heading - theta)), heading of the model's sample steps
-        dx, dy = xs[1:] - xs[:-1], ys[1:] - ys[:-1]
-        r = ca.sqrt(dx**2 + dy**2 + 1e-12)
-        ch, sh = dx / r, dy / r
-        a = mg[:-1] + ths[:-1]
-        diff = ca.atan2(ca.sin(a) * ch - ca.cos(a) * sh, ca.cos(a) * ch + ca.sin(a) * sh)
-        d_ang = ca.sum1(sabs(diff)) / (M - 1)
-    else:
-        d_ang = ca.sum1(sabs(ca.atan2(ca.sin(mth - ths), ca.cos(mth - ths)))) / M
-    return ca.Function("D", [z, data], [d_xy + angle_weight * d_ang])
-
-
 def target_data(t: Target) -> np.ndarray:
     """(x, y, theta, gamma) of a target, gamma from the measured path (continuous convention)."""
     from cobot_analysis.distances import gamma_from_path
@@ -212,17 +167,6 @@ def newton_functions(ocp, fitted: list[int]):
     return newton, second
 
 
-def distance_derivatives(ocp, n_samples: int, angle: str, angle_weight: float, eps: float = SMOOTHING):
-    """casadi ``(D, grad_z D, hess_z D)(z, data)`` of the smoothed D (``distance_function``)."""
-    import casadi as ca
-
-    Dfun = distance_function(ocp, n_samples, angle, angle_weight, eps)
-    z, data = ca.SX.sym("z", ocp.n_vars), ca.SX.sym("data", 4 * n_samples)
-    D = Dfun(z, data)
-    H, g = ca.hessian(D, z)
-    return ca.Function("Dgh", [z, data], [D, g, H])
-
-
 class _Call:
     """A casadi Function called through its ``FunctionBuffer`` on numpy arrays (no DM conversion);
     a sparse output comes back as a scipy CSC matrix of the output's sparsity (built once, its
@@ -265,7 +209,7 @@ def branch_calls(spec: IOCSpec, fitted: tuple[int, ...], n_samples: int, eps: fl
     number of samples and reused by later fits (per-subject fits, repeated benchmarks)."""
     ocp = lower_level(spec)
     newton, second = newton_functions(ocp, list(fitted))
-    return _Call(newton), _Call(second), _Call(distance_derivatives(ocp, n_samples, spec.angle, spec.angle_weight, eps))
+    return _Call(newton), _Call(second), ResampledDistance(ocp, n_samples, spec.angle, spec.angle_weight, eps)
 
 
 class _Permutation:
@@ -319,7 +263,7 @@ class _Branch:
     the derivatives of D along the branch."""
 
     def __init__(self, calls, p, data, nz: int):
-        self.newton, self.second, self.Dgh = calls
+        self.newton, self.second, self.distance = calls
         self.perm = _permutation(self.newton)
         self.p, self.data, self.nz = p, data, nz
         self.v = self.S = None
@@ -346,15 +290,15 @@ class _Branch:
             return False
         nz = self.nz
         S = -lu.solve(Fw)  # K S + F_w = 0
-        D, gz, Hz = self.Dgh(v[:nz], self.data)
+        D, gz, SHS = self.distance(v[:nz], self.data, S[:nz])
         gv = np.concatenate([gz, np.zeros(len(v) - nz)])
         mu = lu.solve(gv, trans=True)  # adjoint: K' mu = grad_v D
         T = np.vstack([S, np.eye(S.shape[1])])
         Q = self.second(v, w, self.p, mu)[0]
-        self.v, self.S, self.residual, self.D = v, S, res, float(D[0])
+        self.v, self.S, self.residual, self.D = v, S, res, D
         self.g = S[:nz].T @ gz  # dD/dw_fitted
         # d2D/dw2 = S' hess D S + grad D' d2v/dw2, K d2v/dw2 = -T' hess(F) T (F is linear in w)
-        self.H = S[:nz].T @ (Hz @ S[:nz]) - T.T @ (Q @ T)
+        self.H = SHS - T.T @ (Q @ T)
         return True
 
 
@@ -368,6 +312,23 @@ def correct_chunk(task) -> list:
     for p, data, v in items:
         b = _Branch(calls, p, data, nz)
         out.append({k: getattr(b, k) for k in ("v", "S", "D", "g", "H", "residual")} if b.correct(v, w, tol) else None)
+    return out
+
+
+def fold_chunk(task) -> list:
+    """Worker task: the branches of a chunk of paths that ended at weights w (a fold), each path's lower level
+    re-solved there as the bi-level fit solves it (warm from the predicted path and from the two cold
+    guesses, the least cost kept) and corrected (``correct_chunk``); task = (spec, shape, fitted, n_samples,
+    eps, tol, w, [(target, p, data, v), ...]); per path the branch state or None."""
+    from cobot_analysis.models.ioc.fit import solve_target
+
+    spec, shape, fitted, M, eps, tol, w, items = task
+    nl = lower_level(shape).n_cons
+    out = []
+    for t, p, data, v in items:
+        d, sol = solve_target(spec, w, t, v[:len(v) - nl])
+        out.append(correct_chunk((shape, fitted, M, eps, tol, w, [(p, data, np.concatenate([sol.primal, np.zeros(nl)]))]))[0]
+                   if d["success"] else None)
     return out
 
 
@@ -481,17 +442,18 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
     def correct(w, V, jump: bool = False) -> list | None:
         """Every branch corrected at w from the vectors V (None if one fails). ``jump``: a branch whose
         Newton correction fails (a fold: its path ends there) goes on from its lower level re-solved at w
-        (warm from the predicted path and from the cold guesses, the least cost kept), as the bi-level fit
-        would solve it there."""
+        (``fold_chunk``), unless the branches of more than ``MAX_FOLDED`` of the paths end there (a step too
+        long for the predictor: None without re-solving them)."""
         out = run(correct_chunk, lambda p: (shape, tuple(fi), M, eps, tol, w, [(P[i], data[i], V[i]) for i in p]))
         lost = [i for i, r in enumerate(out) if r is None]
-        if lost and jump:
-            solved = evaluate_chunk((spec, w, [targets[i] for i in lost], [V[i][:nz] for i in lost]))
-            again = correct_chunk((shape, tuple(fi), M, eps, tol, w, [(P[i], data[i], np.concatenate([z, np.zeros(nl)]))
-                                                                    for i, (_, z) in zip(lost, solved) if z is not None]))
-            found = iter(again)
-            for i, (_, z) in zip(lost, solved):
-                out[i] = next(found) if z is not None else None
+        if lost and jump and len(lost) <= MAX_FOLDED * n:
+            k = max(1, min(chunks, len(lost)))
+            futures = [(lost[j::k], pool.submit(fold_chunk, (spec, shape, tuple(fi), M, eps, tol, w,
+                                                             [(targets[i], P[i], data[i], V[i]) for i in lost[j::k]])))
+                       for j in range(k)]
+            for part, f in futures:
+                for i, r in zip(part, f.result()):
+                    out[i] = r
         return None if any(r is None for r in out) else out
 
     start_terms, c_start = [], None
@@ -512,7 +474,7 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
     branches = correct(w, [np.concatenate([z, np.zeros(nl)]) for z in start])  # F is linear in lambda: Newton finds it
     if branches is None:
         raise RuntimeError("single-level: a lower-level solution at the start weights is not a regular KKT point")
-    timing = {"start": time.perf_counter() - t0}
+    timing = {"start": time.perf_counter() - t0}  # seconds; "steps" below includes "probes" (the escape probes' solves)
 
     def model(w, branches):
         """Gradient and Hessian of D in y = log10 w_fitted (w = 10^y: dw/dy = w ln 10)."""
@@ -551,12 +513,10 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
                 radius /= 4
         return w, branches, steps, accepted, fails
 
-    def resolve(ws: list, Zs: list | None) -> list:
+    def resolve(ws: list, Zs: list) -> list:
         """The lower levels re-solved at each weight vector of ``ws`` as the bi-level fit solves them (warm from
-        ``Zs`` and from the two cold guesses, the least cost kept; ``Zs`` None: the cold guesses only): per
-        vector, (D, terms, primals)."""
-        futures = [[pool.submit(evaluate_chunk, (spec, wk, [targets[i] for i in p], [Zs[i] for i in p]))
-                    if Zs is not None else pool.submit(reference_chunk, (spec, wk, [targets[i] for i in p])) for p in parts]
+        ``Zs`` and from the two cold guesses, the least cost kept): per vector, (D, terms, primals)."""
+        futures = [[pool.submit(evaluate_chunk, (spec, wk, [targets[i] for i in p], [Zs[i] for i in p])) for p in parts]
                    for wk in ws]
         out = []
         for fs in futures:
@@ -566,6 +526,24 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
                     res[i] = r
             out.append((float(np.mean([d["D"] for d, _ in res])), [d for d, _ in res], [z for _, z in res]))
         return out
+
+    def screen(ws: list, bound: float, D_now: list, batches: int = 6) -> dict:
+        """The weight vectors of ``ws`` whose D, the lower levels re-solved from the cold guesses, is below
+        ``bound``: {index: (D, primals)}. The paths are solved in batches, those with the largest D at the
+        current point (``D_now``) first, and a vector is dropped as soon as the sum of its paths' D exceeds
+        n bound (every D_n >= 0: its mean cannot end below) or a lower level fails: the same survivors as
+        re-solving every path at every vector."""
+        alive = {j: [0.0, [None] * n] for j in range(len(ws))}
+        for batch in np.array_split(np.argsort(-np.asarray(D_now), kind="stable"), min(batches, n)):
+            k = max(1, min(chunks, len(batch)))
+            subs = [(j, part, pool.submit(reference_chunk, (spec, ws[j], [targets[i] for i in part])))
+                    for j in alive for part in (batch[r::k] for r in range(k))]
+            for j, part, f in subs:
+                for i, (d, z) in zip(part, f.result()):
+                    alive[j][0] += d["D"]
+                    alive[j][1][i] = z
+            alive = {j: a for j, a in alive.items() if a[0] < n * bound and all(a[1][i] is not None for i in batch)}
+        return {j: (a[0] / n, a[1]) for j, a in alive.items()}
 
     best, steps, accepted, fails, rounds, probes = None, 0, 0, 0, 0, 0
     for k in range(1 + restarts):
@@ -591,12 +569,13 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
             for q in points:
                 ws.append(w.copy())
                 ws[-1][fi] = 10.0 ** q
-            res = resolve(ws, None)
-            found = [(D, j) for j, (D, _, Z) in enumerate(res) if all(z is not None for z in Z)]
-            if not found or min(found)[0] >= objective:
+            t_probe = time.perf_counter()
+            found = screen(ws, objective, [d["D"] for d in terms])
+            timing["probes"] = timing.get("probes", 0.0) + time.perf_counter() - t_probe
+            if not found:
                 break
-            j = min(found)[1]
-            w_next, V = ws[j], [np.concatenate([z, np.zeros(nl)]) for z in res[j][2]]
+            j = min(found, key=lambda j: found[j][0])
+            w_next, V = ws[j], [np.concatenate([z, np.zeros(nl)]) for z in found[j][1]]
         else:
             break
         # start again on those paths
