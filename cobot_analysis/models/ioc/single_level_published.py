@@ -57,12 +57,50 @@ def held_shape(spec: IOCSpec, horizon: int):
 
 @functools.lru_cache(maxsize=8)
 def _functions(shape):
-    """(ocp, nlp_hess_l, nlp_jac_g, nlp_grad_f): the lower level's own NLP functions (``WalkerOCP._nlp_functions``)."""
-    from cobot_analysis.models.oc.problem import get_ocp
+    """(ocp, nlp_hess_l, nlp_jac_g, nlp_grad_f): the lower level's own NLP functions (``WalkerOCP._nlp_functions``),
+    from the compiled library the solver loads when there is one (``problem._compiled_library``)."""
+    import casadi as ca
+
+    from cobot_analysis.models.oc.problem import _compiled_library, get_ocp
 
     ocp = get_ocp(shape)
+    names = ("nlp_hess_l", "nlp_jac_g", "nlp_grad_f")
+    library = _compiled_library(ocp)
+    if library is not None:
+        return (ocp, *(ca.external(n, str(library)) for n in names))
     fs = ocp._nlp_functions()
-    return ocp, fs["nlp_hess_l"], fs["nlp_jac_g"], fs["nlp_grad_f"]
+    return (ocp, *(fs[n] for n in names))
+
+
+@functools.lru_cache(maxsize=8)
+def _ordering(shape) -> np.ndarray:
+    """A reverse Cuthill-McKee ordering of the KKT matrix of ``shape`` (each stage's variables and multipliers
+    together: a band, factorised with little fill)."""
+    from scipy.sparse import bmat, csc_matrix
+    from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+    ocp, hess_l, jac_g, _ = _functions(shape)
+    z, p = np.zeros(ocp.n_vars), np.zeros(ocp.n_params)
+    H, A = _csc(hess_l(z, p, 1.0, np.zeros(ocp.n_cons))[1]), _csc(jac_g(z, p)[1])
+    K = bmat([[csc_matrix((H.indices * 0 + 1.0, H.indices, H.indptr), shape=H.shape), A.T], [A, None]], format="csr")
+    K.data[:] = 1.0
+    return np.asarray(reverse_cuthill_mckee((K + K.T).tocsr(), symmetric_mode=True))
+
+
+class _Factor:
+    """LU of K permuted symmetrically by ``order`` (no further column ordering: the band has no fill to avoid)."""
+
+    def __init__(self, K, order: np.ndarray):
+        from scipy.sparse.linalg import splu
+
+        self.order = order
+        self.lu = splu(K[order][:, order].tocsc(), permc_spec="NATURAL")
+
+    def solve(self, b):
+        b = np.asarray(b, float)
+        x = np.empty_like(b)
+        x[self.order] = self.lu.solve(np.ascontiguousarray(b[self.order]))
+        return x
 
 
 def _csc(m):
@@ -86,7 +124,7 @@ class HeldBranch:
         self.origin = (s[0], s[1])  # the published problem is solved with the start moved to the origin
         self.start0, self.goal0 = (0.0, 0.0, s[2]), (g[0] - s[0], g[1] - s[1], g[2])
         self.nz = self.ocp.n_vars
-        self.slots = None
+        self.order = _ordering(held_shape(spec, horizon))
 
     def p(self, w) -> np.ndarray:
         return self.ocp.parameters(self.start0, self.goal0, np.asarray(w, float), self.dt, n_active=self.T)
@@ -138,8 +176,6 @@ class HeldBranch:
 
     def newton(self, v, w, tol: float, max_newton: int = 12):
         """Newton's method on F(v; w) = 0 from v: (v, LU of K, max |F|), or None (diverging, singular K)."""
-        from scipy.sparse.linalg import splu
-
         p, v, last = self.p(w), np.array(v, float), math.inf
         for _ in range(max_newton):
             F, K = self.kkt(v, p)
@@ -148,7 +184,7 @@ class HeldBranch:
                 return None
             last = res
             try:
-                lu = splu(K)
+                lu = _Factor(K, self.order)
             except RuntimeError:
                 return None
             if res <= tol:
