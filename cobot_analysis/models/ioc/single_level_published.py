@@ -226,8 +226,9 @@ def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, chunks
     levels by the duration rule (``fit.reference_chunk``), their horizons held, the feasible-path
     trust-region steps in log10 of the fitted weights (the step of ``single_level.trust_region_step``,
     projected on the search box), then the lower levels re-solved at the fitted weights on the held
-    horizons and the duration rule run again there. Stops when an accepted step is below ``xtol``, the
-    radius falls below it, the projected gradient below ``gtol``, or after ``max_steps`` steps.
+    horizons and the duration rule run again there. Stops when an accepted step is below ``xtol`` or lowers
+    D by less than ``spec.ftol`` (relative, as the bi-level search), the radius falls below ``xtol``, the
+    projected gradient below ``gtol``, or after ``max_steps`` steps.
     ``on_step(step, D at the step, least D)`` reports progress."""
     from cobot_analysis.models.ioc.single_level import check_spec, trust_region_step
     from cobot_analysis.parallel import InlineExecutor
@@ -306,8 +307,9 @@ def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, chunks
             H = _damped_bfgs(H, s, g_new - g)
             if D - D_new >= 0.75 * pred and np.linalg.norm(s) >= 0.99 * radius:
                 radius = min(2 * radius, 1.0)
+            flat = 2 * (D - D_new) <= spec.ftol * (D + D_new)  # the bi-level search's relative tolerance
             w, y, D, g, branches = w_new, y + s, D_new, g_new, new
-            if np.linalg.norm(s) < xtol:
+            if np.linalg.norm(s) < xtol or flat:
                 break
         else:
             radius /= 4
