@@ -26,7 +26,8 @@ def published_targets(spec: IOCSpec, weights, starts=STARTS) -> list[Target]:
     out = []
     for i, s in enumerate(starts):
         a = np.linspace(0.0, 1.0, 10)  # a placeholder path (the solve needs only the endpoints)
-        t = Target(f"p{i}", "synthetic", "", s[0] * (1 - a), s[1] * (1 - a), s[2] + a * (GOAL[2] - s[2]), goal_pose=GOAL, start_pose=s)
+        t = Target(f"p{i}", "synthetic", "", s[0] * (1 - a), s[1] * (1 - a), s[2] + a * (GOAL[2] - s[2]), goal_pose=GOAL,
+                   start_pose=s)
         sol = solve_target(spec, np.asarray(weights, float), t, None)[1].check("synthetic published path")
         x, y, th = sol.X[:, 0].copy(), sol.X[:, 1].copy(), sol.X[:, 2].copy()
         xr, yr = resample_arclength(x, y, len(x))
