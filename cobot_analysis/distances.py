@@ -55,15 +55,20 @@ def gamma_from_path(x: ArrayLike, y: ArrayLike, theta: ArrayLike) -> FloatArray:
 
 
 # ---- one generated or measured path against a measured one, under a convention ---------------------
+REPEATED = 1e-9  # m: a shorter step between two points of a path repeats the point (``resample_arclength``)
+
+
 def resample_arclength(x: ArrayLike, y: ArrayLike, n: int) -> tuple[FloatArray, FloatArray]:
     """The authors' path resampling (docs/methods.md sec. 11): the points ``i`` with
     ``|x_{i+1} - x_i| + |y_{i+1} - y_i| > 0`` are kept (which drops repeated points and always the
-    last one), an interpolating parametric cubic spline (scipy ``splprep``, s = 0, chord-length
-    parameter u in [0, 1]) is fitted through them and evaluated at ``n`` equally spaced u."""
+    last one; here > ``REPEATED``: an OC solution's rounding, a step of 1e-16 m where the walker
+    starts at rest, is a repeated point, and the spline through it would overshoot), an interpolating
+    parametric cubic spline (scipy ``splprep``, s = 0, chord-length parameter u in [0, 1]) is fitted
+    through them and evaluated at ``n`` equally spaced u."""
     from scipy.interpolate import splev, splprep
 
     x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
-    keep = np.flatnonzero(np.abs(np.diff(x)) + np.abs(np.diff(y)) > 0)
+    keep = np.flatnonzero(np.abs(np.diff(x)) + np.abs(np.diff(y)) > REPEATED)
     if len(keep) < 4:
         raise ValueError(f"a path needs at least 4 distinct points to be resampled by arc length (has {len(keep)})")
     tck, _ = splprep([x[keep], y[keep]], s=0)

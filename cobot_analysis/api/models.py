@@ -481,7 +481,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     ``start_weights``: a preset, a weights.json, or ``"ones"`` (every fitted weight 1). ``checkpoint``: a
     directory where the upper level's evaluations are logged after every iteration (``resume`` continues).
     ``on_evaluation(fit, n, D, best)`` reports progress. ``method``: ``bilevel`` (the published method) or
-    ``single-level`` (docs/methods.md sec. 6.1; improved and table models, continuous convention);
+    ``single-level`` (docs/methods.md sec. 6.1; improved and table models; published convention: at held horizons);
     ``max_evaluations``: the bi-level fit's budget of upper-level evaluations, the single-level fit's number
     of feasible-path steps per round when below the method's own. ``bootstrap``: after each fit, the curvature of D at
     the fitted weights, each weight's verdict and its interval from ``bootstrap`` resamples of the fitted units (docs/methods.md sec. 6.3; 0: none); per
@@ -512,6 +512,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     from cobot_analysis.models.ioc.pace import target_durations
     from cobot_analysis.models.ioc.single_level import (MAX_STEPS, as_ioc_result, check_method, check_spec, cross_check,
                                                         fit_feasible_path)
+    from cobot_analysis.models.ioc.single_level_published import fit_held_horizons
     from cobot_analysis.parallel import default_jobs, executor
 
     check_method(method, bootstrap)
@@ -574,7 +575,10 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             # the time gauge fitted to the subjects' durations (models.ioc.pace; continuous, fit over the means)
             measured_T = target_durations(targets, means=mean_df, trials=trial_df, durations=durations, mean_keys=mean_keys) \
                 if key == "all" and conv.name == "continuous" and model in ("improved", "table") else None
-            if method == "single-level":  # max_evaluations: its budget of steps, when below the method's own
+            if method == "single-level" and conv.name == "published":  # at held horizons (docs/methods.md sec. 6.1)
+                results[key] = fit_held_horizons(spec, targets, pool=pool, chunks=n_chunks,
+                                                 max_steps=min(spec.max_evaluations, MAX_STEPS), on_step=report)
+            elif method == "single-level":  # max_evaluations: its budget of steps, when below the method's own
                 steps = min(spec.max_evaluations, MAX_STEPS)
                 raw = fit_feasible_path(spec, targets, pool=pool, chunks=n_chunks, max_steps=steps, measured_T=measured_T)
                 results[key] = as_ioc_result(raw)

@@ -139,9 +139,12 @@ def check_spec(spec: IOCSpec, n_targets: int) -> None:
     if n_targets < len(spec.fitted):
         raise InputError(f"{n_targets} paths cannot determine {len(spec.fitted)} weights",
                          remedy="fit fewer weights (--fit) or add paths")
-    if spec.model not in ("improved", "table") or spec.convention != "continuous":
-        raise InputError(f"the single-level fit covers the improved and table models under the continuous convention, "
-                         f"not {spec.model!r} / {spec.convention!r}", remedy="use --method bilevel for this fit")
+    if spec.model not in ("improved", "table") or spec.convention not in ("continuous", "published"):
+        raise InputError(f"the single-level fit covers the improved and table models, not {spec.model!r} / {spec.convention!r}",
+                         remedy="use --method bilevel for this fit")
+    if spec.convention == "published" and not spec.hold_duration:  # no first-order condition for an integer horizon
+        raise InputError("the single-level fit under the published convention holds each path's horizon (docs/methods.md sec. 6.1)",
+                         remedy="use --method bilevel to search with the duration rule at every evaluation")
 
 
 def newton_functions(ocp, fitted: list[int]):
@@ -411,6 +414,8 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
 
     t0 = time.perf_counter()
     check_spec(spec, len(targets))
+    if spec.convention != "continuous":
+        raise ValueError("fit_feasible_path is the continuous convention's; published: single_level_published.fit_held_horizons")
     names = names_for(spec.model)
     w = np.array(spec.start_weights, float)
     fi = [names.index(n) for n in spec.fitted]

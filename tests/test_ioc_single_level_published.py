@@ -1,0 +1,98 @@
+"""The single-level IOC under the published convention, at held horizons (docs/methods.md sec. 6.1;
+cobot_analysis.models.ioc.single_level_published)."""
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from cobot_analysis.distances import gamma_from_path, resample_arclength, resample_time
+from cobot_analysis.errors import InputError
+from cobot_analysis.models.ioc.fit import IOCSpec, solve_target
+from cobot_analysis.models.ioc.single_level import check_spec
+from cobot_analysis.models.ioc.single_level_published import HeldBranch, fit_held_horizons
+from cobot_analysis.models.ioc.targets import Target
+from cobot_analysis.models.presets import names_for
+
+TRUE = (7.87, 4.0, 20.15, 1e-06, 10.0, 0.0, 0.0, 10.0, 10.0, 0.38, 3.36)  # a0..a6, b0..b3: the published walker's
+GOAL = (0.0, 0.0, math.pi / 2)
+STARTS = [(-0.6, -1.0, 1.2), (0.5, -1.0, 1.9), (0.0, -1.3, 1.57)]
+
+
+def published_targets(spec: IOCSpec, weights, starts=STARTS) -> list[Target]:
+    """Paths of the published lower level at ``weights`` (the duration rule's horizon, one sample per node),
+    with the gamma the published D compares them by: a model path at these weights is at D = 0."""
+    out = []
+    for i, s in enumerate(starts):
+        a = np.linspace(0.0, 1.0, 10)  # a placeholder path (the solve needs only the endpoints)
+        t = Target(f"p{i}", "synthetic", "", s[0] * (1 - a), s[1] * (1 - a), s[2] + a * (GOAL[2] - s[2]), goal_pose=GOAL,
+                   start_pose=s)
+        sol = solve_target(spec, np.asarray(weights, float), t, None)[1].check("synthetic published path")
+        x, y, th = sol.X[:, 0].copy(), sol.X[:, 1].copy(), sol.X[:, 2].copy()
+        xr, yr = resample_arclength(x, y, len(x))
+        gamma = gamma_from_path(xr, yr, resample_time(th, len(x), authors=True))
+        out.append(Target(f"p{i}", "synthetic", "", x, y, th, goal_pose=GOAL, start_pose=s, gamma=gamma))
+    return out
+
+
+SPEC = IOCSpec(model="improved", start_weights=TRUE, fitted=("a1", "a2"), convention="published", max_iter=100)
+
+
+def test_published_spec_is_accepted_only_with_held_horizons():
+    check_spec(SPEC, 3)
+    with pytest.raises(InputError, match="holds each path's horizon"):
+        check_spec(replace(SPEC, hold_duration=False), 3)
+    with pytest.raises(InputError, match="cannot determine"):
+        check_spec(SPEC, 1)
+    with pytest.raises(InputError, match="single-level fit covers"):
+        check_spec(replace(SPEC, model="coupled", fitted=("a1",)), 3)
+
+
+def test_held_branch_gradient_matches_re_solved_paths():
+    """dD/dy from the linear predictor (central differences) against D on the KKT points corrected at
+    w +- dw (the lower level's own solutions there): the same to a few per cent."""
+    targets = published_targets(SPEC, TRUE, STARTS[:1])
+    names = names_for("improved")
+    fi = [names.index(n) for n in SPEC.fitted]
+    w = np.array(TRUE)
+    w[fi] *= 1.5  # off the truth: D > 0 and its gradient not 0
+    sol = solve_target(SPEC, w, targets[0], None)[1]
+    b = HeldBranch(SPEC, targets[0], sol.U.shape[0], fi)
+    r = b.correct(np.concatenate([sol.primal, np.zeros(b.ocp.n_cons)]), w, 1e-8, False)
+    assert r is not None and r["residual"] < 1e-8
+    assert r["D"] == pytest.approx(b.D(sol.primal), abs=1e-6)  # the branch is the lower level's own solution
+    h = 0.02
+    for j, i in enumerate(fi):
+        D = []
+        for sign in (1, -1):
+            w2 = w.copy()
+            w2[i] *= 10 ** (sign * h)
+            D.append(b.correct(r["v"] + r["S"] @ (w2[fi] - w[fi]), w2, 1e-8, False)["D"])
+        assert r["g"][j] == pytest.approx((D[0] - D[1]) / (2 * h), rel=0.05, abs=1e-5)
+
+
+def test_noise_free_recovery_under_the_published_convention():
+    """Paths of the published lower level at known weights, the fit started with a1 and a2 x 1.5: both come
+    back within 1 %, D falls to ~0 and the duration rule at the fitted weights keeps every horizon."""
+    targets = published_targets(SPEC, TRUE)
+    names = names_for("improved")
+    w0 = np.array(TRUE)
+    for n in SPEC.fitted:
+        w0[names.index(n)] *= 1.5
+    r = fit_held_horizons(replace(SPEC, start_weights=tuple(w0)), targets)
+    assert r.start_objective > 1e-4
+    for n in SPEC.fitted:
+        assert r.weights[n] == pytest.approx(TRUE[names.index(n)], rel=0.01)
+    assert r.held_objective < 1e-5 and r.objective < 1e-5
+    assert r.horizons_changed == 0 and r.failed == 0
+
+
+def test_a_rounding_step_is_a_repeated_point_of_the_arclength_resampling():
+    """A path whose second node sits 1e-16 m from the first (an OC solution's rounding at a start at rest)
+    resamples as the path without it: the spline through both would overshoot by metres."""
+    s = np.linspace(0.0, 1.0, 60)
+    x, y = np.sin(2 * s), s**2
+    xr, yr = resample_arclength(np.r_[x[0], x], np.r_[y[0] + 1e-16, y], 60)
+    x0, y0 = resample_arclength(x, y, 60)
+    assert np.abs(xr - x0).max() < 1e-9 and np.abs(yr - y0).max() < 1e-9
