@@ -33,6 +33,7 @@ skipped and listed with ``--skip-bad``).
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
@@ -355,8 +356,9 @@ def long_table(trials: list[ImportedTrial]) -> pd.DataFrame:
     return df
 
 
-def trials_table(protocol: Protocol, trials: list[ImportedTrial]) -> pd.DataFrame:
-    """One row per imported recording (schema.TRIALS): protocol metadata + how it was read."""
+def trial_metadata(protocol: Protocol) -> pd.DataFrame:
+    """The protocol's trials with the study's metadata columns (``schema.TRIAL_COLUMNS``, their types):
+    the first columns of ``trials_table``, known before any file is read."""
     df = protocol.trials.copy()
     df["trial"] = df["trial"].astype(str)
     df.insert(0, "study", protocol.study)
@@ -366,6 +368,12 @@ def trials_table(protocol: Protocol, trials: list[ImportedTrial]) -> pd.DataFram
         if name not in df.columns:
             df[name] = None
         df[name] = df[name].astype({"string": "string", "int": "Int64", "float": "float64"}[col.dtype])
+    return df
+
+
+def trials_table(protocol: Protocol, trials: list[ImportedTrial]) -> pd.DataFrame:
+    """One row per imported recording (schema.TRIALS): protocol metadata + how it was read."""
+    df = trial_metadata(protocol)
     by_id = {t.trial: t for t in trials}
     df["file"] = [str(protocol.trial_file(row)) for _, row in df.iterrows()]
     df["sha256"] = [by_id[t].sha256 for t in df["trial"]]
@@ -477,22 +485,29 @@ def imported_summary(plan: ImportPlan, imported: list[ImportedTrial], refused: l
 
 @dataclass
 class Streamed:
-    """What ``stream_import`` wrote: the trials imported (samples dropped), the refused ones, and the
-    counts of marker samples written and occluded."""
+    """What ``stream_import`` wrote: the trials imported (samples dropped), the refused ones, the
+    counts of marker samples written and occluded, and what the worker returned besides each imported
+    trial's rows (``also``, in protocol order: e.g. its preprocessing)."""
 
     imported: list[ImportedTrial]
     refused: list[Refused]
     n_samples: int = 0
     n_occluded: int = 0
+    also: list[Any] = field(default_factory=list)
 
 
-def stream_import(plan: ImportPlan, markers_path: Path, *, jobs: int | None = None, scheduler: str | None = None) -> Streamed:
+def stream_import(plan: ImportPlan, markers_path: Path, *, jobs: int | None = None, scheduler: str | None = None,
+                  worker: Callable[[Any], Any] = import_rows_or_refuse, items: list[Any] | None = None) -> Streamed:
     """Import every trial of ``plan`` and write its markers to ``markers_path`` as they come: each worker
     reads, checks and builds its trial's rows (``import_rows_or_refuse``), the parent appends them as one
     Parquet row group per trial, in protocol order, and keeps only the per-trial summaries, so memory
     does not grow with the number of trials. The file's metadata (rates, units, pelvis markers,
     refusals: ``imported_summary``) is added when every trial is done; the caller refuses the run
-    (and discards the file) when trials were refused without ``skip_bad``."""
+    (and discards the file) when trials were refused without ``skip_bad``.
+
+    ``worker`` / ``items`` (one per task of the plan, in its order): another task function returning
+    ``Refused`` or ``(trial, rows, anything)``, the third kept in ``Streamed.also`` (the import and
+    preprocess in one pass: ``preprocess.stage.import_and_process``)."""
     import base64
     import json
 
@@ -505,11 +520,12 @@ def stream_import(plan: ImportPlan, markers_path: Path, *, jobs: int | None = No
     writer = None
     done = False
     try:
-        for r in imap_tasks(import_rows_or_refuse, plan.tasks, jobs=jobs, scheduler=scheduler, description="import"):
+        for r in imap_tasks(worker, plan.tasks if items is None else items, jobs=jobs, scheduler=scheduler, description="import"):
             if isinstance(r, Refused):
                 out.refused.append(r)
                 continue
-            trial, rows = r
+            trial, rows, *also = r
+            out.also += also
             if writer is None:  # the table's metadata (METADATA_KEY) is added at the end, when it is known
                 schema = rows.schema.with_metadata({k: v for k, v in rows.schema.metadata.items() if k != METADATA_KEY})
                 # LZ4 (not the pipeline's zstd): as small for these coordinates (+9 %), half the CPU to write
