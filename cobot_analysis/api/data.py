@@ -9,6 +9,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from cobot_analysis.io.markers import ImportedTrial, ImportPlan, Refused
@@ -118,7 +119,7 @@ def import_markers(protocol: str | os.PathLike | ImportPlan, *, units: str = "au
         raise refusal_error(refused, len(plan.tasks), plan.protocol.path, "import")
     markers, trials, meta = imported_tables(plan, imported, refused)
     for t in imported:  # the long table holds a copy of the arrays (their frames are kept: n_frames)
-        t.xyz = t.xyz[:, :0]
+        t.xyz = np.empty((len(t.xyz), 0, 3))  # its frames only (a view would keep the samples alive)
     return ImportResult(plan, markers, trials, meta, refused, imported, None, len(markers), int(markers["occluded"].sum()))
 
 

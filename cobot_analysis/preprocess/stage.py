@@ -693,7 +693,7 @@ def import_and_process(item: OnePass) -> Refused | tuple[Any, Any, dict[str, Any
     except ValueError:
         done = None
     rows = trial_rows(t)
-    t.xyz = t.xyz[:, :0]
+    t.xyz = np.empty((len(t.xyz), 0, 3))  # its frames only (a view would keep the samples alive)
     return t, rows, done
 
 
@@ -710,6 +710,9 @@ def finish_one_pass(imported: list[Any], done: list[dict[str, Any] | Refused | N
 def one_pass_items(plan: Any, p: Params) -> list[OnePass]:
     """``import_and_process``'s tasks of an import plan (``io.markers.ImportPlan``): each with its row of
     the trials table's metadata, as ``load_recordings`` gives it (``Recording.meta``)."""
+    import scipy.interpolate  # noqa: F401 - imported once here (0.8 s of CPU), inherited by forked workers
+    import scipy.signal  # noqa: F401
+
     from cobot_analysis.io.markers import trial_metadata
 
     rows = trial_metadata(plan.protocol)
