@@ -675,12 +675,12 @@ class OnePass:
     limits: dict[str, float]
 
 
-def import_and_process(item: OnePass) -> Refused | tuple[Any, Any, dict[str, Any] | Refused | None]:
+def import_and_process(item: OnePass) -> Refused | tuple[Any, dict[str, Any] | Refused | None]:
     """Import one trial (``io.markers.import_or_refuse``: every check) and preprocess it where it was read:
-    ``(trial, its marker rows, its preprocessing)``, the same as ``process_or_refuse`` of what the
-    ``preprocess`` stage reads back from the import's files; None when the filter does not fit the
-    trial's rate (the caller refuses the run as ``process`` does: ``_check_filter``)."""
-    from cobot_analysis.io.markers import import_or_refuse, trial_rows
+    ``(trial, its preprocessing)``, the same as ``process_or_refuse`` of what the ``preprocess`` stage
+    reads back from the import's files; None when the filter does not fit the trial's rate (the caller
+    refuses the run as ``process`` does: ``_check_filter``)."""
+    from cobot_analysis.io.markers import import_or_refuse
 
     t = import_or_refuse(item.task)
     if isinstance(t, Refused):
@@ -692,9 +692,7 @@ def import_and_process(item: OnePass) -> Refused | tuple[Any, Any, dict[str, Any
         done: dict[str, Any] | Refused | None = process_or_refuse(rec, p)
     except ValueError:
         done = None
-    rows = trial_rows(t)
-    t.xyz = np.empty((len(t.xyz), 0, 3))  # its frames only (a view would keep the samples alive)
-    return t, rows, done
+    return t, done
 
 
 def finish_one_pass(imported: list[Any], done: list[dict[str, Any] | Refused | None], p: Params, markers_path: Path,
