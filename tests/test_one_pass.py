@@ -92,3 +92,20 @@ def test_a_filter_that_does_not_fit_the_rate_is_refused_as_preprocess_refuses_it
     assert str(one.value) == str(two.value).replace(str(tmp_path / "two"), str(tmp_path / "one"))
     assert "trials.parquet" in str(one.value) and "Nyquist" in str(one.value)
     assert (tmp_path / "one" / "import" / "trials.parquet").is_file() and not (tmp_path / "one" / "preprocess").exists()
+
+
+def test_one_pass_of_real_lab_files_equals_the_two_stages(realdata, tmp_path, cli):
+    """Five real recordings of three labs (C3D Intel and DEC, a CSV export, a marker map): the same tables,
+    and the same recordings refused by preprocess (the two static ones: nobody walks), exit 3."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("realdata_study", Path(__file__).with_name("test_realdata_study.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    (tmp_path / "protocol.yaml").write_text(module.PROTOCOL.format(d=realdata))
+    assert cli("import", tmp_path / "protocol.yaml", "--out", tmp_path / "two", "--jobs", "1")[0] == 0
+    assert cli("preprocess", "--out", tmp_path / "two", "--jobs", "1")[0] == 3
+    assert cli("import", tmp_path / "protocol.yaml", "--out", tmp_path / "one", "--jobs", "2", "--preprocess")[0] == 3
+    _same_workspaces(tmp_path / "two", tmp_path / "one")
+    refused = json.loads((tmp_path / "one" / "preprocess" / "manifest.json").read_text())["refused"]
+    assert sorted(r["trial"] for r in refused) == ["pyomeca_c3d", "pyomeca_csv"]
