@@ -49,6 +49,7 @@ def test_one_pass_equals_import_then_preprocess(walking_study, tmp_path, jobs):
     assert again[0].skipped and again[1].skipped
 
 
+@pytest.mark.slow
 def test_one_pass_of_a_pair_study_with_options(tmp_path):
     """Pair recordings (segmentation into forward and return, scenario 3, the table's end orientation) and
     preprocess options (the approach walks kept, 50 samples) come out as with the two stages."""
@@ -109,3 +110,12 @@ def test_one_pass_of_real_lab_files_equals_the_two_stages(realdata, tmp_path, cl
     _same_workspaces(tmp_path / "two", tmp_path / "one")
     refused = json.loads((tmp_path / "one" / "preprocess" / "manifest.json").read_text())["refused"]
     assert sorted(r["trial"] for r in refused) == ["pyomeca_c3d", "pyomeca_csv"]
+
+
+@pytest.mark.slow
+def test_one_pass_on_a_dask_cluster(walking_study, tmp_path, dask_scheduler):
+    """The workers of a Dask cluster import and preprocess the trials too (the tasks carry everything they need)."""
+    data.import_markers(tmp_path / "two", walking_study, jobs=1)
+    data.preprocess(tmp_path / "two", jobs=1)
+    data.import_and_preprocess(tmp_path / "one", walking_study, scheduler=dask_scheduler)
+    _same_workspaces(tmp_path / "two", tmp_path / "one")
