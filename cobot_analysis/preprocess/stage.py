@@ -689,10 +689,9 @@ def import_and_process(item: OnePass) -> Refused | tuple[Any, dict[str, Any] | R
     p = item.params
     try:
         filtering.butter_sos(p.cutoff, rec.rate, p.order, p.order_convention)
-        done: dict[str, Any] | Refused | None = process_or_refuse(rec, p)
     except ValueError:
-        done = None
-    return t, done
+        return t, None
+    return t, process_or_refuse(rec, p)
 
 
 def finish_one_pass(imported: list[Any], done: list[dict[str, Any] | Refused | None], p: Params, markers_path: Path,
