@@ -9,6 +9,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from cobot_analysis.io.markers import ImportedTrial, ImportPlan, Refused
@@ -32,6 +33,8 @@ class ImportResult:
     markers_path: Path | None = None
     n_samples: int = 0
     n_occluded: int = 0
+    preprocessed: list[Any] | None = None  # with ``preprocess``: each imported trial's preprocessing, done where it was read
+    preprocess_params: Params | None = None
 
     @property
     def notes(self) -> list[str]:
@@ -51,7 +54,7 @@ def import_markers(protocol: str | os.PathLike | ImportPlan, *, units: str = "au
                    marker_map_file: str | os.PathLike | None = None, keep_all_markers: bool = False, skip_bad: bool = True,
                    lab_extent: float = LAB_EXTENT, max_speed: float = MAX_SPEED, max_spike: float = MAX_SPIKE,
                    jobs: int | None = None, scheduler: str | None = None,
-                   markers_path: str | os.PathLike | None = None) -> ImportResult:
+                   markers_path: str | os.PathLike | None = None, preprocess: dict[str, Any] | None = None) -> ImportResult:
     """Import every trial of a protocol (C3D, Vicon Nexus CSV, Qualisys TSV; docs/protocol.md).
 
     Every trial is read and checked before anything is returned: with ``skip_bad`` (the default) the
@@ -59,7 +62,10 @@ def import_markers(protocol: str | os.PathLike | ImportPlan, *, units: str = "au
     it, or when every trial is refused, they are named together in one ``InputError``. With
     ``markers_path``, the markers are written there trial by trial as Parquet (``io.markers.stream_import``:
     memory flat in the number of trials) and ``result.markers`` is None; else they are returned in
-    ``result.markers``.
+    ``result.markers``. With ``markers_path`` and ``preprocess`` (the options of ``preprocess``, ``{}`` for
+    its defaults), each worker also preprocesses the trial it has just read (``preprocess.stage.import_and_process``)
+    and ``preprocess(result)`` assembles it: the same trajectories as ``preprocess(markers_path)``, without
+    reading the markers back.
 
     A synthetic walking study of 2 subjects x 1 start condition x 1 repetition, written as C3D files:
 
@@ -80,20 +86,32 @@ def import_markers(protocol: str | os.PathLike | ImportPlan, *, units: str = "au
         True
         >>> tmp.cleanup()
     """
+    from cobot_analysis.errors import InputError
     from cobot_analysis.io.markers import import_or_refuse, imported_summary, imported_tables, plan_import, refusal_error, stream_import
     from cobot_analysis.parallel import map_tasks
 
     plan = protocol if isinstance(protocol, ImportPlan) else plan_import(
         protocol, units=units, marker_map=marker_map, marker_map_file=marker_map_file, keep_all=keep_all_markers,
         skip_bad=skip_bad, lab_extent=lab_extent, max_speed=max_speed, max_spike=max_spike)
+    if preprocess is not None and markers_path is None:
+        raise InputError("preprocess in the same pass needs markers_path (the markers are written as they are read)",
+                         remedy="pass markers_path, or call preprocess() on the import's result")
     if markers_path is not None:
-        streamed = stream_import(plan, Path(markers_path), jobs=jobs, scheduler=scheduler)
+        one_pass = None
+        if preprocess is not None:
+            from cobot_analysis.preprocess.stage import import_and_process, one_pass_items
+
+            one_pass = Params(**preprocess)
+            streamed = stream_import(plan, Path(markers_path), jobs=jobs, scheduler=scheduler, worker=import_and_process,
+                                     items=one_pass_items(plan, one_pass))
+        else:
+            streamed = stream_import(plan, Path(markers_path), jobs=jobs, scheduler=scheduler)
         if streamed.refused and (not plan.params["skip_bad"] or not streamed.imported):
             Path(markers_path).unlink(missing_ok=True)  # a refused import leaves no file
             raise refusal_error(streamed.refused, len(plan.tasks), plan.protocol.path, "import")
         trials, meta = imported_summary(plan, streamed.imported, streamed.refused)
         return ImportResult(plan, None, trials, meta, streamed.refused, streamed.imported, Path(markers_path),
-                            streamed.n_samples, streamed.n_occluded)
+                            streamed.n_samples, streamed.n_occluded, streamed.also if one_pass else None, one_pass)
     results = map_tasks(import_or_refuse, plan.tasks, jobs=jobs, scheduler=scheduler, description="import")
     refused = [r for r in results if isinstance(r, Refused)]
     imported: list[ImportedTrial] = [r for r in results if isinstance(r, ImportedTrial)]
@@ -101,7 +119,7 @@ def import_markers(protocol: str | os.PathLike | ImportPlan, *, units: str = "au
         raise refusal_error(refused, len(plan.tasks), plan.protocol.path, "import")
     markers, trials, meta = imported_tables(plan, imported, refused)
     for t in imported:  # the long table holds a copy of the arrays (their frames are kept: n_frames)
-        t.xyz = t.xyz[:, :0]
+        t.xyz = np.empty((len(t.xyz), 0, 3))  # its frames only (a view would keep the samples alive)
     return ImportResult(plan, markers, trials, meta, refused, imported, None, len(markers), int(markers["occluded"].sum()))
 
 
@@ -208,6 +226,16 @@ def preprocess(markers: str | os.PathLike | ImportResult, trials: str | os.PathL
     if unknown:
         raise InputError(f"unknown preprocess option(s) {unknown}", remedy=f"use {', '.join(Params.__dataclass_fields__)}")
     p = Params(**options)
+    if isinstance(markers, ImportResult) and markers.preprocessed is not None:  # preprocessed where it was imported
+        from cobot_analysis.preprocess.stage import finish_one_pass
+
+        if markers.preprocess_params != p:
+            raise InputError("the import was preprocessed in the same pass with other parameters",
+                             remedy="pass the same preprocess options, or preprocess the import's markers.parquet")
+        path = Path(markers.markers_path)
+        traj, gap_df, n, refused = finish_one_pass(markers.imported, markers.preprocessed, p, path,
+                                                   Path(trials) if trials is not None else path.with_name("trials.parquet"))
+        return PreprocessResult(p, traj, gap_df, n, refused)
     if isinstance(markers, ImportResult):  # the stage reads the markers from Parquet, a few columns at a time
         import tempfile
 

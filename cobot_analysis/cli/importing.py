@@ -33,6 +33,7 @@ def import_command(
     lab_extent: Annotated[float, typer.Option("--lab-extent", min=0.0, help="Largest |coordinate| of a marker from the lab origin (m); farther positions are refused as corrupt (docs/methods.md sec. 2).")] = 100.0,
     max_speed: Annotated[float, typer.Option("--max-speed", min=0.0, help="Largest marker speed between consecutive visible samples (m/s); faster jumps are refused as corrupt or mislabelled (docs/methods.md sec. 2).")] = 20.0,
     max_spike: Annotated[float, typer.Option("--max-spike", min=0.0, help="Largest distance of a sample from the midpoint of its two neighbours (m; raised below 100 Hz to what 100 g allows); larger single-sample spikes are refused as corrupt (docs/methods.md sec. 2).")] = 0.05,
+    preprocess: Annotated[bool, typer.Option("--preprocess", help="Also run the preprocess stage (its default parameters) in the same pass: each trial is preprocessed where it is read; the same outputs as `preprocess --out OUT` after the import.")] = False,
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
     force: ForceOpt = False,
@@ -50,8 +51,14 @@ def import_command(
     from cobot_analysis.io.markers import parse_map_options
     from cobot_analysis.stages import data
 
-    done = data.import_markers(out, protocol, units=units.value, marker_map=parse_map_options(map_ or []),
-                               marker_map_file=marker_map, keep_all_markers=keep_all_markers, skip_bad=skip_bad,
-                               lab_extent=lab_extent, max_speed=max_speed, max_spike=max_spike, jobs=jobs, scheduler=scheduler,
-                               force=force)
-    finished_with_refusals("import", done)
+    options = dict(units=units.value, marker_map=parse_map_options(map_ or []), marker_map_file=marker_map,
+                   keep_all_markers=keep_all_markers, skip_bad=skip_bad, lab_extent=lab_extent, max_speed=max_speed,
+                   max_spike=max_spike, jobs=jobs, scheduler=scheduler, force=force)
+    if not preprocess:
+        finished_with_refusals("import", data.import_markers(out, protocol, **options))
+        return
+    done, pre = data.import_and_preprocess(out, protocol, **options)
+    try:
+        finished_with_refusals("import", done)
+    finally:  # both summaries; the exit code says whether either stage refused trials
+        finished_with_refusals("preprocess", pre)

@@ -106,6 +106,11 @@ def _where(labels: list[str], bad: np.ndarray, rate: float, limit: int = 3) -> s
     return ", ".join(parts) + (f" and {more} more markers" if more > 0 else "")
 
 
+def _norm(dx: np.ndarray, dy: np.ndarray, dz: np.ndarray) -> np.ndarray:
+    """``sqrt(dx^2 + dy^2 + dz^2)`` elementwise (the same sums as ``np.linalg.norm`` over a last axis of 3)."""
+    return np.sqrt(dx * dx + dy * dy + dz * dz)
+
+
 def check_positions(xyz: np.ndarray, labels: list[str], rate: float, path: str | os.PathLike, *,
                     lab_extent: float = LAB_EXTENT, max_speed: float = MAX_SPEED, max_spike: float = MAX_SPIKE,
                     what: str = "") -> None:
@@ -116,46 +121,44 @@ def check_positions(xyz: np.ndarray, labels: list[str], rate: float, path: str |
     """
     xyz = np.asarray(xyz, dtype=float)
     with np.errstate(invalid="ignore"):
-        infinite = np.isinf(xyz).any(axis=2)
-        if infinite.any():
-            raise InputError(f"{what}infinite marker coordinates: {_where(labels, infinite, rate)}", path=path, remedy=REMEDY)
-        far = (np.abs(xyz) > lab_extent).any(axis=2)
-        if far.any():
-            worst = float(np.nanmax(np.abs(xyz)))
+        size = np.abs(xyz)
+        # one pass for both (inf exceeds any finite limit, NaN none): the masks are made only when needed
+        if (size > lab_extent).any() or (not lab_extent < np.inf and np.isinf(xyz).any()):
+            infinite = np.isinf(xyz).any(axis=2)
+            if infinite.any():
+                raise InputError(f"{what}infinite marker coordinates: {_where(labels, infinite, rate)}", path=path, remedy=REMEDY)
+            far = (size > lab_extent).any(axis=2)
+            worst = float(np.nanmax(size))
             raise InputError(f"{what}implausible marker positions, up to {worst:.3g} m from the lab origin (limit {lab_extent:g} m): "
                              f"{_where(labels, far, rate)}", path=path,
                              remedy=f"{REMEDY}; a lab larger than {lab_extent:g} m: import with --lab-extent")
-    visible = ~np.isnan(xyz).any(axis=2)
-    jumps = []  # (first frame, marker, next frame, step, speed, number of jumps of that marker)
-    always = np.flatnonzero(visible.all(axis=0)) if len(xyz) >= 2 else np.empty(0, int)
-    if always.size:  # markers visible in every frame, all at once: consecutive frames, speed = step x rate
-        step = np.linalg.norm(np.diff(xyz[:, always], axis=0), axis=2)
-        speed = step * rate
-        fast = speed > max_speed
-        for c in np.flatnonzero(fast.any(axis=0)):
-            i = int(np.argmax(fast[:, c]))
-            jumps.append((i, int(always[c]), i + 1, float(step[i, c]), float(speed[i, c]), int(fast[:, c].sum())))
-    for k in map(int, np.setdiff1d(np.arange(xyz.shape[1]), always)):  # the others, each over its visible frames
-        idx = np.flatnonzero(visible[:, k])
-        if len(idx) < 2:
-            continue
-        step = np.linalg.norm(np.diff(xyz[idx, k], axis=0), axis=1)
-        speed = step * rate / np.diff(idx)
-        fast = np.flatnonzero(speed > max_speed)
-        if fast.size:
-            i = fast[0]
-            jumps.append((int(idx[i]), k, int(idx[i + 1]), float(step[i]), float(speed[i]), len(fast)))
-    if jumps:
-        a, k, b, step, speed, _ = min(jumps)
-        total = sum(j[5] for j in jumps)
-        more = f"; {total} jumps over the limit in {len(jumps)} marker(s)" if total > 1 else ""
-        raise InputError(f"{what}implausible jump of marker {labels[k]}: {step:.3g} m between frames {a} and {b} "
-                         f"(t = {a / rate:.3f} s), {speed:.3g} m/s (limit {max_speed:g} m/s){more}", path=path,
-                         remedy=f"{REMEDY}; a marker that really moves faster: import with --max-speed")
+    x, y, z = (xyz[:, :, c] for c in range(3))  # (frames, markers) each: no reduction over a 3-long axis (slow)
+    visible = ~(np.isnan(x) | np.isnan(y) | np.isnan(z))
+    n_frames = len(xyz)
+    if n_frames >= 2 and visible.any():  # every marker at once: each visible frame against the marker's previous visible one
+        frames = np.arange(n_frames)[:, None]
+        last = np.maximum.accumulate(np.where(visible, frames, -1), axis=0)  # latest visible frame <= f
+        prev = np.vstack([np.full((1, xyz.shape[1]), -1), last[:-1]])  # latest visible frame < f (-1: none)
+        pair = visible & (prev >= 0)
+        src = np.maximum(prev, 0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            step = _norm(*(c - np.take_along_axis(c, src, axis=0) for c in (x, y, z)))
+            speed = step * rate / (frames - src)
+        fast = pair & (speed > max_speed)
+        if fast.any():
+            j, k = np.nonzero(fast)
+            i = prev[j, k]
+            at = np.lexsort((k, i))[0]  # the earliest jump is named (then the lowest marker index), all are counted
+            a, kk, b = int(i[at]), int(k[at]), int(j[at])
+            total = len(j)
+            more = f"; {total} jumps over the limit in {len(np.unique(k))} marker(s)" if total > 1 else ""
+            raise InputError(f"{what}implausible jump of marker {labels[kk]}: {float(step[b, kk]):.3g} m between frames {a} and {b} "
+                             f"(t = {a / rate:.3f} s), {float(speed[b, kk]):.3g} m/s (limit {max_speed:g} m/s){more}", path=path,
+                             remedy=f"{REMEDY}; a marker that really moves faster: import with --max-speed")
     spike_limit = max(max_spike, MAX_ACCELERATION / (2 * rate ** 2))
     triple = visible[:-2] & visible[1:-1] & visible[2:]  # (frames - 2, markers)
     with np.errstate(invalid="ignore"):
-        dev = np.linalg.norm(xyz[1:-1] - (xyz[:-2] + xyz[2:]) / 2, axis=2)
+        dev = _norm(*(c[1:-1] - (c[:-2] + c[2:]) / 2 for c in (x, y, z)))
         spikes = triple & (dev > spike_limit)
     if spikes.any():
         i, k = np.argwhere(spikes)[0]

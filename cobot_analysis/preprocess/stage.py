@@ -144,11 +144,16 @@ def check_memory(p: Params, trials_path: Path) -> None:
     except Exception:  # noqa: BLE001 - unreadable: load_recordings names the problem
         return
     pair = "pair" in table.column_names and table.column("pair").null_count < len(table)
-    n_traj = len(table) * ((8 if p.keep_approach else 6) if pair else 1)
+    check_memory_for(p, len(table), pair, trials_path)
+
+
+def check_memory_for(p: Params, n_recordings: int, pair: bool, path: Path) -> None:
+    """``check_memory`` for ``n_recordings`` recordings (``pair``: of a pair study) listed in ``path``."""
+    n_traj = n_recordings * ((8 if p.keep_approach else 6) if pair else 1)
     need, have = p.memory_bytes(n_traj), available_memory()
     if have is not None and need > have:
         raise InputError(f"--samples {p.n_samples} would need about {need / 1e9:.3g} GB for {n_traj} trajectories "
-                         f"({have / 1e9:.3g} GB of memory available)", path=trials_path,
+                         f"({have / 1e9:.3g} GB of memory available)", path=path,
                          remedy=f"use fewer samples per trajectory (default {Params.n_samples})")
 
 
@@ -615,20 +620,102 @@ def process(markers_path: Path, trials_path: Path, p: Params, *, jobs: int | Non
     import scipy.interpolate  # noqa: F401 - imported once here, inherited by forked workers
 
     for r in recordings:  # bad parameters are reported before any long work
-        try:
-            filtering.butter_sos(p.cutoff, r.rate, p.order, p.order_convention)
-        except ValueError as exc:
-            raise InputError(f"trial {r.trial}: {exc}", path=trials_path,
-                             remedy="change --cutoff / --order / --order-convention") from exc
+        _check_filter(r, p, trials_path)
     n_jobs = 1 if scheduler is None and (jobs or default_jobs()) <= 1 else (jobs or default_jobs())
     size = max(1, min(25, len(recordings) // (4 * n_jobs) or 1))
     chunks = [(markers_path, list(c), p) for c in chunked(recordings, size)]
     del recordings
     done = [r for chunk in map_tasks(_process_chunk, chunks, jobs=n_jobs, scheduler=scheduler,
                                      description="preprocess") for r in chunk]
+    return finish(done, p, markers_path)
+
+
+def _check_filter(rec: Recording, p: Params, trials_path: Path) -> None:
+    """Refuse filter parameters that do not fit the recording's rate (``filtering.butter_sos``)."""
+    try:
+        filtering.butter_sos(p.cutoff, rec.rate, p.order, p.order_convention)
+    except ValueError as exc:
+        raise InputError(f"trial {rec.trial}: {exc}", path=trials_path,
+                         remedy="change --cutoff / --order / --order-convention") from exc
+
+
+def finish(done: list[dict[str, Any] | Refused], p: Params, markers_path: Path) -> tuple[pd.DataFrame, pd.DataFrame, int, list[Refused]]:
+    """``process``'s result from every recording's (``process_or_refuse``, in the trials table's order):
+    refused ones named together in one ``InputError`` unless ``p.skip_bad`` (and some recording is good)."""
     refused = [r for r in done if isinstance(r, Refused)]
     results = [r for r in done if not isinstance(r, Refused)]
     if refused and (not p.skip_bad or not results):
         raise refusal_error(refused, len(done), markers_path, "preprocess")
     traj, gap_df = assemble(results, p.n_samples)
     return traj, gap_df, len(results), refused
+
+
+# ---- import and preprocess in one pass ------------------------------------------------------------
+def recording_of(trial: Any, meta: dict[str, Any], source: str, limits: dict[str, float]) -> Recording:
+    """The ``Recording`` that ``load_recordings`` + ``load_markers`` read back from the import's files, made
+    from the imported trial itself (``io.markers.ImportedTrial``): its pelvis and table-corner markers, a
+    sample whose x is missing missing in full (the markers table's ``occluded``)."""
+    rec = Recording(trial.trial, float(trial.rate), meta, source=source, limits=limits)
+    for k, key in sorted(((k, (e, m)) for k, (e, m) in enumerate(zip(trial.entities, trial.markers)) if m in USED_MARKERS),
+                         key=lambda item: item[1]):
+        xyz = np.array(trial.xyz[:, k, :], dtype=float)
+        xyz[np.isnan(xyz[:, 0])] = np.nan
+        rec.markers[key] = xyz
+    return rec
+
+
+@dataclass(frozen=True)
+class OnePass:
+    """A trial's task for ``import_and_process``: its import task, the preprocess parameters, its row of
+    the trials table's metadata columns, and the plausibility limits of the import."""
+
+    task: Any  # io.markers.TrialTask
+    params: Params
+    meta: dict[str, Any]
+    limits: dict[str, float]
+
+
+def import_and_process(item: OnePass) -> Refused | tuple[Any, dict[str, Any] | Refused | None]:
+    """Import one trial (``io.markers.import_or_refuse``: every check) and preprocess it where it was read:
+    ``(trial, its preprocessing)``, the same as ``process_or_refuse`` of what the ``preprocess`` stage
+    reads back from the import's files; None when the filter does not fit the trial's rate (the caller
+    refuses the run as ``process`` does: ``_check_filter``)."""
+    from cobot_analysis.io.markers import import_or_refuse
+
+    t = import_or_refuse(item.task)
+    if isinstance(t, Refused):
+        return t
+    rec = recording_of(t, item.meta, str(item.task.path), item.limits)
+    p = item.params
+    try:
+        filtering.butter_sos(p.cutoff, rec.rate, p.order, p.order_convention)
+    except ValueError:
+        return t, None
+    return t, process_or_refuse(rec, p)
+
+
+def finish_one_pass(imported: list[Any], done: list[dict[str, Any] | Refused | None], p: Params, markers_path: Path,
+                    trials_path: Path) -> tuple[pd.DataFrame, pd.DataFrame, int, list[Refused]]:
+    """``process``'s result from ``import_and_process``'s (``done``, one per trial ``imported``, in order),
+    with the same refusals: filter parameters that do not fit a trial's rate, then the refused recordings."""
+    for t, d in zip(imported, done):
+        if d is None:
+            _check_filter(Recording(t.trial, float(t.rate), {}), p, trials_path)
+    return finish(list(done), p, markers_path)
+
+
+def one_pass_items(plan: Any, p: Params) -> list[OnePass]:
+    """``import_and_process``'s tasks of an import plan (``io.markers.ImportPlan``): each with its row of
+    the trials table's metadata, as ``load_recordings`` gives it (``Recording.meta``)."""
+    import scipy.interpolate  # noqa: F401 - imported once here (0.8 s of CPU), inherited by forked workers
+    import scipy.signal  # noqa: F401
+
+    from cobot_analysis.io.markers import trial_metadata
+
+    rows = trial_metadata(plan.protocol)
+    rows.attrs = {}
+    limits = {"lab_extent": float(plan.limits.get("lab_extent") or LAB_EXTENT),
+              "max_speed": float(plan.limits.get("max_speed") or MAX_SPEED),
+              "max_spike": float(plan.limits.get("max_spike") or MAX_SPIKE)}
+    meta = [{c: row.get(c) for c in TRIAL_COLUMNS} for _, row in rows.iterrows()]
+    return [OnePass(task, p, m, limits) for task, m in zip(plan.tasks, meta)]

@@ -52,21 +52,30 @@ def synth_pairs(out: str | os.PathLike, *, seed: int = 0, pairs: int = 20, goals
 
 
 def import_markers(out: str | os.PathLike, protocol: str | os.PathLike, *, jobs: int | None = None,
-                   scheduler: str | None = None, force: bool = False, **options: Any) -> Outcome:
+                   scheduler: str | None = None, force: bool = False, preprocess: dict[str, Any] | None = None,
+                   **options: Any) -> Outcome:
     """``import``: raw markers of a protocol -> ``import/markers.parquet`` and ``trials.parquet``
-    (options: those of ``api.import_markers``)."""
+    (options: those of ``api.import_markers``). ``preprocess``: options of the preprocess stage (``{}``: its
+    defaults): each trial is also preprocessed where it is read (``import_and_preprocess``)."""
     from cobot_analysis.io.markers import plan_import
     from cobot_analysis.reports.data import import_summary
     from cobot_analysis.schema import TRIALS
 
     keep_all = options.pop("keep_all_markers", False)
     plan = plan_import(protocol, keep_all=keep_all, **options)
+    if preprocess is not None:  # a --samples too large for the memory is refused before any work, as preprocess does
+        from cobot_analysis.preprocess.stage import Params, check_memory_for
+
+        trials = plan.protocol.trials
+        check_memory_for(Params(**preprocess), len(trials), "pair" in trials.columns and trials["pair"].notna().any(),
+                         plan.protocol.path)
     with Stage(out, "import", inputs=plan.inputs, params=plan.params, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
         known = stage.input_hashes  # each raw file hashed once: for the manifest, and trials.parquet's sha256
         plan.tasks = [replace(t, sha256=known.get(str(t.path))) for t in plan.tasks]  # (trial_file paths are resolved)
-        result = api.import_markers(plan, jobs=jobs, scheduler=scheduler, markers_path=stage.path("markers.parquet"))
+        result = api.import_markers(plan, jobs=jobs, scheduler=scheduler, markers_path=stage.path("markers.parquet"),
+                                    preprocess=preprocess)
         stage.result = result  # its own numbers are the stage's metrics.json
         for note in result.notes:
             warn(note)
@@ -118,10 +127,24 @@ def import_published(out: str | os.PathLike, dataset: str, path: str | os.PathLi
     return Outcome(stage.final_dir, result)
 
 
+def import_and_preprocess(out: str | os.PathLike, protocol: str | os.PathLike, *, preprocess_options: dict[str, Any] | None = None,
+                          jobs: int | None = None, scheduler: str | None = None, force: bool = False,
+                          **options: Any) -> tuple[Outcome, Outcome]:
+    """``import --preprocess``: the ``import`` and ``preprocess`` stages in one pass, each trial preprocessed by
+    the worker that has just read it (no second start-up, the markers not read back): the same two stage
+    directories, tables and manifests as ``import`` then ``preprocess`` (``options``: the import's)."""
+    popts = dict(preprocess_options or {})
+    imported = import_markers(out, protocol, jobs=jobs, scheduler=scheduler, force=force, preprocess=popts, **options)
+    return imported, preprocess(out, jobs=jobs, scheduler=scheduler, force=force, imported=imported.result, **popts)
+
+
 def preprocess(out: str | os.PathLike, *, markers: str | os.PathLike | None = None, trials: str | os.PathLike | None = None,
-               jobs: int | None = None, scheduler: str | None = None, force: bool = False, **options: Any) -> Outcome:
+               jobs: int | None = None, scheduler: str | None = None, force: bool = False, imported: Any = None,
+               **options: Any) -> Outcome:
     """``preprocess``: ``import/markers.parquet`` -> ``preprocess/trajectories.parquet``, ``gaps.parquet`` and
-    ``results.md`` (options: the fields of ``preprocess.stage.Params``)."""
+    ``results.md`` (options: the fields of ``preprocess.stage.Params``). ``imported``: the result of the import
+    just run with the same options as ``preprocess`` (``import_and_preprocess``): its trials' preprocessing is
+    assembled instead of reading the markers back."""
     markers_path = Path(markers) if markers is not None else find_input(out, "markers.parquet", ["import"], "--markers")
     trials_path = Path(trials) if trials is not None else markers_path.with_name("trials.parquet")
     from cobot_analysis.preprocess import gaps  # after the cheap checks: these import pandas
@@ -133,7 +156,10 @@ def preprocess(out: str | os.PathLike, *, markers: str | os.PathLike | None = No
     with Stage(out, "preprocess", inputs=[markers_path, trials_path], params=asdict(p), force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
-        result = api.preprocess(markers_path, trials_path, jobs=jobs, scheduler=scheduler, **options)
+        if imported is not None and imported.preprocessed is not None:
+            result = api.preprocess(imported, trials_path, **options)
+        else:
+            result = api.preprocess(markers_path, trials_path, jobs=jobs, scheduler=scheduler, **options)
         stage.result = result  # its own numbers are the stage's metrics.json
         refusals.record(stage, result.refused, result.n_recordings + len(result.refused), "preprocess")
         params = asdict(p)
