@@ -9,8 +9,8 @@ it is imported, so ``"pandas" in sys.modules`` still tells whether a command pai
 (tests/test_cli_startup.py).
 
     >>> from cobot_analysis.lazy import pandas as pd
-    >>> pd.DataFrame({"x": [1, 2]})["x"].sum()
-    np.int64(3)
+    >>> int(pd.DataFrame({"x": [1, 2]})["x"].sum())
+    3
 """
 
 from __future__ import annotations

@@ -49,6 +49,14 @@ def test_the_other_stages_check_their_options_and_inputs_before_pandas(tmp_path)
     assert not any(tmp_path.iterdir())
 
 
+def test_the_lazy_pandas_imports_pandas_at_its_first_use_and_is_pandas_then():
+    code = ("import sys\nfrom cobot_analysis.lazy import pandas as pd\nbefore = 'pandas' in sys.modules\n"
+            "frame = pd.DataFrame({'x': [1.0]})\nimport pandas\n"
+            "print(before, pd.DataFrame is pandas.DataFrame, pd.concat is pandas.concat, isinstance(frame, pandas.DataFrame))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["False", "True", "True", "True"]
+
+
 def test_main_chooses_the_system_allocator_for_arrow_and_the_library_does_not():
     env = {k: v for k, v in os.environ.items() if k != "ARROW_DEFAULT_MEMORY_POOL"}
 
