@@ -178,6 +178,10 @@ def test_fitted_continuous_paths_walk_at_the_subjects_pace():
         assert g.goal_reached and g.status == "ok"
         assert g.travel_time == pytest.approx(subjects[t.condition], rel=0.15), t.condition
         assert 0.5 < g.mean_speed < 2.0
+    from cobot_analysis.reports.models import pace_lines
+
+    text = "\n".join(pace_lines(fit.mean_keys, fit.mean_targets, r.per_target, None, r.pace))
+    assert f"0 of {len(fit.mean_targets)} model paths outside 0.5-2 m/s, the subjects' 0 of {len(fit.mean_targets)}." in text
 
 
 def test_a_duration_on_its_bound_is_flagged():
@@ -191,3 +195,15 @@ def test_a_duration_on_its_bound_is_flagged():
     assert last.goal_reached and last.status.startswith("duration on a bound")
     text = "\n".join(generated_section(df, "continuous"))
     assert "1 durations on a bound" in text
+
+
+def test_the_time_law_is_judged_against_the_subjects_own_pace():
+    """The generate summary counts the subjects' means outside 0.5-2 m/s as it counts the model's, and gives
+    the model's durations over the subjects': two paths, the subjects twice and half as slow as the model."""
+    from cobot_analysis.reports.models import generated_section
+
+    a = generate("improved", (-1.5, -3.4, 0.0), WALKING_GOAL, weights="walking-2021", convention="continuous").assign(trial="a")
+    b = generate("improved", (-4.0, -1.4, 0.0), WALKING_GOAL, weights="walking-2021", convention="continuous").assign(trial="b")
+    ta, tb = a["travel_time"].iloc[-1], b["travel_time"].iloc[-1]
+    text = "\n".join(generated_section(pd.concat([a, b]), "continuous", {"a": (2 * ta, 0.3), "b": (0.5 * tb, 0.9)}))
+    assert "1 of 2 outside 0.5-2 m/s; model T / subjects' T 0.50-2.00, median 1.25" in text

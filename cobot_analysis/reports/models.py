@@ -406,11 +406,17 @@ def generated_section(df: pd.DataFrame, convention, measured: dict[str, tuple[fl
 
 
 def _subject_pace(ends: pd.DataFrame, measured: dict) -> str:
-    """'T a-b s, mean speed a-b m/s' of the subjects on the generated paths' conditions."""
-    m = np.array([measured[t] for t in ends.index if t in measured])
-    if not len(m):
+    """'T a-b s, mean speed a-b m/s, k of n outside 0.5-2 m/s; model T / subjects' T a-b' on the generated
+    paths' conditions: the human range the model's time law is judged against."""
+    have = [t for t in ends.index if t in measured]
+    if not have:
         return "none on these paths"
-    return f"T {m[:, 0].min():.2f}-{m[:, 0].max():.2f} s, mean speed {m[:, 1].min():.3g}-{m[:, 1].max():.3g} m/s"
+    m = np.array([measured[t] for t in have])
+    ratio = ends.loc[have, "travel_time"].to_numpy(float) / m[:, 0]
+    outside = int(np.sum((m[:, 1] < 0.5) | (m[:, 1] > 2.0)))
+    return (f"T {m[:, 0].min():.2f}-{m[:, 0].max():.2f} s, mean speed {m[:, 1].min():.3g}-{m[:, 1].max():.3g} m/s, "
+            f"{outside} of {len(m)} outside 0.5-2 m/s; model T / subjects' T {np.nanmin(ratio):.2f}-{np.nanmax(ratio):.2f}, "
+            f"median {np.nanmedian(ratio):.2f}")
 
 
 def pace_lines(mean_keys: pd.DataFrame | None, targets, per_target: list[dict], durations: pd.DataFrame | None,
@@ -594,7 +600,8 @@ def _gauge_lines(line: str, targets, per_target: list[dict], pace: dict) -> list
             f"the calibrated ones; re-solved there, D = {pace['D_after']:.4f} (before {pace['D_before']:.4f}), "
             f"rms duration error {np.sqrt(np.mean(np.square(errors))):.2f} s, model mean speed {sp[:, 0].min():.2f}-"
             f"{sp[:, 0].max():.2f} m/s against the subjects' {np.nanmin(sub[:, 1]):.2f}-{np.nanmax(sub[:, 1]):.2f} m/s "
-            f"(path length / the subjects' duration); {outside} of {len(sp)} model paths outside 0.5-2 m/s.")
+            f"(path length / the subjects' duration); {outside} of {len(sp)} model paths outside 0.5-2 m/s, the subjects' "
+            f"{int(np.sum((sub[:, 1] < 0.5) | (sub[:, 1] > 2.0)))} of {len(sub)}.")
     if pace.get("notes"):
         text += " **" + "; ".join(pace["notes"]) + ".**"
     return [line + ".", "", text, "",
