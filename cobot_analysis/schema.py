@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import pandas as pd
+from cobot_analysis.lazy import pandas as pd
 
 from cobot_analysis.errors import InputError
 

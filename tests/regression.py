@@ -4,7 +4,7 @@ metrics with the committed baseline (``cobot-analysis metrics check``), or rewri
     python tests/regression.py                 # every study; exit 1 if a metric moved, 2 on bad input
     python tests/regression.py walking-2020    # one study
     python tests/regression.py --update        # rewrite the baselines, printing every change
-    python tests/regression.py --verbose       # also every step and every metric's row ("ok" included)
+    python tests/regression.py --verbose       # also every step (with its wall and CPU time) and every metric's row
 
 By default a check prints only what failed (the failing step, or the rows of the metrics that are not
 ok) and, at the end, one line per study with its counts.
@@ -21,6 +21,7 @@ import argparse
 import contextlib
 import io
 import os
+import resource
 import shutil
 import sys
 import tempfile
@@ -128,6 +129,12 @@ STUDIES: dict[str, Study] = {
 
 
 
+def _cpu() -> float:
+    """CPU time (user + system, s) of this process and of its ended worker processes."""
+    own, workers = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + workers.ru_utime + workers.ru_stime
+
+
 def run_study(name: str, study: Study, root: Path, datasets: Path | None, jobs: int, update: bool, baselines: Path,
               verbose: bool = False) -> tuple[int, str]:
     """Run one study's steps, then check (or update) its baseline: the exit code of the first failure and
@@ -140,7 +147,10 @@ def run_study(name: str, study: Study, root: Path, datasets: Path | None, jobs: 
     for argv in steps:
         if verbose:
             print(f"$ cobot-analysis {' '.join(argv)}", flush=True)
+        wall, cpu = time.perf_counter(), _cpu()
         code = run(["-q", *argv])
+        if verbose:
+            print(f"  ({time.perf_counter() - wall:.1f} s, CPU {_cpu() - cpu:.1f} s with its workers)", flush=True)
         if code != 0:
             print(f"{name}: step failed with exit code {code}: cobot-analysis {' '.join(argv)}", flush=True)
             return code, ""
@@ -171,28 +181,28 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("MPLBACKEND", "Agg")
     datasets = datasets_dir()
     root = args.keep or Path(tempfile.mkdtemp(prefix="cobot-regression-"))
-    results: list[tuple[str, str, float, str]] = []
+    results: list[tuple[str, str, float, float, str]] = []
     try:
         for name in args.studies or list(STUDIES):
             study = STUDIES[name]
             if study.needs_datasets and datasets is None:
                 print(f"{name}: skipped: published datasets not found (set $COBOT_DATASETS or place them in ../shared/datasets)",
                       flush=True)
-                results.append((name, "skipped (no datasets)", 0.0, ""))
+                results.append((name, "skipped (no datasets)", 0.0, 0.0, ""))
                 continue
             if args.update or args.verbose:
                 print(f"\n=== {name} ({'update' if args.update else 'check'} {args.baselines / study.baseline})", flush=True)
-            t0 = time.perf_counter()
+            t0, cpu0 = time.perf_counter(), _cpu()
             code, counts = run_study(name, study, root, datasets, args.jobs, args.update, args.baselines, args.verbose)
             results.append((name, {0: "passed" if not args.update else "updated", 1: "FAILED"}.get(code, f"error (exit {code})"),
-                            time.perf_counter() - t0, counts.partition(": ")[2]))
+                            time.perf_counter() - t0, _cpu() - cpu0, counts.partition(": ")[2]))
     finally:
         if args.keep is None:
             shutil.rmtree(root, ignore_errors=True)
     print("\nmetric regression:")
-    for name, status, seconds, counts in results:
-        print(f"  {name:20s} {status:22s} {seconds:6.1f} s  {counts}".rstrip())
-    failed = [s for _, s, _, _ in results if s not in ("passed", "updated", "skipped (no datasets)")]
+    for name, status, seconds, cpu, counts in results:
+        print(f"  {name:20s} {status:22s} {seconds:6.1f} s (CPU {cpu:6.1f} s)  {counts}".rstrip())
+    failed = [s for _, s, _, _, _ in results if s not in ("passed", "updated", "skipped (no datasets)")]
     return 0 if not failed else 2 if any(s.startswith("error") for s in failed) else 1
 
 

@@ -105,6 +105,12 @@ def test_help_examples_run_as_written(cli, help_examples, tmp_path, monkeypatch)
     assert (work / "walking" / "predict-fitted").is_dir() and (work / "walking" / "velocity-commands" / "commands.parquet").is_file()
     assert (work / "results.md").is_file() and (work / "robot-baseline.json").is_file()
     check_small_demo(cli, work / "demo")  # the last example, `demo --size small`: the README's main job
+    # the metric regression's synthetic studies are this demo's steps (tests/regression.py: demo_steps(out, "small")):
+    # .ci/run checks their baselines here rather than running the small demo a second time
+    for study in ("walking", "pairs"):
+        code, out, err = cli("metrics", "check", ROOT / "tests" / "baselines" / f"synthetic-{study}.json", work / "demo" / study,
+                             "--failures-only")
+        assert code == 0, out + err
 
 
 def check_small_demo(cli, out: Path) -> None:

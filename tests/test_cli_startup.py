@@ -1,6 +1,7 @@
-"""Start-up of the command line (issue 22): ``--help`` and a stage that refuses a missing input import none
-of the heavy libraries (their cost is measured by benchmarks/bench_startup.py, never asserted here), and
-the command line, not the library, chooses Arrow's allocator."""
+"""Start-up of the command line (issue 22): ``--help`` and a stage that refuses a missing input or a bad option
+import none of the heavy libraries (the model and data stages: numpy only; their cost is measured by
+benchmarks/bench_startup.py, never asserted here), and the command line, not the library, chooses Arrow's
+allocator."""
 
 from __future__ import annotations
 
@@ -30,6 +31,30 @@ def test_help_and_a_refused_input_import_no_heavy_library(tmp_path):
     results = [json.loads(line) for line in out.splitlines() if line.startswith('{"argv"')]
     assert [(r["argv"], r["code"], r["heavy"]) for r in results] == [(argv, code, []) for argv, code in commands]
     assert not any(tmp_path.iterdir())  # the refusals wrote nothing
+
+
+def test_the_other_stages_check_their_options_and_inputs_before_pandas(tmp_path):
+    # numpy may come first (models' option checks use it: about 0.1 s), pandas and the rest only after the checks
+    ws = str(tmp_path)
+    commands = [["predict", "--out", ws], ["predict", "--out", ws, "--settings", "50-100"],
+                ["predict", "--out", ws, "--predictors", "oc,kalman"], ["generate", "--out", ws],
+                ["generate", "--out", ws, "--model", "bogus"], ["generate", "--out", ws, "--start", "1", "1", "0", "--goal", "1", "1", "0"],
+                ["fit-ioc", "--out", ws], ["fit-ioc", "--out", ws, "--model", "bogus"], ["velocity-commands", "--out", ws],
+                ["import", f"{ws}/missing.yaml", "--out", ws], ["import", f"{ws}/missing.yaml", "--out", ws, "--map", "LASI"],
+                ["import-published", "walking-2020", f"{ws}/missing", "--out", ws], ["preprocess", "--out", ws],
+                ["report", "--out", ws], ["bag-info", f"{ws}/missing.bag"]]
+    out = subprocess.run([sys.executable, "-c", PROBE, json.dumps(commands)], capture_output=True, text=True, check=True).stdout
+    results = [json.loads(line) for line in out.splitlines() if line.startswith('{"argv"')]
+    assert [(r["argv"], r["code"], [m for m in r["heavy"] if m != "numpy"]) for r in results] == [(argv, 2, []) for argv in commands]
+    assert not any(tmp_path.iterdir())
+
+
+def test_the_lazy_pandas_imports_pandas_at_its_first_use_and_is_pandas_then():
+    code = ("import sys\nfrom cobot_analysis.lazy import pandas as pd\nbefore = 'pandas' in sys.modules\n"
+            "frame = pd.DataFrame({'x': [1.0]})\nimport pandas\n"
+            "print(before, pd.DataFrame is pandas.DataFrame, pd.concat is pandas.concat, isinstance(frame, pandas.DataFrame))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["False", "True", "True", "True"]
 
 
 def test_main_chooses_the_system_allocator_for_arrow_and_the_library_does_not():

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import pandas as pd
+from cobot_analysis.lazy import pandas as pd
 
 from cobot_analysis.errors import InputError
 from cobot_analysis.metrics import localisation as headline

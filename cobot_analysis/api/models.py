@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
-import pandas as pd
+from cobot_analysis.lazy import pandas as pd
 
 from cobot_analysis import registry
 from cobot_analysis.errors import InputError

@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import pandas as pd
+from cobot_analysis.lazy import pandas as pd
 
 from cobot_analysis.errors import InputError
 from cobot_analysis.io.plausibility import INVALID_RATE_POLICIES
@@ -77,8 +77,8 @@ class Protocol:
     path: Path
     study: str
     trials: pd.DataFrame
-    subjects: pd.DataFrame = field(default_factory=pd.DataFrame)
-    pairs: pd.DataFrame = field(default_factory=pd.DataFrame)
+    subjects: pd.DataFrame = field(default_factory=lambda: pd.DataFrame())
+    pairs: pd.DataFrame = field(default_factory=lambda: pd.DataFrame())
     rate: float | None = None
     invalid_rate: str = "refuse"
     allow_outside: bool = False

@@ -25,7 +25,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-import pandas as pd
+from cobot_analysis.lazy import pandas as pd
 
 from cobot_analysis.errors import InputError
 from cobot_analysis.models.oc import OC_MODELS, resample, solve_model

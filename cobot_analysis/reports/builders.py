@@ -14,7 +14,7 @@ import shutil
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
+from cobot_analysis.lazy import pandas as pd
 
 from cobot_analysis.reports import figures
 from cobot_analysis.study import level_text

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-import pandas as pd
+from cobot_analysis.lazy import pandas as pd
 
 from cobot_analysis.design import POSITION_CODES
 from cobot_analysis import refusals

@@ -9,7 +9,7 @@ import math
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
+from cobot_analysis.lazy import pandas as pd
 
 from cobot_analysis.design import GLOBAL_DISTANCE_SPLIT
 from cobot_analysis.models.ioc import FAILED_D, Target

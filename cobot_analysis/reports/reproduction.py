@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
+from cobot_analysis.lazy import pandas as pd
 
 TOLERANCE = 0.15  # "reproduced": within 15 % of the published mean
 

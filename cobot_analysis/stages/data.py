@@ -58,8 +58,6 @@ def import_markers(out: str | os.PathLike, protocol: str | os.PathLike, *, jobs:
     (options: those of ``api.import_markers``). ``preprocess``: options of the preprocess stage (``{}``: its
     defaults): each trial is also preprocessed where it is read (``import_and_preprocess``)."""
     from cobot_analysis.io.markers import plan_import
-    from cobot_analysis.reports.data import import_summary
-    from cobot_analysis.schema import TRIALS
 
     keep_all = options.pop("keep_all_markers", False)
     plan = plan_import(protocol, keep_all=keep_all, **options)
@@ -69,6 +67,9 @@ def import_markers(out: str | os.PathLike, protocol: str | os.PathLike, *, jobs:
         trials = plan.protocol.trials
         check_memory_for(Params(**preprocess), len(trials), "pair" in trials.columns and trials["pair"].notna().any(),
                          plan.protocol.path)
+    from cobot_analysis.reports.data import import_summary
+    from cobot_analysis.schema import TRIALS
+
     with Stage(out, "import", inputs=plan.inputs, params=plan.params, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
@@ -92,8 +93,6 @@ def import_published(out: str | os.PathLike, dataset: str, path: str | os.PathLi
     subject_wrt_table for the pairs), ``facts.json`` and ``results.md``."""
     from cobot_analysis.errors import InputError
     from cobot_analysis.io import published as pub
-    from cobot_analysis.reports.data import pair_results_markdown, walking_results_markdown
-    from cobot_analysis.schema import TRAJECTORIES
 
     gamma_limit = pub.GAMMA_LIMIT if gamma_limit is None else gamma_limit
     if dataset not in pub.DATASETS:
@@ -101,6 +100,9 @@ def import_published(out: str | os.PathLike, dataset: str, path: str | os.PathLi
     path = Path(path)
     if not path.is_dir():
         raise InputError("dataset folder not found", path=path, remedy=pub.REMEDY_DATASET)
+    from cobot_analysis.reports.data import pair_results_markdown, walking_results_markdown
+    from cobot_analysis.schema import TRAJECTORIES
+
     params = {"dataset": dataset, "gamma_limit": gamma_limit, "gamma_consistency": pub.GAMMA_CONSISTENCY,
               "end_orientation_tolerance": pub.END_ORIENTATION_TOLERANCE}
     with Stage(out, "import-published", inputs=[path], params=params, force=force) as stage:

@@ -92,7 +92,7 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
     method writes its own stage (``fit-ioc-single``, ``fit-ioc-subjects-single``) beside the bi-level one,
     and its report shows the bi-level fit of the workspace beside its own. ``bootstrap``: resamples of
     the weights' intervals (0: no intervals nor verdicts)."""
-    import pandas as pd
+    from cobot_analysis.lazy import pandas as pd
 
     from cobot_analysis import conventions
     from cobot_analysis.models.ioc.single_level import check_method

@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
+from cobot_analysis.lazy import pandas as pd
 
 from cobot_analysis.errors import InputError
 

@@ -24,7 +24,7 @@ import warnings
 from dataclasses import replace
 
 import numpy as np
-import pandas as pd
+from cobot_analysis.lazy import pandas as pd
 
 from cobot_analysis.errors import InputError
 from cobot_analysis.models.prediction.errors import truth_windows

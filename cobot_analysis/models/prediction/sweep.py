@@ -39,7 +39,7 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
+from cobot_analysis.lazy import pandas as pd
 
 from cobot_analysis.conventions import CONTINUOUS, Convention
 from cobot_analysis.errors import InputError
