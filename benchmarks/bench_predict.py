@@ -173,7 +173,8 @@ def bench_stages(walking: Path, pairs: Path | None, n: int, weights: str | None)
     then ``trajectory_horizons`` predicting again: before), alternated per trajectory."""
     from cobot_analysis import conventions
     from cobot_analysis.api.prediction import with_turn_weight
-    from cobot_analysis.models.prediction.horizons import HORIZONS, horizon_rows, trajectory_horizons
+    from cobot_analysis.models.prediction.horizons import HORIZONS, horizon_rows
+    from cobot_analysis.models.prediction.sweep import trajectory_horizons
     from cobot_analysis.models.prediction.sweep import (SweepConfig, predict_trajectory, setting_rows, trajectories_from_table,
                                                         trajectory_runs)
     from cobot_analysis.schema import TRAJECTORIES, read_table
@@ -225,7 +226,7 @@ def bench_horizons(walking: Path, pairs: Path | None, every: int, jobs: int) -> 
     """Wall time of the horizon sweep (N0 = 50, horizons 5..200 and the whole path) of oc, goal, cv, ctrv on the
     walking trials (every ``every``-th) and, with goal-inferred too, on the pair study's table means."""
     from cobot_analysis.api.prediction import with_turn_weight
-    from cobot_analysis.models.prediction.horizons import horizon_sweep
+    from cobot_analysis.models.prediction.sweep import horizon_sweep
     from cobot_analysis.models.prediction.sweep import SweepConfig, trajectories_from_table
     from cobot_analysis.schema import TRAJECTORIES, read_table
 

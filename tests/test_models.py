@@ -194,7 +194,7 @@ def test_coupled_carriers_start_at_rest_and_mirror_problems_give_mirrored_paths(
     assert ends.max() < 0.2  # m, soft terminal cost with the published weights
 
 
-# -- the compiled NLP functions (ocp._nlp_functions, ocp._compiled_library) ------------------------
+# -- the compiled NLP functions (ocp._nlp_functions, ocp.compiled_library) ------------------------
 
 @pytest.mark.parametrize("shape", [OCPShape(7), OCPShape(6, "unicycle", free_time=True), OCPShape(5, free_time=True, goal="constraint")])
 def test_hand_assembled_derivatives_equal_casadi_ad_of_the_nlp(shape, monkeypatch):

@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from cobot_analysis.models.prediction import sweep as sweep_mod
-from cobot_analysis.models.prediction.horizons import horizon_sweep
+from cobot_analysis.models.prediction.sweep import horizon_sweep
 from cobot_analysis.models.prediction.sweep import (SweepConfig, WorkDir, horizon_tables, run_sweep, setting_rows,
                                                     trajectories_from_table, trajectory_runs)
 from tests.test_predict_cli import trajectories_table

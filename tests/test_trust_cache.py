@@ -21,10 +21,10 @@ ENV = {**os.environ, "PYTHONPATH": str(Path(__file__).parents[1])}
 SHAPE = "OCPShape(n_intervals=10)"
 SOLVE = textwrap.dedent(f"""
     import math, sys
-    from cobot_analysis.models.oc.problem import N_WEIGHTS, WalkerOCP, OCPShape, _compiled_library
+    from cobot_analysis.models.oc.problem import N_WEIGHTS, WalkerOCP, OCPShape, compiled_library
     ocp = WalkerOCP({SHAPE})
     sol = ocp.solve((-2.0, 0.5, 0.0), (0.0, 0.0, math.pi / 2), [1.0] * N_WEIGHTS, 2.0)
-    print("library", _compiled_library(ocp))
+    print("library", compiled_library(ocp))
     print("solved", sol.success, sol.solver, round(float(sol.X[-1, 0]), 3), round(float(sol.X[-1, 1]), 3))
 """)
 

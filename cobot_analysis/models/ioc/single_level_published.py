@@ -58,14 +58,14 @@ def held_shape(spec: IOCSpec, horizon: int):
 @functools.lru_cache(maxsize=8)
 def _functions(shape):
     """(ocp, nlp_hess_l, nlp_jac_g, nlp_grad_f): the lower level's own NLP functions (``WalkerOCP._nlp_functions``),
-    from the compiled library the solver loads when there is one (``problem._compiled_library``)."""
+    from the compiled library the solver loads when there is one (``problem.compiled_library``)."""
     import casadi as ca
 
-    from cobot_analysis.models.oc.problem import _compiled_library, get_ocp
+    from cobot_analysis.models.oc.problem import compiled_library, get_ocp
 
     ocp = get_ocp(shape)
     names = ("nlp_hess_l", "nlp_jac_g", "nlp_grad_f")
-    library = _compiled_library(ocp)
+    library = compiled_library(ocp)
     if library is not None:
         return (ocp, *(ca.external(n, str(library)) for n in names))
     fs = ocp._nlp_functions()

@@ -50,7 +50,7 @@ predictor; from cold guesses in ``coupled.py``). IPOPT's inertia correction is c
 an answer uses ``solver="ipopt"`` with ``max_cpu_time``; a solve stopped by it returns ``success=False``,
 status ``Maximum_CpuTime_Exceeded``.
 
-Evaluation (``_compiled_library``): the problem is written once, per stage (``_stage_functions``:
+Evaluation (``compiled_library``): the problem is written once, per stage (``_stage_functions``:
 stage cost c_k(z_k), step F(z_k), terminal cost c_N(x_N), z_k = (x_k, u_k)), and the functions
 fatrop calls are assembled from ``map`` of the stage functions and of their exact derivatives:
 
@@ -238,7 +238,7 @@ class WalkerOCP:
                 opts = {"structure_detection": "auto", "equality": [True] * self.n_cons,
                         "print_time": False, "show_eval_warnings": False,
                         "fatrop": {"print_level": 0, "tol": self.shape.tol, "max_iter": self.shape.max_iter}}
-                library = _compiled_library(self)
+                library = compiled_library(self)
                 if library is not None:
                     # only x and f are used: skip computing the multipliers and g after each solve
                     opts.update(calc_lam_p=False, calc_lam_x=False, calc_f=False, calc_g=False)
@@ -511,7 +511,7 @@ def _trusted_cache() -> Path | None:
     return None
 
 
-def _compiled_library(ocp: WalkerOCP) -> Path | None:
+def compiled_library(ocp: WalkerOCP) -> Path | None:
     """Path of the shared library with ``ocp``'s NLP functions, compiled on first use and cached
     (file name = hash of the C source, compiler and flags). A cached library is returned only from a
     private cache and when it matches the digest recorded when it was built (``cache.py``); else it
@@ -559,7 +559,7 @@ def _fatrop_solver(library: Path, opts: dict):
     (0.6 s at 930 intervals, 1.4 s at 1395, in every process that needs the shape); loading the
     serialised solver (``Function.serialize`` / ``deserialize``) takes about 0.04 s. It is loaded
     only when it matches the digest recorded when it was written (``cache.verified``, a file
-    outside it; ``library`` was verified by ``_compiled_library``): an absent, damaged, planted or
+    outside it; ``library`` was verified by ``compiled_library``): an absent, damaged, planted or
     unreadable file is ignored and rewritten (atomically), never loaded.
     """
     import casadi as ca

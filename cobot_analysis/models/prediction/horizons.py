@@ -21,7 +21,6 @@ path's length walked at sample k (``goal_inference`` table).
 from __future__ import annotations
 
 import warnings
-from dataclasses import replace
 
 import numpy as np
 from cobot_analysis.lazy import pandas as pd
@@ -102,15 +101,8 @@ def parse_horizons(text: str) -> tuple[int, ...]:
     return tuple(dict.fromkeys(out))
 
 
-def trajectory_horizons(traj, config, n0: int, horizons=HORIZONS) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Horizon errors of every predictor of ``config`` on one trajectory, and the goal inference rows."""
-    from cobot_analysis.models.prediction.sweep import trajectory_runs
-
-    return horizon_rows(traj, config, n0, horizons, trajectory_runs(traj, replace(config, settings=()), n0))
-
-
 def horizon_rows(traj, config, n0: int, horizons, runs: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """``trajectory_horizons`` from predictions already made (``sweep.trajectory_runs`` with this N0 run
+    """``sweep.trajectory_horizons`` from predictions already made (``sweep.trajectory_runs`` with this N0 run
     over the whole path): the predict stage's sweep and its horizon sweep share one run per predictor."""
     n = len(traj.poses)
     h_max = n - n0
@@ -154,27 +146,6 @@ def inference_rows(traj, predictor) -> pd.DataFrame:
     rows = [{"study": traj.study, "trial": traj.trial, "entity": traj.entity, "k": k, "walked": s[k] / s[-1] if s[-1] > 0 else np.nan,
              "p_true": float(post[true]), "correct": bool(np.argmax(post) == true)} for k, post in predictor.history]
     return pd.DataFrame(rows, columns=list(GOAL_INFERENCE.columns))
-
-
-def _task(item):
-    traj, config, n0, horizons = item
-    return trajectory_horizons(traj, config, n0, horizons)
-
-
-def horizon_sweep(trajectories, config, n0: int = 50, horizons=HORIZONS, *, jobs: int | None = None,
-                  scheduler: str | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """``trajectory_horizons`` over ``trajectories`` in parallel (``parallel.map_tasks``): (errors, inference)."""
-    from cobot_analysis.models.prediction.base import check_setting
-    from cobot_analysis.parallel import map_tasks
-
-    check_setting(n0, n0 + 1)
-    config = replace(config, settings=((n0, n0 + 1),))
-    results = map_tasks(_task, [(t, config, n0, tuple(horizons)) for t in trajectories], jobs=jobs, scheduler=scheduler,
-                        description="horizons")
-    errors = pd.concat([r[0] for r in results], ignore_index=True)
-    infer = [r[1] for r in results if len(r[1])]
-    inference = pd.concat(infer, ignore_index=True) if infer else pd.DataFrame(columns=list(GOAL_INFERENCE.columns))
-    return errors, inference
 
 
 def horizon_summary(errors: pd.DataFrame) -> pd.DataFrame:

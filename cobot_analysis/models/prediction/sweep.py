@@ -656,3 +656,34 @@ def compare_table(metrics: pd.DataFrame, windows: pd.DataFrame, convention: Conv
                 rows.append({"convention": convention.name, "n0": n0, "n_oc": n_oc, "baseline": baseline, "group": f"phase {lo:.0f}-{hi:.0f} %",
                              **paired_row(per["oc"], per[baseline], won)})
     return pd.DataFrame(rows, columns=list(PREDICTION_COMPARISON.columns))
+
+
+def trajectory_horizons(traj, config, n0: int, horizons=None) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Horizon errors of every predictor of ``config`` on one trajectory, and the goal inference rows
+    (``horizons.horizon_rows`` of its own run; default horizons: ``horizons.HORIZONS``)."""
+    from cobot_analysis.models.prediction.horizons import HORIZONS, horizon_rows
+
+    return horizon_rows(traj, config, n0, HORIZONS if horizons is None else horizons, trajectory_runs(traj, replace(config, settings=()), n0))
+
+
+def _horizons_task(item):
+    traj, config, n0, horizons = item
+    return trajectory_horizons(traj, config, n0, horizons)
+
+
+def horizon_sweep(trajectories, config, n0: int = 50, horizons=None, *, jobs: int | None = None,
+                  scheduler: str | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The horizon sweep on its own: ``trajectory_horizons`` over ``trajectories`` in parallel (``parallel.map_tasks``):
+    (errors, inference). The predict stage gets the same rows from its sweep's runs (``run_sweep(..., horizons=...)``)."""
+    from cobot_analysis.models.prediction.base import check_setting
+    from cobot_analysis.models.prediction.horizons import GOAL_INFERENCE, HORIZONS
+    from cobot_analysis.parallel import map_tasks
+
+    check_setting(n0, n0 + 1)
+    config = replace(config, settings=((n0, n0 + 1),))
+    results = map_tasks(_horizons_task, [(t, config, n0, tuple(HORIZONS if horizons is None else horizons)) for t in trajectories], jobs=jobs, scheduler=scheduler,
+                        description="horizons")
+    errors = pd.concat([r[0] for r in results], ignore_index=True)
+    infer = [r[1] for r in results if len(r[1])]
+    inference = pd.concat(infer, ignore_index=True) if infer else pd.DataFrame(columns=list(GOAL_INFERENCE.columns))
+    return errors, inference
