@@ -112,7 +112,7 @@ def fit_ioc_command(
     compare: Annotated[bool, typer.Option("--compare/--no-compare", help="Compare unicycle, clothoid, Mombaur, published and fitted models.")] = True,
     resume: Annotated[bool, typer.Option("--resume", help="Continue from the checkpoint of an interrupted run with the same inputs and options.")] = False,
     convention: ConventionOpt = None,
-    method: Annotated[str, typer.Option("--method", help="bilevel (the published method) or single-level (one NLP with the lower level's KKT conditions; improved and table models, continuous convention; docs/methods.md 6.1).")] = "bilevel",
+    method: Annotated[str, typer.Option("--method", help="bilevel (the published method) or single-level (one NLP with the lower level's KKT conditions; improved and table models; under the published convention at held horizons; docs/methods.md 6.1).")] = "bilevel",
     bootstrap: Annotated[int, typer.Option("--bootstrap", min=0, help="Resamples of the fitted units (means, or a subject's trials) for each weight's 95 % interval, with its identifiability verdict (docs/methods.md 6.3); 0: neither. --resume reuses the finished curvature evaluations.")] = 200,
     seed: SeedOpt = 0,
     jobs: JobsOpt = None,
