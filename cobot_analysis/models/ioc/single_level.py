@@ -375,6 +375,22 @@ def escape_probes(y: np.ndarray, H: np.ndarray, distances=PROBE_DISTANCES) -> li
     return out
 
 
+def interleaved_chunks(n: int, chunks: int) -> list[list[int]]:
+    """Path indices 0..n-1 dealt round-robin into at most ``chunks`` tasks (long and short paths mixed)."""
+    k = max(1, min(chunks, n))
+    return [list(range(i, n, k)) for i in range(k)]
+
+
+def run_chunks(pool, fn, parts: list[list[int]], make_task, n: int) -> list:
+    """``fn(make_task(part))`` for every part on ``pool``, the results put back in path order."""
+    futures = [pool.submit(fn, make_task(p)) for p in parts]
+    out: list = [None] * n
+    for p, f in zip(parts, futures):
+        for i, r in zip(p, f.result()):
+            out[i] = r
+    return out
+
+
 def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | None = None, eps: float = SMOOTHING,
                       radius: float = 0.3, max_steps: int = MAX_STEPS, tol: float = 1e-8, xtol: float = 1e-3,
                       restarts: int = 2, probe: bool = True, measured_T=None, pool=None,
@@ -434,15 +450,10 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
     P = [ocp.parameters(t.start, t.goal, w, T) for t, T in zip(targets, T0)]
     data = [target_data(t) for t in targets]
     pool = pool or InlineExecutor()
-    parts = [list(range(i, n, max(1, min(chunks, n)))) for i in range(max(1, min(chunks, n)))]
+    parts = interleaved_chunks(n, chunks)
 
     def run(fn, make_task) -> list:
-        futures = [pool.submit(fn, make_task(p)) for p in parts]
-        out = [None] * n
-        for p, f in zip(parts, futures):
-            for i, r in zip(p, f.result()):
-                out[i] = r
-        return out
+        return run_chunks(pool, fn, parts, make_task, n)
 
     def correct(w, V, jump: bool = False) -> list | None:
         """Every branch corrected at w from the vectors V (None if one fails). ``jump``: a branch whose
@@ -628,9 +639,9 @@ def cross_check(spec: IOCSpec, targets: list[Target], result: SingleLevelResult,
     a1 = result.weights["a1"] / (result.pace["c"] ** 4 if result.pace else 1.0)  # a1 of the fit's paths
     w = weights_vector(scale_time(weights, (a1 / weights["a1"]) ** 0.25), spec.model)
     pool, n = pool or InlineExecutor(), len(targets)
-    parts = [list(range(i, n, max(1, min(chunks, n)))) for i in range(max(1, min(chunks, n)))]
-    futures = [pool.submit(evaluate_chunk, (spec, w, [targets[i] for i in p], [result.primals[i] for i in p])) for p in parts]
-    return float(np.mean([d["D"] for f in futures for d, _ in f.result()]))
+    out = run_chunks(pool, evaluate_chunk, interleaved_chunks(n, chunks),
+                     lambda p: (spec, w, [targets[i] for i in p], [result.primals[i] for i in p]), n)
+    return float(np.mean([d["D"] for d, _ in out]))
 
 
 def check_method(method: str, bootstrap: int = 0) -> None:

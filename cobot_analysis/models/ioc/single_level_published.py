@@ -230,7 +230,7 @@ def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, chunks
     D by less than ``spec.ftol`` (relative, as the bi-level search), the radius falls below ``xtol``, the
     projected gradient below ``gtol``, or after ``max_steps`` steps.
     ``on_step(step, D at the step, least D)`` reports progress."""
-    from cobot_analysis.models.ioc.single_level import check_spec, trust_region_step
+    from cobot_analysis.models.ioc.single_level import check_spec, interleaved_chunks, run_chunks, trust_region_step
     from cobot_analysis.parallel import InlineExecutor
 
     t0 = time.perf_counter()
@@ -240,15 +240,10 @@ def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, chunks
     w = np.array(spec.start_weights, float)
     w[fi] = np.clip(w[fi], 10.0 ** LOG_BOUNDS[0], 10.0 ** LOG_BOUNDS[1])
     pool, n = pool or InlineExecutor(), len(targets)
-    parts = [list(range(i, n, max(1, min(chunks, n)))) for i in range(max(1, min(chunks, n)))]
+    parts = interleaved_chunks(n, chunks)
 
     def run(fn, make_task) -> list:
-        futures = [pool.submit(fn, make_task(p)) for p in parts]
-        out = [None] * n
-        for p, f in zip(parts, futures):
-            for i, r in zip(p, f.result()):
-                out[i] = r
-        return out
+        return run_chunks(pool, fn, parts, make_task, n)
 
     held = replace(spec, hold_duration=True)
     ref = run(reference_chunk, lambda p: (held, w, [targets[i] for i in p]))
