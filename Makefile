@@ -116,8 +116,7 @@ pairs-published:
 
 pairs-synthetic:
 	$(CLI) synth pairs --out $(SPAIRS) --jobs $(JOBS)
-	$(CLI) import $(SPAIRS)/synth-pairs/protocol.yaml --out $(SPAIRS) --jobs $(JOBS)
-	$(CLI) preprocess --out $(SPAIRS) --jobs $(JOBS)
+	$(CLI) import $(SPAIRS)/synth-pairs/protocol.yaml --out $(SPAIRS) --preprocess --jobs $(JOBS)
 	$(CLI) average --out $(SPAIRS)
 	$(CLI) compare --out $(SPAIRS)
 	$(CLI) stats --out $(SPAIRS)
