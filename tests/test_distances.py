@@ -50,7 +50,7 @@ def test_d_xy_symmetric_zero_and_triangle(a, b):
 def test_distances_invariant_to_common_rigid_motion(a, b, phi, tx, ty):
     c, s = math.cos(phi), math.sin(phi)
     a, b = a.copy(), b.copy()
-    a[0] += np.arange(N)  # no zero-length step: the heading of a step must be defined for gamma
+    a[0] += 11.0 * np.arange(N)  # steps of at least 1 m (x in [-5, 5]): the heading of a step must be defined for gamma
 
     def move(p):
         return c * p[0] - s * p[1] + tx, s * p[0] + c * p[1] + ty, p[2] + phi
