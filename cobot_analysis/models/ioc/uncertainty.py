@@ -91,9 +91,14 @@ def stencil(k: int, h: float = STEP) -> list[np.ndarray]:
 
 
 def curvature(spec: IOCSpec, targets: list[Target], weights: dict[str, float], *, h: float = STEP,
-              checkpoint: Path | None = None, resume: bool = False) -> Curvature:
+              checkpoint: Path | None = None, resume: bool = False, pool=None, chunks: int = 2) -> Curvature:
     """Every target's D_i on the stencil around ``weights`` (module docstring); ``checkpoint``: a JSON
-    file the evaluated stencil points are written to, one point at a time (``resume`` reuses them)."""
+    file the evaluated stencil points are written to, one point at a time (``resume`` reuses them).
+    ``pool``: an executor for the lower-level solves (chunks of targets; None: in-process): the centre
+    first (its paths are the warm starts), then every other point at once, the same values as in-process."""
+    from cobot_analysis.models.ioc.single_level import interleaved_chunks, run_chunks
+    from cobot_analysis.parallel import InlineExecutor
+
     names = names_for(spec.model)
     w = np.array([weights[n] for n in names])
     idx = [names.index(n) for n in spec.fitted]
@@ -108,29 +113,44 @@ def curvature(spec: IOCSpec, targets: list[Target], weights: dict[str, float], *
     guesses: list = [None if published else ("rest", "line")] * n
     points = stencil(k, h)
     values = np.zeros((len(points), n))
-    for p, dy in enumerate(points):
-        # logged points are reused; the centre is solved again when points remain (its paths warm-start them)
-        if p < len(done) and (p > 0 or len(done) == len(points)):
-            values[p] = done[p]
-            continue
+    pool, parts = pool or InlineExecutor(), interleaved_chunks(n, chunks)
+
+    def at(dy: np.ndarray) -> np.ndarray:
         wy = w.copy()
         wy[idx] = w[idx] * 10.0 ** dy
-        for i, t in enumerate(targets):
-            # off the centre, warm from the centre's path only: D_i along the branch of lower-level solutions the centre
-            # is on (the cold guesses would let D_i jump to another local minimum inside the stencil)
-            # (published: the centre's solution seeds the held horizon, as in the fit)
-            g = guesses[i] if p == 0 or published or isinstance(guesses[i], tuple) else (guesses[i],)
-            d, sol = solve_target(spec, wy, t, g)
-            if p == 0 and d["success"]:
-                guesses[i] = sol if published else sol.primal
-            values[p, i] = d["D"] if d["success"] else math.nan
-        if p >= len(done):
-            done.append(values[p].tolist())
+        return wy
+
+    def save() -> None:
         if checkpoint is not None:
             checkpoint.parent.mkdir(parents=True, exist_ok=True)
             tmp = checkpoint.with_name(f".{checkpoint.name}.tmp")
             tmp.write_text(json.dumps({"key": key, "points": done}))
             os.replace(tmp, checkpoint)
+
+    # logged points are reused; the centre is solved again when points remain (its paths warm-start them)
+    todo = [p for p in range(len(points)) if not (p < len(done) and (p > 0 or len(done) == len(points)))]
+    for p in range(len(points)):
+        if p not in todo:
+            values[p] = done[p]
+    if 0 in todo:
+        centre = run_chunks(pool, stencil_chunk, parts, lambda q: (spec, at(points[0]), [(targets[i], guesses[i]) for i in q]), n)
+        values[0] = [d for d, _ in centre]
+        # off the centre, warm from the centre's path only: D_i along the branch of lower-level solutions the centre
+        # is on (the cold guesses would let D_i jump to another local minimum inside the stencil)
+        # (published: the centre's solution seeds the held horizon, as in the fit)
+        guesses = [g if published else (g,) if g is not None else guesses[i] for i, (_, g) in enumerate(centre)]
+        if not done:
+            done.append(values[0].tolist())
+        save()
+    futures = {p: [(q, pool.submit(stencil_chunk, (spec, at(points[p]), [(targets[i], guesses[i]) for i in q]))) for q in parts]
+               for p in todo if p > 0}
+    for p, fs in futures.items():  # in stencil order: the checkpoint holds the points 0..p
+        for q, f in fs:
+            for i, (d, _) in zip(q, f.result()):
+                values[p, i] = d
+        if p >= len(done):
+            done.append(values[p].tolist())
+        save()
     bad = np.isnan(values)
     failed = int(bad.sum())
     values = np.where(bad, values[0][None, :], values)  # a failed solve: no information from that point
@@ -150,6 +170,18 @@ def curvature(spec: IOCSpec, targets: list[Target], weights: dict[str, float], *
             p += 2
             Hi[:, i, j] = Hi[:, j, i] = (pp - plus[i] - plus[j] + 2 * D0 - minus[i] - minus[j] + mm) / (2 * h**2)
     return Curvature(tuple(spec.fitted), np.log10(w[idx]), D0, gi, Hi, failed, lack_of_fit(points, values.mean(axis=1)))
+
+
+def stencil_chunk(task) -> list[tuple[float, object]]:
+    """Worker task (top-level, picklable): task = (spec, w, [(target, guess), ...]); per target its D at the
+    weights w (nan: the lower level failed) and the solution's warm start (the primal vector; published: the
+    solution), or None."""
+    spec, w, items = task
+    out = []
+    for t, g in items:
+        d, sol = solve_target(spec, w, t, g)
+        out.append((d["D"], (sol if spec.convention == "published" else sol.primal)) if d["success"] else (math.nan, None))
+    return out
 
 
 def lack_of_fit(points: list[np.ndarray], D: np.ndarray) -> float:
