@@ -511,7 +511,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     from cobot_analysis.models.presets import DEFAULT_PRESET, PRESETS, names_for, weights_vector
     from cobot_analysis.models.ioc.pace import target_durations
     from cobot_analysis.models.ioc.single_level import (MAX_STEPS, as_ioc_result, check_method, check_spec, cross_check,
-                                                        fit_feasible_path)
+                                                        fit_feasible_path, fit_task)
     from cobot_analysis.models.ioc.single_level_published import fit_held_horizons
     from cobot_analysis.parallel import default_jobs, executor
 
@@ -568,6 +568,10 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     n_chunks = 4 * (default_jobs() if jobs is None else jobs) if scheduler is None else 8
     results, seconds, uncertainty, cross_checked = {}, {}, {}, {}
     with executor(jobs, scheduler) as pool:
+        # several single-level fits (per subject): each runs whole on one worker, side by side (``single_level.fit_task``)
+        side_by_side = {key: pool.submit(fit_task, (spec, targets, {"max_steps": min(spec.max_evaluations, MAX_STEPS)}))
+                        for key, targets in fits.items()} \
+            if method == "single-level" and conv.name == "continuous" and per == "subject" and len(fits) > 1 else {}
         for key, targets in fits.items():
             safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in key)
             report = (lambda n, f, best, key=key: on_evaluation(key, n, f, best)) if on_evaluation else None
@@ -580,7 +584,8 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
                                                  max_steps=min(spec.max_evaluations, MAX_STEPS), on_step=report)
             elif method == "single-level":  # max_evaluations: its budget of steps, when below the method's own
                 steps = min(spec.max_evaluations, MAX_STEPS)
-                raw = fit_feasible_path(spec, targets, pool=pool, chunks=n_chunks, max_steps=steps, measured_T=measured_T)
+                raw = side_by_side[key].result() if key in side_by_side else \
+                    fit_feasible_path(spec, targets, pool=pool, chunks=n_chunks, max_steps=steps, measured_T=measured_T)
                 results[key] = as_ioc_result(raw)
                 if against and key in against:  # the other fit's D from the same candidate paths (single_level.cross_check)
                     cross_checked[key] = cross_check(spec, targets, raw, against[key], pool=pool, chunks=n_chunks)
@@ -588,11 +593,11 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
                 results[key] = ioc_fit(spec, targets, pool=pool, chunks=n_chunks,
                                        checkpoint=checkpoint / f"{safe}.json" if checkpoint else None, resume=resume,
                                        on_evaluation=report, measured_T=measured_T)
-            seconds[key] = time.perf_counter() - t0
+            seconds[key] = raw.seconds if key in side_by_side else time.perf_counter() - t0  # a fit's own time
             if bootstrap and model != "coupled":
                 uncertainty[key] = _weight_uncertainty(spec, targets, results[key].weights, bootstrap, seed=seed,
                                                       checkpoint=checkpoint / f"{safe}.curvature.json" if checkpoint else None,
-                                                      resume=resume)
+                                                      resume=resume, pool=pool, chunks=n_chunks)
     subjects_test = None
     if per == "subject" and uncertainty:
         from cobot_analysis.models.ioc.uncertainty import subjects_differ
@@ -642,13 +647,13 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
 
 
 def _weight_uncertainty(spec, targets: list, weights: dict[str, float], n_resamples: int, *, seed: int = 0,
-                       checkpoint: Path | None = None, resume: bool = False) -> dict:
+                       checkpoint: Path | None = None, resume: bool = False, pool=None, chunks: int = 2) -> dict:
     """Verdict and bootstrap interval of each fitted weight at ``weights`` (docs/methods.md sec. 6.3,
     ``models.ioc.uncertainty``): {"D", "verdicts", "intervals", "sd_log10", "resamples", "eigenvalues",
     "failed_solves"}."""
     from cobot_analysis.models.ioc import uncertainty as unc
 
-    c = unc.curvature(spec, targets, weights, checkpoint=checkpoint, resume=resume)
+    c = unc.curvature(spec, targets, weights, checkpoint=checkpoint, resume=resume, pool=pool, chunks=chunks)
     b = unc.bootstrap(c, n_resamples, seed=seed)
     verdicts = unc.interval_verdicts(unc.verdicts(spec.fitted, c.H, c.D, weights, lack=c.lack_of_fit), b["intervals"])
     return {"D": c.D, "verdicts": verdicts, "intervals": b["intervals"],

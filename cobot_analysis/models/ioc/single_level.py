@@ -624,6 +624,15 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
                              primals=Zs, pace=pace, probes=probes)
 
 
+def fit_task(task) -> SingleLevelResult:
+    """Worker task (top-level, picklable): one whole fit in that process, task = (spec, targets, keyword
+    arguments of ``fit_feasible_path``, no pool): several fits (per subject) then run side by side on the
+    pool, one per worker, instead of one after another with each step's lower levels spread over the
+    workers and waited for (the same result: each path's computation does not depend on where it runs)."""
+    spec, targets, kwargs = task
+    return fit_feasible_path(spec, targets, **kwargs)
+
+
 def cross_check(spec: IOCSpec, targets: list[Target], result: SingleLevelResult, weights: dict[str, float], *, pool=None,
                 chunks: int = 2) -> float:
     """D at another fit's ``weights`` (the bi-level fit's) with each lower level re-solved as that fit solves it
