@@ -4,6 +4,8 @@
     python benchmarks/bench_ioc.py --workspace OUT/pair-carriage-2022 --model table --jobs 2
     python benchmarks/bench_ioc.py --means WS/average/means.parquet
     python benchmarks/bench_ioc.py --synthetic 8 --intervals 20 --fit a2,a4
+    python benchmarks/bench_ioc.py --workspace OUT/walking-2020 --convention published --fit a1,a2,a3,a4 --jobs 2
+    python benchmarks/bench_ioc.py --workspace OUT/walking-2020 --per-subject 0 [--bootstrap 200] [--skip-bilevel]
 
 ``--workspace``: the means of a workspace (average/means.parquet) fitted as ``fit-ioc`` fits them under the
 continuous convention (``--model improved``: the walking means, a2, a3, a4 from the walking-2021 preset;
@@ -22,6 +24,7 @@ over the list.
 from __future__ import annotations
 
 import argparse
+import math
 import resource
 import time
 from dataclasses import replace
@@ -29,8 +32,9 @@ from dataclasses import replace
 import numpy as np
 
 
-def workspace_targets(workspace: str, model: str, intervals: int, fit: str):
-    """(spec, targets, measured durations) of a workspace's means as ``fit-ioc --model MODEL`` builds them."""
+def workspace_targets(workspace: str, model: str, intervals: int, fit: str, convention: str = "continuous"):
+    """(spec, targets, measured durations) of a workspace's means as ``fit-ioc --model MODEL`` builds them
+    (published convention: no measured durations, the fit holds the duration rule's horizons)."""
     from dataclasses import replace
     from pathlib import Path
 
@@ -46,9 +50,11 @@ def workspace_targets(workspace: str, model: str, intervals: int, fit: str):
     df = means[means["kind"] == "mean"] if "kind" in means else means
     if "scenario" in df and df["scenario"].notna().any():
         df = df[df["scenario"].notna()]
-    spec = replace(ioc_spec(model, fit=fit.split(",") if fit else None), n_intervals=intervals)
+    spec = replace(ioc_spec(model, convention=convention, fit=fit.split(",") if fit else None), n_intervals=intervals)
     targets = targets_from_table(df, entity="table" if model == "table" else "walker", goal=goal_rule("auto", df),
-                                 convention=conventions.get("continuous"))
+                                 convention=conventions.get(convention))
+    if convention == "published":
+        return spec, targets, None
     trials = read_trajectories(ws / "import-published" / "trajectories.parquet")
     dpath = ws / "import-published" / "durations.parquet"
     keys = ["scenario", "condition", "direction"]
@@ -66,12 +72,22 @@ def main() -> None:
     ap.add_argument("--synthetic", type=int)
     ap.add_argument("--paths", type=int, default=0, help="N targets spread over the list (0: all)")
     ap.add_argument("--intervals", type=int, default=50)
-    ap.add_argument("--fit", default="a2,a3,a4", help="the fitted set (default: held_weights' complement)")
+    ap.add_argument("--fit", help="the fitted set (default: a2,a3,a4; --convention published: held_weights' complement)")
     ap.add_argument("--noise", type=float, default=0.0)
     ap.add_argument("--jobs", type=int, default=2, help="worker processes of the bi-level fit")
     ap.add_argument("--skip-bilevel", action="store_true")
     ap.add_argument("--restarts", type=int, default=2, help="single-level restarts on re-solved paths (fit_feasible_path)")
+    ap.add_argument("--convention", default="continuous", choices=("continuous", "published"),
+                    help="with --workspace: published fits the single level at held horizons (fit_held_horizons)")
+    ap.add_argument("--per-subject", type=int, default=None, metavar="N",
+                    help="with --workspace: the per-subject fits of the first N subjects (0: all) as fit-ioc --per subject runs "
+                         "them (start: WS/fit-ioc/weights.json), each with its --bootstrap")
+    ap.add_argument("--bootstrap", type=int, default=200, help="with --per-subject: resamples after each fit (0: none)")
     args = ap.parse_args()
+    if args.fit is None:
+        args.fit = "" if args.convention == "published" else "a2,a3,a4"
+    if args.per_subject is not None:
+        return per_subject(args)
 
     import pandas as pd
 
@@ -84,7 +100,7 @@ def main() -> None:
 
     measured_T = None
     w = weights_vector(load_weights("walking-2021", "improved"), "improved")
-    spec = IOCSpec(model="improved", start_weights=tuple(w), n_intervals=args.intervals, fitted=tuple(args.fit.split(",")))
+    spec = IOCSpec(model="improved", start_weights=tuple(w), n_intervals=args.intervals, fitted=tuple((args.fit or "a2,a3,a4").split(",")))
     if args.synthetic:
         targets = synthetic_targets(spec, w, args.synthetic, noise=args.noise)
         ws = w.copy()
@@ -92,35 +108,42 @@ def main() -> None:
             ws[names_for("improved").index(n)] *= 2
         spec = replace(spec, start_weights=tuple(ws))
     elif args.workspace:
-        spec, targets, measured_T = workspace_targets(args.workspace, args.model, args.intervals, args.fit)
+        spec, targets, measured_T = workspace_targets(args.workspace, args.model, args.intervals, args.fit, args.convention)
     else:
         df = pd.read_parquet(args.means)
         targets = targets_from_table(df[df["kind"] == "mean"] if "kind" in df else df, entity="walker", goal=WALKING_GOAL)
     if args.paths and args.paths < len(targets):
         targets = [targets[i] for i in np.linspace(0, len(targets) - 1, args.paths).astype(int)]
-    def cpu() -> float:  # CPU seconds of this process and of its finished worker processes
-        return sum(resource.getrusage(who).ru_utime + resource.getrusage(who).ru_stime
-                   for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
-
     rows = []
     t0, c0 = time.perf_counter(), cpu()
+    published = spec.convention == "published"
     with executor(args.jobs) as pool:
-        s = fit_feasible_path(spec, targets, pool=pool, chunks=args.jobs, restarts=args.restarts, measured_T=measured_T)
+        if published:
+            from cobot_analysis.models.ioc.single_level_published import fit_held_horizons
+
+            s = fit_held_horizons(spec, targets, pool=pool, chunks=args.jobs)
+        else:
+            s = fit_feasible_path(spec, targets, pool=pool, chunks=args.jobs, restarts=args.restarts, measured_T=measured_T)
     ts, cs = time.perf_counter() - t0, cpu() - c0
     mem = lambda who: resource.getrusage(who).ru_maxrss / 1024  # noqa: E731  MB (Linux: kB)
     mem_s = (mem(resource.RUSAGE_SELF), mem(resource.RUSAGE_CHILDREN))
-    split = ", ".join(f"{k} {v:.1f} s" for k, v in s.timing.items())
-    rows.append(("single-level", ts, cs, s.objective, s.weights, f"{s.status}; {split}; D on the NLP's paths (smoothed) {s.nlp_objective:.4f}, "
-                 f"failed {s.failed}; peak memory {mem_s[0]:.0f} MB main, {mem_s[1]:.0f} MB largest worker"))
+    if published:
+        rows.append(("single-level", ts, cs, s.objective, s.weights, f"{s.message}; held D {s.held_objective:.4f}, horizons "
+                     f"moved {s.horizons_changed}; peak memory {mem_s[0]:.0f} MB main, {mem_s[1]:.0f} MB largest worker"))
+    else:
+        split = ", ".join(f"{k} {v:.1f} s" for k, v in s.timing.items())
+        rows.append(("single-level", ts, cs, s.objective, s.weights, f"{s.status}; {split}; D on the NLP's paths (smoothed) "
+                     f"{s.nlp_objective:.4f}, failed {s.failed}; peak memory {mem_s[0]:.0f} MB main, {mem_s[1]:.0f} MB largest worker"))
     if not args.skip_bilevel:
         t0, c0 = time.perf_counter(), cpu()
         with executor(args.jobs) as pool:
             b = fit(spec, targets, pool=pool, chunks=4 * args.jobs, measured_T=measured_T)
-            crossed = cross_check(spec, targets, s, b.weights, pool=pool, chunks=args.jobs)
+            crossed = math.nan if published else cross_check(spec, targets, s, b.weights, pool=pool, chunks=args.jobs)
         tb, cb = time.perf_counter() - t0, cpu() - c0
         rows.append(("bilevel", tb, cb, b.objective, b.weights, f"{b.evaluations} evaluations; peak memory of the largest worker "
                      f"so far {mem(resource.RUSAGE_CHILDREN):.0f} MB"))
-    print(f"{len(targets)} paths, {args.intervals} intervals, fitted {','.join(spec.fitted)}, start D {s.start_objective:.4f}")
+    print(f"{len(targets)} paths, {spec.convention} convention, {args.intervals} intervals, fitted {','.join(spec.fitted)}, "
+          f"start D {s.start_objective:.4f}")
     print("| method | wall (s) | CPU (s) | D | " + " | ".join(spec.fitted) + " | notes |")
     print("|---|---|---|---|" + "---|" * len(spec.fitted) + "---|")
     for m, t, c, D, wd, note in rows:
@@ -129,6 +152,39 @@ def main() -> None:
         print(f"ratios bilevel / single-level: wall {tb / ts:.2f}, CPU {cb / cs:.2f}; D single-level / bilevel: {s.objective / b.objective:.4f}")
         print(f"bilevel weights re-solved with the single-level paths as a further warm start (cross_check): D {crossed:.4f}; "
               f"D single-level / that: {s.objective / crossed:.4f}")
+
+
+def per_subject(args) -> None:
+    """The per-subject fits (``--per-subject``): ``api.fit_ioc(per="subject")`` of each method in one run, the
+    fits and their bootstraps; wall and CPU time (this process and its workers), peak memory, D per subject."""
+    from pathlib import Path
+
+    from cobot_analysis.api.models import fit_ioc
+
+    ws = Path(args.workspace)
+    methods = ("single-level",) if args.skip_bilevel else ("single-level", "bilevel")
+    for method in methods:
+        t0, c0 = time.perf_counter(), cpu()
+        r = fit_ioc(ws / "average" / "means.parquet", trials=ws / "import-published" / "trajectories.parquet", per="subject",
+                    subjects=args.per_subject or None, start_weights=str(ws / "fit-ioc" / "weights.json"), compare=False,
+                    jobs=args.jobs, method=method, bootstrap=args.bootstrap, intervals=args.intervals,
+                    fit=args.fit.split(",") if args.fit else None)
+        t, c = time.perf_counter() - t0, cpu() - c0
+        mem = [resource.getrusage(who).ru_maxrss / 1024 for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)]
+        n = sum(len(v) for v in r.fits.values())
+        print(f"{method}: {len(r.results)} subjects, {n} paths, bootstrap {args.bootstrap}: wall {t:.1f} s, CPU {c:.1f} s; "
+              f"peak memory {mem[0]:.0f} MB main, {mem[1]:.0f} MB largest worker")
+        print("| subject | paths | D | " + " | ".join(r.names) + " | fit (s) |")
+        print("|---|---|---|" + "---|" * len(r.names) + "---|")
+        for k, v in r.results.items():
+            print(f"| {k} | {len(r.fits[k])} | {v.objective:.4f} | " + " | ".join(f"{v.weights[m]:.4g}" for m in r.names)
+                  + f" | {r.seconds[k]:.1f} |")
+
+
+def cpu() -> float:
+    """CPU seconds of this process and of its finished worker processes."""
+    return sum(resource.getrusage(who).ru_utime + resource.getrusage(who).ru_stime
+               for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
 
 
 if __name__ == "__main__":
