@@ -376,14 +376,12 @@ def escape_probes(y: np.ndarray, H: np.ndarray, distances=PROBE_DISTANCES) -> li
 
 
 def screen(m: int, bound: float, D_now, solve, batches: int = 6) -> dict:
-    """The points 0..m-1 (weight vectors) whose D, the mean of the n paths' D_i (each >= 0) at that point, may be
-    the least below ``bound``: {index: (D, {path: primal})}. ``solve([(point, paths), ...])`` -> per pair
+    """The points 0..m-1 (weight vectors) whose D, the mean of the n paths' D_i (each >= 0) at that point, is
+    below ``bound``: {index: (D, {path: primal})}. ``solve([(point, paths), ...])`` -> per pair
     {path: (D_i, primal or None when the lower level failed)} (solved side by side). The paths are solved in
     batches, those with the largest D at the current point (``D_now``) first, and a point is dropped as soon
-    as the sum of its paths' D exceeds n bound (its mean cannot end below) or a lower level fails. After the
-    first batch the point with the least partial sum is solved to the end first; if its D is below ``bound``
-    it becomes the others' bound (a point above it cannot be the least): the same least point as solving every
-    path at every point, with fewer solves when one is found."""
+    as the sum of its paths' D exceeds n bound (its mean cannot end below) or a lower level fails: the same
+    points as solving every path at every point."""
     n = len(D_now)
     split = np.array_split(np.argsort(-np.asarray(D_now), kind="stable"), min(batches, n))
     alive = {j: [0.0, {}, 0] for j in range(m)}  # partial sum of D, primals, batches solved
@@ -397,13 +395,6 @@ def screen(m: int, bound: float, D_now, solve, batches: int = 6) -> dict:
             if not (alive[j][0] < n * bound and all(alive[j][1][i] is not None for i in batch)):
                 del alive[j]
 
-    advance(list(alive))
-    if alive:  # the most promising point first, to the end
-        lead = min(alive, key=lambda j: alive[j][0])
-        while lead in alive and alive[lead][2] < len(split):
-            advance([lead])
-        if lead in alive:
-            bound = alive[lead][0] / n
     while rest := [j for j, a in alive.items() if a[2] < len(split)]:
         advance(rest)
     return {j: (a[0] / n, a[1]) for j, a in alive.items()}
