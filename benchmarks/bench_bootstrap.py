@@ -2,7 +2,7 @@
 the curvature of D at the fitted weights (1 + 2k + k(k-1) stencil points, one lower-level solve per
 path each) and the bootstrap's ``--resamples`` quadratic refits (default 200, as ``fit-ioc``).
 
-    python benchmarks/bench_bootstrap.py WS/fit-ioc/weights.json WS/average/means.parquet
+    python benchmarks/bench_bootstrap.py WS/fit-ioc/weights.json WS/average/means.parquet [--jobs 2]
     python benchmarks/bench_bootstrap.py WS/fit-ioc-subjects/weights.json WS/import-published/trajectories.parquet --fit S01
 
 The targets are those ``fit-ioc`` fitted: the mean paths (``kind == mean``) or, with ``--fit SUBJECT``,
@@ -23,6 +23,7 @@ def main() -> None:
     ap.add_argument("table", help="means.parquet (or trajectories.parquet with --fit SUBJECT)")
     ap.add_argument("--fit", default="all", help="the fit of weights.json: all (the means) or a subject (its trials)")
     ap.add_argument("--resamples", type=int, default=200)
+    ap.add_argument("--jobs", type=int, default=2, help="worker processes of the stencil's solves (1: in-process)")
     args = ap.parse_args()
 
     import json
@@ -46,15 +47,21 @@ def main() -> None:
     if "scenario" in df and df["scenario"].notna().any():
         df = df[df["scenario"].notna()]
     targets = targets_from_table(df, path=args.table, entity=entity, goal=goal_rule("auto", df), convention=conv)
+    from cobot_analysis.parallel import executor
+
     t0 = time.perf_counter()
-    c = unc.curvature(spec, targets, r["weights"])
+    with executor(args.jobs) as pool:
+        c = unc.curvature(spec, targets, r["weights"], pool=pool, chunks=4 * args.jobs)
     t1 = time.perf_counter()
+    cpu = sum(resource.getrusage(who).ru_utime + resource.getrusage(who).ru_stime
+              for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
     b = unc.bootstrap(c, args.resamples)
     t2 = time.perf_counter()
     k = len(spec.fitted)
     print(f"{args.weights} fit {args.fit}: {len(targets)} paths, {spec.n_intervals} intervals, fitted {','.join(spec.fitted)} "
           f"({doc['convention']}, {doc.get('method', 'bilevel')})")
-    print(f"curvature: {1 + 2 * k + k * (k - 1)} stencil points x {len(targets)} solves: {t1 - t0:.1f} s wall "
+    print(f"curvature: {1 + 2 * k + k * (k - 1)} stencil points x {len(targets)} solves: {t1 - t0:.1f} s wall, "
+          f"process CPU so far {cpu:.1f} s, --jobs {args.jobs} "
           f"({c.failed} failed solves, lack of fit {c.lack_of_fit:.3f})")
     print(f"bootstrap: {args.resamples} quadratic refits: {t2 - t1:.2f} s wall")
     print(f"total {t2 - t0:.1f} s; peak memory {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")
