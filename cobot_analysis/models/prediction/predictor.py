@@ -208,7 +208,7 @@ class OCPredictor(Predictor):
         T = self.step if self.scheme == "euler" else (self.n0 - 1) * self.step  # euler: the parameter is the node step
         sol = self.ocp.solve(x0[:3], far, self.weights, T, guess=guess, start_velocity=x0[3:],
                              track=track, track_weights=(self.track_weights[0], self.track_weights[1] if has_theta else 0.0),
-                             n_track=self.n0)
+                             n_track=self.n0, stats=False)  # converged or not is all a window needs
         self.last_solution = sol
         if not sol.success:
             self._warm = None
