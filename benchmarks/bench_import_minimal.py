@@ -17,8 +17,10 @@ every 50 ms).
 pass, each trial preprocessed where it is read: the same outputs). ``--scaling`` adds ours with
 ``--jobs 1`` to each round and prints the median speed-up of ``--jobs N`` over ``--jobs 1`` (issue 22:
 at least 1.7x with 2 jobs), and the minimal script's own (its pool of 1 process against N). ``--before DIR`` adds, to each
-round, ours run from the package in DIR (e.g. ``git archive <commit> | tar -x -C DIR``) and prints
-the median ratio now / before.
+round, ours run from the package in DIR (e.g. ``git archive <commit> | tar -x -C DIR``; with ``--scaling`` also its
+``--jobs 1``) and prints the median ratio now / before (and its own speed-up). With ``--one-pass``, the CPU time of
+the main process alone (without its workers) is printed for each version and ``--jobs``: the part of the work the
+pool does not share.
 """
 
 from __future__ import annotations
@@ -71,10 +73,14 @@ if __name__ == "__main__":
 '''
 
 
+PARENT_CPU: dict[str, float] = {}  # command -> CPU time (s) of the main process alone, last sampled (``run``)
+
+
 def run(cmd: list[str], env: dict | None = None, cwd: Path | None = None) -> tuple[float, float, float, float]:
     """Wall time (s), CPU time of the process and its children (s), peak memory of the process tree (sum of
     the RSS of the process and its workers; forked workers' shared pages counted twice) and of its largest
-    process (MiB)."""
+    process (MiB). The main process's own CPU time (without its workers), sampled every 50 ms, is left in
+    ``PARENT_CPU``: with a pool it bounds the wall time from below."""
     import resource
 
     import psutil
@@ -88,6 +94,8 @@ def run(cmd: list[str], env: dict | None = None, cwd: Path | None = None) -> tup
         try:
             rss = [p.memory_info().rss for p in [tree, *tree.children(recursive=True)]]
             peak, one = max(peak, sum(rss)), max(one, max(rss))
+            own = tree.cpu_times()
+            PARENT_CPU[" ".join(cmd)] = own.user + own.system
         except psutil.Error:
             pass
         time.sleep(0.05)
@@ -130,8 +138,11 @@ def main() -> None:
             ws = tmp / "ws"
             shutil.rmtree(ws, ignore_errors=True)
             env = None if tree is None else {**os.environ, "PYTHONPATH": str(tree.resolve())}
-            if args.one_pass and tree is None:
-                return run([*cli, "import", str(protocol), "--out", str(ws), "--jobs", str(jobs), "--preprocess"])
+            if args.one_pass:
+                cmd = [*cli, "import", str(protocol), "--out", str(ws), "--jobs", str(jobs), "--preprocess"]
+                r = run(cmd, env, cwd=tree)
+                parent_cpu.append((jobs, tree is None, PARENT_CPU.get(" ".join(cmd), float("nan")), r[1]))
+                return r
             a = run([*cli, "import", str(protocol), "--out", str(ws), "--jobs", str(jobs)], env, cwd=tree)
             b = run([*cli, "preprocess", "--out", str(ws), "--jobs", str(jobs)], env, cwd=tree)
             return a[0] + b[0], a[1] + b[1], max(a[2], b[2]), max(a[3], b[3])
@@ -139,12 +150,17 @@ def main() -> None:
         def minimal(jobs: int = args.jobs) -> tuple[float, float, float, float]:
             return run([sys.executable, str(script), str(raw), str(tmp / "minimal.parquet"), str(jobs)])
 
-        pairs, scaling, before, min_scaling = [], [], [], []
+        pairs, scaling, before, min_scaling, before_scaling, parent_cpu = [], [], [], [], [], []
         for k in range(args.pairs):
             if args.before:
                 old = ours(args.jobs, args.before)
                 before.append(old)
                 print(f"  before ({args.before}): {old[0]:.1f} s (CPU {old[1]:.1f} s)", file=sys.stderr)
+                if args.scaling:
+                    old1 = ours(1, args.before)
+                    before_scaling.append(old1[0] / old[0])
+                    print(f"  before, --jobs 1: {old1[0]:.1f} s (CPU {old1[1]:.1f} s): speed-up of --jobs {args.jobs} "
+                          f"{old1[0] / old[0]:.2f}", file=sys.stderr)
             o, m = (ours(args.jobs), minimal()) if k % 2 == 0 else (minimal(), ours(args.jobs))[::-1]
             pairs.append((o, m))
             print(f"pair {k + 1}: ours {o[0]:.1f} s (CPU {o[1]:.1f} s, {o[2]:.0f} MiB, largest process {o[3]:.0f} MiB), "
@@ -170,7 +186,14 @@ def main() -> None:
               + (f"; --jobs {args.jobs} over --jobs 1: **{statistics.median(scaling):.2f}x** (target >= 1.7; the minimal "
                  f"script's own: {statistics.median(min_scaling):.2f}x)" if scaling else "")
               + (f"; now / before ({args.before}): wall {statistics.median(o[0] / b[0] for (o, _), b in zip(pairs, before)):.2f}, "
-                 f"CPU {statistics.median(o[1] / b[1] for (o, _), b in zip(pairs, before)):.2f}" if before else ""))
+                 f"CPU {statistics.median(o[1] / b[1] for (o, _), b in zip(pairs, before)):.2f}" if before else "")
+              + (f"; before, --jobs {args.jobs} over --jobs 1: {statistics.median(before_scaling):.2f}x" if before_scaling else ""))
+        for jobs in sorted({j for j, *_ in parent_cpu}):
+            for now in (True, False):
+                rows = [(own, total) for j, n, own, total in parent_cpu if j == jobs and n == now]
+                if rows:
+                    print(f"  {'now' if now else 'before'} --jobs {jobs}: main process CPU {statistics.median(o for o, _ in rows):.2f} s "
+                          f"of {statistics.median(t for _, t in rows):.2f} s (median over {len(rows)} runs)")
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 

@@ -172,3 +172,75 @@ def test_jumps_found_in_one_pass_are_those_of_each_marker_over_its_visible_frame
             assert (f"{total} jumps over the limit in {len(expected)} marker(s)" in str(exc)) == (total > 1)
             seen += 1
     assert seen > 50  # the case is exercised
+
+
+def _cube(x: int) -> int:
+    if x == 7:
+        raise ValueError("seven")
+    return x ** 3
+
+
+@pytest.mark.parametrize("jobs,chunk", [(1, 3), (2, 1), (2, 3), (2, 20)])
+def test_imap_tasks_in_chunks_yields_every_result_in_order(jobs, chunk):
+    """Items sent to the workers a few at a time (``chunk``) still come back one by one, in order, and an
+    exception in any item of a chunk is re-raised."""
+    from cobot_analysis.parallel import imap_tasks
+
+    items = [0, 1, 2, 3, 4, 5, 6, 8, 9, 10, 11]
+    assert list(imap_tasks(_cube, items, jobs=jobs, chunk=chunk, window=2)) == [x ** 3 for x in items]
+    with pytest.raises(ValueError, match="seven"):
+        list(imap_tasks(_cube, list(range(12)), jobs=jobs, chunk=chunk))
+
+
+def test_a_file_is_hashed_once_per_version(tmp_path, monkeypatch):
+    """``workspace.content_sha256`` reads a file hashed before only when it may have changed: a rewrite of the
+    same size with its modification time put back is seen (the status-change time moved), and a file modified
+    just before it was hashed is not remembered (file times are kernel ticks)."""
+    import hashlib
+    import os
+    import time
+
+    from cobot_analysis import workspace
+
+    reads = []
+    real = workspace.file_sha256
+    monkeypatch.setattr(workspace, "file_sha256", lambda p, *a: reads.append(p) or real(p, *a))
+    f = tmp_path / "a.bin"
+    f.write_bytes(b"x" * 5000)
+    monkeypatch.setattr(workspace, "RACY_NS", 10**12)  # modified "just before" (within 1000 s): not remembered
+    assert workspace.content_sha256(f) == hashlib.sha256(b"x" * 5000).hexdigest()
+    workspace.content_sha256(f)
+    assert len(reads) == 2
+    monkeypatch.setattr(workspace, "RACY_NS", 0)
+    workspace.content_sha256(f)  # remembered from now on
+    assert workspace.content_sha256(f) == hashlib.sha256(b"x" * 5000).hexdigest() and len(reads) == 3
+    time.sleep(0.1)  # more than a kernel tick: the rewrite gets another status-change time
+    st = f.stat()
+    with open(f, "r+b") as fh:
+        fh.write(b"y")
+    os.utime(f, ns=(st.st_atime_ns, st.st_mtime_ns))  # same size, same modification time
+    assert f.stat().st_mtime_ns == st.st_mtime_ns and f.stat().st_size == st.st_size
+    assert workspace.content_sha256(f) == hashlib.sha256(b"y" + b"x" * 4999).hexdigest() and len(reads) == 4
+
+
+def test_markers_are_hashed_once_by_import_preprocess(tmp_path, monkeypatch):
+    """``import --preprocess``: markers.parquet, hashed for the import's manifest, is the preprocess stage's input
+    with that hash, without being read again; both manifests hold its SHA-256."""
+    import hashlib
+    import json
+
+    from cobot_analysis import workspace
+    from cobot_analysis.stages import data
+
+    protocol = walking.generate(tmp_path / "study", n_subjects=1, n_trials=2, conditions=["E4015"])
+    reads = []
+    real = workspace.file_sha256
+    monkeypatch.setattr(workspace, "file_sha256", lambda p, *a: reads.append(Path(p).name) or real(p, *a))
+    monkeypatch.setattr(workspace, "RACY_NS", 0)  # a small study is hashed within a tick of its writing
+    data.import_and_preprocess(tmp_path / "ws", protocol, jobs=1)
+    assert reads.count("markers.parquet") == 1
+    sha = hashlib.sha256((tmp_path / "ws" / "import" / "markers.parquet").read_bytes()).hexdigest()
+    imported = json.loads((tmp_path / "ws" / "import" / "manifest.json").read_text())
+    pre = json.loads((tmp_path / "ws" / "preprocess" / "manifest.json").read_text())
+    assert [o["sha256"] for o in imported["outputs"] if o["path"] == "markers.parquet"] == [sha]
+    assert [i["sha256"] for i in pre["inputs"] if i["path"].endswith("markers.parquet")] == [sha]

@@ -58,6 +58,7 @@ UNITS = ("auto", "mm", "m")
 RATE_SOURCES = {"c3d": "POINT:RATE", "vicon-csv": "the rate line after 'Trajectories'", "qualisys-tsv": "FREQUENCY"}
 ASIS_RANGE = (0.15, 0.40)  # m, median |LASI - RASI| of adults
 TABLE_SIDE_RANGE = (0.5, 2.5)  # m, |TAB1 - TAB2| (a long side of the table)
+TRIALS_PER_TASK = 8  # trials sent to a pool worker at once (stream_import)
 MAP_REMEDY = "map the lab's labels with --map LAB=CANON (repeatable), --marker-map FILE.yaml or marker_map in the protocol"
 
 
@@ -502,14 +503,17 @@ def stream_import(plan: ImportPlan, markers_path: Path, *, jobs: int | None = No
 
     import pyarrow.parquet as pq
 
-    from cobot_analysis.parallel import imap_tasks
+    from cobot_analysis.parallel import default_jobs, imap_tasks
     from cobot_analysis.schema import METADATA_KEY, MARKERS
 
+    todo = plan.tasks if items is None else items
+    # a few trials per pool task (the pool's cost per task paid once per chunk), at least 8 chunks per worker
+    chunk = max(1, min(TRIALS_PER_TASK, len(todo) // (8 * (jobs or default_jobs()))))
     out = Streamed([], [])
     writer = None
     done = False
     try:
-        for r in imap_tasks(worker, plan.tasks if items is None else items, jobs=jobs, scheduler=scheduler, description="import"):
+        for r in imap_tasks(worker, todo, jobs=jobs, scheduler=scheduler, description="import", chunk=chunk):
             if isinstance(r, Refused):
                 out.refused.append(r)
                 continue
