@@ -165,6 +165,7 @@ def test_fit_ioc_command_end_to_end_and_per_subject(planted_paths, tmp_path, cli
     assert "## Inverse optimal control (improved model, one fit per subject, continuous convention)" in (out / "fit-ioc-subjects" / "results.md").read_text()
 
 
+@pytest.mark.slow  # a Dask cluster of 2 worker processes started and stopped: 5.6 s of CPU with the fits (2026-11-25)
 def test_fit_ioc_on_dask_equals_local_run(planted_paths, tmp_path, cli, dask_scheduler):
     paths = {c: planted_paths[c] for c in CONDITIONS[:2]}
     src = write_table(_table(paths), tmp_path / "t.parquet", TRAJECTORIES)

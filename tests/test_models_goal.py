@@ -18,8 +18,9 @@ from cobot_analysis.models.presets import PRESETS, weights_vector
 STARTS = [walking_condition(c).start for c in ("N1500", "S1500", "O-0615", "E4015", "S4040", "O0640", "N-0640", "E1540")]
 
 
-# unicycle is a long solve: its start N-0640 alone takes about 7 s of CPU (2026-11-24), so that case runs with -m slow
-@pytest.mark.parametrize("model", ["improved", pytest.param("unicycle", marks=pytest.mark.slow), "mombaur", "table"])
+# unicycle and mombaur are long solves (their 8 starts: about 7 s and 9 s of CPU, 2026-11-24 and 11-25), so they run with -m slow
+@pytest.mark.parametrize("model", ["improved", pytest.param("unicycle", marks=pytest.mark.slow),
+                                   pytest.param("mombaur", marks=pytest.mark.slow), "table"])
 def test_continuous_paths_start_and_end_at_rest_on_their_poses(model):
     for start in STARTS:
         df = generate(model, start, WALKING_GOAL, convention="continuous")

@@ -99,6 +99,7 @@ def test_standing_walker_keeps_its_heading():
     assert x[2] == 0.7 and x[5] == 0.0 and np.hypot(x[3], x[4]) < 0.05
 
 
+@pytest.mark.slow  # a long solve since the plans start from rest: 7.4 s of CPU (2026-11-25), the largest quick test
 def test_goal_inferred_finds_the_goal_walked_to():
     """Two candidates, straight ahead and 90 degrees to the left: walking straight makes the goal
     ahead the most probable one as soon as the plans made from the walker's past have diverged."""
