@@ -65,3 +65,20 @@ def test_compare_refuses_generated_paths_given_as_trials():
         ca.compare(walks.assign(kind="model"), means)
     d = ca.compare(walks, means).distances
     assert len(d) == 4 and (d["comparison"] == "individual-mean").all() and (d["d_xy"] > 0).all()
+
+
+def test_generate_summary_states_the_time_law_beside_the_subjects():
+    """The summary line a user sees: how many paths walk outside 0.5-2 m/s, the subjects' own count on the same
+    conditions, and under the published convention that its duration rule is no human pace."""
+    import pandas as pd
+
+    from cobot_analysis.api.models import GenerateResult
+
+    ends = pd.DataFrame({"trial": ["m_a", "m_b", "m_c"], "condition": ["a", "b", "c"], "goal_reached": [True, True, False],
+                         "mean_speed": [0.4, 0.8, 2.5]})
+    r = GenerateResult(ends, ["m"], None, [], "continuous", 500, 100, {"a": (3.0, 0.45), "b": (2.0, 0.9)})
+    assert r.summary() == ("3 trajectories, 1 not reaching their goal (results.md), mean speed 0.4-2.5 m/s "
+                           "(2 of 3 outside 0.5-2 m/s; the subjects' 1 of 2)")
+    published = GenerateResult(ends.iloc[:1], ["m"], "walking-2021", [], "published", 500, 100)
+    assert published.summary() == ("1 trajectory, all at their goal, mean speed 0.4 m/s (the published duration rule: "
+                                   "no human pace; velocity-commands refuses it)")
