@@ -207,3 +207,24 @@ def test_the_time_law_is_judged_against_the_subjects_own_pace():
     ta, tb = a["travel_time"].iloc[-1], b["travel_time"].iloc[-1]
     text = "\n".join(generated_section(pd.concat([a, b]), "continuous", {"a": (2 * ta, 0.3), "b": (0.5 * tb, 0.9)}))
     assert "1 of 2 outside 0.5-2 m/s; model T / subjects' T 0.50-2.00, median 1.25" in text
+
+
+def test_fit_ioc_comparison_counts_a_path_that_misses_its_goal_as_not_converged(monkeypatch):
+    """The model comparison of fit-ioc takes generate's verdict: a path generate flags (converged false: under
+    the continuous convention, its goal missed) is a not-converged row, left out of the means, never a result."""
+    import cobot_analysis.models as models
+    from cobot_analysis.models.comparison import compare_task
+    from cobot_analysis.models.ioc import targets_from_table
+
+    target = targets_from_table(_means(["N1500"]), goal=WALKING_GOAL, unoriented=True)[0]
+    real = models.generate
+
+    def missing(*args, **kwargs):
+        df = real(*args, **kwargs)
+        return df.assign(converged=False, goal_reached=False, status="ends 0.2 m from its goal")
+
+    spec = {"improved OC": ("improved", "walking-2021")}
+    assert compare_task((target, spec, 20, 0.5, "gamma", "continuous"))[0]["converged"]
+    monkeypatch.setattr(models, "generate", missing)
+    row = compare_task((target, spec, 20, 0.5, "gamma", "continuous"))[0]
+    assert row["converged"] is False and np.isfinite(row["d_xy"])
