@@ -67,6 +67,24 @@ def test_a_path_that_misses_its_goal_is_flagged_never_converged():
 def test_goal_outside_the_lab_is_refused():
     with pytest.raises(InputError, match="--goal .* outside the lab"):
         generate("improved", (0.0, 0.0, 0.0), (4000.0, 0.0, 0.0))
+    from cobot_analysis.models import GOAL_EXTENT
+    from cobot_analysis.models.prediction.goal import LAB_EXTENT
+
+    assert GOAL_EXTENT == LAB_EXTENT  # generate and the goal predictor refuse the same goals
+
+
+@pytest.mark.parametrize("args, message", [
+    # 40 m: inside the raw files' plausibility bound (100 m), outside the studies' frames: refused before any solve
+    (["--start", "-1", "-1", "0", "--goal", "40", "0", "0"], "--goal (40, 0) lies outside the lab (|x|, |y| <= 10 m)"),
+    # an iteration budget the solver cannot reach the goal in: the path is refused, never written as a result
+    (["--start", "-4", "1.2", "3.14", "--convention", "continuous", "--max-iter", "2"], "does not reach --goal"),
+])
+def test_generate_refuses_a_goal_out_of_reach_in_one_line_without_output(cli, tmp_path, args, message):
+    out = tmp_path / "ws"
+    code, _, err = cli("-q", "generate", "--out", out, "-j", "1", *args)  # -q: no progress lines, the error alone
+    assert code == 2 and message in err, err
+    assert len(err.strip().splitlines()) == 1 and err.startswith("error: ")
+    assert not (out / "generate").exists() and not (out / "generate-published").exists()
 
 
 def test_acceleration_weights_scaled_by_c4_time_scale_the_path():
