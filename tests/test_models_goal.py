@@ -199,7 +199,9 @@ def test_fitted_continuous_paths_walk_at_the_subjects_pace():
     from cobot_analysis.reports.models import pace_lines
 
     text = "\n".join(pace_lines(fit.mean_keys, fit.mean_targets, r.per_target, None, r.pace))
-    assert f"0 of {len(fit.mean_targets)} model paths outside 0.5-2 m/s, the subjects' 0 of {len(fit.mean_targets)}." in text
+    n = len(fit.mean_targets)  # the subjects' durations on the model's paths: named as such, not as the subjects' speed
+    assert f"0 of {n} model paths outside 0.5-2 m/s, in the subjects' durations 0 of {n}." in text
+    assert "for the same paths walked in the subjects' durations" in text
 
 
 def test_a_duration_on_its_bound_is_flagged():
