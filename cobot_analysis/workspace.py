@@ -207,6 +207,20 @@ def _canonical(params: dict[str, Any]) -> Any:
     return json.loads(json.dumps(params, sort_keys=True, default=str))
 
 
+def _open_figures() -> list[int]:
+    """The numbers of the open pyplot figures ([] when pyplot was never imported: not imported here)."""
+    plt = sys.modules.get("matplotlib.pyplot")
+    return list(plt.get_fignums()) if plt is not None else []
+
+
+def _close_figures(numbers: Iterable[int]) -> None:
+    """Close the pyplot figures ``numbers``: those a stage opened and left open (a stage's figures are its
+    files; pyplot would keep them in memory for the rest of the process, a notebook or a long run)."""
+    plt = sys.modules.get("matplotlib.pyplot")
+    for n in numbers:
+        plt.close(n)
+
+
 class Stage:
     """One pipeline stage writing into ``out/name`` atomically, with a manifest and skip logic."""
 
@@ -228,6 +242,7 @@ class Stage:
         self.outputs: dict[str, Any] = {}  # what the stage wrote, kept in memory: its metrics are computed from it
         self.result: Any = None  # the API result of the run: its own numbers (.metrics()) are the stage's metrics.json
         self._stage_lock: int | None = None
+        self._figures: set[int] = set()  # pyplot figure numbers open on entering (the caller's: left open)
 
     @property
     def input_hashes(self) -> dict[str, str]:
@@ -268,6 +283,7 @@ class Stage:
                              remedy=f"move or delete it (stage {self.name} writes the directory {self.final_dir}), or pass another --out")
         self._t0 = time.perf_counter()
         self._started = datetime.now(timezone.utc).isoformat(timespec="seconds")
+        self._figures = set(_open_figures())
         self._inputs = describe_inputs(self.input_paths)
         check_upstream(self._inputs)
         self._acquire()
@@ -304,6 +320,7 @@ class Stage:
                 with deferred():
                     self._commit()
         finally:
+            _close_figures(set(_open_figures()) - self._figures)  # a figure drawn and not saved (e.g. a failed run)
             if self.dir != self.final_dir:  # failed or interrupted: nothing of this run is kept
                 with deferred():
                     shutil.rmtree(self.dir, ignore_errors=True)
@@ -424,11 +441,13 @@ class Stage:
         import matplotlib.pyplot as plt
 
         paths = []
-        for fmt in formats:
-            p = self.path(f"{stem}.{fmt}")
-            fig.savefig(p, dpi=150, bbox_inches="tight")
-            paths.append(p)
-        plt.close(fig)
+        try:
+            for fmt in formats:
+                p = self.path(f"{stem}.{fmt}")
+                fig.savefig(p, dpi=150, bbox_inches="tight")
+                paths.append(p)
+        finally:  # pyplot keeps every figure until closed: a library that saves one must close it
+            plt.close(fig)
         return paths
 
     def _write_metrics(self) -> None:

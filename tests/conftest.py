@@ -4,6 +4,7 @@ invocation."""
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 import pytest
@@ -18,6 +19,17 @@ def datasets_dir() -> Path | None:
         if cand.is_dir():
             return cand
     return None
+
+
+@pytest.fixture(autouse=True)
+def _close_test_figures():
+    """Close the figures a test drew itself (``result.figures()``, docstring examples: the caller owns them), so
+    that they do not pile up over the session (pyplot warns past 20 open figures). A stage closes its own
+    (``workspace.Stage``; tests/test_workspace.py checks it without this)."""
+    yield
+    plt = sys.modules.get("matplotlib.pyplot")
+    if plt is not None:
+        plt.close("all")
 
 
 @pytest.fixture(scope="session")

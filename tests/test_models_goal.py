@@ -68,6 +68,24 @@ def test_a_path_that_misses_its_goal_is_flagged_never_converged():
 def test_goal_outside_the_lab_is_refused():
     with pytest.raises(InputError, match="--goal .* outside the lab"):
         generate("improved", (0.0, 0.0, 0.0), (4000.0, 0.0, 0.0))
+    from cobot_analysis.models import GOAL_EXTENT
+    from cobot_analysis.models.prediction.goal import LAB_EXTENT
+
+    assert GOAL_EXTENT == LAB_EXTENT  # generate and the goal predictor refuse the same goals
+
+
+@pytest.mark.parametrize("args, message", [
+    # 40 m: inside the raw files' plausibility bound (100 m), outside the studies' frames: refused before any solve
+    (["--start", "-1", "-1", "0", "--goal", "40", "0", "0"], "--goal (40, 0) lies outside the lab (|x|, |y| <= 10 m)"),
+    # an iteration budget the solver cannot reach the goal in: the path is refused, never written as a result
+    (["--start", "-4", "1.2", "3.14", "--convention", "continuous", "--max-iter", "2"], "does not reach --goal"),
+])
+def test_generate_refuses_a_goal_out_of_reach_in_one_line_without_output(cli, tmp_path, args, message):
+    out = tmp_path / "ws"
+    code, _, err = cli("-q", "generate", "--out", out, "-j", "1", *args)  # -q: no progress lines, the error alone
+    assert code == 2 and message in err, err
+    assert len(err.strip().splitlines()) == 1 and err.startswith("error: ")
+    assert not (out / "generate").exists() and not (out / "generate-published").exists()
 
 
 def test_acceleration_weights_scaled_by_c4_time_scale_the_path():
@@ -182,7 +200,9 @@ def test_fitted_continuous_paths_walk_at_the_subjects_pace():
     from cobot_analysis.reports.models import pace_lines
 
     text = "\n".join(pace_lines(fit.mean_keys, fit.mean_targets, r.per_target, None, r.pace))
-    assert f"0 of {len(fit.mean_targets)} model paths outside 0.5-2 m/s, the subjects' 0 of {len(fit.mean_targets)}." in text
+    n = len(fit.mean_targets)  # the subjects' durations on the model's paths: named as such, not as the subjects' speed
+    assert f"0 of {n} model paths outside 0.5-2 m/s, in the subjects' durations 0 of {n}." in text
+    assert "for the same paths walked in the subjects' durations" in text
 
 
 def test_a_duration_on_its_bound_is_flagged():
@@ -208,3 +228,24 @@ def test_the_time_law_is_judged_against_the_subjects_own_pace():
     ta, tb = a["travel_time"].iloc[-1], b["travel_time"].iloc[-1]
     text = "\n".join(generated_section(pd.concat([a, b]), "continuous", {"a": (2 * ta, 0.3), "b": (0.5 * tb, 0.9)}))
     assert "1 of 2 outside 0.5-2 m/s; model T / subjects' T 0.50-2.00, median 1.25" in text
+
+
+def test_fit_ioc_comparison_counts_a_path_that_misses_its_goal_as_not_converged(monkeypatch):
+    """The model comparison of fit-ioc takes generate's verdict: a path generate flags (converged false: under
+    the continuous convention, its goal missed) is a not-converged row, left out of the means, never a result."""
+    import cobot_analysis.models as models
+    from cobot_analysis.models.comparison import compare_task
+    from cobot_analysis.models.ioc import targets_from_table
+
+    target = targets_from_table(_means(["N1500"]), goal=WALKING_GOAL, unoriented=True)[0]
+    real = models.generate
+
+    def missing(*args, **kwargs):
+        df = real(*args, **kwargs)
+        return df.assign(converged=False, goal_reached=False, status="ends 0.2 m from its goal")
+
+    spec = {"improved OC": ("improved", "walking-2021")}
+    assert compare_task((target, spec, 20, 0.5, "gamma", "continuous"))[0]["converged"]
+    monkeypatch.setattr(models, "generate", missing)
+    row = compare_task((target, spec, 20, 0.5, "gamma", "continuous"))[0]
+    assert row["converged"] is False and np.isfinite(row["d_xy"])

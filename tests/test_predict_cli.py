@@ -460,6 +460,7 @@ def test_goal_predictors_and_horizon_sweep_from_the_command_line(cli, tmp_path, 
     assert (stage / "horizons.png").is_file()
     text = (stage / "results.md").read_text()
     assert "Prediction error against the horizon" in text and "| whole path |" in text
+    assert "Figure: `horizons.png`" in text  # the figure the fragment's table goes with, named where a reader sees it
     windows = pd.read_parquet(stage / "prediction_windows.parquet")
     assert set(windows["predictor"].astype(str)) == {"goal", "goal-inferred", "cv"}
 

@@ -42,3 +42,16 @@ def test_a_study_of_means_only_says_so_instead_of_zero_trajectories():
     _data_section(SimpleNamespace(title="Pairs"), {"ts": ts}, lines, results)
     assert "No individual trials in the data: 3 mean trajectories (subject1: 1, table: 2)." in lines
     assert "## Pairs: data" in results and not any("0 trajectories" in x for x in lines)
+
+
+def test_published_model_rows_say_why_fit_ioc_gives_another_d_gamma():
+    """One answer per question: under the published convention compare's model rows are against the recomputed
+    means, fit-ioc's against the authors' mean block; the fragment says so with the two means' d_gamma."""
+    rows = [{"comparison": "model", "entity": "walker", "d_xy": 0.08, "d_theta": 0.5, "d_gamma": 0.5},
+            {"comparison": "mean-published", "entity": "walker", "d_xy": 0.0, "d_theta": 0.3, "d_gamma": 0.18},
+            {"comparison": "mean-published", "entity": "walker", "d_xy": 0.0, "d_theta": 0.3, "d_gamma": 0.2}]
+    published = SimpleNamespace(distances=pd.DataFrame(rows), convention="published", excluded={})
+    md = compare_markdown(published, sd_ddof=0)
+    assert "the same d_xy; d_gamma differs" in md and "(they differ by d_gamma 0.190 rad, row mean-published)" in md
+    continuous = SimpleNamespace(distances=pd.DataFrame(rows), convention="continuous", excluded={})
+    assert "d_gamma differs" not in compare_markdown(continuous, sd_ddof=1)  # there both compare the same means

@@ -87,3 +87,42 @@ def test_stage_directories_follow_the_umask(study, tmp_path, cli):
     assert (tmp_path / "ws").stat().st_mode & 0o777 == 0o750
     assert (tmp_path / "ws" / "import").stat().st_mode & 0o777 == 0o750
     assert (tmp_path / "ws" / "import" / "manifest.json").stat().st_mode & 0o777 == 0o640
+
+
+def test_a_stage_closes_the_figures_it_draws_and_leaves_the_callers(tmp_path):
+    """pyplot keeps every figure until it is closed: a stage that drew (and saved, or failed before saving) a
+    figure leaves none open, in a notebook or a long process; a figure the caller had open stays open."""
+    from cobot_analysis.plotting import pyplot
+    from cobot_analysis.workspace import Stage
+
+    plt = pyplot()
+    plt.close("all")
+    mine = plt.figure()
+    with Stage(tmp_path, "drawn") as stage:
+        stage.savefig(plt.subplots()[0], "saved")
+        plt.subplots()  # drawn, never saved
+        assert len(plt.get_fignums()) == 2
+    assert plt.get_fignums() == [mine.number]
+    assert (tmp_path / "drawn" / "saved.png").stat().st_size > 0
+    with pytest.raises(RuntimeError), Stage(tmp_path, "failed"):
+        plt.subplots()
+        raise RuntimeError("failed after drawing")
+    assert plt.get_fignums() == [mine.number] and not (tmp_path / "failed").exists()
+    plt.close(mine)
+
+
+def test_the_report_stage_leaves_no_figure_open(tmp_path, cli):
+    """A real stage that saves figures (the report: paths, box plots) leaves ``get_fignums()`` empty."""
+    from cobot_analysis.plotting import pyplot
+    from cobot_analysis.schema import TRAJECTORIES, write_table
+    from cobot_analysis.synth.tables import walking_table
+
+    plt = pyplot()
+    plt.close("all")
+    ws = tmp_path / "ws"
+    write_table(walking_table(n_subjects=2, n_conditions=2, n_trials=1, n=20), ws / "preprocess" / "trajectories.parquet", TRAJECTORIES)
+    for args in (["average"], ["compare"], ["report"]):
+        code, _, err = cli("-q", *args, "--out", ws)
+        assert code == 0, err
+    assert len(list((ws / "report").glob("*.png"))) >= 3  # figures were drawn and saved
+    assert plt.get_fignums() == []

@@ -39,11 +39,25 @@ class GenerateResult:
     measured: dict[str, tuple[float, float]] | None = None  # condition -> the subjects' (travel time, mean speed)
 
     def summary(self) -> str:
+        """Paths, how many missed their goal, and the time law: mean speed (m/s), with several paths how many lie
+        outside 0.5-2 m/s beside the subjects' own (``measured``), under the published convention that its
+        duration rule is no human pace."""
         ends = self.generated.groupby("trial").tail(1)
         n, missed = len(ends), int((~ends["goal_reached"].astype(bool)).sum())
+        v = ends["mean_speed"].to_numpy(float)
+        pace = ""
+        if n > 1:
+            pace = f" ({int(np.sum((v < 0.5) | (v > 2.0)))} of {n} outside 0.5-2 m/s"
+            mine = [self.measured[c][1] for c in ends["condition"].astype(str) if c in (self.measured or {})]
+            if mine:
+                m = np.asarray(mine, float)
+                pace += f"; the subjects' {int(np.sum((m < 0.5) | (m > 2.0)))} of {len(m)}"
+            pace += ")"
+        if self.convention == "published":
+            pace += " (the published duration rule: no human pace; velocity-commands refuses it)"
         return (f"{n} {'trajectory' if n == 1 else 'trajectories'}"
                 + (f", {missed} not reaching their goal (results.md)" if missed else ", all at their goal")
-                + f", mean speed {_span(ends['mean_speed'])} m/s")
+                + f", mean speed {_span(ends['mean_speed'])} m/s" + pace)
 
     def metrics(self, *, stage: str | None = None) -> Metrics:
         """Headline numbers (``metrics.models.generate``): per model, paths, duration T, cost and the largest end

@@ -33,8 +33,10 @@ from cobot_analysis.models.presets import DEFAULT_PRESET, PRESETS, load_weights,
 
 MODELS = ("unicycle", "clothoid", "mombaur", "improved", "table")
 GOAL_TOLERANCE = (0.01, 0.05)  # m, rad: a path ends at its goal (docs/methods.md sec. 5.5)
+GOAL_EXTENT = 10.0  # m: |x|, |y| of a start or goal in the studies' frames, the goal predictor's bound too
+# (models.prediction.goal.LAB_EXTENT; their paths lie within 6 m of the origin)
 
-__all__ = ["GOAL_TOLERANCE", "MODELS", "OC_MODELS", "PRESETS", "generate", "check_endpoints", "goal_check", "mean_speed",
+__all__ = ["GOAL_EXTENT", "GOAL_TOLERANCE", "MODELS", "OC_MODELS", "PRESETS", "generate", "check_endpoints", "goal_check", "mean_speed",
            "refuse_unreached"]
 
 
@@ -56,19 +58,18 @@ def mean_speed(x, y, T: float) -> float:
 
 
 def check_endpoints(start, goal, *, path=None, min_distance: float = 0.01, options=("--start", "--goal")) -> None:
-    """Refuse NaN poses, a start or goal outside the lab (|x|, |y| <= ``io.plausibility.LAB_EXTENT``)
-    and a start equal to the goal (nothing to plan); ``options`` name the two poses in the message."""
-    from cobot_analysis.io.plausibility import LAB_EXTENT
-
+    """Refuse NaN poses, a start or goal outside the lab (|x|, |y| <= ``GOAL_EXTENT``, the bound of the goal
+    predictor's goals) and a start equal to the goal (nothing to plan); ``options`` name the two poses in the message."""
     start, goal = np.asarray(start, float), np.asarray(goal, float)
     if start.shape[-1] < 3 or goal.shape[-1] < 3:
         raise InputError("start and goal must be poses (x, y, theta)", path=path, remedy="give three numbers each")
     if not (np.all(np.isfinite(start[:3])) and np.all(np.isfinite(goal[:3]))):
         raise InputError("start or goal pose has NaN", path=path, remedy="check the trajectory's first and last samples")
     for option, pose in zip(options, (start, goal)):
-        if max(abs(pose[0]), abs(pose[1])) > LAB_EXTENT:
-            raise InputError(f"{option} ({pose[0]:g}, {pose[1]:g}) lies outside the lab (|x|, |y| <= {LAB_EXTENT:g} m)",
-                             path=path, remedy=f"give {option} in metres in the lab frame (not millimetres)")
+        if max(abs(pose[0]), abs(pose[1])) > GOAL_EXTENT:
+            raise InputError(f"{option} ({pose[0]:g}, {pose[1]:g}) lies outside the lab (|x|, |y| <= {GOAL_EXTENT:g} m)",
+                             path=path, remedy=f"give {option} in metres in the study's frame, within {GOAL_EXTENT:g} m of its "
+                                               "origin (not millimetres)")
     if math.hypot(goal[0] - start[0], goal[1] - start[1]) < min_distance:
         raise InputError(f"start equals goal (closer than {min_distance * 100:.0f} cm)", path=path,
                          remedy="give a goal at least 1 cm away from the start")

@@ -52,7 +52,7 @@ def compare_task(task) -> list[dict]:
             df = generate(model, target.start, target.goal, weights=w, n_samples=len(target.x), n_intervals=n_intervals,
                           convention=convention)
             d = distances(target, df["x"].to_numpy(), df["y"].to_numpy(), df["theta"].to_numpy(), convention)
-            ok = True
+            ok = bool(df["converged"].iloc[-1])  # continuous: a path that misses its goal is never converged
         except Exception as exc:  # noqa: BLE001 - a failed model is a flagged row, not a crash
             from cobot_analysis.errors import SolverError
 

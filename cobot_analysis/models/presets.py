@@ -52,12 +52,13 @@ def weights_vector(weights: dict[str, float], model: str = "improved") -> np.nda
 
 def load_weights(spec: str | Path | dict | None, model: str = "improved") -> dict[str, float]:
     """Weights from a preset name, a fitted-weights JSON file (``{"weights": {...}}`` or a plain
-    ``{name: value}`` mapping, or a list in the model's order), or a mapping. ``None``: the model's default."""
+    ``{name: value}`` mapping, or a list in the model's order), or a mapping (either form: a fit's
+    ``weights_json()`` too). ``None``: the model's default."""
     names = names_for(model)
     if spec is None:
         spec = DEFAULT_PRESET.get(model, "walking-2021")
     if isinstance(spec, dict):
-        data = spec
+        data = spec["weights"] if isinstance(spec.get("weights"), (dict, list)) else spec  # a weights.json as a mapping
         path = None
     elif str(spec) in PRESETS:
         w = PRESETS[str(spec)]
@@ -99,20 +100,22 @@ def load_weights(spec: str | Path | dict | None, model: str = "improved") -> dic
 def weights_convention(spec: str | Path | dict | None, model: str = "improved") -> str | None:
     """The convention weights were made under (docs/methods.md sec. 11): ``published`` for the presets
     (the papers' weights) and for the model default (None), the ``convention`` of a fitted-weights
-    file, None when unknown (a mapping, or a file without one: the caller's default applies). A file
-    whose ``convention`` is not one is refused."""
+    file or of its mapping (``FitIOCResult.weights_json()``), None when unknown (a plain ``{name: value}``
+    mapping, or a file without one: the caller's default applies). A ``convention`` that is not one is refused."""
     from cobot_analysis.conventions import NAMES
 
-    if spec is None or str(spec) in PRESETS:
+    if isinstance(spec, dict):  # a plain {name: value}: unknown; a fit's weights_json(): its convention
+        data, path = spec, None
+    elif spec is None or str(spec) in PRESETS:
         return "published"
-    if isinstance(spec, dict):
-        return None
-    try:
-        data = json.loads(Path(spec).read_text())
-    except (OSError, ValueError):
-        return None
+    else:
+        path = Path(spec)
+        try:
+            data = json.loads(path.read_text())
+        except (OSError, ValueError):
+            return None
     name = data.get("convention") if isinstance(data, dict) else None
     if name is not None and name not in NAMES:
-        raise InputError(f"its \"convention\" {name!r} is not a convention", path=Path(spec),
+        raise InputError(f"its \"convention\" {name!r} is not a convention", path=path,
                          remedy=f"write one of {', '.join(NAMES)} or pass --convention")
     return name

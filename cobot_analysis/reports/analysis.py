@@ -49,6 +49,16 @@ def compare_markdown(result, sd_ddof: int) -> str:
         fmt = [f"{r[(k, 'mean')]:.3f} +- {r[(k, 'std')]:.3f} (n={int(r[(k, 'count')])})" if r[(k, "count")] else "n/a"
                for k in ("d_xy", "d_theta", "d_gamma")]
         lines.append(f"| {comp} | {ent} | {int(r[('d_xy', 'count')])} | " + " | ".join(fmt) + " |")
+    comparisons = set(d["comparison"]) if "comparison" in d else set()
+    if result.convention == "published" and "model" in comparisons:
+        # one answer per question: fit-ioc's comparison of the same paths differs in d_gamma only, and says why here
+        shift = d.loc[d["comparison"] == "mean-published", "d_gamma"].dropna()
+        lines += ["", "The model rows compare the generated paths with the means above (recomputed from the trials). "
+                      "fit-ioc's model comparison under the published convention takes the same paths against the authors' "
+                      "mean block (import-published), as their scripts did: the same d_xy; d_gamma differs because the "
+                      "recorded gamma of the mean block is not the gamma of the recomputed means"
+                  + (f" (they differ by d_gamma {shift.mean():.3f} rad, row mean-published)" if len(shift) else "")
+                  + " (docs/methods.md sec. 11)."]
     if single or frames:
         lines += ["", f"Not compared with their mean (left out of the individual-mean rows and of the statistics): {single} "
                       "trial(s) whose mean is of that trial alone (the distance would be 0), "

@@ -38,6 +38,9 @@ def horizon_markdown(summary: pd.DataFrame, inference: pd.DataFrame) -> list[str
                          else f"beats cv from {w} samples ahead on")
                 lines.append(f"- {p}: {beats}{ratio}")
             lines.append("")
+    if len(summary):
+        lines += ["Figure: `horizons.png` in the stage's directory (delta_xy and FDE against the horizon, one column per study, "
+                  "the whole remaining path at the right end).", ""]
     if len(inference):
         bins = np.linspace(0, 1, 6)
         inference = inference.assign(part=pd.cut(inference["walked"], bins, include_lowest=True))

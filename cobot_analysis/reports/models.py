@@ -599,9 +599,10 @@ def _gauge_lines(line: str, targets, per_target: list[dict], pace: dict) -> list
             f"gives c = {pace['c']:.3f} (durations before: {np.nanmin(T0):.2f}-{np.nanmax(T0):.2f} s). The weights written are "
             f"the calibrated ones; re-solved there, D = {pace['D_after']:.4f} (before {pace['D_before']:.4f}), "
             f"rms duration error {np.sqrt(np.mean(np.square(errors))):.2f} s, model mean speed {sp[:, 0].min():.2f}-"
-            f"{sp[:, 0].max():.2f} m/s against the subjects' {np.nanmin(sub[:, 1]):.2f}-{np.nanmax(sub[:, 1]):.2f} m/s "
-            f"(path length / the subjects' duration); {outside} of {len(sp)} model paths outside 0.5-2 m/s, the subjects' "
-            f"{int(np.sum((sub[:, 1] < 0.5) | (sub[:, 1] > 2.0)))} of {len(sub)}.")
+            f"{sp[:, 0].max():.2f} m/s against {np.nanmin(sub[:, 1]):.2f}-{np.nanmax(sub[:, 1]):.2f} m/s for the same paths "
+            f"walked in the subjects' durations (the model's path length / the subjects' duration; the subjects' own "
+            f"speeds, on their own paths, are generate's); {outside} of {len(sp)} model paths outside 0.5-2 m/s, "
+            f"in the subjects' durations {int(np.sum((sub[:, 1] < 0.5) | (sub[:, 1] > 2.0)))} of {len(sub)}.")
     if pace.get("notes"):
         text += " **" + "; ".join(pace["notes"]) + ".**"
     return [line + ".", "", text, "",
