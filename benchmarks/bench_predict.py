@@ -8,6 +8,9 @@
     python benchmarks/bench_predict.py published-floor TRAJECTORIES.parquet [--n 6]
         CPU per trajectory of the published (50, 100) sweep split into the fatrop solves and the rest
         (issue 22), extrapolated to the 400 walking-2020 trials on 2 cores against the 60 s target.
+    python benchmarks/bench_predict.py stats TRAJECTORIES.parquet [--n 6] [--convention published]
+        The (50, 100) sweep with the OC solves reading fatrop's stats after each converged solve (before) and
+        not (after), alternated per trajectory: CPU per trajectory, the ratio, rows identical or not.
     python benchmarks/bench_predict.py sweep TRAJECTORIES.parquet --out DIR [--convention NAME] [--dask] [--every K] [--limit N]
                                              [--predictors goal,cv]
         Wall time of `cobot-analysis predict --settings 50:100 --kind trial --convention NAME` from an
@@ -64,6 +67,7 @@ def bench_windows(path: Path, n: int, convention: str) -> None:
     build = time.perf_counter() - t0
     print(f"{convention} convention; NLP build (49 intervals, {first.scheme}: the window's measured past): {build:.2f} s")
     runs = (("oc warm", {"warm_start": True}), ("oc cold", {"warm_start": False})) if first.warm_start else (("oc cold from rest", {}),)
+    solve = WalkerOCP.solve
     for label, kw in runs:
         times, iters, failed = [], [], 0
         for t in trajs:
@@ -75,8 +79,18 @@ def bench_windows(path: Path, n: int, convention: str) -> None:
                 p.update(pose)
                 if p.last_solution is not before:  # a window was solved
                     times.append(time.process_time() - s)
-                    iters.append(p.last_solution.iterations)
             failed += p.failed
+            # the windows again, untimed, reading fatrop's stats for the iteration counts (the predictor does not)
+            WalkerOCP.solve = lambda self, *a, **k: solve(self, *a, **{**k, "stats": True})
+            try:
+                p.reset()
+                for pose in t.seen:
+                    before = p.last_solution
+                    p.update(pose)
+                    if p.last_solution is not before:
+                        iters.append(p.last_solution.iterations)
+            finally:
+                WalkerOCP.solve = solve
         times = np.array(times)
         print(f"{label}: {len(times)} windows, {1 / times.mean():.0f} windows/s (mean {1e3 * times.mean():.2f} ms, "
               f"median {1e3 * np.median(times):.2f} ms, p95 {1e3 * np.percentile(times, 95):.2f} ms), "
@@ -123,6 +137,42 @@ def bench_published_floor(path: Path, n: int, target: float = 60.0) -> None:
           f"the rest {total - fatrop:.3f} s")
     print(f"400 trials on 2 cores, start-up and tables left out: {400 * total / 2:.0f} s wall at best; the solves alone "
           f"{400 * fatrop / 2:.0f} s: {400 * fatrop / 2 / target:.2f} of the {target:.0f} s target")
+
+
+def bench_stats(path: Path, n: int, convention: str) -> None:
+    """The (50, 100) sweep of ``convention`` with the OC solves reading the solver's stats (before) and not
+    (after: ``WalkerOCP.solve(stats=False)``, what the predictor does), alternated per trajectory in one
+    process; CPU per trajectory, the ratio, and whether the rows are identical."""
+    from cobot_analysis import conventions
+    from cobot_analysis.models.oc.problem import WalkerOCP
+    from cobot_analysis.models.prediction.sweep import SweepConfig, predict_trajectory
+
+    config = SweepConfig(settings=((50, 100),), convention=conventions.get(convention))
+    trajs = load(path, n + 1)
+    solve = WalkerOCP.solve
+
+    def with_stats(self, *args, **kw):
+        return solve(self, *args, **{**kw, "stats": True})
+
+    def run(t, before: bool):
+        WalkerOCP.solve = with_stats if before else solve
+        try:
+            s = time.process_time()
+            rows = predict_trajectory(t, config)
+            return time.process_time() - s, rows
+        finally:
+            WalkerOCP.solve = solve
+
+    run(trajs[0], False), run(trajs[0], True)  # NLP set-up and the compiled functions loaded once, outside the timing
+    before, after, same = [], [], True
+    for i, t in enumerate(trajs[1:]):  # alternated: the load hits both alike
+        for b in ((True, False) if i % 2 == 0 else (False, True)):
+            cpu, rows = run(t, b)
+            (before if b else after).append((cpu, rows))
+        same &= all(x.equals(y) for x, y in zip(before[-1][1], after[-1][1]))
+    b, a = np.mean([c for c, _ in before]), np.mean([c for c, _ in after])
+    print(f"{convention} (50, 100), {len(trajs) - 1} trajectories: stats read {b:.3f} s CPU per trajectory, not read {a:.3f} s: "
+          f"ratio {a / b:.3f} (per trajectory {', '.join(f'{x[0] / y[0]:.2f}' for x, y in zip(after, before))}); rows identical: {same}")
 
 
 def bench_goal(trajs, weights: str | None = None, name: str = "goal", turn_weight: float | None = None) -> None:
@@ -277,6 +327,10 @@ def main() -> None:
     f = sub.add_parser("published-floor")
     f.add_argument("trajectories", type=Path)
     f.add_argument("--n", type=int, default=6)
+    f = sub.add_parser("stats")
+    f.add_argument("trajectories", type=Path)
+    f.add_argument("--n", type=int, default=6)
+    f.add_argument("--convention", choices=("continuous", "published"), default="published")
     s = sub.add_parser("sweep")
     s.add_argument("trajectories", type=Path)
     s.add_argument("--out", type=Path, required=True)
@@ -307,6 +361,8 @@ def main() -> None:
         bench_windows(a.trajectories, a.n, a.convention)
     elif a.what == "published-floor":
         bench_published_floor(a.trajectories, a.n)
+    elif a.what == "stats":
+        bench_stats(a.trajectories, a.n, a.convention)
     elif a.what == "goal":
         bench_goal_predictors(a.walking, a.pairs, a.n, a.weights)
     elif a.what == "stages":

@@ -165,11 +165,11 @@ class OCPredictor(Predictor):
         if has_theta:
             theta, angles = past[0, 2], past[:m, 2]
         else:
-            angles = np.unwrap(np.arctan2(np.gradient(past[:m, 1]), np.gradient(past[:m, 0])))  # direction of travel
+            angles = np.arctan2(np.gradient(past[:m, 1]), np.gradient(past[:m, 0]))  # direction of travel
             theta = angles[0]
-        if self.rest_start:
+        if self.rest_start:  # theta only (unwrapping leaves the first angle as it is)
             return np.array([past[0, 0], past[0, 1], theta, 0.0, 0.0, 0.0]), has_theta
-        vx, vy, omega = d @ past[:m, 0], d @ past[:m, 1], d @ angles
+        vx, vy, omega = d @ past[:m, 0], d @ past[:m, 1], d @ (angles if has_theta else np.unwrap(angles))
         c, s = np.cos(theta), np.sin(theta)
         return np.array([past[0, 0], past[0, 1], theta, c * vx + s * vy, -s * vx + c * vy, omega]), has_theta
 
@@ -198,7 +198,7 @@ class OCPredictor(Predictor):
         x0, has_theta = self.initial_state(past)
         origin = np.array([x0[0], x0[1], 0.0]) if self.rest_start else np.zeros(3)  # published: first pose at the origin
         past = past - origin
-        x0 = x0 - np.r_[origin, 0.0, 0.0, 0.0]
+        x0[:3] -= origin  # x0 is this window's own array
         track = past.copy()
         if not has_theta:
             track[:, 2] = 0.0
@@ -208,7 +208,7 @@ class OCPredictor(Predictor):
         T = self.step if self.scheme == "euler" else (self.n0 - 1) * self.step  # euler: the parameter is the node step
         sol = self.ocp.solve(x0[:3], far, self.weights, T, guess=guess, start_velocity=x0[3:],
                              track=track, track_weights=(self.track_weights[0], self.track_weights[1] if has_theta else 0.0),
-                             n_track=self.n0)
+                             n_track=self.n0, stats=False)  # converged or not is all a window needs
         self.last_solution = sol
         if not sol.success:
             self._warm = None
