@@ -68,10 +68,10 @@ def test_a_path_that_misses_its_goal_is_flagged_never_converged():
 def test_goal_outside_the_lab_is_refused():
     with pytest.raises(InputError, match="--goal .* outside the lab"):
         generate("improved", (0.0, 0.0, 0.0), (4000.0, 0.0, 0.0))
-    from cobot_analysis.models import GOAL_EXTENT
-    from cobot_analysis.models.prediction.goal import LAB_EXTENT
+    from cobot_analysis.models.prediction.goal import check_goal
 
-    assert GOAL_EXTENT == LAB_EXTENT  # generate and the goal predictor refuse the same goals
+    with pytest.raises(InputError, match="outside the lab"):  # the goal predictor refuses the same goal
+        check_goal((4000.0, 0.0, 0.0), "--goal")
 
 
 @pytest.mark.parametrize("args, message", [

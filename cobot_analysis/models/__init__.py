@@ -34,7 +34,7 @@ from cobot_analysis.models.presets import DEFAULT_PRESET, PRESETS, load_weights,
 MODELS = ("unicycle", "clothoid", "mombaur", "improved", "table")
 GOAL_TOLERANCE = (0.01, 0.05)  # m, rad: a path ends at its goal (docs/methods.md sec. 5.5)
 GOAL_EXTENT = 10.0  # m: |x|, |y| of a start or goal in the studies' frames, the goal predictor's bound too
-# (models.prediction.goal.LAB_EXTENT; their paths lie within 6 m of the origin)
+# (imported by models.prediction.goal; their paths lie within 6 m of the origin)
 
 __all__ = ["GOAL_EXTENT", "GOAL_TOLERANCE", "MODELS", "OC_MODELS", "PRESETS", "generate", "check_endpoints", "goal_check", "mean_speed",
            "refuse_unreached"]

@@ -49,11 +49,11 @@ import math
 import numpy as np
 
 from cobot_analysis.errors import InputError
+from cobot_analysis.models import GOAL_EXTENT as LAB_EXTENT  # the lab's bound on a goal, generate's too
 from cobot_analysis.models.prediction.base import Predictor
 
 N_INTERVALS = 20  # intervals of the plan: solved afresh every window
 SIGMA = 0.08  # m: path error of the improved OC against human paths (docs/methods.md sec. 5.5)
-LAB_EXTENT = 10.0  # m: |x|, |y| of a goal in the studies' frames (their paths lie within 6 m of the origin)
 ARRIVED = 0.01  # m: closer to the goal than this the walker is predicted to stay
 DENSE = 200  # points of the plan's arc-length table
 MAX_ITER = 100  # solver iterations per plan: a 20-interval plan converges in tens (some warm-started solves near a
