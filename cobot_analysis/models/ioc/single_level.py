@@ -20,7 +20,7 @@ the chain rule through the resampling (``resampled_distance``), not symbolically
 
 Solved by a feasible path (``fit_feasible_path``, docs/methods.md sec. 6.1): a trust-region step in
 log10 w with the exact gradient and Hessian of D along the manifold of KKT points, then each path's
-KKT system restored by Newton's method (its own sparse factorisation), so the constraints hold at
+KKT system restored by Newton's method (its own band LU factorisation), so the constraints hold at
 every step. The D reported is never the smoothed one: the lower level is re-solved at the fitted
 weights as the bi-level fit solves it, and D computed exactly.
 """
@@ -217,24 +217,27 @@ def branch_calls(spec: IOCSpec, fitted: tuple[int, ...], n_samples: int, eps: fl
 
 class _Permutation:
     """A reverse Cuthill-McKee permutation of the KKT matrix K (variables and multipliers of each
-    stage brought together: a band of width ~ 2 stages, factorised without fill), and the map that
-    permutes K's stored values straight into the CSC arrays of K[order][:, order] (K's sparsity is
-    fixed: computed once per ``_Call``)."""
+    stage brought together: a band of half-width ~ 2 stages, 20 at 50 intervals), and the map that puts
+    K's stored values straight into LAPACK's band storage of K[order][:, order] (K's sparsity is fixed:
+    computed once per ``_Call``)."""
 
     def __init__(self, K):
         from scipy.sparse import csc_matrix
         from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+        n = K.shape[0]
         pattern = csc_matrix((np.arange(1.0, K.nnz + 1.0), K.indices, K.indptr), shape=K.shape)
         self.order = np.asarray(reverse_cuthill_mckee((pattern + pattern.T).tocsr(), symmetric_mode=True))
-        P = pattern[self.order][:, self.order].tocsc()
-        P.sort_indices()
-        self.source, self.indices, self.indptr = P.data.astype(int) - 1, P.indices.copy(), P.indptr.copy()
+        P = pattern[self.order][:, self.order].tocoo()
+        self.kl, self.ku = int(max(0, (P.row - P.col).max())), int(max(0, (P.col - P.row).max()))
+        self.shape = (2 * self.kl + self.ku + 1, n)  # dgbtrf's rows: kl for the fill of the pivoting, then the band
+        self.source = P.data.astype(int) - 1
+        self.flat = (self.kl + self.ku + P.row - P.col) * n + P.col  # ab[kl + ku + i - j, j] = A[i, j]
 
-    def apply(self, K):
-        from scipy.sparse import csc_matrix
-
-        return csc_matrix((K.data[self.source], self.indices, self.indptr), shape=K.shape)
+    def band(self, K) -> np.ndarray:
+        ab = np.zeros(self.shape)
+        ab.flat[self.flat] = K.data[self.source]
+        return ab
 
 
 def _permutation(newton: _Call) -> _Permutation:
@@ -245,18 +248,25 @@ def _permutation(newton: _Call) -> _Permutation:
 
 
 class _Factor:
-    """LU of K permuted symmetrically (``_Permutation``), solving K x = b and K' x = b."""
+    """LU with partial pivoting of K permuted symmetrically (``_Permutation``), as a band matrix (LAPACK
+    dgbtrf: no fill outside the band, no symbolic analysis to repeat), solving K x = b and K' x = b.
+    RuntimeError when K is singular."""
 
     def __init__(self, K, perm: _Permutation):
-        from scipy.sparse.linalg import splu
+        from scipy.linalg.lapack import dgbtrf
 
-        self.order = perm.order
-        self.lu = splu(perm.apply(K), permc_spec="NATURAL")
+        self.perm = perm
+        self.lu, self.piv, info = dgbtrf(perm.band(K), perm.kl, perm.ku, overwrite_ab=1)
+        if info != 0:
+            raise RuntimeError(f"singular KKT matrix (dgbtrf info {info})")
 
     def solve(self, b, trans: bool = False):
-        b = np.asarray(b)
-        x = np.empty_like(b, dtype=float)
-        x[self.order] = self.lu.solve(b[self.order], trans="T" if trans else "N")
+        from scipy.linalg.lapack import dgbtrs
+
+        b, order = np.asarray(b, float), self.perm.order
+        y, info = dgbtrs(self.lu, self.perm.kl, self.perm.ku, b[order], self.piv, trans=1 if trans else 0)
+        x = np.empty_like(b)
+        x[order] = y
         return x
 
 
@@ -332,6 +342,28 @@ def fold_chunk(task) -> list:
         d, sol = solve_target(spec, w, t, v[:len(v) - nl])
         out.append(correct_chunk((shape, fitted, M, eps, tol, w, [(p, data, np.concatenate([sol.primal, np.zeros(nl)]))]))[0]
                    if d["success"] else None)
+    return out
+
+
+def probe_chunk(task) -> list:
+    """Worker task: the lower levels of a chunk of paths at an escape probe's weights w, each solved once, warm
+    from its path at the converged point (``escape_probes``), D as ``fit.solve_target`` computes it;
+    task = (spec, w, [(target, primal), ...]); per path (D, primal), or (inf, None) when the solve fails."""
+    from cobot_analysis.models.ioc.fit import distances
+    from cobot_analysis.models.oc import resample, solve_model
+
+    spec, w, items = task
+    model = "table" if spec.model == "table" else "improved"
+    out = []
+    for t, z in items:
+        sol = solve_model(model, t.start, t.goal, w, n_intervals=spec.n_intervals, duration="free", max_iter=spec.max_iter,
+                          v_nominal=spec.v_nominal, guess=z)
+        if not sol.success:
+            out.append((math.inf, None))
+            continue
+        r = resample(sol, len(t.x))
+        d = distances(t, r["x"], r["y"], r["theta"])
+        out.append((d["d_xy"] + spec.angle_weight * d[f"d_{spec.angle}"], sol.primal))
     return out
 
 
@@ -438,8 +470,9 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
     The D reported is the one of the lower level re-solved at the fitted weights, as the bi-level fit
     solves it (warm from the branch's path and from the two cold guesses, the least cost kept). When
     that re-solve lands on other paths (a lower-cost local minimum of some lower levels), the steps
-    start again on those; when it does not and ``probe``, D is re-solved at the ``escape_probes`` and
-    the steps start again from the lowest if it is below (``restarts`` new rounds at most); the round
+    start again on those; when it does not and ``probe``, D is re-solved at the ``escape_probes`` (each
+    lower level once, warm from its path: ``probe_chunk``) and the steps start again from the lowest if it
+    is below (``restarts`` new rounds at most); the round
     with the least re-solved D is kept. ``measured_T``: the subjects' duration per target (nan: none),
     as the bi-level fit takes them (``fit.fit``): the start weights are carried to their time gauge
     first, the fitted weights calibrated to it after (``pace.calibrate``; the result's ``pace``).
@@ -569,18 +602,18 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
         return out
 
     def solve_at(pairs: list) -> list:
-        """(D, primal) of the given paths at each (weight vector, paths) pair, the lower levels from the cold
-        guesses (``fit.reference_chunk``), in chunks on the pool."""
+        """(D, primal) of the given paths at each (weight vector, paths) pair, each lower level warm from the
+        round's path (``probe_chunk``), in chunks on the pool."""
         subs = []
         for j, batch in pairs:
             k = max(1, min(chunks, len(batch)))
-            subs.append([(part, pool.submit(reference_chunk, (spec, ws[j], [targets[i] for i in part])))
+            subs.append([(part, pool.submit(probe_chunk, (spec, ws[j], [(targets[i], Zs[i]) for i in part])))
                          for part in (batch[r::k] for r in range(k))])
         out = []
         for fs in subs:
             got = {}
             for part, f in fs:
-                got.update({i: (d["D"], z) for i, (d, z) in zip(part, f.result())})
+                got.update(zip(part, f.result()))
             out.append(got)
         return out
 
