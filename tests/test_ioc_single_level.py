@@ -495,33 +495,6 @@ def test_feasible_path_fits_the_time_gauge_to_measured_durations():
         assert abs(r.weights[n] / (W[names.index(n)] * scale) - 1) < 0.01, (n, r.weights[n], W[names.index(n)] * scale)
 
 
-def test_band_factor_solves_the_permuted_kkt_matrix():
-    """``_Factor`` (LAPACK band LU of K after reverse Cuthill-McKee) on a lower level's real KKT matrix: K x = b
-    and K' x = b solved to round-off against a dense solve, the band half-width 2 stages; a singular K raises."""
-    from scipy.sparse import csc_matrix
-
-    from cobot_analysis.models.ioc.recovery import synthetic_targets
-    from cobot_analysis.models.ioc.single_level import _Factor, _Permutation, branch_calls, lower_level
-    from cobot_analysis.models.oc.duration import initial_duration
-
-    t = synthetic_targets(SPEC, W, 2)[0]
-    ocp = lower_level(SPEC)
-    _, sol = solve_target(SPEC, W, t, ("rest", "line"))
-    newton = branch_calls(SPEC, (2, 4), len(t.x))[0]
-    p = ocp.parameters(t.start, t.goal, W, initial_duration(t.start, t.goal))
-    F, K, Fw = newton(np.concatenate([sol.primal, np.ones(ocp.n_cons)]), W, p)
-    perm = _Permutation(K)
-    assert perm.kl <= 30 and perm.ku <= 30 and perm.kl + perm.ku < K.shape[0] / 10
-    lu, A = _Factor(K, perm), K.toarray()
-    for b in (F, Fw):
-        np.testing.assert_allclose(lu.solve(b), np.linalg.solve(A, b), rtol=1e-6, atol=1e-9 * np.abs(np.linalg.solve(A, b)).max())
-        np.testing.assert_allclose(A.T @ lu.solve(b, trans=True), b, atol=1e-8 * np.abs(b).max())
-    Z = K.copy()
-    Z.data[np.isin(Z.indices, [0]) | np.repeat(np.arange(K.shape[1]) == 0, np.diff(K.indptr))] = 0.0  # row and column 0
-    with pytest.raises(RuntimeError):
-        _Factor(csc_matrix(Z), perm)
-
-
 def test_probe_chunk_solves_warm_from_the_given_path():
     """An escape probe's lower level (``probe_chunk``): warm from a path solved at the same weights it returns
     that path and the D of ``fit.solve_target``; at weights 30 times larger in a2 it converges to a path of

@@ -20,7 +20,7 @@ the chain rule through the resampling (``resampled_distance``), not symbolically
 
 Solved by a feasible path (``fit_feasible_path``, docs/methods.md sec. 6.1): a trust-region step in
 log10 w with the exact gradient and Hessian of D along the manifold of KKT points, then each path's
-KKT system restored by Newton's method (its own band LU factorisation), so the constraints hold at
+KKT system restored by Newton's method (its own sparse factorisation), so the constraints hold at
 every step. The D reported is never the smoothed one: the lower level is re-solved at the fitted
 weights as the bi-level fit solves it, and D computed exactly.
 """
@@ -217,27 +217,24 @@ def branch_calls(spec: IOCSpec, fitted: tuple[int, ...], n_samples: int, eps: fl
 
 class _Permutation:
     """A reverse Cuthill-McKee permutation of the KKT matrix K (variables and multipliers of each
-    stage brought together: a band of half-width ~ 2 stages, 20 at 50 intervals), and the map that puts
-    K's stored values straight into LAPACK's band storage of K[order][:, order] (K's sparsity is fixed:
-    computed once per ``_Call``)."""
+    stage brought together: a band of width ~ 2 stages, factorised without fill), and the map that
+    permutes K's stored values straight into the CSC arrays of K[order][:, order] (K's sparsity is
+    fixed: computed once per ``_Call``)."""
 
     def __init__(self, K):
         from scipy.sparse import csc_matrix
         from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-        n = K.shape[0]
         pattern = csc_matrix((np.arange(1.0, K.nnz + 1.0), K.indices, K.indptr), shape=K.shape)
         self.order = np.asarray(reverse_cuthill_mckee((pattern + pattern.T).tocsr(), symmetric_mode=True))
-        P = pattern[self.order][:, self.order].tocoo()
-        self.kl, self.ku = int(max(0, (P.row - P.col).max())), int(max(0, (P.col - P.row).max()))
-        self.shape = (2 * self.kl + self.ku + 1, n)  # dgbtrf's rows: kl for the fill of the pivoting, then the band
-        self.source = P.data.astype(int) - 1
-        self.flat = (self.kl + self.ku + P.row - P.col) * n + P.col  # ab[kl + ku + i - j, j] = A[i, j]
+        P = pattern[self.order][:, self.order].tocsc()
+        P.sort_indices()
+        self.source, self.indices, self.indptr = P.data.astype(int) - 1, P.indices.copy(), P.indptr.copy()
 
-    def band(self, K) -> np.ndarray:
-        ab = np.zeros(self.shape)
-        ab.flat[self.flat] = K.data[self.source]
-        return ab
+    def apply(self, K):
+        from scipy.sparse import csc_matrix
+
+        return csc_matrix((K.data[self.source], self.indices, self.indptr), shape=K.shape)
 
 
 def _permutation(newton: _Call) -> _Permutation:
@@ -248,25 +245,18 @@ def _permutation(newton: _Call) -> _Permutation:
 
 
 class _Factor:
-    """LU with partial pivoting of K permuted symmetrically (``_Permutation``), as a band matrix (LAPACK
-    dgbtrf: no fill outside the band, no symbolic analysis to repeat), solving K x = b and K' x = b.
-    RuntimeError when K is singular."""
+    """LU of K permuted symmetrically (``_Permutation``), solving K x = b and K' x = b."""
 
     def __init__(self, K, perm: _Permutation):
-        from scipy.linalg.lapack import dgbtrf
+        from scipy.sparse.linalg import splu
 
-        self.perm = perm
-        self.lu, self.piv, info = dgbtrf(perm.band(K), perm.kl, perm.ku, overwrite_ab=1)
-        if info != 0:
-            raise RuntimeError(f"singular KKT matrix (dgbtrf info {info})")
+        self.order = perm.order
+        self.lu = splu(perm.apply(K), permc_spec="NATURAL")
 
     def solve(self, b, trans: bool = False):
-        from scipy.linalg.lapack import dgbtrs
-
-        b, order = np.asarray(b, float), self.perm.order
-        y, info = dgbtrs(self.lu, self.perm.kl, self.perm.ku, b[order], self.piv, trans=1 if trans else 0)
-        x = np.empty_like(b)
-        x[order] = y
+        b = np.asarray(b)
+        x = np.empty_like(b, dtype=float)
+        x[self.order] = self.lu.solve(b[self.order], trans="T" if trans else "N")
         return x
 
 
