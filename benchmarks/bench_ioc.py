@@ -116,7 +116,9 @@ def main() -> None:
         df = pd.read_parquet(args.means)
         targets = targets_from_table(df[df["kind"] == "mean"] if "kind" in df else df, entity="walker", goal=WALKING_GOAL)
     if args.paths and args.paths < len(targets):
-        targets = [targets[i] for i in np.linspace(0, len(targets) - 1, args.paths).astype(int)]
+        keep = np.linspace(0, len(targets) - 1, args.paths).astype(int)
+        targets = [targets[i] for i in keep]
+        measured_T = None if measured_T is None else np.asarray(measured_T)[keep]
     rows = []
     t0, c0 = time.perf_counter(), cpu()
     published = spec.convention == "published"
