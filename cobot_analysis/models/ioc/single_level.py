@@ -219,7 +219,8 @@ class _Permutation:
     """A reverse Cuthill-McKee permutation of the KKT matrix K (variables and multipliers of each
     stage brought together: a band of width ~ 2 stages, factorised without fill), and the map that
     permutes K's stored values straight into the CSC arrays of K[order][:, order] (K's sparsity is
-    fixed: computed once per ``_Call``)."""
+    fixed: computed once per ``_Call``). ``apply`` refills one matrix (its index arrays already the C ints
+    SuperLU takes, so ``splu`` copies and checks nothing): use it before the next ``apply``."""
 
     def __init__(self, K):
         from scipy.sparse import csc_matrix
@@ -229,12 +230,12 @@ class _Permutation:
         self.order = np.asarray(reverse_cuthill_mckee((pattern + pattern.T).tocsr(), symmetric_mode=True))
         P = pattern[self.order][:, self.order].tocsc()
         P.sort_indices()
-        self.source, self.indices, self.indptr = P.data.astype(int) - 1, P.indices.copy(), P.indptr.copy()
+        self.source = P.data.astype(int) - 1
+        self.matrix = csc_matrix((np.zeros(P.nnz), P.indices.astype(np.intc), P.indptr.astype(np.intc)), shape=K.shape)
 
     def apply(self, K):
-        from scipy.sparse import csc_matrix
-
-        return csc_matrix((K.data[self.source], self.indices, self.indptr), shape=K.shape)
+        np.take(K.data, self.source, out=self.matrix.data)
+        return self.matrix
 
 
 def _permutation(newton: _Call) -> _Permutation:
