@@ -316,7 +316,7 @@ def results_fragment(metrics, summary, comparison, config, example, unpredictabl
         + (f"{no_theta} trajectories have no orientation" if no_theta else "")
         + (f"; {untracked} have one that was not used (orientation mode {config.orientation}: flagged "
            "implausible or ignored)" if untracked else "")
-        + (": predicted from positions only (OC g1 = 0, start heading = direction of travel), no delta_theta."
+        + (": predicted from positions only (the OC tracks the direction of travel as theta, gamma = 0 assumed), no delta_theta."
            if no_theta or untracked else ""),
     ]
     first = metrics.drop_duplicates(["study", "trial", "entity", "n0", "n_oc"])
