@@ -110,7 +110,7 @@ class OCPredictor(Predictor):
     sample k (position of the least-squares quadratic through the last ``fit`` poses, as the goal
     planner's ``goal.state_estimate``), heading and body-frame velocities those of X_k. X_k itself is
     the free end of a compromise: a pelvis yaw swaying with the gait, which the model walker cannot
-    walk, pulled it 0.5-2 cm off the measured pose. The published convention coasts from X_k (thesis).
+    walk, pulled it 1-2.7 cm (median per trial, walking-2020) off the measured pose. The published convention coasts from X_k (thesis).
 
     Warm start: the previous window's solution shifted by one node (the last node extrapolated
     with its own velocity), its theta moved by the whole turns that put its node 0 on x0's branch;
@@ -178,7 +178,10 @@ class OCPredictor(Predictor):
     def _orientation(self, past: np.ndarray) -> tuple[np.ndarray, bool]:
         """The theta the window tracks: the measured one, else ``heading(past)``; and whether measured."""
         has_theta = bool(np.isfinite(past[:, 2]).all())
-        return (past[:, 2] if has_theta else heading(past, self._travel, self.dt)), has_theta
+        if has_theta:
+            return past[:, 2], True
+        travel = self._travel if len(past) == self.n0 else travel_filter(len(past), self.fit)
+        return heading(past, travel, self.dt), False
 
     def _initial_state(self, past: np.ndarray, angles: np.ndarray, has_theta: bool) -> tuple[np.ndarray, bool]:
         d = self._derivative
@@ -190,11 +193,10 @@ class OCPredictor(Predictor):
         c, s = np.cos(theta), np.sin(theta)
         return np.array([past[0, 0], past[0, 1], theta, c * vx + s * vy, -s * vx + c * vy, omega]), has_theta
 
-    def _cold_guess(self, past: np.ndarray, x0: np.ndarray) -> np.ndarray:
+    def _cold_guess(self, track: np.ndarray, x0: np.ndarray) -> np.ndarray:
         """The tracked past at x0's velocities, zero controls."""
-        poses = past
         w = np.zeros(self.ocp.n_vars)
-        w[self.ocp._xi[:, :3]] = poses  # node k of the N0 - 1 intervals = measured sample k
+        w[self.ocp._xi[:, :3]] = track  # node k of the N0 - 1 intervals = tracked sample k
         w[self.ocp._xi[:, 3:6]] = x0[3:6]
         return w
 
