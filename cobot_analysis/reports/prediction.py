@@ -355,8 +355,11 @@ def results_fragment(metrics, summary, comparison, config, example, unpredictabl
                   "carries only control costs, so the predicted path is the walker coasting from its state at sample k "
                   "with constant body-frame velocities (v_forw, v_orth) and yaw rate omega, an arc of curvature "
                   "omega / speed (`OCPredictor`). The state at k is a smoothed fit of the past (tracking g0, g1 against "
-                  f"the control weights a1-a3) {start}. Where the "
-                  "orientation is tracked, its gait oscillation and any turn on the spot enter omega (a3 is nearly zero "
+                  f"the control weights a1-a3) {start}"
+                  + ("" if conv.prediction.start == "rest" else "; the arc is moved onto the state estimate at k, so it "
+                     "starts on the walker's current pose") + ". Where the "
+                  "orientation is tracked (without it, the direction of travel in its place), its gait oscillation and any "
+                  "turn on the spot enter omega (a3 is nearly zero "
                   "with the walking weights), and the arc curls away from the path: compare the 'theta tracked' and "
                   "'positions only' rows. The constant-velocity baseline extrapolates the last measured displacement "
                   "and has no such lag."]

@@ -223,7 +223,9 @@ class OCPredictor(Predictor):
             guess = self._cold_guess(track, x0)
         else:
             guess = self._shifted(self._warm)
-            guess[self.ocp._xi[:, 2]] += 2 * np.pi * np.round((x0[2] - guess[2]) / (2 * np.pi))  # onto x0's branch
+            turns = np.round((x0[2] - guess[2]) / (2 * np.pi))
+            if turns:  # the shifted guess onto x0's branch (a derived heading starts in (-pi, pi])
+                guess[self.ocp._xi[:, 2]] += 2 * np.pi * turns
         guess[:6] = x0
         far = (x0[0] + 1e3, x0[1] + 1e3, 0.0)  # the goal enters no cost (zero weights); kept away from psi's singularity
         T = self.step if self.scheme == "euler" else (self.n0 - 1) * self.step  # euler: the parameter is the node step
