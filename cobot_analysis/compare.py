@@ -233,12 +233,15 @@ def default_groups(meta: pd.DataFrame) -> list[str]:
 
 
 def group_keys(meta: pd.DataFrame, by: list[str]) -> pd.Series:
-    """One hashable key per row from the ``by`` columns (NaN-safe, end orientation rounded)."""
+    """One hashable key per row from the ``by`` columns (NaN-safe, end orientation rounded, whole numbers keyed
+    alike whether the table holds them as int or float: a scenario 1 of generate's paths is the means' 1.0)."""
     parts = []
     for c in by:
         col = meta[c]
         if c == "end_orientation":
             col = col.astype(float).round(3)
+        elif pd.api.types.is_float_dtype(col) and (col.dropna() % 1 == 0).all():
+            col = col.astype("Int64")
         parts.append(col.astype(str).where(col.notna(), "<NA>"))
     if not parts:
         return pd.Series(["all"] * len(meta), index=meta.index)

@@ -388,7 +388,8 @@ def generated_section(df: pd.DataFrame, convention, measured: dict[str, tuple[fl
         mine = ""
         if measured:
             mine = " {:.2f} | {:.2f} |".format(*measured[trial]) if trial in measured else " – | – |"
-        lines.append(f"| {trial} | {r.travel_time:.2f} | {r.mean_speed:.2f} |{mine} {r.cost:.3f} | {r.end_position_error:.3f} | "
+        cell = str(trial).replace("|", "\\|")  # a synthetic mean's name holds its grouping keys, joined by '|'
+        lines.append(f"| {cell} | {r.travel_time:.2f} | {r.mean_speed:.2f} |{mine} {r.cost:.3f} | {r.end_position_error:.3f} | "
                      f"{r.end_heading_error:.3f} | {'yes' if r.goal_reached else 'no'} | {r.status} |")
     n, reached = len(ends), int(ends["goal_reached"].sum())
     v = ends["mean_speed"]
