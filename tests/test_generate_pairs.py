@@ -144,6 +144,7 @@ def test_pair_study_without_table_means_exits_2_naming_the_files_and_the_remedy(
 @pytest.mark.parametrize("args, message", [
     (["--study", "pairs"], "--study pairs: unknown study; use --study walking-2020 or pair-carriage-2022, or give --start"),
     (["--study", "pair-carriage-2022", "--goal", "1", "1", "0"], "--goal does not apply to --study pair-carriage-2022"),
+    (["--study", "pair-carriage-2022", "--model", "all"], "--model all on --study pair-carriage-2022: its means are the table's"),
 ])
 def test_bad_study_options_exit_2_without_output(cli, pair_ws, tmp_path, args, message):
     import shutil
@@ -151,3 +152,16 @@ def test_bad_study_options_exit_2_without_output(cli, pair_ws, tmp_path, args, m
     ws = tmp_path / "ws"
     shutil.copytree(pair_ws / "average", ws / "average")
     assert message in _refused(cli, ws, *args)
+
+
+def test_a_model_run_that_missed_its_goal_is_left_out_of_the_comparison_means():
+    """fit-ioc's comparison table says 'Not converged (left out of the means)': a continuous path that missed its goal
+    (converged false, distances finite) is left out, not averaged in."""
+    from cobot_analysis.reports.models import summary_table
+
+    cmp = pd.DataFrame({"model": ["table OC (fitted)"] * 3, "trial": ["m1", "m2", "m3"], "orientation": "",
+                        "global_distance": [2.0, 4.0, 4.0], "d_xy": [0.1, 0.3, 5.0], "d_theta": [0.2, 0.2, 3.0],
+                        "converged": [True, True, False]})
+    text = summary_table(cmp, "theta")
+    assert "| table OC (fitted) | 2 | 0.200 ± 0.141 |" in text and "| table OC (fitted) | 2 | 0.200 ± 0.000 |" in text
+    assert "Not converged (left out of the means): 1 of 3 model runs (table OC (fitted))." in text

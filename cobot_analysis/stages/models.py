@@ -23,8 +23,8 @@ def generate(out: str | os.PathLike, *, model: str | None = None, weights: Any =
              v_nominal: float = 1.0, max_iter: int = 500, means: str | os.PathLike | None = None,
              convention: str | None = None, jobs: int | None = None, scheduler: str | None = None, force: bool = False) -> Outcome:
     """``generate`` (``generate-published``): ``generated.parquet`` and its results fragment. ``study``: every
-    walking-2020 condition, or every table mean of the pair study (``api.models.pair_cases``); ``model``
-    defaults to the study's (``STUDIES``: the table model on the pair study), else the improved one."""
+    walking-2020 condition, or every table mean of the pair study (``api.models.pair_cases``, the table model
+    only); ``model`` defaults to the study's (``STUDIES``), else the improved one."""
     from cobot_analysis import conventions
     from cobot_analysis.models.comparison import measured_pace
     from cobot_analysis.models.outputs import GENERATED
@@ -33,6 +33,9 @@ def generate(out: str | os.PathLike, *, model: str | None = None, weights: Any =
     if study is not None and study not in STUDIES:
         raise InputError(f"--study {study}: unknown study", remedy=f"use --study {' or '.join(STUDIES)}, or give --start")
     model = model or STUDIES.get(study, "improved")
+    if study == "pair-carriage-2022" and model != "table":
+        raise InputError(f"--model {model} on --study pair-carriage-2022: its means are the table's paths, whose orientation "
+                         "is no walker's heading", remedy="use --model table (the default with this study)")
     inputs = [Path(weights)] if weights and Path(weights).is_file() else []
     _, conv, _ = plan_generate(model, weights=weights, cases=[], duration=duration, convention=convention)  # options first
     cases, measured, keys = None, None, None
