@@ -165,3 +165,16 @@ def test_a_model_run_that_missed_its_goal_is_left_out_of_the_comparison_means():
     text = summary_table(cmp, "theta")
     assert "| table OC (fitted) | 2 | 0.200 ± 0.141 |" in text and "| table OC (fitted) | 2 | 0.200 ± 0.000 |" in text
     assert "Not converged (left out of the means): 1 of 3 model runs (table OC (fitted))." in text
+
+
+def test_published_table_model_rows_say_they_are_fit_iocs():
+    """compare-published on the pair study: its model rows are fit-ioc's comparison (same paths and means, measured on
+    the published data: d_xy 0.1724, d_theta 0.6937 both ways), not the walking study's d_gamma account."""
+    from types import SimpleNamespace
+
+    from cobot_analysis.reports.analysis import compare_markdown
+
+    rows = [{"comparison": "model", "entity": "table", "d_xy": 0.17, "d_theta": 0.69, "d_gamma": 2.4},
+            {"comparison": "symmetry-mean", "entity": "table", "d_xy": 0.09, "d_theta": 0.4, "d_gamma": 2.1}]
+    md = compare_markdown(SimpleNamespace(distances=pd.DataFrame(rows), convention="published", excluded={}), sd_ddof=0)
+    assert "the same paths and means, the same d_xy and d_theta" in md and "d_gamma differs" not in md
