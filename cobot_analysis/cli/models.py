@@ -48,9 +48,7 @@ class Format(str, Enum):
     "    --convention continuous",
     "cobot-analysis generate --out walking --start 2 3 0 \\",
     "    --weights walking/fit-ioc/weights.json",
-    "cobot-analysis generate --out walking --study walking-2020 --model clothoid",
-    "cobot-analysis generate --out pairs --study pair-carriage-2022 \\",
-    "    --weights pairs/fit-ioc/weights.json"))
+    "cobot-analysis generate --out walking --study walking-2020 --model clothoid"))
 def generate_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     model: Annotated[Optional[str], typer.Option("--model", "-m", help=f"Model: {', '.join(MODEL_CHOICES)}; default improved (table with --study pair-carriage-2022).")] = None,
