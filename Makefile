@@ -64,12 +64,21 @@ regression:
 regression-update:
 	$(PYTHON) tests/regression.py --update --jobs $(JOBS) $(STUDIES)
 
+# the speed targets of docs/benchmarks.md, each against its reference measured in the same run (the
+# bench extra installs the reference libraries kineticstoolkit and pyomeca); the suite (bench_suite.py)
+# and the Makefile targets (bench_make.py) are timed on their own
 bench:
+	$(PYTHON) -m pip install --quiet -e ".[dev,bench]"
+	$(PYTHON) benchmarks/bench_startup.py
+	$(PYTHON) benchmarks/bench_localisation.py
+	$(PYTHON) benchmarks/bench_import_minimal.py --scaling --one-pass --jobs $(JOBS)
 	$(PYTHON) benchmarks/bench_foundation.py --jobs $(JOBS)
 	$(PYTHON) benchmarks/bench_analysis.py
-	$(PYTHON) benchmarks/bench_models.py
-	$(PYTHON) benchmarks/bench_predict.py
-	$(PYTHON) benchmarks/bench_localisation.py
+	$(PYTHON) benchmarks/bench_models.py solver
+	$(CLI) import-published walking-2020 $(DATASETS)/walking-2020 --out $(WALK)
+	$(PYTHON) benchmarks/bench_predict.py windows $(WALK)/import-published/trajectories.parquet
+	$(PYTHON) benchmarks/bench_predict.py published-floor $(WALK)/import-published/trajectories.parquet
+	$(PYTHON) benchmarks/bench_predict.py goal $(WALK)/import-published/trajectories.parquet
 
 walking:
 	$(CLI) import-published walking-2020 $(DATASETS)/walking-2020 --out $(WALK)
