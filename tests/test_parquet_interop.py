@@ -21,7 +21,7 @@ pq = pytest.importorskip("pyarrow.parquet")
 
 from cobot_analysis.schema import SCHEMAS, TRAJECTORIES, Column, TableSchema, read_table, write_table  # noqa: E402
 
-STAGES = (["preprocess"], ["average"], ["compare"], ["stats"])
+STAGES = (["average"], ["compare"], ["stats"])  # after import and preprocess (fixture ``preprocessed``)
 
 
 def _run(*args) -> None:
@@ -32,17 +32,26 @@ def _run(*args) -> None:
 
 
 @pytest.fixture(scope="module")
-def workspaces(tmp_path_factory) -> dict[str, Path]:
-    """Two synthetic workspaces (walking, pairs) taken through import .. stats by the CLI."""
+def preprocessed(tmp_path_factory) -> dict[str, Path]:
+    """Two synthetic workspaces (walking, pairs) taken through import and preprocess by the CLI (all the slow
+    test below needs: .ci/run's slow selection then runs no analysis stage for it)."""
     root = tmp_path_factory.mktemp("interop")
     walking, pairs = root / "walking", root / "pairs"
     _run("synth", "walking", "--out", walking, "--subjects", "2", "--repetitions", "1", "--conditions", "3")
     _run("synth", "pairs", "--out", pairs, "--pairs", "1", "--goals", "2")
     for ws, study in ((walking, "synth-walking"), (pairs, "synth-pairs")):
         _run("import", ws / study / "protocol.yaml", "--out", ws)
+        _run("preprocess", "--out", ws)
+    return {"walking": walking, "pairs": pairs}
+
+
+@pytest.fixture(scope="module")
+def workspaces(preprocessed) -> dict[str, Path]:
+    """The same two workspaces taken on through average, compare and stats by the CLI."""
+    for ws in preprocessed.values():
         for stage in STAGES:
             _run(*stage, "--out", ws)
-    return {"walking": walking, "pairs": pairs}
+    return preprocessed
 
 
 def _parquet_files(ws: Path) -> dict[str, Path]:
@@ -120,12 +129,12 @@ def test_units_are_field_metadata_and_file_metadata(workspaces):
     assert pq.read_table(path).schema.field("y").metadata[b"unit"] == b"m"
 
 
-def test_published_and_synthetic_trajectories_concatenate(datasets, workspaces, tmp_path):
+def test_published_and_synthetic_trajectories_concatenate(datasets, preprocessed, tmp_path):
     paths = []
     for name in ("walking-2020", "pair-carriage-2022"):
         _run("import-published", name, datasets / name, "--out", tmp_path / name)
         paths.append(tmp_path / name / "import-published" / "trajectories.parquet")
-    paths += [workspaces[k] / "preprocess" / "trajectories.parquet" for k in ("walking", "pairs")]
+    paths += [preprocessed[k] / "preprocess" / "trajectories.parquet" for k in ("walking", "pairs")]
     frames = [pl.read_parquet(p) for p in paths]
     both = pl.concat(frames)
     assert both.height == sum(f.height for f in frames)
