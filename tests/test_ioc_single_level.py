@@ -204,6 +204,61 @@ def test_quadratic_bootstrap_on_known_curvatures():
     assert lo < m[:, 0].mean() < hi
 
 
+def test_bootstrap_reports_a_weight_held_by_a_search_limit():
+    """Exact quadratics whose minima lie beyond a2's upper limit (y = 3, where the fit stopped): with a4 moving
+    with a2 in the determined direction, every resample's refit is stopped by a2's limit, and a4's interval
+    (zero width before) is the box's, its verdict "not determined"; with a4 independent of a2 it keeps a
+    finite interval around its own minimum and its verdict."""
+    from cobot_analysis.models.ioc.uncertainty import Curvature, bootstrap, interval_verdicts
+
+    rng = np.random.default_rng(4)
+    n, y0 = 30, np.array([3.0, -1.0])
+    m = np.array([3.5, -0.5]) + 0.05 * rng.standard_normal((n, 2))  # each target's minimum, a2's beyond the box
+    for A, coupled in ((np.array([[4.0, 3.6], [3.6, 4.0]]), True), (np.diag([4.0, 1.0]), False)):
+        c = Curvature(("a2", "a4"), y0, 0.5 * np.einsum("ij,jk,ik->i", m - y0, A, m - y0), -(m - y0) @ A,
+                      np.repeat(A[None], n, 0), 0)
+        b = bootstrap(c, 200, seed=1)
+        assert b["on_box"] == 200 and "a2" in b["held"]  # a2 itself: every refit stopped at 1000
+        v = interval_verdicts({"a2": "determined (at the search limit 1000)", "a4": "determined"}, b["intervals"], b["held"])
+        assert v["a2"].startswith("not determined by these data (the search box holds its refit in 200 of 200 resamples: "
+                                  "a2 beyond its search limit 1000 in 200")
+        if coupled:  # a4 = its minimum given a2 = 3, the same in every resample: a zero-width interval, held by the box
+            assert b["intervals"]["a4"] == (1e-7, 1e3) and b["sd_log10"]["a4"] == np.inf
+            assert v["a4"].startswith("not determined by these data (the search box holds its refit in 200 of 200")
+        else:  # independent of a2: around the fit (intervals are centred on it), the spread of the targets' minima
+            lo, hi = np.log10(b["intervals"]["a4"])
+            assert lo < y0[1] < hi and 0.01 < hi - lo < 0.1
+            assert "a4" not in b["held"] and v["a4"] == "determined"
+
+
+def test_stencil_is_warm_from_the_centre_path_only(monkeypatch):
+    """The curvature's centre is solved from the two cold guesses, every other stencil point from the centre's
+    path only (one guess: that primal vector), as docs/methods.md sec. 6.3 says; ``solve_target``'s guesses:
+    a primal vector with the two cold guesses, a tuple exactly as given."""
+    import cobot_analysis.models.oc as oc
+    from cobot_analysis.models.ioc import uncertainty
+    from cobot_analysis.models.ioc.recovery import synthetic_targets
+
+    spec = replace(SPEC, fitted=("a2", "a4"))
+    targets = synthetic_targets(spec, W, 2, noise=0.01)
+    calls, solve = [], oc.solve_model
+
+    def recorded(*args, **kw):
+        sol = solve(*args, **kw)
+        calls.append((kw["guess"], sol.primal))
+        return sol
+
+    monkeypatch.setattr(oc, "solve_model", recorded)
+    uncertainty.curvature(spec, targets, dict(zip(names_for("improved"), map(float, W))))
+    assert len(calls) == 2 * 7 and [g for g, _ in calls[:2]] == [("rest", "line")] * 2
+    for i, (guess, _) in enumerate(calls[2:]):
+        assert isinstance(guess, tuple) and len(guess) == 1 and np.array_equal(guess[0], calls[i % 2][1])
+    primal = calls[0][1]
+    calls.clear()
+    solve_target(spec, W, targets[0], primal)
+    assert calls[0][0][0] is primal and calls[0][0][1:] == ("rest", "line")
+
+
 def test_subjects_differ_on_planted_weights():
     """Planted per-subject estimates with known standard errors: equal true weights reject at about
     the nominal 5 % over many draws; a weight that differs between subjects is detected; a subject

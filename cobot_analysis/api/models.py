@@ -669,10 +669,10 @@ def _weight_uncertainty(spec, targets: list, weights: dict[str, float], n_resamp
 
     c = unc.curvature(spec, targets, weights, checkpoint=checkpoint, resume=resume, pool=pool, chunks=chunks)
     b = unc.bootstrap(c, n_resamples, seed=seed)
-    verdicts = unc.interval_verdicts(unc.verdicts(spec.fitted, c.H, c.D, weights, lack=c.lack_of_fit), b["intervals"])
+    verdicts = unc.interval_verdicts(unc.verdicts(spec.fitted, c.H, c.D, weights, lack=c.lack_of_fit), b["intervals"], b["held"])
     return {"D": c.D, "verdicts": verdicts, "intervals": b["intervals"],
             "lack_of_fit": c.lack_of_fit,
-            "sd_log10": b["sd_log10"], "resamples": n_resamples, "on_box": b["on_box"], "eigenvalues": np.linalg.eigvalsh(c.H).tolist(),
+            "sd_log10": b["sd_log10"], "resamples": n_resamples, "on_box": b["on_box"], "held": b["held"], "eigenvalues": np.linalg.eigvalsh(c.H).tolist(),
             "failed_solves": c.failed}
 
 

@@ -172,8 +172,10 @@ def solve_pair_target(spec: IOCSpec, w: np.ndarray, t: PairTarget, guess):
 def solve_target(spec: IOCSpec, w: np.ndarray, t: Target, guess):
     """Lower level for one target: (distances dict with D, T, T0, T_at_bound and success, solution).
 
-    ``guess``: continuous convention, a primal vector or a cold guess name; published convention,
-    the solution at other weights (seeds every horizon of the duration rule) or None."""
+    ``guess``: continuous convention, a primal vector (solved from it and from the two cold guesses, the
+    least cost kept), a cold guess name (the two cold guesses) or a tuple of guesses (primal vectors or
+    cold guess names: exactly those);
+    published convention, the solution at other weights (seeds every horizon of the duration rule) or None."""
     from cobot_analysis.models.oc import resample, solve_model
     from cobot_analysis.models.oc.duration import initial_duration
 
@@ -201,7 +203,8 @@ def solve_target(spec: IOCSpec, w: np.ndarray, t: Target, guess):
     # the warm start and generate's two cold guesses, the least cost kept: a start facing away from the goal
     # has several local minima (turn left or right), and a warm start alone follows the one it came from
     cold = ("rest", "line")
-    sol = solve_model(model, t.start, t.goal, w, guess=cold if isinstance(guess, str | tuple) else [guess, *cold], **kw)
+    guesses = guess if isinstance(guess, tuple) else cold if isinstance(guess, str) else (guess, *cold)
+    sol = solve_model(model, t.start, t.goal, w, guess=guesses, **kw)
     if not sol.success:
         return _failed(), sol
     r = resample(sol, len(t.x))

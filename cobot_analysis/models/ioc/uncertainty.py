@@ -230,14 +230,18 @@ def verdicts(fitted, H: np.ndarray, D: float, weights: dict[str, float], rel_tol
     return out
 
 
-def interval_verdicts(verdicts: dict[str, str], intervals: dict[str, tuple[float, float]]) -> dict[str, str]:
-    """The verdicts with every "determined" weight whose 95 % interval reaches a search limit (within 0.01
-    in log10) turned into "not determined by these data" (module docstring)."""
+def interval_verdicts(verdicts: dict[str, str], intervals: dict[str, tuple[float, float]],
+                      held: dict[str, str] | None = None) -> dict[str, str]:
+    """The verdicts with every "determined" weight whose refit the search box holds (``bootstrap``'s
+    ``held``: why) or whose 95 % interval reaches a search limit (within 0.01 in log10) turned into "not
+    determined by these data" (module docstring)."""
     out = dict(verdicts)
     for n, v in verdicts.items():
         lo, hi = (math.log10(max(x, 1e-300)) for x in intervals.get(n, (math.nan, math.nan)))
         edge = LOG_BOUNDS[0] if abs(lo - LOG_BOUNDS[0]) < 0.01 else LOG_BOUNDS[1] if abs(hi - LOG_BOUNDS[1]) < 0.01 else None
-        if v.startswith("determined") and edge is not None:
+        if v.startswith("determined") and held and n in held:
+            out[n] = f"not determined by these data ({held[n]})"
+        elif v.startswith("determined") and edge is not None:
             out[n] = f"not determined by these data (its 95 % interval reaches the search limit {10.0 ** edge:g})"
     return out
 
@@ -266,52 +270,79 @@ def verdict_category(verdict: str) -> str:
 def quadratic_refit(c: Curvature, counts: np.ndarray, basis: np.ndarray | None = None) -> np.ndarray:
     """y minimising sum_i counts_i (g_i' dy + 0.5 dy' H_i dy) within the search box, dy = basis z
     (default: every direction) (module docstring)."""
+    return _refit(c, counts, basis)[0]
+
+
+def _refit(c: Curvature, counts: np.ndarray, basis: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    """(``quadratic_refit``'s y, the unconstrained Newton step's y or None when the model has no minimum along
+    the basis): the two differ where the search box holds the refit."""
     from scipy.optimize import LinearConstraint, minimize
 
     B = np.eye(len(c.y)) if basis is None else basis
     if B.shape[1] == 0:
-        return c.y.copy()
+        y = c.y.copy()
+        return y, y
     g = counts @ c.gi / counts.sum() @ B
     H = B.T @ (np.einsum("i,ijk->jk", counts, c.Hi) / counts.sum()) @ B
     H = (H + H.T) / 2
-    try:  # the Newton step, when H is positive definite and the step stays in the box
-        z = -np.linalg.solve(H, g)
-        y = c.y + B @ z
-        if np.all(np.linalg.eigvalsh(H) > 0) and np.all((y >= LOG_BOUNDS[0]) & (y <= LOG_BOUNDS[1])):
-            return y
+    free = None
+    try:  # the Newton step, when H is positive definite
+        if np.all(np.linalg.eigvalsh(H) > 0):
+            free = c.y + B @ -np.linalg.solve(H, g)
     except np.linalg.LinAlgError:
         pass
+    if free is not None and np.all((free >= LOG_BOUNDS[0]) & (free <= LOG_BOUNDS[1])):
+        return free, free
     box = LinearConstraint(B, LOG_BOUNDS[0] - c.y, LOG_BOUNDS[1] - c.y)
     r = minimize(lambda z: (g @ z + 0.5 * z @ H @ z, g + H @ z), np.zeros(B.shape[1]), jac=True,
                  method="SLSQP", constraints=[box], options={"ftol": 1e-12, "maxiter": 500})
-    return c.y + B @ r.x
+    return c.y + B @ r.x, free
 
 
 def bootstrap(c: Curvature, n_resamples: int = RESAMPLES, seed: int = 0, level: float = 0.95, rel_tol: float = 1e-3) -> dict:
     """Percentile intervals of the fitted weights over ``n_resamples`` resamples of the targets (module
     docstring): each resample refitted along the directions the full data determine (the sloppy ones
-    held); a weight that is not determined gets the search box as its interval. Returns
-    {"samples": (B, k) weights, "intervals": {name: (lo, hi)}, "sd_log10": {name: sd}, "on_box": resamples whose
-    quadratic has no minimum inside the search box (refit on its edge)}."""
+    held); a weight that is not determined gets the search box as its interval, and so does a determined
+    weight whose refit the search box holds (moves by more than 0.01 in log10 from the resample's own
+    minimum) in more than (1 - level) / 2 of the resamples: its interval would be the box's, not the data's.
+    Returns {"samples": (B, k) weights, "intervals": {name: (lo, hi)}, "sd_log10": {name: sd}, "on_box": resamples
+    whose quadratic has no minimum inside the search box (refit on its edge), "held": {name: why} for the
+    weights held by the box}."""
     rng = np.random.default_rng(seed)
     n = len(c.Di)
     _, V, sloppy = sloppy_directions(c.H, c.D, rel_tol)
     ok = determined(c.H, c.D, rel_tol) & (c.lack_of_fit <= ROUGH)
     B = V[:, ~sloppy & ok.any()]
-    S = np.array([quadratic_refit(c, np.bincount(rng.integers(0, n, n), minlength=n).astype(float), B)
-                  for _ in range(n_resamples)]).reshape(-1, len(c.y))
+    fits = [_refit(c, np.bincount(rng.integers(0, n, n), minlength=n).astype(float), B) for _ in range(n_resamples)]
+    S = np.array([y for y, _ in fits]).reshape(-1, len(c.y))
+    on_box = sum(free is None or y is not free for y, free in fits) if ok.any() else 0
+    # per weight, the resamples whose refit the box moved from their own minimum (none: every weight), and why: the
+    # limits their minimum lies beyond, or no minimum along the determined directions
+    lo, hi = LOG_BOUNDS
+    moved = np.array([np.ones(len(c.y), bool) if free is None else np.abs(y - free) > 0.01 for y, free in fits]).reshape(S.shape)
+    beyond = np.array([np.zeros(len(c.y)) if free is None else np.where(free > hi, hi, np.where(free < lo, lo, 0.0))
+                       for _, free in fits]).reshape(S.shape)
+    held = {}
+    for j, name in enumerate(c.fitted):
+        rows = moved[:, j]
+        if ok[j] and rows.sum() > (1 - level) / 2 * len(S):
+            why = [f"{c.fitted[i]} beyond its search limit {10.0 ** b:g} in {int((beyond[rows, i] == b).sum())}"
+                   for i in range(len(c.y)) for b in (lo, hi) if (beyond[rows, i] == b).any()]
+            none = sum(fits[r][1] is None for r in np.flatnonzero(rows))
+            why += [f"no minimum along the determined directions in {none}"] if none else []
+            held[name] = f"the search box holds its refit in {int(rows.sum())} of {len(S)} resamples: {', '.join(why)}"
+    free = ok & np.array([name not in held for name in c.fitted])
     # centred on the fit: a fit stopped short of its optimum (budget, tolerance) moves every resample by the
     # same full-data step, which is not sampling spread
-    on_box = int(np.sum(np.any((np.abs(S - LOG_BOUNDS[0]) < 0.01) | (np.abs(S - LOG_BOUNDS[1]) < 0.01), axis=1))) if ok.any() else 0
     S = np.clip(S - quadratic_refit(c, np.ones(n), B) + c.y, *LOG_BOUNDS)
     a = 100 * (1 - level) / 2
     W = 10.0 ** S
     box = (10.0 ** LOG_BOUNDS[0], 10.0 ** LOG_BOUNDS[1])
     return {"samples": W,
-            "intervals": {name: (float(np.percentile(W[:, j], a)), float(np.percentile(W[:, j], 100 - a))) if ok[j] else box
+            "intervals": {name: (float(np.percentile(W[:, j], a)), float(np.percentile(W[:, j], 100 - a))) if free[j] else box
                           for j, name in enumerate(c.fitted)},
-            "sd_log10": {name: float(S[:, j].std(ddof=1)) if ok[j] and len(S) > 1 else math.inf for j, name in enumerate(c.fitted)},
-            "on_box": on_box}
+            "sd_log10": {name: float(S[:, j].std(ddof=1)) if free[j] and len(S) > 1 else math.inf for j, name in enumerate(c.fitted)},
+            "on_box": on_box, "held": held}
 
 
 def subjects_differ(estimates: dict[str, dict[str, float]], sd_log10: dict[str, dict[str, float]],
