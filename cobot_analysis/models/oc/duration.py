@@ -163,13 +163,14 @@ class HorizonSolver:
         return self.solved[T]
 
 
-def nelder_mead_duration(solve: HorizonSolver) -> OCPSolution:
+def nelder_mead_duration(solve: HorizonSolver, start: int | None = None) -> OCPSolution:
     """The improved model's published duration rule (module docstring); returns the solution at
-    the chosen T (check ``success``)."""
+    the chosen T (check ``success``). ``start``: the search started at that horizon instead of the
+    authors' T_guess (a check of a horizon chosen before, e.g. at other weights)."""
     from scipy.optimize import minimize
 
     d = math.hypot(solve.goal[0] - solve.start[0], solve.goal[1] - solve.start[1])
-    T_guess = int(d * NODES_PER_METRE * 2 / 3)
+    T_guess = int(d * NODES_PER_METRE * 2 / 3) if start is None else int(start)
 
     def f(z: np.ndarray) -> float:
         T = int(z[0])
