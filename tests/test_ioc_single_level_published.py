@@ -99,10 +99,10 @@ def test_a_rounding_step_is_a_repeated_point_of_the_arclength_resampling():
 
 
 def test_duration_rule_started_at_a_held_horizon_checks_it():
-    """The published fit's last duration rule starts its search at the held horizon, with the held solution as
+    """The published fit's last duration rule is a check of the held horizon, with the held solution as
     its solve there (``oc.solve_model``'s ``start_horizon``): where that horizon is the rule's choice from the
-    authors' T_guess, it is kept and its solution returned as is; started 40 nodes short of it, with a solution
-    of that horizon, the search still moves to the rule's choice."""
+    authors' T_guess, it is kept and its solution returned as is; 40 nodes short of it, with a solution of that
+    horizon, the criterion is lower a node further on and the search moves to the rule's choice."""
     from cobot_analysis.conventions import PUBLISHED
     from cobot_analysis.models.oc import solve_model
 

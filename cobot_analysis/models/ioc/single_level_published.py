@@ -22,9 +22,10 @@ manifold to first order). The trust-region model's Hessian is the finite-differe
 that gradient over corrected branches at the start, updated by damped BFGS after each accepted
 step. Afterwards, as the bi-level fit: the lower levels re-solved at the fitted weights on the
 held horizons (``held_objective``), then the duration rule run again there (``objective``,
-``horizons_changed``), its search started at the held horizon with the held solution as its solve there:
-a check that the held horizon is still the rule's choice near it (the search from the authors' T_guess, as
-at the start, gave the same horizons and D to 6e-12 on the walking means, in 3.5 times the time).
+``horizons_changed``) as a check of the held horizon, the held solution its solve there: kept when the
+rule's criterion J/T is no lower one node either side (one or two solves), else the rule's search started
+there (the search from the authors' T_guess, as at the start, gave the same horizons and D to 6e-12 on the
+walking means).
 """
 
 from __future__ import annotations
@@ -312,8 +313,7 @@ def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, chunks
             radius /= 4
     timing["steps"] = time.perf_counter() - t0 - timing["start"]
     # as the bi-level fit: the lower levels re-solved at the fitted weights on the held horizons (warm from the
-    # branches' paths), then the duration rule again there, its search started at the held horizon with that
-    # solution (``_rule_chunk``: a check that the held horizon is still the rule's, not a new search from T_guess)
+    # branches' paths), then the duration rule again there as a check of the held horizons (``_rule_chunk``)
     seeds = run(_seed_chunk, lambda p: (held, tuple(fi), w, [(targets[i], horizons[i], branches[i]["v"]) for i in p]))
     resolved = run(evaluate_chunk, lambda p: (held, w, [targets[i] for i in p], [seeds[i] for i in p]))
     held_terms = [d for d, _ in resolved]
@@ -339,8 +339,8 @@ def _n_cons(spec: IOCSpec, horizon: int) -> int:
 
 def _rule_chunk(task) -> list:
     """Worker task: task = (spec, w, [(target, held solution or None), ...]); per target (distances, solution)
-    of the duration rule at w with its search started at the held solution's horizon, that solution its solve
-    there (``oc.solve_model``'s ``start_horizon``; without a held solution, the rule from T_guess)."""
+    of the duration rule at w as a check of the held solution's horizon, that solution its solve there
+    (``oc.solve_model``'s ``start_horizon``; without a held solution, the rule from T_guess)."""
     from cobot_analysis.conventions import PUBLISHED
     from cobot_analysis.models.ioc.fit import published_terms, solve_target
     from cobot_analysis.models.oc import solve_model

@@ -28,9 +28,10 @@ def solve_model(model: str, start, goal, weights, *, convention="continuous", n_
     duration rule (``duration.nelder_mead_duration`` / ``last_node_duration``), every horizon from
     rest unless ``warm`` (then from the nearest horizon solved) or ``seed`` (a solution of other
     weights, see ``duration.HorizonSolver``); ``horizon``: solve that number of steps only, instead of
-    the duration rule (the IOC holds the rule's horizon between evaluations); ``start_horizon``: the
-    rule's search started at that horizon instead of the authors' guess, ``seed`` taken as its solution
-    there when it has that horizon (a check that a horizon chosen before is still the rule's);
+    the duration rule (the IOC holds the rule's horizon between evaluations); ``start_horizon``: a check
+    that a horizon chosen before is still the rule's (``duration.nelder_mead_duration``'s ``start``: kept
+    when the rule's criterion is no lower one node either side, else the search from there), ``seed``
+    taken as its solution there when it has that horizon;
     ``fallback``: IPOPT when fatrop fails. The solution has one node per step.
     """
     from cobot_analysis import conventions
