@@ -663,8 +663,8 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
 def _weight_uncertainty(spec, targets: list, weights: dict[str, float], n_resamples: int, *, seed: int = 0,
                        checkpoint: Path | None = None, resume: bool = False, pool=None, chunks: int = 2) -> dict:
     """Verdict and bootstrap interval of each fitted weight at ``weights`` (docs/methods.md sec. 6.3,
-    ``models.ioc.uncertainty``): {"D", "verdicts", "intervals", "sd_log10", "resamples", "eigenvalues",
-    "failed_solves"}."""
+    ``models.ioc.uncertainty``): {"D", "verdicts", "intervals", "lack_of_fit", "sd_log10", "resamples", "on_box",
+    "held" (the weights the search box holds, with why), "eigenvalues", "failed_solves"}."""
     from cobot_analysis.models.ioc import uncertainty as unc
 
     c = unc.curvature(spec, targets, weights, checkpoint=checkpoint, resume=resume, pool=pool, chunks=chunks)
