@@ -3,7 +3,8 @@
 #                       single-level, each with the bootstrap of its weights), prediction, report;
 #                       the model stages under both conventions (continuous -> STAGE/, published -> STAGE-published/)
 #   make walking-subjects  per-subject IOC fits on walking-2020 (after walking)
-#   make pairs          published pair-carriage-2022 (means) and the per-trial synthetic pair study
+#   make pairs          published pair-carriage-2022 (means; the table model generated on every table mean under both
+#                       conventions, as on walking) and the per-trial synthetic pair study
 #                       (prediction on every 10th synthetic table trial: SPREDICT_ARGS= for all 1080)
 #   make localisation   synthetic robot runs (ROS1, ROS2, MCAP); real runs: make localisation BAGS="a.bag b.bag"
 #   make all            all of them, then docs/results.md and docs/schemas.md
@@ -64,12 +65,21 @@ regression:
 regression-update:
 	$(PYTHON) tests/regression.py --update --jobs $(JOBS) $(STUDIES)
 
+# the speed targets of docs/benchmarks.md, each against its reference measured in the same run (the
+# bench extra installs the reference libraries kineticstoolkit and pyomeca); the suite (bench_suite.py)
+# and the Makefile targets (bench_make.py) are timed on their own
 bench:
+	$(PYTHON) -m pip install --quiet -e ".[dev,bench]"
+	$(PYTHON) benchmarks/bench_startup.py
+	$(PYTHON) benchmarks/bench_localisation.py
+	$(PYTHON) benchmarks/bench_import_minimal.py --scaling --one-pass --jobs $(JOBS)
 	$(PYTHON) benchmarks/bench_foundation.py --jobs $(JOBS)
 	$(PYTHON) benchmarks/bench_analysis.py
-	$(PYTHON) benchmarks/bench_models.py
-	$(PYTHON) benchmarks/bench_predict.py
-	$(PYTHON) benchmarks/bench_localisation.py
+	$(PYTHON) benchmarks/bench_models.py solver
+	$(CLI) import-published walking-2020 $(DATASETS)/walking-2020 --out $(WALK)
+	$(PYTHON) benchmarks/bench_predict.py windows $(WALK)/import-published/trajectories.parquet
+	$(PYTHON) benchmarks/bench_predict.py published-floor $(WALK)/import-published/trajectories.parquet
+	$(PYTHON) benchmarks/bench_predict.py goal $(WALK)/import-published/trajectories.parquet
 
 walking:
 	$(CLI) import-published walking-2020 $(DATASETS)/walking-2020 --out $(WALK)
@@ -100,12 +110,14 @@ pairs: pairs-published pairs-synthetic
 pairs-published:
 	$(CLI) import-published pair-carriage-2022 $(DATASETS)/pair-carriage-2022 --out $(PAIRS)
 	$(CLI) average --out $(PAIRS)
-	$(CLI) compare --out $(PAIRS)
-	$(CLI) compare --out $(PAIRS) --convention published
-	$(CLI) stats --out $(PAIRS)
-	$(CLI) reconstruct --out $(PAIRS) --wrt-table $(DATASETS)/pair-carriage-2022
 	$(CLI) fit-ioc --out $(PAIRS) --model table --jobs $(JOBS) $(IOC_ARGS)
 	$(CLI) fit-ioc --out $(PAIRS) --model table --convention published --jobs $(JOBS) $(PUBLISHED_TABLE_IOC_ARGS) $(PUBLISHED_IOC_ARGS)
+	$(CLI) generate --out $(PAIRS) --study pair-carriage-2022 --weights $(PAIRS)/fit-ioc/weights.json --jobs $(JOBS)
+	$(CLI) generate --out $(PAIRS) --study pair-carriage-2022 --convention published --jobs $(JOBS)
+	$(CLI) compare --out $(PAIRS) --against $(PAIRS)/generate/generated.parquet --comparison model
+	$(CLI) compare --out $(PAIRS) --against $(PAIRS)/generate-published/generated.parquet --comparison model --convention published
+	$(CLI) stats --out $(PAIRS)
+	$(CLI) reconstruct --out $(PAIRS) --wrt-table $(DATASETS)/pair-carriage-2022
 	$(CLI) fit-ioc --out $(PAIRS) --model coupled --jobs $(JOBS) $(COUPLED_IOC_ARGS)
 	$(CLI) fit-ioc --out $(PAIRS) --model table --method single-level --no-compare --jobs $(JOBS) $(SINGLE_IOC_ARGS)
 	$(CLI) fit-ioc --out $(PAIRS) --model table --method single-level --convention published --no-compare --jobs $(JOBS) $(SINGLE_IOC_ARGS)

@@ -15,21 +15,17 @@ from __future__ import annotations
 import argparse
 import platform
 import shutil
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def _fallback_table(path: Path) -> None:
-    sys.path.insert(0, str(ROOT / "tests"))
-    from synthetic_tables import pair_table
-
     from cobot_analysis.schema import TRAJECTORIES, write_table
+    from cobot_analysis.synth.tables import pair_table
 
     write_table(pair_table(seed=0, n_pairs=20, goals=9, n=500), path, TRAJECTORIES)
 

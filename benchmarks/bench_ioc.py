@@ -16,7 +16,8 @@ then the bi-level fit's weights re-solved with the single-level fit's paths as a
 durations (no pace in either method). ``--synthetic N``: N paths of the model at the walking-2021 weights
 (noise ``--noise`` m), the fit started at twice the fitted weights. The single-level fit
 (``single_level.fit_feasible_path``) runs first, then the bi-level fit, each with its lower levels (and
-the single-level Newton corrections) on ``--jobs`` worker processes (1: inline). Prints wall and CPU time (this process and its workers), the exact D (lower level re-solved),
+the single-level Newton corrections) on ``--jobs`` worker processes (1: inline), in ``--chunks`` tasks (default
+4 x jobs, as ``fit-ioc``). Prints wall and CPU time (this process and its workers), the exact D (lower level re-solved),
 the weights, the peak resident memory of each, and the time ratio; ``--paths N`` takes N targets spread
 over the list.
 """
@@ -75,6 +76,7 @@ def main() -> None:
     ap.add_argument("--fit", help="the fitted set (default: a2,a3,a4; --convention published: held_weights' complement)")
     ap.add_argument("--noise", type=float, default=0.0)
     ap.add_argument("--jobs", type=int, default=2, help="worker processes of the bi-level fit")
+    ap.add_argument("--chunks", type=int, help="tasks per batch of lower levels (default: 4 x --jobs, as fit-ioc)")
     ap.add_argument("--skip-bilevel", action="store_true")
     ap.add_argument("--restarts", type=int, default=2, help="single-level restarts on re-solved paths (fit_feasible_path)")
     ap.add_argument("--convention", default="continuous", choices=("continuous", "published"),
@@ -84,6 +86,7 @@ def main() -> None:
                          "them (start: WS/fit-ioc/weights.json), each with its --bootstrap")
     ap.add_argument("--bootstrap", type=int, default=200, help="with --per-subject: resamples after each fit (0: none)")
     args = ap.parse_args()
+    args.chunks = args.chunks or 4 * args.jobs
     if args.fit is None:
         args.fit = "" if args.convention == "published" else "a2,a3,a4"
     if args.per_subject is not None:
@@ -113,7 +116,9 @@ def main() -> None:
         df = pd.read_parquet(args.means)
         targets = targets_from_table(df[df["kind"] == "mean"] if "kind" in df else df, entity="walker", goal=WALKING_GOAL)
     if args.paths and args.paths < len(targets):
-        targets = [targets[i] for i in np.linspace(0, len(targets) - 1, args.paths).astype(int)]
+        keep = np.linspace(0, len(targets) - 1, args.paths).astype(int)
+        targets = [targets[i] for i in keep]
+        measured_T = None if measured_T is None else np.asarray(measured_T)[keep]
     rows = []
     t0, c0 = time.perf_counter(), cpu()
     published = spec.convention == "published"
@@ -121,9 +126,9 @@ def main() -> None:
         if published:
             from cobot_analysis.models.ioc.single_level_published import fit_held_horizons
 
-            s = fit_held_horizons(spec, targets, pool=pool, chunks=args.jobs)
+            s = fit_held_horizons(spec, targets, pool=pool, chunks=args.chunks)
         else:
-            s = fit_feasible_path(spec, targets, pool=pool, chunks=args.jobs, restarts=args.restarts, measured_T=measured_T)
+            s = fit_feasible_path(spec, targets, pool=pool, chunks=args.chunks, restarts=args.restarts, measured_T=measured_T)
     ts, cs = time.perf_counter() - t0, cpu() - c0
     mem = lambda who: resource.getrusage(who).ru_maxrss / 1024  # noqa: E731  MB (Linux: kB)
     mem_s = (mem(resource.RUSAGE_SELF), mem(resource.RUSAGE_CHILDREN))
@@ -137,8 +142,8 @@ def main() -> None:
     if not args.skip_bilevel:
         t0, c0 = time.perf_counter(), cpu()
         with executor(args.jobs) as pool:
-            b = fit(spec, targets, pool=pool, chunks=4 * args.jobs, measured_T=measured_T)
-            crossed = math.nan if published else cross_check(spec, targets, s, b.weights, pool=pool, chunks=args.jobs)
+            b = fit(spec, targets, pool=pool, chunks=args.chunks, measured_T=measured_T)
+            crossed = math.nan if published else cross_check(spec, targets, s, b.weights, pool=pool, chunks=args.chunks)
         tb, cb = time.perf_counter() - t0, cpu() - c0
         rows.append(("bilevel", tb, cb, b.objective, b.weights, f"{b.evaluations} evaluations; peak memory of the largest worker "
                      f"so far {mem(resource.RUSAGE_CHILDREN):.0f} MB"))
@@ -147,7 +152,7 @@ def main() -> None:
     print("| method | wall (s) | CPU (s) | D | " + " | ".join(spec.fitted) + " | notes |")
     print("|---|---|---|---|" + "---|" * len(spec.fitted) + "---|")
     for m, t, c, D, wd, note in rows:
-        print(f"| {m} | {t:.1f} | {c:.1f} | {D:.4f} | " + " | ".join(f"{wd[n]:.4g}" for n in spec.fitted) + f" | {note} |")
+        print(f"| {m} | {t:.1f} | {c:.1f} | {D:.5f} | " + " | ".join(f"{wd[n]:.5g}" for n in spec.fitted) + f" | {note} |")
     if not args.skip_bilevel:
         print(f"ratios bilevel / single-level: wall {tb / ts:.2f}, CPU {cb / cs:.2f}; D single-level / bilevel: {s.objective / b.objective:.4f}")
         print(f"bilevel weights re-solved with the single-level paths as a further warm start (cross_check): D {crossed:.4f}; "

@@ -233,12 +233,15 @@ def default_groups(meta: pd.DataFrame) -> list[str]:
 
 
 def group_keys(meta: pd.DataFrame, by: list[str]) -> pd.Series:
-    """One hashable key per row from the ``by`` columns (NaN-safe, end orientation rounded)."""
+    """One hashable key per row from the ``by`` columns (NaN-safe, end orientation rounded, whole numbers keyed
+    alike whether the table holds them as int or float: a scenario 1 of generate's paths is the means' 1.0)."""
     parts = []
     for c in by:
         col = meta[c]
         if c == "end_orientation":
             col = col.astype(float).round(3)
+        elif pd.api.types.is_float_dtype(col) and (col.dropna() % 1 == 0).all():
+            col = col.astype("Int64")
         parts.append(col.astype(str).where(col.notna(), "<NA>"))
     if not parts:
         return pd.Series(["all"] * len(meta), index=meta.index)
@@ -271,8 +274,11 @@ def _rows(comparison: str, a: TrajectorySet, b: TrajectorySet, ia, ib) -> pd.Dat
     return out
 
 
-def individual_vs_mean(trials: TrajectorySet, means: TrajectorySet, by: list[str] | None = None) -> pd.DataFrame:
-    """Each trajectory against the mean of its group (the ``by`` columns, default ``default_groups``)."""
+def individual_vs_mean(trials: TrajectorySet, means: TrajectorySet, by: list[str] | None = None, *,
+                       members: bool = True) -> pd.DataFrame:
+    """Each trajectory against the mean of its group (the ``by`` columns, default ``default_groups``);
+    ``members``: the trajectories are members of the means, compared only with ``comparable_means`` (a
+    model path is no member: every mean of its group is compared with it, a mean of one trial too)."""
     by = by or default_groups(trials.meta)
     absent = [c for c in by if c not in means.meta.columns]
     if absent:
@@ -284,7 +290,8 @@ def individual_vs_mean(trials: TrajectorySet, means: TrajectorySet, by: list[str
     tkey = group_keys(trials.meta, by)
     ib = lookup.reindex(tkey.to_numpy()).to_numpy()
     ok = ~np.isnan(ib)
-    ok[ok] = comparable_means(means.meta)[ib[ok].astype(int)]
+    if members:
+        ok[ok] = comparable_means(means.meta)[ib[ok].astype(int)]
     return _rows("individual-mean", trials, means, np.flatnonzero(ok), ib[ok].astype(int))
 
 
@@ -322,7 +329,7 @@ def against_vs_mean(other: TrajectorySet, means: TrajectorySet, by: list[str], l
                          remedy="give the table those columns (as generate and the trajectory tables have)")
     hit = group_keys(other.meta, cols).isin(set(group_keys(means.meta, cols)))
     if hit.all():
-        return individual_vs_mean(other, means, cols).assign(comparison=label)
+        return individual_vs_mean(other, means, cols, members=False).assign(comparison=label)
     differ = []
     for c in cols:
         theirs = {str(v) for v in other.meta.loc[~hit.to_numpy(), c].dropna()}
@@ -336,7 +343,7 @@ def against_vs_mean(other: TrajectorySet, means: TrajectorySet, by: list[str], l
                          remedy="compare with the means of the same study and grouping (--by, --means), or fix those columns")
     warn(f"{path}: {int((~hit).sum())} of its {len(other)} trajectories match no mean on {', '.join(cols)} and are not "
          f"compared: {why}")
-    return individual_vs_mean(other, means, cols).assign(comparison=label)
+    return individual_vs_mean(other, means, cols, members=False).assign(comparison=label)
 
 
 def any_vs_any(ts: TrajectorySet, same: list[str], differ: list[str] = (), comparison: str = "any-any",

@@ -76,7 +76,8 @@ def test_generate_summary_states_the_time_law_beside_the_subjects():
 
     ends = pd.DataFrame({"trial": ["m_a", "m_b", "m_c"], "condition": ["a", "b", "c"], "goal_reached": [True, True, False],
                          "mean_speed": [0.4, 0.8, 2.5]})
-    r = GenerateResult(ends, ["m"], None, [], "continuous", 500, 100, {"a": (3.0, 0.45), "b": (2.0, 0.9)})
+    cases = [(c, (-1.0, -1.0, 0.0), (0.0, 0.0, 1.0)) for c in "abc"]  # the subjects' pace is per case (trial m_<case>)
+    r = GenerateResult(ends, ["m"], None, cases, "continuous", 500, 100, {"a": (3.0, 0.45), "b": (2.0, 0.9)})
     assert r.summary() == ("3 trajectories, 1 not reaching their goal (results.md), mean speed 0.4-2.5 m/s "
                            "(2 of 3 outside 0.5-2 m/s; the subjects' 1 of 2)")
     published = GenerateResult(ends.iloc[:1], ["m"], "walking-2021", [], "published", 500, 100)

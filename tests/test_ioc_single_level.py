@@ -552,3 +552,23 @@ def test_feasible_path_fits_the_time_gauge_to_measured_durations():
     for n in ("a1", *SPEC.fitted):
         scale = 1.25 ** 4 if n in ("a1", "a2", "a3") else 1.0
         assert abs(r.weights[n] / (W[names.index(n)] * scale) - 1) < 0.01, (n, r.weights[n], W[names.index(n)] * scale)
+
+
+def test_probe_chunk_solves_warm_from_the_given_path():
+    """An escape probe's lower level (``probe_chunk``): warm from a path solved at the same weights it returns
+    that path and the D of ``fit.solve_target``; at weights 30 times larger in a2 it converges to a path of
+    those weights (another D; here the least-cost one, so the same as solve_target's from that path and the
+    two cold guesses)."""
+    from cobot_analysis.models.ioc.recovery import synthetic_targets
+    from cobot_analysis.models.ioc.single_level import probe_chunk
+
+    t = synthetic_targets(SPEC, W, 2)[1]
+    d, sol = solve_target(SPEC, W, t, ("rest", "line"))
+    (D, z), = probe_chunk((SPEC, W, [(t, sol.primal)]))
+    assert D == pytest.approx(d["D"], rel=1e-9) and np.abs(z - sol.primal).max() < 1e-6
+    w2 = W.copy()
+    w2[2] *= 30
+    (D2, z2), = probe_chunk((SPEC, w2, [(t, sol.primal)]))
+    d2, sol2 = solve_target(SPEC, w2, t, sol.primal)  # warm and the two cold guesses, the least cost kept
+    assert abs(D2 - d["D"]) > 1e-4 and np.isfinite(D2)
+    assert np.abs(sol2.primal - z2).max() < 1e-6 and D2 == pytest.approx(d2["D"], rel=1e-9)  # here the least-cost one

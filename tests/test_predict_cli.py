@@ -415,8 +415,10 @@ def test_published_walking_trajectories_under_both_conventions(cli, tmp_path, da
         assert len(m[conv]) == 5
         assert (m[conv]["oc"] > m[conv]["cv"]).all()
     np.testing.assert_allclose(m["continuous"]["oc"], m["published"]["oc"], rtol=0.15)
-    assert m["published"]["oc"].mean() == pytest.approx(0.0895, rel=0.02)  # 2026-11-22; tolerance of an OC solve
-    assert m["continuous"]["oc"].mean() == pytest.approx(0.0877, rel=0.02)  # 2026-11-24
+    # 2026-11-25, positions-only windows tracking the direction of travel and the continuous prediction starting on
+    # the state estimate at k (docs/methods.md sec. 7; before: 0.0895 and 0.0877); tolerance of an OC solve
+    assert m["published"]["oc"].mean() == pytest.approx(0.0877, rel=0.02)
+    assert m["continuous"]["oc"].mean() == pytest.approx(0.0811, rel=0.02)
     np.testing.assert_array_equal(m["published"]["cv"], m["continuous"]["cv"])
 
 

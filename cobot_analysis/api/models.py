@@ -36,7 +36,17 @@ class GenerateResult:
     convention: str
     n_samples: int
     n_intervals: int
-    measured: dict[str, tuple[float, float]] | None = None  # condition -> the subjects' (travel time, mean speed)
+    measured: dict[str, tuple[float, float]] | None = None  # case -> the subjects' (travel time, mean speed)
+    study: str | None = None  # the study whose cases these are (walking-2020, pair-carriage-2022), None: paths asked for
+
+    def trial_of(self, model: str, case: str) -> str:
+        """The ``trial`` of ``model``'s path for ``case`` (a walking condition, a pair-study mean, '' alone)."""
+        return f"{model}_{case}" if case else model
+
+    def measured_by_trial(self) -> dict[str, tuple[float, float]]:
+        """trial -> the subjects' (travel time, mean speed) of its case, for the paths whose case has them."""
+        return {self.trial_of(m, c): self.measured[c] for m in self.models for c, _, _ in self.cases
+                if c in (self.measured or {})}
 
     def summary(self) -> str:
         """Paths, how many missed their goal, and the time law: mean speed (m/s), with several paths how many lie
@@ -48,7 +58,8 @@ class GenerateResult:
         pace = ""
         if n > 1:
             pace = f" ({int(np.sum((v < 0.5) | (v > 2.0)))} of {n} outside 0.5-2 m/s"
-            mine = [self.measured[c][1] for c in ends["condition"].astype(str) if c in (self.measured or {})]
+            measured = self.measured_by_trial()
+            mine = [measured[t][1] for t in ends["trial"].astype(str) if t in measured]
             if mine:
                 m = np.asarray(mine, float)
                 pace += f"; the subjects' {int(np.sum((m < 0.5) | (m > 2.0)))} of {len(m)}"
@@ -71,9 +82,11 @@ class GenerateResult:
         from cobot_analysis.reports.figures import paths
 
         styles = dict(zip(self.models, ["-", "--", ":", "-.", (0, (3, 1, 1, 1, 1, 1))]))
+        case = {self.trial_of(m, c): c for m in self.models for c, _, _ in self.cases}
         panels = []
-        for condition, c in self.generated.sort_values("sample").groupby("condition", sort=False):
-            panels.append({"title": str(condition) or "path", "means": [
+        df = self.generated.sort_values("sample")
+        for label, c in df.groupby(df["trial"].map(case), sort=False):
+            panels.append({"title": str(label) or "path", "means": [
                 (g["x"].to_numpy(), g["y"].to_numpy(), g["theta"].to_numpy(), "walker", styles.get(m, "-"), str(m))
                 for m, g in c.groupby("model", sort=False)]})
         return {"paths": paths(panels, title=f"generated paths ({self.convention} convention)",
@@ -122,15 +135,18 @@ def generate(model: str = "improved", *, start: tuple[float, float, float] | Non
              goal: tuple[float, float, float] | None = None, cases: list[tuple[str, tuple, tuple]] | None = None,
              study: str | None = None, weights: Any = None, samples: int = 500, intervals: int = 100,
              duration: str | None = None, v_nominal: float = 1.0, max_iter: int = 500, convention: str | None = None,
-             measured: dict | None = None, jobs: int | None = None, scheduler: str | None = None) -> GenerateResult:
+             measured: dict | None = None, keys: dict[str, dict] | None = None, jobs: int | None = None,
+             scheduler: str | None = None) -> GenerateResult:
     """Paths of a walking-path model (``unicycle``, ``clothoid``, ``mombaur``, ``improved``, ``table`` or
     ``all``) from ``start`` to ``goal`` (default: the walking goal (0, 0, pi/2)), or for every ``(condition,
     start, goal)`` of ``cases`` (``walking_cases``). ``weights``: a preset, a fit-ioc weights.json or a
     mapping; ``convention``: default, the one the weights were made under (docs/methods.md sec. 11). Every
     path says whether it reached its goal and its mean speed (``models.goal_check``, ``mean_speed``); with
     a ``study``, a path that does not converge or reach its goal is flagged (``converged`` false, ``status``);
-    one path alone is an ``InputError`` naming ``--goal``. ``measured``: condition -> the subjects'
-    (travel time, mean speed), reported beside the model's (``comparison.measured_pace``).
+    one path alone is an ``InputError`` naming ``--goal``. ``measured``: case (condition, or the mean of
+    ``pair_cases``) -> the subjects' (travel time, mean speed), reported beside the model's
+    (``comparison.measured_pace``, ``comparison.pair_pace``); ``keys``: case -> the trajectory columns its
+    paths carry (``pair_cases``: the pair study's goal, direction, scenario, ..., entity table).
 
         >>> from cobot_analysis.api import generate
         >>> result = generate("clothoid", start=(-1.5, -3.4, 0.0), samples=50, jobs=1)
@@ -158,10 +174,11 @@ def generate(model: str = "improved", *, start: tuple[float, float, float] | Non
               {**kw, "trial": f"{m}_{c}" if c else m, "condition": c, "study": study or "model"})
              for m in models for c, s, g in cases]
     frames = map_tasks(_generate_task, tasks, jobs=jobs, scheduler=scheduler, description="generate")
+    frames = [f.assign(**keys[t[4]["condition"]]) if keys and t[4]["condition"] in keys else f for f, t in zip(frames, tasks)]
     df = pd.concat(frames, ignore_index=True)
     if study is None and len(cases) == 1:
         refuse_unreached(df)  # one path asked for: exit 2, nothing written
-    return GenerateResult(df, models, weights, cases, conv.name, samples, intervals, measured)
+    return GenerateResult(df, models, weights, cases, conv.name, samples, intervals, measured, study)
 
 
 def plan_generate(model: str, *, weights: Any = None, start: tuple | None = None, goal: tuple | None = None,
@@ -223,6 +240,27 @@ def walking_cases(convention: str, means: pd.DataFrame | None = None, *, goal: t
         raise InputError("no mean trajectory of a walking-study condition", path=path,
                          remedy="pass the walking-2020 means (import-published walking-2020, or average) with --means")
     return cases
+
+
+def pair_cases(convention: str, means: pd.DataFrame, *, path=None) -> tuple[list, dict[str, dict]]:
+    """The (mean, start, goal) of the pair study's table means, as ``fit-ioc --model table`` compares them
+    (``models.comparison.pair_cases``: the first and last measured poses of each per-scenario table mean), and
+    per mean the columns its paths carry; ``InputError`` when ``means`` hold none.
+
+        >>> from cobot_analysis.api import average
+        >>> from cobot_analysis.api.models import pair_cases
+        >>> from cobot_analysis.synth.tables import pair_table
+        >>> cases, keys = pair_cases("continuous", average(pair_table(n_pairs=2, goals=1, n=20)).means)
+        >>> len(cases), sorted(keys[cases[0][0]])
+        (4, ['condition', 'configuration', 'direction', 'end_orientation', 'entity', 'scenario', 'study'])
+    """
+    from cobot_analysis.models.comparison import pair_cases as cases_of
+
+    cases, keys = cases_of(means, convention, path=path)
+    if not cases:
+        raise InputError("no mean table trajectory of the pair study (kind mean, entity table, per scenario)", path=path,
+                         remedy="pass the pair study's means (import-published pair-carriage-2022, or average) with --means")
+    return cases, keys
 
 
 # ---- velocity commands --------------------------------------------------------------------------
@@ -649,7 +687,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         if trial_df is not None and not trial_df.empty and model == "improved":
             trial_targets = targets_from_table(trial_df, path=trials_source, entity=entity)
             comparison = pd.concat([comparison, subject_distances(trial_targets, mean_targets, spec.angle, conv.name)], ignore_index=True)
-        dist = pd.concat([dist[dist["fit"] != "all"], comparison], ignore_index=True)
+        dist = pd.concat([dist[dist["fit"] != "all"], comparison.drop(columns="goal_reached")], ignore_index=True)
         paths = _figure_paths(model, mean_targets, results["all"].weights, conv)
     dist["orientation"] = [orientation_of(c) for c in dist["condition"]]
     dist["subject"] = dist["subject"].fillna("")

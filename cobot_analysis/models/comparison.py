@@ -53,15 +53,16 @@ def compare_task(task) -> list[dict]:
                           convention=convention)
             d = distances(target, df["x"].to_numpy(), df["y"].to_numpy(), df["theta"].to_numpy(), convention)
             ok = bool(df["converged"].iloc[-1])  # continuous: a path that misses its goal is never converged
+            reached = bool(df["goal_reached"].iloc[-1])
         except Exception as exc:  # noqa: BLE001 - a failed model is a flagged row, not a crash
             from cobot_analysis.errors import SolverError
 
             if not isinstance(exc, SolverError):
                 raise
-            d, ok = {"d_xy": math.nan, "d_theta": math.nan, "d_gamma": math.nan}, False
+            d, ok, reached = {"d_xy": math.nan, "d_theta": math.nan, "d_gamma": math.nan}, False, False
         rows.append({"model": label, "trial": target.trial, "condition": target.condition, "subject": target.subject,
                      "orientation": orientation_of(target.condition), "global_distance": target.global_distance,
-                     **d, "D": d["d_xy"] + angle_weight * d[f"d_{angle}"], "converged": ok})
+                     **d, "D": d["d_xy"] + angle_weight * d[f"d_{angle}"], "converged": ok, "goal_reached": reached})
     return rows
 
 
@@ -80,6 +81,62 @@ def study_cases(means: pd.DataFrame, convention, goal, *, path=None) -> list[tup
     targets = targets_from_table(means, path=path, goal=goal, convention=conv, unoriented=True)
     order = {c: i for i, c in enumerate(WALKING_CONDITIONS)}
     return [(t.condition, t.start, t.goal) for t in sorted(targets, key=lambda t: order[t.condition])]
+
+
+#: the columns a pair-study path carries from its table mean, so that ``compare --against`` finds that mean
+PAIR_KEYS = ("study", "condition", "direction", "scenario", "configuration", "end_orientation", "entity")
+
+
+def table_means(means: pd.DataFrame) -> pd.DataFrame:
+    """The pair study's per-scenario table means (kind mean, entity table, a scenario: the pooled 'all'
+    means left out), the means ``fit-ioc --model table`` fits and compares."""
+    if "kind" in means:
+        means = means[means["kind"] == "mean"]
+    if not {"entity", "scenario"} <= set(means.columns):
+        return means.iloc[0:0]
+    return means[(means["entity"] == "table") & means["scenario"].notna()]
+
+
+def pair_cases(means: pd.DataFrame, convention, *, path=None) -> tuple[list[tuple[str, tuple, tuple]], dict[str, dict]]:
+    """(mean, start, goal) of every table mean of the pair study (``table_means``), as the model comparison of
+    ``fit-ioc --model table`` takes them (``targets_from_table(..., unoriented=True)``, no design goal: the
+    first and last measured poses of the mean, under both conventions), and per mean the trajectory columns
+    its paths carry (``PAIR_KEYS``: the study, goal, direction, scenario, end configuration and orientation
+    of the mean, entity table), so ``generate --study pair-carriage-2022`` then ``compare --against`` answers
+    with the same paths."""
+    from cobot_analysis import conventions
+    from cobot_analysis.models.ioc import targets_from_table
+
+    means = table_means(means)
+    targets = targets_from_table(means, path=path, entity="table", goal=None, convention=conventions.get(convention),
+                                 unoriented=True)
+    first = means.groupby("trial", sort=False).first()
+    keys = {t.trial: {k: first.loc[t.trial, k] for k in PAIR_KEYS if k in first.columns} for t in targets}
+    return [(t.trial, t.start, t.goal) for t in targets], keys
+
+
+def pair_pace(means: pd.DataFrame, durations: pd.DataFrame | None = None) -> dict[str, tuple[float, float]]:
+    """mean trial -> the subjects' (travel time (s), mean speed (m/s)) of each pair-study table mean: the
+    mean's own travel time where it holds one (speed = its path length / travel time); else the published
+    durations (durations.parquet: mean ``duration`` and mean ``mean_velocity``, the table's mean velocity
+    over each carriage, over the trials of the same scenario, goal and direction; they do not record the
+    end orientation)."""
+    from cobot_analysis.models import mean_speed
+
+    out = {}
+    keys = ["scenario", "condition", "direction"]
+    by_keys = durations.groupby(keys)[["duration", "mean_velocity"]].mean() \
+        if durations is not None and set(keys + ["duration", "mean_velocity"]) <= set(durations.columns) else None
+    for trial, g in table_means(means).groupby("trial", sort=False):
+        g = g.sort_values("sample")
+        T = float(g["travel_time"].iloc[0]) if "travel_time" in g else math.nan
+        if np.isfinite(T) and T > 0:
+            out[str(trial)] = (T, mean_speed(g["x"].to_numpy(float), g["y"].to_numpy(float), T))
+        elif by_keys is not None:
+            k = tuple(g[c].iloc[0] for c in keys)
+            if k in by_keys.index:
+                out[str(trial)] = tuple(float(v) for v in by_keys.loc[k, ["duration", "mean_velocity"]])
+    return out
 
 
 def measured_pace(means: pd.DataFrame, trials: pd.DataFrame | None = None) -> dict[str, tuple[float, float]]:

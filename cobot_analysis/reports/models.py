@@ -34,6 +34,7 @@ def summary_table(df: pd.DataFrame, angle: str = "gamma", ddof: int = 1) -> str:
         lines += [f"**{metric}** ({unit}, mean ± sd over trajectories)", "",
                   "| model | n | " + " | ".join(c for c, _ in cols) + " |", "|---|---|" + "---|" * len(cols)]
         for model, g in df.groupby("model", sort=False):
+            g = g[g["converged"].astype(bool)]  # a run that did not converge (or missed its goal, continuous) is left out
             cells = [_ms(g[metric] if sel is None else g.loc[g[sel[0]] == sel[1], metric], ddof=ddof) for _, sel in cols]
             lines.append(f"| {model} | {g[metric].notna().sum()} | " + " | ".join(cells) + " |")
         lines.append("")
@@ -348,20 +349,32 @@ def generate_markdown(result, summary: str) -> str:
     grid = (f"OC grid {result.n_intervals} intervals resampled to {result.n_samples} samples" if result.convention == "continuous" else
             "the authors' node step and duration rule, paths at their nodes")
     goals = sorted({(round(g[0], 3), round(g[1], 3), round(math.remainder(g[2], 2 * math.pi), 3)) for _, _, g in result.cases})
-    measured = {f"{m}_{c}" if c else m: result.measured[c] for m in result.models for c, _, _ in result.cases
-                if c in (result.measured or {})}
-    lines = [f"## Generated trajectories ({result.convention} convention)", "",
-             f"Models {', '.join(result.models)}; weights {result.weights or 'model presets'}; "
-             f"goal{'s' if len(goals) > 1 else ''} {goals[0] if len(goals) == 1 else f'of the {len(goals)} measured means'}; "
+    pairs = result.study == "pair-carriage-2022"
+    what = (f"the {len(result.cases)} per-scenario table means of the pair study, each from its first to its last measured "
+            "pose (as fit-ioc --model table compares them; the pooled means left out)" if pairs else
+            f"goal{'s' if len(goals) > 1 else ''} {goals[0] if len(goals) == 1 else f'of the {len(goals)} measured means'}")
+    lines = [f"## Generated trajectories ({result.convention} convention{', pair study' if pairs else ''})", "",
+             f"Models {', '.join(result.models)}; weights {result.weights or 'model presets'}; {what}; "
              f"{grid} (docs/methods.md sec. 11: {summary}).", "",
-             *generated_section(result.generated, result.convention, measured)]
+             *generated_section(result.generated, result.convention, result.measured_by_trial(),
+                                source=PAIR_PACE if pairs else WALKING_PACE)]
     return "\n".join(lines) + "\n"
 
 
-def generated_section(df: pd.DataFrame, convention, measured: dict[str, tuple[float, float]] | None = None) -> list[str]:
+#: where the subjects' durations and speeds beside the generated paths come from (``generated_section``)
+WALKING_PACE = ("their travel times, or where the data hold none (walking-2020) path length / the mean of their recorded "
+                "speed (models.ioc.pace.subject_durations)")
+PAIR_PACE = ("the means' travel times (speed: the mean path's length / travel time), or where the means hold none "
+             "(pair-carriage-2022) the published durations: the mean duration and mean table velocity over the trials of "
+             "the same scenario, goal and direction (import-published/durations.parquet; they do not record the end "
+             "orientation, so both end orientations of a goal share them)")
+
+
+def generated_section(df: pd.DataFrame, convention, measured: dict[str, tuple[float, float]] | None = None, *,
+                      source: str = WALKING_PACE) -> list[str]:
     """results.md lines of ``generate``: per path its duration T, mean speed (the time law), the
-    subjects' own where the data hold them (``measured``: trial -> (travel time, mean speed)), the
-    end's distance to the goal and whether it reached it (``models.goal_check``), and a summary."""
+    subjects' own where the data hold them (``measured``: trial -> (travel time, mean speed); ``source``: where
+    they come from), the end's distance to the goal and whether it reached it (``models.goal_check``), and a summary."""
     from cobot_analysis import conventions
     from cobot_analysis.models import GOAL_TOLERANCE
 
@@ -375,7 +388,8 @@ def generated_section(df: pd.DataFrame, convention, measured: dict[str, tuple[fl
         mine = ""
         if measured:
             mine = " {:.2f} | {:.2f} |".format(*measured[trial]) if trial in measured else " – | – |"
-        lines.append(f"| {trial} | {r.travel_time:.2f} | {r.mean_speed:.2f} |{mine} {r.cost:.3f} | {r.end_position_error:.3f} | "
+        cell = str(trial).replace("|", "\\|")  # a synthetic mean's name holds its grouping keys, joined by '|'
+        lines.append(f"| {cell} | {r.travel_time:.2f} | {r.mean_speed:.2f} |{mine} {r.cost:.3f} | {r.end_position_error:.3f} | "
                      f"{r.end_heading_error:.3f} | {'yes' if r.goal_reached else 'no'} | {r.status} |")
     n, reached = len(ends), int(ends["goal_reached"].sum())
     v = ends["mean_speed"]
@@ -398,8 +412,7 @@ def generated_section(df: pd.DataFrame, convention, measured: dict[str, tuple[fl
         + f"; {int(((v < 0.5) | (v > 2.0)).sum())} of {n} outside 0.5-2 m/s"
         + (f"; **{int(ends['status'].astype(str).str.startswith('duration on a bound').sum())} durations on a bound of "
            "their search** (status column)" if ends["status"].astype(str).str.startswith("duration on a bound").any() else "")
-        + ("." + (f" The subjects' own ({_subject_pace(ends, measured)}) are in the table: their travel times, or where the data "
-                  "hold none (walking-2020) path length / the mean of their recorded speed (models.ioc.pace.subject_durations)."
+        + ("." + (f" The subjects' own ({_subject_pace(ends, measured)}) are in the table: {source}."
                   if measured else
                   " The input holds no subjects' durations to compare with (no travel times, no velocity rows).")), ""]
     return summary + lines + [""]
@@ -610,6 +623,30 @@ def _gauge_lines(line: str, targets, per_target: list[dict], pace: dict) -> list
             "|---|---|---|---|---|---|", *rows, ""]
 
 
+def goal_lines(comparison: pd.DataFrame, convention: str) -> list[str]:
+    """Markdown: per compared model, how many of its paths end at their goal (``models.goal_check``: within
+    ``GOAL_TOLERANCE``) and which did not; the subjects' rows (no goal) are left out."""
+    from cobot_analysis.models import GOAL_TOLERANCE
+
+    if "goal_reached" not in comparison:
+        return []
+    runs = comparison[comparison["goal_reached"].notna()]
+    if runs.empty:
+        return []
+    parts = []
+    for model, g in runs.groupby("model", sort=False):
+        reached = g["goal_reached"].astype(bool)
+        missed = g.loc[~reached, "trial"].astype(str).tolist()
+        parts.append(f"{model} {int(reached.sum())} of {len(g)} paths at the goal"
+                     + (f" (not: {', '.join(missed[:5])}{', ...' if len(missed) > 5 else ''})" if missed else ""))
+    why = (" Under the continuous convention the goal at rest is a constraint (docs/methods.md sec. 5.5): a path that misses "
+           "it is a run that did not converge, left out of the means above." if convention == "continuous" else
+           " Under the published convention the goal is the terminal cost of the authors' models: a path may end near it, "
+           "not on it; its distances are kept.")
+    return [f"Goal reached (end within {GOAL_TOLERANCE[0] * 100:g} cm and {GOAL_TOLERANCE[1]:g} rad): " + "; ".join(parts)
+            + "." + why, ""]
+
+
 def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal: float, durations: pd.DataFrame | None,
                      other: dict | None = None) -> str:
     """The IOC's results fragment: the fits (D, evaluations, weights at the start and fitted), their flags,
@@ -688,7 +725,7 @@ def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal
     if result.comparison is not None:
         comparison = result.comparison
         lines += [f"### Model comparison on the mean trajectories ({conv.name} convention)", "",
-                  summary_table(comparison, angle, ddof=conv.comparison.sd_ddof),
+                  summary_table(comparison, angle, ddof=conv.comparison.sd_ddof), *goal_lines(comparison, conv.name),
                   "### Statistics", "", statistics(comparison, list(result.compared)[-1], angle)]
         stage.savefig(figure_boxplots(comparison, angle), "distances_boxplot")
         lines += ["![distances per model](distances_boxplot.png)", ""]

@@ -316,7 +316,7 @@ def results_fragment(metrics, summary, comparison, config, example, unpredictabl
         + (f"{no_theta} trajectories have no orientation" if no_theta else "")
         + (f"; {untracked} have one that was not used (orientation mode {config.orientation}: flagged "
            "implausible or ignored)" if untracked else "")
-        + (": predicted from positions only (OC g1 = 0, start heading = direction of travel), no delta_theta."
+        + (": predicted from positions only (the OC tracks the direction of travel as theta, gamma = 0 assumed), no delta_theta."
            if no_theta or untracked else ""),
     ]
     first = metrics.drop_duplicates(["study", "trial", "entity", "n0", "n_oc"])
@@ -355,8 +355,11 @@ def results_fragment(metrics, summary, comparison, config, example, unpredictabl
                   "carries only control costs, so the predicted path is the walker coasting from its state at sample k "
                   "with constant body-frame velocities (v_forw, v_orth) and yaw rate omega, an arc of curvature "
                   "omega / speed (`OCPredictor`). The state at k is a smoothed fit of the past (tracking g0, g1 against "
-                  f"the control weights a1-a3) {start}. Where the "
-                  "orientation is tracked, its gait oscillation and any turn on the spot enter omega (a3 is nearly zero "
+                  f"the control weights a1-a3) {start}"
+                  + ("" if conv.prediction.start == "rest" else "; the arc is moved onto the state estimate at k, so it "
+                     "starts on the walker's current pose") + ". Where the "
+                  "orientation is tracked (without it, the direction of travel in its place), its gait oscillation and any "
+                  "turn on the spot enter omega (a3 is nearly zero "
                   "with the walking weights), and the arc curls away from the path: compare the 'theta tracked' and "
                   "'positions only' rows. The constant-velocity baseline extrapolates the last measured displacement "
                   "and has no such lag."]

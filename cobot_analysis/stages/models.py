@@ -14,25 +14,37 @@ from cobot_analysis.errors import InputError
 from cobot_analysis.stages import Outcome
 from cobot_analysis.workspace import Stage, find_input
 
+#: the studies ``generate --study`` generates every mean of, and the model each runs by default
+STUDIES = {"walking-2020": "improved", "pair-carriage-2022": "table"}
 
-def generate(out: str | os.PathLike, *, model: str = "improved", weights: Any = None, start=None, goal=None,
+
+def generate(out: str | os.PathLike, *, model: str | None = None, weights: Any = None, start=None, goal=None,
              study: str | None = None, samples: int = 500, intervals: int = 100, duration: str | None = None,
              v_nominal: float = 1.0, max_iter: int = 500, means: str | os.PathLike | None = None,
              convention: str | None = None, jobs: int | None = None, scheduler: str | None = None, force: bool = False) -> Outcome:
-    """``generate`` (``generate-published``): ``generated.parquet`` and its results fragment."""
+    """``generate`` (``generate-published``): ``generated.parquet`` and its results fragment. ``study``: every
+    walking-2020 condition, or every table mean of the pair study (``api.models.pair_cases``, the table model
+    only); ``model`` defaults to the study's (``STUDIES``), else the improved one."""
     from cobot_analysis import conventions
     from cobot_analysis.models.comparison import measured_pace
     from cobot_analysis.models.outputs import GENERATED
     from cobot_analysis.reports.models import generate_markdown
 
+    if study is not None and study not in STUDIES:
+        raise InputError(f"--study {study}: unknown study", remedy=f"use --study {' or '.join(STUDIES)}, or give --start")
+    model = model or STUDIES.get(study, "improved")
+    if study == "pair-carriage-2022" and model != "table":
+        raise InputError(f"--model {model} on --study pair-carriage-2022: its means are the table's paths, whose orientation "
+                         "is no walker's heading", remedy="use --model table (the default with this study)")
     inputs = [Path(weights)] if weights and Path(weights).is_file() else []
     _, conv, _ = plan_generate(model, weights=weights, cases=[], duration=duration, convention=convention)  # options first
-    cases, measured = None, None
+    cases, measured, keys = None, None, None
     if study is None and start is None:
-        raise InputError("nothing to generate", remedy="give --start X Y THETA or --study walking-2020")
-    if study is not None:
-        if study != "walking-2020":
-            raise InputError(f"unknown study {study!r}", remedy="use --study walking-2020 or give --start")
+        raise InputError("nothing to generate", remedy=f"give --start X Y THETA or --study {' or '.join(STUDIES)}")
+    if study == "pair-carriage-2022":
+        cases, keys, measured, used = _pair_cases(out, means, conv.name, goal)
+        inputs += used
+    elif study is not None:
         means_df, path = None, _walking_means(out, means, conv.name)
         if path is not None:
             means_df = read_trajectories(path)
@@ -55,12 +67,45 @@ def generate(out: str | os.PathLike, *, model: str = "improved", weights: Any = 
             return Outcome.skip(stage)
         result = api.generate(model, start=start, goal=goal, cases=cases, study=study, weights=weights, samples=samples,
                               intervals=intervals, duration=duration, v_nominal=v_nominal, max_iter=max_iter,
-                              convention=conv.name, measured=measured, jobs=jobs, scheduler=scheduler)
+                              convention=conv.name, measured=measured, keys=keys, jobs=jobs, scheduler=scheduler)
         stage.result = result  # its own numbers are the stage's metrics.json
         stage.write_table("generated.parquet", result.generated, GENERATED, n_samples=samples, n_intervals=intervals,
                     convention=conv.name)
         stage.path("results.md").write_text(generate_markdown(result, conventions.get(conv.name).summary))
     return Outcome(stage.final_dir, result)
+
+
+def _pair_cases(out, means, convention: str, goal) -> tuple[list, dict, dict, list[Path]]:
+    """``generate --study pair-carriage-2022``: the cases and columns of the table means (``api.models.pair_cases``),
+    the subjects' pace of each (``comparison.pair_pace``: the means' travel times, else OUT/import-published/
+    durations.parquet) and the files read. The means: ``means``, else as for the walking study (``_walking_means``);
+    none is an ``InputError`` naming the files looked for and ``import-published pair-carriage-2022``."""
+    from cobot_analysis.lazy import pandas as pd
+
+    from cobot_analysis.api.models import pair_cases
+    from cobot_analysis.models.comparison import pair_pace
+
+    if goal is not None:
+        raise InputError("--goal does not apply to --study pair-carriage-2022 (each table mean ends on its own goal)",
+                         remedy="leave --goal out")
+    looked = ["average/means.parquet"] * (convention != "published") + ["import-published/trajectories.parquet"]
+    try:
+        path = _walking_means(out, means, convention)
+    except InputError:
+        path = None
+    if path is None:
+        raise InputError(f"--study pair-carriage-2022: no table means in {out} ({', '.join(looked)})",
+                         remedy=f"run `cobot-analysis import-published pair-carriage-2022 DATASET --out {out}` first, or pass --means")
+    means_df = read_trajectories(path)
+    cases, keys = pair_cases(convention, means_df, path=path)
+    used = [path]
+    try:
+        durations_path = find_input(out, "durations.parquet", ["import-published"], "--means")
+        durations = pd.read_parquet(durations_path)
+        used.append(durations_path)
+    except InputError:
+        durations = None
+    return cases, keys, pair_pace(means_df, durations), used
 
 
 def _walking_means(out, means, convention: str) -> Path | None:

@@ -219,7 +219,8 @@ class _Permutation:
     """A reverse Cuthill-McKee permutation of the KKT matrix K (variables and multipliers of each
     stage brought together: a band of width ~ 2 stages, factorised without fill), and the map that
     permutes K's stored values straight into the CSC arrays of K[order][:, order] (K's sparsity is
-    fixed: computed once per ``_Call``)."""
+    fixed: computed once per ``_Call``). ``apply`` refills one matrix (its index arrays already the C ints
+    SuperLU takes, so ``splu`` copies and checks nothing): use it before the next ``apply``."""
 
     def __init__(self, K):
         from scipy.sparse import csc_matrix
@@ -229,12 +230,12 @@ class _Permutation:
         self.order = np.asarray(reverse_cuthill_mckee((pattern + pattern.T).tocsr(), symmetric_mode=True))
         P = pattern[self.order][:, self.order].tocsc()
         P.sort_indices()
-        self.source, self.indices, self.indptr = P.data.astype(int) - 1, P.indices.copy(), P.indptr.copy()
+        self.source = P.data.astype(int) - 1
+        self.matrix = csc_matrix((np.zeros(P.nnz), P.indices.astype(np.intc), P.indptr.astype(np.intc)), shape=K.shape)
 
     def apply(self, K):
-        from scipy.sparse import csc_matrix
-
-        return csc_matrix((K.data[self.source], self.indices, self.indptr), shape=K.shape)
+        np.take(K.data, self.source, out=self.matrix.data)
+        return self.matrix
 
 
 def _permutation(newton: _Call) -> _Permutation:
@@ -332,6 +333,28 @@ def fold_chunk(task) -> list:
         d, sol = solve_target(spec, w, t, v[:len(v) - nl])
         out.append(correct_chunk((shape, fitted, M, eps, tol, w, [(p, data, np.concatenate([sol.primal, np.zeros(nl)]))]))[0]
                    if d["success"] else None)
+    return out
+
+
+def probe_chunk(task) -> list:
+    """Worker task: the lower levels of a chunk of paths at an escape probe's weights w, each solved once, warm
+    from its path at the converged point (``escape_probes``), D as ``fit.solve_target`` computes it;
+    task = (spec, w, [(target, primal), ...]); per path (D, primal), or (inf, None) when the solve fails."""
+    from cobot_analysis.models.ioc.fit import distances
+    from cobot_analysis.models.oc import resample, solve_model
+
+    spec, w, items = task
+    model = "table" if spec.model == "table" else "improved"
+    out = []
+    for t, z in items:
+        sol = solve_model(model, t.start, t.goal, w, n_intervals=spec.n_intervals, duration="free", max_iter=spec.max_iter,
+                          v_nominal=spec.v_nominal, guess=z)
+        if not sol.success:
+            out.append((math.inf, None))
+            continue
+        r = resample(sol, len(t.x))
+        d = distances(t, r["x"], r["y"], r["theta"])
+        out.append((d["d_xy"] + spec.angle_weight * d[f"d_{spec.angle}"], sol.primal))
     return out
 
 
@@ -438,8 +461,9 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
     The D reported is the one of the lower level re-solved at the fitted weights, as the bi-level fit
     solves it (warm from the branch's path and from the two cold guesses, the least cost kept). When
     that re-solve lands on other paths (a lower-cost local minimum of some lower levels), the steps
-    start again on those; when it does not and ``probe``, D is re-solved at the ``escape_probes`` and
-    the steps start again from the lowest if it is below (``restarts`` new rounds at most); the round
+    start again on those; when it does not and ``probe``, D is re-solved at the ``escape_probes`` (each
+    lower level once, warm from its path: ``probe_chunk``) and the steps start again from the lowest if it
+    is below (``restarts`` new rounds at most); the round
     with the least re-solved D is kept. ``measured_T``: the subjects' duration per target (nan: none),
     as the bi-level fit takes them (``fit.fit``): the start weights are carried to their time gauge
     first, the fitted weights calibrated to it after (``pace.calibrate``; the result's ``pace``).
@@ -569,18 +593,18 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
         return out
 
     def solve_at(pairs: list) -> list:
-        """(D, primal) of the given paths at each (weight vector, paths) pair, the lower levels from the cold
-        guesses (``fit.reference_chunk``), in chunks on the pool."""
+        """(D, primal) of the given paths at each (weight vector, paths) pair, each lower level warm from the
+        round's path (``probe_chunk``), in chunks on the pool."""
         subs = []
         for j, batch in pairs:
             k = max(1, min(chunks, len(batch)))
-            subs.append([(part, pool.submit(reference_chunk, (spec, ws[j], [targets[i] for i in part])))
+            subs.append([(part, pool.submit(probe_chunk, (spec, ws[j], [(targets[i], Zs[i]) for i in part])))
                          for part in (batch[r::k] for r in range(k))])
         out = []
         for fs in subs:
             got = {}
             for part, f in fs:
-                got.update({i: (d["D"], z) for i, (d, z) in zip(part, f.result())})
+                got.update(zip(part, f.result()))
             out.append(got)
         return out
 

@@ -13,7 +13,7 @@ last ``N0`` poses (the window's measured past ``n+1 .. k``, ``n = k - N0``). Two
 ``predict_offline`` is ``update`` in a loop, so both modes give identical predictions.
 A window is skipped (NaN prediction, counted in ``skipped``) when its past holds a NaN position, or
 counted in ``failed`` when the OC solver does not converge. A NaN orientation is not a skip: the
-walker's theta is then unknown and the OC predictor tracks the positions only (see ``OCPredictor``).
+walker's theta is then unknown and the OC predictor tracks the direction of travel in its place (see ``OCPredictor``).
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ import numpy as np
 from cobot_analysis.errors import InputError
 from cobot_analysis.models.dynamics import coast
 from cobot_analysis.models.prediction.base import Predictor
+from cobot_analysis.models.prediction.goal import MIN_SPEED, quadratic_fit
 
 PREDICTORS = ("oc", "cv", "ctrv", "goal", "goal-inferred")
 
@@ -96,18 +97,29 @@ class OCPredictor(Predictor):
     (x, y, unwrapped theta) of the window, rotated into the walker frame:
     ``v_forw = cos(th) x' + sin(th) y'``, ``v_orth = -sin(th) x' + cos(th) y'``, ``omega = theta'``.
 
-    Missing orientation (theta NaN anywhere in the window): position-only tracking, g1 = 0, and the
-    start heading is the direction of travel (gamma = 0 assumed), omega its derivative; the
-    predicted theta is then the model's, not a measurement's.
+    Missing orientation (theta NaN anywhere in the window), both conventions: the walker faces where
+    it goes (gamma = 0, as the start heading of the models assumes), so the window tracks the
+    direction of travel ``heading(past)`` as its theta, with the same g1: the tracked-theta problem
+    with a derived theta. (Tracking positions only, g1 = 0, left theta free but for R(theta), and
+    omega nearly free with a3 = 1e-6: the solution could spin the body through full turns inside a
+    window while x, y tracked, and which of the many 2 pi windings the solver found, hence the
+    prediction, depended on its initial guess.) The predicted theta is then the model's, not a
+    measurement's.
+
+    The first predicted point, continuous: the coast starts from X_k moved onto the state estimate at
+    sample k (position of the least-squares quadratic through the last ``fit`` poses, as the goal
+    planner's ``goal.state_estimate``), heading and body-frame velocities those of X_k. X_k itself is
+    the free end of a compromise: a pelvis yaw swaying with the gait, which the model walker cannot
+    walk, pulled it 1-2.7 cm (median per trial, walking-2020) off the measured pose. The published convention coasts from X_k (thesis).
 
     Warm start: the previous window's solution shifted by one node (the last node extrapolated
-    with its own velocity); cold start (first window, after a skipped or failed window): the
+    with its own velocity), its theta moved by the whole turns that put its node 0 on x0's branch;
+    cold start (first window, after a skipped or failed window): the
     measured past on the first N0 nodes, then the last measured displacement extrapolated.
     What the prediction is, then: the walker coasting with the body-frame velocities
     (v_forw, v_orth, omega) reached at sample k: a circular arc whose curvature is omega / speed.
-    With the walking weights a3 = 1e-6, omega is almost free while the past is tracked, so on
-    jittery orientations (or with g1 = 0) the arc can curl (see docs/results.md for the measured
-    errors against the baselines).
+    With the walking weights a3 = 1e-6 the arc follows the turn rate of the tracked theta at k,
+    a swaying gait's included (see docs/results.md for the measured errors against the baselines).
 
     A window whose solve fails (fatrop, then IPOPT) gives no prediction and is counted in ``failed``.
     ``warm_start=False`` solves every window cold (same optimum, for comparison and benchmarks).
@@ -146,6 +158,8 @@ class OCPredictor(Predictor):
         # ``fit`` samples of a window: c1 = d . p (a fixed filter, computed once)
         t = np.arange(min(self.fit, self.n0)) * self.step
         self._derivative = np.linalg.pinv(np.vander(t, 3, increasing=True))[1]
+        self._estimate = quadratic_fit(min(self.fit, self.n0), self.dt)[0]  # position at the last of ``fit`` samples
+        self._travel = travel_filter(self.n0, self.fit)  # direction of travel (positions only)
 
     def reset(self) -> None:
         super().reset()
@@ -159,27 +173,30 @@ class OCPredictor(Predictor):
     def initial_state(self, past: np.ndarray) -> tuple[np.ndarray, bool]:
         """Start state X0 = (x, y, theta, v_forw, v_orth, omega) at node 0, and whether theta was
         measured; at rest under the published convention (``rest_start``)."""
-        d = self._derivative
-        m = len(d)
+        return self._initial_state(past, *self._orientation(past))
+
+    def _orientation(self, past: np.ndarray) -> tuple[np.ndarray, bool]:
+        """The theta the window tracks: the measured one, else ``heading(past)``; and whether measured."""
         has_theta = bool(np.isfinite(past[:, 2]).all())
         if has_theta:
-            theta, angles = past[0, 2], past[:m, 2]
-        else:
-            angles = np.arctan2(np.gradient(past[:m, 1]), np.gradient(past[:m, 0]))  # direction of travel
-            theta = angles[0]
-        if self.rest_start:  # theta only (unwrapping leaves the first angle as it is)
+            return past[:, 2], True
+        travel = self._travel if len(past) == self.n0 else travel_filter(len(past), self.fit)
+        return heading(past, travel, self.dt), False
+
+    def _initial_state(self, past: np.ndarray, angles: np.ndarray, has_theta: bool) -> tuple[np.ndarray, bool]:
+        d = self._derivative
+        m = len(d)
+        theta = angles[0]
+        if self.rest_start:
             return np.array([past[0, 0], past[0, 1], theta, 0.0, 0.0, 0.0]), has_theta
-        vx, vy, omega = d @ past[:m, 0], d @ past[:m, 1], d @ (angles if has_theta else np.unwrap(angles))
+        vx, vy, omega = d @ past[:m, 0], d @ past[:m, 1], d @ angles[:m]
         c, s = np.cos(theta), np.sin(theta)
         return np.array([past[0, 0], past[0, 1], theta, c * vx + s * vy, -s * vx + c * vy, omega]), has_theta
 
-    def _cold_guess(self, past: np.ndarray, x0: np.ndarray) -> np.ndarray:
-        """The measured past (theta = x0's where it is missing) at x0's velocities, zero controls."""
-        poses = past.copy()
-        if not np.isfinite(past[:, 2]).all():
-            poses[:, 2] = x0[2]
+    def _cold_guess(self, track: np.ndarray, x0: np.ndarray) -> np.ndarray:
+        """The tracked past at x0's velocities, zero controls."""
         w = np.zeros(self.ocp.n_vars)
-        w[self.ocp._xi[:, :3]] = poses  # node k of the N0 - 1 intervals = measured sample k
+        w[self.ocp._xi[:, :3]] = track  # node k of the N0 - 1 intervals = tracked sample k
         w[self.ocp._xi[:, 3:6]] = x0[3:6]
         return w
 
@@ -195,23 +212,57 @@ class OCPredictor(Predictor):
 
     # -- one window ---------------------------------------------------------------------------------
     def predict(self, past: np.ndarray) -> np.ndarray | None:
-        x0, has_theta = self.initial_state(past)
+        angles, has_theta = self._orientation(past)
+        x0, _ = self._initial_state(past, angles, has_theta)
         origin = np.array([x0[0], x0[1], 0.0]) if self.rest_start else np.zeros(3)  # published: first pose at the origin
-        past = past - origin
-        x0[:3] -= origin  # x0 is this window's own array
-        track = past.copy()
+        track = past - origin
         if not has_theta:
-            track[:, 2] = 0.0
-        guess = self._cold_guess(past, x0) if self._warm is None else self._shifted(self._warm)
+            track[:, 2] = angles
+        x0[:3] -= origin  # x0 is this window's own array
+        if self._warm is None:
+            guess = self._cold_guess(track, x0)
+        else:
+            guess = self._shifted(self._warm)
+            turns = np.round((x0[2] - guess[2]) / (2 * np.pi))
+            if turns:  # the shifted guess onto x0's branch (a derived heading starts in (-pi, pi])
+                guess[self.ocp._xi[:, 2]] += 2 * np.pi * turns
         guess[:6] = x0
         far = (x0[0] + 1e3, x0[1] + 1e3, 0.0)  # the goal enters no cost (zero weights); kept away from psi's singularity
         T = self.step if self.scheme == "euler" else (self.n0 - 1) * self.step  # euler: the parameter is the node step
         sol = self.ocp.solve(x0[:3], far, self.weights, T, guess=guess, start_velocity=x0[3:],
-                             track=track, track_weights=(self.track_weights[0], self.track_weights[1] if has_theta else 0.0),
+                             track=track, track_weights=self.track_weights,
                              n_track=self.n0, stats=False)  # converged or not is all a window needs
         self.last_solution = sol
         if not sol.success:
             self._warm = None
             return None
         self._warm = sol.primal if self.warm_start else None
-        return coast(sol.X[-1], self.step, self.horizon, scheme=self.scheme)[:, :3] + origin
+        start = sol.X[-1].copy()
+        if not self.rest_start:  # continuous: from the state estimate at k (class docstring)
+            start[:2] = self._estimate @ past[-len(self._estimate):, :2]
+        return coast(start, self.step, self.horizon, scheme=self.scheme)[:, :3] + origin
+
+
+def travel_filter(n: int, fit: int = 5) -> np.ndarray:
+    """(n, n) matrix D: ``D @ p`` is, at each of n samples, the derivative per sample of the least-squares
+    quadratic through the ``fit`` samples around it (Savitzky-Golay; at the ends, through the first or last ``fit``)."""
+    from scipy.signal import savgol_filter
+
+    m = min(fit, n)
+    return savgol_filter(np.eye(n), m, min(2, m - 1), deriv=1, axis=0, mode="interp")
+
+
+def heading(past: np.ndarray, travel: np.ndarray, dt: float = 1.0) -> np.ndarray:
+    """The direction of travel at every sample of ``past``: ``atan2(y', x')`` with ``(x', y') = travel @ past``
+    (``travel_filter``), unwrapped from its first value in (-pi, pi]. Where the walker stands (speed below
+    ``goal.MIN_SPEED``, ``dt`` seconds per sample) the direction of travel is noise: the heading of the nearest
+    sample in motion is held (that of the whole past's displacement if none moves)."""
+    v = travel @ past[:, :2]
+    moving = np.hypot(v[:, 0], v[:, 1]) >= MIN_SPEED * dt
+    if not moving.all():
+        if not moving.any():
+            d = past[-1, :2] - past[0, :2]
+            return np.full(len(past), np.arctan2(d[1], d[0]))
+        i = np.flatnonzero(moving)
+        v = v[i[np.abs(np.arange(len(past))[:, None] - i[None, :]).argmin(axis=1)]]
+    return np.unwrap(np.arctan2(v[:, 1], v[:, 0]))

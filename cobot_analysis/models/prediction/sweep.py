@@ -21,7 +21,7 @@ and unwrapped theta) every ``t_oc`` seconds over its duration and N0, N_OC count
 Orientation. Where theta is tracked, the OC cost holds g1 (ctheta - theta)^2 and delta_theta is
 reported. ``orientation="auto"`` (default) tracks it unless the trajectory's quality flags say it is
 missing or implausible (``orientation_missing``, ``implausible_gamma``): those trajectories are
-predicted from positions only (OC g1 = 0, see ``OCPredictor``; baselines predict no theta) and get
+predicted from positions only (the OC tracks the direction of travel, see ``OCPredictor``; baselines predict no theta) and get
 no delta_theta. ``"track"`` tracks every measured theta, ``"ignore"`` none.
 
 Windows compared between predictors. A window enters a trajectory's metrics only if every
