@@ -204,6 +204,65 @@ def test_quadratic_bootstrap_on_known_curvatures():
     assert lo < m[:, 0].mean() < hi
 
 
+def test_bootstrap_reports_a_weight_held_by_a_search_limit():
+    """Exact quadratics whose minima lie beyond a2's upper limit (y = 3, where the fit stopped). As on subject
+    S03's walking fit: one determined direction, mostly a4 with a little a2, the other flat (held at the fit);
+    every resample's refit is pinned by a2's limit, and a4, "determined" by the curvature, would get a
+    zero-width interval: it gets the box and "not determined", saying why. With both directions determined
+    and a4 independent of a2, a2 is pinned on its limit but a4 keeps a finite interval and its verdict."""
+    from cobot_analysis.models.ioc.uncertainty import Curvature, bootstrap, determined, interval_verdicts
+
+    rng = np.random.default_rng(4)
+    n, y0 = 30, np.array([3.0, -1.0])
+    m = np.array([3.5, -0.5]) + 0.05 * rng.standard_normal((n, 2))  # each target's minimum, a2's beyond the box
+    v = np.array([0.25, 0.97]) / np.hypot(0.25, 0.97)
+    for A, coupled in ((4.0 * np.outer(v, v), True), (np.diag([4.0, 1.0]), False)):
+        c = Curvature(("a2", "a4"), y0, 0.5 * np.einsum("ij,jk,ik->i", m - y0, A, m - y0), -(m - y0) @ A,
+                      np.repeat(A[None], n, 0), 0)
+        b = bootstrap(c, 200, seed=1)
+        assert b["on_box"] == 200  # every resample's minimum beyond a2's limit
+        ok = determined(c.H, c.D)
+        v_in = {"a2": "determined" if ok[0] else "not determined by these data", "a4": "determined"}
+        verdict = interval_verdicts(v_in, b["intervals"], b["held"])
+        if coupled:  # a4 moves only with a2: the same value in every resample, pinned by the box
+            assert list(ok) == [False, True] and list(b["held"]) == ["a4"]
+            assert b["intervals"]["a4"] == (1e-7, 1e3) and b["sd_log10"]["a4"] == np.inf
+            assert verdict["a4"] == ("not determined by these data (the search box holds its refit in 200 of 200 "
+                                     "resamples: a2 on its search limit 1000 in 200)")
+        else:  # a2 pinned on its limit; a4 around the fit (intervals are centred on it) with the targets' spread
+            assert list(b["held"]) == ["a2"] and verdict["a2"].startswith("not determined by these data (the search box")
+            lo, hi = np.log10(b["intervals"]["a4"])
+            assert lo < y0[1] < hi and 0.01 < hi - lo < 0.1 and verdict["a4"] == "determined"
+
+
+def test_stencil_is_warm_from_the_centre_path_only(monkeypatch):
+    """The curvature's centre is solved from the two cold guesses, every other stencil point from the centre's
+    path only (one guess: that primal vector), as docs/methods.md sec. 6.3 says; ``solve_target``'s guesses:
+    a primal vector with the two cold guesses, a tuple exactly as given."""
+    import cobot_analysis.models.oc as oc
+    from cobot_analysis.models.ioc import uncertainty
+    from cobot_analysis.models.ioc.recovery import synthetic_targets
+
+    spec = replace(SPEC, fitted=("a2", "a4"))
+    targets = synthetic_targets(spec, W, 2, noise=0.01)
+    calls, solve = [], oc.solve_model
+
+    def recorded(*args, **kw):
+        sol = solve(*args, **kw)
+        calls.append((kw["guess"], sol.primal))
+        return sol
+
+    monkeypatch.setattr(oc, "solve_model", recorded)
+    uncertainty.curvature(spec, targets, dict(zip(names_for("improved"), map(float, W))))
+    assert len(calls) == 2 * 7 and [g for g, _ in calls[:2]] == [("rest", "line")] * 2
+    for i, (guess, _) in enumerate(calls[2:]):
+        assert isinstance(guess, tuple) and len(guess) == 1 and np.array_equal(guess[0], calls[i % 2][1])
+    primal = calls[0][1]
+    calls.clear()
+    solve_target(spec, W, targets[0], primal)
+    assert calls[0][0][0] is primal and calls[0][0][1:] == ("rest", "line")
+
+
 def test_subjects_differ_on_planted_weights():
     """Planted per-subject estimates with known standard errors: equal true weights reject at about
     the nominal 5 % over many draws; a weight that differs between subjects is detected; a subject

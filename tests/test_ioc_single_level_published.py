@@ -96,3 +96,22 @@ def test_a_rounding_step_is_a_repeated_point_of_the_arclength_resampling():
     xr, yr = resample_arclength(np.r_[x[0], x], np.r_[y[0] + 1e-16, y], 60)
     x0, y0 = resample_arclength(x, y, 60)
     assert np.abs(xr - x0).max() < 1e-9 and np.abs(yr - y0).max() < 1e-9
+
+
+def test_duration_rule_started_at_a_held_horizon_checks_it():
+    """The published fit's last duration rule is a check of the held horizon, with the held solution as
+    its solve there (``oc.solve_model``'s ``start_horizon``): where that horizon is the rule's choice from the
+    authors' T_guess, it is kept and its solution returned as is; 40 nodes short of it, with a solution of that
+    horizon, the criterion is lower a node further on and the search moves to the rule's choice."""
+    from cobot_analysis.conventions import PUBLISHED
+    from cobot_analysis.models.oc import solve_model
+
+    w = np.asarray(TRUE, float)
+    start = STARTS[0]
+    full = solve_model("improved", start, GOAL, w, convention=PUBLISHED, warm=True)
+    T = full.U.shape[0]
+    kept = solve_model("improved", start, GOAL, w, convention=PUBLISHED, warm=True, seed=full, start_horizon=T)
+    assert kept.U.shape[0] == T and np.allclose(kept.X, full.X, atol=1e-12)
+    short = solve_model("improved", start, GOAL, w, convention=PUBLISHED, horizon=T - 40)
+    moved = solve_model("improved", start, GOAL, w, convention=PUBLISHED, warm=True, seed=short, start_horizon=T - 40)
+    assert moved.U.shape[0] == T and abs(moved.cost - full.cost) < 1e-6 * abs(full.cost)

@@ -701,16 +701,16 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
 def _weight_uncertainty(spec, targets: list, weights: dict[str, float], n_resamples: int, *, seed: int = 0,
                        checkpoint: Path | None = None, resume: bool = False, pool=None, chunks: int = 2) -> dict:
     """Verdict and bootstrap interval of each fitted weight at ``weights`` (docs/methods.md sec. 6.3,
-    ``models.ioc.uncertainty``): {"D", "verdicts", "intervals", "sd_log10", "resamples", "eigenvalues",
-    "failed_solves"}."""
+    ``models.ioc.uncertainty``): {"D", "verdicts", "intervals", "lack_of_fit", "sd_log10", "resamples", "on_box",
+    "held" (the weights the search box holds, with why), "eigenvalues", "failed_solves"}."""
     from cobot_analysis.models.ioc import uncertainty as unc
 
     c = unc.curvature(spec, targets, weights, checkpoint=checkpoint, resume=resume, pool=pool, chunks=chunks)
     b = unc.bootstrap(c, n_resamples, seed=seed)
-    verdicts = unc.interval_verdicts(unc.verdicts(spec.fitted, c.H, c.D, weights, lack=c.lack_of_fit), b["intervals"])
+    verdicts = unc.interval_verdicts(unc.verdicts(spec.fitted, c.H, c.D, weights, lack=c.lack_of_fit), b["intervals"], b["held"])
     return {"D": c.D, "verdicts": verdicts, "intervals": b["intervals"],
             "lack_of_fit": c.lack_of_fit,
-            "sd_log10": b["sd_log10"], "resamples": n_resamples, "on_box": b["on_box"], "eigenvalues": np.linalg.eigvalsh(c.H).tolist(),
+            "sd_log10": b["sd_log10"], "resamples": n_resamples, "on_box": b["on_box"], "held": b["held"], "eigenvalues": np.linalg.eigvalsh(c.H).tolist(),
             "failed_solves": c.failed}
 
 

@@ -172,8 +172,10 @@ def solve_pair_target(spec: IOCSpec, w: np.ndarray, t: PairTarget, guess):
 def solve_target(spec: IOCSpec, w: np.ndarray, t: Target, guess):
     """Lower level for one target: (distances dict with D, T, T0, T_at_bound and success, solution).
 
-    ``guess``: continuous convention, a primal vector or a cold guess name; published convention,
-    the solution at other weights (seeds every horizon of the duration rule) or None."""
+    ``guess``: continuous convention, a primal vector (solved from it and from the two cold guesses, the
+    least cost kept), a cold guess name (the two cold guesses) or a tuple of guesses (primal vectors or
+    cold guess names: exactly those);
+    published convention, the solution at other weights (seeds every horizon of the duration rule) or None."""
     from cobot_analysis.models.oc import resample, solve_model
     from cobot_analysis.models.oc.duration import initial_duration
 
@@ -190,18 +192,13 @@ def solve_target(spec: IOCSpec, w: np.ndarray, t: Target, guess):
                               horizon=seed.U.shape[0], fallback=False)
         else:  # the duration rule, as generate runs it
             sol = solve_model(model, t.start, t.goal, w, convention=PUBLISHED, warm=True)
-        if not sol.success:
-            return _failed(), sol
-        d = distances(t, sol.X[:, 0], sol.X[:, 1], sol.X[:, 2], PUBLISHED)
-        d["D"] = d["d_xy"] + spec.angle_weight * d[f"d_{spec.angle}"]
-        d.update(published_duration_terms(sol, t.start, t.goal, PUBLISHED.oc_rule(model).dt))
-        d["success"] = True
-        return d, sol
+        return published_terms(spec, t, sol), sol
     kw = {"n_intervals": spec.n_intervals, "duration": "free", "max_iter": spec.max_iter, "v_nominal": spec.v_nominal}
     # the warm start and generate's two cold guesses, the least cost kept: a start facing away from the goal
     # has several local minima (turn left or right), and a warm start alone follows the one it came from
     cold = ("rest", "line")
-    sol = solve_model(model, t.start, t.goal, w, guess=cold if isinstance(guess, str | tuple) else [guess, *cold], **kw)
+    guesses = guess if isinstance(guess, tuple) else cold if isinstance(guess, str) else (guess, *cold)
+    sol = solve_model(model, t.start, t.goal, w, guess=guesses, **kw)
     if not sol.success:
         return _failed(), sol
     r = resample(sol, len(t.x))
@@ -213,6 +210,20 @@ def solve_target(spec: IOCSpec, w: np.ndarray, t: Target, guess):
     d["length"] = float(np.hypot(np.diff(r["x"]), np.diff(r["y"])).sum())  # m: the time law is length / T
     d["success"] = True
     return d, sol
+
+
+def published_terms(spec: IOCSpec, t: Target, sol) -> dict:
+    """The published convention's distances of the lower-level solution ``sol`` to target ``t``, D and
+    the duration terms, as ``solve_target`` returns them (failed: FAILED_D)."""
+    from cobot_analysis.conventions import PUBLISHED
+
+    if not sol.success:
+        return _failed()
+    d = distances(t, sol.X[:, 0], sol.X[:, 1], sol.X[:, 2], PUBLISHED)
+    d["D"] = d["d_xy"] + spec.angle_weight * d[f"d_{spec.angle}"]
+    d.update(published_duration_terms(sol, t.start, t.goal, PUBLISHED.oc_rule("table" if spec.model == "table" else "improved").dt))
+    d["success"] = True
+    return d
 
 
 def _warm_start(spec: IOCSpec, sol):

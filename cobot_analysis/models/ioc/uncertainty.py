@@ -2,9 +2,10 @@
 
 Curvature at the fit: with y = log10 of the fitted weights and D(y) = (1/n) sum_i D_i(y) (each
 target's lower level solved at the fit from the two cold guesses, the least cost kept, then at the
-other points warm from that path only, so D_i follows one branch of lower-level solutions: a start
-facing away from the goal has several local minima, and the best of several guesses would jump
-between them inside the stencil; published convention: the duration rule at the fit, its horizon held
+other points warm from that path only (one guess), so D_i follows one branch of lower-level solutions:
+a start facing away from the goal has several local minima, and the best of several guesses would jump
+between them inside the stencil (where a branch ends inside the stencil, a fold, the warm solve lands on
+another minimum and the lack of fit below shows it); published convention: the duration rule at the fit, its horizon held
 at the other points, as the fit holds it), every target's D_i is evaluated on the central-
 difference stencil of step ``h`` around the fit (1 + 2k + 2 k(k-1)/2 points for k weights), giving
 per target a value D_i, a gradient g_i and a Hessian H_i, and their means D, g, H.
@@ -32,7 +33,10 @@ and refits the local quadratic model of its objective along the directions the f
 stopped short of its optimum moves every resample by that step, which is no sampling spread); a weight that is not determined gets the search box as its interval. The refit is one quadratic
 (Newton) step of each resample's own objective from the full fit, not a re-run of the fit: exact when
 D_i is quadratic in y over the interval, and it needs no lower-level solve beyond the stencil; refitting along a sloppy direction would only return the resample noise of a
-flat D (an exact gauge, e.g. the time scale, does not move at all). The stencil's evaluations are checkpointed (``resume``).
+flat D (an exact gauge, e.g. the time scale, does not move at all). A determined weight whose refit the search box
+pins (the weights on a limit leave it less than 10 % of its amplitude in the determined directions) in more than
+(1 - level) / 2 of the resamples gets the box as its interval and "not determined by these data" with the reason
+(``bootstrap``'s ``held``, ``interval_verdicts``). The stencil's evaluations are checkpointed (``resume``).
 """
 
 from __future__ import annotations
@@ -230,14 +234,18 @@ def verdicts(fitted, H: np.ndarray, D: float, weights: dict[str, float], rel_tol
     return out
 
 
-def interval_verdicts(verdicts: dict[str, str], intervals: dict[str, tuple[float, float]]) -> dict[str, str]:
-    """The verdicts with every "determined" weight whose 95 % interval reaches a search limit (within 0.01
-    in log10) turned into "not determined by these data" (module docstring)."""
+def interval_verdicts(verdicts: dict[str, str], intervals: dict[str, tuple[float, float]],
+                      held: dict[str, str] | None = None) -> dict[str, str]:
+    """The verdicts with every "determined" weight whose refit the search box holds (``bootstrap``'s
+    ``held``: why) or whose 95 % interval reaches a search limit (within 0.01 in log10) turned into "not
+    determined by these data" (module docstring)."""
     out = dict(verdicts)
     for n, v in verdicts.items():
         lo, hi = (math.log10(max(x, 1e-300)) for x in intervals.get(n, (math.nan, math.nan)))
         edge = LOG_BOUNDS[0] if abs(lo - LOG_BOUNDS[0]) < 0.01 else LOG_BOUNDS[1] if abs(hi - LOG_BOUNDS[1]) < 0.01 else None
-        if v.startswith("determined") and edge is not None:
+        if v.startswith("determined") and held and n in held:
+            out[n] = f"not determined by these data ({held[n]})"
+        elif v.startswith("determined") and edge is not None:
             out[n] = f"not determined by these data (its 95 % interval reaches the search limit {10.0 ** edge:g})"
     return out
 
@@ -266,52 +274,85 @@ def verdict_category(verdict: str) -> str:
 def quadratic_refit(c: Curvature, counts: np.ndarray, basis: np.ndarray | None = None) -> np.ndarray:
     """y minimising sum_i counts_i (g_i' dy + 0.5 dy' H_i dy) within the search box, dy = basis z
     (default: every direction) (module docstring)."""
+    return _refit(c, counts, basis)[0]
+
+
+def _refit(c: Curvature, counts: np.ndarray, basis: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    """(``quadratic_refit``'s y, the unconstrained Newton step's y or None when the model has no minimum along
+    the basis): the two differ where the search box holds the refit."""
     from scipy.optimize import LinearConstraint, minimize
 
     B = np.eye(len(c.y)) if basis is None else basis
     if B.shape[1] == 0:
-        return c.y.copy()
+        y = c.y.copy()
+        return y, y
     g = counts @ c.gi / counts.sum() @ B
     H = B.T @ (np.einsum("i,ijk->jk", counts, c.Hi) / counts.sum()) @ B
     H = (H + H.T) / 2
-    try:  # the Newton step, when H is positive definite and the step stays in the box
-        z = -np.linalg.solve(H, g)
-        y = c.y + B @ z
-        if np.all(np.linalg.eigvalsh(H) > 0) and np.all((y >= LOG_BOUNDS[0]) & (y <= LOG_BOUNDS[1])):
-            return y
+    free = None
+    try:  # the Newton step, when H is positive definite
+        if np.all(np.linalg.eigvalsh(H) > 0):
+            free = c.y + B @ -np.linalg.solve(H, g)
     except np.linalg.LinAlgError:
         pass
+    if free is not None and np.all((free >= LOG_BOUNDS[0]) & (free <= LOG_BOUNDS[1])):
+        return free, free
     box = LinearConstraint(B, LOG_BOUNDS[0] - c.y, LOG_BOUNDS[1] - c.y)
     r = minimize(lambda z: (g @ z + 0.5 * z @ H @ z, g + H @ z), np.zeros(B.shape[1]), jac=True,
                  method="SLSQP", constraints=[box], options={"ftol": 1e-12, "maxiter": 500})
-    return c.y + B @ r.x
+    return c.y + B @ r.x, free
 
 
 def bootstrap(c: Curvature, n_resamples: int = RESAMPLES, seed: int = 0, level: float = 0.95, rel_tol: float = 1e-3) -> dict:
     """Percentile intervals of the fitted weights over ``n_resamples`` resamples of the targets (module
     docstring): each resample refitted along the directions the full data determine (the sloppy ones
-    held); a weight that is not determined gets the search box as its interval. Returns
-    {"samples": (B, k) weights, "intervals": {name: (lo, hi)}, "sd_log10": {name: sd}, "on_box": resamples whose
-    quadratic has no minimum inside the search box (refit on its edge)}."""
+    held); a weight that is not determined gets the search box as its interval, and so does a determined
+    weight whose refit the search box pins (the weights on a limit leave it less than 10 % of its amplitude
+    in the determined directions) in more than (1 - level) / 2 of the resamples: its interval would be the
+    box's, not the data's.
+    Returns {"samples": (B, k) weights, "intervals": {name: (lo, hi)}, "sd_log10": {name: sd}, "on_box": resamples
+    whose quadratic has no minimum inside the search box (refit on its edge), "held": {name: why} for the
+    weights held by the box}."""
     rng = np.random.default_rng(seed)
     n = len(c.Di)
     _, V, sloppy = sloppy_directions(c.H, c.D, rel_tol)
     ok = determined(c.H, c.D, rel_tol) & (c.lack_of_fit <= ROUGH)
     B = V[:, ~sloppy & ok.any()]
-    S = np.array([quadratic_refit(c, np.bincount(rng.integers(0, n, n), minlength=n).astype(float), B)
-                  for _ in range(n_resamples)]).reshape(-1, len(c.y))
+    fits = [_refit(c, np.bincount(rng.integers(0, n, n), minlength=n).astype(float), B) for _ in range(n_resamples)]
+    S = np.array([y for y, _ in fits]).reshape(-1, len(c.y))
+    on_box = sum(free is None or y is not free for y, free in fits) if ok.any() else 0
+    # per weight, the resamples whose refit the box pins: the weights on a limit there leave it less than 10 % of
+    # its amplitude in the determined directions (S03: a2 on 1000, a4 moving only with it), and why
+    lo, hi = LOG_BOUNDS
+    held = {}
+    pinned = np.zeros(S.shape, bool)
+    for r, (y, free) in enumerate(fits):
+        if free is not None and y is free:
+            continue
+        active = (np.abs(y - lo) < 1e-6) | (np.abs(y - hi) < 1e-6)
+        _, sv, vt = np.linalg.svd(B[active], full_matrices=True) if active.any() else (None, np.zeros(0), np.eye(B.shape[1]))
+        N = vt[int((sv > 1e-8).sum()):].T  # the determined directions that keep every active weight on its limit
+        pinned[r] = ((B @ N) ** 2).sum(axis=1) < 0.1 * (B**2).sum(axis=1)
+    for j, name in enumerate(c.fitted):
+        rows = np.flatnonzero(pinned[:, j])
+        if ok[j] and len(rows) > (1 - level) / 2 * len(S):
+            why = [f"{c.fitted[i]} on its search limit {10.0 ** b:g} in {n_at}" for i in range(len(c.y)) for b in (lo, hi)
+                   if (n_at := int((np.abs(S[rows, i] - b) < 1e-6).sum()))]
+            none = sum(fits[r][1] is None for r in rows)
+            why += [f"no minimum along the determined directions in {none}"] if none else []
+            held[name] = f"the search box holds its refit in {len(rows)} of {len(S)} resamples: {', '.join(why)}"
+    free = ok & np.array([name not in held for name in c.fitted])
     # centred on the fit: a fit stopped short of its optimum (budget, tolerance) moves every resample by the
     # same full-data step, which is not sampling spread
-    on_box = int(np.sum(np.any((np.abs(S - LOG_BOUNDS[0]) < 0.01) | (np.abs(S - LOG_BOUNDS[1]) < 0.01), axis=1))) if ok.any() else 0
     S = np.clip(S - quadratic_refit(c, np.ones(n), B) + c.y, *LOG_BOUNDS)
     a = 100 * (1 - level) / 2
     W = 10.0 ** S
     box = (10.0 ** LOG_BOUNDS[0], 10.0 ** LOG_BOUNDS[1])
     return {"samples": W,
-            "intervals": {name: (float(np.percentile(W[:, j], a)), float(np.percentile(W[:, j], 100 - a))) if ok[j] else box
+            "intervals": {name: (float(np.percentile(W[:, j], a)), float(np.percentile(W[:, j], 100 - a))) if free[j] else box
                           for j, name in enumerate(c.fitted)},
-            "sd_log10": {name: float(S[:, j].std(ddof=1)) if ok[j] and len(S) > 1 else math.inf for j, name in enumerate(c.fitted)},
-            "on_box": on_box}
+            "sd_log10": {name: float(S[:, j].std(ddof=1)) if free[j] and len(S) > 1 else math.inf for j, name in enumerate(c.fitted)},
+            "on_box": on_box, "held": held}
 
 
 def subjects_differ(estimates: dict[str, dict[str, float]], sd_log10: dict[str, dict[str, float]],

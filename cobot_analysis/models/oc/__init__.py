@@ -15,7 +15,8 @@ OC_MODELS = ("unicycle", "mombaur", "improved", "table")
 
 def solve_model(model: str, start, goal, weights, *, convention="continuous", n_intervals: int = 100,
                 duration: str | None = None, v_nominal: float = 1.0, solver: str = "fatrop", guess="rest", T=None,
-                max_iter: int = 500, warm: bool = False, seed=None, horizon: int | None = None, fallback: bool = True):
+                max_iter: int = 500, warm: bool = False, seed=None, horizon: int | None = None, fallback: bool = True,
+                start_horizon: int | None = None):
     """Solve the OC model for one start/goal under a convention (``conventions.get``); returns an
     ``problem.OCPSolution`` (check ``success``).
 
@@ -27,8 +28,11 @@ def solve_model(model: str, start, goal, weights, *, convention="continuous", n_
     duration rule (``duration.nelder_mead_duration`` / ``last_node_duration``), every horizon from
     rest unless ``warm`` (then from the nearest horizon solved) or ``seed`` (a solution of other
     weights, see ``duration.HorizonSolver``); ``horizon``: solve that number of steps only, instead of
-    the duration rule (the IOC holds the rule's horizon between evaluations); ``fallback``: IPOPT when
-    fatrop fails. The solution has one node per step.
+    the duration rule (the IOC holds the rule's horizon between evaluations); ``start_horizon``: a check
+    that a horizon chosen before is still the rule's (``duration.nelder_mead_duration``'s ``start``: kept
+    when the rule's criterion is no lower one node either side, else the search from there), ``seed``
+    taken as its solution there when it has that horizon;
+    ``fallback``: IPOPT when fatrop fails. The solution has one node per step.
     """
     from cobot_analysis import conventions
     from cobot_analysis.models.oc.duration import grid_duration, initial_duration, search_duration
@@ -41,7 +45,7 @@ def solve_model(model: str, start, goal, weights, *, convention="continuous", n_
     dyn = "unicycle" if model == "unicycle" else "walker"
     if rule.scheme == "euler":
         return _solve_published(rule, dyn, start, goal, weights, solver=solver, max_iter=max_iter, warm=warm, seed=seed,
-                                horizon=horizon, fallback=fallback)
+                                horizon=horizon, fallback=fallback, start_horizon=start_horizon)
     duration = duration or rule.duration
     T0 = initial_duration(start, goal, v_nominal) if T is None else T
     guesses = [guess] if isinstance(guess, str | np.ndarray) else list(guess)
@@ -66,7 +70,7 @@ def solve_model(model: str, start, goal, weights, *, convention="continuous", n_
 
 
 def _solve_published(rule, dyn: str, start, goal, weights, *, solver: str, max_iter: int, warm: bool, seed=None,
-                     horizon: int | None = None, fallback: bool = True):
+                     horizon: int | None = None, fallback: bool = True, start_horizon: int | None = None):
     """The published convention: the start moved to the origin at rest, the goal with it, the
     authors' duration rule on the explicit-Euler problem; the solution moved back."""
     from dataclasses import replace
@@ -86,7 +90,9 @@ def _solve_published(rule, dyn: str, start, goal, weights, *, solver: str, max_i
     if horizon is not None:
         sol = solve(int(horizon))
     elif rule.duration == "nelder-mead":
-        sol = nelder_mead_duration(solve)
+        if start_horizon is not None and solve.seed is not None and solve.seed.U.shape[0] == start_horizon:
+            solve.solved[int(start_horizon)] = solve.seed  # a solution at these weights and that horizon
+        sol = nelder_mead_duration(solve, start=start_horizon)
     else:
         sol = last_node_duration(solve, rule.psi_eps)
     X = sol.X.copy()

@@ -163,13 +163,15 @@ class HorizonSolver:
         return self.solved[T]
 
 
-def nelder_mead_duration(solve: HorizonSolver) -> OCPSolution:
+def nelder_mead_duration(solve: HorizonSolver, start: int | None = None) -> OCPSolution:
     """The improved model's published duration rule (module docstring); returns the solution at
-    the chosen T (check ``success``)."""
+    the chosen T (check ``success``). ``start``: a check of a horizon chosen before (e.g. at other
+    weights): kept when the rule's criterion f is no lower at start - 1 and start + 1 (one or two
+    solves), else the search started there instead of at the authors' T_guess."""
     from scipy.optimize import minimize
 
     d = math.hypot(solve.goal[0] - solve.start[0], solve.goal[1] - solve.start[1])
-    T_guess = int(d * NODES_PER_METRE * 2 / 3)
+    T_guess = int(d * NODES_PER_METRE * 2 / 3) if start is None else int(start)
 
     def f(z: np.ndarray) -> float:
         T = int(z[0])
@@ -180,6 +182,8 @@ def nelder_mead_duration(solve: HorizonSolver) -> OCPSolution:
             return s.cost / T
         return s.cost / T * 10 if 0 <= s.iterations < 50 else 1e4
 
+    if start is not None and f(np.array([T_guess])) <= min(f(np.array([T_guess + k])) for k in (-1, 1)):
+        return solve(T_guess)
     res = minimize(f, np.array([float(max(T_guess, 1))]), method="Nelder-Mead", options={"xatol": 0.01, "fatol": 0.001})
     return solve(max(int(res.x[0]), 1))
 
