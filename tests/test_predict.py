@@ -150,12 +150,15 @@ def test_step_by_step_equals_offline_and_warm_equals_cold():
     for name in ("oc", "cv", "ctrv"):
         p = make_predictor(name, 8, 20, DT)
         offline = results[name] = p.predict_offline(poses)
+        counts, after = (p.skipped, p.failed, p.n_seen), [q.copy() for q in p._past]
         p.reset()
         online = [p.update(pose) for pose in poses]
         assert all(o is None for o in online[:7])
         stacked = np.stack([np.full((13, 3), np.nan) if o is None else o for o in online[7:]])
         np.testing.assert_array_equal(stacked, offline)
         assert p.skipped == 8  # windows k = 30..37 hold sample 30 in their past
+        assert (p.skipped, p.failed, p.n_seen) == counts  # offline leaves the online state of update in a loop
+        np.testing.assert_array_equal(np.array(p._past), np.array(after))
     cold = OCPredictor(8, 20, DT, warm_start=False).predict_offline(poses)
     np.testing.assert_allclose(cold, results["oc"], atol=1e-6, equal_nan=True)
 

@@ -29,6 +29,7 @@ class Predictor:
     def reset(self) -> None:
         """Forget the past (a new trajectory)."""
         self._past: deque[np.ndarray] = deque(maxlen=self.n0)
+        self.n_seen = 0  # poses seen since the reset: the current window ends at sample k = n_seen - 1
         self.skipped = 0  # windows with a NaN position in their past
         self.failed = 0  # windows where the model gave no prediction (solver failure)
 
@@ -37,10 +38,15 @@ class Predictor:
         ``k .. k + H`` as an (H + 1, 3) array, or None while fewer than N0 poses were seen or when
         the window is skipped."""
         self._past.append(np.asarray(pose, dtype=float).reshape(3))
+        self.n_seen += 1
         if len(self._past) < self.n0:
             return None
         past = np.array(self._past)
-        if not np.isfinite(past[:, :2]).all():
+        return self._window(past, bool(np.isfinite(past[:, :2]).all()))
+
+    def _window(self, past: np.ndarray, finite: bool) -> np.ndarray | None:
+        """One window of ``update``: skipped unless x, y of the whole ``past`` are ``finite``."""
+        if not finite:
             self.skipped += 1
             self.on_skip()
             return None
@@ -50,7 +56,8 @@ class Predictor:
         return path
 
     def predict_offline(self, poses: np.ndarray) -> np.ndarray:
-        """Predictions for every window of a whole trajectory: (N - N0 + 1, H + 1, 3), NaN if skipped."""
+        """Predictions for every window of a whole trajectory: (N - N0 + 1, H + 1, 3), NaN if skipped.
+        ``update`` in a loop, each window's past a fresh copy of its N0 rows (as ``update`` builds it)."""
         poses = np.asarray(poses, dtype=float)
         if poses.ndim != 2 or poses.shape[1] != 3:
             raise ValueError("poses must be an (N, 3) array of x, y, theta")
@@ -58,11 +65,17 @@ class Predictor:
             raise InputError(f"trajectory has {poses.shape[0]} samples, fewer than N0 = {self.n0}",
                              remedy="lower N0 or leave this trajectory out")
         self.reset()
-        out = np.full((poses.shape[0] - self.n0 + 1, self.horizon + 1, 3), np.nan)
-        for i, pose in enumerate(poses):
-            path = self.update(pose)
+        poses = np.array(poses)  # own C-ordered copy: the windows below are copies of its rows
+        n0, n = self.n0, poses.shape[0]
+        missing = np.concatenate([[0], np.cumsum(~np.isfinite(poses[:, :2]).all(axis=1))])
+        finite = (missing[n0:] - missing[:-n0]) == 0  # window w (samples w .. w + N0 - 1) has x, y finite
+        out = np.full((n - n0 + 1, self.horizon + 1, 3), np.nan)
+        for w in range(n - n0 + 1):
+            self.n_seen = w + n0
+            path = self._window(poses[w: w + n0].copy(), bool(finite[w]))
             if path is not None:
-                out[i - self.n0 + 1] = path
+                out[w] = path
+        self._past.extend(poses[n - n0:])  # the online state after the last pose
         return out
 
     # -- what a model implements ----------------------------------------------------------------

@@ -345,15 +345,10 @@ class GoalInferencePredictor(Predictor):
 
     def reset(self) -> None:
         super().reset()
-        self._k = -1
         self._segment: tuple[int, np.ndarray] | None = None  # (j, (M, L + 1, 2) plans made at sample j)
         self._evidence = np.zeros(len(getattr(self, "candidates", ())))  # log-likelihoods of the finished segments
         self.posterior = None
         self.history: list[tuple[int, np.ndarray]] = []
-
-    def update(self, pose) -> np.ndarray | None:
-        self._k += 1
-        return super().update(pose)
 
     def on_skip(self) -> None:
         self._segment = None  # the finished segments' evidence stays
@@ -368,7 +363,7 @@ class GoalInferencePredictor(Predictor):
         return np.where(np.isfinite(d), -0.5 * (d / self.sigma) ** 2, 0.0)
 
     def predict(self, past: np.ndarray) -> np.ndarray | None:
-        k = self._k
+        k = self.n_seen - 1
         x0 = plan_start(past, self.filter)
         paths = [plan_path(p, x0, (g[0], g[1], float("nan")), self._length) for p, g in zip(self.planners, self.candidates)]
         ok = np.array([p is not None for p in paths])
