@@ -385,3 +385,13 @@ def test_plan_of_a_walker_heading_away_turns_round_once(tmp_path):
     rest = planner.ocp.solve(x0[:3], goal, planner.weights, 1.53, guess="rest", start_velocity=x0[3:])
     assert rest.success and spins(rest.X[:, 2]) and rest.cost > sol.cost  # the defect, documented: a costlier local minimum
     assert not spins(np.linspace(0.0, 3 * np.pi, 21)) and spins(np.r_[np.linspace(0.0, 7.0, 11), np.linspace(7.0, 0.5, 10)])
+
+
+def test_direction_of_travel_of_a_walker_who_stops_is_where_it_was_going():
+    """A walker who stops (positions constant, no time base involved) keeps the direction it arrived in: a path that
+    does not move has no tangent, so the window takes its displacement at the body's scale."""
+    from cobot_analysis.models.prediction.predictor import heading, travel_filters
+
+    x = np.r_[np.linspace(-0.3, 0.0, 30), np.zeros(20)]
+    past = np.c_[x, 0.5 * x, np.full(50, np.nan)]
+    np.testing.assert_allclose(heading(past, travel_filters(50)), np.arctan2(0.5, 1.0), atol=1e-9)

@@ -260,15 +260,15 @@ def heading(past: np.ndarray, travel: np.ndarray, radius: float = BODY_RADIUS) -
     """The direction of travel at every sample of ``past`` (x, y in m), unwrapped from its first value in (-pi, pi].
     No time enters: the same on any time base (docs/methods.md sec. 7).
 
-    Where the path curves no tighter than the body, radius of curvature ``|p'|^3 / |p' x p''| >= radius`` at every
-    sample (``(p', p'') = travel @ p``, ``travel_filters``), it is the tangent ``atan2(y', x')``. Elsewhere the pelvis
+    Where the path curves no tighter than the body, radius of curvature ``|p'|^3 / |p' x p''| > radius`` at every
+    sample (a standing walker's path has none) (``(p', p'') = travel @ p``, ``travel_filters``), it is the tangent ``atan2(y', x')``. Elsewhere the pelvis
     steps round a spot (a turn on the spot, a loop) and its tangent is not where the body goes: the whole window
     takes the direction of the path's displacement at the body's scale, ``atan2`` of
     ``V_i = sum_j w(|m_j - p_i| / radius) (p_{j+1} - p_j)`` (``m_j`` the middle of step j, ``w(u) = (1 - u^2)^2``
     for u < 1, else 0), in which a loop inside the disc adds up to about nothing."""
     p = past[:, :2]
     d1, d2 = travel @ p
-    if (np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) * radius <= np.hypot(d1[:, 0], d1[:, 1]) ** 3).all():
+    if (np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) * radius < np.hypot(d1[:, 0], d1[:, 1]) ** 3).all():
         return np.unwrap(np.arctan2(d1[:, 1], d1[:, 0]))
     step = np.diff(p, axis=0)
     middle = 0.5 * (p[1:] + p[:-1])
