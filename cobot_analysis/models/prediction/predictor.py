@@ -103,8 +103,9 @@ class OCPredictor(Predictor):
     Missing orientation (theta NaN anywhere in the window), both conventions: the walker faces where
     it goes (gamma = 0, as the start heading of the models assumes), so the window tracks the
     direction of travel ``heading(past)`` as its theta, with the same g1: the tracked-theta problem
-    with a derived theta; the direction of travel is the path's tangent, or, in a window whose path curves
-    tighter than the body (``BODY_RADIUS``: a turn on the spot), its displacement at the body's scale. (Tracking positions only, g1 = 0, left theta free but for R(theta), and
+    with a derived theta; the direction of travel is the tangent of the path fitted at the body's scale
+    (``BODY_RADIUS``), or, in a window whose fitted path curves tighter than the body (a turn on the spot), the
+    path's displacement at that scale. (Tracking positions only, g1 = 0, left theta free but for R(theta), and
     omega nearly free with a3 = 1e-6: the solution could spin the body through full turns inside a
     window while x, y tracked, and which of the many 2 pi windings the solver found, hence the
     prediction, depended on its initial guess.) The predicted theta is then the model's, not a
