@@ -92,10 +92,11 @@ def test_oc_predictor_without_orientation_turns_on_the_spot_at_a_human_rate(turn
     tangent at 50 rad/s. The tracked direction of travel takes the path's displacement at the body's scale there
     (predictor.heading), so the tracked theta, the window's omega and the predicted theta turn at most as fast as
     a person pivoting quickly (half a turn in 0.3 s: 10 rad/s); before, the tangent was tracked: omega 59-84 rad/s."""
-    from cobot_analysis.models.prediction.predictor import heading
+    from cobot_analysis.models.prediction.predictor import heading, travel_filters
 
     poses, dt, n0 = spot_walk(turn), 0.005, 50
-    tracked = [np.abs(np.diff(heading(poses[k - n0 + 1:k + 1]))).max() / dt for k in range(n0 - 1, len(poses))]
+    travel = travel_filters(n0)
+    tracked = [np.abs(np.diff(heading(poses[k - n0 + 1:k + 1], travel))).max() / dt for k in range(n0 - 1, len(poses))]
     assert max(tracked) < 10.0
     warm = make_predictor("oc", n0, 100, dt)
     omega, rate = [], []
@@ -389,8 +390,8 @@ def test_plan_of_a_walker_heading_away_turns_round_once(tmp_path):
 def test_direction_of_travel_of_a_walker_who_stops_is_where_it_was_going():
     """A walker who stops (positions constant, no time base involved) keeps the direction it arrived in: a path that
     does not move has no tangent, so the window takes its displacement at the body's scale."""
-    from cobot_analysis.models.prediction.predictor import heading
+    from cobot_analysis.models.prediction.predictor import heading, travel_filters
 
     x = np.r_[np.linspace(-0.3, 0.0, 30), np.zeros(20)]
     past = np.c_[x, 0.5 * x, np.full(50, np.nan)]
-    np.testing.assert_allclose(heading(past), np.arctan2(0.5, 1.0), atol=1e-9)
+    np.testing.assert_allclose(heading(past, travel_filters(50)), np.arctan2(0.5, 1.0), atol=1e-9)

@@ -103,9 +103,9 @@ class OCPredictor(Predictor):
     Missing orientation (theta NaN anywhere in the window), both conventions: the walker faces where
     it goes (gamma = 0, as the start heading of the models assumes), so the window tracks the
     direction of travel ``heading(past)`` as its theta, with the same g1: the tracked-theta problem
-    with a derived theta; the direction of travel is the tangent of the path fitted at the body's scale
-    (``BODY_RADIUS``), or, in a window whose fitted path curves tighter than the body (a turn on the spot), the
-    path's displacement at that scale. (Tracking positions only, g1 = 0, left theta free but for R(theta), and
+    with a derived theta; the direction of travel is the path's tangent, or, in a window whose path curves
+    tighter than the body (``BODY_RADIUS``: a turn on the spot), its displacement at the body's scale.
+    (Tracking positions only, g1 = 0, left theta free but for R(theta), and
     omega nearly free with a3 = 1e-6: the solution could spin the body through full turns inside a
     window while x, y tracked, and which of the many 2 pi windings the solver found, hence the
     prediction, depended on its initial guess.) The predicted theta is then the model's, not a
@@ -164,6 +164,7 @@ class OCPredictor(Predictor):
         t = np.arange(min(self.fit, self.n0)) * self.step
         self._derivative = np.linalg.pinv(np.vander(t, 3, increasing=True))[1]
         self._estimate = quadratic_fit(min(self.fit, self.n0), self.dt)[0]  # position at the last of ``fit`` samples
+        self._travel = travel_filters(self.n0, self.fit)  # direction of travel (positions only)
 
     def reset(self) -> None:
         super().reset()
@@ -184,7 +185,8 @@ class OCPredictor(Predictor):
         has_theta = bool(np.isfinite(past[:, 2]).all())
         if has_theta:
             return past[:, 2], True
-        return heading(past), False
+        travel = self._travel if len(past) == self.n0 else travel_filters(len(past), self.fit)
+        return heading(past, travel), False
 
     def _initial_state(self, past: np.ndarray, angles: np.ndarray, has_theta: bool) -> tuple[np.ndarray, bool]:
         d = self._derivative
@@ -246,28 +248,32 @@ class OCPredictor(Predictor):
         return coast(start, self.step, self.horizon, scheme=self.scheme)[:, :3] + origin
 
 
-def heading(past: np.ndarray, radius: float = BODY_RADIUS) -> np.ndarray:
-    """The direction of travel at every sample of ``past`` (x, y in m) at the body's scale ``radius``, unwrapped from
-    its first value in (-pi, pi]. No time enters: the same on any time base (docs/methods.md sec. 7).
+def travel_filters(n: int, fit: int = 5) -> np.ndarray:
+    """(2, n, n) matrices D1, D2: ``D1 @ p``, ``D2 @ p`` are, at each of n samples, the first and second derivatives per
+    sample of the least-squares quadratic through the ``fit`` samples around it (Savitzky-Golay; at the ends, through
+    the first or last ``fit``)."""
+    from scipy.signal import savgol_filter
 
-    At sample i, the path ``p_j`` is fitted by the least-squares quadratic ``c0 + c1 (j - i) + c2 (j - i)^2`` weighted by
-    ``w(|p_j - p_i| / radius)``, ``w(u) = (1 - u^2)^2`` for u < 1, else 0: the direction of travel is its tangent
-    ``atan2(c1)``, as long as that path curves no tighter than the body (radius of curvature
-    ``|c1|^3 / |c1 x 2 c2| > radius``) and goes forward (``c1 . V_i > 0``, V below) at every sample. Elsewhere the pelvis steps round a spot (a turn on the spot, a
-    loop, a walker who stops) and the window takes the direction of the path's displacement at the body's scale,
-    ``V_i = sum_j w(|m_j - p_i| / radius) (p_{j+1} - p_j)`` (``m_j`` the middle of step j), in which a loop inside the
-    disc adds up to about nothing."""
+    m = min(fit, n)
+    return np.stack([savgol_filter(np.eye(n), m, min(2, m - 1), deriv=d, axis=0, mode="interp") for d in (1, 2)])
+
+
+def heading(past: np.ndarray, travel: np.ndarray, radius: float = BODY_RADIUS) -> np.ndarray:
+    """The direction of travel at every sample of ``past`` (x, y in m), unwrapped from its first value in (-pi, pi].
+    No time enters: the same on any time base (docs/methods.md sec. 7).
+
+    Where the path curves no tighter than the body, radius of curvature ``|p'|^3 / |p' x p''| > radius`` at every
+    sample (``(p', p'') = travel @ p``, ``travel_filters``; a path that does not move has none), it is the tangent
+    ``atan2(y', x')``. Elsewhere the pelvis steps round a spot (a turn on the spot, a loop) and its tangent is not
+    where the body goes: the whole window takes the direction of the path's displacement at the body's scale, ``atan2`` of
+    ``V_i = sum_j w(|m_j - p_i| / radius) (p_{j+1} - p_j)`` (``m_j`` the middle of step j, ``w(u) = (1 - u^2)^2``
+    for u < 1, else 0), in which a loop inside the disc adds up to about nothing."""
     p = past[:, :2]
-    n = len(p)
-    w = np.clip(1.0 - ((p[None, :, :] - p[:, None, :]) ** 2).sum(axis=2) / radius**2, 0.0, None) ** 2  # (i, j)
-    lag = (np.arange(n)[None, :] - np.arange(n)[:, None]).astype(float)
-    basis = np.stack([np.ones_like(lag), lag, lag**2], axis=2)  # (i, j, 3)
-    c = np.linalg.solve(np.einsum("ij,ijk,ijl->ikl", w, basis, basis), np.einsum("ij,ijk,jd->ikd", w, basis, p))
-    tangent, a = c[:, 1], 2.0 * c[:, 2]
+    d1, d2 = travel @ p
+    if (np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) * radius < np.hypot(d1[:, 0], d1[:, 1]) ** 3).all():
+        return np.unwrap(np.arctan2(d1[:, 1], d1[:, 0]))
+    step = np.diff(p, axis=0)
     middle = 0.5 * (p[1:] + p[:-1])
-    u2 = ((middle[None, :, :] - p[:, None, :]) ** 2).sum(axis=2) / radius**2
-    v = (np.clip(1.0 - u2, 0.0, None) ** 2) @ np.diff(p, axis=0)  # displacement at the body's scale
-    curving = np.abs(tangent[:, 0] * a[:, 1] - tangent[:, 1] * a[:, 0]) * radius
-    if ((curving < np.hypot(tangent[:, 0], tangent[:, 1]) ** 3) & ((tangent * v).sum(axis=1) > 0)).all():
-        v = tangent
+    u2 = ((middle[None, :, :] - p[:, None, :]) ** 2).sum(axis=2) / radius ** 2
+    v = (np.clip(1.0 - u2, 0.0, None) ** 2) @ step
     return np.unwrap(np.arctan2(v[:, 1], v[:, 0]))
