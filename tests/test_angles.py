@@ -1,4 +1,4 @@
-"""Angles: ``wrap`` takes the mod only where it changes a value, and gives the mod's bits everywhere."""
+"""Angles: ``wrap`` takes the mod only where it changes a value, and gives the mod's bits everywhere (NaN payloads too)."""
 
 from __future__ import annotations
 
@@ -15,8 +15,9 @@ def mod_wrap(a):
 
 def test_wrap_is_the_mod_formula_bit_for_bit():
     rng = np.random.default_rng(0)
-    edges = [0.0, -0.0, np.pi, -np.pi, 2 * np.pi, -2 * np.pi, 3 * np.pi, np.nan, 1e300, -1e300, 5e-324, -5e-324,
-             np.nextafter(np.pi, 0), np.nextafter(np.pi, 4), np.nextafter(-np.pi, 0), np.nextafter(-np.pi, -4)]
+    nans = list(np.array([0x7FF8000000000000, 0xFFF8000000000000, 0x7FF8000000000123, 0xFFF8000000000123], dtype=np.uint64).view(float))
+    edges = [0.0, -0.0, np.pi, -np.pi, 2 * np.pi, -2 * np.pi, 3 * np.pi, 1e300, -1e300, 5e-324, -5e-324,
+             np.nextafter(np.pi, 0), np.nextafter(np.pi, 4), np.nextafter(-np.pi, 0), np.nextafter(-np.pi, -4), *nans]
     for a in (np.array(edges), rng.normal(0, 0.3, 5000), rng.uniform(-20, 20, (50, 40)), rng.uniform(-20, 20, (50, 40))[:, ::3],
               np.pi + rng.normal(0, 1e-13, 1000), -np.pi + rng.normal(0, 1e-13, 1000), np.arange(-20, 20)):
         w = wrap(a)
