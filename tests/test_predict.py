@@ -283,14 +283,16 @@ def test_published_predictor_solves_cold_from_rest():
         OCPredictor(10, 30, DT, convention="authors")
 
 
-def test_coast_is_the_zero_control_step():
+@pytest.mark.parametrize("kind", ["walker", "unicycle"])
+@pytest.mark.parametrize("scheme", ["midpoint", "euler"])
+def test_coast_is_the_zero_control_step(kind, scheme):
     import casadi as ca
 
     from cobot_analysis.models.dynamics import coast, step
 
     X = np.array([0.3, -1.0, 2.0, 1.1, -0.2, 0.7])
-    F = ca.Function("F", [x := ca.SX.sym("x", 6)], [step(x, ca.DM.zeros(3), 0.05)])
+    F = ca.Function("F", [x := ca.SX.sym("x", 6)], [step(x, ca.DM.zeros(3), 0.05, kind, scheme)])
     expected = [X]
     for _ in range(5):
         expected.append(np.asarray(F(expected[-1])).ravel())
-    np.testing.assert_allclose(coast(X, 0.05, 5), np.array(expected), atol=1e-12)
+    np.testing.assert_allclose(coast(X, 0.05, 5, kind, scheme), np.array(expected), atol=1e-12)
