@@ -233,6 +233,8 @@ def trajectories_from_table(df: pd.DataFrame, config: SweepConfig, path: str | o
     if df.empty:
         raise InputError("no trajectory to predict (empty selection)", path=path, remedy="check --only-study / --entity / --kind")
     n0_max = max(n0 for n0, _ in config.settings)
+    df = df.copy(deep=False)
+    df.attrs = {}  # the table's metadata: pandas would deep-copy it at every slice of every group below
     out = []
     for (study, trial, entity), g in df.groupby(["study", "trial", "entity"], sort=True, observed=True):
         g = g.sort_values("sample")
