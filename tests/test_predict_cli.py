@@ -414,11 +414,14 @@ def test_published_walking_trajectories_under_both_conventions(cli, tmp_path, da
         m[conv] = pd.read_parquet(out / stage / "predictions.parquet").set_index(["trial", "predictor"])["delta_xy"].unstack()
         assert len(m[conv]) == 5
         assert (m[conv]["oc"] > m[conv]["cv"]).all()
-    np.testing.assert_allclose(m["continuous"]["oc"], m["published"]["oc"], rtol=0.15)
+    # the two positions-only trials of the five differ by 22 % since their direction of travel is taken at the body's
+    # scale where they turn on the spot (docs/methods.md sec. 7; 15 % before)
+    np.testing.assert_allclose(m["continuous"]["oc"], m["published"]["oc"], rtol=0.25)
     # 2026-11-25, positions-only windows tracking the direction of travel and the continuous prediction starting on
-    # the state estimate at k (docs/methods.md sec. 7; before: 0.0895 and 0.0877); tolerance of an OC solve
-    assert m["published"]["oc"].mean() == pytest.approx(0.0877, rel=0.02)
-    assert m["continuous"]["oc"].mean() == pytest.approx(0.0811, rel=0.02)
+    # the state estimate at k (docs/methods.md sec. 7; before: 0.0895 and 0.0877), then that direction at the body's
+    # scale where walkers turn on the spot (before: 0.0877 and 0.0811); tolerance of an OC solve
+    assert m["published"]["oc"].mean() == pytest.approx(0.0892, rel=0.02)
+    assert m["continuous"]["oc"].mean() == pytest.approx(0.0807, rel=0.02)
     np.testing.assert_array_equal(m["published"]["cv"], m["continuous"]["cv"])
 
 

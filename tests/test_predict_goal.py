@@ -74,6 +74,43 @@ def test_continuous_oc_predictor_without_orientation_turns_at_a_human_rate_whate
     np.testing.assert_allclose(cold.predict_offline(poses), warm.predict_offline(poses), atol=1e-6)
 
 
+def spot_walk(turn: float, radius: float = 0.02, ds: float = 0.005, straight: float = 0.6) -> np.ndarray:
+    """Positions only, one sample every ``ds`` m along the path (walking-2020's time base: 1 m/s, dt = ds / 1 m/s):
+    ``straight`` m along +x, then the pelvis steps round on the spot, a circle of ``radius`` through ``turn`` rad
+    to the left, then ``straight`` m on in the new direction."""
+    a = np.arange(0.0, straight, ds)
+    arc = np.arange(0.0, radius * turn, ds) / radius
+    end = radius * np.array([np.sin(turn), 1 - np.cos(turn)])
+    b = np.arange(ds, straight, ds)[:, None]
+    p = np.r_[np.c_[a - straight, 0 * a], radius * np.c_[np.sin(arc), 1 - np.cos(arc)], end + b * [np.cos(turn), np.sin(turn)]]
+    return np.c_[p, np.full(len(p), np.nan)]
+
+
+@pytest.mark.parametrize("turn", [2 * np.pi, np.pi / 2, np.pi])
+def test_oc_predictor_without_orientation_turns_on_the_spot_at_a_human_rate(turn):
+    """A turn on the spot seen at arc-length spacing: a 2 cm circle walked at the assumed 1 m/s turns the path's
+    tangent at 50 rad/s. The tracked direction of travel takes the path's displacement at the body's scale there
+    (predictor.heading), so the tracked theta, the window's omega and the predicted theta turn at most as fast as
+    a person pivoting quickly (half a turn in 0.3 s: 10 rad/s); before, the tangent was tracked: omega 59-84 rad/s."""
+    from cobot_analysis.models.prediction.predictor import heading, travel_filters
+
+    poses, dt, n0 = spot_walk(turn), 0.005, 50
+    travel = travel_filters(n0)
+    tracked = [np.abs(np.diff(heading(poses[k - n0 + 1:k + 1], travel))).max() / dt for k in range(n0 - 1, len(poses))]
+    assert max(tracked) < 10.0
+    warm = make_predictor("oc", n0, 100, dt)
+    omega, rate = [], []
+    for pose in poses:
+        path = warm.update(pose)
+        if path is not None:
+            omega.append(np.abs(warm.last_solution.X[:, 5]).max())
+            rate.append(np.abs(np.diff(path[:, 2])).max() / dt)
+    assert warm.failed == 0 and len(omega) == len(poses) - n0 + 1
+    assert max(omega) < 10.0 and max(rate) < 10.0  # rad/s
+    cold = make_predictor("oc", n0, 100, dt, warm_start=False)
+    np.testing.assert_allclose(cold.predict_offline(poses), warm.predict_offline(poses), atol=1e-6)
+
+
 def test_state_estimate_is_exact_on_a_quadratic():
     t = np.arange(10) * DT
     past = np.c_[1 + 2 * t + t**2, -t, 0.3 + 0.5 * t]
@@ -348,3 +385,13 @@ def test_plan_of_a_walker_heading_away_turns_round_once(tmp_path):
     rest = planner.ocp.solve(x0[:3], goal, planner.weights, 1.53, guess="rest", start_velocity=x0[3:])
     assert rest.success and spins(rest.X[:, 2]) and rest.cost > sol.cost  # the defect, documented: a costlier local minimum
     assert not spins(np.linspace(0.0, 3 * np.pi, 21)) and spins(np.r_[np.linspace(0.0, 7.0, 11), np.linspace(7.0, 0.5, 10)])
+
+
+def test_direction_of_travel_of_a_walker_who_stops_is_where_it_was_going():
+    """A walker who stops (positions constant, no time base involved) keeps the direction it arrived in: a path that
+    does not move has no tangent, so the window takes its displacement at the body's scale."""
+    from cobot_analysis.models.prediction.predictor import heading, travel_filters
+
+    x = np.r_[np.linspace(-0.3, 0.0, 30), np.zeros(20)]
+    past = np.c_[x, 0.5 * x, np.full(50, np.nan)]
+    np.testing.assert_allclose(heading(past, travel_filters(50)), np.arctan2(0.5, 1.0), atol=1e-9)

@@ -24,9 +24,12 @@ import numpy as np
 from cobot_analysis.errors import InputError
 from cobot_analysis.models.dynamics import coast
 from cobot_analysis.models.prediction.base import Predictor
-from cobot_analysis.models.prediction.goal import MIN_SPEED, quadratic_fit
+from cobot_analysis.models.prediction.goal import quadratic_fit
 
 PREDICTORS = ("oc", "cv", "ctrv", "goal", "goal-inferred")
+# m: the body's scale for the direction of travel (``heading``): about a foot length, the base of support within
+# which the pelvis stays while a person steps round on the spot (docs/methods.md sec. 7)
+BODY_RADIUS = 0.25
 
 
 def make_predictor(name: str, n0: int, n_oc: int, dt: float = 1.0, *, convention="continuous", **options) -> Predictor:
@@ -100,7 +103,9 @@ class OCPredictor(Predictor):
     Missing orientation (theta NaN anywhere in the window), both conventions: the walker faces where
     it goes (gamma = 0, as the start heading of the models assumes), so the window tracks the
     direction of travel ``heading(past)`` as its theta, with the same g1: the tracked-theta problem
-    with a derived theta. (Tracking positions only, g1 = 0, left theta free but for R(theta), and
+    with a derived theta; the direction of travel is the path's tangent, or, in a window whose path curves
+    tighter than the body (``BODY_RADIUS``: a turn on the spot), its displacement at the body's scale.
+    (Tracking positions only, g1 = 0, left theta free but for R(theta), and
     omega nearly free with a3 = 1e-6: the solution could spin the body through full turns inside a
     window while x, y tracked, and which of the many 2 pi windings the solver found, hence the
     prediction, depended on its initial guess.) The predicted theta is then the model's, not a
@@ -159,7 +164,7 @@ class OCPredictor(Predictor):
         t = np.arange(min(self.fit, self.n0)) * self.step
         self._derivative = np.linalg.pinv(np.vander(t, 3, increasing=True))[1]
         self._estimate = quadratic_fit(min(self.fit, self.n0), self.dt)[0]  # position at the last of ``fit`` samples
-        self._travel = travel_filter(self.n0, self.fit)  # direction of travel (positions only)
+        self._travel = travel_filters(self.n0, self.fit)  # direction of travel (positions only)
 
     def reset(self) -> None:
         super().reset()
@@ -180,8 +185,8 @@ class OCPredictor(Predictor):
         has_theta = bool(np.isfinite(past[:, 2]).all())
         if has_theta:
             return past[:, 2], True
-        travel = self._travel if len(past) == self.n0 else travel_filter(len(past), self.fit)
-        return heading(past, travel, self.dt), False
+        travel = self._travel if len(past) == self.n0 else travel_filters(len(past), self.fit)
+        return heading(past, travel), False
 
     def _initial_state(self, past: np.ndarray, angles: np.ndarray, has_theta: bool) -> tuple[np.ndarray, bool]:
         d = self._derivative
@@ -243,26 +248,32 @@ class OCPredictor(Predictor):
         return coast(start, self.step, self.horizon, scheme=self.scheme)[:, :3] + origin
 
 
-def travel_filter(n: int, fit: int = 5) -> np.ndarray:
-    """(n, n) matrix D: ``D @ p`` is, at each of n samples, the derivative per sample of the least-squares
-    quadratic through the ``fit`` samples around it (Savitzky-Golay; at the ends, through the first or last ``fit``)."""
+def travel_filters(n: int, fit: int = 5) -> np.ndarray:
+    """(2, n, n) matrices D1, D2: ``D1 @ p``, ``D2 @ p`` are, at each of n samples, the first and second derivatives per
+    sample of the least-squares quadratic through the ``fit`` samples around it (Savitzky-Golay; at the ends, through
+    the first or last ``fit``)."""
     from scipy.signal import savgol_filter
 
     m = min(fit, n)
-    return savgol_filter(np.eye(n), m, min(2, m - 1), deriv=1, axis=0, mode="interp")
+    return np.stack([savgol_filter(np.eye(n), m, min(2, m - 1), deriv=d, axis=0, mode="interp") for d in (1, 2)])
 
 
-def heading(past: np.ndarray, travel: np.ndarray, dt: float = 1.0) -> np.ndarray:
-    """The direction of travel at every sample of ``past``: ``atan2(y', x')`` with ``(x', y') = travel @ past``
-    (``travel_filter``), unwrapped from its first value in (-pi, pi]. Where the walker stands (speed below
-    ``goal.MIN_SPEED``, ``dt`` seconds per sample) the direction of travel is noise: the heading of the nearest
-    sample in motion is held (that of the whole past's displacement if none moves)."""
-    v = travel @ past[:, :2]
-    moving = np.hypot(v[:, 0], v[:, 1]) >= MIN_SPEED * dt
-    if not moving.all():
-        if not moving.any():
-            d = past[-1, :2] - past[0, :2]
-            return np.full(len(past), np.arctan2(d[1], d[0]))
-        i = np.flatnonzero(moving)
-        v = v[i[np.abs(np.arange(len(past))[:, None] - i[None, :]).argmin(axis=1)]]
+def heading(past: np.ndarray, travel: np.ndarray, radius: float = BODY_RADIUS) -> np.ndarray:
+    """The direction of travel at every sample of ``past`` (x, y in m), unwrapped from its first value in (-pi, pi].
+    No time enters: the same on any time base (docs/methods.md sec. 7).
+
+    Where the path curves no tighter than the body, radius of curvature ``|p'|^3 / |p' x p''| > radius`` at every
+    sample (``(p', p'') = travel @ p``, ``travel_filters``; a path that does not move has none), it is the tangent
+    ``atan2(y', x')``. Elsewhere the pelvis steps round a spot (a turn on the spot, a loop) and its tangent is not
+    where the body goes: the whole window takes the direction of the path's displacement at the body's scale, ``atan2`` of
+    ``V_i = sum_j w(|m_j - p_i| / radius) (p_{j+1} - p_j)`` (``m_j`` the middle of step j, ``w(u) = (1 - u^2)^2``
+    for u < 1, else 0), in which a loop inside the disc adds up to about nothing."""
+    p = past[:, :2]
+    d1, d2 = travel @ p
+    if (np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) * radius < np.hypot(d1[:, 0], d1[:, 1]) ** 3).all():
+        return np.unwrap(np.arctan2(d1[:, 1], d1[:, 0]))
+    step = np.diff(p, axis=0)
+    middle = 0.5 * (p[1:] + p[:-1])
+    u2 = ((middle[None, :, :] - p[:, None, :]) ** 2).sum(axis=2) / radius ** 2
+    v = (np.clip(1.0 - u2, 0.0, None) ** 2) @ step
     return np.unwrap(np.arctan2(v[:, 1], v[:, 0]))
