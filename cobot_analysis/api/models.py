@@ -649,7 +649,8 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             if bootstrap and model != "coupled":
                 uncertainty[key] = _weight_uncertainty(spec, targets, results[key].weights, bootstrap, seed=seed,
                                                       checkpoint=checkpoint / f"{safe}.curvature.json" if checkpoint else None,
-                                                      resume=resume, pool=pool, chunks=n_chunks)
+                                                      resume=resume, pool=pool, chunks=n_chunks,
+                                                      paths=raw.primals if method == "single-level" and conv.name == "continuous" else None)
     subjects_test = None
     if per == "subject" and uncertainty:
         from cobot_analysis.models.ioc.uncertainty import subjects_differ
@@ -699,19 +700,29 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
 
 
 def _weight_uncertainty(spec, targets: list, weights: dict[str, float], n_resamples: int, *, seed: int = 0,
-                       checkpoint: Path | None = None, resume: bool = False, pool=None, chunks: int = 2) -> dict:
+                       checkpoint: Path | None = None, resume: bool = False, pool=None, chunks: int = 2,
+                       paths: list | None = None) -> dict:
     """Verdict and bootstrap interval of each fitted weight at ``weights`` (docs/methods.md sec. 6.3,
     ``models.ioc.uncertainty``): {"D", "verdicts", "intervals", "lack_of_fit", "sd_log10", "resamples", "on_box",
-    "held" (the weights the search box holds, with why), "eigenvalues", "failed_solves"}."""
+    "held" (the weights the search box holds, with why), "eigenvalues", "failed_solves", "profile"}. Where the curvature
+    cannot judge (continuous convention), the verdicts and the determined weights' intervals come from profile
+    likelihoods (``models.ioc.profile``; ``paths``: the fit's lower-level paths, their warm starts; "profile": its points)."""
     from cobot_analysis.models.ioc import uncertainty as unc
 
     c = unc.curvature(spec, targets, weights, checkpoint=checkpoint, resume=resume, pool=pool, chunks=chunks)
     b = unc.bootstrap(c, n_resamples, seed=seed)
-    verdicts = unc.interval_verdicts(unc.verdicts(spec.fitted, c.H, c.D, weights, lack=c.lack_of_fit), b["intervals"], b["held"])
-    return {"D": c.D, "verdicts": verdicts, "intervals": b["intervals"],
+    prof, intervals = None, b["intervals"]
+    if c.lack_of_fit > unc.ROUGH and spec.convention == "continuous" and spec.model in ("improved", "table"):
+        from cobot_analysis.models.ioc.profile import profiles
+
+        prof = profiles(spec, targets, weights, paths=paths, pool=pool)
+        intervals = {n: prof["intervals"][n] if prof["verdicts"][n].startswith("determined") else i for n, i in intervals.items()}
+    verdicts = unc.interval_verdicts(unc.verdicts(spec.fitted, c.H, c.D, weights, lack=c.lack_of_fit,
+                                                  profiled=prof["verdicts"] if prof else None), intervals, b["held"])
+    return {"D": c.D, "verdicts": verdicts, "intervals": intervals,
             "lack_of_fit": c.lack_of_fit,
             "sd_log10": b["sd_log10"], "resamples": n_resamples, "on_box": b["on_box"], "held": b["held"], "eigenvalues": np.linalg.eigvalsh(c.H).tolist(),
-            "failed_solves": c.failed}
+            "failed_solves": c.failed, "profile": prof}
 
 
 def _figure_paths(model: str, targets: list, fitted: dict, conv) -> dict:

@@ -1,0 +1,95 @@
+"""Profile likelihoods of fitted weights (models/ioc/profile.py): the verdict rules on made-up profiles,
+and profiles of recovered weights on paths generated at known weights (20 intervals, 6 paths)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from cobot_analysis.models.ioc import IOCSpec
+from cobot_analysis.models.ioc.profile import grid, threshold, verdict
+from cobot_analysis.models.presets import load_weights, names_for, weights_vector
+
+W = weights_vector(load_weights("walking-2021", "improved"), "improved")
+SPEC = IOCSpec(model="improved", start_weights=tuple(W), n_intervals=20, fitted=("a2", "a4"))
+
+
+def test_threshold_is_the_likelihood_ratio_bound():
+    """2 n log(D / D_min) = chi2_1(0.95) = 3.8415 at the bound: 5.3 % above D_min for the 37 walking means."""
+    assert threshold(1.0, 37) == pytest.approx(math.exp(3.841459 / 74), rel=1e-6)
+    assert 2 * 10 * math.log(threshold(0.4, 10) / 0.4) == pytest.approx(3.841459, rel=1e-6)
+
+
+def test_grid_steps_out_to_the_search_limit():
+    assert grid(0.5, 1) == pytest.approx([0.6, 0.8, 1.5, 3.0])  # 0.5 + 3 is beyond the limit 3: the limit instead
+    assert grid(0.5, -1) == pytest.approx([0.4, 0.2, -0.5, -2.5, -7.0])
+    assert grid(-7.0, -1) == [] and grid(2.995, 1) == []  # at the limit: nothing to walk
+
+
+def _pt(y, D, **w):
+    return {"y": y, "D": D, "weights": w, "switched": 0, "failed": 0, "error": ""}
+
+
+def test_profile_verdicts_on_made_up_profiles():
+    """Both sides above the bound: determined, the interval at the linearly interpolated crossings; flat to a
+    limit with a partner moving along (slope 1 in log10): its ratio; flat with nothing moving: not determined;
+    a refit that failed: not judged; a branch change and a D below the fit's are reported."""
+    y0 = {"a2": 0.0, "a4": 1.0}
+    centre = _pt(0.0, 1.0, a4=10.0)
+    down = [_pt(-0.1, 1.0, a4=10.0), _pt(-0.3, 1.2, a4=10.0)]
+    up = [_pt(0.1, 1.02, a4=10.0), _pt(0.3, 1.1, a4=10.0)]
+    v, (lo, hi) = verdict("a2", y0, centre, down, up, 1.05, 1.0)
+    assert v.startswith("determined (profile: D crosses its 95 % bound 1.05")
+    assert lo == pytest.approx(10 ** -0.15) and hi == pytest.approx(10 ** (0.1 + 0.2 * 0.03 / 0.08))
+    flat = [_pt(y, 1.0, a4=10.0 ** (1 + y)) for y in (0.1, 0.3, 1.0, 3.0)]
+    v, iv = verdict("a2", y0, centre, down, flat, 1.05, 1.0)
+    assert v.startswith("only its ratio to a4 is determined (profile: D stays below its 95 % bound 1.05 to the search limit 1000 above")
+    assert iv == (1e-7, 1e3)
+    still = [_pt(y, 1.0, a4=10.0) for y in (0.1, 0.3, 1.0, 3.0)]
+    assert verdict("a2", y0, centre, down, still, 1.05, 1.0)[0].startswith("not determined by these data (profile: D stays")
+    broken = [_pt(0.1, 1.0, a4=10.0), {**_pt(0.3, math.nan), "error": "a lower level failed"}]
+    assert verdict("a2", y0, centre, down, broken, 1.05, 1.0)[0].startswith("not judged: the profile's refit failed at a2 2")
+    jump = [_pt(-0.1, 0.9, a4=10.0), {**_pt(-0.3, 1.3, a4=10.0), "switched": 3}]
+    v = verdict("a2", y0, centre, jump, up, 1.05 * 0.9, 0.9)[0]
+    assert "change branch (a fold) at a2 0.501 (3)" in v and "D 0.9 at a2 0.794, below the fit's 1" in v
+
+
+def test_profile_verdict_hook_and_category():
+    """Where the curvature cannot judge, the profile's verdict is given, and its category is the plain one."""
+    from cobot_analysis.models.ioc.uncertainty import verdict_category, verdicts
+
+    w = {"a1": 1.0, "a2": 1.0}
+    v = verdicts(("a1", "a2"), np.eye(2), 0.1, w, lack=0.3, profiled={"a1": "determined (profile: D crosses ...)"})
+    assert v["a1"] == "determined (profile: D crosses ...)" and v["a2"].startswith("not judged")
+    assert verdicts(("a1", "a2"), np.eye(2), 0.1, w, lack=0.05, profiled={"a1": "not determined"})["a1"] == "determined"
+    assert verdict_category(v["a1"]) == "determined"
+
+
+@pytest.mark.slow
+def test_profiles_of_recovered_weights():
+    """Paths generated at known weights (2 cm noise), fitted back from twice the truth: a2's profile rises
+    above the bound on both sides and its interval holds the truth; a5, a weight of a cost term the improved
+    model does not have, has a flat profile from the search limit 1e-7 to 1000: not determined."""
+    from cobot_analysis.models.ioc.profile import profiles
+    from cobot_analysis.models.ioc.recovery import synthetic_targets
+    from cobot_analysis.models.ioc.single_level import fit_feasible_path
+
+    names = names_for("improved")
+    targets = synthetic_targets(SPEC, W, 6, noise=0.02)
+    w = np.array(W, float)
+    for n in SPEC.fitted:
+        w[names.index(n)] *= 2
+    r = fit_feasible_path(replace(SPEC, start_weights=tuple(w)), targets)
+    out = profiles(SPEC, targets, r.weights, fitted=("a2",), paths=r.primals)
+    assert out["D"] == pytest.approx(r.objective, rel=1e-6)
+    v, (lo, hi) = out["verdicts"]["a2"], out["intervals"]["a2"]
+    assert v.startswith("determined"), v
+    assert lo < W[names.index("a2")] < hi and hi / lo < 10, (lo, hi)
+    spec5 = replace(SPEC, fitted=("a2", "a5"))
+    out = profiles(spec5, targets, r.weights | {"a5": 1e-7}, fitted=("a5",), paths=r.primals)
+    assert out["verdicts"]["a5"].startswith("not determined by these data (profile: D stays below its 95 % bound"), out["verdicts"]
+    assert out["verdicts"]["a5"].count("1000 above") == 1
+    assert max(p["D"] for p in out["points"]["a5"]) < out["threshold"]
