@@ -10,17 +10,23 @@ import numpy as np
 import pytest
 
 from cobot_analysis.models.ioc import IOCSpec
-from cobot_analysis.models.ioc.profile import grid, threshold, verdict
+from cobot_analysis.models.ioc.profile import excess, grid, verdict
 from cobot_analysis.models.presets import load_weights, names_for, weights_vector
 
 W = weights_vector(load_weights("walking-2021", "improved"), "improved")
 SPEC = IOCSpec(model="improved", start_weights=tuple(W), n_intervals=20, fitted=("a2", "a4"))
 
 
-def test_threshold_is_the_likelihood_ratio_bound():
-    """2 n log(D / D_min) = chi2_1(0.95) = 3.8415 at the bound: 5.3 % above D_min for the 37 walking means."""
-    assert threshold(1.0, 37) == pytest.approx(math.exp(3.841459 / 74), rel=1e-6)
-    assert 2 * 10 * math.log(threshold(0.4, 10) / 0.4) == pytest.approx(3.841459, rel=1e-6)
+def test_excess_is_the_paired_t_test_of_the_targets():
+    """t = mean / (sd / sqrt(n)) of the per-target rises against t_(n-1)(0.975); a rise below 0.1 % of D is flat
+    however consistent; no rise, or a fall, is never rejected."""
+    D0 = np.full(10, 0.4)
+    rise = np.array([0.01, 0.03] * 5)  # mean 0.02, sd 0.01054
+    t, tq, e = excess(D0 + rise, D0)
+    assert t == pytest.approx(0.02 / (np.std(rise, ddof=1) / math.sqrt(10))) and tq == pytest.approx(2.262157, rel=1e-5)
+    assert e == pytest.approx(t / tq) and e > 1
+    assert excess(D0 + 1e-5, D0)[2] == pytest.approx(1e-5 / 4e-4)  # consistent (t = inf) but 0.0025 % of D: flat
+    assert excess(D0, D0)[2] == 0.0 and excess(D0 - rise, D0)[2] < 0
 
 
 def test_grid_steps_out_to_the_search_limit():
@@ -29,31 +35,31 @@ def test_grid_steps_out_to_the_search_limit():
     assert grid(-7.0, -1) == [] and grid(2.995, 1) == []  # at the limit: nothing to walk
 
 
-def _pt(y, D, **w):
-    return {"y": y, "D": D, "weights": w, "switched": 0, "failed": 0, "error": ""}
+def _pt(y, e, D=1.0, **w):
+    return {"y": y, "D": D, "excess": e, "weights": w, "switched": 0, "failed": 0, "error": ""}
 
 
 def test_profile_verdicts_on_made_up_profiles():
-    """Both sides above the bound: determined, the interval at the linearly interpolated crossings; flat to a
-    limit with a partner moving along (slope 1 in log10): its ratio; flat with nothing moving: not determined;
-    a refit that failed: not judged; a branch change and a D below the fit's are reported."""
+    """Rejected on both sides: determined, the interval at the linearly interpolated crossings of excess = 1;
+    nothing rejected up to a limit with a partner moving along (slope 1 in log10): its ratio; with nothing
+    moving: not determined; a refit that failed: not judged; a branch change and a D below the fit's are reported."""
     y0 = {"a2": 0.0, "a4": 1.0}
-    centre = _pt(0.0, 1.0, a4=10.0)
-    down = [_pt(-0.1, 1.0, a4=10.0), _pt(-0.3, 1.2, a4=10.0)]
-    up = [_pt(0.1, 1.02, a4=10.0), _pt(0.3, 1.1, a4=10.0)]
-    v, (lo, hi) = verdict("a2", y0, centre, down, up, 1.05, 1.0)
-    assert v.startswith("determined (profile: D crosses its 95 % bound 1.05")
-    assert lo == pytest.approx(10 ** -0.15) and hi == pytest.approx(10 ** (0.1 + 0.2 * 0.03 / 0.08))
-    flat = [_pt(y, 1.0, a4=10.0 ** (1 + y)) for y in (0.1, 0.3, 1.0, 3.0)]
-    v, iv = verdict("a2", y0, centre, down, flat, 1.05, 1.0)
-    assert v.startswith("only its ratio to a4 is determined (profile: D stays below its 95 % bound 1.05 to the search limit 1000 above")
+    centre = _pt(0.0, 0.0, a4=10.0)
+    down = [_pt(-0.1, 0.5, a4=10.0), _pt(-0.3, 1.5, a4=10.0)]
+    up = [_pt(0.1, 0.2, a4=10.0), _pt(0.3, 2.2, a4=10.0)]
+    v, (lo, hi) = verdict("a2", y0, centre, down, up, 1.0)
+    assert v.startswith("determined (profile: the targets reject a2 below")
+    assert lo == pytest.approx(10 ** -0.2) and hi == pytest.approx(10 ** (0.1 + 0.2 * 0.8 / 2.0))
+    flat = [_pt(y, 0.5, a4=10.0 ** (1 + y)) for y in (0.1, 0.3, 1.0, 3.0)]
+    v, iv = verdict("a2", y0, centre, down, flat, 1.0)
+    assert v.startswith("only its ratio to a4 is determined (profile: no value rejected by the targets up to the search limit 1000 above")
     assert iv == (1e-7, 1e3)
-    still = [_pt(y, 1.0, a4=10.0) for y in (0.1, 0.3, 1.0, 3.0)]
-    assert verdict("a2", y0, centre, down, still, 1.05, 1.0)[0].startswith("not determined by these data (profile: D stays")
-    broken = [_pt(0.1, 1.0, a4=10.0), {**_pt(0.3, math.nan), "error": "a lower level failed"}]
-    assert verdict("a2", y0, centre, down, broken, 1.05, 1.0)[0].startswith("not judged: the profile's refit failed at a2 2")
-    jump = [_pt(-0.1, 0.9, a4=10.0), {**_pt(-0.3, 1.3, a4=10.0), "switched": 3}]
-    v = verdict("a2", y0, centre, jump, up, 1.05 * 0.9, 0.9)[0]
+    still = [_pt(y, 0.5, a4=10.0) for y in (0.1, 0.3, 1.0, 3.0)]
+    assert verdict("a2", y0, centre, down, still, 1.0)[0].startswith("not determined by these data (profile: no value rejected")
+    broken = [_pt(0.1, 0.1, a4=10.0), {**_pt(0.3, math.nan, D=math.nan), "error": "a lower level failed"}]
+    assert verdict("a2", y0, centre, down, broken, 1.0)[0].startswith("not judged: the profile's refit failed at a2 2")
+    jump = [_pt(-0.1, 0.0, D=0.9, a4=10.0), {**_pt(-0.3, 3.0, D=1.3, a4=10.0), "switched": 3}]
+    v = verdict("a2", y0, centre, jump, up, 0.9)[0]
     assert "change branch (a fold) at a2 0.501 (3)" in v and "D 0.9 at a2 0.794, below the fit's 1" in v
 
 
@@ -88,8 +94,9 @@ def test_profiles_of_recovered_weights():
     v, (lo, hi) = out["verdicts"]["a2"], out["intervals"]["a2"]
     assert v.startswith("determined"), v
     assert lo < W[names.index("a2")] < hi and hi / lo < 10, (lo, hi)
+    assert all(p["excess"] <= 1 for p in out["points"]["a2"] if lo < 10 ** p["y"] < hi)
     spec5 = replace(SPEC, fitted=("a2", "a5"))
     out = profiles(spec5, targets, r.weights | {"a5": 1e-7}, fitted=("a5",), paths=r.primals)
-    assert out["verdicts"]["a5"].startswith("not determined by these data (profile: D stays below its 95 % bound"), out["verdicts"]
+    assert out["verdicts"]["a5"].startswith("not determined by these data (profile: no value rejected"), out["verdicts"]
     assert out["verdicts"]["a5"].count("1000 above") == 1
-    assert max(p["D"] for p in out["points"]["a5"]) < out["threshold"]
+    assert max(p["excess"] for p in out["points"]["a5"]) <= 1

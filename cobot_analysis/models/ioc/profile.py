@@ -11,15 +11,21 @@ two cold guesses, the least cost kept (the bi-level fit's rule): a path whose le
 not the warm continuation has changed branch (a fold), and the profile reports it as a jump.
 The D of a point is the fit's re-solved D (exact, not smoothed).
 
-Threshold (Raue et al. 2009, Bioinformatics 25:1923): the likelihood-ratio bound of a pointwise 95 %
-interval, -2 log LR(y_j) < chi2_1(0.95). D is the mean of the n targets' distances D_n >= 0; taken
-as independent exponential losses of a common scale s (the distribution of largest entropy for a
-positive loss of given mean), -log L = n log s + n D / s, and s profiled out (s = D),
-    -2 log LR = 2 n log(PD_j / D_min) < chi2_1(0.95),  i.e.  PD_j < D_min exp(chi2_1(0.95) / (2 n)),
-D_min the least D seen (the fit's, or a profile point's below it). Verdicts:
-- D crosses the threshold on both sides: "determined", the interval between the crossings (linear
-  interpolation in y_j between grid points: as coarse as the grid);
-- D stays below it to a search limit on a side: "only its ratio to X is determined" when a re-fitted
+The bound (Raue et al. 2009, Bioinformatics 25:1923: a profile point is excluded from the 95 %
+confidence set when the data reject it against the fit). D is a mean over the n targets of a distance,
+not a log-likelihood, so the test is the one the targets give directly, the bootstrap's units: the
+per-target rises delta_n = D_n(point) - D_n(fit) and their paired t statistic
+    t = mean(delta) / (sd(delta) / sqrt(n)),
+the point rejected when t > t_(n-1)(0.975) (the two-sided 95 % quantile, as chi2_1(0.95) = 1.96^2
+in a likelihood ratio; comparing two fitted models by their per-observation loss differences is Vuong's
+test, Econometrica 57:307, 1989), and the mean rise is at least ``REL_TOL`` D (the curvature verdict's
+sloppiness: a rise below 0.1 % of D is flat there, and differences at the solvers' tolerance are not
+evidence). Near a smooth optimum mean(delta) grows as dy^2 and sd(delta) as |dy|, so the crossing is
+the sandwich (robust) standard error's interval; at a fold no smoothness is needed. The crossing is
+interpolated linearly in y_j between grid points, on min(t / t_q, rise / (REL_TOL D)) = 1 (as coarse as
+the grid). Verdicts:
+- rejected on both sides: "determined", the interval between the crossings;
+- no point rejected up to a search limit on a side: "only its ratio to X is determined" when a re-fitted
   weight X moves with it at least half as much, with the same sign, over those points (the curvature
   verdict's rule, ``uncertainty.verdicts``), else "not determined by these data";
 - a refit that fails ends that side: no verdict from it.
@@ -38,13 +44,20 @@ from cobot_analysis.models.presets import names_for
 
 OFFSETS = (0.1, 0.3, 1.0, 3.0)  # log10 steps from the fit on each side; then the search limit
 LEVEL = 0.95
+REL_TOL = 1e-3  # a mean rise of D below this fraction of D is flat (``uncertainty.verdicts``' sloppiness)
 
 
-def threshold(D_min: float, n: int, level: float = LEVEL) -> float:
-    """The profile's bound: D_min exp(chi2_1(level) / (2 n)) (module docstring)."""
-    from scipy.stats import chi2
+def excess(Di: np.ndarray, D0i: np.ndarray, level: float = LEVEL) -> tuple[float, float, float]:
+    """(t, t_q, min(t / t_q, rise / (REL_TOL D))) of a profile point's per-target D ``Di`` against the fit's ``D0i``
+    (module docstring): the point is rejected when the last is above 1."""
+    from scipy.stats import t as student
 
-    return D_min * math.exp(chi2.ppf(level, 1) / (2 * n))
+    d = np.asarray(Di, float) - np.asarray(D0i, float)
+    n, rise = len(d), float(d.mean())
+    sd = float(d.std(ddof=1)) if n > 1 else 0.0
+    t = rise / (sd / math.sqrt(n)) if sd > 0 else (math.inf if rise > 0 else 0.0)
+    tq = float(student.ppf(0.5 + level / 2, max(n - 1, 1)))
+    return t, tq, min(t / tq, rise / (REL_TOL * float(np.mean(D0i))))
 
 
 def grid(y0: float, side: int, offsets=OFFSETS) -> list[float]:
@@ -76,25 +89,25 @@ def lower_levels(spec: IOCSpec, w: np.ndarray, targets: list[Target], paths: lis
 
 def profile_chain(task) -> list[dict]:
     """Worker task (top-level, picklable): one side of one weight's profile, task = (spec, targets, w,
-    name, ys, paths, stop): from weights ``w`` and the fit's ``paths``, each y of ``ys`` in turn (module
-    docstring); stops after the first point whose D exceeds ``stop`` or whose refit fails. Per point:
-    {"y", "D", "weights" (the re-fitted ones), "switched", "failed", "error"}."""
+    name, ys, paths, D0i): from weights ``w`` and the fit's ``paths``, each y of ``ys`` in turn (module
+    docstring); stops after the first point the targets reject against the fit's per-target D ``D0i``
+    (``excess`` > 1) or whose refit fails. Per point: {"y", "D", "Di", "weights" (the re-fitted ones),
+    "switched", "failed", "error"}."""
     from cobot_analysis.models.ioc.single_level import fit_feasible_path
 
-    spec, targets, w, name, ys, paths, stop = task
+    spec, targets, w, name, ys, paths, D0i = task
     names = names_for(spec.model)
     j = names.index(name)
     others = tuple(n for n in spec.fitted if n != name)
     w, out = np.array(w, float), []
     for y in ys:
         w[j] = 10.0 ** y
-        point = {"y": y, "D": math.nan, "weights": {}, "switched": 0, "failed": 0, "error": ""}
+        point = {"y": y, "D": math.nan, "Di": [], "weights": {}, "switched": 0, "failed": 0, "error": ""}
         out.append(point)
         terms, primals, point["switched"] = lower_levels(spec, w, targets, paths)
         if not terms:
             point["error"] = "a lower level failed"
             break
-        D = float(np.mean([d["D"] for d in terms]))
         if others:
             try:
                 r = fit_feasible_path(replace(spec, fitted=others, start_weights=tuple(map(float, w))), targets,
@@ -102,14 +115,15 @@ def profile_chain(task) -> list[dict]:
             except RuntimeError as e:  # a start path that is not a regular KKT point: no refit there
                 point["error"] = str(e)
                 break
-            if r.objective <= D:
-                D, primals = r.objective, r.primals
+            if r.objective <= np.mean([d["D"] for d in terms]):
+                terms, primals = r.per_target, r.primals
                 w = np.array([r.weights[n] for n in names], float)
             point["failed"] = r.failed
-        point["D"] = D
+        point["Di"] = [d["D"] for d in terms]
+        point["D"] = float(np.mean(point["Di"]))
         point["weights"] = {n: float(w[names.index(n)]) for n in others}
         paths = primals
-        if D > stop:
+        if excess(point["Di"], D0i)[2] > 1:
             break
     return out
 
@@ -119,8 +133,9 @@ def profiles(spec: IOCSpec, targets: list[Target], weights: dict[str, float], fi
     """The profiles of ``fitted`` (default: every fitted weight) at the fit ``weights`` (module docstring):
     the fit's lower levels first (warm from ``paths``, the fit's own, when given, and from the cold guesses),
     then one chain per weight and side on ``pool`` (an executor; None: in-process).
-    Returns {"D": D at the fit, "n", "threshold", "D_min", "points": {name: [point, ...] in y order, the fit
-    included}, "verdicts": {name: verdict}, "intervals": {name: (lo, hi)}}."""
+    Returns {"D": D at the fit, "D_min": the least D seen, "n", "t_q", "points": {name: [point, ...] in y order,
+    the fit included, each with its "t" and "excess" against the least-D point}, "verdicts": {name: verdict},
+    "intervals": {name: (lo, hi)}}."""
     from cobot_analysis.models.presets import weights_vector
     from cobot_analysis.parallel import InlineExecutor
 
@@ -129,45 +144,50 @@ def profiles(spec: IOCSpec, targets: list[Target], weights: dict[str, float], fi
     terms, primals, _ = lower_levels(spec, w, targets, paths or [None] * n)
     if not terms:
         raise RuntimeError("profile: a lower level failed at the fitted weights")
-    D0 = float(np.mean([d["D"] for d in terms]))
-    stop = threshold(D0, n)
+    D0i = [d["D"] for d in terms]
     fitted = tuple(fitted or spec.fitted)
     y0 = {name: math.log10(max(weights[name], 10.0 ** LOG_BOUNDS[0])) for name in spec.fitted}
-    futures = {(name, side): pool.submit(profile_chain, (spec, targets, w, name, grid(y0[name], side, offsets), primals, stop))
+    futures = {(name, side): pool.submit(profile_chain, (spec, targets, w, name, grid(y0[name], side, offsets), primals, D0i))
                for name in fitted for side in (-1, 1)}
     chains = {key: f.result() for key, f in futures.items()}
-    D_min = min([D0] + [p["D"] for c in chains.values() for p in c if np.isfinite(p["D"])])
-    thr = threshold(D_min, n)
-    out = {"D": D0, "n": n, "threshold": thr, "D_min": D_min, "points": {}, "verdicts": {}, "intervals": {}}
+    # the reference: the fit, or a profile point with a lower D (the fit is then not the least D along the profiles)
+    best = min([p for c in chains.values() for p in c if p["Di"]] + [{"D": float(np.mean(D0i)), "Di": D0i}], key=lambda p: p["D"])
+    for c in chains.values():
+        for p in c:
+            p["t"], _, p["excess"] = excess(p.pop("Di"), best["Di"]) if p["Di"] else (math.nan, math.nan, math.nan)
+    D0 = float(np.mean(D0i))
+    t0, t_q, e0 = excess(D0i, best["Di"])
+    out = {"D": D0, "D_min": best["D"], "n": n, "t_q": t_q, "points": {}, "verdicts": {}, "intervals": {}}
     for name in fitted:
         down, up = chains[(name, -1)], chains[(name, 1)]
         centre = {"y": y0[name], "D": D0, "weights": {k: weights[k] for k in spec.fitted if k != name}, "switched": 0,
-                  "failed": 0, "error": ""}
+                  "failed": 0, "error": "", "t": t0, "excess": e0}
         out["points"][name] = down[::-1] + [centre] + up
-        out["verdicts"][name], out["intervals"][name] = verdict(name, y0, centre, down, up, thr, D_min)
+        out["verdicts"][name], out["intervals"][name] = verdict(name, y0, centre, down, up, best["D"])
     return out
 
 
-def _side(y0: float, D0: float, chain: list[dict], thr: float, limit: float) -> tuple[str, float]:
-    """One side of a profile, walked outward: ("rises", y where D crosses ``thr``), ("flat", the search
+def _side(centre: dict, chain: list[dict], limit: float) -> tuple[str, float]:
+    """One side of a profile, walked outward: ("rises", y where ``excess`` crosses 1), ("flat", the search
     limit), ("failed", y of the failed refit) or ("open", last y: the chain stopped short)."""
-    prev_y, prev_D = y0, D0
+    prev_y, prev_e = centre["y"], max(centre["excess"], 0.0)
     for p in chain:
         if not np.isfinite(p["D"]):
             return "failed", p["y"]
-        if p["D"] > thr:
-            f = (thr - prev_D) / (p["D"] - prev_D) if prev_D <= thr else 0.0
+        if p["excess"] > 1:
+            f = (1 - prev_e) / (p["excess"] - prev_e) if prev_e <= 1 and np.isfinite(p["excess"]) else 0.0
             return "rises", prev_y + f * (p["y"] - prev_y)
-        prev_y, prev_D = p["y"], p["D"]
+        prev_y, prev_e = p["y"], max(p["excess"], 0.0)
     return ("flat", limit) if abs(prev_y - limit) < 0.01 else ("open", prev_y)
 
 
-def verdict(name: str, y0: dict[str, float], centre: dict, down: list[dict], up: list[dict], thr: float, D_min: float
+def verdict(name: str, y0: dict[str, float], centre: dict, down: list[dict], up: list[dict], D_min: float
             ) -> tuple[str, tuple[float, float]]:
     """The plain verdict of one weight from its profile: ``centre`` the fit, ``down`` and ``up`` the chains
-    outward; and its interval (the search box unless determined) (module docstring)."""
+    outward, each point with its ``excess``; and its interval (the search box unless determined) (module
+    docstring)."""
     D0 = centre["D"]
-    sides = {s: _side(y0[name], D0, chain, thr, LOG_BOUNDS[0 if s < 0 else 1]) for s, chain in ((-1, down), (1, up))}
+    sides = {s: _side(centre, chain, LOG_BOUNDS[0 if s < 0 else 1]) for s, chain in ((-1, down), (1, up))}
     pts = down + up
     box = (10.0 ** LOG_BOUNDS[0], 10.0 ** LOG_BOUNDS[1])
     notes = []
@@ -182,7 +202,7 @@ def verdict(name: str, y0: dict[str, float], centre: dict, down: list[dict], up:
     tail = ("; " + "; ".join(notes)) if notes else ""
     if not failed and not flat:
         lo, hi = sides[-1][1], sides[1][1]
-        return (f"determined (profile: D crosses its 95 % bound {thr:.4g} at {name} {10 ** lo:.3g} and {10 ** hi:.3g}{tail})",
+        return (f"determined (profile: the targets reject {name} below {10 ** lo:.3g} and above {10 ** hi:.3g}{tail})",
                 (10.0 ** lo, 10.0 ** hi))
     if not flat:
         s, y = failed[0]
@@ -197,4 +217,4 @@ def verdict(name: str, y0: dict[str, float], centre: dict, down: list[dict], up:
             partners[other] = float(dx @ dy / (dy @ dy))
     best = max(partners, key=partners.get, default=None)
     head = f"only its ratio to {best} is determined" if best is not None and partners[best] >= 0.5 else "not determined by these data"
-    return f"{head} (profile: D stays below its 95 % bound {thr:.4g} to the search limit {where}{tail})", box
+    return f"{head} (profile: no value rejected by the targets up to the search limit {where}{tail})", box
