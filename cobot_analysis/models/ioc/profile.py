@@ -34,6 +34,7 @@ the grid). Verdicts:
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -135,10 +136,11 @@ def profiles(spec: IOCSpec, targets: list[Target], weights: dict[str, float], fi
     then one chain per weight and side on ``pool`` (an executor; None: in-process).
     Returns {"D": D at the fit, "D_min": the least D seen, "n", "t_q", "points": {name: [point, ...] in y order,
     the fit included, each with its "t" and "excess" against the least-D point}, "verdicts": {name: verdict},
-    "intervals": {name: (lo, hi)}}."""
+    "intervals": {name: (lo, hi)}, "seconds": wall time}."""
     from cobot_analysis.models.presets import weights_vector
     from cobot_analysis.parallel import InlineExecutor
 
+    t_start = time.perf_counter()
     pool, n = pool or InlineExecutor(), len(targets)
     w = np.asarray(weights_vector(weights, spec.model), float)
     terms, primals, _ = lower_levels(spec, w, targets, paths or [None] * n)
@@ -164,6 +166,7 @@ def profiles(spec: IOCSpec, targets: list[Target], weights: dict[str, float], fi
                   "failed": 0, "error": "", "t": t0, "excess": e0}
         out["points"][name] = down[::-1] + [centre] + up
         out["verdicts"][name], out["intervals"][name] = verdict(name, y0, centre, down, up, best["D"])
+    out["seconds"] = time.perf_counter() - t_start
     return out
 
 
