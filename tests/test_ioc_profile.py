@@ -101,3 +101,9 @@ def test_profiles_of_recovered_weights():
     assert out["verdicts"]["a5"].startswith("not determined by these data (profile: no value rejected"), out["verdicts"]
     assert out["verdicts"]["a5"].count("1000 above") == 1
     assert max(p["excess"] for p in out["points"]["a5"]) <= 1
+
+
+def test_fit_ioc_refuses_an_unknown_profiles_choice(cli, tmp_path):
+    code, out, err = cli("fit-ioc", "--out", tmp_path, "--profiles", "some", "--no-compare")
+    assert code == 2 and "--profiles" in err and "means, all, none" in err and len(err.strip().splitlines()) == 1
+    assert not any(tmp_path.iterdir())

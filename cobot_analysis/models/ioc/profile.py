@@ -154,11 +154,13 @@ def profiles(spec: IOCSpec, targets: list[Target], weights: dict[str, float], fi
     chains = {key: f.result() for key, f in futures.items()}
     # the reference: the fit, or a profile point with a lower D (the fit is then not the least D along the profiles)
     best = min([p for c in chains.values() for p in c if p["Di"]] + [{"D": float(np.mean(D0i)), "Di": D0i}], key=lambda p: p["D"])
+    ref = list(best["Di"])
     for c in chains.values():
         for p in c:
-            p["t"], _, p["excess"] = excess(p.pop("Di"), best["Di"]) if p["Di"] else (math.nan, math.nan, math.nan)
+            Di = p.pop("Di")
+            p["t"], _, p["excess"] = excess(Di, ref) if Di else (math.nan, math.nan, math.nan)
     D0 = float(np.mean(D0i))
-    t0, t_q, e0 = excess(D0i, best["Di"])
+    t0, t_q, e0 = excess(D0i, ref)
     out = {"D": D0, "D_min": best["D"], "n": n, "t_q": t_q, "points": {}, "verdicts": {}, "intervals": {}}
     for name in fitted:
         down, up = chains[(name, -1)], chains[(name, 1)]
