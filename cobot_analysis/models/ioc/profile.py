@@ -152,14 +152,16 @@ def profiles(spec: IOCSpec, targets: list[Target], weights: dict[str, float], fi
     futures = {(name, side): pool.submit(profile_chain, (spec, targets, w, name, grid(y0[name], side, offsets), primals, D0i))
                for name in fitted for side in (-1, 1)}
     chains = {key: f.result() for key, f in futures.items()}
-    # the reference: the fit, or a profile point with a lower D (the fit is then not the least D along the profiles)
-    best = min([p for c in chains.values() for p in c if p["Di"]] + [{"D": float(np.mean(D0i)), "Di": D0i}], key=lambda p: p["D"])
+    # the reference: the fit, or a profile point with a D lower by more than REL_TOL (the fit is then not the least D
+    # along the profiles; a smaller difference is flat)
+    D0 = float(np.mean(D0i))
+    best = min([p for c in chains.values() for p in c if p["Di"]] + [{"D": D0, "Di": D0i}], key=lambda p: p["D"])
+    best = best if best["D"] < (1 - REL_TOL) * D0 else {"D": D0, "Di": D0i}
     ref = list(best["Di"])
     for c in chains.values():
         for p in c:
             Di = p.pop("Di")
             p["t"], _, p["excess"] = excess(Di, ref) if Di else (math.nan, math.nan, math.nan)
-    D0 = float(np.mean(D0i))
     t0, t_q, e0 = excess(D0i, ref)
     out = {"D": D0, "D_min": best["D"], "n": n, "t_q": t_q, "points": {}, "verdicts": {}, "intervals": {}}
     for name in fitted:
