@@ -58,6 +58,11 @@ def test_profile_verdicts_on_made_up_profiles():
     assert verdict("a2", y0, centre, down, still, 1.0)[0].startswith("not determined by these data (profile: no value rejected")
     broken = [_pt(0.1, 0.1, a4=10.0), {**_pt(0.3, math.nan, D=math.nan), "error": "a lower level failed"}]
     assert verdict("a2", y0, centre, down, broken, 1.0)[0].startswith("not judged: the profile's refit failed at a2 2")
+    unrefitted = "single-level: a lower-level solution at the start weights is not a regular KKT point"
+    bound = still[:3] + [{**_pt(3.0, 0.5, a4=10.0), "error": unrefitted}]  # an upper bound of the profile, not rejected
+    assert verdict("a2", y0, centre, down, bound, 1.0)[0].startswith("not determined by these data")
+    bound[-1]["excess"] = 2.0  # rejected, but only an upper bound: no verdict
+    assert verdict("a2", y0, centre, down, bound, 1.0)[0].startswith("not judged: the profile's refit failed at a2 1e+03")
     jump = [_pt(-0.1, 0.0, D=0.9, a4=10.0), {**_pt(-0.3, 3.0, D=1.3, a4=10.0), "switched": 3}]
     v = verdict("a2", y0, centre, jump, up, 0.9)[0]
     assert "change branch (a fold) at a2 0.501 (3)" in v and "D 0.9 at a2 0.794, below the fit's 1" in v

@@ -28,7 +28,10 @@ the grid). Verdicts:
 - no point rejected up to a search limit on a side: "only its ratio to X is determined" when a re-fitted
   weight X moves with it at least half as much, with the same sign, over those points (the curvature
   verdict's rule, ``uncertainty.verdicts``), else "not determined by these data";
-- a refit that fails ends that side: no verdict from it.
+- where the refit cannot start (a path that is not a regular KKT point of the restricted problem), D at the
+  previous point's other weights stands for the point: an upper bound of the profile, so it can show that
+  the point is not rejected, never that it is; a lower level that fails, or a rejected upper bound, ends
+  that side without a verdict ("not judged").
 """
 
 from __future__ import annotations
@@ -92,7 +95,7 @@ def profile_chain(task) -> list[dict]:
     """Worker task (top-level, picklable): one side of one weight's profile, task = (spec, targets, w,
     name, ys, paths, D0i): from weights ``w`` and the fit's ``paths``, each y of ``ys`` in turn (module
     docstring); stops after the first point the targets reject against the fit's per-target D ``D0i``
-    (``excess`` > 1) or whose refit fails. Per point: {"y", "D", "Di", "weights" (the re-fitted ones),
+    (``excess`` > 1) or where a lower level fails (``error``: why; also where the refit could not start). Per point: {"y", "D", "Di", "weights" (the re-fitted ones),
     "switched", "failed", "error"}."""
     from cobot_analysis.models.ioc.single_level import fit_feasible_path
 
@@ -113,13 +116,14 @@ def profile_chain(task) -> list[dict]:
             try:
                 r = fit_feasible_path(replace(spec, fitted=others, start_weights=tuple(map(float, w))), targets,
                                       start=primals, probe=False)
-            except RuntimeError as e:  # a start path that is not a regular KKT point: no refit there
+            except RuntimeError as e:  # a start path that is not a regular KKT point: no refit there, D at the previous
+                # point's other weights is an upper bound of the profile (judged by ``_side``)
                 point["error"] = str(e)
-                break
-            if r.objective <= np.mean([d["D"] for d in terms]):
+                r = None
+            if r is not None and r.objective <= np.mean([d["D"] for d in terms]):
                 terms, primals = r.per_target, r.primals
                 w = np.array([r.weights[n] for n in names], float)
-            point["failed"] = r.failed
+            point["failed"] = r.failed if r is not None else 0
         point["Di"] = [d["D"] for d in terms]
         point["D"] = float(np.mean(point["Di"]))
         point["weights"] = {n: float(w[names.index(n)]) for n in others}
@@ -179,7 +183,7 @@ def _side(centre: dict, chain: list[dict], limit: float) -> tuple[str, float]:
     limit), ("failed", y of the failed refit) or ("open", last y: the chain stopped short)."""
     prev_y, prev_e = centre["y"], max(centre["excess"], 0.0)
     for p in chain:
-        if not np.isfinite(p["D"]):
+        if not np.isfinite(p["D"]) or (p["error"] and p["excess"] > 1):  # no D, or a rejected upper bound (no refit)
             return "failed", p["y"]
         if p["excess"] > 1:
             f = (1 - prev_e) / (p["excess"] - prev_e) if prev_e <= 1 and np.isfinite(p["excess"]) else 0.0
@@ -201,9 +205,9 @@ def verdict(name: str, y0: dict[str, float], centre: dict, down: list[dict], up:
     jumps = [p for p in pts if p.get("switched")]
     if jumps:
         notes.append("lower-level paths change branch (a fold) at " + ", ".join(f"{name} {10 ** p['y']:.3g} ({p['switched']})" for p in jumps))
-    if D_min < D0:
-        p = min((p for p in pts if np.isfinite(p["D"])), key=lambda p: p["D"])
-        notes.append(f"D {p['D']:.4g} at {name} {10 ** p['y']:.3g}, below the fit's {D0:.4g}")
+    lowest = [p for p in pts if p["D"] <= D_min < D0]
+    if lowest:
+        notes.append(f"D {lowest[0]['D']:.4g} at {name} {10 ** lowest[0]['y']:.3g}, below the fit's {D0:.4g}")
     failed = [(s, y) for s, (kind, y) in sides.items() if kind in ("failed", "open")]
     flat = [(s, y) for s, (kind, y) in sides.items() if kind == "flat"]
     tail = ("; " + "; ".join(notes)) if notes else ""
