@@ -515,6 +515,15 @@ def read_trajectories(table: pd.DataFrame | str | os.PathLike) -> pd.DataFrame:
     return read_table(table, MEANS if name == "means" else TRAJECTORIES)
 
 
+PROFILES = ("means", "all", "none")  # fit_ioc's profiles: which fits get profile likelihoods where the curvature cannot judge
+
+
+def check_profiles(profiles: str) -> None:
+    """``fit_ioc``'s ``profiles`` (bad input: one line, before anything is written)."""
+    if profiles not in PROFILES:
+        raise InputError(f"unknown --profiles {profiles!r}", remedy=f"use one of {', '.join(PROFILES)}")
+
+
 def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | str | os.PathLike | None = None, model: str = "improved",
             start_weights: str | None = None, fit: list[str] | None = None, optimizer: str = "powell",
             max_evaluations: int = 2000, per: str = "all", subjects: int | None = None, goal: str = "auto",
@@ -523,7 +532,8 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             scheduler: str | None = None, means_source: str | os.PathLike = "", trials_source: str | os.PathLike | None = None,
             durations: pd.DataFrame | None = None,
             on_evaluation: Callable[[str, int, float, float], None] | None = None, method: str = "bilevel",
-            bootstrap: int = 200, seed: int = 0, against: dict[str, dict[str, float]] | None = None) -> FitResult:
+            bootstrap: int = 200, seed: int = 0, against: dict[str, dict[str, float]] | None = None,
+            profiles: str = "means") -> FitResult:
     """Bi-level inverse optimal control (docs/methods.md sec. 6): fit the OC cost weights of ``model``
     (``improved``, ``table`` or ``coupled``) to the mean trajectories (``per="all"``) or to each subject's
     trials (``per="subject"``). ``means`` and ``trials``: means or trajectories tables (DataFrames, or the
@@ -537,7 +547,9 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     ``max_evaluations``: the bi-level fit's budget of upper-level evaluations, the single-level fit's number
     of feasible-path steps per round when below the method's own. ``bootstrap``: after each fit, the curvature of D at
     the fitted weights, each weight's verdict and its interval from ``bootstrap`` resamples of the fitted units (docs/methods.md sec. 6.3; 0: none); per
-    subject, also whether the subjects' weights differ. ``against``: another fit's weights per fit key (the
+    subject, also whether the subjects' weights differ. ``profiles``: where the curvature cannot judge, the verdicts from
+    profile likelihoods (``models.ioc.profile``) for the fit over the means (``"means"``), every fit (``"all"``: per
+    subject too) or none (``"none"``: "not judged"). ``against``: another fit's weights per fit key (the
     bi-level fit's); a single-level fit then re-solves them also from its own paths (``single_level.cross_check``),
     so that both fits' D come from the same candidate paths (``FitResult.cross_checked``). A fit is
     long (minutes to hours at the CLI's defaults); the example fits two means on a coarse grid with a
@@ -568,6 +580,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     from cobot_analysis.parallel import default_jobs, executor
 
     check_method(method, bootstrap)
+    check_profiles(profiles)
     if not isinstance(means, pd.DataFrame):
         means_source = means_source or means
     if trials is not None and not isinstance(trials, pd.DataFrame):
@@ -650,7 +663,9 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             if bootstrap and model != "coupled":
                 uncertainty[key] = _weight_uncertainty(spec, targets, results[key].weights, bootstrap, seed=seed,
                                                       checkpoint=checkpoint / f"{safe}.curvature.json" if checkpoint else None,
-                                                      resume=resume, pool=pool, chunks=n_chunks)
+                                                      resume=resume, pool=pool, chunks=n_chunks,
+                                                      paths=raw.primals if method == "single-level" and conv.name == "continuous" else None,
+                                                      profile=profiles == "all" or (profiles == "means" and per == "all"))
     subjects_test = None
     if per == "subject" and uncertainty:
         from cobot_analysis.models.ioc.uncertainty import subjects_differ
@@ -700,19 +715,29 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
 
 
 def _weight_uncertainty(spec, targets: list, weights: dict[str, float], n_resamples: int, *, seed: int = 0,
-                       checkpoint: Path | None = None, resume: bool = False, pool=None, chunks: int = 2) -> dict:
+                       checkpoint: Path | None = None, resume: bool = False, pool=None, chunks: int = 2,
+                       paths: list | None = None, profile: bool = True) -> dict:
     """Verdict and bootstrap interval of each fitted weight at ``weights`` (docs/methods.md sec. 6.3,
     ``models.ioc.uncertainty``): {"D", "verdicts", "intervals", "lack_of_fit", "sd_log10", "resamples", "on_box",
-    "held" (the weights the search box holds, with why), "eigenvalues", "failed_solves"}."""
+    "held" (the weights the search box holds, with why), "eigenvalues", "failed_solves", "profile"}. Where the curvature
+    cannot judge (continuous convention; ``profile``), the verdicts and the determined weights' intervals come from profile
+    likelihoods (``models.ioc.profile``; ``paths``: the fit's lower-level paths, their warm starts; "profile": its points)."""
     from cobot_analysis.models.ioc import uncertainty as unc
 
     c = unc.curvature(spec, targets, weights, checkpoint=checkpoint, resume=resume, pool=pool, chunks=chunks)
     b = unc.bootstrap(c, n_resamples, seed=seed)
-    verdicts = unc.interval_verdicts(unc.verdicts(spec.fitted, c.H, c.D, weights, lack=c.lack_of_fit), b["intervals"], b["held"])
-    return {"D": c.D, "verdicts": verdicts, "intervals": b["intervals"],
+    prof, intervals = None, b["intervals"]
+    if profile and c.lack_of_fit > unc.ROUGH and spec.convention == "continuous" and spec.model in ("improved", "table"):
+        from cobot_analysis.models.ioc.profile import profiles
+
+        prof = profiles(spec, targets, weights, paths=paths, pool=pool)
+        intervals = {n: prof["intervals"][n] if prof["verdicts"][n].startswith("determined") else i for n, i in intervals.items()}
+    verdicts = unc.interval_verdicts(unc.verdicts(spec.fitted, c.H, c.D, weights, lack=c.lack_of_fit,
+                                                  profiled=prof["verdicts"] if prof else None), intervals, b["held"])
+    return {"D": c.D, "verdicts": verdicts, "intervals": intervals,
             "lack_of_fit": c.lack_of_fit,
             "sd_log10": b["sd_log10"], "resamples": n_resamples, "on_box": b["on_box"], "held": b["held"], "eigenvalues": np.linalg.eigvalsh(c.H).tolist(),
-            "failed_solves": c.failed}
+            "failed_solves": c.failed, "profile": prof}
 
 
 def _figure_paths(model: str, targets: list, fitted: dict, conv) -> dict:

@@ -114,6 +114,7 @@ def fit_ioc_command(
     convention: ConventionOpt = None,
     method: Annotated[str, typer.Option("--method", help="bilevel (the published method) or single-level (one NLP with the lower level's KKT conditions; improved and table models; under the published convention at held horizons; docs/methods.md 6.1).")] = "bilevel",
     bootstrap: Annotated[int, typer.Option("--bootstrap", min=0, help="Resamples of the fitted units (means, or a subject's trials) for each weight's 95 % interval, with its identifiability verdict (docs/methods.md 6.3); 0: neither. --resume reuses the finished curvature evaluations.")] = 200,
+    profiles: Annotated[str, typer.Option("--profiles", help="Where the curvature of D cannot judge (not smooth at the fit), each weight's verdict from its profile likelihood (docs/methods.md 6.3): means (the fit over the means), all (per subject too), none.")] = "means",
     seed: SeedOpt = 0,
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
@@ -152,7 +153,7 @@ def fit_ioc_command(
                               optimizer=optimizer.value, max_evaluations=max_evaluations, per=per.value, subjects=subjects,
                               goal=goal.value, intervals=intervals, v_nominal=v_nominal, compare=compare, resume=resume,
                               convention=convention, seed=seed, jobs=jobs, scheduler=scheduler, force=force, method=method,
-                              bootstrap=bootstrap, on_evaluation=on_evaluation)
+                              bootstrap=bootstrap, profiles=profiles, on_evaluation=on_evaluation)
         for key, task in tasks.items():
             evaluations = done.result.results[key].evaluations
             bar.update(task, total=evaluations, completed=evaluations)

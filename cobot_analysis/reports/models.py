@@ -484,7 +484,9 @@ def uncertainty_lines(result) -> list[str]:
     n = next(iter(result.uncertainty.values()))["resamples"]
     lines = [f"Each fitted weight with its 95 % interval ({n} bootstrap resamples of the fitted "
              f"{'means' if result.per == 'all' else 'trials'}, a quadratic refit each) and what the data determine "
-             "(curvature of D at the fit, docs/methods.md sec. 6.3); a weight the data do not determine has no interval.", "",
+             "(curvature of D at the fit; where D is not smooth there, its profile likelihood, whose interval a "
+             "\"determined (profile: ...)\" weight then shows; docs/methods.md sec. 6.3); a weight the data do not "
+             "determine has no interval.", "",
              "| fit | weight | fitted | 95 % interval | verdict |", "|---|---|---|---|---|"]
     for k, u in result.uncertainty.items():
         w = result.results[k].weights

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from cobot_analysis import api, registry
-from cobot_analysis.api.models import ioc_spec, plan_generate, read_trajectories
+from cobot_analysis.api.models import check_profiles, ioc_spec, plan_generate, read_trajectories
 from cobot_analysis.errors import InputError
 from cobot_analysis.stages import Outcome
 from cobot_analysis.workspace import Stage, find_input
@@ -129,14 +129,14 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
             max_evaluations: int = 2000, per: str = "all", subjects: int | None = None, goal: str = "auto", intervals: int = 50,
             v_nominal: float = 1.0, compare: bool = True, resume: bool = False, convention: str | None = None, seed: int = 0,
             jobs: int | None = None, scheduler: str | None = None, force: bool = False, on_evaluation=None,
-            method: str = "bilevel", bootstrap: int = 200) -> Outcome:
+            method: str = "bilevel", bootstrap: int = 200, profiles: str = "means") -> Outcome:
     """``fit-ioc`` (``fit-ioc-subjects`` with ``per="subject"``, ``fit-ioc-coupled`` for the coupled model, each
     ``-published`` under the published convention): weights.json, weights/<fit>.json, distances.parquet,
     fits.csv, figures and results.md. The upper level's evaluations are checkpointed in
     ``OUT/.<stage>.checkpoint`` after every iteration (``resume`` continues from it). The single-level
     method writes its own stage (``fit-ioc-single``, ``fit-ioc-subjects-single``) beside the bi-level one,
     and its report shows the bi-level fit of the workspace beside its own. ``bootstrap``: resamples of
-    the weights' intervals (0: no intervals nor verdicts)."""
+    the weights' intervals (0: no intervals nor verdicts); ``profiles``: ``api.fit_ioc``'s."""
     from cobot_analysis.lazy import pandas as pd
 
     from cobot_analysis import conventions
@@ -145,6 +145,7 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
     from cobot_analysis.reports.models import fit_ioc_markdown
 
     check_method(method, bootstrap)
+    check_profiles(profiles)
     conv = conventions.get(convention or "continuous")
     spec = ioc_spec(model, convention=conv.name, start_weights=start_weights, fit=fit, optimizer=optimizer,
                     max_evaluations=max_evaluations, intervals=intervals, v_nominal=v_nominal)  # options checked first
@@ -175,6 +176,8 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
               "bootstrap": bootstrap}
     if method != "bilevel":
         params["method"] = method
+    if profiles != "means":
+        params["profiles"] = profiles
     # own stages: the coupled fit never replaces the table fit, nor per-subject fits the fit over the means, nor the
     # single-level fit the bi-level one
     base = "fit-ioc-coupled" if model == "coupled" else "fit-ioc-subjects" if per == "subject" else "fit-ioc"
@@ -196,7 +199,7 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
                              v_nominal=v_nominal, compare=compare, convention=conv.name, resume=resume,
                              checkpoint=Path(out) / f".{name}.checkpoint", jobs=jobs, scheduler=scheduler, means_source=mean_src,
                              trials_source=traj_path or out, durations=durations, on_evaluation=on_evaluation, method=method,
-                             bootstrap=bootstrap, seed=seed,
+                             bootstrap=bootstrap, seed=seed, profiles=profiles,
                              against={k: f["weights"] for k, f in other["fits"].items() if f.get("weights")} if other else None)
         stage.result = result  # its own numbers are the stage's metrics.json
         stage.write_json("weights.json", result.weights_json())

@@ -293,7 +293,7 @@ class _Branch:
         else:
             return False
         nz = self.nz
-        S = -lu.solve(Fw)  # K S + F_w = 0
+        S = -lu.solve(Fw.reshape(len(v), -1))  # K S + F_w = 0 (one fitted weight: F_w comes as a vector)
         D, gz, SHS = self.distance(v[:nz], self.data, S[:nz])
         gv = np.concatenate([gz, np.zeros(len(v) - nz)])
         mu = lu.solve(gv, trans=True)  # adjoint: K' mu = grad_v D

@@ -23,7 +23,8 @@ A "determined" weight whose bootstrap interval (below) reaches a search limit is
 all: resamples of the same data cannot exclude the limit (``interval_verdicts``).
 No verdict at all ("not judged: D is not smooth at the fit") when a quadratic fitted by least squares
 to D on the stencil (k >= 2: more points than coefficients) leaves more than ``ROUGH`` of D's rms change
-unexplained: the lower level's paths then change regime within the stencil, and curvature means nothing.
+unexplained: the lower level's paths then change regime within the stencil, and curvature means nothing;
+the verdict then comes from the weight's profile likelihood when one is given (``profile.py``).
 
 Bootstrap over the fitted units (targets): resample b draws n targets with replacement (counts c_i)
 and refits the local quadratic model of its objective along the directions the full data determine
@@ -212,14 +213,17 @@ def determined(H: np.ndarray, D: float, rel_tol: float = 1e-3) -> np.ndarray:
 
 
 def verdicts(fitted, H: np.ndarray, D: float, weights: dict[str, float], rel_tol: float = 1e-3,
-             lack: float = 0.0) -> dict[str, str]:
-    """The plain verdict of each fitted weight (module docstring); ``lack``: the stencil's lack of fit."""
+             lack: float = 0.0, profiled: dict[str, str] | None = None) -> dict[str, str]:
+    """The plain verdict of each fitted weight (module docstring); ``lack``: the stencil's lack of fit;
+    ``profiled``: verdicts from profile likelihoods (``profile.profiles``), given instead of "not judged"."""
     mu, V, mask = sloppy_directions(H, D, rel_tol)
     sloppy = list(np.flatnonzero(mask))
     ok = determined(H, D, rel_tol)
     out = {}
     for j, n in enumerate(fitted):
-        if lack > ROUGH:
+        if lack > ROUGH and profiled and n in profiled:
+            verdict = profiled[n]
+        elif lack > ROUGH:
             verdict = f"not judged: D is not smooth at the fit (a quadratic leaves {100 * lack:.0f} % of its change over the stencil unexplained)"
         elif ok[j]:
             verdict = "determined"
@@ -262,6 +266,8 @@ def verdict_category(verdict: str) -> str:
     head = verdict.split(" (at the search limit")[0]
     if head.startswith("only its ratio to "):
         category = "ratio to " + head[len("only its ratio to "):].split()[0]
+    elif head.startswith("determined"):  # "determined (profile: ...)"
+        category = "determined"
     elif head.startswith("not judged"):
         category = "not judged"
     elif head.startswith("not determined"):
