@@ -115,3 +115,28 @@ def test_duration_rule_started_at_a_held_horizon_checks_it():
     short = solve_model("improved", start, GOAL, w, convention=PUBLISHED, horizon=T - 40)
     moved = solve_model("improved", start, GOAL, w, convention=PUBLISHED, warm=True, seed=short, start_horizon=T - 40)
     assert moved.U.shape[0] == T and abs(moved.cost - full.cost) < 1e-6 * abs(full.cost)
+
+
+def test_curvature_takes_the_fits_rule_solutions_as_its_centre(monkeypatch):
+    """The published curvature's centre given as the duration rule's solutions at the weights (the fit's last
+    rule, ``IOCResult.solutions``): no rule is run again (every stencil task seeds held horizons), and D_i, g_i, H_i
+    are the same, bit for bit, as with the centre solved again."""
+    from cobot_analysis.models.ioc import uncertainty
+
+    targets = published_targets(SPEC, TRUE, STARTS[:2])
+    names = names_for("improved")
+    w = np.array(TRUE)
+    w[names.index("a2")] *= 1.3  # off the truth: D > 0
+    weights = dict(zip(names, map(float, w)))
+    solved = uncertainty.curvature(SPEC, targets, weights)
+    rules = [solve_target(replace(SPEC, hold_duration=False), w, t, None)[1] for t in targets]
+    seeds = []
+    chunk = uncertainty.stencil_chunk
+    monkeypatch.setattr(uncertainty, "stencil_chunk", lambda task: seeds.extend(g for _, g in task[2]) or chunk(task))
+    given = uncertainty.curvature(SPEC, targets, weights, centre=rules)
+    assert seeds and all(hasattr(g, "X") for g in seeds)  # held horizons only: no duration rule
+    for a in ("Di", "gi", "Hi"):
+        np.testing.assert_array_equal(getattr(given, a), getattr(solved, a))
+    assert given.lack_of_fit == solved.lack_of_fit and given.failed == solved.failed == 0
+    with pytest.raises(ValueError, match="published"):
+        uncertainty.curvature(replace(SPEC, convention="continuous"), targets, weights, centre=rules)

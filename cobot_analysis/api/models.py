@@ -649,7 +649,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             if bootstrap and model != "coupled":
                 uncertainty[key] = _weight_uncertainty(spec, targets, results[key].weights, bootstrap, seed=seed,
                                                       checkpoint=checkpoint / f"{safe}.curvature.json" if checkpoint else None,
-                                                      resume=resume, pool=pool, chunks=n_chunks)
+                                                      resume=resume, pool=pool, chunks=n_chunks, centre=results[key].solutions)
     subjects_test = None
     if per == "subject" and uncertainty:
         from cobot_analysis.models.ioc.uncertainty import subjects_differ
@@ -699,13 +699,15 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
 
 
 def _weight_uncertainty(spec, targets: list, weights: dict[str, float], n_resamples: int, *, seed: int = 0,
-                       checkpoint: Path | None = None, resume: bool = False, pool=None, chunks: int = 2) -> dict:
+                       checkpoint: Path | None = None, resume: bool = False, pool=None, chunks: int = 2,
+                       centre: list | None = None) -> dict:
     """Verdict and bootstrap interval of each fitted weight at ``weights`` (docs/methods.md sec. 6.3,
     ``models.ioc.uncertainty``): {"D", "verdicts", "intervals", "lack_of_fit", "sd_log10", "resamples", "on_box",
-    "held" (the weights the search box holds, with why), "eigenvalues", "failed_solves"}."""
+    "held" (the weights the search box holds, with why), "eigenvalues", "failed_solves"}; ``centre``: the fit's own
+    solutions at ``weights`` (published: ``IOCResult.solutions``, the curvature's centre)."""
     from cobot_analysis.models.ioc import uncertainty as unc
 
-    c = unc.curvature(spec, targets, weights, checkpoint=checkpoint, resume=resume, pool=pool, chunks=chunks)
+    c = unc.curvature(spec, targets, weights, checkpoint=checkpoint, resume=resume, pool=pool, chunks=chunks, centre=centre)
     b = unc.bootstrap(c, n_resamples, seed=seed)
     verdicts = unc.interval_verdicts(unc.verdicts(spec.fitted, c.H, c.D, weights, lack=c.lack_of_fit), b["intervals"], b["held"])
     return {"D": c.D, "verdicts": verdicts, "intervals": b["intervals"],

@@ -31,7 +31,7 @@ import json
 import math
 import os
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -268,9 +268,13 @@ class IOCResult:
     held_objective: float | None = None  # published, held horizons: D the optimiser saw at the fitted weights
     horizons_changed: int | None = None  # targets whose horizon the duration rule moves at the fitted weights
     pace: dict | None = None  # continuous, measured durations given: the time-gauge calibration (models.ioc.pace)
+    # published, held horizons: the duration rule's solutions at the fitted weights, per target (None: failed), the
+    # curvature's centre (uncertainty.curvature); not written
+    solutions: list | None = field(default=None, repr=False, compare=False)
 
     def to_json(self) -> dict:
-        d = asdict(self)
+        d = asdict(replace(self, solutions=None))
+        del d["solutions"]
         d["spec"] = asdict(self.spec)
         return d
 
@@ -358,8 +362,6 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
     c_start = None
     if paced:  # the start weights' time gauge first (pace.py): the search runs at the subjects' pace, where the
         # cold guesses' duration T0 is near the optimum (far from it, they miss the least-cost local minimum)
-        from dataclasses import replace
-
         from cobot_analysis.models.ioc.pace import scale_time, time_gauge
         from cobot_analysis.models.presets import weights_vector
 
@@ -443,17 +445,16 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
         raise KeyboardInterrupt("IOC interrupted (test hook); resume with the same checkpoint") from None
     ck.save()
     w_best = spec.weights(np.array(best["z"]))
-    terms, objective, held, changed = best["terms"], float(best["f"]), None, None
+    terms, objective, held, changed, solutions = best["terms"], float(best["f"]), None, None, None
     if spec.convention == "published" and spec.hold_duration:
         # the fit held each target's horizon: the duration rule runs again at the fitted weights
-        from dataclasses import replace
-
         free = replace(spec, hold_duration=False)
         rerun = run(evaluate_chunk, [(free, w_best, [targets[i] for i in p], [guesses[i] for i in p]) for p in parts])
         new: list = [None] * len(targets)
+        solutions = [None] * len(targets)
         for p, r in zip(parts, rerun):
-            for i, (d, _) in zip(p, r):
-                new[i] = d
+            for i, (d, sol) in zip(p, r):
+                new[i], solutions[i] = d, sol
         changed = sum(1 for a, b in zip(terms, new) if a["success"] and b["success"] and abs(a["T"] - b["T"]) > 1e-9)
         held, terms, objective = objective, new, float(np.mean([d["D"] for d in new]))
     weights, pace = dict(zip(names_for(spec.model), map(float, w_best))), None
@@ -475,4 +476,4 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
     return IOCResult(spec=spec, weights=weights, objective=objective,
                      start_objective=start_objective, evaluations=len(cache), iterations=iteration,
                      failed=sum(not d["success"] for d in terms), per_target=terms, message=str(res.message),
-                     held_objective=held, horizons_changed=changed, pace=pace)
+                     held_objective=held, horizons_changed=changed, pace=pace, solutions=solutions)

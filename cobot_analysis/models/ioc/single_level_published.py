@@ -330,7 +330,7 @@ def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, chunks
     return IOCResult(spec=spec, weights=dict(zip(names, map(float, w))), objective=float(np.mean([d["D"] for d in terms])),
                      start_objective=float(np.mean([d["D"] for d in start_terms])), evaluations=0, iterations=steps,
                      failed=sum(not d["success"] for d in terms), per_target=terms, message=message,
-                     held_objective=held_objective, horizons_changed=changed)
+                     held_objective=held_objective, horizons_changed=changed, solutions=[sol for _, sol in ruled])
 
 
 def _n_cons(spec: IOCSpec, horizon: int) -> int:
