@@ -140,3 +140,26 @@ def test_curvature_takes_the_fits_rule_solutions_as_its_centre(monkeypatch):
     assert given.lack_of_fit == solved.lack_of_fit and given.failed == solved.failed == 0
     with pytest.raises(ValueError, match="published"):
         uncertainty.curvature(replace(SPEC, convention="continuous"), targets, weights, centre=rules)
+
+
+def test_bilevel_fit_checks_its_held_horizons_at_the_end(monkeypatch):
+    """The bi-level fit's duration rule at the fitted weights is a check of the held horizons, the held solutions
+    its solves there (``fit.rule_check_chunk``): the rule searches from the authors' T_guess only at the start
+    weights, at the end it starts at each held horizon and keeps it; the D reported is the held D and the
+    solutions returned (the curvature's centre) are on the held horizons."""
+    from cobot_analysis.models.ioc.fit import fit
+    from cobot_analysis.models.oc import duration
+
+    targets = published_targets(SPEC, TRUE, STARTS[:2])
+    names = names_for("improved")
+    w0 = np.array(TRUE)
+    w0[names.index("a2")] *= 1.3
+    starts = []
+    rule = duration.nelder_mead_duration
+    monkeypatch.setattr(duration, "nelder_mead_duration", lambda solve, start=None: starts.append(start) or rule(solve, start))
+    r = fit(replace(SPEC, start_weights=tuple(w0), max_evaluations=3), targets)
+    horizons = [s.U.shape[0] for s in r.solutions]
+    assert starts == [None, None, *horizons]  # the reference rule from T_guess, then the check at the held horizons
+    assert r.horizons_changed == 0 and r.failed == 0 and r.evaluations > 1
+    assert r.objective == pytest.approx(r.held_objective, rel=1e-12, abs=0)
+    assert [d["T"] for d in r.per_target] == pytest.approx([h * 0.1 for h in horizons], rel=1e-12)

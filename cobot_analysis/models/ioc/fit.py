@@ -253,6 +253,27 @@ def reference_chunk(task) -> list[tuple[dict, object]]:
     return out
 
 
+def rule_check_chunk(task) -> list[tuple[dict, object]]:
+    """Worker task (published convention): task = (spec, w, [(target, held solution at w or None), ...]); per target
+    (distances, solution) of the duration rule at w as a check of the held solution's horizon, that solution its
+    solve there (``oc.solve_model``'s ``start_horizon``: kept when the rule's criterion J/T is no lower one node either
+    side, else the rule's search started there); without a held solution, the rule from the authors' T_guess."""
+    from cobot_analysis.conventions import PUBLISHED
+    from cobot_analysis.models.oc import solve_model
+
+    spec, w, items = task
+    rule = replace(spec, hold_duration=False)
+    model = "table" if spec.model == "table" else "improved"
+    out = []
+    for t, s in items:
+        if s is None:
+            out.append(solve_target(rule, w, t, None))
+            continue
+        sol = solve_model(model, t.start, t.goal, w, convention=PUBLISHED, warm=True, seed=s, start_horizon=s.U.shape[0])
+        out.append((published_terms(rule, t, sol), sol))
+    return out
+
+
 # ---- upper level -------------------------------------------------------------------------------
 @dataclass
 class IOCResult:
@@ -380,19 +401,22 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
     ref = run(reference_chunk, [(spec, w0, [targets[i] for i in p]) for p in parts])
     guesses: list = [None] * len(targets)
     start_terms: list = [None] * len(targets)
+    z0 = tuple(float(v) for v in spec.z0())
+    solved_at: list = [None] * len(targets)  # the z of each warm start's own solve (None: unknown)
     for p, res in zip(parts, ref):
         for i, (d, primal) in zip(p, res):
             guesses[i] = primal if primal is not None else ("rest" if spec.convention != "published" else None)
-            start_terms[i] = d
+            start_terms[i], solved_at[i] = d, z0 if primal is not None else None
     start_objective = float(np.mean([d["D"] for d in start_terms]))
 
     ck = Checkpoint(checkpoint, fit_key(spec, targets))
     if resume and ck.load():  # the checkpoint's warm starts, the reference solutions where it holds none
+        solved_at = [None if g is not None else a for g, a in zip(ck.guesses, solved_at)]
         guesses = [g if g is not None else r for g, r in zip(ck.guesses, guesses)]
     ck.guesses = guesses
     cache = {tuple(e["z"]): e for e in ck.log}
     # the starting point is the reference evaluation itself (not re-solved from its own warm start)
-    cache.setdefault(tuple(float(v) for v in spec.z0()), {"z": list(map(float, spec.z0())), "f": start_objective, "terms": start_terms})
+    cache.setdefault(z0, {"z": list(z0), "f": start_objective, "terms": start_terms})
     new = 0
     best = {"f": math.inf}
 
@@ -418,7 +442,7 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
             if e["f"] < best["f"]:  # warm starts follow the best weights
                 for i, primal in enumerate(primals):
                     if primal is not None:
-                        guesses[i] = primal
+                        guesses[i], solved_at[i] = primal, key
         if e["f"] < best["f"]:
             best.update(e)
         if on_evaluation:
@@ -447,9 +471,10 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
     w_best = spec.weights(np.array(best["z"]))
     terms, objective, held, changed, solutions = best["terms"], float(best["f"]), None, None, None
     if spec.convention == "published" and spec.hold_duration:
-        # the fit held each target's horizon: the duration rule runs again at the fitted weights
-        free = replace(spec, hold_duration=False)
-        rerun = run(evaluate_chunk, [(free, w_best, [targets[i] for i in p], [guesses[i] for i in p]) for p in parts])
+        # the fit held each target's horizon: the duration rule runs again at the fitted weights, as a check of the held
+        # horizon with the held solution there as its solve (``rule_check_chunk``; from T_guess where none is at hand)
+        at_best = [g if a == tuple(best["z"]) else None for g, a in zip(guesses, solved_at)]
+        rerun = run(rule_check_chunk, [(spec, w_best, [(targets[i], at_best[i]) for i in p]) for p in parts])
         new: list = [None] * len(targets)
         solutions = [None] * len(targets)
         for p, r in zip(parts, rerun):
