@@ -18,7 +18,8 @@ durations (no pace in either method). ``--synthetic N``: N paths of the model at
 (``single_level.fit_feasible_path``) runs first, then the bi-level fit, each with its lower levels (and
 the single-level Newton corrections) on ``--jobs`` worker processes (1: inline), in ``--chunks`` tasks (default
 4 x jobs, as ``fit-ioc``). Prints wall and CPU time (this process and its workers), the exact D (lower level re-solved),
-the weights, the peak resident memory of each, and the time ratio; ``--paths N`` takes N targets spread
+the weights, the peak resident memory of each, and the time ratio, then the single-level D and weights (per
+subject: each fit's) to full precision, to check two trees' fits with ==; ``--paths N`` takes N targets spread
 over the list.
 """
 
@@ -153,6 +154,7 @@ def main() -> None:
     print("|---|---|---|---|" + "---|" * len(spec.fitted) + "---|")
     for m, t, c, D, wd, note in rows:
         print(f"| {m} | {t:.1f} | {c:.1f} | {D:.5f} | " + " | ".join(f"{wd[n]:.5g}" for n in spec.fitted) + f" | {note} |")
+    print(f"exact single-level D and weights, to compare runs with ==: {s.objective!r} {[s.weights[n] for n in spec.fitted]!r}")
     if not args.skip_bilevel:
         print(f"ratios bilevel / single-level: wall {tb / ts:.2f}, CPU {cb / cs:.2f}; D single-level / bilevel: {s.objective / b.objective:.4f}")
         print(f"bilevel weights re-solved with the single-level paths as a further warm start (cross_check): D {crossed:.4f}; "
@@ -184,6 +186,8 @@ def per_subject(args) -> None:
         for k, v in r.results.items():
             print(f"| {k} | {len(r.fits[k])} | {v.objective:.4f} | " + " | ".join(f"{v.weights[m]:.4g}" for m in r.names)
                   + f" | {r.seconds[k]:.1f} |")
+        print("exact (D, weights) per subject, to compare runs with ==:",
+              {k: (v.objective, {m: v.weights[m] for m in r.names}) for k, v in r.results.items()})
 
 
 def cpu() -> float:

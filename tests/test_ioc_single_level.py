@@ -572,3 +572,33 @@ def test_probe_chunk_solves_warm_from_the_given_path():
     d2, sol2 = solve_target(SPEC, w2, t, sol.primal)  # warm and the two cold guesses, the least cost kept
     assert abs(D2 - d["D"]) > 1e-4 and np.isfinite(D2)
     assert np.abs(sol2.primal - z2).max() < 1e-6 and D2 == pytest.approx(d2["D"], rel=1e-9)  # here the least-cost one
+
+
+def test_per_subject_fits_are_submitted_longest_first(monkeypatch):
+    """api.fit_ioc(per="subject", method="single-level") submits one whole fit per subject (``fit_task``), the
+    subjects with the most paths first (ties in subject order), so the short fits fill the workers' ends."""
+    from cobot_analysis.api.models import fit_ioc
+    from cobot_analysis.models.ioc import single_level
+    from cobot_analysis.synth.tables import walking_table
+
+    trials = walking_table(n_subjects=3, n_conditions=3, n_trials=1, missing_theta=0.0)
+    trials = trials[trials["kind"] == "trial"]
+    subjects = sorted(trials["subject"].unique())
+    assert len(subjects) == 3
+    keep = {subjects[0]: 2, subjects[1]: 3, subjects[2]: 2}  # paths per subject: 2, 3, 2
+    trials = trials[[t in trials[trials["subject"] == s]["trial"].unique()[:keep[s]]
+                     for s, t in zip(trials["subject"], trials["trial"])]]
+    submitted = []
+
+    class Submitted(Exception):
+        pass
+
+    def record(task):
+        submitted.append((task[1][0].subject, len(task[1])))
+        raise Submitted
+
+    monkeypatch.setattr(single_level, "fit_task", record)
+    with pytest.raises(Submitted):
+        fit_ioc(trials, trials=trials, per="subject", method="single-level", fit=["a2"], intervals=20, compare=False, jobs=1,
+                bootstrap=0)
+    assert submitted == [(subjects[1], 3), (subjects[0], 2), (subjects[2], 2)]

@@ -620,9 +620,10 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     n_chunks = 4 * (default_jobs() if jobs is None else jobs) if scheduler is None else 8
     results, seconds, uncertainty, cross_checked = {}, {}, {}, {}
     with executor(jobs, scheduler) as pool:
-        # several single-level fits (per subject): each runs whole on one worker, side by side (``single_level.fit_task``)
+        # several single-level fits (per subject): each runs whole on one worker, side by side (``single_level.fit_task``),
+        # submitted longest first (most paths; ties in subject order): the short fits then fill the workers' ends
         side_by_side = {key: pool.submit(fit_task, (spec, targets, {"max_steps": min(spec.max_evaluations, MAX_STEPS)}))
-                        for key, targets in fits.items()} \
+                        for key, targets in sorted(fits.items(), key=lambda kv: -len(kv[1]))} \
             if method == "single-level" and conv.name == "continuous" and per == "subject" and len(fits) > 1 else {}
         for key, targets in fits.items():
             safe = "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in key)
