@@ -289,7 +289,7 @@ class IOCResult:
     held_objective: float | None = None  # published, held horizons: D the optimiser saw at the fitted weights
     horizons_changed: int | None = None  # targets whose horizon the duration rule moves at the fitted weights
     pace: dict | None = None  # continuous, measured durations given: the time-gauge calibration (models.ioc.pace)
-    # published, held horizons: the duration rule's solutions at the fitted weights, per target (None: failed), the
+    # published, held horizons: the duration rule's solutions at the fitted weights, per target (check ``success``), the
     # curvature's centre (uncertainty.curvature); not written
     solutions: list | None = field(default=None, repr=False, compare=False)
 
