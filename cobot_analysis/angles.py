@@ -10,8 +10,15 @@ FloatArray = npt.NDArray[np.float64]
 
 
 def wrap(angle: ArrayLike) -> FloatArray:
-    """Wrap to (-pi, pi]: ``pi - ((pi - a) mod 2 pi)``."""
-    return np.pi - np.mod(np.pi - np.asarray(angle, dtype=float), 2 * np.pi)
+    """Wrap to (-pi, pi]: ``pi - ((pi - a) mod 2 pi)``. The mod is taken only where ``y = pi - a`` lies
+    outside [0, 2 pi): inside it would return y itself (fmod is exact, and the sign of a zero y is lost
+    in ``pi - y``), and it returns a NaN y unchanged, so every value is the mod's, at a fraction of its
+    cost on wrapped angles and on NaN (where the mod is slowest)."""
+    y = np.pi - np.asarray(angle, dtype=float)
+    if y.ndim == 0:
+        return np.pi - np.mod(y, 2 * np.pi)
+    np.mod(y, 2 * np.pi, out=y, where=(y < 0) | (y >= 2 * np.pi))
+    return np.pi - y
 
 
 def angle_diff(a: ArrayLike, b: ArrayLike) -> FloatArray:

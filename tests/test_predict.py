@@ -84,6 +84,38 @@ def test_ctrv_is_exact_on_a_circle_at_constant_speed(radius, step, turn, phase):
     assert cv.delta_xy > 1e3 * m.delta_xy  # the straight extrapolation leaves the circle
 
 
+def test_baselines_offline_predict_every_window_at_once_bit_for_bit():
+    """The baselines' offline path (all windows at once) gives the bits of ``predict`` window by window, on a
+    path that stops (ctrv's w = 0 below STILL), turns across +-pi, loses theta and loses a position."""
+    rng = np.random.default_rng(3)
+    heading = np.pi - 0.3 + np.cumsum(rng.normal(0.02, 0.05, 80))  # crosses +pi
+    step = np.r_[np.full(30, 0.02), np.zeros(10), np.full(40, 0.015)] * (1 + rng.normal(0, 0.1, 80))
+    poses = np.c_[np.cumsum(step * np.cos(heading)), np.cumsum(step * np.sin(heading)), np.angle(np.exp(1j * heading))]
+    poses[50, 2] = np.nan
+    poses[60, 0] = np.nan
+    for name in ("cv", "ctrv"):
+        p = make_predictor(name, 6, 16)
+        offline = p.predict_offline(poses)
+        by_window = [p.predict(poses[w: w + 6].copy()) for w in range(len(poses) - 5)]
+        expected = np.stack([np.full((11, 3), np.nan) if np.isnan(poses[w: w + 6, :2]).any() else P for w, P in enumerate(by_window)])
+        assert p.skipped == 6 and np.isfinite(offline[:, :, :2]).sum() == (75 - 6) * 11 * 2
+        np.testing.assert_array_equal(offline.view(np.int64), expected.view(np.int64))
+
+
+def test_baselines_offline_are_exact_on_their_own_paths():
+    """Every window's whole prediction at once: cv on a straight line at constant speed (x, y, theta linear in
+    the sample), ctrv on a circle at a constant turn rate (the points of the circle, theta turning with them)."""
+    i = np.arange(30.0)
+    line = np.c_[1.0 + 0.03 * i, -2.0 + 0.04 * i, 0.5 + 0.01 * i]
+    a = 0.4 + 0.05 * np.arange(30 + 10)
+    circle = np.c_[2.0 * np.cos(a), 2.0 * np.sin(a), a + np.pi / 2]
+    for name, poses, path in (("cv", line, np.c_[1.0 + 0.03 * np.arange(40), -2.0 + 0.04 * np.arange(40), 0.5 + 0.01 * np.arange(40)]),
+                              ("ctrv", circle[:30], circle)):
+        P = make_predictor(name, 5, 15).predict_offline(poses)  # H = 10: window k predicts samples k .. k + 10
+        expected = np.stack([path[k: k + 11] for k in range(4, 30)])
+        np.testing.assert_allclose(P, expected, rtol=0, atol=1e-12)
+
+
 def test_baselines_do_not_need_orientation():
     i = np.arange(30.0)
     poses = np.c_[0.02 * i, 0.01 * i, np.full(30, np.nan)]
@@ -251,14 +283,16 @@ def test_published_predictor_solves_cold_from_rest():
         OCPredictor(10, 30, DT, convention="authors")
 
 
-def test_coast_is_the_zero_control_step():
+@pytest.mark.parametrize("kind", ["walker", "unicycle"])
+@pytest.mark.parametrize("scheme", ["midpoint", "euler"])
+def test_coast_is_the_zero_control_step(kind, scheme):
     import casadi as ca
 
     from cobot_analysis.models.dynamics import coast, step
 
     X = np.array([0.3, -1.0, 2.0, 1.1, -0.2, 0.7])
-    F = ca.Function("F", [x := ca.SX.sym("x", 6)], [step(x, ca.DM.zeros(3), 0.05)])
+    F = ca.Function("F", [x := ca.SX.sym("x", 6)], [step(x, ca.DM.zeros(3), 0.05, kind, scheme)])
     expected = [X]
     for _ in range(5):
         expected.append(np.asarray(F(expected[-1])).ravel())
-    np.testing.assert_allclose(coast(X, 0.05, 5), np.array(expected), atol=1e-12)
+    np.testing.assert_allclose(coast(X, 0.05, 5, kind, scheme), np.array(expected), atol=1e-12)

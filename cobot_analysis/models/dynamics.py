@@ -87,15 +87,18 @@ def coast(X, dt: float, n: int, kind: str = "walker", scheme: str = "midpoint"):
     import numpy as np
 
     X = np.asarray(X, dtype=float)
-    vf, vo, om = X[3], X[4], X[5]
+    x, y, th, vf, vo, om = X[:6].tolist()  # Python floats: the same IEEE arithmetic, without numpy scalars' overhead
     if kind == "unicycle":
         vo = 0.0
-    j = np.arange(n + 1)
-    theta = X[2] + om * dt * j
+    theta = th + om * dt * np.arange(n + 1)
     thm = theta[:-1] + (om * dt / 2 if scheme == "midpoint" else 0.0)
+    c, s = np.cos(thm), np.sin(thm)
+    step = np.empty((2, n))
+    np.multiply(dt, c * vf - s * vo, out=step[0])
+    np.multiply(dt, s * vf + c * vo, out=step[1])
     out = np.empty((n + 1, 6))
-    out[:, 0] = X[0] + np.concatenate([[0.0], np.cumsum(dt * (np.cos(thm) * vf - np.sin(thm) * vo))])
-    out[:, 1] = X[1] + np.concatenate([[0.0], np.cumsum(dt * (np.sin(thm) * vf + np.cos(thm) * vo))])
+    out[0, :2] = x + 0.0, y + 0.0
+    out[1:, :2] = np.cumsum(step, axis=1).T + (x, y)
     out[:, 2] = theta
     out[:, 3:] = X[3:6]
     return out

@@ -56,8 +56,8 @@ class Predictor:
         return path
 
     def predict_offline(self, poses: np.ndarray) -> np.ndarray:
-        """Predictions for every window of a whole trajectory: (N - N0 + 1, H + 1, 3), NaN if skipped.
-        ``update`` in a loop, each window's past a fresh copy of its N0 rows (as ``update`` builds it)."""
+        """Predictions for every window of a whole trajectory: (N - N0 + 1, H + 1, 3), NaN if skipped,
+        the same as ``update`` in a loop (``predict_windows``), and the online state it leaves."""
         poses = np.asarray(poses, dtype=float)
         if poses.ndim != 2 or poses.shape[1] != 3:
             raise ValueError("poses must be an (N, 3) array of x, y, theta")
@@ -69,13 +69,22 @@ class Predictor:
         n0, n = self.n0, poses.shape[0]
         missing = np.concatenate([[0], np.cumsum(~np.isfinite(poses[:, :2]).all(axis=1))])
         finite = (missing[n0:] - missing[:-n0]) == 0  # window w (samples w .. w + N0 - 1) has x, y finite
-        out = np.full((n - n0 + 1, self.horizon + 1, 3), np.nan)
-        for w in range(n - n0 + 1):
+        out = self.predict_windows(poses, finite)
+        self.n_seen = n
+        self._past.extend(poses[n - n0:])  # the online state after the last pose
+        return out
+
+    def predict_windows(self, poses: np.ndarray, finite: np.ndarray) -> np.ndarray:
+        """Every window w of ``poses`` (the past: samples w .. w + N0 - 1, x, y ``finite[w]``) as ``update``
+        does it, each past a fresh copy of its N0 rows, counting skipped and failed windows:
+        (W, H + 1, 3), NaN where there is no prediction. A model may predict all windows at once instead."""
+        n0 = self.n0
+        out = np.full((finite.size, self.horizon + 1, 3), np.nan)
+        for w in range(finite.size):
             self.n_seen = w + n0
             path = self._window(poses[w: w + n0].copy(), bool(finite[w]))
             if path is not None:
                 out[w] = path
-        self._past.extend(poses[n - n0:])  # the online state after the last pose
         return out
 
     # -- what a model implements ----------------------------------------------------------------

@@ -12,6 +12,8 @@ Both extrapolate the last measured displacement over the horizon ``H = N_OC - N0
   ``theta_j = theta_k + j w``. Below ``s < 1e-6`` m per sample the heading is undefined: ``w = 0``.
 
 Neither needs the orientation: where theta is missing (NaN) only its prediction is NaN.
+Offline (``predict_windows``) both predict every window of a trajectory at once, with the same
+elementwise operations in the same order as ``predict``: the values are bit-identical.
 """
 
 from __future__ import annotations
@@ -35,6 +37,17 @@ class ConstantVelocity(Predictor):
         step[2] = angle_diff(past[-1, 2], past[-2, 2])
         return past[-1] + np.arange(self.horizon + 1)[:, None] * step
 
+    def predict_windows(self, poses: np.ndarray, finite: np.ndarray) -> np.ndarray:
+        """``predict`` of every window with x, y ``finite`` at once (C_k the window's last sample)."""
+        k = np.flatnonzero(finite) + self.n0 - 1
+        last, prev = poses[k], poses[k - 1]
+        step = last - prev
+        step[:, 2] = angle_diff(last[:, 2], prev[:, 2])
+        out = np.full((finite.size, self.horizon + 1, 3), np.nan)
+        out[finite] = last[:, None] + np.arange(self.horizon + 1)[:, None] * step[:, None]
+        self.skipped = int(finite.size - k.size)
+        return out
+
 
 class ConstantTurnRateVelocity(Predictor):
     """Constant turn rate and velocity model (CTRV) on the path heading."""
@@ -53,4 +66,24 @@ class ConstantTurnRateVelocity(Predictor):
         out[0, :2] = past[-1, :2]
         out[1:, :2] = past[-1, :2] + np.cumsum(steps, axis=0)
         out[:, 2] = past[-1, 2] + j * turn
+        return out
+
+    def predict_windows(self, poses: np.ndarray, finite: np.ndarray) -> np.ndarray:
+        """``predict`` of every window with x, y ``finite`` at once (C_k the window's last sample)."""
+        k = np.flatnonzero(finite) + self.n0 - 1
+        d1, d0 = poses[k, :2] - poses[k - 1, :2], poses[k - 1, :2] - poses[k - 2, :2]
+        speed = np.hypot(d1[:, 0], d1[:, 1])
+        psi = np.arctan2(d1[:, 1], d1[:, 0])
+        moving = (speed > STILL) & (np.hypot(d0[:, 0], d0[:, 1]) > STILL)
+        turn = np.where(moving, angle_diff(psi, np.arctan2(d0[:, 1], d0[:, 0])), 0.0)[:, None]
+        j = np.arange(self.horizon + 1)
+        heading = psi[:, None] + j[1:] * turn
+        steps = speed[:, None, None] * np.stack([np.cos(heading), np.sin(heading)], axis=2)
+        out = np.full((finite.size, self.horizon + 1, 3), np.nan)
+        path = np.empty((k.size, self.horizon + 1, 3))
+        path[:, 0, :2] = poses[k, :2]
+        path[:, 1:, :2] = poses[k, None, :2] + np.cumsum(steps, axis=1)
+        path[:, :, 2] = poses[k, 2][:, None] + j * turn
+        out[finite] = path
+        self.skipped = int(finite.size - k.size)
         return out

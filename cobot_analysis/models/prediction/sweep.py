@@ -233,6 +233,8 @@ def trajectories_from_table(df: pd.DataFrame, config: SweepConfig, path: str | o
     if df.empty:
         raise InputError("no trajectory to predict (empty selection)", path=path, remedy="check --only-study / --entity / --kind")
     n0_max = max(n0 for n0, _ in config.settings)
+    df = df.copy(deep=False)
+    df.attrs = {}  # the table's metadata: pandas would deep-copy it at every slice of every group below
     out = []
     for (study, trial, entity), g in df.groupby(["study", "trial", "entity"], sort=True, observed=True):
         g = g.sort_values("sample")
@@ -341,8 +343,9 @@ def trajectory_runs(traj: Trajectory, config: SweepConfig, whole_path_n0: int | 
 
 
 def setting_rows(traj: Trajectory, config: SweepConfig, runs: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """(metrics rows, per-window rows) of every setting of ``config`` from ``trajectory_runs``."""
-    rows, windows = [], []
+    """(metrics rows, per-window rows) of every setting of ``config`` from ``trajectory_runs``; the per-window
+    rows of all settings and predictors built as one table (columns concatenated)."""
+    rows, parts = [], []
     n = len(traj.poses)
     has_theta = bool(np.isfinite(traj.poses[:, 2]).any())
     conv = config.convention
@@ -354,6 +357,7 @@ def setting_rows(traj: Trajectory, config: SweepConfig, runs: dict) -> tuple[pd.
             results[name] = (window_errors(traj.poses, predictions[:, : n_oc - n0 + 1], n0), skipped, failed, options)
         common = np.logical_and.reduce([err.valid for err, *_ in results.values()])
         k = np.arange(n0 - 1, n)
+        phase = 100.0 * k / (n - 1)
         for name, (err, skipped, failed, options) in results.items():
             m = summarise(err, common)
             rows.append({"convention": conv.name, "study": traj.study, "trial": traj.trial, "entity": traj.entity, **traj.meta,
@@ -363,12 +367,22 @@ def setting_rows(traj: Trajectory, config: SweepConfig, runs: dict) -> tuple[pd.
                          "n_skipped": skipped, "n_failed": failed, "n_full": m.n_full, "delta_xy": m.delta_xy,
                          "delta_theta": m.delta_theta if traj.track_theta else float("nan"), "d_pred": m.d_pred,
                          "ade": m.ade, "fde": m.fde})
-            windows.append(pd.DataFrame({
-                "convention": conv.name, "study": traj.study, "trial": traj.trial, "entity": traj.entity, "n0": n0, "n_oc": n_oc,
-                "predictor": name, "k": k, "phase": 100.0 * k / (n - 1), "used": common,
-                "error_xy": err.error_xy, "error_theta": err.error_theta if traj.track_theta else np.nan, "reach": err.reach,
-                "ade": err.ade, "fde": err.fde}))
-    return pd.DataFrame(rows), pd.concat(windows, ignore_index=True)
+            parts.append((n0, n_oc, name, k, phase, common, err))
+    sizes = [len(p[3]) for p in parts]
+
+    def column(i: int) -> np.ndarray:
+        return np.concatenate([p[i] for p in parts])
+
+    def errors(field: str) -> np.ndarray:
+        return np.concatenate([getattr(p[6], field) for p in parts])
+
+    windows = pd.DataFrame({
+        "convention": conv.name, "study": traj.study, "trial": traj.trial, "entity": traj.entity,
+        "n0": np.repeat([p[0] for p in parts], sizes), "n_oc": np.repeat([p[1] for p in parts], sizes),
+        "predictor": np.repeat(np.array([p[2] for p in parts], dtype=object), sizes), "k": column(3), "phase": column(4), "used": column(5),
+        "error_xy": errors("error_xy"), "error_theta": errors("error_theta") if traj.track_theta else np.nan, "reach": errors("reach"),
+        "ade": errors("ade"), "fde": errors("fde")})
+    return pd.DataFrame(rows), windows
 
 
 def sweep_task(item: tuple) -> tuple:
