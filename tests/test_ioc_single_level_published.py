@@ -115,3 +115,51 @@ def test_duration_rule_started_at_a_held_horizon_checks_it():
     short = solve_model("improved", start, GOAL, w, convention=PUBLISHED, horizon=T - 40)
     moved = solve_model("improved", start, GOAL, w, convention=PUBLISHED, warm=True, seed=short, start_horizon=T - 40)
     assert moved.U.shape[0] == T and abs(moved.cost - full.cost) < 1e-6 * abs(full.cost)
+
+
+def test_curvature_takes_the_fits_rule_solutions_as_its_centre(monkeypatch):
+    """The published curvature's centre given as the duration rule's solutions at the weights (the fit's last
+    rule, ``IOCResult.solutions``): no rule is run again (every stencil task seeds held horizons), and D_i, g_i, H_i
+    are the same, bit for bit, as with the centre solved again."""
+    from cobot_analysis.models.ioc import uncertainty
+
+    targets = published_targets(SPEC, TRUE, STARTS[:2])
+    names = names_for("improved")
+    w = np.array(TRUE)
+    w[names.index("a2")] *= 1.3  # off the truth: D > 0
+    weights = dict(zip(names, map(float, w)))
+    solved = uncertainty.curvature(SPEC, targets, weights)
+    rules = [solve_target(replace(SPEC, hold_duration=False), w, t, None)[1] for t in targets]
+    seeds = []
+    chunk = uncertainty.stencil_chunk
+    monkeypatch.setattr(uncertainty, "stencil_chunk", lambda task: seeds.extend(g for _, g in task[2]) or chunk(task))
+    given = uncertainty.curvature(SPEC, targets, weights, centre=rules)
+    assert seeds and all(hasattr(g, "X") for g in seeds)  # held horizons only: no duration rule
+    for a in ("Di", "gi", "Hi"):
+        np.testing.assert_array_equal(getattr(given, a), getattr(solved, a))
+    assert given.lack_of_fit == solved.lack_of_fit and given.failed == solved.failed == 0
+    with pytest.raises(ValueError, match="published"):
+        uncertainty.curvature(replace(SPEC, convention="continuous"), targets, weights, centre=rules)
+
+
+def test_bilevel_fit_checks_its_held_horizons_at_the_end(monkeypatch):
+    """The bi-level fit's duration rule at the fitted weights is a check of the held horizons, the held solutions
+    its solves there (``fit.rule_check_chunk``): the rule searches from the authors' T_guess only at the start
+    weights, at the end it starts at each held horizon and keeps it; the D reported is the held D and the
+    solutions returned (the curvature's centre) are on the held horizons."""
+    from cobot_analysis.models.ioc.fit import fit
+    from cobot_analysis.models.oc import duration
+
+    targets = published_targets(SPEC, TRUE, STARTS[:2])
+    names = names_for("improved")
+    w0 = np.array(TRUE)
+    w0[names.index("a2")] *= 1.3
+    starts = []
+    rule = duration.nelder_mead_duration
+    monkeypatch.setattr(duration, "nelder_mead_duration", lambda solve, start=None: starts.append(start) or rule(solve, start))
+    r = fit(replace(SPEC, start_weights=tuple(w0), max_evaluations=3), targets)
+    horizons = [s.U.shape[0] for s in r.solutions]
+    assert starts == [None, None, *horizons]  # the reference rule from T_guess, then the check at the held horizons
+    assert r.horizons_changed == 0 and r.failed == 0 and r.evaluations > 1
+    assert r.objective == pytest.approx(r.held_objective, rel=1e-12, abs=0)
+    assert [d["T"] for d in r.per_target] == pytest.approx([h * 0.1 for h in horizons], rel=1e-12)

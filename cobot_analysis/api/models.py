@@ -663,7 +663,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             if bootstrap and model != "coupled":
                 uncertainty[key] = _weight_uncertainty(spec, targets, results[key].weights, bootstrap, seed=seed,
                                                       checkpoint=checkpoint / f"{safe}.curvature.json" if checkpoint else None,
-                                                      resume=resume, pool=pool, chunks=n_chunks,
+                                                      resume=resume, pool=pool, chunks=n_chunks, centre=results[key].solutions,
                                                       paths=raw.primals if method == "single-level" and conv.name == "continuous" else None,
                                                       profile=profiles == "all" or (profiles == "means" and per == "all"))
     subjects_test = None
@@ -716,15 +716,16 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
 
 def _weight_uncertainty(spec, targets: list, weights: dict[str, float], n_resamples: int, *, seed: int = 0,
                        checkpoint: Path | None = None, resume: bool = False, pool=None, chunks: int = 2,
-                       paths: list | None = None, profile: bool = True) -> dict:
+                       paths: list | None = None, profile: bool = True, centre: list | None = None) -> dict:
     """Verdict and bootstrap interval of each fitted weight at ``weights`` (docs/methods.md sec. 6.3,
     ``models.ioc.uncertainty``): {"D", "verdicts", "intervals", "lack_of_fit", "sd_log10", "resamples", "on_box",
-    "held" (the weights the search box holds, with why), "eigenvalues", "failed_solves", "profile"}. Where the curvature
+    "held" (the weights the search box holds, with why), "eigenvalues", "failed_solves", "profile"}. ``centre``: the fit's
+    own solutions at ``weights`` (published: ``IOCResult.solutions``, the curvature's centre). Where the curvature
     cannot judge (continuous convention; ``profile``), the verdicts and the determined weights' intervals come from profile
     likelihoods (``models.ioc.profile``; ``paths``: the fit's lower-level paths, their warm starts; "profile": its points)."""
     from cobot_analysis.models.ioc import uncertainty as unc
 
-    c = unc.curvature(spec, targets, weights, checkpoint=checkpoint, resume=resume, pool=pool, chunks=chunks)
+    c = unc.curvature(spec, targets, weights, checkpoint=checkpoint, resume=resume, pool=pool, chunks=chunks, centre=centre)
     b = unc.bootstrap(c, n_resamples, seed=seed)
     prof, intervals = None, b["intervals"]
     if profile and c.lack_of_fit > unc.ROUGH and spec.convention == "continuous" and spec.model in ("improved", "table"):

@@ -31,7 +31,7 @@ import json
 import math
 import os
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -253,6 +253,27 @@ def reference_chunk(task) -> list[tuple[dict, object]]:
     return out
 
 
+def rule_check_chunk(task) -> list[tuple[dict, object]]:
+    """Worker task (published convention): task = (spec, w, [(target, held solution at w or None), ...]); per target
+    (distances, solution) of the duration rule at w as a check of the held solution's horizon, that solution its
+    solve there (``oc.solve_model``'s ``start_horizon``: kept when the rule's criterion J/T is no lower one node either
+    side, else the rule's search started there); without a held solution, the rule from the authors' T_guess."""
+    from cobot_analysis.conventions import PUBLISHED
+    from cobot_analysis.models.oc import solve_model
+
+    spec, w, items = task
+    rule = replace(spec, hold_duration=False)
+    model = "table" if spec.model == "table" else "improved"
+    out = []
+    for t, s in items:
+        if s is None:
+            out.append(solve_target(rule, w, t, None))
+            continue
+        sol = solve_model(model, t.start, t.goal, w, convention=PUBLISHED, warm=True, seed=s, start_horizon=s.U.shape[0])
+        out.append((published_terms(rule, t, sol), sol))
+    return out
+
+
 # ---- upper level -------------------------------------------------------------------------------
 @dataclass
 class IOCResult:
@@ -268,9 +289,13 @@ class IOCResult:
     held_objective: float | None = None  # published, held horizons: D the optimiser saw at the fitted weights
     horizons_changed: int | None = None  # targets whose horizon the duration rule moves at the fitted weights
     pace: dict | None = None  # continuous, measured durations given: the time-gauge calibration (models.ioc.pace)
+    # published, held horizons: the duration rule's solutions at the fitted weights, per target (check ``success``), the
+    # curvature's centre (uncertainty.curvature); not written
+    solutions: list | None = field(default=None, repr=False, compare=False)
 
     def to_json(self) -> dict:
-        d = asdict(self)
+        d = asdict(replace(self, solutions=None))
+        del d["solutions"]
         d["spec"] = asdict(self.spec)
         return d
 
@@ -358,8 +383,6 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
     c_start = None
     if paced:  # the start weights' time gauge first (pace.py): the search runs at the subjects' pace, where the
         # cold guesses' duration T0 is near the optimum (far from it, they miss the least-cost local minimum)
-        from dataclasses import replace
-
         from cobot_analysis.models.ioc.pace import scale_time, time_gauge
         from cobot_analysis.models.presets import weights_vector
 
@@ -378,19 +401,22 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
     ref = run(reference_chunk, [(spec, w0, [targets[i] for i in p]) for p in parts])
     guesses: list = [None] * len(targets)
     start_terms: list = [None] * len(targets)
+    z0 = tuple(float(v) for v in spec.z0())
+    solved_at: list = [None] * len(targets)  # the z of each warm start's own solve (None: unknown)
     for p, res in zip(parts, ref):
         for i, (d, primal) in zip(p, res):
             guesses[i] = primal if primal is not None else ("rest" if spec.convention != "published" else None)
-            start_terms[i] = d
+            start_terms[i], solved_at[i] = d, z0 if primal is not None else None
     start_objective = float(np.mean([d["D"] for d in start_terms]))
 
     ck = Checkpoint(checkpoint, fit_key(spec, targets))
     if resume and ck.load():  # the checkpoint's warm starts, the reference solutions where it holds none
+        solved_at = [None if g is not None else a for g, a in zip(ck.guesses, solved_at)]
         guesses = [g if g is not None else r for g, r in zip(ck.guesses, guesses)]
     ck.guesses = guesses
     cache = {tuple(e["z"]): e for e in ck.log}
     # the starting point is the reference evaluation itself (not re-solved from its own warm start)
-    cache.setdefault(tuple(float(v) for v in spec.z0()), {"z": list(map(float, spec.z0())), "f": start_objective, "terms": start_terms})
+    cache.setdefault(z0, {"z": list(z0), "f": start_objective, "terms": start_terms})
     new = 0
     best = {"f": math.inf}
 
@@ -416,7 +442,7 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
             if e["f"] < best["f"]:  # warm starts follow the best weights
                 for i, primal in enumerate(primals):
                     if primal is not None:
-                        guesses[i] = primal
+                        guesses[i], solved_at[i] = primal, key
         if e["f"] < best["f"]:
             best.update(e)
         if on_evaluation:
@@ -443,17 +469,17 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
         raise KeyboardInterrupt("IOC interrupted (test hook); resume with the same checkpoint") from None
     ck.save()
     w_best = spec.weights(np.array(best["z"]))
-    terms, objective, held, changed = best["terms"], float(best["f"]), None, None
+    terms, objective, held, changed, solutions = best["terms"], float(best["f"]), None, None, None
     if spec.convention == "published" and spec.hold_duration:
-        # the fit held each target's horizon: the duration rule runs again at the fitted weights
-        from dataclasses import replace
-
-        free = replace(spec, hold_duration=False)
-        rerun = run(evaluate_chunk, [(free, w_best, [targets[i] for i in p], [guesses[i] for i in p]) for p in parts])
+        # the fit held each target's horizon: the duration rule runs again at the fitted weights, as a check of the held
+        # horizon with the held solution there as its solve (``rule_check_chunk``; from T_guess where none is at hand)
+        at_best = [g if a == tuple(best["z"]) else None for g, a in zip(guesses, solved_at)]
+        rerun = run(rule_check_chunk, [(spec, w_best, [(targets[i], at_best[i]) for i in p]) for p in parts])
         new: list = [None] * len(targets)
+        solutions = [None] * len(targets)
         for p, r in zip(parts, rerun):
-            for i, (d, _) in zip(p, r):
-                new[i] = d
+            for i, (d, sol) in zip(p, r):
+                new[i], solutions[i] = d, sol
         changed = sum(1 for a, b in zip(terms, new) if a["success"] and b["success"] and abs(a["T"] - b["T"]) > 1e-9)
         held, terms, objective = objective, new, float(np.mean([d["D"] for d in new]))
     weights, pace = dict(zip(names_for(spec.model), map(float, w_best))), None
@@ -475,4 +501,4 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
     return IOCResult(spec=spec, weights=weights, objective=objective,
                      start_objective=start_objective, evaluations=len(cache), iterations=iteration,
                      failed=sum(not d["success"] for d in terms), per_target=terms, message=str(res.message),
-                     held_objective=held, horizons_changed=changed, pace=pace)
+                     held_objective=held, horizons_changed=changed, pace=pace, solutions=solutions)

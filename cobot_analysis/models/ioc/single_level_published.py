@@ -37,7 +37,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from cobot_analysis.models.ioc.fit import LOG_BOUNDS, IOCResult, IOCSpec, distances, evaluate_chunk, reference_chunk
+from cobot_analysis.models.ioc.fit import (LOG_BOUNDS, IOCResult, IOCSpec, distances, evaluate_chunk, reference_chunk,
+                                          rule_check_chunk)
 from cobot_analysis.models.ioc.targets import Target
 from cobot_analysis.models.presets import names_for
 
@@ -313,12 +314,12 @@ def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, chunks
             radius /= 4
     timing["steps"] = time.perf_counter() - t0 - timing["start"]
     # as the bi-level fit: the lower levels re-solved at the fitted weights on the held horizons (warm from the
-    # branches' paths), then the duration rule again there as a check of the held horizons (``_rule_chunk``)
+    # branches' paths), then the duration rule again there as a check of the held horizons (``fit.rule_check_chunk``)
     seeds = run(_seed_chunk, lambda p: (held, tuple(fi), w, [(targets[i], horizons[i], branches[i]["v"]) for i in p]))
     resolved = run(evaluate_chunk, lambda p: (held, w, [targets[i] for i in p], [seeds[i] for i in p]))
     held_terms = [d for d, _ in resolved]
     held_objective = float(np.mean([d["D"] for d in held_terms]))
-    ruled = run(_rule_chunk, lambda p: (spec, w, [(targets[i], resolved[i][1]) for i in p]))
+    ruled = run(rule_check_chunk, lambda p: (spec, w, [(targets[i], resolved[i][1]) for i in p]))
     terms = [d for d, _ in ruled]
     changed = sum(1 for a, b in zip(held_terms, terms) if a["success"] and b["success"] and abs(a["T"] - b["T"]) > 1e-9)
     timing["resolve"] = time.perf_counter() - t0 - timing["start"] - timing["steps"]
@@ -330,32 +331,11 @@ def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, chunks
     return IOCResult(spec=spec, weights=dict(zip(names, map(float, w))), objective=float(np.mean([d["D"] for d in terms])),
                      start_objective=float(np.mean([d["D"] for d in start_terms])), evaluations=0, iterations=steps,
                      failed=sum(not d["success"] for d in terms), per_target=terms, message=message,
-                     held_objective=held_objective, horizons_changed=changed)
+                     held_objective=held_objective, horizons_changed=changed, solutions=[sol for _, sol in ruled])
 
 
 def _n_cons(spec: IOCSpec, horizon: int) -> int:
     return _functions(held_shape(spec, horizon))[0].n_cons
-
-
-def _rule_chunk(task) -> list:
-    """Worker task: task = (spec, w, [(target, held solution or None), ...]); per target (distances, solution)
-    of the duration rule at w as a check of the held solution's horizon, that solution its solve there
-    (``oc.solve_model``'s ``start_horizon``; without a held solution, the rule from T_guess)."""
-    from cobot_analysis.conventions import PUBLISHED
-    from cobot_analysis.models.ioc.fit import published_terms, solve_target
-    from cobot_analysis.models.oc import solve_model
-
-    spec, w, items = task
-    rule = replace(spec, hold_duration=False)
-    model = "table" if spec.model == "table" else "improved"
-    out = []
-    for t, s in items:
-        if s is None:
-            out.append(solve_target(rule, w, t, None))
-            continue
-        sol = solve_model(model, t.start, t.goal, w, convention=PUBLISHED, warm=True, seed=s, start_horizon=s.U.shape[0])
-        out.append((published_terms(rule, t, sol), sol))
-    return out
 
 
 def _seed_chunk(task) -> list:

@@ -5,8 +5,8 @@ target's lower level solved at the fit from the two cold guesses, the least cost
 other points warm from that path only (one guess), so D_i follows one branch of lower-level solutions:
 a start facing away from the goal has several local minima, and the best of several guesses would jump
 between them inside the stencil (where a branch ends inside the stencil, a fold, the warm solve lands on
-another minimum and the lack of fit below shows it); published convention: the duration rule at the fit, its horizon held
-at the other points, as the fit holds it), every target's D_i is evaluated on the central-
+another minimum and the lack of fit below shows it); published convention: the duration rule at the fit (the fit's own
+last run of it, not solved again), its horizon held at the other points, as the fit holds it), every target's D_i is evaluated on the central-
 difference stencil of step ``h`` around the fit (1 + 2k + 2 k(k-1)/2 points for k weights), giving
 per target a value D_i, a gradient g_i and a Hessian H_i, and their means D, g, H.
 
@@ -51,7 +51,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cobot_analysis.models.ioc.fit import LOG_BOUNDS, IOCSpec, fit_key, solve_target
+from cobot_analysis.models.ioc.fit import LOG_BOUNDS, IOCSpec, fit_key, published_terms, solve_target
 from cobot_analysis.models.ioc.targets import Target
 from cobot_analysis.models.presets import names_for
 
@@ -96,11 +96,14 @@ def stencil(k: int, h: float = STEP) -> list[np.ndarray]:
 
 
 def curvature(spec: IOCSpec, targets: list[Target], weights: dict[str, float], *, h: float = STEP,
-              checkpoint: Path | None = None, resume: bool = False, pool=None, chunks: int = 2) -> Curvature:
+              checkpoint: Path | None = None, resume: bool = False, pool=None, chunks: int = 2,
+              centre: list | None = None) -> Curvature:
     """Every target's D_i on the stencil around ``weights`` (module docstring); ``checkpoint``: a JSON
     file the evaluated stencil points are written to, one point at a time (``resume`` reuses them).
     ``pool``: an executor for the lower-level solves (chunks of targets; None: in-process): the centre
-    first (its paths are the warm starts), then every other point at once, the same values as in-process."""
+    first (its paths are the warm starts), then every other point at once, the same values as in-process.
+    ``centre`` (published convention): the duration rule's solutions at ``weights``, one per target, as the
+    fit ran it last (``IOCResult.solutions``): the centre's D_i and the other points' seeds, not solved again."""
     from cobot_analysis.models.ioc.single_level import interleaved_chunks, run_chunks
     from cobot_analysis.parallel import InlineExecutor
 
@@ -113,7 +116,8 @@ def curvature(spec: IOCSpec, targets: list[Target], weights: dict[str, float], *
     if resume and checkpoint is not None and checkpoint.is_file():
         data = json.loads(checkpoint.read_text())
         done = data["points"] if data.get("key") == key else []
-    # the centre: every lower level from the cold guesses; its paths are the stencil's warm starts
+    # the centre: every lower level from the cold guesses (published: the duration rule, or the fit's solutions of it
+    # given as ``centre``); its paths are the stencil's warm starts
     published = spec.convention == "published"
     guesses: list = [None if published else ("rest", "line")] * n
     points = stencil(k, h)
@@ -132,13 +136,16 @@ def curvature(spec: IOCSpec, targets: list[Target], weights: dict[str, float], *
             tmp.write_text(json.dumps({"key": key, "points": done}))
             os.replace(tmp, checkpoint)
 
-    # logged points are reused; the centre is solved again when points remain (its paths warm-start them)
+    # logged points are reused; the centre is solved again (unless given) when points remain (its paths warm-start them)
     todo = [p for p in range(len(points)) if not (p < len(done) and (p > 0 or len(done) == len(points)))]
     for p in range(len(points)):
         if p not in todo:
             values[p] = done[p]
+    if centre is not None and not published:
+        raise ValueError("curvature: a centre given is the published duration rule's solutions")
     if 0 in todo:
-        centre = run_chunks(pool, stencil_chunk, parts, lambda q: (spec, at(points[0]), [(targets[i], guesses[i]) for i in q]), n)
+        centre = [_published_D(spec, t, s) for t, s in zip(targets, centre)] if centre is not None else \
+            run_chunks(pool, stencil_chunk, parts, lambda q: (spec, at(points[0]), [(targets[i], guesses[i]) for i in q]), n)
         values[0] = [d for d, _ in centre]
         # off the centre, warm from the centre's path only: D_i along the branch of lower-level solutions the centre
         # is on (the cold guesses would let D_i jump to another local minimum inside the stencil)
@@ -187,6 +194,12 @@ def stencil_chunk(task) -> list[tuple[float, object]]:
         d, sol = solve_target(spec, w, t, g)
         out.append((d["D"], (sol if spec.convention == "published" else sol.primal)) if d["success"] else (math.nan, None))
     return out
+
+
+def _published_D(spec: IOCSpec, t: Target, sol) -> tuple[float, object]:
+    """``stencil_chunk``'s (D, warm start) of a published solution already solved at the centre."""
+    d = published_terms(spec, t, sol) if sol is not None else {"success": False}
+    return (d["D"], sol) if d["success"] else (math.nan, None)
 
 
 def lack_of_fit(points: list[np.ndarray], D: np.ndarray) -> float:
