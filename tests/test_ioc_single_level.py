@@ -263,6 +263,35 @@ def test_stencil_is_warm_from_the_centre_path_only(monkeypatch):
     assert calls[0][0][0] is primal and calls[0][0][1:] == ("rest", "line")
 
 
+def test_curvature_centre_is_the_fits_own_branch(monkeypatch):
+    """Given the fit's paths (``centre``), the curvature's centre is solved as the fit evaluates D: from the fit's
+    path and the two cold guesses, the least cost kept (its D: ``solve_target``'s from that path); without a path for a
+    target, the cold guesses; the rest of the stencil warm from the centre's path."""
+    import cobot_analysis.models.oc as oc
+    from cobot_analysis.models.ioc import uncertainty
+    from cobot_analysis.models.ioc.recovery import synthetic_targets
+
+    spec = replace(SPEC, fitted=("a2", "a4"))
+    targets = synthetic_targets(spec, W, 2, noise=0.01)
+    w = dict(zip(names_for("improved"), map(float, W)))
+    _, ref = solve_target(spec, W, targets[0], ("rest",))
+    calls, solve = [], oc.solve_model
+
+    def recorded(*args, **kw):
+        calls.append(kw["guess"])
+        return solve(*args, **kw)
+
+    monkeypatch.setattr(oc, "solve_model", recorded)
+    c = uncertainty.curvature(spec, targets, w, centre=[ref.primal, None])
+    assert calls[0][0] is ref.primal and calls[0][1:] == ("rest", "line")  # the fit's path first, then the cold guesses
+    assert calls[1] == ("rest", "line")  # no path for that target: the cold guesses, as without a centre
+    assert len(calls) == 2 * 7 and all(isinstance(g, tuple) and len(g) == 1 for g in calls[2:])
+    calls.clear()
+    monkeypatch.setattr(oc, "solve_model", solve)
+    d0 = [solve_target(spec, W, t, g)[0]["D"] for t, g in zip(targets, (ref.primal, ("rest", "line")))]
+    assert c.D == pytest.approx(np.mean(d0), rel=1e-12)
+
+
 def test_subjects_differ_on_planted_weights():
     """Planted per-subject estimates with known standard errors: equal true weights reject at about
     the nominal 5 % over many draws; a weight that differs between subjects is detected; a subject

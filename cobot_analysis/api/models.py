@@ -663,7 +663,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             if bootstrap and model != "coupled":
                 uncertainty[key] = _weight_uncertainty(spec, targets, results[key].weights, bootstrap, seed=seed,
                                                       checkpoint=checkpoint / f"{safe}.curvature.json" if checkpoint else None,
-                                                      resume=resume, pool=pool, chunks=n_chunks, centre=results[key].solutions,
+                                                      resume=resume, pool=pool, chunks=n_chunks, centre=raw.primals if method == "single-level" and conv.name == "continuous" else results[key].solutions,
                                                       paths=raw.primals if method == "single-level" and conv.name == "continuous" else None,
                                                       profile=profiles == "all" or (profiles == "means" and per == "all"))
     subjects_test = None

@@ -289,8 +289,9 @@ class IOCResult:
     held_objective: float | None = None  # published, held horizons: D the optimiser saw at the fitted weights
     horizons_changed: int | None = None  # targets whose horizon the duration rule moves at the fitted weights
     pace: dict | None = None  # continuous, measured durations given: the time-gauge calibration (models.ioc.pace)
-    # published, held horizons: the duration rule's solutions at the fitted weights, per target (check ``success``), the
-    # curvature's centre (uncertainty.curvature); not written
+    # the fit's own lower-level solutions, per target, the curvature's centre (uncertainty.curvature); not written.
+    # Published, held horizons: the duration rule's solutions at the fitted weights (check ``success``); continuous: the
+    # paths (primal vectors, None where none) of the best evaluation, the warm starts the fit ended with
     solutions: list | None = field(default=None, repr=False, compare=False)
 
     def to_json(self) -> dict:
@@ -482,6 +483,8 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
                 new[i], solutions[i] = d, sol
         changed = sum(1 for a, b in zip(terms, new) if a["success"] and b["success"] and abs(a["T"] - b["T"]) > 1e-9)
         held, terms, objective = objective, new, float(np.mean([d["D"] for d in new]))
+    if spec.convention != "published":
+        solutions = [g if not isinstance(g, str) else None for g in guesses]
     weights, pace = dict(zip(names_for(spec.model), map(float, w_best))), None
     if paced:
         from cobot_analysis.models.ioc.pace import calibrate

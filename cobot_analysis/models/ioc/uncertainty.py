@@ -102,8 +102,11 @@ def curvature(spec: IOCSpec, targets: list[Target], weights: dict[str, float], *
     file the evaluated stencil points are written to, one point at a time (``resume`` reuses them).
     ``pool``: an executor for the lower-level solves (chunks of targets; None: in-process): the centre
     first (its paths are the warm starts), then every other point at once, the same values as in-process.
-    ``centre`` (published convention): the duration rule's solutions at ``weights``, one per target, as the
-    fit ran it last (``IOCResult.solutions``): the centre's D_i and the other points' seeds, not solved again."""
+    ``centre``: the fit's own lower-level solutions, one per target. Published convention: the duration rule's
+    solutions at ``weights`` as the fit ran it last (``IOCResult.solutions``): the centre's D_i and the other points'
+    seeds, not solved again. Continuous: the fit's paths (primal vectors), the warm candidate of the centre's solves
+    beside the two cold guesses, the least cost kept, as the fit evaluates D: the stencil is then around the fit's own
+    branch of lower-level solutions (without them, the cold guesses alone may land on another)."""
     from cobot_analysis.models.ioc.single_level import interleaved_chunks, run_chunks
     from cobot_analysis.parallel import InlineExecutor
 
@@ -116,10 +119,14 @@ def curvature(spec: IOCSpec, targets: list[Target], weights: dict[str, float], *
     if resume and checkpoint is not None and checkpoint.is_file():
         data = json.loads(checkpoint.read_text())
         done = data["points"] if data.get("key") == key else []
-    # the centre: every lower level from the cold guesses (published: the duration rule, or the fit's solutions of it
-    # given as ``centre``); its paths are the stencil's warm starts
+    # the centre: every lower level as the fit evaluates it, from the fit's path (``centre``) and the two cold guesses
+    # (published: the duration rule, or the fit's solutions of it given as ``centre``); its paths are the stencil's
+    # warm starts
     published = spec.convention == "published"
     guesses: list = [None if published else ("rest", "line")] * n
+    if centre is not None and not published:
+        guesses = [(c, "rest", "line") if c is not None else g for c, g in zip(centre, guesses)]
+        centre = None
     points = stencil(k, h)
     values = np.zeros((len(points), n))
     pool, parts = pool or InlineExecutor(), interleaved_chunks(n, chunks)
@@ -141,8 +148,6 @@ def curvature(spec: IOCSpec, targets: list[Target], weights: dict[str, float], *
     for p in range(len(points)):
         if p not in todo:
             values[p] = done[p]
-    if centre is not None and not published:
-        raise ValueError("curvature: a centre given is the published duration rule's solutions")
     if 0 in todo:
         centre = [_published_D(spec, t, s) for t, s in zip(targets, centre)] if centre is not None else \
             run_chunks(pool, stencil_chunk, parts, lambda q: (spec, at(points[0]), [(targets[i], guesses[i]) for i in q]), n)
