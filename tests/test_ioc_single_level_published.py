@@ -138,8 +138,6 @@ def test_curvature_takes_the_fits_rule_solutions_as_its_centre(monkeypatch):
     for a in ("Di", "gi", "Hi"):
         np.testing.assert_array_equal(getattr(given, a), getattr(solved, a))
     assert given.lack_of_fit == solved.lack_of_fit and given.failed == solved.failed == 0
-    with pytest.raises(ValueError, match="published"):
-        uncertainty.curvature(replace(SPEC, convention="continuous"), targets, weights, centre=rules)
 
 
 def test_bilevel_fit_checks_its_held_horizons_at_the_end(monkeypatch):

@@ -519,7 +519,14 @@ PROFILES = ("means", "all", "none")  # fit_ioc's profiles: which fits get profil
 
 
 def check_profiles(profiles: str) -> None:
-    """``fit_ioc``'s ``profiles`` (bad input: one line, before anything is written)."""
+    """``fit_ioc``'s ``profiles`` (bad input: one line, before anything is written).
+
+        >>> from cobot_analysis.api.models import check_profiles
+        >>> check_profiles("means")
+        >>> check_profiles("some")
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: unknown --profiles 'some'; use one of means, all, none
+    """
     if profiles not in PROFILES:
         raise InputError(f"unknown --profiles {profiles!r}", remedy=f"use one of {', '.join(PROFILES)}")
 
