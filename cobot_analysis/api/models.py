@@ -668,10 +668,12 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
                                        on_evaluation=report, measured_T=measured_T)
             seconds[key] = raw.seconds if key in side_by_side else time.perf_counter() - t0  # a fit's own time
             if bootstrap and model != "coupled":
+                # the fit's own paths (single-level, continuous): the curvature's centre and the profiles' warm starts
+                own_paths = raw.primals if method == "single-level" and conv.name == "continuous" else None
                 uncertainty[key] = _weight_uncertainty(spec, targets, results[key].weights, bootstrap, seed=seed,
                                                       checkpoint=checkpoint / f"{safe}.curvature.json" if checkpoint else None,
-                                                      resume=resume, pool=pool, chunks=n_chunks, centre=raw.primals if method == "single-level" and conv.name == "continuous" else results[key].solutions,
-                                                      paths=raw.primals if method == "single-level" and conv.name == "continuous" else None,
+                                                      resume=resume, pool=pool, chunks=n_chunks, centre=own_paths if own_paths is not None else results[key].solutions,
+                                                      paths=own_paths,
                                                       profile=profiles == "all" or (profiles == "means" and per == "all"))
     subjects_test = None
     if per == "subject" and uncertainty:
