@@ -124,6 +124,20 @@ def test_baselines_do_not_need_orientation():
         assert np.isfinite(P[..., :2]).all() and np.isnan(P[..., 2]).all()
 
 
+def test_unwrap_is_numpys_bit_for_bit():
+    """predictor.unwrap skips np.unwrap's corrections where they are all zero: same bits, -0.0, steps of +-pi, NaN."""
+    from cobot_analysis.models.prediction.predictor import unwrap
+
+    below = np.nextafter(np.pi, 0)
+    rng = np.random.default_rng(3)
+    cases = [np.array([0.0, -0.0, -0.0, 1.0]), np.array([-0.0, -0.0]), np.array([0.0, np.pi, 0.0, -np.pi, 2 * np.pi]),
+             np.array([1.0, np.nan, 2.0]), np.array([below, 0.0, -below, 0.0]), np.array([3.0]), np.array([])]
+    cases += [rng.uniform(-np.pi, np.pi, rng.integers(1, 60)) * rng.choice([0.01, 0.5, 1.0, 3.0]) for _ in range(2000)]
+    for a in cases:
+        assert unwrap(a).view(np.int64).tolist() == np.unwrap(a).view(np.int64).tolist(), a
+    assert np.signbit(unwrap(np.array([-0.0, -0.0]))).tolist() == [True, False]  # np.unwrap's zero correction kept
+
+
 def test_bad_settings_are_input_errors():
     with pytest.raises(InputError, match="N_OC = 50 must be larger than N0 = 50"):
         make_predictor("cv", 50, 50)
