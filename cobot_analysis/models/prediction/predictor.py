@@ -272,19 +272,25 @@ def heading(past: np.ndarray, travel: np.ndarray, radius: float = BODY_RADIUS) -
     d1, d2 = travel @ p
     if (np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) * radius < np.hypot(d1[:, 0], d1[:, 1]) ** 3).all():
         return unwrap(np.arctan2(d1[:, 1], d1[:, 0]))
-    step = np.diff(p, axis=0)
-    middle = 0.5 * (p[1:] + p[:-1])
-    dx = middle[None, :, 0] - p[:, None, 0]  # (sample i, step j)
-    dy = middle[None, :, 1] - p[:, None, 1]
-    u2 = (dx * dx + dy * dy) / radius ** 2
-    v = (np.clip(1.0 - u2, 0.0, None) ** 2) @ step
+    step = p[1:] - p[:-1]
+    x, y = past[:, 0].copy(), past[:, 1].copy()
+    u2 = 0.5 * (x[1:] + x[:-1]) - x[:, None]  # (sample i, step j): m_j - p_i in x, then |m_j - p_i|^2 / radius^2
+    dy = 0.5 * (y[1:] + y[:-1]) - y[:, None]
+    u2 *= u2
+    dy *= dy
+    u2 += dy
+    u2 /= radius ** 2
+    w = np.subtract(1.0, u2, out=u2)
+    np.maximum(w, 0.0, out=w)
+    w *= w
+    v = w @ step
     return unwrap(np.arctan2(v[:, 1], v[:, 0]))
 
 
 def unwrap(a: np.ndarray) -> np.ndarray:
     """``np.unwrap(a)`` (period 2 pi) bit for bit, with its corrections skipped where no step reaches pi (they are all
     zero then; np.unwrap still adds them, which makes a -0.0 after the first sample 0.0)."""
-    if (np.abs(np.diff(a)) < np.pi).all():
+    if (np.abs(a[1:] - a[:-1]) < np.pi).all():
         out = a + 0.0
         out[:1] = a[:1]
         return out
