@@ -200,10 +200,12 @@ class OCPredictor(Predictor):
 
     def _cold_guess(self, track: np.ndarray, x0: np.ndarray) -> np.ndarray:
         """The tracked past at x0's velocities, zero controls."""
-        w = np.zeros(self.ocp.n_vars)
-        w[self.ocp._xi[:, :3]] = track  # node k of the N0 - 1 intervals = tracked sample k
-        w[self.ocp._xi[:, 3:6]] = x0[3:6]
-        return w
+        ocp = self.ocp
+        w = np.zeros(ocp.n_vars + ocp.nu)  # layout x0 u0 ... x_N (u_N): the nodes as the rows of one view
+        nodes = w.reshape(ocp.N + 1, ocp.nx + ocp.nu)
+        nodes[:, :3] = track  # node k of the N0 - 1 intervals = tracked sample k
+        nodes[:, 3:6] = x0[3:6]
+        return w[: ocp.n_vars]
 
     def _shifted(self, previous: np.ndarray) -> np.ndarray:
         """Previous primal shifted by one node: new node j = old node j + 1; the last node moves on."""
