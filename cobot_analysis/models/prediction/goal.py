@@ -141,7 +141,9 @@ def plan_start(past: np.ndarray, filt: np.ndarray) -> np.ndarray:
     The model walker has no gait: its omega is the turn rate of the gait-averaged path, which a past shorter
     than a stride cannot separate from the gait's sway (on the walking-2020 trials, walked at 1 m/s, the
     rate of the direction of travel had a median of 1.6 rad/s from the last 5 samples and 2.1 rad/s from
-    the whole past of 50: turning radii of 0.5 m). The turn is left to the plan (its a3 prices it)."""
+    the whole past of 50: turning radii of 0.5 m). The turn is left to the plan (its a3 prices it).
+    The heading is the local tangent even where the path curves tighter than the body: the OC predictor's
+    body-scale heading (``predictor.heading``) predicted worse here at every horizon (docs/methods.md sec. 7.1)."""
     x0 = state_estimate(past, filt, travel=True)
     x0[5] = 0.0
     return x0
