@@ -245,7 +245,11 @@ def test_fit_ioc_comparison_counts_a_path_that_misses_its_goal_as_not_converged(
         return df.assign(converged=False, goal_reached=False, status="ends 0.2 m from its goal")
 
     spec = {"improved OC": ("improved", "walking-2021")}
-    assert compare_task((target, spec, 20, 0.5, "gamma", "continuous"))[0]["converged"]
+    rows, kept = compare_task((target, spec, 20, 0.5, "gamma", "continuous", ("improved OC",)))
+    assert rows[0]["converged"]
+    # the path it kept (fit-ioc's figure draws it) is generate's, not solved again
+    pd.testing.assert_frame_equal(kept["improved OC"], real("improved", target.start, target.goal, weights="walking-2021",
+                                                           n_samples=len(target.x), n_intervals=20, convention="continuous"))
     monkeypatch.setattr(models, "generate", missing)
-    row = compare_task((target, spec, 20, 0.5, "gamma", "continuous"))[0]
+    row = compare_task((target, spec, 20, 0.5, "gamma", "continuous", ()))[0][0]
     assert row["converged"] is False and np.isfinite(row["d_xy"])

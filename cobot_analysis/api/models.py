@@ -577,7 +577,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         True
     """
     from cobot_analysis import conventions
-    from cobot_analysis.models.comparison import compare_models, compared_models, coupled_distances, orientation_of, subject_distances
+    from cobot_analysis.models.comparison import compare_models_keeping, compared_models, coupled_distances, orientation_of, subject_distances
     from cobot_analysis.models.ioc import fit as ioc_fit, pair_targets_from_table, targets_from_table
     from cobot_analysis.models.presets import DEFAULT_PRESET, PRESETS, names_for, weights_vector
     from cobot_analysis.models.ioc.pace import target_durations
@@ -702,18 +702,21 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     comparison, models, paths = None, None, None
     if compare and "all" in results:
         models = compared_models(conv) if model == "improved" else {"table OC (published)": ("table", "table-2022")}
-        models["improved OC (fitted)" if model == "improved" else "table OC (fitted)"] = (
-            "improved" if model == "improved" else "table", results["all"].weights)
+        figure = {"published": "improved OC (published)" if model == "improved" else "table OC (published)",
+                  "fitted": "improved OC (fitted)" if model == "improved" else "table OC (fitted)"}
+        models[figure["fitted"]] = ("improved" if model == "improved" else "table", results["all"].weights)
         # every mean, those without orientation too (their d_xy; the authors compared all 40 walking means)
         compared = targets_from_table(mean_df, path=means_source, entity=entity, goal=goal_rule(goal, mean_df), convention=conv,
                                       unoriented=True)
-        # generate's grid (not the lower level's): the same paths as generate --study then compare
-        comparison = compare_models(compared, models, angle=spec.angle, jobs=jobs, scheduler=scheduler, convention=conv.name)
+        # generate's grid (not the lower level's): the same paths as generate --study then compare; the figure's
+        # paths at the published and fitted weights are those of the oriented means (mean_targets, the same targets)
+        comparison, generated = compare_models_keeping(compared, models, tuple(figure.values()), angle=spec.angle, jobs=jobs,
+                                                       scheduler=scheduler, convention=conv.name)
+        paths = {k: [generated[label][t.trial] for t in mean_targets] for k, label in figure.items()}
         if trial_df is not None and not trial_df.empty and model == "improved":
             trial_targets = targets_from_table(trial_df, path=trials_source, entity=entity)
             comparison = pd.concat([comparison, subject_distances(trial_targets, mean_targets, spec.angle, conv.name)], ignore_index=True)
         dist = pd.concat([dist[dist["fit"] != "all"], comparison.drop(columns="goal_reached")], ignore_index=True)
-        paths = _figure_paths(model, mean_targets, results["all"].weights, conv)
     dist["orientation"] = [orientation_of(c) for c in dist["condition"]]
     dist["subject"] = dist["subject"].fillna("")
     dist["convention"] = conv.name
@@ -748,18 +751,3 @@ def _weight_uncertainty(spec, targets: list, weights: dict[str, float], n_resamp
             "lack_of_fit": c.lack_of_fit,
             "sd_log10": b["sd_log10"], "resamples": n_resamples, "on_box": b["on_box"], "held": b["held"], "eigenvalues": np.linalg.eigvalsh(c.H).tolist(),
             "failed_solves": c.failed, "profile": prof}
-
-
-def _figure_paths(model: str, targets: list, fitted: dict, conv) -> dict:
-    """The model's path at the published and the fitted weights for each mean target (None where a solve fails)."""
-    from cobot_analysis.models import generate
-
-    gen: dict[str, list] = {"published": [], "fitted": []}
-    for t in targets:
-        for lab, w in (("published", "walking-2021" if model == "improved" else "table-2022"), ("fitted", fitted)):
-            try:
-                gen[lab].append(generate("table" if model == "table" else "improved", t.start, t.goal, weights=w,
-                                         n_samples=len(t.x), convention=conv))
-            except Exception:  # noqa: BLE001 - a failed model run is left out of the figure
-                gen[lab].append(None)
-    return gen

@@ -38,16 +38,18 @@ def orientation_of(condition: str) -> str:
         return ""
 
 
-def compare_task(task) -> list[dict]:
-    """Worker task: every compared model on one target (top-level, picklable)."""
+def compare_task(task) -> tuple[list[dict], dict]:
+    """Worker task: every compared model on one target (top-level, picklable): its rows, and the generated
+    path of each model labelled in ``keep`` (None where its solve failed)."""
     from cobot_analysis.models import generate
     from cobot_analysis.models.presets import weights_vector
 
-    target, models, n_intervals, angle_weight, angle, convention = task
-    rows = []
+    target, models, n_intervals, angle_weight, angle, convention, keep = task
+    rows, kept = [], {}
     for label, (model, weights) in models.items():
         w = weights if isinstance(weights, str | None) else dict(zip(
             ("a0", "a1", "a2", "a3", "a4", "a5", "a6", "b0", "b1", "b2", "b3"), weights_vector(weights)))
+        df = None
         try:
             df = generate(model, target.start, target.goal, weights=w, n_samples=len(target.x), n_intervals=n_intervals,
                           convention=convention)
@@ -60,10 +62,12 @@ def compare_task(task) -> list[dict]:
             if not isinstance(exc, SolverError):
                 raise
             d, ok, reached = {"d_xy": math.nan, "d_theta": math.nan, "d_gamma": math.nan}, False, False
+        if label in keep:
+            kept[label] = df
         rows.append({"model": label, "trial": target.trial, "condition": target.condition, "subject": target.subject,
                      "orientation": orientation_of(target.condition), "global_distance": target.global_distance,
                      **d, "D": d["d_xy"] + angle_weight * d[f"d_{angle}"], "converged": ok, "goal_reached": reached})
-    return rows
+    return rows, kept
 
 
 def study_cases(means: pd.DataFrame, convention, goal, *, path=None) -> list[tuple[str, tuple, tuple]]:
@@ -173,13 +177,22 @@ def compare_models(targets: list[Target], models: dict, *, n_intervals: int = 10
     """Distances of every model in ``models`` (label -> (model, weights)) to every target, each model
     generated and compared under ``convention``, on ``generate``'s grid by default: the same paths and
     distances as ``generate --study`` (``study_cases``) then ``compare --against`` (tests/test_models_goal.py)."""
+    return compare_models_keeping(targets, models, (), n_intervals=n_intervals, angle=angle, angle_weight=angle_weight,
+                                  jobs=jobs, scheduler=scheduler, fit=fit, convention=convention)[0]
+
+
+def compare_models_keeping(targets: list[Target], models: dict, keep: tuple[str, ...], *, n_intervals: int = 100,
+                           angle: str = "gamma", angle_weight: float = 0.5, jobs=None, scheduler=None, fit: str = "all",
+                           convention: str = "continuous") -> tuple[pd.DataFrame, dict[str, dict]]:
+    """``compare_models``, and the paths it generated for the models labelled in ``keep``: label -> {target
+    trial -> generated path, None where the solve failed} (``fit-ioc``'s figure draws them: not solved twice)."""
     from cobot_analysis.parallel import map_tasks
 
-    tasks = [(t, models, n_intervals, angle_weight, angle, convention) for t in targets]
-    rows = map_tasks(compare_task, tasks, jobs=jobs, scheduler=scheduler, description="model comparison")
-    df = pd.DataFrame([r for rs in rows for r in rs])
+    tasks = [(t, models, n_intervals, angle_weight, angle, convention, keep) for t in targets]
+    res = map_tasks(compare_task, tasks, jobs=jobs, scheduler=scheduler, description="model comparison")
+    df = pd.DataFrame([r for rows, _ in res for r in rows])
     df.insert(1, "fit", fit)
-    return df
+    return df, {label: {t.trial: kept[label] for t, (_, kept) in zip(targets, res)} for label in keep}
 
 
 def subject_distances(trials: list[Target], means: list[Target], angle: str = "gamma",
