@@ -139,7 +139,7 @@ def profiles(spec: IOCSpec, targets: list[Target], weights: dict[str, float], fi
     the fit's lower levels first (warm from ``paths``, the fit's own, when given, and from the cold guesses),
     then one chain per weight and side on ``pool`` (an executor; None: in-process).
     Returns {"D": D at the fit, "D_min": the least D seen, "n", "t_q", "points": {name: [point, ...] in y order,
-    the fit included, each with its "t" and "excess" against the least-D point}, "verdicts": {name: verdict},
+    the fit included, each with its per-target "Di" and its "t" and "excess" against the least-D point}, "verdicts": {name: verdict},
     "intervals": {name: (lo, hi)}, "seconds": wall time}."""
     from cobot_analysis.models.presets import weights_vector
     from cobot_analysis.parallel import InlineExecutor
@@ -164,14 +164,13 @@ def profiles(spec: IOCSpec, targets: list[Target], weights: dict[str, float], fi
     ref = list(best["Di"])
     for c in chains.values():
         for p in c:
-            Di = p.pop("Di")
-            p["t"], _, p["excess"] = excess(Di, ref) if Di else (math.nan, math.nan, math.nan)
+            p["t"], _, p["excess"] = excess(p["Di"], ref) if p["Di"] else (math.nan, math.nan, math.nan)
     t0, t_q, e0 = excess(D0i, ref)
     out = {"D": D0, "D_min": best["D"], "n": n, "t_q": t_q, "points": {}, "verdicts": {}, "intervals": {}}
     for name in fitted:
         down, up = chains[(name, -1)], chains[(name, 1)]
-        centre = {"y": y0[name], "D": D0, "weights": {k: weights[k] for k in spec.fitted if k != name}, "switched": 0,
-                  "failed": 0, "error": "", "t": t0, "excess": e0}
+        centre = {"y": y0[name], "D": D0, "Di": list(D0i), "weights": {k: weights[k] for k in spec.fitted if k != name},
+                  "switched": 0, "failed": 0, "error": "", "t": t0, "excess": e0}
         out["points"][name] = down[::-1] + [centre] + up
         out["verdicts"][name], out["intervals"][name] = verdict(name, y0, centre, down, up, best["D"])
     out["seconds"] = time.perf_counter() - t_start
