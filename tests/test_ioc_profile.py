@@ -68,6 +68,23 @@ def test_profile_verdicts_on_made_up_profiles():
     assert "change branch (a fold) at a2 0.501 (3)" in v and "D 0.9 at a2 0.794, below the fit's 1" in v
 
 
+def test_profile_verdict_walks_from_the_least_D():
+    """A fit stopped short of its minimum (the wiring test's bi-level fit after 6 evaluations: a2 34.7, D 0.0031;
+    the profile finds D 0.0011 at a2 17.4, and the targets reject the fit against it): the interval is walked
+    from the least-D point and excludes the fit; a profile none of whose points the targets accept against a lower D
+    found on another weight's profile is not judged."""
+    y0 = {"a2": math.log10(34.75), "a4": 1.0}
+    centre = {**_pt(y0["a2"], 1.07, D=0.003128, a4=10.0), "y": y0["a2"]}
+    down = [_pt(math.log10(27.6), 1.12, D=0.001929, a4=10.0), _pt(math.log10(17.4), 0.0, D=0.001073, a4=10.0),
+            _pt(math.log10(3.475), 1.12, D=0.02979, a4=10.0)]
+    up = [_pt(math.log10(43.7), 1.11, D=0.004001, a4=10.0)]
+    v, (lo, hi) = verdict("a2", y0, centre, down, up, 0.001073)
+    assert v.startswith("determined (profile: the targets reject a2 below") and "which the targets reject" in v
+    assert 3.475 < lo < 17.4 < hi < 27.6  # the truth (20.15) inside, the fit (34.7) outside
+    v, (lo, hi) = verdict("a2", y0, centre, [{**p, "excess": 1.5} for p in down[:1]], up, 0.0009)
+    assert v.startswith("not judged: the fit is not at a minimum of D") and (lo, hi) == (1e-7, 1e3)
+
+
 def test_profile_verdict_hook_and_category():
     """Where the curvature cannot judge, the profile's verdict is given, and its category is the plain one."""
     from cobot_analysis.models.ioc.uncertainty import judged, verdict_category, verdicts
@@ -170,6 +187,22 @@ def test_the_profile_judges_what_the_bootstrap_overturns():
     assert v["a2"] == held and by["a2"] == "bootstrap"
     v, by = judged({n: "not judged: D is not smooth at the fit" for n in w}, {n: "not judged: D is not smooth at the fit" for n in w}, w, 0.15, failed)
     assert v["a2"] == failed["a2"] and by["a2"] == "profile" and by["a4"] == "curvature"
+
+
+def test_a_fit_short_of_a_minimum_is_not_judged_by_its_curvature():
+    """D concave along a direction beyond the sloppiness (a fit stopped by its budget: the wiring test's bi-level fit
+    after 6 evaluations, eigenvalues -0.021 and 0.46 at D 0.0031): the weights in it are not judged by the curvature
+    (they came out "not determined" before) and are disputed, so their profiles judge them; a concave direction
+    within the sloppiness (the regression's walking fit: -0.00079 at D 0.446) stays sloppy."""
+    from cobot_analysis.models.ioc.uncertainty import disputed, verdicts
+
+    w = {"a2": 34.7, "a4": 10.0}
+    H = np.array([[-0.021, 0.0], [0.0, 0.46]])
+    v = verdicts(("a2", "a4"), H, 0.0031, w)
+    assert v["a2"].startswith("not judged: the fit is not at a minimum of D") and v["a4"] == "determined"
+    assert disputed(0.03, v, v) == ("a2",)
+    v = verdicts(("a2", "a4"), np.diag([-0.00079, 0.46]), 0.446, w)
+    assert v["a2"] == "not determined by these data" and disputed(0.03, v, v) == ()
 
 
 @pytest.mark.slow

@@ -120,6 +120,9 @@ def test_results_md_shows_both_methods_with_intervals_and_verdicts(fits, tmp_pat
         assert f"| {f['weights'][n]:.3g} | {lo:.3g} .. {hi:.3g} | *curvature*: determined |" in text
     # one rule for both methods: each verdict names the analysis that gave it, a profile's only where the curvature
     # and the bootstrap disagree or D is not smooth (docs/methods.md sec. 6.3, "Which analysis judges")
+    # paths generated at known weights (a2 and a4 determined by 5 means): both methods give the same verdicts
+    assert {n: verdict_category(bi["uncertainty"]["verdicts"][n]) for n in FITTED} == \
+        {n: verdict_category(single["uncertainty"]["verdicts"][n]) for n in FITTED} == {n: "determined" for n in FITTED}
     for f in (bi, single):
         u = f["uncertainty"]
         assert set(u["by"]) == set(FITTED) and set(u["by"].values()) <= {"curvature", "bootstrap", "profile"}

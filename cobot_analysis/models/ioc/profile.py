@@ -191,13 +191,23 @@ def _side(centre: dict, chain: list[dict], limit: float) -> tuple[str, float]:
     return ("flat", limit) if abs(prev_y - limit) < 0.01 else ("open", prev_y)
 
 
+def _tail(notes: list[str]) -> str:
+    """The verdict's notes, "; "-joined after the verdict (none: "")."""
+    return ("; " + "; ".join(notes)) if notes else ""
+
+
 def verdict(name: str, y0: dict[str, float], centre: dict, down: list[dict], up: list[dict], D_min: float
             ) -> tuple[str, tuple[float, float]]:
     """The plain verdict of one weight from its profile: ``centre`` the fit, ``down`` and ``up`` the chains
     outward, each point with its ``excess``; and its interval (the search box unless determined) (module
-    docstring)."""
+    docstring). The sides are walked from the profile's least-D point ``D_min`` (the fit unless a point is lower by
+    more than ``REL_TOL``)."""
     D0 = centre["D"]
-    sides = {s: _side(centre, chain, LOG_BOUNDS[0 if s < 0 else 1]) for s, chain in ((-1, down), (1, up))}
+    # walked outward from the profile's least-D point (the reference of ``excess``: the fit, or a point whose D is lower
+    # by more than REL_TOL, and then the fit itself may be rejected)
+    line = down[::-1] + [centre] + up
+    i0 = len(down) if D_min >= D0 else min((i for i, p in enumerate(line) if np.isfinite(p["D"])), key=lambda i: line[i]["D"])
+    sides = {s: _side(line[i0], chain, LOG_BOUNDS[0 if s < 0 else 1]) for s, chain in ((-1, line[:i0][::-1]), (1, line[i0 + 1:]))}
     pts = down + up
     box = (10.0 ** LOG_BOUNDS[0], 10.0 ** LOG_BOUNDS[1])
     notes = []
@@ -206,10 +216,14 @@ def verdict(name: str, y0: dict[str, float], centre: dict, down: list[dict], up:
         notes.append("lower-level paths change branch (a fold) at " + ", ".join(f"{name} {10 ** p['y']:.3g} ({p['switched']})" for p in jumps))
     lowest = [p for p in pts if p["D"] <= D_min < D0]
     if lowest:
-        notes.append(f"D {lowest[0]['D']:.4g} at {name} {10 ** lowest[0]['y']:.3g}, below the fit's {D0:.4g}")
+        notes.append(f"D {lowest[0]['D']:.4g} at {name} {10 ** lowest[0]['y']:.3g}, below the fit's {D0:.4g}"
+                     + (", which the targets reject" if centre["excess"] > 1 else ""))
+    if line[i0]["excess"] > 1:  # the least D lies on another weight's profile, and the targets reject this whole line
+        return (f"not judged: the fit is not at a minimum of D (the targets reject every point of the {name} profile "
+                f"against D {D_min:.4g}, found on another weight's profile){_tail(notes)}", box)
     failed = [(s, y) for s, (kind, y) in sides.items() if kind in ("failed", "open")]
     flat = [(s, y) for s, (kind, y) in sides.items() if kind == "flat"]
-    tail = ("; " + "; ".join(notes)) if notes else ""
+    tail = _tail(notes)
     if not failed and not flat:
         lo, hi = sides[-1][1], sides[1][1]
         return (f"determined (profile: the targets reject {name} below {10 ** lo:.3g} and above {10 ** hi:.3g}{tail})",

@@ -18,6 +18,10 @@ j, s_j = sum_{sloppy} V_ji^2:
   and at least half the amplitude: "only its ratio to k is determined" (D changes little when both
   are scaled together);
 - else "not determined by these data".
+A weight taking part (V_ji^2 >= 0.1) in a direction of negative curvature beyond the sloppiness
+(0.5 |mu| (log10 2)^2 >= rel_tol D: a fit stopped short of a minimum, e.g. by its evaluation budget) is "not
+judged: the fit is not at a minimum of D" (before the ninth session the negative direction counted as sloppy and
+the weight came out "not determined").
 A weight within 0.01 of a log10 search limit carries "(at the search limit ...)" beside its verdict.
 A "determined" weight whose bootstrap interval (below) reaches a search limit is not determined after
 all: resamples of the same data cannot exclude the limit (``interval_verdicts``).
@@ -43,8 +47,8 @@ pins (the weights on a limit leave it less than 10 % of its amplitude in the det
 Which analysis judges (``disputed``, ``judged``; one rule for the bi-level and the single-level fit): the curvature
 and the bootstrap's quadratic refits are the local (Wald) approximation of D; its profile likelihood (``profile.py``)
 evaluates D itself along the weight, with the other weights re-fitted, and is the reference where the approximation
-fails (Raue et al. 2009): where D is not smooth at the fit (every weight), and for a weight the curvature determines
-but the bootstrap does not (the quadratic, measured within +-0.05 in log10, extrapolated to the search box in some
+fails (Raue et al. 2009): where D is not smooth at the fit (every weight), for a weight the curvature does not judge
+(the fit is not at a minimum of D along it), and for a weight the curvature determines but the bootstrap does not (the quadratic, measured within +-0.05 in log10, extrapolated to the search box in some
 resamples). There the profile's verdict is the verdict, "determined" when the targets reject the weight on both sides;
 a profile that could not judge (its refit failed) leaves the curvature's and the bootstrap's verdict. Elsewhere the
 curvature judges, and the bootstrap overturns a "determined" (above). Each verdict names its analysis.
@@ -247,10 +251,14 @@ def verdicts(fitted, H: np.ndarray, D: float, weights: dict[str, float], rel_tol
     mu, V, mask = sloppy_directions(H, D, rel_tol)
     sloppy = list(np.flatnonzero(mask))
     ok = determined(H, D, rel_tol)
+    # directions along which D is concave beyond the sloppiness: the fit is not at a minimum of D there
+    falling = [i for i in range(len(mu)) if 0.5 * -mu[i] * FACTOR_2**2 >= rel_tol * D]
     out = {}
     for j, n in enumerate(fitted):
         if lack > ROUGH:
             verdict = f"not judged: D is not smooth at the fit (a quadratic leaves {100 * lack:.0f} % of its change over the stencil unexplained)"
+        elif any(V[j, i] ** 2 >= 0.1 for i in falling):
+            verdict = "not judged: the fit is not at a minimum of D (D is concave along a direction the weight takes part in)"
         elif ok[j]:
             verdict = "determined"
         else:
@@ -273,7 +281,8 @@ def disputed(lack: float, curvature: dict[str, str], bootstrap: dict[str, str]) 
     """The weights the curvature and the bootstrap cannot judge alike, whose profile likelihood judges them
     (module docstring, "Which analysis judges"): every weight when D is not smooth at the fit (``lack`` >
     ``ROUGH``), else those whose ``curvature`` verdict (``verdicts``) the ``bootstrap`` one (``interval_verdicts``)
-    overturns: the search box holds their resampled refits, or their interval reaches a search limit.
+    overturns (the search box holds their resampled refits, or their interval reaches a search limit), and those
+    the curvature does not judge (the fit is not at a minimum of D along a direction they take part in).
 
         >>> from cobot_analysis.models.ioc.uncertainty import disputed
         >>> disputed(0.05, {"a2": "determined", "a3": "determined"},
@@ -283,7 +292,7 @@ def disputed(lack: float, curvature: dict[str, str], bootstrap: dict[str, str]) 
     """
     if lack > ROUGH:
         return tuple(curvature)
-    return tuple(n for n, v in curvature.items() if bootstrap[n] != v)
+    return tuple(n for n, v in curvature.items() if bootstrap[n] != v or verdict_category(v) == "not judged")
 
 
 def judged(curvature: dict[str, str], bootstrap: dict[str, str], weights: dict[str, float], lack: float,
