@@ -23,7 +23,8 @@ sloppiness: a rise below 0.1 % of D is flat there, and differences at the solver
 evidence). Near a smooth optimum mean(delta) grows as dy^2 and sd(delta) as |dy|, so the crossing is
 the sandwich (robust) standard error's interval; at a fold no smoothness is needed. The crossing is
 interpolated linearly in y_j between grid points, on min(t / t_q, rise / (REL_TOL D)) = 1 (as coarse as
-the grid). Verdicts:
+the grid), walking outward from the profile's least D (the fit, or a point lower by more than ``REL_TOL``, which
+the test then takes as its reference: a fit stopped short of its minimum may itself be rejected). Verdicts:
 - rejected on both sides: "determined", the interval between the crossings;
 - no point rejected up to a search limit on a side: "only its ratio to X is determined" when a re-fitted
   weight X moves with it at least half as much, with the same sign, over those points (the curvature
@@ -31,7 +32,9 @@ the grid). Verdicts:
 - where the refit cannot start (a path that is not a regular KKT point of the restricted problem), D at the
   previous point's other weights stands for the point: an upper bound of the profile, so it can show that
   the point is not rejected, never that it is; a lower level that fails, or a rejected upper bound, ends
-  that side without a verdict ("not judged").
+  that side without a verdict ("not judged");
+- every point rejected against a lower D found on another weight's profile: "not judged" (the fit is not at a
+  minimum of D).
 """
 
 from __future__ import annotations
