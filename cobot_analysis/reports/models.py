@@ -486,7 +486,8 @@ def uncertainty_lines(result) -> list[str]:
     n = next(iter(result.uncertainty.values()))["resamples"]
     lines = [f"Each fitted weight with its 95 % interval ({n} bootstrap resamples of the fitted "
              f"{'means' if result.per == 'all' else 'trials'}, a quadratic refit each) and what the data determine "
-             "(curvature of D at the fit; where D is not smooth there, or where the bootstrap overturns the curvature's "
+             "(curvature of D at the fit; where D is not smooth there, where the fit is not at a minimum of D, or where the "
+             "bootstrap overturns the curvature's "
              "\"determined\", the weight's profile likelihood, whose interval a \"determined (profile: ...)\" weight then "
              "shows; each verdict led by the analysis that gave it, one rule for both fit methods: docs/methods.md sec. 6.3); "
              "a weight the data do not determine has no interval.", "",
@@ -499,7 +500,7 @@ def uncertainty_lines(result) -> list[str]:
     boxed = {k: u["on_box"] for k, u in result.uncertainty.items() if u.get("on_box")}
     if boxed:
         lines += ["Resamples whose quadratic model has no minimum inside the search box (refitted on its edge; they "
-                  "widen the intervals): " + ", ".join(f"{k} {v} of {u_n}" for k, v in boxed.items()
+                  "widen the bootstrap's intervals; a weight its profile judges takes the profile's): " + ", ".join(f"{k} {v} of {u_n}" for k, v in boxed.items()
                                                        for u_n in [result.uncertainty[k]["resamples"]]) + ".", ""]
     failed = sum(u["failed_solves"] for u in result.uncertainty.values())
     if failed:
