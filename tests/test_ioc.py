@@ -162,7 +162,7 @@ def test_fit_ioc_command_end_to_end_and_per_subject(planted_paths, tmp_path, cli
     mean_d = (fits["S1"]["objective"] + fits["S2"]["objective"]) / 2
     assert err.strip().splitlines()[-1].startswith(f"fit-ioc (continuous, per subject): 2 fits, 4 paths, mean D {mean_d:.3f} fitted")
     assert json.loads((out / "fit-ioc" / "weights.json").read_text())["fits"].keys() == {"all"}
-    assert "## Inverse optimal control (improved model, one fit per subject, continuous convention)" in (out / "fit-ioc-subjects" / "results.md").read_text()
+    assert "## Inverse optimal control (improved model, one fit per subject, continuous convention, bi-level)" in (out / "fit-ioc-subjects" / "results.md").read_text()
 
 
 @pytest.mark.slow  # a Dask cluster of 2 worker processes started and stopped: 5.6 s of CPU with the fits (2026-11-25)

@@ -175,6 +175,25 @@ def test_goal_inferred_finds_the_goal_walked_to():
     assert post[len(post) // 2:, 0].min() > 0.8
 
 
+def test_goal_inferred_plans_every_candidate_only_where_a_segment_starts(monkeypatch):
+    """Only the plans made at a segment's first sample are evidence: inside a segment just the most probable goal's
+    plan is solved (the next one's where it fails), and it is the plan a fresh planner makes at that window."""
+    from cobot_analysis.models.prediction.goal import Planner, plan_path, plan_start
+
+    poses = straight_to_goal(120) - [0.5, 0.0, 0.0]  # ends 0.5 m short of the goal: every window plans
+    p = make_predictor("goal-inferred", 30, 60, DT, candidates=[(0.0, 0.0), (-2.0, 1.5)])
+    calls = []
+    for i, planner in enumerate(p.planners):
+        monkeypatch.setattr(planner, "plan", lambda x0, g, i=i, solve=planner.plan: calls.append(i) or solve(x0, g))
+    P = p.predict_offline(poses)  # 91 windows (N0 = 30), segments starting at windows 0, 30, 60, 90
+    assert p.failed == 0 and calls.count(1) == 4 and calls.count(0) == 91
+    assert all(post[0] > post[1] for _, post in p.history[1:])  # the goal walked to is the most probable
+    for w in (17, 45, 89):  # inside segments
+        x0 = plan_start(poses[w: w + 30], p.filter)
+        fresh = plan_path(Planner(p.planners[0].weights, DT, solver="ipopt"), x0, (0.0, 0.0, float("nan")), p._length)
+        np.testing.assert_allclose(P[w], fresh[: p.horizon + 1], atol=1e-9)
+
+
 def test_goal_inferred_plans_cannot_hang_and_a_stopped_plan_is_a_counted_failure(monkeypatch):
     """fatrop's inertia correction has no cap (max_iter does not bound a solve; one hung here), so the
     candidate plans are IPOPT solves with a CPU limit. A limit that every solve hits (1 ns) must stop

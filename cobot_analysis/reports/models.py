@@ -684,7 +684,7 @@ def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal
                               ", its KKT conditions constraints of the NLP; the D reported re-solves it from the NLP's paths and from a "
                               "rest and a straight-line guess, the least cost kept")
     lines = [f"## Inverse optimal control ({model} model{', one fit per subject' if per == 'subject' else ''}, "
-             f"{conv.name} convention)", "",
+             f"{conv.name} convention, {'single-level' if single else 'bi-level'})", "",
              (f"Single-level IOC (docs/methods.md sec. 6.1): one NLP over ({', '.join(names)}), every path and the "
               f"multipliers of its lower level's KKT conditions, solved by a feasible path (trust-region steps in the weights, "
               f"each path's KKT conditions restored by Newton's method), the D reported from the lower level re-solved at the fitted weights; "

@@ -34,9 +34,10 @@ Window at sample k (the measured past ``C_{k-N0+1} .. C_k``):
    plan's own time law is not used (its speed scale is a0's, not identified by the published fits).
 
 Candidate goals (``GoalInferencePredictor``, the goal not known): the same plan towards every candidate
-g in G, every window. The candidates are positions (heading: the bearing, as above). Evidence is
+g in G. The candidates are positions (heading: the bearing, as above). Evidence is
 accumulated over disjoint segments of N0 samples: the plans made at a segment's first sample j are
-kept, and the segment's log-likelihood of g is ``-d_g^2 / 2 sigma^2`` with
+kept (inside a segment only the plans the prediction needs are solved: the most probable goal's, the next
+one's if it fails), and the segment's log-likelihood of g is ``-d_g^2 / 2 sigma^2`` with
 ``d_g = (1/(k - j + 1)) sum_{i=j..k} ||c_i - x*_g,i||``;
 ``log p(g | past) = sum over the finished segments + the current one's`` (normalised). ``sigma = SIGMA``
 m, the size of the improved OC's path error against human paths (docs/methods.md sec. 5.5: d_xy about
@@ -141,7 +142,9 @@ def plan_start(past: np.ndarray, filt: np.ndarray) -> np.ndarray:
     The model walker has no gait: its omega is the turn rate of the gait-averaged path, which a past shorter
     than a stride cannot separate from the gait's sway (on the walking-2020 trials, walked at 1 m/s, the
     rate of the direction of travel had a median of 1.6 rad/s from the last 5 samples and 2.1 rad/s from
-    the whole past of 50: turning radii of 0.5 m). The turn is left to the plan (its a3 prices it)."""
+    the whole past of 50: turning radii of 0.5 m). The turn is left to the plan (its a3 prices it).
+    The heading is the local tangent even where the path curves tighter than the body: the OC predictor's
+    body-scale heading (``predictor.heading``) predicted worse here at every horizon (docs/methods.md sec. 7.1)."""
     x0 = state_estimate(past, filt, travel=True)
     x0[5] = 0.0
     return x0
@@ -365,20 +368,36 @@ class GoalInferencePredictor(Predictor):
     def predict(self, past: np.ndarray) -> np.ndarray | None:
         k = self.n_seen - 1
         x0 = plan_start(past, self.filter)
-        paths = [plan_path(p, x0, (g[0], g[1], float("nan")), self._length) for p, g in zip(self.planners, self.candidates)]
-        ok = np.array([p is not None for p in paths])
-        if not ok.any():
-            return None
-        if self._segment is not None and k - self._segment[0] + 1 >= self.n0:  # a segment of N0 samples is finished
-            self._evidence = self._evidence + self._loglik(past, k)
-            self._segment = None
-        if self._segment is None:
+        finished = self._segment is not None and k - self._segment[0] + 1 >= self.n0  # a segment of N0 samples
+        paths = None
+        if self._segment is None or finished:  # a segment starts at k: the plan towards every candidate is its evidence
+            paths = [self._plan(i, x0) for i in range(len(self.candidates))]
+            if all(p is None for p in paths):
+                return None
+            if finished:
+                self._evidence = self._evidence + self._loglik(past, k)
             self._segment = (k, np.stack([p[:, :2] if p is not None else np.full((self._length + 1, 2), np.nan) for p in paths]))
+        posterior = self._posterior(past, k)
+        # the prediction: the plan towards the most probable goal whose plan succeeds (inside a segment only the
+        # plans tried in that order are solved: they are not evidence)
+        for i in np.argsort(-posterior, kind="stable"):
+            path = paths[i] if paths is not None else self._plan(i, x0)
+            if path is not None:
+                self.posterior = posterior
+                self.history.append((k, posterior.copy()))
+                return path[: self.horizon + 1]
+        return None
+
+    def _plan(self, i: int, x0: np.ndarray) -> np.ndarray | None:
+        """The plan from x0 towards candidate i (heading: its bearing), ``_length`` samples long, or None."""
+        g = self.candidates[i]
+        return plan_path(self.planners[i], x0, (g[0], g[1], float("nan")), self._length)
+
+    def _posterior(self, past: np.ndarray, k: int) -> np.ndarray:
+        """p(g | past) from the finished segments' evidence and the current segment's (module docstring)."""
         logp = self._evidence + self._loglik(past, k)
         post = np.exp(logp - logp.max())
-        self.posterior = post / post.sum()
-        self.history.append((k, self.posterior.copy()))
-        return paths[int(np.argmax(np.where(ok, self.posterior, -1.0)))][: self.horizon + 1]
+        return post / post.sum()
 
 
 # ---- the studies' goals ---------------------------------------------------------------------------
