@@ -76,7 +76,7 @@ def _cells(u: dict | None, n: str) -> str:
     if u is None:
         return "– | not computed (--bootstrap 0)"
     v, (lo, hi) = u["verdicts"][n], u["intervals"][n]
-    return f"{f'{lo:.3g} .. {hi:.3g}' if v.startswith('determined') else '–'} | {v}"
+    return f"{f'{lo:.3g} .. {hi:.3g}' if v.startswith('determined') else '–'} | *{u['by'][n]}*: {v}"
 
 
 def test_verdict_categories():
@@ -117,7 +117,17 @@ def test_results_md_shows_both_methods_with_intervals_and_verdicts(fits, tmp_pat
     for u, n, f in determined:
         lo, hi = u["intervals"][n]
         assert lo <= f["weights"][n] * (1 + 1e-9) and hi >= f["weights"][n] * (1 - 1e-9) and lo < hi, (n, lo, hi)
-        assert f"| {f['weights'][n]:.3g} | {lo:.3g} .. {hi:.3g} | determined |" in text
+        assert f"| {f['weights'][n]:.3g} | {lo:.3g} .. {hi:.3g} | *curvature*: determined |" in text
+    # one rule for both methods: each verdict names the analysis that gave it, a profile's only where the curvature
+    # and the bootstrap disagree or D is not smooth (docs/methods.md sec. 6.3, "Which analysis judges")
+    # paths generated at known weights (a2 and a4 determined by 5 means): both methods give the same verdicts
+    assert {n: verdict_category(bi["uncertainty"]["verdicts"][n]) for n in FITTED} == \
+        {n: verdict_category(single["uncertainty"]["verdicts"][n]) for n in FITTED} == {n: "determined" for n in FITTED}
+    for f in (bi, single):
+        u = f["uncertainty"]
+        assert set(u["by"]) == set(FITTED) and set(u["by"].values()) <= {"curvature", "bootstrap", "profile"}
+        profiled = {n for n, b in u["by"].items() if b == "profile"}
+        assert profiled <= (set(u["profile"]["verdicts"]) if u["profile"] else set()), (u["by"], u["profile"])
     # the pipeline order: the bi-level section before the single-level one
     assert text.index("Bi-level IOC (docs/methods.md sec. 6)") < text.index("Single-level IOC (docs/methods.md sec. 6.1)")
 

@@ -515,7 +515,7 @@ def read_trajectories(table: pd.DataFrame | str | os.PathLike) -> pd.DataFrame:
     return read_table(table, MEANS if name == "means" else TRAJECTORIES)
 
 
-PROFILES = ("means", "all", "none")  # fit_ioc's profiles: which fits get profile likelihoods where the curvature cannot judge
+PROFILES = ("means", "all", "none")  # fit_ioc's profiles: which fits get profile likelihoods where curvature and bootstrap cannot judge alike
 
 
 def check_profiles(profiles: str) -> None:
@@ -554,9 +554,11 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     ``max_evaluations``: the bi-level fit's budget of upper-level evaluations, the single-level fit's number
     of feasible-path steps per round when below the method's own. ``bootstrap``: after each fit, the curvature of D at
     the fitted weights, each weight's verdict and its interval from ``bootstrap`` resamples of the fitted units (docs/methods.md sec. 6.3; 0: none); per
-    subject, also whether the subjects' weights differ. ``profiles``: where the curvature cannot judge, the verdicts from
-    profile likelihoods (``models.ioc.profile``) for the fit over the means (``"means"``), every fit (``"all"``: per
-    subject too) or none (``"none"``: "not judged"). ``against``: another fit's weights per fit key (the
+    subject, also whether the subjects' weights differ. ``profiles``: the weights the curvature and the bootstrap cannot judge
+    alike (D not smooth at the fit, or a "determined" the bootstrap overturns) judged by their profile likelihoods
+    (``models.ioc.profile``, either method; continuous convention) for the fit over the means (``"means"``), every fit
+    (``"all"``: per subject too) or none (``"none"``: the curvature's and the bootstrap's verdicts, "not judged" where D is
+    not smooth); each verdict names its analysis (``uncertainty[key]["by"]``). ``against``: another fit's weights per fit key (the
     bi-level fit's); a single-level fit then re-solves them also from its own paths (``single_level.cross_check``),
     so that both fits' D come from the same candidate paths (``FitResult.cross_checked``). A fit is
     long (minutes to hours at the CLI's defaults); the example fits two means on a coarse grid with a
@@ -670,10 +672,11 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             if bootstrap and model != "coupled":
                 # the fit's own paths (single-level, continuous): the curvature's centre and the profiles' warm starts
                 own_paths = raw.primals if method == "single-level" and conv.name == "continuous" else None
+                centre = own_paths if own_paths is not None else results[key].solutions
                 uncertainty[key] = _weight_uncertainty(spec, targets, results[key].weights, bootstrap, seed=seed,
                                                       checkpoint=checkpoint / f"{safe}.curvature.json" if checkpoint else None,
-                                                      resume=resume, pool=pool, chunks=n_chunks, centre=own_paths if own_paths is not None else results[key].solutions,
-                                                      paths=own_paths,
+                                                      resume=resume, pool=pool, chunks=n_chunks, centre=centre,
+                                                      paths=centre if conv.name == "continuous" else None,
                                                       profile=profiles == "all" or (profiles == "means" and per == "all"))
     subjects_test = None
     if per == "subject" and uncertainty:
@@ -730,24 +733,29 @@ def _weight_uncertainty(spec, targets: list, weights: dict[str, float], n_resamp
                        checkpoint: Path | None = None, resume: bool = False, pool=None, chunks: int = 2,
                        paths: list | None = None, profile: bool = True, centre: list | None = None) -> dict:
     """Verdict and bootstrap interval of each fitted weight at ``weights`` (docs/methods.md sec. 6.3,
-    ``models.ioc.uncertainty``): {"D", "verdicts", "intervals", "lack_of_fit", "sd_log10", "resamples", "on_box",
-    "held" (the weights the search box holds, with why), "eigenvalues", "failed_solves", "profile"}. ``centre``: the fit's
-    own solutions at ``weights`` (published: ``IOCResult.solutions``, the curvature's centre). Where the curvature
-    cannot judge (continuous convention; ``profile``), the verdicts and the determined weights' intervals come from profile
-    likelihoods (``models.ioc.profile``; ``paths``: the fit's lower-level paths, their warm starts; "profile": its points)."""
+    ``models.ioc.uncertainty``): {"D", "verdicts", "by" (the analysis that gave each verdict: "curvature", "bootstrap"
+    or "profile"), "intervals", "lack_of_fit", "sd_log10", "resamples", "on_box", "held" (the weights the search box
+    holds, with why), "eigenvalues", "failed_solves", "profile"}. ``centre``: the fit's own solutions at ``weights``
+    (published: ``IOCResult.solutions``; continuous: their paths), the curvature's centre. The weights the curvature
+    and the bootstrap cannot judge alike (``uncertainty.disputed``; continuous convention, ``profile``) are judged by
+    their profile likelihoods (``models.ioc.profile``, whatever the fit's method; ``paths``: the fit's lower-level
+    paths, their warm starts; "profile": its points), with the profile's interval (the search box unless determined)."""
     from cobot_analysis.models.ioc import uncertainty as unc
 
     c = unc.curvature(spec, targets, weights, checkpoint=checkpoint, resume=resume, pool=pool, chunks=chunks, centre=centre)
     b = unc.bootstrap(c, n_resamples, seed=seed)
     prof, intervals = None, b["intervals"]
-    if profile and c.lack_of_fit > unc.ROUGH and spec.convention == "continuous" and spec.model in ("improved", "table"):
+    by_curvature = unc.verdicts(spec.fitted, c.H, c.D, weights, lack=c.lack_of_fit)
+    by_bootstrap = unc.interval_verdicts(by_curvature, intervals, b["held"])
+    disputed = unc.disputed(c.lack_of_fit, by_curvature, by_bootstrap)
+    if profile and disputed and spec.convention == "continuous" and spec.model in ("improved", "table"):
         from cobot_analysis.models.ioc.profile import profiles
 
-        prof = profiles(spec, targets, weights, paths=paths, pool=pool)
-        intervals = {n: prof["intervals"][n] if prof["verdicts"][n].startswith("determined") else i for n, i in intervals.items()}
-    verdicts = unc.interval_verdicts(unc.verdicts(spec.fitted, c.H, c.D, weights, lack=c.lack_of_fit,
-                                                  profiled=prof["verdicts"] if prof else None), intervals, b["held"])
-    return {"D": c.D, "verdicts": verdicts, "intervals": intervals,
+        prof = profiles(spec, targets, weights, disputed, paths=paths, pool=pool)
+    verdicts, by = unc.judged(by_curvature, by_bootstrap, weights, c.lack_of_fit, prof["verdicts"] if prof else None)
+    if prof:
+        intervals = {n: prof["intervals"][n] if by[n] == "profile" else i for n, i in intervals.items()}
+    return {"D": c.D, "verdicts": verdicts, "by": by, "intervals": intervals,
             "lack_of_fit": c.lack_of_fit,
             "sd_log10": b["sd_log10"], "resamples": n_resamples, "on_box": b["on_box"], "held": b["held"], "eigenvalues": np.linalg.eigvalsh(c.H).tolist(),
             "failed_solves": c.failed, "profile": prof}

@@ -468,12 +468,14 @@ def pace_lines(mean_keys: pd.DataFrame | None, targets, per_target: list[dict], 
 
 def interval_cells(uncertainty: dict | None, name: str) -> tuple[str, str]:
     """The 95 % interval and the verdict of weight ``name`` (``uncertainty``: one fit's entry of
-    weights.json); no interval for a weight the data do not determine, none at all without a bootstrap."""
+    weights.json), the verdict led by the analysis that gave it (``uncertainty.judged``: *curvature*, *bootstrap*
+    or *profile*); no interval for a weight the data do not determine, none at all without a bootstrap."""
     if not uncertainty:
         return "–", "not computed (--bootstrap 0)"
     v = uncertainty["verdicts"][name]
+    by = (uncertainty.get("by") or {}).get(name)
     lo, hi = uncertainty["intervals"][name]
-    return (f"{lo:.3g} .. {hi:.3g}" if v.startswith("determined") else "–"), v
+    return (f"{lo:.3g} .. {hi:.3g}" if v.startswith("determined") else "–"), (f"*{by}*: {v}" if by else v)
 
 
 def uncertainty_lines(result) -> list[str]:
@@ -484,9 +486,11 @@ def uncertainty_lines(result) -> list[str]:
     n = next(iter(result.uncertainty.values()))["resamples"]
     lines = [f"Each fitted weight with its 95 % interval ({n} bootstrap resamples of the fitted "
              f"{'means' if result.per == 'all' else 'trials'}, a quadratic refit each) and what the data determine "
-             "(curvature of D at the fit; where D is not smooth there, its profile likelihood, whose interval a "
-             "\"determined (profile: ...)\" weight then shows; docs/methods.md sec. 6.3); a weight the data do not "
-             "determine has no interval.", "",
+             "(curvature of D at the fit; where D is not smooth there, where the fit is not at a minimum of D, or where the "
+             "bootstrap overturns the curvature's "
+             "\"determined\", the weight's profile likelihood, whose interval a \"determined (profile: ...)\" weight then "
+             "shows; each verdict led by the analysis that gave it, one rule for both fit methods: docs/methods.md sec. 6.3); "
+             "a weight the data do not determine has no interval.", "",
              "| fit | weight | fitted | 95 % interval | verdict |", "|---|---|---|---|---|"]
     for k, u in result.uncertainty.items():
         w = result.results[k].weights
@@ -496,7 +500,7 @@ def uncertainty_lines(result) -> list[str]:
     boxed = {k: u["on_box"] for k, u in result.uncertainty.items() if u.get("on_box")}
     if boxed:
         lines += ["Resamples whose quadratic model has no minimum inside the search box (refitted on its edge; they "
-                  "widen the intervals): " + ", ".join(f"{k} {v} of {u_n}" for k, v in boxed.items()
+                  "widen the bootstrap's intervals; a weight its profile judges takes the profile's): " + ", ".join(f"{k} {v} of {u_n}" for k, v in boxed.items()
                                                        for u_n in [result.uncertainty[k]["resamples"]]) + ".", ""]
     failed = sum(u["failed_solves"] for u in result.uncertainty.values())
     if failed:
@@ -540,8 +544,9 @@ def methods_side_by_side(result, other: dict | None) -> list[str]:
                              + " | ".join(f"{b['weights'][n]:.3g}" for n in names) + " |")
         lines.append(f"| {k} | single-level | {r.objective:.4f} | {result.seconds.get(k, float('nan')):.1f} | "
                      + " | ".join(f"{r.weights[n]:.3g}" for n in names) + " |")
-    lines += ["", "Each fitted weight by both methods, with its 95 % bootstrap interval and identifiability verdict "
-              "(docs/methods.md sec. 6.3).", "",
+    lines += ["", "Each fitted weight by both methods, with its 95 % interval and identifiability verdict, led by the "
+              "analysis that gave it (curvature, bootstrap or profile likelihood: one rule for both methods, "
+              "docs/methods.md sec. 6.3).", "",
               "| fit | weight | bi-level | 95 % interval | verdict | single-level | 95 % interval | verdict |",
               "|---|---|---|---|---|---|---|---|"]
     for k, r in result.results.items():

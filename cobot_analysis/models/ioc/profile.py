@@ -23,7 +23,8 @@ sloppiness: a rise below 0.1 % of D is flat there, and differences at the solver
 evidence). Near a smooth optimum mean(delta) grows as dy^2 and sd(delta) as |dy|, so the crossing is
 the sandwich (robust) standard error's interval; at a fold no smoothness is needed. The crossing is
 interpolated linearly in y_j between grid points, on min(t / t_q, rise / (REL_TOL D)) = 1 (as coarse as
-the grid). Verdicts:
+the grid), walking outward from the profile's least D (the fit, or a point lower by more than ``REL_TOL``, which
+the test then takes as its reference: a fit stopped short of its minimum may itself be rejected). Verdicts:
 - rejected on both sides: "determined", the interval between the crossings;
 - no point rejected up to a search limit on a side: "only its ratio to X is determined" when a re-fitted
   weight X moves with it at least half as much, with the same sign, over those points (the curvature
@@ -31,7 +32,9 @@ the grid). Verdicts:
 - where the refit cannot start (a path that is not a regular KKT point of the restricted problem), D at the
   previous point's other weights stands for the point: an upper bound of the profile, so it can show that
   the point is not rejected, never that it is; a lower level that fails, or a rejected upper bound, ends
-  that side without a verdict ("not judged").
+  that side without a verdict ("not judged");
+- every point rejected against a lower D found on another weight's profile: "not judged" (the fit is not at a
+  minimum of D).
 """
 
 from __future__ import annotations
@@ -139,7 +142,7 @@ def profiles(spec: IOCSpec, targets: list[Target], weights: dict[str, float], fi
     the fit's lower levels first (warm from ``paths``, the fit's own, when given, and from the cold guesses),
     then one chain per weight and side on ``pool`` (an executor; None: in-process).
     Returns {"D": D at the fit, "D_min": the least D seen, "n", "t_q", "points": {name: [point, ...] in y order,
-    the fit included, each with its "t" and "excess" against the least-D point}, "verdicts": {name: verdict},
+    the fit included, each with its per-target "Di" and its "t" and "excess" against the least-D point}, "verdicts": {name: verdict},
     "intervals": {name: (lo, hi)}, "seconds": wall time}."""
     from cobot_analysis.models.presets import weights_vector
     from cobot_analysis.parallel import InlineExecutor
@@ -164,14 +167,13 @@ def profiles(spec: IOCSpec, targets: list[Target], weights: dict[str, float], fi
     ref = list(best["Di"])
     for c in chains.values():
         for p in c:
-            Di = p.pop("Di")
-            p["t"], _, p["excess"] = excess(Di, ref) if Di else (math.nan, math.nan, math.nan)
+            p["t"], _, p["excess"] = excess(p["Di"], ref) if p["Di"] else (math.nan, math.nan, math.nan)
     t0, t_q, e0 = excess(D0i, ref)
     out = {"D": D0, "D_min": best["D"], "n": n, "t_q": t_q, "points": {}, "verdicts": {}, "intervals": {}}
     for name in fitted:
         down, up = chains[(name, -1)], chains[(name, 1)]
-        centre = {"y": y0[name], "D": D0, "weights": {k: weights[k] for k in spec.fitted if k != name}, "switched": 0,
-                  "failed": 0, "error": "", "t": t0, "excess": e0}
+        centre = {"y": y0[name], "D": D0, "Di": list(D0i), "weights": {k: weights[k] for k in spec.fitted if k != name},
+                  "switched": 0, "failed": 0, "error": "", "t": t0, "excess": e0}
         out["points"][name] = down[::-1] + [centre] + up
         out["verdicts"][name], out["intervals"][name] = verdict(name, y0, centre, down, up, best["D"])
     out["seconds"] = time.perf_counter() - t_start
@@ -192,13 +194,23 @@ def _side(centre: dict, chain: list[dict], limit: float) -> tuple[str, float]:
     return ("flat", limit) if abs(prev_y - limit) < 0.01 else ("open", prev_y)
 
 
+def _tail(notes: list[str]) -> str:
+    """The verdict's notes, "; "-joined after the verdict (none: "")."""
+    return ("; " + "; ".join(notes)) if notes else ""
+
+
 def verdict(name: str, y0: dict[str, float], centre: dict, down: list[dict], up: list[dict], D_min: float
             ) -> tuple[str, tuple[float, float]]:
     """The plain verdict of one weight from its profile: ``centre`` the fit, ``down`` and ``up`` the chains
     outward, each point with its ``excess``; and its interval (the search box unless determined) (module
-    docstring)."""
+    docstring). The sides are walked from the profile's least-D point ``D_min`` (the fit unless a point is lower by
+    more than ``REL_TOL``)."""
     D0 = centre["D"]
-    sides = {s: _side(centre, chain, LOG_BOUNDS[0 if s < 0 else 1]) for s, chain in ((-1, down), (1, up))}
+    # walked outward from the profile's least-D point (the reference of ``excess``: the fit, or a point whose D is lower
+    # by more than REL_TOL, and then the fit itself may be rejected)
+    line = down[::-1] + [centre] + up
+    i0 = len(down) if D_min >= D0 else min((i for i, p in enumerate(line) if np.isfinite(p["D"])), key=lambda i: line[i]["D"])
+    sides = {s: _side(line[i0], chain, LOG_BOUNDS[0 if s < 0 else 1]) for s, chain in ((-1, line[:i0][::-1]), (1, line[i0 + 1:]))}
     pts = down + up
     box = (10.0 ** LOG_BOUNDS[0], 10.0 ** LOG_BOUNDS[1])
     notes = []
@@ -207,10 +219,14 @@ def verdict(name: str, y0: dict[str, float], centre: dict, down: list[dict], up:
         notes.append("lower-level paths change branch (a fold) at " + ", ".join(f"{name} {10 ** p['y']:.3g} ({p['switched']})" for p in jumps))
     lowest = [p for p in pts if p["D"] <= D_min < D0]
     if lowest:
-        notes.append(f"D {lowest[0]['D']:.4g} at {name} {10 ** lowest[0]['y']:.3g}, below the fit's {D0:.4g}")
+        notes.append(f"D {lowest[0]['D']:.4g} at {name} {10 ** lowest[0]['y']:.3g}, below the fit's {D0:.4g}"
+                     + (", which the targets reject" if centre["excess"] > 1 else ""))
+    if line[i0]["excess"] > 1:  # the least D lies on another weight's profile, and the targets reject this whole line
+        return (f"not judged: the fit is not at a minimum of D (the targets reject every point of the {name} profile "
+                f"against D {D_min:.4g}, found on another weight's profile){_tail(notes)}", box)
     failed = [(s, y) for s, (kind, y) in sides.items() if kind in ("failed", "open")]
     flat = [(s, y) for s, (kind, y) in sides.items() if kind == "flat"]
-    tail = ("; " + "; ".join(notes)) if notes else ""
+    tail = _tail(notes)
     if not failed and not flat:
         lo, hi = sides[-1][1], sides[1][1]
         return (f"determined (profile: the targets reject {name} below {10 ** lo:.3g} and above {10 ** hi:.3g}{tail})",

@@ -18,13 +18,18 @@ j, s_j = sum_{sloppy} V_ji^2:
   and at least half the amplitude: "only its ratio to k is determined" (D changes little when both
   are scaled together);
 - else "not determined by these data".
+A weight taking part (V_ji^2 >= 0.1) in a direction of negative curvature beyond the sloppiness
+(0.5 |mu| (log10 2)^2 >= rel_tol D: a fit stopped short of a minimum, e.g. by its evaluation budget) is "not
+judged: the fit is not at a minimum of D" (before the ninth session the negative direction counted as sloppy and
+the weight came out "not determined").
 A weight within 0.01 of a log10 search limit carries "(at the search limit ...)" beside its verdict.
 A "determined" weight whose bootstrap interval (below) reaches a search limit is not determined after
 all: resamples of the same data cannot exclude the limit (``interval_verdicts``).
 No verdict at all ("not judged: D is not smooth at the fit") when a quadratic fitted by least squares
 to D on the stencil (k >= 2: more points than coefficients) leaves more than ``ROUGH`` of D's rms change
 unexplained: the lower level's paths then change regime within the stencil, and curvature means nothing;
-the verdict then comes from the weight's profile likelihood when one is given (``profile.py``).
+the verdict then comes from the weight's profile likelihood when one is given (``profile.py``, "Which analysis
+judges" below).
 
 Bootstrap over the fitted units (targets): resample b draws n targets with replacement (counts c_i)
 and refits the local quadratic model of its objective along the directions the full data determine
@@ -38,6 +43,15 @@ flat D (an exact gauge, e.g. the time scale, does not move at all). A determined
 pins (the weights on a limit leave it less than 10 % of its amplitude in the determined directions) in more than
 (1 - level) / 2 of the resamples gets the box as its interval and "not determined by these data" with the reason
 (``bootstrap``'s ``held``, ``interval_verdicts``). The stencil's evaluations are checkpointed (``resume``).
+
+Which analysis judges (``disputed``, ``judged``; one rule for the bi-level and the single-level fit): the curvature
+and the bootstrap's quadratic refits are the local (Wald) approximation of D; its profile likelihood (``profile.py``)
+evaluates D itself along the weight, with the other weights re-fitted, and is the reference where the approximation
+fails (Raue et al. 2009): where D is not smooth at the fit (every weight), for a weight the curvature does not judge
+(the fit is not at a minimum of D along it), and for a weight the curvature determines but the bootstrap does not (the quadratic, measured within +-0.05 in log10, extrapolated to the search box in some
+resamples). There the profile's verdict is the verdict, "determined" when the targets reject the weight on both sides;
+a profile that could not judge (its refit failed) leaves the curvature's and the bootstrap's verdict. Elsewhere the
+curvature judges, and the bootstrap overturns a "determined" (above). Each verdict names its analysis.
 """
 
 from __future__ import annotations
@@ -231,29 +245,85 @@ def determined(H: np.ndarray, D: float, rel_tol: float = 1e-3) -> np.ndarray:
 
 
 def verdicts(fitted, H: np.ndarray, D: float, weights: dict[str, float], rel_tol: float = 1e-3,
-             lack: float = 0.0, profiled: dict[str, str] | None = None) -> dict[str, str]:
-    """The plain verdict of each fitted weight (module docstring); ``lack``: the stencil's lack of fit;
-    ``profiled``: verdicts from profile likelihoods (``profile.profiles``), given instead of "not judged"."""
+             lack: float = 0.0) -> dict[str, str]:
+    """The plain verdict of each fitted weight from the curvature (module docstring); ``lack``: the stencil's
+    lack of fit."""
     mu, V, mask = sloppy_directions(H, D, rel_tol)
     sloppy = list(np.flatnonzero(mask))
     ok = determined(H, D, rel_tol)
+    # directions along which D is concave beyond the sloppiness: the fit is not at a minimum of D there
+    falling = [i for i in range(len(mu)) if 0.5 * -mu[i] * FACTOR_2**2 >= rel_tol * D]
     out = {}
     for j, n in enumerate(fitted):
-        if lack > ROUGH and profiled and n in profiled:
-            verdict = profiled[n]
-        elif lack > ROUGH:
+        if lack > ROUGH:
             verdict = f"not judged: D is not smooth at the fit (a quadratic leaves {100 * lack:.0f} % of its change over the stencil unexplained)"
+        elif any(V[j, i] ** 2 >= 0.1 for i in falling):
+            verdict = "not judged: the fit is not at a minimum of D (D is concave along a direction the weight takes part in)"
         elif ok[j]:
             verdict = "determined"
         else:
             i = min((i for i in sloppy if V[j, i] ** 2 >= 0.1), key=lambda i: mu[i], default=max(sloppy, key=lambda i: abs(V[j, i])))
             partners = [fitted[k] for k in range(len(fitted)) if k != j and V[k, i] * V[j, i] > 0 and abs(V[k, i]) >= 0.5 * abs(V[j, i])]
             verdict = f"only its ratio to {partners[0]} is determined" if partners else "not determined by these data"
-        y = math.log10(max(weights[n], 1e-300))
-        if abs(y - LOG_BOUNDS[0]) < 0.01 or abs(y - LOG_BOUNDS[1]) < 0.01:
-            verdict += f" (at the search limit {10.0 ** (LOG_BOUNDS[0] if y < 0 else LOG_BOUNDS[1]):g})"
-        out[n] = verdict
+        out[n] = verdict + _at_limit(weights[n])
     return out
+
+
+def _at_limit(w: float) -> str:
+    """" (at the search limit L)" for a weight within 0.01 of a log10 search limit, else ""."""
+    y = math.log10(max(w, 1e-300))
+    if abs(y - LOG_BOUNDS[0]) < 0.01 or abs(y - LOG_BOUNDS[1]) < 0.01:
+        return f" (at the search limit {10.0 ** (LOG_BOUNDS[0] if y < 0 else LOG_BOUNDS[1]):g})"
+    return ""
+
+
+def disputed(lack: float, curvature: dict[str, str], bootstrap: dict[str, str]) -> tuple[str, ...]:
+    """The weights the curvature and the bootstrap cannot judge alike, whose profile likelihood judges them
+    (module docstring, "Which analysis judges"): every weight when D is not smooth at the fit (``lack`` >
+    ``ROUGH``), else those whose ``curvature`` verdict (``verdicts``) the ``bootstrap`` one (``interval_verdicts``)
+    overturns (the search box holds their resampled refits, or their interval reaches a search limit), and those
+    the curvature does not judge (the fit is not at a minimum of D along a direction they take part in).
+
+        >>> from cobot_analysis.models.ioc.uncertainty import disputed
+        >>> disputed(0.05, {"a2": "determined", "a3": "determined"},
+        ...          {"a2": "not determined by these data (the search box holds its refit in 11 of 200 resamples: ...)",
+        ...           "a3": "determined"})
+        ('a2',)
+    """
+    if lack > ROUGH:
+        return tuple(curvature)
+    return tuple(n for n, v in curvature.items() if bootstrap[n] != v or verdict_category(v) == "not judged")
+
+
+def judged(curvature: dict[str, str], bootstrap: dict[str, str], weights: dict[str, float], lack: float,
+           profiled: dict[str, str] | None = None) -> tuple[dict[str, str], dict[str, str]]:
+    """(verdict, the analysis that gave it) of each fitted weight, one rule for every fit method (module
+    docstring, "Which analysis judges"; Raue et al. 2009): a weight's profile likelihood (``profiled``,
+    ``profile.profiles``' verdicts), where one was computed and judged, gives its verdict ("profile"); a profile
+    that could not judge (its refit failed) leaves the verdict to the curvature and the bootstrap when D is
+    smooth at the fit; then the bootstrap's verdict where it overturns the curvature's ("bootstrap"), else the
+    curvature's ("curvature"; "not judged" where D is not smooth). ``curvature``: ``verdicts``; ``bootstrap``:
+    ``interval_verdicts`` of them; ``lack``: the stencil's lack of fit.
+
+        >>> from cobot_analysis.models.ioc.uncertainty import judged
+        >>> v, by = judged({"a2": "determined", "a3": "determined"},
+        ...                {"a2": "not determined by these data (the search box holds its refit in 11 of 200 resamples)",
+        ...                 "a3": "determined"}, {"a2": 7.8, "a3": 1.0}, 0.05,
+        ...                {"a2": "determined (profile: the targets reject a2 below 4.7 and above 12)"})
+        >>> v["a2"], by
+        ('determined (profile: the targets reject a2 below 4.7 and above 12)', {'a2': 'profile', 'a3': 'curvature'})
+    """
+    profiled = profiled or {}
+    out, by = {}, {}
+    for n, v in curvature.items():
+        p = profiled.get(n)
+        if p is not None and (verdict_category(p) != "not judged" or lack > ROUGH):
+            out[n], by[n] = p + _at_limit(weights[n]), "profile"
+        elif bootstrap[n] != v:
+            out[n], by[n] = bootstrap[n], "bootstrap"
+        else:
+            out[n], by[n] = v, "curvature"
+    return out, by
 
 
 def interval_verdicts(verdicts: dict[str, str], intervals: dict[str, tuple[float, float]],
