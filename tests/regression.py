@@ -82,7 +82,9 @@ def _walking(root: Path, datasets: Path | None, j: list[str]) -> tuple[list[Path
                       ["compare", "--out", str(m), *tables, "--against", str(m / "generate-published" / "generated.parquet"),
                        "--comparison", "model", *options]]
         else:
-            steps += [["fit-ioc", "--out", str(m), *tables, "--max-evaluations", "20", *options, *j],
+            # no profile likelihoods: this short fit's disputed a2 would cost ~50 s of CPU to profile (.ci/run has
+            # none to spare); the profiles are checked by tests/test_ioc_profile.py and tests/test_ioc_wiring.py
+            steps += [["fit-ioc", "--out", str(m), *tables, "--max-evaluations", "20", "--profiles", "none", *options, *j],
                       # the single-level method beside it (its D and weights guarded): one feasible-path step per
                       # round on the 20-interval grid, no bootstrap
                       ["fit-ioc", "--out", str(m), *tables, "--method", "single-level", "--max-evaluations", "1", "--intervals", "20",
