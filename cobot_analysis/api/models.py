@@ -705,9 +705,9 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     comparison, models, paths = None, None, None
     if compare and "all" in results:
         models = compared_models(conv) if model == "improved" else {"table OC (published)": ("table", "table-2022")}
-        figure = {"published": "improved OC (published)" if model == "improved" else "table OC (published)",
-                  "fitted": "improved OC (fitted)" if model == "improved" else "table OC (fitted)"}
-        models[figure["fitted"]] = ("improved" if model == "improved" else "table", results["all"].weights)
+        kind = "improved" if model == "improved" else "table"
+        figure = {"published": f"{kind} OC (published)", "fitted": f"{kind} OC (fitted)"}
+        models[figure["fitted"]] = (kind, results["all"].weights)
         # every mean, those without orientation too (their d_xy; the authors compared all 40 walking means)
         compared = targets_from_table(mean_df, path=means_source, entity=entity, goal=goal_rule(goal, mean_df), convention=conv,
                                       unoriented=True)

@@ -20,8 +20,8 @@ j, s_j = sum_{sloppy} V_ji^2:
 - else "not determined by these data".
 A weight taking part (V_ji^2 >= 0.1) in a direction of negative curvature beyond the sloppiness
 (0.5 |mu| (log10 2)^2 >= rel_tol D: a fit stopped short of a minimum, e.g. by its evaluation budget) is "not
-judged: the fit is not at a minimum of D" (before the ninth session the negative direction counted as sloppy and
-the weight came out "not determined").
+judged: the fit is not at a minimum of D" (counted as sloppy, such a direction would call the weight "not
+determined").
 A weight within 0.01 of a log10 search limit carries "(at the search limit ...)" beside its verdict.
 A "determined" weight whose bootstrap interval (below) reaches a search limit is not determined after
 all: resamples of the same data cannot exclude the limit (``interval_verdicts``).

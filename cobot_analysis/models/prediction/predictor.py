@@ -276,11 +276,11 @@ def heading(past: np.ndarray, travel: np.ndarray, radius: float = BODY_RADIUS) -
         return unwrap(np.arctan2(d1[:, 1], d1[:, 0]))
     step = p[1:] - p[:-1]
     x, y = past[:, 0].copy(), past[:, 1].copy()
-    u2 = 0.5 * (x[1:] + x[:-1]) - x[:, None]  # (sample i, step j): m_j - p_i in x, then |m_j - p_i|^2 / radius^2
+    dx = 0.5 * (x[1:] + x[:-1]) - x[:, None]  # (sample i, step j): m_j - p_i, in place below (no temporaries)
     dy = 0.5 * (y[1:] + y[:-1]) - y[:, None]
-    u2 *= u2
+    dx *= dx
     dy *= dy
-    u2 += dy
+    u2 = np.add(dx, dy, out=dx)  # |m_j - p_i|^2 / radius^2
     u2 /= radius ** 2
     w = np.subtract(1.0, u2, out=u2)
     np.maximum(w, 0.0, out=w)
