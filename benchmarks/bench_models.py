@@ -2,6 +2,7 @@
 
     python benchmarks/bench_models.py solver            # compiled vs VM; cold / warm / window / crocoddyl
     python benchmarks/bench_models.py ioc --data ../shared/datasets/walking-2020 [--subjects 10]
+    python benchmarks/bench_models.py grid --means WS/average/means.parquet [--pairs]   # the Mombaur grid's solves
 
 Prints a Markdown block with the machine, the load average and the date. The IOC part runs the CLI
 (import-published, then fit-ioc) in a temporary workspace.
@@ -235,16 +236,72 @@ def bench_ioc(data: Path, subjects: int, max_evaluations: int, subject_evaluatio
     return "\n".join(["| run | wall time | CPU time (all processes) | result |", "|---|---|---|---|", *out, ""])
 
 
+def bench_grid(means: Path, pairs: bool) -> str:
+    """Every solve of the Mombaur model's duration grid (``duration.grid_duration``) as fit-ioc's model comparison
+    runs it on the continuous convention (the walking means' design goal, or with ``pairs`` each table mean's last
+    pose; both cold guesses, 21 horizons each): how many fatrop solves converge and in how many iterations, how many
+    the IPOPT fallback rescues, how many fail both, and the CPU time of each (``time.process_time``)."""
+    import pandas as pd
+
+    from cobot_analysis.api.models import pair_cases, walking_cases
+    from cobot_analysis.models.oc import problem, solve_model
+    from cobot_analysis.models.presets import load_weights, weights_vector
+
+    table = pd.read_parquet(means)
+    cases = pair_cases("continuous", table)[0] if pairs else walking_cases("continuous", table)
+    w = weights_vector(load_weights("mombaur-2010", "improved"))
+    calls = []  # (fatrop?, converged, iterations, CPU s) of every solver call, in order
+    call = problem._BufferedCall.__call__
+
+    def timed(self, *args, **kw):
+        t = time.process_time()
+        out = call(self, *args, **kw)
+        calls.append((self.raises, bool(out[2].get("success")), int(out[2].get("iter_count", -1)), time.process_time() - t))
+        return out
+
+    problem._BufferedCall.__call__ = timed
+    try:
+        for _, start, goal in cases:
+            solve_model("mombaur", start, goal, w, convention="continuous", guess=("rest", "line"))  # as generate
+    finally:
+        problem._BufferedCall.__call__ = call
+    solves = []  # per solve: the fatrop call and the IPOPT call after it, if any
+    for c in calls:
+        if c[0]:
+            solves.append([c])
+        else:
+            solves[-1].append(c)
+    converged = [s[0] for s in solves if s[0][1]]
+    rescued = [s for s in solves if not s[0][1] and s[-1][1]]
+    failed = [s for s in solves if not s[-1][1]]
+    its = sorted(c[2] for c in converged)
+    cpu = lambda rows: sum(c[3] for c in rows)  # noqa: E731
+    return "\n".join([
+        f"{len(cases)} {'table means' if pairs else 'walking means'}, {len(solves)} grid solves", "",
+        "| solves | count | iterations | CPU s |", "|---|---|---|---|",
+        f"| fatrop converged | {len(converged)} | median {its[len(its) // 2]}, 99th percentile {its[int(0.99 * len(its))]}, "
+        f"max {its[-1]} (fatrop's cap {problem.OCPShape().max_iter}) | {cpu(converged):.1f} |",
+        f"| fatrop failed, IPOPT converged | {len(rescued)} | IPOPT max {max((s[1][2] for s in rescued), default=0)} | "
+        f"{cpu(s[0] for s in rescued):.1f} + {cpu(s[1] for s in rescued):.1f} |",
+        f"| both failed | {len(failed)} | fatrop max {max((s[0][2] for s in failed), default=0)}, IPOPT max "
+        f"{max((s[-1][2] for s in failed), default=0)} | {cpu(s[0] for s in failed):.1f} + {cpu(s[1] for s in failed if len(s) > 1):.1f} |",
+        ""])
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("what", choices=["solver", "ioc", "all"])
+    ap.add_argument("what", choices=["solver", "ioc", "grid", "all"])
     ap.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "datasets" / "walking-2020")
     ap.add_argument("--subjects", type=int, default=10)
     ap.add_argument("--max-evaluations", type=int, default=600)
     ap.add_argument("--subject-evaluations", type=int, default=100)
     ap.add_argument("--goal", choices=["constraint", "cost"], default=SHAPE_GOAL,
                     help="solver: the goal as a terminal constraint (the continuous convention's problem) or as a cost")
+    ap.add_argument("--means", type=Path, help="grid: the means table (average/means.parquet of a workspace)")
+    ap.add_argument("--pairs", action="store_true", help="grid: the means are the pair study's (its table means' poses)")
     a = ap.parse_args()
+    if a.what == "grid" and a.means is None:
+        ap.error("grid needs --means")
     globals()["SHAPE_GOAL"] = a.goal
     print(header() + f"; OC problems with the goal as a {a.goal}", "\n")
     if a.what in ("solver", "all"):
@@ -252,6 +309,8 @@ def main() -> None:
         print(bench_solver(), flush=True)
     if a.what in ("ioc", "all"):
         print(bench_ioc(a.data, a.subjects, a.max_evaluations, a.subject_evaluations), flush=True)
+    if a.what == "grid":
+        print(bench_grid(a.means, a.pairs), flush=True)
 
 
 if __name__ == "__main__":
