@@ -448,8 +448,8 @@ def test_branch_derivatives_match_finite_differences():
     gradient and exact Hessian of the smoothed D in the fitted weights match central differences of
     D on the branch re-corrected at w +- h (noisy target: D and its derivatives are not zero)."""
     from cobot_analysis.models.ioc.recovery import synthetic_targets
-    from cobot_analysis.models.ioc.single_level import (
-        _Branch, _Call, lower_level, newton_functions, target_data)
+    from cobot_analysis.models.ioc.buffered import BufferedCall
+    from cobot_analysis.models.ioc.single_level import _Branch, lower_level, newton_functions, target_data
     from cobot_analysis.models.ioc.resampled_distance import ResampledDistance
     from cobot_analysis.models.oc.duration import initial_duration
 
@@ -457,7 +457,7 @@ def test_branch_derivatives_match_finite_differences():
     ocp = lower_level(SPEC)
     fi = [names_for("improved").index(n) for n in SPEC.fitted]
     newton, second = newton_functions(ocp, fi)
-    calls = (_Call(newton), _Call(second), ResampledDistance(ocp, len(t.x), SPEC.angle, SPEC.angle_weight))
+    calls = (BufferedCall(newton), BufferedCall(second), ResampledDistance(ocp, len(t.x), SPEC.angle, SPEC.angle_weight))
     b = _Branch(calls, ocp.parameters(t.start, t.goal, W, initial_duration(t.start, t.goal)), target_data(t), ocp.n_vars)
     _, sol = solve_target(SPEC, W, t, ("rest", "line"))
     assert b.correct(np.concatenate([sol.primal, np.zeros(ocp.n_cons)]), W, 1e-9)

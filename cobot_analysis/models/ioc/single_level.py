@@ -35,6 +35,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from cobot_analysis.errors import InputError
+from cobot_analysis.models.ioc.buffered import BufferedCall
 from cobot_analysis.models.ioc.fit import LOG_BOUNDS, IOCSpec
 from cobot_analysis.models.ioc.resampled_distance import SMOOTHING, ResampledDistance
 from cobot_analysis.models.ioc.targets import Target
@@ -170,56 +171,20 @@ def newton_functions(ocp, fitted: list[int]):
     return newton, second
 
 
-class _Call:
-    """A casadi Function called through its ``FunctionBuffer`` on numpy arrays (no DM conversion);
-    a sparse output comes back as a scipy CSC matrix of the output's sparsity (built once, its
-    values replaced at each call: use it before the next call)."""
-
-    def __init__(self, f):
-        from scipy.sparse import csc_matrix
-
-        self.buffer, self.run = f.buffer()
-        self.args = [np.zeros(f.nnz_in(i)) for i in range(f.n_in())]
-        self.res = [np.zeros(f.nnz_out(i)) for i in range(f.n_out())]
-        self.out = []
-        for i in range(f.n_out()):
-            sp = f.sparsity_out(i)
-            colind, row = sp.get_ccs()
-            self.out.append(None if sp.is_dense() else csc_matrix((self.res[i], row, colind), shape=sp.shape))
-        self.shapes = [f.sparsity_out(i).shape for i in range(f.n_out())]
-        for i, a in enumerate(self.args):
-            self.buffer.set_arg(i, memoryview(a))
-        for i, r in enumerate(self.res):
-            self.buffer.set_res(i, memoryview(r))
-
-    def __call__(self, *args):
-        for a, x in zip(self.args, args):
-            a[:] = np.ravel(x)
-        self.run()
-        out = []
-        for r, m, (n1, n2) in zip(self.res, self.out, self.shapes):
-            if m is None:
-                out.append(r.reshape(n2, n1).T.copy() if n2 > 1 else r.copy())
-            else:
-                m.data = r.copy()
-                out.append(m)
-        return out
-
-
 @functools.lru_cache(maxsize=4)
 def branch_calls(spec: IOCSpec, fitted: tuple[int, ...], n_samples: int, eps: float = SMOOTHING) -> tuple:
     """The casadi functions a ``_Branch`` calls, built once per lower-level shape, fitted set and
     number of samples and reused by later fits (per-subject fits, repeated benchmarks)."""
     ocp = lower_level(spec)
     newton, second = newton_functions(ocp, list(fitted))
-    return _Call(newton), _Call(second), ResampledDistance(ocp, n_samples, spec.angle, spec.angle_weight, eps)
+    return BufferedCall(newton), BufferedCall(second), ResampledDistance(ocp, n_samples, spec.angle, spec.angle_weight, eps)
 
 
 class _Permutation:
     """A reverse Cuthill-McKee permutation of the KKT matrix K (variables and multipliers of each
     stage brought together: a band of width ~ 2 stages, factorised without fill), and the map that
     permutes K's stored values straight into the CSC arrays of K[order][:, order] (K's sparsity is
-    fixed: computed once per ``_Call``). ``apply`` refills one matrix (its index arrays already the C ints
+    fixed: computed once per ``BufferedCall``). ``apply`` refills one matrix (its index arrays already the C ints
     SuperLU takes, so ``splu`` copies and checks nothing): use it before the next ``apply``."""
 
     def __init__(self, K):
@@ -238,7 +203,7 @@ class _Permutation:
         return self.matrix
 
 
-def _permutation(newton: _Call) -> _Permutation:
+def _permutation(newton: BufferedCall) -> _Permutation:
     """The ``_Permutation`` of the KKT matrix output of ``newton`` (kept on it)."""
     if not hasattr(newton, "permutation"):
         newton.permutation = _Permutation(newton.out[1])

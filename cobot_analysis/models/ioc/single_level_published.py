@@ -76,29 +76,36 @@ def _functions(shape):
     return (ocp, *(fs[n] for n in names))
 
 
+def _pattern(sp):
+    """A casadi sparsity as a CSC matrix of ones."""
+    from scipy.sparse import csc_matrix
+
+    colind, row = sp.get_ccs()
+    return csc_matrix((np.ones(len(row)), row, colind), shape=sp.shape)
+
+
 @functools.lru_cache(maxsize=8)
 def _ordering(shape) -> np.ndarray:
     """A reverse Cuthill-McKee ordering of the KKT matrix of ``shape`` (each stage's variables and multipliers
     together: a band, factorised with little fill)."""
-    from scipy.sparse import bmat, csc_matrix
+    from scipy.sparse import bmat
     from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-    ocp, hess_l, jac_g, _ = _functions(shape)
-    z, p = np.zeros(ocp.n_vars), np.zeros(ocp.n_params)
-    H, A = _csc(hess_l(z, p, 1.0, np.zeros(ocp.n_cons))[1]), _csc(jac_g(z, p)[1])
-    K = bmat([[csc_matrix((H.indices * 0 + 1.0, H.indices, H.indptr), shape=H.shape), A.T], [A, None]], format="csr")
-    K.data[:] = 1.0
+    _, hess_l, jac_g, _ = _functions(shape)
+    H, A = (_pattern(f.sparsity_out(1)) for f in (hess_l, jac_g))
+    K = bmat([[H, A.T], [A, None]], format="csr")
     return np.asarray(reverse_cuthill_mckee((K + K.T).tocsr(), symmetric_mode=True))
 
 
 class _Factor:
-    """LU of K permuted symmetrically by ``order`` (no further column ordering: the band has no fill to avoid)."""
+    """LU of the symmetrically permuted KKT matrix (``_KKT``: already in the band order; no further column
+    ordering: the band has no fill to avoid), solving K x = b."""
 
-    def __init__(self, K, order: np.ndarray):
+    def __init__(self, K_perm, order: np.ndarray):
         from scipy.sparse.linalg import splu
 
         self.order = order
-        self.lu = splu(K[order][:, order].tocsc(), permc_spec="NATURAL")
+        self.lu = splu(K_perm, permc_spec="NATURAL")
 
     def solve(self, b):
         b = np.asarray(b, float)
@@ -107,11 +114,43 @@ class _Factor:
         return x
 
 
-def _csc(m):
-    from scipy.sparse import csc_matrix
+def _kkt_function(shape):
+    """The casadi Function (z, p, lambda) -> (F, K[order][:, order]): F = [grad_z L; g] and K = dF/dv permuted by
+    ``_ordering``, from the lower level's own NLP functions."""
+    import casadi as ca
 
-    colind, row = m.sparsity().get_ccs()
-    return csc_matrix((np.asarray(m.nonzeros()), row, colind), shape=m.shape)
+    ocp, hess_l, jac_g, _ = _functions(shape)
+    z, p, lam = ca.MX.sym("z", ocp.n_vars), ca.MX.sym("p", ocp.n_params), ca.MX.sym("lam", ocp.n_cons)
+    gL, HL = hess_l(z, p, 1.0, lam)
+    g, A = jac_g(z, p)
+    K = ca.blockcat([[HL, A.T], [A, ca.MX(ocp.n_cons, ocp.n_cons)]])
+    order = [int(i) for i in _ordering(shape)]
+    return ca.Function("kkt", [z, p, lam], [ca.vertcat(gL, g), K[order, order]])
+
+
+def _weights_function(shape, fitted: tuple[int, ...]):
+    """The casadi Function (z, p) -> dF/dw of the fitted weights: grad_z J is linear in w, so each column is the
+    unit difference grad_f(z, p with w_i + 1) - grad_f(z, p) (exact); g has no w."""
+    import casadi as ca
+
+    from cobot_analysis.models.ioc.single_level import weight_slots
+
+    ocp, _, _, grad_f = _functions(shape)
+    z, p = ca.MX.sym("z", ocp.n_vars), ca.MX.sym("p", ocp.n_params)
+    base = grad_f(z, p)
+    cols = []
+    for i in fitted:
+        k = int(weight_slots(ocp)[i])
+        cols.append(grad_f(z, ca.vertcat(p[:k], p[k] + 1.0, p[k + 1:])) - base)
+    return ca.Function("kkt_w", [z, p], [ca.horzcat(*cols)])
+
+
+@functools.lru_cache(maxsize=16)
+def _calls(shape, fitted: tuple[int, ...]):
+    """(kkt, kkt_w): ``_kkt_function`` and ``_weights_function`` called through their buffers."""
+    from cobot_analysis.models.ioc.buffered import BufferedCall
+
+    return BufferedCall(_kkt_function(shape)), BufferedCall(_weights_function(shape, fitted))
 
 
 class HeldBranch:
@@ -128,32 +167,21 @@ class HeldBranch:
         self.origin = (s[0], s[1])  # the published problem is solved with the start moved to the origin
         self.start0, self.goal0 = (0.0, 0.0, s[2]), (g[0] - s[0], g[1] - s[1], g[2])
         self.nz = self.ocp.n_vars
-        self.order = _ordering(held_shape(spec, horizon))
+        self.shape = held_shape(spec, horizon)
+        self.order = _ordering(self.shape)
 
     def p(self, w) -> np.ndarray:
         return self.ocp.parameters(self.start0, self.goal0, np.asarray(w, float), self.dt, n_active=self.T)
 
     def kkt(self, v, p):
-        """F = [grad_z L; g] and K = dF/dv (sparse)."""
-        from scipy.sparse import bmat
-
-        z, lam = v[:self.nz], v[self.nz:]
-        gL, HL = self.hess_l(z, p, 1.0, lam)
-        g, A = self.jac_g(z, p)
-        A = _csc(A)
-        F = np.concatenate([np.asarray(gL).ravel(), np.asarray(g).ravel()])
-        return F, bmat([[_csc(HL), A.T], [A, None]], format="csc")
+        """F = [grad_z L; g] and K = dF/dv, permuted by ``self.order`` (``_kkt_function``; K is shared: factorise it
+        before the next call)."""
+        return _calls(self.shape, tuple(self.fi))[0](v[:self.nz], p, v[self.nz:])
 
     def F_w(self, v, w) -> np.ndarray:
-        """dF/dw of the fitted weights: grad_z J is linear in w (a unit difference is exact), g has no w."""
-        z = v[:self.nz]
-        base = np.asarray(self.grad_f(z, self.p(w))).ravel()
-        cols = []
-        for i in self.fi:
-            w1 = np.array(w, float)
-            w1[i] += 1.0
-            cols.append(np.asarray(self.grad_f(z, self.p(w1))).ravel() - base)
-        return np.vstack([np.column_stack(cols), np.zeros((len(v) - self.nz, len(self.fi)))])
+        """dF/dw of the fitted weights (``_weights_function``)."""
+        (Gw,) = _calls(self.shape, tuple(self.fi))[1](v[:self.nz], self.p(w))
+        return np.vstack([Gw.reshape(self.nz, len(self.fi)), np.zeros((len(v) - self.nz, len(self.fi)))])
 
     def path(self, z):
         X = z[self.ocp._xi[:self.T + 1, :3]]
