@@ -74,7 +74,7 @@ def import_markers(out: str | os.PathLike, protocol: str | os.PathLike, *, jobs:
         if stage.skipped:
             return Outcome.skip(stage)
         known = stage.input_hashes  # each raw file hashed once: for the manifest, and trials.parquet's sha256
-        plan.tasks = [replace(t, sha256=known.get(str(t.path))) for t in plan.tasks]  # (trial_file paths are resolved)
+        plan.tasks = [replace(t, sha256=known.get(str(t.path))) for t in plan.tasks]  # (file_path: resolved)
         result = api.import_markers(plan, jobs=jobs, scheduler=scheduler, markers_path=stage.path("markers.parquet"),
                                     preprocess=preprocess)
         stage.result = result  # its own numbers are the stage's metrics.json
