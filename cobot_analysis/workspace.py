@@ -89,9 +89,11 @@ def content_sha256(f: Path) -> str:
     return sha
 
 
-def describe_inputs(paths: Iterable[str | os.PathLike]) -> list[dict[str, Any]]:
-    """Content hashes of input files; a directory counts as all the files under it. A missing or
-    unreadable input raises ``InputError`` (naming the command that wrote it, when known)."""
+def describe_inputs(paths: Iterable[str | os.PathLike], known: dict[str, str] | None = None) -> list[dict[str, Any]]:
+    """Content hashes of input files; a directory counts as all the files under it. ``known``: hashes already
+    computed (``{resolved path: SHA-256}``), not computed again. A missing or unreadable input raises
+    ``InputError`` (naming the command that wrote it, when known)."""
+    known = known or {}
     described = []
     for p in sorted({Path(p).resolve() for p in paths}):
         if not p.exists():
@@ -99,7 +101,7 @@ def describe_inputs(paths: Iterable[str | os.PathLike]) -> list[dict[str, Any]]:
         try:
             files = sorted(f for f in p.rglob("*") if f.is_file()) if p.is_dir() else [p]
             for f in files:
-                described.append({"path": str(f), "sha256": content_sha256(f), "bytes": f.stat().st_size})
+                described.append({"path": str(f), "sha256": known.get(str(f)) or content_sha256(f), "bytes": f.stat().st_size})
         except OSError as exc:
             raise InputError(f"cannot read the input ({exc.strerror or type(exc).__name__})", path=exc.filename or p,
                              remedy="check its permissions, or re-create it") from None
@@ -225,11 +227,17 @@ class Stage:
     """One pipeline stage writing into ``out/name`` atomically, with a manifest and skip logic."""
 
     def __init__(self, out: str | os.PathLike, name: str, *, inputs: Iterable[str | os.PathLike] = (),
-                 params: dict[str, Any] | None = None, force: bool = False):
+                 params: dict[str, Any] | None = None, force: bool = False, hashed_by_run: Iterable[str | os.PathLike] = ()):
+        """``hashed_by_run``: input files (among ``inputs``) that the stage's own work reads and hashes (the raw
+        files an import's workers read): when the stage cannot be skipped (no manifest of an earlier run, or
+        ``force``) they are not hashed on entering; the run gives their hashes with ``inputs_hashed``, which
+        also checks them against the stage that wrote them (``check_upstream``) before the manifest is written."""
         self.out = Path(out)
         self.name = name
         self.final_dir = self.out / name
         self.input_paths = [Path(p) for p in inputs]
+        self._hashed_by_run = {Path(p) for p in hashed_by_run}  # as given in ``inputs``
+        self._pending = False  # inputs left for the run to hash (``inputs_hashed``)
         self.params = _canonical(params or {})
         self.force = force
         self.skipped = False
@@ -247,8 +255,18 @@ class Stage:
     @property
     def input_hashes(self) -> dict[str, str]:
         """``{resolved path: SHA-256}`` of the input files, as hashed on entering the stage (for the manifest):
-        a stage that records its inputs' hashes elsewhere reuses them instead of hashing the files again."""
+        a stage that records its inputs' hashes elsewhere reuses them instead of hashing the files again
+        (the inputs ``hashed_by_run`` are missing when the run hashes them)."""
         return {i["path"]: i["sha256"] for i in self._inputs}
+
+    def inputs_hashed(self, hashes: dict[str, str]) -> None:
+        """The run's hashes of the inputs ``hashed_by_run`` (``{resolved path: SHA-256}``; any it does not give
+        are hashed here): every input described as on entering, and refused if another stage wrote it and
+        it has changed since."""
+        if self._pending:
+            self._inputs = describe_inputs(self.input_paths, known=hashes)
+            check_upstream(self._inputs)
+            self._pending = False
 
     # -- skip logic -----------------------------------------------------------------------------
     def _previous_manifest(self) -> dict[str, Any] | None:
@@ -284,7 +302,9 @@ class Stage:
         self._t0 = time.perf_counter()
         self._started = datetime.now(timezone.utc).isoformat(timespec="seconds")
         self._figures = set(_open_figures())
-        self._inputs = describe_inputs(self.input_paths)
+        self._pending = bool(self._hashed_by_run) and (self.force or self._previous_manifest() is None)
+        self._inputs = describe_inputs([p for p in self.input_paths if p not in self._hashed_by_run]
+                                       if self._pending else self.input_paths)
         check_upstream(self._inputs)
         self._acquire()
         try:
@@ -315,6 +335,7 @@ class Stage:
             return False
         try:
             if exc_type is None:
+                self.inputs_hashed({})  # the inputs the run did not hash (if any): before anything is kept
                 self._write_metrics()
                 self._write_manifest()
                 with deferred():

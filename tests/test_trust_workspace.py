@@ -188,3 +188,42 @@ def test_edited_means_are_not_reused_by_average_nor_read_by_compare(study, tmp_p
     assert code == 0 and "average: means.parquet changed since the stage wrote it" in " ".join(err.split()), err
     assert (pq.read_table(means).to_pandas()["x"].to_numpy() == original).all()
     assert cli("compare", "--out", ws)[0] == 0
+
+
+@pytest.mark.parametrize("case", ["new workspace", "--force", "earlier import"])
+def test_an_import_refuses_a_raw_file_changed_since_synth_wrote_it(study, tmp_path, cli, case):
+    """The raw files are hashed by the import's workers when the stage cannot be skipped (a new workspace,
+    --force) and on entering otherwise: either way an edited raw file of a synth stage refuses the run, and
+    the import keeps nothing of it."""
+    import shutil
+
+    ws = tmp_path / "ws"
+    shutil.copytree(study, ws, symlinks=True)
+    raw = sorted((ws / "synth-walking" / "raw").glob("*.c3d"))[0]
+    data = bytearray(raw.read_bytes())
+    data[-1] ^= 0x01  # the last byte of the point data
+    raw.write_bytes(bytes(data))
+    out = tmp_path / "new" if case == "new workspace" else ws
+    before = (ws / "import" / "manifest.json").read_text()
+    code, _, err = cli("import", ws / "synth-walking" / "protocol.yaml", "--out", out, "--jobs", "2",
+                       *(["--force"] if case == "--force" else []))
+    assert code == 2, err
+    assert f"{raw}: changed since stage synth-walking wrote it" in " ".join(err.split()), err
+    assert not (tmp_path / "new" / "import").exists()
+    assert (ws / "import" / "manifest.json").read_text() == before
+
+
+def test_the_inputs_a_run_hashes_are_described_as_on_entering(study, tmp_path):
+    """``hashed_by_run``: the manifest's inputs are the same whether the run or the stage hashes them."""
+    from cobot_analysis.provenance import file_sha256
+
+    files = sorted((study / "synth-walking" / "raw").glob("*.c3d"))
+    manifests = []
+    for run_hashes in (False, True):
+        with Stage(tmp_path / f"ws{run_hashes}", "demo", inputs=[study / "synth-walking" / "protocol.yaml", *files],
+                   hashed_by_run=files if run_hashes else ()) as stage:
+            assert (str(files[0]) in stage.input_hashes) is not run_hashes
+            stage.inputs_hashed({str(files[0]): file_sha256(files[0])})  # the others hashed here
+            stage.path("out.txt").write_text("x")
+        manifests.append(json.loads((tmp_path / f"ws{run_hashes}" / "demo" / "manifest.json").read_text())["inputs"])
+    assert manifests[0] == manifests[1] and len(manifests[0]) == len(files) + 1

@@ -87,7 +87,7 @@ def import_markers(protocol: str | os.PathLike | ImportPlan, *, units: str = "au
         >>> tmp.cleanup()
     """
     from cobot_analysis.errors import InputError
-    from cobot_analysis.io.markers import import_or_refuse, imported_summary, imported_tables, plan_import, refusal_error, stream_import
+    from cobot_analysis.io.markers import import_or_refuse, imported_tables, plan_import, refusal_error, stream_import
     from cobot_analysis.parallel import map_tasks
 
     plan = protocol if isinstance(protocol, ImportPlan) else plan_import(
@@ -109,8 +109,7 @@ def import_markers(protocol: str | os.PathLike | ImportPlan, *, units: str = "au
         if streamed.refused and (not plan.params["skip_bad"] or not streamed.imported):
             Path(markers_path).unlink(missing_ok=True)  # a refused import leaves no file
             raise refusal_error(streamed.refused, len(plan.tasks), plan.protocol.path, "import")
-        trials, meta = imported_summary(plan, streamed.imported, streamed.refused)
-        return ImportResult(plan, None, trials, meta, streamed.refused, streamed.imported, Path(markers_path),
+        return ImportResult(plan, None, streamed.trials, streamed.meta, streamed.refused, streamed.imported, Path(markers_path),
                             streamed.n_samples, streamed.n_occluded, streamed.also if one_pass else None, one_pass)
     results = map_tasks(import_or_refuse, plan.tasks, jobs=jobs, scheduler=scheduler, description="import")
     refused = [r for r in results if isinstance(r, Refused)]

@@ -47,7 +47,7 @@ from cobot_analysis.errors import InputError
 from cobot_analysis.io.c3d import RawMarkers, is_c3d, read_c3d
 from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, MAX_SPIKE, check_positions, trial_rate
 from cobot_analysis.io.protocol import (ENTITIES, KEPT_SUBJECT_MARKERS, PELVIS_DEFINITIONS, PELVIS_MARKERS, SACRUM, TABLE_MARKERS,
-                                        Protocol, load_protocol, outside, pelvis_definition, read_yaml)
+                                        Protocol, load_protocol, pelvis_definition, read_yaml)
 from cobot_analysis.io.text_exports import read_qualisys_tsv, read_vicon_csv, sniff_text_format
 from cobot_analysis.refusals import Refused
 from cobot_analysis.schema import TRIAL_COLUMNS, TRIALS
@@ -360,11 +360,12 @@ def trial_metadata(protocol: Protocol) -> pd.DataFrame:
     return df
 
 
-def trials_table(protocol: Protocol, trials: list[ImportedTrial]) -> pd.DataFrame:
-    """One row per imported recording (schema.TRIALS): protocol metadata + how it was read."""
+def trials_table(protocol: Protocol, trials: list[ImportedTrial], files: dict[str, Path]) -> pd.DataFrame:
+    """One row per imported recording (schema.TRIALS): protocol metadata + how it was read (``files``: each
+    trial's resolved file, ``TrialTask.path``)."""
     df = trial_metadata(protocol)
     by_id = {t.trial: t for t in trials}
-    df["file"] = [str(protocol.trial_file(row)) for _, row in df.iterrows()]
+    df["file"] = [str(files[t]) for t in df["trial"]]
     df["sha256"] = [by_id[t].sha256 for t in df["trial"]]
     df["source_format"] = [by_id[t].source_format for t in df["trial"]]
     df["source_units"] = [by_id[t].source_units for t in df["trial"]]
@@ -440,12 +441,13 @@ def plan_import(protocol_path: str | os.PathLike, *, units: str = "auto", marker
     mapping.update(marker_map or {})
     tables = [ref for key in ("trials", "subjects", "pairs") if (ref := _protocol_csv(protocol.path, key)) is not None]
     inputs += tables
-    files = [protocol.trial_file(row) for _, row in protocol.trials.iterrows()]
+    files = [protocol.file_path(f) for f in protocol.trials["file"]]  # resolved
     pair_study = "pair" in protocol.trials.columns and protocol.trials["pair"].notna().any()
-    tasks = [TrialTask(str(row["trial"]), f, bool(pair_study), units, dict(protocol.entities), mapping, keep_all, protocol.rate,
-                       lab_extent, max_speed, max_spike, protocol.invalid_rate) for (_, row), f in zip(protocol.trials.iterrows(), files)]
+    tasks = [TrialTask(str(trial), f, bool(pair_study), units, dict(protocol.entities), mapping, keep_all, protocol.rate,
+                       lab_extent, max_speed, max_spike, protocol.invalid_rate) for trial, f in zip(protocol.trials["trial"], files)]
     limits = {"lab_extent": lab_extent, "max_speed": max_speed, "max_spike": max_spike}
-    outside_files = [str(Path(f).resolve()) for f in [*tables, *files] if outside(protocol.path.parent, Path(f))]  # allow_outside
+    root = protocol.path.parent.resolve()  # allow_outside: the files outside(protocol.path.parent, f)
+    outside_files = [str(f) for f in [*(Path(t).resolve() for t in tables), *files] if not f.is_relative_to(root)]
     params = {"units": units, "marker_map": mapping, "keep_all_markers": keep_all, "entities": protocol.entities,
               "skip_bad": skip_bad, "allow_outside": protocol.allow_outside, "outside_files": outside_files, **limits}
     return ImportPlan(protocol, tasks, inputs + [Path(f) for f in files], params, limits)
@@ -461,7 +463,8 @@ def imported_summary(plan: ImportPlan, imported: list[ImportedTrial], refused: l
     """(trials table, the markers file's metadata) of the trials imported (their samples not needed)."""
     protocol = plan.protocol
     kept = protocol.trials[protocol.trials["trial"].astype(str).isin({t.trial for t in imported})]
-    trials = trials_table(Protocol(protocol.path, protocol.study, kept, rate=protocol.rate), imported)
+    trials = trials_table(Protocol(protocol.path, protocol.study, kept, rate=protocol.rate), imported,
+                          {t.trial: t.path for t in plan.tasks})
     rates = {t.trial: t.rate for t in imported}
     unique_rates = sorted(set(rates.values()))
     meta = {"study": protocol.study, "rate": unique_rates[0] if len(unique_rates) == 1 else None, "rates": rates,
@@ -475,14 +478,17 @@ def imported_summary(plan: ImportPlan, imported: list[ImportedTrial], refused: l
 @dataclass
 class Streamed:
     """What ``stream_import`` wrote: the trials imported (samples dropped), the refused ones, the
-    counts of marker samples written and occluded, and what the worker returned besides each imported
-    trial's rows (``also``, in protocol order: e.g. its preprocessing)."""
+    counts of marker samples written and occluded, what the worker returned besides each imported
+    trial's rows (``also``, in protocol order: e.g. its preprocessing), and the trials table and the
+    file's metadata (``imported_summary``; None when no trial was imported)."""
 
     imported: list[ImportedTrial]
     refused: list[Refused]
     n_samples: int = 0
     n_occluded: int = 0
     also: list[Any] = field(default_factory=list)
+    trials: pd.DataFrame | None = None
+    meta: dict[str, Any] | None = None
 
 
 def stream_import(plan: ImportPlan, markers_path: Path, *, jobs: int | None = None, scheduler: str | None = None,
@@ -536,8 +542,8 @@ def stream_import(plan: ImportPlan, markers_path: Path, *, jobs: int | None = No
             out.n_samples += len(rows)
             out.n_occluded += sum(c.true_count for c in rows.column("occluded").chunks)
         if writer is not None:
-            _, meta = imported_summary(plan, out.imported, out.refused)
-            text = json.dumps({**MARKERS.metadata(), **meta}, default=str).encode()
+            out.trials, out.meta = imported_summary(plan, out.imported, out.refused)
+            text = json.dumps({**MARKERS.metadata(), **out.meta}, default=str).encode()
             # in the footer's key-value metadata and in the Arrow schema stored there (what pyarrow reads)
             final = writer.schema.with_metadata({**writer.schema.metadata, METADATA_KEY: text})
             writer.add_key_value_metadata({METADATA_KEY: text, b"ARROW:schema": base64.b64encode(final.serialize().to_pybytes())})

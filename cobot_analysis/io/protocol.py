@@ -85,8 +85,9 @@ class Protocol:
     entities: dict[str, str] = field(default_factory=lambda: dict(DEFAULT_ENTITIES))
     marker_map: dict[str, str] = field(default_factory=dict)
 
-    def trial_file(self, row: pd.Series) -> Path:
-        return (self.path.parent / str(row["file"])).resolve()
+    def file_path(self, file: Any) -> Path:
+        """A trial file named by the protocol (its ``file`` column), resolved from the protocol's folder."""
+        return (self.path.parent / str(file)).resolve()
 
     def resolve_label(self, label: str, default_entity: str = "walker") -> tuple[str, str]:
         """Raw label -> (entity, canonical marker). ``"S1:LASI"`` -> ``("subject1", "LASI")``."""
@@ -231,13 +232,14 @@ def load_protocol(path: str | os.PathLike) -> Protocol:
         entities={**DEFAULT_ENTITIES, **entities},
         marker_map=marker_map,
     )
-    for _, row in trials.iterrows():
-        f = proto.trial_file(row)
+    root = base.resolve()
+    for trial, file in zip(trials["trial"], trials["file"]):
+        f = proto.file_path(file)
         if not f.is_file():
-            raise InputError(f"trial {row['trial']} names file {row['file']}, which does not exist", path=path,
+            raise InputError(f"trial {trial} names file {file}, which does not exist", path=path,
                              remedy="fix the 'file' column or restore the file")
-        if not allow_outside and outside(base, f):
-            raise InputError(f"trial {row['trial']} names file {row['file']}, outside the protocol's folder ({f})", path=path,
+        if not allow_outside and not f.is_relative_to(root):  # outside(base, f), f already resolved
+            raise InputError(f"trial {trial} names file {file}, outside the protocol's folder ({f})", path=path,
                              remedy=OUTSIDE_REMEDY)
     return proto
 

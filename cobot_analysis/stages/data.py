@@ -70,13 +70,18 @@ def import_markers(out: str | os.PathLike, protocol: str | os.PathLike, *, jobs:
     from cobot_analysis.reports.data import import_summary
     from cobot_analysis.schema import TRIALS
 
-    with Stage(out, "import", inputs=plan.inputs, params=plan.params, force=force) as stage:
+    # each raw file hashed once, for the manifest and trials.parquet's sha256: by the worker that reads it, or on
+    # entering the stage when an earlier run's manifest is to be compared (skip when unchanged)
+    with Stage(out, "import", inputs=plan.inputs, params=plan.params, force=force,
+               hashed_by_run=[t.path for t in plan.tasks]) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
-        known = stage.input_hashes  # each raw file hashed once: for the manifest, and trials.parquet's sha256
-        plan.tasks = [replace(t, sha256=known.get(str(t.path))) for t in plan.tasks]  # (trial_file paths are resolved)
+        known = stage.input_hashes
+        plan.tasks = [replace(t, sha256=known.get(str(t.path))) for t in plan.tasks]  # (file_path: resolved)
         result = api.import_markers(plan, jobs=jobs, scheduler=scheduler, markers_path=stage.path("markers.parquet"),
                                     preprocess=preprocess)
+        files = {t.trial: str(t.path) for t in plan.tasks}
+        stage.inputs_hashed({files[t.trial]: t.sha256 for t in result.imported})
         stage.result = result  # its own numbers are the stage's metrics.json
         for note in result.notes:
             warn(note)
