@@ -98,8 +98,8 @@ def _ordering(shape) -> np.ndarray:
 
 
 class _Factor:
-    """LU of the symmetrically permuted KKT matrix (``_KKT``: already in the band order; no further column
-    ordering: the band has no fill to avoid), solving K x = b."""
+    """LU of the KKT matrix already permuted into the band order (``_kkt_function``; no further column ordering:
+    the band has no fill to avoid), solving K x = b."""
 
     def __init__(self, K_perm, order: np.ndarray):
         from scipy.sparse.linalg import splu
@@ -137,10 +137,10 @@ def _weights_function(shape, fitted: tuple[int, ...]):
 
     ocp, _, _, grad_f = _functions(shape)
     z, p = ca.MX.sym("z", ocp.n_vars), ca.MX.sym("p", ocp.n_params)
-    base = grad_f(z, p)
+    base, slots = grad_f(z, p), weight_slots(ocp)
     cols = []
     for i in fitted:
-        k = int(weight_slots(ocp)[i])
+        k = int(slots[i])
         cols.append(grad_f(z, ca.vertcat(p[:k], p[k] + 1.0, p[k + 1:])) - base)
     return ca.Function("kkt_w", [z, p], [ca.horzcat(*cols)])
 
@@ -161,13 +161,13 @@ class HeldBranch:
         from cobot_analysis import conventions
 
         self.spec, self.t, self.T, self.fi = spec, target, int(horizon), list(fitted)
-        self.ocp, self.hess_l, self.jac_g, self.grad_f = _functions(held_shape(spec, horizon))
+        self.shape = held_shape(spec, horizon)
+        self.ocp = _functions(self.shape)[0]
         self.dt = conventions.PUBLISHED.oc_rule("table" if spec.model == "table" else "improved").dt
         s, g = target.start, target.goal
         self.origin = (s[0], s[1])  # the published problem is solved with the start moved to the origin
         self.start0, self.goal0 = (0.0, 0.0, s[2]), (g[0] - s[0], g[1] - s[1], g[2])
         self.nz = self.ocp.n_vars
-        self.shape = held_shape(spec, horizon)
         self.order = _ordering(self.shape)
 
     def p(self, w) -> np.ndarray:
