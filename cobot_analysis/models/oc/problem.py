@@ -420,7 +420,11 @@ _CONVERGED = {"success": True, "return_status": "Solve_Succeeded", "iter_count":
 
 
 _N_COMMON = 3 + 1 + N_WEIGHTS + 2  # goal, T, a0..b3, tracking weights: the parameters every stage sees
-_R2_GOAL = 1e-16  # m^2: closer to the goal than 1e-8 m, the bearing term psi^2 is 0 (undefined there)
+# m^2: closer to the goal than this, the bearing term psi^2 is 0 (undefined there): 1e-12 m with the wrapped
+# psi (continuous convention), below where the optimum puts nodes (a long horizon's last nodes wait within
+# 1e-9 to 1e-8 m of the goal; a cut-off they cross makes the term's Hessian jump between iterates and the
+# solver cycle, docs/methods.md 5.3). The published convention keeps 1e-8 m.
+_R2_GOAL, _R2_GOAL_RAW = 1e-24, 1e-16
 
 
 def _stage_functions(shape: OCPShape) -> dict[str, object]:
@@ -464,7 +468,7 @@ def _stage_functions(shape: OCPShape) -> dict[str, object]:
         r2, psi, dth, _, _ = terms(x)
         # psi and its derivatives are undefined at the goal (0/0): the term is 0 there, exactly (if_else
         # selects, it does not multiply, so no NaN reaches the solver; fatrop 1.1.8 never returns from a NaN)
-        bearing = ca.if_else(r2 > _R2_GOAL, psi**2 * r2 / (r2 + shape.psi_eps**2), 0)
+        bearing = ca.if_else(r2 > (_R2_GOAL if shape.psi == "wrapped" else _R2_GOAL_RAW), psi**2 * r2 / (r2 + shape.psi_eps**2), 0)
         return (ws[0] + ws[1] * u[0]**2 + ws[2] * u[1]**2 + ws[3] * u[2]**2
                 + ws[4] * bearing + ws[5] * r2 + ws[6] * dth**2)
 
