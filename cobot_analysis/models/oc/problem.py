@@ -442,6 +442,7 @@ def _stage_functions(shape: OCPShape) -> dict[str, object]:
     r, m, a = ca.SX.sym("r", 3), ca.SX.sym("m"), ca.SX.sym("a")
     sigma, lam = ca.SX.sym("sigma"), ca.SX.sym("lam", nx)
     euler = shape.scheme == "euler"
+    r2_cut = _R2_GOAL if shape.psi == "wrapped" else _R2_GOAL_RAW  # the bearing term is 0 closer to the goal
     if euler and free:
         raise ValueError("the euler scheme has a fixed node step: no free duration")
 
@@ -468,7 +469,7 @@ def _stage_functions(shape: OCPShape) -> dict[str, object]:
         r2, psi, dth, _, _ = terms(x)
         # psi and its derivatives are undefined at the goal (0/0): the term is 0 there, exactly (if_else
         # selects, it does not multiply, so no NaN reaches the solver; fatrop 1.1.8 never returns from a NaN)
-        bearing = ca.if_else(r2 > (_R2_GOAL if shape.psi == "wrapped" else _R2_GOAL_RAW), psi**2 * r2 / (r2 + shape.psi_eps**2), 0)
+        bearing = ca.if_else(r2 > r2_cut, psi**2 * r2 / (r2 + shape.psi_eps**2), 0)
         return (ws[0] + ws[1] * u[0]**2 + ws[2] * u[1]**2 + ws[3] * u[2]**2
                 + ws[4] * bearing + ws[5] * r2 + ws[6] * dth**2)
 
