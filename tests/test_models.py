@@ -83,8 +83,8 @@ def test_fatrop_and_ipopt_reach_the_same_optimum():
 
 def test_long_mombaur_horizons_converge_where_the_walker_waits_at_the_goal():
     """The Mombaur grid up to 2 T0, warm-started upward as ``grid_duration``: past the best T the walker
-    arrives early and waits, its last nodes within 1e-9 to 1e-7 m of the goal. fatrop converges at every
-    horizon (with a bearing cut-off at 1e-8 m it cycled at five of them: docs/methods.md 5.3)."""
+    arrives early and waits, its last nodes within 1e-12 to 1e-7 m of the goal. fatrop converges at every
+    horizon (with the bearing term's cut-off at 1e-8 m it cycled at five of them: docs/methods.md 5.3)."""
     start = (-4.0, -3.4, math.pi / 2)
     w = weights_vector(load_weights("mombaur-2010", "improved"))
     ocp = get_ocp(OCPShape(100, goal="constraint"))

@@ -420,11 +420,12 @@ _CONVERGED = {"success": True, "return_status": "Solve_Succeeded", "iter_count":
 
 
 _N_COMMON = 3 + 1 + N_WEIGHTS + 2  # goal, T, a0..b3, tracking weights: the parameters every stage sees
-# m^2: closer to the goal than this, the bearing term psi^2 is 0 (undefined there): 1e-12 m with the wrapped
-# psi (continuous convention), below where the optimum puts nodes (a long horizon's last nodes wait within
-# 1e-9 to 1e-8 m of the goal; a cut-off they cross makes the term's Hessian jump between iterates and the
-# solver cycle, docs/methods.md 5.3). The published convention keeps 1e-8 m.
-_R2_GOAL, _R2_GOAL_RAW = 1e-24, 1e-16
+# m^2: closer to the goal than this, the bearing term psi^2 is 0 (undefined there): 1e-15 m with the wrapped
+# psi (continuous convention). A long horizon's last nodes wait within 1e-12 to 1e-7 m of the goal; the term's
+# gradient jumps by 2 dt a4 psi^2 r / eps^2 at the cut-off (3e-5 at 1e-8 m: the solver cycles there), which
+# must stay well below the solver's tolerance (3e-12 at 1e-15 m; docs/methods.md 5.3). The published
+# convention keeps 1e-8 m.
+_R2_GOAL, _R2_GOAL_RAW = 1e-30, 1e-16
 
 
 def _stage_functions(shape: OCPShape) -> dict[str, object]:
