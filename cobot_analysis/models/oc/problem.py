@@ -420,7 +420,12 @@ _CONVERGED = {"success": True, "return_status": "Solve_Succeeded", "iter_count":
 
 
 _N_COMMON = 3 + 1 + N_WEIGHTS + 2  # goal, T, a0..b3, tracking weights: the parameters every stage sees
-_R2_GOAL = 1e-16  # m^2: closer to the goal than 1e-8 m, the bearing term psi^2 is 0 (undefined there)
+# m^2: closer to the goal than this, the bearing term psi^2 is 0 (undefined there): 1e-15 m with the wrapped
+# psi (continuous convention). A long horizon's last nodes wait within 1e-12 to 1e-7 m of the goal; the term's
+# gradient jumps by 2 dt a4 psi^2 r / eps^2 at the cut-off (3e-5 at 1e-8 m: the solver cycles there), which
+# must stay well below the solver's tolerance (3e-12 at 1e-15 m; docs/methods.md 5.3). The published
+# convention keeps 1e-8 m.
+_R2_GOAL, _R2_GOAL_RAW = 1e-30, 1e-16
 
 
 def _stage_functions(shape: OCPShape) -> dict[str, object]:
@@ -438,6 +443,7 @@ def _stage_functions(shape: OCPShape) -> dict[str, object]:
     r, m, a = ca.SX.sym("r", 3), ca.SX.sym("m"), ca.SX.sym("a")
     sigma, lam = ca.SX.sym("sigma"), ca.SX.sym("lam", nx)
     euler = shape.scheme == "euler"
+    r2_cut = _R2_GOAL if shape.psi == "wrapped" else _R2_GOAL_RAW  # the bearing term is 0 closer to the goal
     if euler and free:
         raise ValueError("the euler scheme has a fixed node step: no free duration")
 
@@ -464,7 +470,7 @@ def _stage_functions(shape: OCPShape) -> dict[str, object]:
         r2, psi, dth, _, _ = terms(x)
         # psi and its derivatives are undefined at the goal (0/0): the term is 0 there, exactly (if_else
         # selects, it does not multiply, so no NaN reaches the solver; fatrop 1.1.8 never returns from a NaN)
-        bearing = ca.if_else(r2 > _R2_GOAL, psi**2 * r2 / (r2 + shape.psi_eps**2), 0)
+        bearing = ca.if_else(r2 > r2_cut, psi**2 * r2 / (r2 + shape.psi_eps**2), 0)
         return (ws[0] + ws[1] * u[0]**2 + ws[2] * u[1]**2 + ws[3] * u[2]**2
                 + ws[4] * bearing + ws[5] * r2 + ws[6] * dth**2)
 
