@@ -264,7 +264,7 @@ class Stage:
         are hashed here): every input described as on entering, and refused if another stage wrote it and
         it has changed since."""
         if self._pending:
-            self._inputs = describe_inputs(self.input_paths, known=hashes)
+            self._inputs = describe_inputs(self.input_paths, known={**self.input_hashes, **hashes})  # none hashed twice
             check_upstream(self._inputs)
             self._pending = False
 
