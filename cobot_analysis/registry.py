@@ -85,6 +85,32 @@ def spec(name: str) -> StageSpec:
     raise KeyError(f"no stage {name!r}")
 
 
+def command(directory_name: str) -> str:
+    """The command (without ``--out``) that writes a stage directory, for a message's remedy:
+    ``synth-walking`` -> ``synth walking``, ``fit-ioc-subjects-single-published`` -> ``fit-ioc --per subject
+    --method single-level --convention published``, ``predict-goal`` -> ``predict --stage-name predict-goal``.
+
+    >>> command("preprocess"), command("compare-published")
+    ('preprocess', 'compare --convention published')
+    """
+    base = base_stage(directory_name)
+    options = []
+    if base.startswith("synth-"):
+        name = "synth " + base[len("synth-"):]
+    elif base.startswith("fit-ioc"):
+        name = "fit-ioc"
+        options += ["--per subject"] if "-subjects" in base else []
+        options += ["--model coupled"] if "-coupled" in base else []
+        options += ["--method single-level"] if base.endswith("-single") else []
+    elif base != "predict" and PREDICT_LABEL.fullmatch(base):
+        name, options = "predict", [f"--stage-name {base}"]
+    else:
+        name = base
+    if base != directory_name:
+        options.append("--convention published")
+    return " ".join([name, *options])
+
+
 def known(directory_name: str) -> bool:
     """Whether a workspace directory is a stage's."""
     try:

@@ -45,7 +45,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-from cobot_analysis import __version__
+from cobot_analysis import __version__, registry
 from cobot_analysis.console import info, warn
 from cobot_analysis.errors import InputError
 from cobot_analysis.interrupt import deferred, keep, seen
@@ -200,7 +200,8 @@ def check_upstream(inputs: list[dict[str, Any]]) -> None:
             if listed.get("sha256") != i["sha256"]:
                 stage = m.get("stage", d.name)
                 raise InputError(f"changed since stage {stage} wrote it (its SHA-256 differs from {d.name}/{MANIFEST})", path=f,
-                                 remedy=f"re-run `cobot-analysis {stage}` (it redoes the stage), or copy the edited file out of "
+                                 remedy=f"re-run `cobot-analysis {registry.command(d.name)}` with its --out (it redoes the "
+                                        f"stage), or copy the edited file out of "
                                         f"the workspace and pass it as an option to use it on purpose")
             break
 

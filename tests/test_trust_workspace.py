@@ -209,6 +209,7 @@ def test_an_import_refuses_a_raw_file_changed_since_synth_wrote_it(study, tmp_pa
                        *(["--force"] if case == "--force" else []))
     assert code == 2, err
     assert f"{raw}: changed since stage synth-walking wrote it" in " ".join(err.split()), err
+    assert "re-run `cobot-analysis synth walking` with its --out" in " ".join(err.split()), err  # a command that exists
     assert not (tmp_path / "new" / "import").exists()
     assert (ws / "import" / "manifest.json").read_text() == before
 
