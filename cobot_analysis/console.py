@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from typing import TypeVar
 
 from rich.console import Console
@@ -59,6 +60,21 @@ def set_verbosity(level: int) -> None:
 
 def verbosity() -> int:
     return _level
+
+
+@contextmanager
+def verbosity_restored() -> Iterator[None]:
+    """Put the ``cobot_analysis`` logger and the verbosity back as they were on leaving: a command run
+    in-process (``cli.run``, a test, a notebook) leaves its ``-q`` / ``-v`` and console handler behind it
+    no more than a run in its own process does."""
+    global _level
+    saved = _level, logger.level, list(logger.handlers), logger.propagate
+    try:
+        yield
+    finally:
+        _level, level, handlers, logger.propagate = saved
+        logger.setLevel(level)
+        logger.handlers[:] = handlers
 
 
 def info(message: str) -> None:

@@ -159,7 +159,8 @@ def _holder_stage(ws: Path, name: str) -> subprocess.Popen:
     return p
 
 
-def test_the_tmp_of_a_killed_stage_is_removed_by_the_next_run(tmp_path, capsys):
+def test_the_tmp_of_a_killed_stage_is_removed_by_the_next_run(tmp_path, caplog):
+    caplog.set_level("INFO", logger="cobot_analysis")
     ws = tmp_path / "ws"
     p = _holder(ws, "kill")
     assert p.wait(30) == -signal.SIGKILL
@@ -168,7 +169,7 @@ def test_the_tmp_of_a_killed_stage_is_removed_by_the_next_run(tmp_path, capsys):
     with Stage(ws, "demo", params={"a": 1}) as stage:
         stage.path("out.txt").write_text("again")
     assert not left.exists() and (ws / "demo" / "out.txt").read_text() == "again"
-    assert "left by an interrupted run" in " ".join(capsys.readouterr().err.split())
+    assert "left by an interrupted run" in " ".join(caplog.text.split())
 
 
 def test_edited_means_are_not_reused_by_average_nor_read_by_compare(study, tmp_path, cli):

@@ -19,7 +19,7 @@ import typer
 from typer.exceptions import TyperException
 
 from cobot_analysis.cli.app import app
-from cobot_analysis.console import console, verbosity
+from cobot_analysis.console import console, verbosity, verbosity_restored
 from cobot_analysis.errors import InputError, SolverError
 from cobot_analysis.interrupt import Interrupted, outcome, seen, signals
 
@@ -40,7 +40,7 @@ def run(argv: list[str] | None = None) -> int:
 
     workspace.COMMAND[:] = ["cobot-analysis", *(sys.argv[1:] if argv is None else argv)]
     try:
-        with signals():
+        with signals(), verbosity_restored():
             return _run(argv)
     finally:
         workspace.COMMAND.clear()
