@@ -99,7 +99,8 @@ def _record_ids(what: str, items) -> None:
     """For .ci/run's check that ``python -m pytest`` and ``python -m pytest -m slow`` together run every
     test, without collecting three more times: with ``$COBOT_TEST_IDS`` (a directory) each run writes the
     node ids it collected (before ``-m`` deselects) to ``collected-PID.txt`` and those it runs to
-    ``selected-PID.txt``."""
+    ``selected-PID.txt``. Under pytest-xdist (``-n``) every worker collects the whole run and selects the same
+    tests: the first worker writes the run's ids."""
     directory = os.environ.get("COBOT_TEST_IDS")
-    if directory:
+    if directory and os.environ.get("PYTEST_XDIST_WORKER", "gw0") == "gw0":
         Path(directory, f"{what}-{os.getpid()}.txt").write_text("".join(f"{item.nodeid}\n" for item in items))
