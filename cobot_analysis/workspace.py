@@ -459,15 +459,15 @@ class Stage:
         return p
 
     def savefig(self, fig, stem: str, formats: tuple[str, ...] = ("png", "pdf")) -> list[Path]:
-        """Save a matplotlib figure as ``stem.png`` and ``stem.pdf`` and close it."""
+        """Save a matplotlib figure as ``stem.png`` and ``stem.pdf`` (``plotting.save``: 150 dpi, tight, one
+        layout for both) and close it."""
         import matplotlib.pyplot as plt
 
-        paths = []
+        from cobot_analysis.plotting import save
+
+        paths = [self.path(f"{stem}.{fmt}") for fmt in formats]
         try:
-            for fmt in formats:
-                p = self.path(f"{stem}.{fmt}")
-                fig.savefig(p, dpi=150, bbox_inches="tight")
-                paths.append(p)
+            save(fig, paths, dpi=150)
         finally:  # pyplot keeps every figure until closed: a library that saves one must close it
             plt.close(fig)
         return paths

@@ -604,3 +604,34 @@ def test_checker_finds_overlapping_tick_labels():
     assert any("x tick labels 'condition number 0' and 'condition number 1' overlap" in p for p in check_figure(fig))
     ax.set_xticks(range(12), labels, rotation=90)
     assert check_figure(fig) == []
+
+
+@pytest.mark.parametrize("layout", ["constrained", None])
+def test_save_lays_out_once_and_writes_what_savefig_tight_writes(tmp_path, layout):
+    """``plotting.save`` lays the figure out and finds its tight box once: the PNG has the pixels of
+    ``savefig(dpi=150, bbox_inches="tight")``, the PDF's page is the PNG's size (72 / 150 pt per pixel), and
+    the figure keeps that layout (equal-aspect panels and an outside legend: what a draw moves)."""
+    import re
+
+    from matplotlib.layout_engine import PlaceHolderLayoutEngine
+    from PIL import Image
+
+    from cobot_analysis.plotting import save
+
+    def draw():
+        fig, axes = plt.subplots(1, 2, figsize=(7, 3), layout=layout)
+        t = np.linspace(0, 2 * np.pi, 400)
+        for ax, k in zip(axes, (1, 3)):
+            ax.plot(np.cos(t), np.sin(k * t), label=f"k = {k}")
+            ax.set_aspect("equal")
+            ax.set_xlabel("x (m)"), ax.set_ylabel("y (m)")
+        fig.legend(loc="outside upper center" if layout else "upper center", ncols=2)
+        return fig
+
+    save(fig := draw(), [tmp_path / "once.png", tmp_path / "once.pdf"])
+    draw().savefig(tmp_path / "tight.png", dpi=150, bbox_inches="tight")
+    once, tight = (np.asarray(Image.open(tmp_path / f"{n}.png")) for n in ("once", "tight"))
+    assert once.shape == tight.shape and (once == tight).all()
+    page = [float(v) for v in re.search(rb"/MediaBox \[ *([\d. ]+)\]", (tmp_path / "once.pdf").read_bytes()).group(1).split()]
+    assert page[:2] == [0, 0] and np.allclose(np.array(page[2:]) * 150 / 72, [once.shape[1], once.shape[0]], atol=1)
+    assert isinstance(fig.get_layout_engine(), (type(None), PlaceHolderLayoutEngine))  # the layout is fixed
