@@ -139,6 +139,30 @@ def test_non_converged_solve_is_flagged_and_raises():
         sol.check()
 
 
+def test_a_fatrop_solve_that_does_not_end_is_abandoned_and_ipopt_solves(monkeypatch):
+    """fatrop's inertia correction has no bound (problem.py's docstring): a solve past FATROP_CPU_LIMIT of CPU is
+    abandoned (here a stand-in that spins in C, the GIL released, as the loop does), IPOPT solves from the same
+    guess, and the next fatrop solve, on new buffers, is the one a fresh problem gives."""
+    import hashlib
+    import time
+
+    from cobot_analysis.models.oc import problem
+
+    start = (-3.0, -2.0, 0.0)
+    reference = WalkerOCP(OCPShape(20)).solve(start, GOAL, PUBLISHED, 4.0).check()
+    ocp = WalkerOCP(OCPShape(20))
+    monkeypatch.setattr(problem, "FATROP_CPU_LIMIT", 0.3)
+    stuck = ocp._call("fatrop")
+    stuck.run = lambda: hashlib.pbkdf2_hmac("sha256", b"x", b"y", 10_000_000)  # about 2 s of C without the GIL
+    t0 = time.process_time()
+    sol = ocp.solve(start, GOAL, PUBLISHED, 4.0).check()
+    assert sol.solver == "ipopt" and stuck.abandoned and ocp._call("fatrop") is not stuck
+    assert time.process_time() - t0 < 3.0  # the spinning thread's CPU included: it was not waited for
+    assert np.abs(sol.X - reference.X).max() < 1e-5  # the same optimum, by the other solver
+    again = ocp.solve(start, GOAL, PUBLISHED, 4.0).check()
+    assert again.solver == "fatrop" and np.array_equal(again.X, reference.X) and again.cost == reference.cost
+
+
 def test_clothoid_joins_start_and_goal_with_tangent_heading():
     df = generate("clothoid", (-1.5, -3.4, 0.0), GOAL)
     assert (df.x.iloc[0], df.y.iloc[0], df.theta.iloc[0]) == pytest.approx((-1.5, -3.4, 0.0), abs=1e-9)

@@ -42,10 +42,14 @@ authors' duration rules try many integer horizons, see ``duration.py``).
 Solver: fatrop (structure-exploiting interior point; variables ordered stage by stage,
 ``structure_detection='auto'``) with IPOPT (exact Hessian) on the same NLP as fallback; a solve
 that neither converges is returned with ``success=False`` and callers must not use it silently.
-``max_iter`` does not bound a fatrop solve: its inertia correction (fatrop ``FatropAlg::optimize``) loops
-``while (regularity != 0)`` without a cap, and a Jacobian still degenerate after its one delta_c
-regularisation repeats the same factorisation for ever (seen once, warm-started, in the goal-inferred
-predictor; from cold guesses in ``coupled.py``). IPOPT's inertia correction is capped
+``max_iter`` does not bound a fatrop solve: its inertia correction (fatrop's ``compute_search_dir``) loops
+``while (!solved)`` without a cap, and a Jacobian still rank-deficient after its delta_c regularisation
+is factorised again with the same delta_c for ever (seen warm-started in the goal-inferred predictor,
+from cold guesses in ``coupled.py``, and in a single-level IOC fit's re-solve). So every fatrop solve runs
+on a thread of its own (``_Runner``; casadi releases the GIL while it solves) and the caller stops waiting
+when that thread has spent ``FATROP_CPU_LIMIT`` seconds of CPU on it: the solve is abandoned (its thread
+left spinning until the process ends, its buffers with it), returned as failed with status
+``CpuTime_Exceeded``, and IPOPT tried as for any failure. IPOPT's inertia correction is capped
 (``max_hessian_perturbation``) and ``max_cpu_time`` bounds its CPU time: a caller that must always get
 an answer uses ``solver="ipopt"`` with ``max_cpu_time``; a solve stopped by it returns ``success=False``,
 status ``Maximum_CpuTime_Exceeded``.
@@ -73,6 +77,7 @@ import shutil
 import subprocess
 import tempfile
 import threading
+import time
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
@@ -364,7 +369,7 @@ class WalkerOCP:
 
     def _call(self, name: str) -> "_BufferedCall":
         calls = self.__dict__.setdefault("_calls", {})
-        if name not in calls:
+        if name not in calls or calls[name].abandoned:  # an abandoned solve keeps its buffers: new ones
             # fatrop is built with error_on_fail (``_solver``): only its failures raise
             calls[name] = _BufferedCall(self._solver(name), self.n_vars, self.n_params, self.n_cons, raises=name == "fatrop")
         return calls[name]
@@ -401,14 +406,20 @@ class _BufferedCall:
         self.x, self.f = np.zeros(n_vars), np.zeros(1)
         self.buffer.set_res(0, memoryview(self.x))
         self.buffer.set_res(1, memoryview(self.f))  # g and the multipliers are not requested
+        self.abandoned = False  # a solve past FATROP_CPU_LIMIT still holds the buffers: never call again
 
     def __call__(self, w0, p, lbx, ubx, stats: bool = True) -> tuple[np.ndarray, float, dict]:
         """Solve from ``w0``; returns the primal solution, the cost and the solver's stats. A solver built
         with ``error_on_fail`` (``raises``: fatrop) raises when it fails: its stats are then read whatever
-        ``stats``; without ``stats`` its converged solves return ``_CONVERGED`` instead of reading them."""
+        ``stats``; without ``stats`` its converged solves return ``_CONVERGED`` instead of reading them.
+        fatrop solves run on ``_Runner``'s thread, abandoned past ``FATROP_CPU_LIMIT`` (module docstring)."""
         self.x0[:], self.p[:], self.lbx[:], self.ubx[:] = w0, p, lbx, ubx
         try:
-            self.run()
+            if not self.raises:
+                self.run()
+            elif not self._run_bounded():
+                return np.array(w0, dtype=float), math.nan, {"success": False, "return_status": "CpuTime_Exceeded",
+                                                             "iter_count": -1}
         except RuntimeError as e:
             if "nlpsol process failed" not in str(e):  # casadi's error_on_fail message; anything else is not a failed solve
                 raise
@@ -416,7 +427,91 @@ class _BufferedCall:
         return self.x.copy(), float(self.f[0]), _CONVERGED if self.raises and not stats else self.buffer.stats()
 
 
+    def _run_bounded(self) -> bool:
+        """The solve on ``_Runner``'s thread; False if abandoned. Abandoned, or left by an interrupt while it
+        runs, the solve may still write into this call's buffers: it is never used again."""
+        runner = _Runner.get()
+        try:
+            done = runner.run(self.run, FATROP_CPU_LIMIT)
+        except BaseException:
+            self.abandoned = runner.running
+            raise
+        self.abandoned = not done
+        return done
+
+
 _CONVERGED = {"success": True, "return_status": "Solve_Succeeded", "iter_count": -1}  # stats not read (``solve(stats=False)``)
+
+# s of CPU: one fatrop solve past it is abandoned (module docstring). A converged or failed solve takes
+# milliseconds to about a second (500 iterations of the published problems' longest horizons).
+FATROP_CPU_LIMIT = 60.0
+
+
+class _Runner:
+    """The thread that makes this process's fatrop solves, one at a time, and the CPU time it spends on each."""
+
+    _current: "_Runner | None" = None
+    _guard = threading.Lock()
+
+    def __init__(self):
+        import queue
+
+        self.pid = os.getpid()
+        self._todo: queue.SimpleQueue = queue.SimpleQueue()
+        self._done: queue.SimpleQueue = queue.SimpleQueue()  # None, or the call's exception
+        self._empty = queue.Empty
+        self._busy = threading.Lock()
+        self.running = False  # a call is on the thread
+        self.thread = threading.Thread(target=self._loop, name="fatrop", daemon=True)
+        self.thread.start()
+        self.clock = time.pthread_getcpuclockid(self.thread.ident)
+
+    @classmethod
+    def get(cls) -> "_Runner":
+        """This process's runner (a forked pool worker makes its own: threads do not survive a fork)."""
+        with cls._guard:
+            if cls._current is None or cls._current.pid != os.getpid():
+                cls._current = _Runner()
+            return cls._current
+
+    def _loop(self) -> None:
+        while True:
+            fn = self._todo.get()
+            try:
+                fn()
+            except BaseException as exc:  # noqa: BLE001 - re-raised in the caller's thread
+                self._done.put(exc)
+            else:
+                self._done.put(None)
+
+    def run(self, fn, limit: float) -> bool:
+        """``fn()`` on the thread; False if the thread spent ``limit`` s of CPU before it returned: the call is
+        then abandoned with the thread, and the next ``get()`` starts another."""
+        with self._busy:
+            start = time.clock_gettime(self.clock)
+            self.running = True
+            self._todo.put(fn)
+            try:
+                while True:
+                    try:
+                        error = self._done.get(timeout=0.25)
+                        break
+                    except self._empty:
+                        if time.clock_gettime(self.clock) - start > limit:
+                            self._retire()
+                            return False
+            except BaseException:  # an interrupt while the call runs: it goes on, on a thread nobody waits for
+                self._retire()
+                raise
+            self.running = False
+            if error is not None:
+                raise error
+            return True
+
+    def _retire(self) -> None:
+        with _Runner._guard:
+            if _Runner._current is self:
+                _Runner._current = None
 
 
 _N_COMMON = 3 + 1 + N_WEIGHTS + 2  # goal, T, a0..b3, tracking weights: the parameters every stage sees
