@@ -73,13 +73,14 @@ from __future__ import annotations
 import hashlib
 import math
 import os
+import queue
 import shutil
 import subprocess
 import tempfile
 import threading
 import time
 from dataclasses import dataclass, field, replace
-from functools import lru_cache
+from functools import lru_cache, partial
 from pathlib import Path
 
 import numpy as np
@@ -454,17 +455,19 @@ class _Runner:
     _guard = threading.Lock()
 
     def __init__(self):
-        import queue
-
         self.pid = os.getpid()
         self._todo: queue.SimpleQueue = queue.SimpleQueue()
         self._done: queue.SimpleQueue = queue.SimpleQueue()  # None, or the call's exception
-        self._empty = queue.Empty
         self._busy = threading.Lock()
         self.running = False  # a call is on the thread
         self.thread = threading.Thread(target=self._loop, name="fatrop", daemon=True)
         self.thread.start()
-        self.clock = time.pthread_getcpuclockid(self.thread.ident)
+        try:
+            clock = time.pthread_getcpuclockid(self.thread.ident)
+        except (AttributeError, OSError):  # no per-thread CPU clock here (macOS): the limit in wall time
+            self.elapsed = time.monotonic
+        else:
+            self.elapsed = partial(time.clock_gettime, clock)
 
     @classmethod
     def get(cls) -> "_Runner":
@@ -488,7 +491,7 @@ class _Runner:
         """``fn()`` on the thread; False if the thread spent ``limit`` s of CPU before it returned: the call is
         then abandoned with the thread, and the next ``get()`` starts another."""
         with self._busy:
-            start = time.clock_gettime(self.clock)
+            start = self.elapsed()
             self.running = True
             self._todo.put(fn)
             try:
@@ -496,8 +499,8 @@ class _Runner:
                     try:
                         error = self._done.get(timeout=0.25)
                         break
-                    except self._empty:
-                        if time.clock_gettime(self.clock) - start > limit:
+                    except queue.Empty:
+                        if self.elapsed() - start > limit:
                             self._retire()
                             return False
             except BaseException:  # an interrupt while the call runs: it goes on, on a thread nobody waits for
