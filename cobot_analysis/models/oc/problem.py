@@ -443,8 +443,9 @@ class _BufferedCall:
 
 _CONVERGED = {"success": True, "return_status": "Solve_Succeeded", "iter_count": -1}  # stats not read (``solve(stats=False)``)
 
-# s of CPU: one fatrop solve past it is abandoned (module docstring). A converged or failed solve takes
-# milliseconds to about a second (500 iterations of the published problems' longest horizons).
+# s of CPU: one fatrop solve past it is abandoned (module docstring). A solve that fails at its 500-iteration cap
+# took 0.12-0.13 s on average on the Mombaur grids of the walking and table means (docs/benchmarks.md); a
+# converged one milliseconds.
 FATROP_CPU_LIMIT = 60.0
 
 
