@@ -57,9 +57,10 @@ def cli(capsys):
 @pytest.fixture
 def dask_scheduler():
     """The address of a local Dask cluster (2 worker processes, 1 thread each) for one test, stopped after it
-    (an idle cluster kept for the session costs more CPU, about 4 s a minute, than starting one per test)."""
+    (an idle cluster kept for the session costs more CPU, about 4 s a minute, than starting one per test). Its
+    scheduler's HTTP server on a free port (":0"): .ci/run's two test runs may hold a cluster each at once."""
     distributed = pytest.importorskip("distributed")
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster:
         yield cluster.scheduler_address
 
 
