@@ -74,3 +74,20 @@ def test_main_chooses_the_system_allocator_for_arrow_and_the_library_does_not():
                    "    print(os.environ['ARROW_DEFAULT_MEMORY_POOL'], pa.default_memory_pool().backend_name)\n"
                    "atexit.register(report)\ncli.main()\n")
     assert main[-2:] == ["system", "system"]
+
+
+def test_a_run_builds_only_the_command_it_runs_and_the_group_is_typers(tmp_path, monkeypatch):
+    import typer.main
+
+    from cobot_analysis.cli import app, click_group, run
+
+    lazy, eager = click_group(app), typer.main.get_command(app)
+    assert list(lazy.commands) == list(eager.commands)
+    for name in eager.commands:
+        assert [(p.name, p.opts, p.default) for p in lazy.commands[name].params] == \
+            [(p.name, p.opts, p.default) for p in eager.commands[name].params]
+    built = []
+    build = typer.main.get_command_from_info
+    monkeypatch.setattr(typer.main, "get_command_from_info", lambda info, **kw: built.append(info.name) or build(info, **kw))
+    assert run(["-q", "localisation", str(tmp_path / "missing.bag"), "--out", str(tmp_path)]) == 2
+    assert built == ["localisation"]

@@ -18,7 +18,7 @@ import traceback
 import typer
 from typer.exceptions import TyperException
 
-from cobot_analysis.cli.app import app
+from cobot_analysis.cli.app import app, click_group
 from cobot_analysis.console import console, verbosity, verbosity_restored
 from cobot_analysis.errors import InputError, SolverError
 from cobot_analysis.interrupt import Interrupted, outcome, seen, signals
@@ -48,7 +48,7 @@ def run(argv: list[str] | None = None) -> int:
 
 def _run(argv: list[str] | None) -> int:
     try:
-        rv = app(args=argv, prog_name="cobot-analysis", standalone_mode=False)
+        rv = click_group(app)(args=argv, prog_name="cobot-analysis", standalone_mode=False)
         return rv if isinstance(rv, int) else 0
     except Interrupted as exc:  # stages have removed their temporary output and stopped their workers
         seen(exc)
