@@ -10,27 +10,33 @@ progress bar, silent under ``--quiet``).
 
 from __future__ import annotations
 
+import functools
 import logging
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
-from typing import TypeVar
-
-from rich.console import Console
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    Progress,
-    TextColumn,
-    TimeElapsedColumn,
-    TimeRemainingColumn,
-)
+from typing import Any, TypeVar
 
 T = TypeVar("T")
 
-console = Console(stderr=True, highlight=False)
 logger = logging.getLogger("cobot_analysis")
 _level = 1  # 0 quiet, 1 normal, 2 verbose (progress bars are shown from 1)
 _LOGGING_LEVEL = {0: logging.ERROR, 1: logging.INFO, 2: logging.DEBUG}
+
+
+def the_console():
+    """The command line's rich console on stderr (also ``console``), made when first used: importing rich costs
+    0.02 s, and a run under --quiet that succeeds prints nothing."""
+    if "console" not in globals():
+        from rich.console import Console
+
+        globals()["console"] = Console(stderr=True, highlight=False)
+    return globals()["console"]
+
+
+def __getattr__(name: str) -> Any:
+    if name == "console":
+        return the_console()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 class ConsoleHandler(logging.Handler):
@@ -40,11 +46,11 @@ class ConsoleHandler(logging.Handler):
     def emit(self, record: logging.LogRecord) -> None:
         message = record.getMessage()
         if record.levelno >= logging.WARNING:
-            console.print(f"[yellow]warning:[/yellow] {message}", soft_wrap=True)  # one line, like errors
+            the_console().print(f"[yellow]warning:[/yellow] {message}", soft_wrap=True)  # one line, like errors
         elif record.levelno >= logging.INFO:
-            console.print(message, soft_wrap=True)  # a message is one line, whatever the terminal's width
+            the_console().print(message, soft_wrap=True)  # a message is one line, whatever the terminal's width
         else:
-            console.print(f"[dim]{message}[/dim]")
+            the_console().print(f"[dim]{message}[/dim]")
 
 
 def set_verbosity(level: int) -> None:
@@ -96,58 +102,98 @@ def warn(message: str) -> None:
 PLAIN_EVERY = 5.0
 
 
-class PlainProgress(Progress):
-    """A rich ``Progress`` that, when the console is not a terminal (where rich would print the bars
-    only at the end), prints one plain line per task when it starts, at most every ``PLAIN_EVERY``
-    seconds while it advances, and when it completes: "IOC all: 12/50 (24 %), 0:01:10, about 0:03:40 left; D = 0.41"."""
+class QuietProgress:
+    """``progress()`` under --quiet: shows nothing, as a disabled rich ``Progress`` does, without importing rich."""
 
-    def __init__(self, *columns, plain: bool = False, **kwargs):
-        super().__init__(*columns, **kwargs)
-        self._plain = plain
-        self._last: dict = {}
+    def __init__(self):
+        self._tasks = 0
 
-    def add_task(self, description: str, *args, **kwargs):
-        task = super().add_task(description, *args, **kwargs)
-        if self._plain:
-            self._say(task, force=True)
-        return task
+    def __enter__(self) -> "QuietProgress":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        return None
+
+    def start(self) -> None:
+        pass
+
+    def stop(self) -> None:
+        pass
+
+    def add_task(self, description: str, *args, **kwargs) -> int:
+        self._tasks += 1
+        return self._tasks - 1
 
     def update(self, task_id, **kwargs) -> None:
-        super().update(task_id, **kwargs)
-        if self._plain:
-            self._say(task_id)
+        pass
 
     def advance(self, task_id, advance: float = 1) -> None:
-        super().advance(task_id, advance)
-        if self._plain:
-            self._say(task_id)
-
-    def _say(self, task_id, force: bool = False) -> None:
-        import time
-        from datetime import timedelta
-
-        task = self._tasks[task_id]
-        now = time.monotonic()
-        done = task.total is not None and task.completed >= task.total
-        if not force and not done and now - self._last.get(task_id, -1e9) < PLAIN_EVERY:
-            return
-        if done and self._last.get(task_id) == "done":
-            return
-        self._last[task_id] = "done" if done else now
-        total = f"/{task.total:g} ({100 * task.completed / task.total:.0f} %)" if task.total else ""
-        elapsed = timedelta(seconds=round(task.elapsed or 0))
-        left = task.time_remaining
-        eta = f", about {timedelta(seconds=round(left))} left" if left is not None and not done and task.completed else ""
-        status = task.fields.get("status") or ""
-        console.print(f"{task.description}: {task.completed:g}{total}, {elapsed}{eta}" + (f"; {status}" if status else ""),
-                      soft_wrap=True, markup=False)
+        pass
 
 
-def progress() -> Progress:
-    """A rich progress display (disabled under --quiet); use ``with progress() as p: p.add_task(...)``.
-    When stderr is not a terminal, plain lines instead (``PlainProgress``)."""
-    plain = _level >= 1 and not console.is_terminal
-    return PlainProgress(
+@functools.cache
+def _plain_progress():
+    """``PlainProgress``: a rich ``Progress`` that, when the console is not a terminal (where rich would print the
+    bars only at the end), prints one plain line per task when it starts, at most every ``PLAIN_EVERY`` seconds
+    while it advances, and when it completes: "IOC all: 12/50 (24 %), 0:01:10, about 0:03:40 left; D = 0.41".
+    Defined at first use, with rich."""
+    from rich.progress import Progress
+
+    class PlainProgress(Progress):
+        def __init__(self, *columns, plain: bool = False, **kwargs):
+            super().__init__(*columns, **kwargs)
+            self._plain = plain
+            self._last: dict = {}
+
+        def add_task(self, description: str, *args, **kwargs):
+            task = super().add_task(description, *args, **kwargs)
+            if self._plain:
+                self._say(task, force=True)
+            return task
+
+        def update(self, task_id, **kwargs) -> None:
+            super().update(task_id, **kwargs)
+            if self._plain:
+                self._say(task_id)
+
+        def advance(self, task_id, advance: float = 1) -> None:
+            super().advance(task_id, advance)
+            if self._plain:
+                self._say(task_id)
+
+        def _say(self, task_id, force: bool = False) -> None:
+            import time
+            from datetime import timedelta
+
+            task = self._tasks[task_id]
+            now = time.monotonic()
+            done = task.total is not None and task.completed >= task.total
+            if not force and not done and now - self._last.get(task_id, -1e9) < PLAIN_EVERY:
+                return
+            if done and self._last.get(task_id) == "done":
+                return
+            self._last[task_id] = "done" if done else now
+            total = f"/{task.total:g} ({100 * task.completed / task.total:.0f} %)" if task.total else ""
+            elapsed = timedelta(seconds=round(task.elapsed or 0))
+            left = task.time_remaining
+            eta = f", about {timedelta(seconds=round(left))} left" if left is not None and not done and task.completed else ""
+            status = task.fields.get("status") or ""
+            the_console().print(f"{task.description}: {task.completed:g}{total}, {elapsed}{eta}" + (f"; {status}" if status else ""),
+                                soft_wrap=True, markup=False)
+
+    return PlainProgress
+
+
+def progress():
+    """A rich progress display (nothing under --quiet: ``QuietProgress``); use ``with progress() as p:
+    p.add_task(...)``. When stderr is not a terminal, plain lines instead (``PlainProgress``)."""
+    if _level < 1:
+        return QuietProgress()
+    from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    console = the_console()
+    plain = not console.is_terminal
+    return _plain_progress()(
         TextColumn("[progress.description]{task.description}"),
         BarColumn(),
         MofNCompleteColumn(),
@@ -155,7 +201,7 @@ def progress() -> Progress:
         TimeRemainingColumn(),
         TextColumn("{task.fields[status]}"),
         console=console,
-        disable=_level < 1 or plain,
+        disable=plain,
         transient=False,
         plain=plain,
     )

@@ -19,7 +19,7 @@ import typer
 from typer.exceptions import TyperException
 
 from cobot_analysis.cli.app import app, click_group
-from cobot_analysis.console import console, verbosity, verbosity_restored
+from cobot_analysis.console import the_console, verbosity, verbosity_restored
 from cobot_analysis.errors import InputError, SolverError
 from cobot_analysis.interrupt import Interrupted, outcome, seen, signals
 
@@ -32,7 +32,7 @@ for _name in sorted((m.name for m in pkgutil.iter_modules(__path__) if m.name !=
 
 
 def _error(message: str) -> None:
-    console.print(f"[bold red]error:[/bold red] {message}", soft_wrap=True, markup=True, highlight=False)
+    the_console().print(f"[bold red]error:[/bold red] {message}", soft_wrap=True, markup=True, highlight=False)
 
 
 def run(argv: list[str] | None = None) -> int:

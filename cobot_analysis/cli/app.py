@@ -16,7 +16,7 @@ import typer
 from typer.core import TyperGroup
 
 from cobot_analysis import __version__
-from cobot_analysis.console import console, set_verbosity, verbosity, warn
+from cobot_analysis.console import set_verbosity, the_console, verbosity, warn
 from cobot_analysis.workspace import DEFAULT_OUT
 
 #: Options of the whole program, accepted anywhere on the command line (moved before the command).
@@ -203,10 +203,10 @@ def click_group(typer_app: typer.Typer):
 
 def finished(stage: str, what: str, where) -> None:
     """The line every stage ends with: ``stage: what -> where`` (one line, silent under --quiet)."""
-    from rich.markup import escape
-
     if verbosity() >= 1:
-        console.print(f"[green]{escape(stage)}[/green]: {escape(str(what))} -> {escape(str(where))}", soft_wrap=True)
+        from rich.markup import escape
+
+        the_console().print(f"[green]{escape(stage)}[/green]: {escape(str(what))} -> {escape(str(where))}", soft_wrap=True)
 
 
 def finished_with_refusals(stage: str, done) -> None:
