@@ -10,9 +10,17 @@ The public API is ``cobot_analysis.api`` (docs/api.md): every stage as a functio
 The scientific reference for every method and name is docs/methods.md (see docs/).
 """
 
-from importlib.metadata import PackageNotFoundError, version
 
-try:
-    __version__ = version("cobot-analysis")
-except PackageNotFoundError:  # running from a source tree that is not installed
-    __version__ = "0.1.0"
+def __getattr__(name: str):
+    """``__version__``, read from the installed package's metadata when first asked for (importing
+    importlib.metadata is 0.01 s of a command's start, and a command refused at its first check needs none)."""
+    if name != "__version__":
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    from importlib.metadata import PackageNotFoundError, version as installed
+
+    try:
+        version = installed("cobot-analysis")
+    except PackageNotFoundError:  # running from a source tree that is not installed
+        version = "0.1.0"
+    globals()["__version__"] = version
+    return version

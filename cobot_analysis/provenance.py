@@ -8,8 +8,6 @@ import platform
 import subprocess
 from pathlib import Path
 
-from cobot_analysis import __version__
-
 _VERSIONED = ("numpy", "scipy", "pandas", "pyarrow", "casadi", "ezc3d", "rosbags", "statsmodels", "dask", "matplotlib")
 
 
@@ -23,6 +21,8 @@ def file_sha256(path: Path, chunk: int = 1 << 20) -> str:
 
 def package_versions() -> dict[str, str]:
     from importlib.metadata import PackageNotFoundError, version
+
+    from cobot_analysis import __version__
 
     versions = {"python": platform.python_version(), "cobot_analysis": __version__}
     for name in _VERSIONED:

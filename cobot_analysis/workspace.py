@@ -45,7 +45,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-from cobot_analysis import __version__, registry
+import cobot_analysis
+from cobot_analysis import registry
 from cobot_analysis.console import info, warn
 from cobot_analysis.errors import InputError
 from cobot_analysis.interrupt import deferred, keep, seen
@@ -282,7 +283,7 @@ class Stage:
             return False
         same = (
             old.get("params") == self.params
-            and old.get("versions", {}).get("cobot_analysis") == __version__
+            and old.get("versions", {}).get("cobot_analysis") == cobot_analysis.__version__
             and [(i["path"], i["sha256"]) for i in old.get("inputs", [])] == [(i["path"], i["sha256"]) for i in self._inputs]
         )
         if not same:

@@ -91,3 +91,9 @@ def test_a_run_builds_only_the_command_it_runs_and_the_group_is_typers(tmp_path,
     monkeypatch.setattr(typer.main, "get_command_from_info", lambda info, **kw: built.append(info.name) or build(info, **kw))
     assert run(["-q", "localisation", str(tmp_path / "missing.bag"), "--out", str(tmp_path)]) == 2
     assert built == ["localisation"]
+
+
+def test_the_packages_version_is_read_when_asked_for():
+    code = ("import sys, cobot_analysis\nbefore = 'importlib.metadata' in sys.modules\n"
+            "import importlib.metadata as md\nprint(before, cobot_analysis.__version__ == md.version('cobot-analysis'))")
+    assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split() == ["False", "True"]

@@ -15,7 +15,6 @@ from typing import Annotated, Optional
 import typer
 from typer.core import TyperGroup
 
-from cobot_analysis import __version__
 from cobot_analysis.console import set_verbosity, the_console, verbosity, warn
 from cobot_analysis.workspace import DEFAULT_OUT
 
@@ -274,6 +273,8 @@ DEFAULT_OUT_PATH = DEFAULT_OUT
 
 def _version(value: bool) -> None:
     if value:
+        from cobot_analysis import __version__
+
         typer.echo(f"cobot-analysis {__version__}")
         raise typer.Exit()
 
