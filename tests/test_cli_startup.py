@@ -97,3 +97,14 @@ def test_the_packages_version_is_read_when_asked_for():
     code = ("import sys, cobot_analysis\nbefore = 'importlib.metadata' in sys.modules\n"
             "import importlib.metadata as md\nprint(before, cobot_analysis.__version__ == md.version('cobot-analysis'))")
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split() == ["False", "True"]
+
+
+def test_localisation_runs_on_one_openblas_thread_unless_the_user_chose(tmp_path):
+    code = ("import os\nfrom cobot_analysis.cli import run\n"
+            f"code = run(['-q', 'localisation', {str(tmp_path / 'missing.bag')!r}, '--out', {str(tmp_path)!r}])\n"
+            "print(code, os.environ.get('OPENBLAS_NUM_THREADS'))")
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    for given, expected in ((None, "1"), ("2", "2")):
+        run_env = env if given is None else {**env, "OPENBLAS_NUM_THREADS": given}
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=run_env).stdout.split()
+        assert out == ["2", expected]
