@@ -108,3 +108,11 @@ def test_localisation_runs_on_one_openblas_thread_unless_the_user_chose(tmp_path
         run_env = env if given is None else {**env, "OPENBLAS_NUM_THREADS": given}
         out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=run_env).stdout.split()
         assert out == ["2", expected]
+
+
+def test_an_in_process_localisation_run_leaves_the_garbage_collector_on(cli, tmp_path):
+    import gc
+
+    assert gc.isenabled()
+    assert cli("-q", "localisation", str(tmp_path / "missing.bag"), "--out", str(tmp_path))[0] == 2
+    assert gc.isenabled()

@@ -1,13 +1,14 @@
 """Command-line entry point: ``cobot-analysis`` (see ``cobot_analysis.cli.app``).
 
 ``run(argv)`` returns the exit code (0 ok, 1 internal error, 2 bad usage or bad input, 128 + the
-signal number when interrupted: 130 Ctrl-C, 143 SIGTERM) and is what tests call; ``main()`` exits
-with it.
+signal number when interrupted: 130 Ctrl-C, 143 SIGTERM) and is what tests call (the caller's garbage
+collector left on); ``main()`` exits with it.
 """
 
 from __future__ import annotations
 
 import atexit
+import gc
 import importlib
 import os
 import pkgutil
@@ -36,6 +37,15 @@ def _error(message: str) -> None:
 
 
 def run(argv: list[str] | None = None) -> int:
+    collecting = gc.isenabled()
+    try:
+        return _command(argv)
+    finally:  # a command may pause the garbage collector for the rest of its process (``localisation``)
+        if collecting:
+            gc.enable()
+
+
+def _command(argv: list[str] | None) -> int:
     from cobot_analysis import workspace
 
     workspace.COMMAND[:] = ["cobot-analysis", *(sys.argv[1:] if argv is None else argv)]
@@ -80,7 +90,7 @@ def main() -> None:
     # of a 10-minute localisation run 188 -> 178 MiB, docs/benchmarks.md). Process-wide, so the command
     # line's choice and not the library's; set before pyarrow is first imported, inherited by the workers.
     os.environ.setdefault("ARROW_DEFAULT_MEMORY_POOL", "system")
-    code = run()
+    code = _command(None)  # the process ends after it: a garbage collector the command paused stays paused
     if code >= 128:  # interrupted: exit now, without waiting for what the interrupt abandoned
         sys.stdout.flush()
         sys.stderr.flush()
