@@ -442,7 +442,8 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
     within |dy| <= radius (``trust_region_step``) and the search box (a weight on a search limit that
     D pushes outward is held for the step), and is accepted when D on the
     corrected paths falls by at least 10 % of the predicted decrease (radius x2 up to 1, or /4 and again
-    while the model's step stays the one rejected: ``shrunk_radius``; a path
+    while the model's step stays the one rejected: ``shrunk_radius``; a step with no predicted decrease, projected
+    onto the box, is rejected without correcting the paths; a path
     whose correction fails, a fold of its branch, goes on from its lower level re-solved at the step's
     weights; the step is rejected only if that fails too).
     Stops when an accepted step is below ``xtol`` (log10), the radius falls below it, or after
@@ -546,12 +547,14 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
             s = box_step(g, H, y, radius)
             pred = -(g @ s + 0.5 * s @ H @ s)
             steps += 1
-            w_new = w.copy()
-            w_new[fi] = 10.0 ** (y + s)
-            new = correct(w_new, [b["v"] + b["S"] @ (w_new[fi] - w[fi]) for b in branches], jump=True)  # predictor, corrector
-            D_new = float(np.mean([b["D"] for b in new])) if new is not None else math.inf
-            fails += new is None
-            if new is not None and pred > 0 and D - D_new >= 0.1 * pred:
+            new, D_new = None, math.inf
+            if pred > 0:  # else rejected whatever the corrected paths give (a step projected onto the box): not corrected
+                w_new = w.copy()
+                w_new[fi] = 10.0 ** (y + s)
+                new = correct(w_new, [b["v"] + b["S"] @ (w_new[fi] - w[fi]) for b in branches], jump=True)  # predictor, corrector
+                D_new = float(np.mean([b["D"] for b in new])) if new is not None else math.inf
+                fails += new is None
+            if new is not None and D - D_new >= 0.1 * pred:
                 accepted += 1
                 if D - D_new >= 0.75 * pred and np.linalg.norm(s) >= 0.99 * radius:
                     radius = min(2 * radius, 1.0)
