@@ -442,10 +442,10 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
     within |dy| <= radius (``trust_region_step``) and the search box (a weight on a search limit that
     D pushes outward is held for the step), and is accepted when D on the
     corrected paths falls by at least 10 % of the predicted decrease (radius x2 up to 1, or /4 and again
-    while the model's step stays the one rejected: ``shrunk_radius``; a step with no predicted decrease, projected
-    onto the box, is rejected without correcting the paths; a path
-    whose correction fails, a fold of its branch, goes on from its lower level re-solved at the step's
-    weights; the step is rejected only if that fails too).
+    while the model's step stays the one rejected: ``shrunk_radius``; a step with no predicted decrease,
+    projected onto the box, is rejected without correcting the paths; a path whose correction fails, a
+    fold of its branch, goes on from its lower level re-solved at the step's weights; the step is rejected
+    only if that fails too).
     Stops when an accepted step is below ``xtol`` (log10), the radius falls below it, or after
     ``max_steps`` steps. Start: the lower level solved at the start weights (``start``: given paths).
     The D reported is the one of the lower level re-solved at the fitted weights, as the bi-level fit
