@@ -443,6 +443,30 @@ def test_trust_region_step_on_analytic_models():
     assert abs(np.linalg.norm(s) - 0.3) < 1e-9 and abs(s[0]) > 0.29
 
 
+def test_a_rejected_step_is_not_tried_again():
+    """After a rejected step the radius is divided by 4, and by 4 again while the model's step at the
+    smaller radius is the rejected step itself (the Newton step inside the radius, or a step held by
+    the search box): the fit never repeats a step it has just rejected from the same point."""
+    from cobot_analysis.models.ioc.fit import LOG_BOUNDS
+    from cobot_analysis.models.ioc.single_level import box_step, shrunk_radius
+
+    H = np.diag([1.0, 4.0])
+    g = -H @ np.array([0.006, 0.008])  # Newton step (0.006, 0.008): |s| = 0.01
+    y = np.zeros(2)
+    step = lambda r: box_step(g, H, y, r)  # noqa: E731
+    s = step(1.0)
+    np.testing.assert_allclose(s, [0.006, 0.008], rtol=1e-12)
+    r = shrunk_radius(step, s, 1.0, 1e-3)
+    assert r == 1 / 256  # 1/4, 1/16, 1/64 give the same step; 1/256 < 0.01 the first that does not
+    assert abs(np.linalg.norm(step(r)) - r) < 1e-9
+    on = step(0.005)  # a step on the radius: radius / 4 once
+    assert abs(np.linalg.norm(on) - 0.005) < 1e-9 and shrunk_radius(step, on, 0.005, 1e-3) == 0.005 / 4
+    assert shrunk_radius(step, s, 1.0, 0.02) == 1 / 64  # below xtol: the fit stops there
+    held = lambda r: box_step(np.array([1.0, -1.0]), H, np.array(LOG_BOUNDS), r)  # noqa: E731
+    np.testing.assert_array_equal(held(0.3), [0.0, 0.0])  # both weights on a limit D pushes them past
+    assert shrunk_radius(held, held(0.3), 0.3, 1e-3) < 1e-3
+
+
 def test_branch_derivatives_match_finite_differences():
     """Along one lower-level branch (Newton's method on its KKT conditions), the sensitivity-based
     gradient and exact Hessian of the smoothed D in the fitted weights match central differences of

@@ -343,6 +343,29 @@ def trust_region_step(g: np.ndarray, H: np.ndarray, radius: float) -> np.ndarray
     return s
 
 
+def box_step(g: np.ndarray, H: np.ndarray, y: np.ndarray, radius: float) -> np.ndarray:
+    """The model's step from y (log10 w) within |s| <= radius and the search box ``LOG_BOUNDS``: a weight on
+    a search limit that D pushes outward (the gradient g) is held, the others take ``trust_region_step``,
+    and the step is projected onto the box."""
+    lo, hi = LOG_BOUNDS
+    free = ~(((y <= lo + 1e-9) & (g > 0)) | ((y >= hi - 1e-9) & (g < 0)))
+    s = np.zeros_like(y)
+    if free.any():
+        s[free] = trust_region_step(g[free], H[np.ix_(free, free)], radius)
+    return np.clip(y + s, lo, hi) - y
+
+
+def shrunk_radius(step, s: np.ndarray, radius: float, xtol: float) -> float:
+    """The trust radius after the rejected step s = step(radius): radius / 4, and / 4 again while
+    step(radius) is still s (a model step inside the radius, the Newton step, or one held by the search
+    box): from the same point the same step is rejected again, so it is not tried again. Stops below
+    ``xtol``, where the fit stops."""
+    radius /= 4
+    while radius >= xtol and np.array_equal(step(radius), s):
+        radius /= 4
+    return radius
+
+
 def escape_probes(y: np.ndarray, H: np.ndarray, distances=PROBE_DISTANCES) -> list[np.ndarray]:
     """Points y + d u (log10 weights, clipped to the search box) around a converged point y, in the plane
     of the two eigenvectors v1, v2 of the model Hessian H with the least curvature (the directions the
@@ -418,9 +441,11 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
     linear in w), both carried to y by dw/dy = w ln 10; the step minimises that quadratic model
     within |dy| <= radius (``trust_region_step``) and the search box (a weight on a search limit that
     D pushes outward is held for the step), and is accepted when D on the
-    corrected paths falls by at least 10 % of the predicted decrease (radius x2 up to 1, or /4; a path
-    whose correction fails, a fold of its branch, goes on from its lower level re-solved at the step's
-    weights; the step is rejected only if that fails too).
+    corrected paths falls by at least 10 % of the predicted decrease (radius x2 up to 1, or /4 and again
+    while the model's step stays the one rejected: ``shrunk_radius``; a step with no predicted decrease,
+    projected onto the box, is rejected without correcting the paths; a path whose correction fails, a
+    fold of its branch, goes on from its lower level re-solved at the step's weights; the step is rejected
+    only if that fails too).
     Stops when an accepted step is below ``xtol`` (log10), the radius falls below it, or after
     ``max_steps`` steps. Start: the lower level solved at the start weights (``start``: given paths).
     The D reported is the one of the lower level re-solved at the fitted weights, as the bi-level fit
@@ -519,20 +544,17 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
         steps = accepted = fails = 0
         while steps < max_steps and radius >= xtol:
             g, H = model(w, branches)
-            lo, hi = LOG_BOUNDS  # a weight on a search limit that D pushes outward is held (projected step)
-            free = ~(((y <= lo + 1e-9) & (g > 0)) | ((y >= hi - 1e-9) & (g < 0)))
-            s = np.zeros_like(y)
-            if free.any():
-                s[free] = trust_region_step(g[free], H[np.ix_(free, free)], radius)
-            s = np.clip(y + s, lo, hi) - y
+            s = box_step(g, H, y, radius)
             pred = -(g @ s + 0.5 * s @ H @ s)
             steps += 1
-            w_new = w.copy()
-            w_new[fi] = 10.0 ** (y + s)
-            new = correct(w_new, [b["v"] + b["S"] @ (w_new[fi] - w[fi]) for b in branches], jump=True)  # predictor, corrector
-            D_new = float(np.mean([b["D"] for b in new])) if new is not None else math.inf
-            fails += new is None
-            if new is not None and pred > 0 and D - D_new >= 0.1 * pred:
+            new, D_new = None, math.inf
+            if pred > 0:  # else rejected whatever the corrected paths give (a step projected onto the box): not corrected
+                w_new = w.copy()
+                w_new[fi] = 10.0 ** (y + s)
+                new = correct(w_new, [b["v"] + b["S"] @ (w_new[fi] - w[fi]) for b in branches], jump=True)  # predictor, corrector
+                D_new = float(np.mean([b["D"] for b in new])) if new is not None else math.inf
+                fails += new is None
+            if new is not None and D - D_new >= 0.1 * pred:
                 accepted += 1
                 if D - D_new >= 0.75 * pred and np.linalg.norm(s) >= 0.99 * radius:
                     radius = min(2 * radius, 1.0)
@@ -540,7 +562,7 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
                 if np.linalg.norm(s) < xtol:
                     break
             else:
-                radius /= 4
+                radius = shrunk_radius(lambda r: box_step(g, H, y, r), s, radius, xtol)
         return w, branches, steps, accepted, fails
 
     def resolve(ws: list, Zs: list) -> list:
