@@ -655,3 +655,31 @@ def test_per_subject_fits_are_submitted_longest_first(monkeypatch):
         fit_ioc(trials, trials=trials, per="subject", method="single-level", fit=["a2"], intervals=20, compare=False, jobs=1,
                 bootstrap=0)
     assert submitted == [(subjects[1], 3), (subjects[0], 2), (subjects[2], 2)]
+
+
+def test_a_fit_that_ends_above_its_start_keeps_the_start(monkeypatch):
+    """When no round ends below the start's D (re-solved D, as the bi-level fit solves the lower levels), the
+    fit keeps the start: its weights, its paths and its D, and says so (success False). Here every re-solve
+    at a round's end is made to cost 1 more per path than it does."""
+    import importlib
+
+    from cobot_analysis.models.ioc.recovery import synthetic_targets
+    from cobot_analysis.models.ioc.single_level import fit_feasible_path
+
+    fit_module = importlib.import_module("cobot_analysis.models.ioc.fit")  # the package's ``fit`` is the function
+    solve = fit_module.evaluate_chunk
+
+    def dearer(task):
+        return [({**d, "D": d["D"] + 1.0}, z) for d, z in solve(task)]
+
+    targets = synthetic_targets(SPEC, W, 4)
+    spec = _perturbed(SPEC)
+    monkeypatch.setattr(fit_module, "evaluate_chunk", dearer)
+    r = fit_feasible_path(spec, targets, probe=False)
+    assert not r.success and "no round ended below the start" in r.status, r.status
+    assert r.objective == r.start_objective < 1.0, (r.objective, r.start_objective)
+    names = names_for(spec.model)
+    assert all(r.weights[n] == spec.start_weights[names.index(n)] for n in spec.fitted), r.weights
+    monkeypatch.setattr(fit_module, "evaluate_chunk", solve)
+    honest = fit_feasible_path(spec, targets, probe=False)  # the same fit, its re-solves as they are
+    assert honest.success and honest.objective < honest.start_objective and "no round" not in honest.status

@@ -454,7 +454,8 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
     start again on those; when it does not and ``probe``, D is re-solved at the ``escape_probes`` (each
     lower level once, warm from its path: ``probe_chunk``) and the steps start again from the lowest if it
     is below (``restarts`` new rounds at most); the round
-    with the least re-solved D is kept. ``measured_T``: the subjects' duration per target (nan: none),
+    with the least re-solved D is kept, or the start (its weights, paths and D: the result's ``success``
+    False) when no round ends below the start's D. ``measured_T``: the subjects' duration per target (nan: none),
     as the bi-level fit takes them (``fit.fit``): the start weights are carried to their time gauge
     first, the fitted weights calibrated to it after (``pace.calibrate``; the result's ``pace``).
     ``pool``: an executor for the lower-level solves and the Newton corrections (chunks of
@@ -529,6 +530,8 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
     branches = correct(w, [np.concatenate([z, np.zeros(nl)]) for z in start])  # F is linear in lambda: Newton finds it
     if branches is None:
         raise RuntimeError("single-level: a lower-level solution at the start weights is not a regular KKT point")
+    start_objective = float(np.mean([d["D"] for d in start_terms])) if start_terms else math.nan
+    at_start = (start_objective, w.copy(), branches, list(start), start_terms) if start_terms else None
     timing = {"start": time.perf_counter() - t0}  # seconds; "steps" below includes "probes" (the escape probes' solves)
 
     def model(w, branches):
@@ -633,6 +636,9 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
         if restart is None:
             break
         w, branches = w_next, restart
+    kept_start = at_start is not None and not best[0] < at_start[0]
+    if kept_start:  # no round ended below the start: the steps followed branches that stopped being the least-cost
+        best = at_start  # lower levels without a fold; the fit never reports weights that fit worse than its start
     objective, w, branches, Zs, terms = best
     nlp_objective = float(np.mean([b["D"] for b in branches]))
     timing["steps"] = time.perf_counter() - t0 - timing["start"]
@@ -646,13 +652,13 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
     logT = np.array([z[ocp._xi[0, N_STATE]] for z in Zs])
     at_bound = int(np.sum((np.abs(logT - np.log(rule.T_bounds[0] * np.array(T0))) < 1e-3)
                           | (np.abs(logT - np.log(rule.T_bounds[1] * np.array(T0))) < 1e-3)))
-    start_objective = float(np.mean([d["D"] for d in start_terms])) if start_terms else math.nan
     return SingleLevelResult(spec=spec, weights=weights, objective=objective, nlp_objective=nlp_objective,
                              start_objective=start_objective, iterations=steps,
                              status=f"feasible-path SQP: {accepted} of {steps} steps accepted in {rounds} round(s)"
                                     f"{f', {fails} Newton corrections failed' if fails else ''}"
-                                    f"{f', {probes} escape probes' if probes else ''}",
-                             success=accepted > 0, seconds=time.perf_counter() - t0,
+                                    f"{f', {probes} escape probes' if probes else ''}"
+                                    f"{'; no round ended below the start, whose weights are kept' if kept_start else ''}",
+                             success=accepted > 0 and not kept_start, seconds=time.perf_counter() - t0,
                              failed=sum(not d["success"] for d in terms), at_duration_bound=at_bound,
                              kkt_residual=float(max(b["residual"] for b in branches)), per_target=terms, timing=timing,
                              primals=Zs, pace=pace, probes=probes)
