@@ -88,6 +88,30 @@ def test_noise_free_recovery_under_the_published_convention():
     assert r.horizons_changed == 0 and r.failed == 0
 
 
+def test_a_fit_whose_rule_check_ends_above_its_start_keeps_the_start(monkeypatch):
+    """When D by the duration rule at the fitted weights is not below the start's, the fit keeps the start (its
+    weights, D, terms and the rule's solutions there) and says so. Here the rule's check at the fitted weights
+    is made to cost 1 more per path than it does; the same fit with the check as it is ends near 0."""
+    import cobot_analysis.models.ioc.single_level_published as published
+
+    targets = published_targets(SPEC, TRUE)
+    names = names_for("improved")
+    w0 = np.array(TRUE)
+    for n in SPEC.fitted:
+        w0[names.index(n)] *= 1.5
+    spec = replace(SPEC, start_weights=tuple(w0))
+    check = published.rule_check_chunk
+    monkeypatch.setattr(published, "rule_check_chunk", lambda task: [({**d, "D": d["D"] + 1.0}, s) for d, s in check(task)])
+    r = fit_held_horizons(spec, targets)
+    assert "the start's weights are kept" in r.message, r.message
+    assert r.objective == r.held_objective == r.start_objective > 1e-4 and r.horizons_changed == 0
+    assert all(r.weights[n] == w0[i] for i, n in enumerate(names)), r.weights
+    assert float(np.mean([d["D"] for d in r.per_target])) == r.start_objective and len(r.solutions) == len(targets)
+    monkeypatch.setattr(published, "rule_check_chunk", check)
+    honest = fit_held_horizons(spec, targets)
+    assert honest.objective < 1e-5 < r.objective and "kept" not in honest.message
+
+
 def test_a_rounding_step_is_a_repeated_point_of_the_arclength_resampling():
     """A path whose second node sits 1e-16 m from the first (an OC solution's rounding at a start at rest)
     resamples as the path without it: the spline through both would overshoot by metres."""

@@ -343,12 +343,19 @@ def trust_region_step(g: np.ndarray, H: np.ndarray, radius: float) -> np.ndarray
     return s
 
 
+def free_weights(g: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The weights a step may move from y (log10 w): all but those on a search limit (``LOG_BOUNDS``) that D
+    pushes outward (the gradient g)."""
+    lo, hi = LOG_BOUNDS
+    return ~(((y <= lo + 1e-9) & (g > 0)) | ((y >= hi - 1e-9) & (g < 0)))
+
+
 def box_step(g: np.ndarray, H: np.ndarray, y: np.ndarray, radius: float) -> np.ndarray:
     """The model's step from y (log10 w) within |s| <= radius and the search box ``LOG_BOUNDS``: a weight on
-    a search limit that D pushes outward (the gradient g) is held, the others take ``trust_region_step``,
-    and the step is projected onto the box."""
+    a search limit that D pushes outward (the gradient g) is held (``free_weights``), the others take
+    ``trust_region_step``, and the step is projected onto the box."""
     lo, hi = LOG_BOUNDS
-    free = ~(((y <= lo + 1e-9) & (g > 0)) | ((y >= hi - 1e-9) & (g < 0)))
+    free = free_weights(g, y)
     s = np.zeros_like(y)
     if free.any():
         s[free] = trust_region_step(g[free], H[np.ix_(free, free)], radius)

@@ -258,11 +258,15 @@ def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, chunks
     levels by the duration rule (``fit.reference_chunk``), their horizons held, the feasible-path
     trust-region steps in log10 of the fitted weights (the step of ``single_level.trust_region_step``,
     projected on the search box), then the lower levels re-solved at the fitted weights on the held
-    horizons and the duration rule run again there. Stops when an accepted step is below ``xtol`` or lowers
-    D by less than ``spec.ftol`` (relative, as the bi-level search), the radius falls below ``xtol``, the
-    projected gradient below ``gtol``, or after ``max_steps`` steps.
+    horizons and the duration rule run again there; when the rule's D there is not below the start's, the start
+    is kept (its weights, D and solutions; the message and a warning say so). Stops when an accepted step is below
+    ``xtol`` or lowers D by less than ``spec.ftol`` (relative, as the bi-level search), the radius falls below
+    ``xtol`` (a rejected step is not tried again: ``single_level.shrunk_radius``), the projected gradient below
+    ``gtol``, or after ``max_steps`` steps.
     ``on_step(step, D at the step, least D)`` reports progress."""
-    from cobot_analysis.models.ioc.single_level import check_spec, interleaved_chunks, run_chunks, trust_region_step
+    from cobot_analysis.console import warn
+    from cobot_analysis.models.ioc.single_level import (box_step, check_spec, free_weights, interleaved_chunks, run_chunks,
+                                                        shrunk_radius)
     from cobot_analysis.parallel import InlineExecutor
 
     t0 = time.perf_counter()
@@ -271,6 +275,7 @@ def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, chunks
     fi = [names.index(n) for n in spec.fitted]
     w = np.array(spec.start_weights, float)
     w[fi] = np.clip(w[fi], 10.0 ** LOG_BOUNDS[0], 10.0 ** LOG_BOUNDS[1])
+    w_start = w.copy()
     pool, n = pool or InlineExecutor(), len(targets)
     parts = interleaved_chunks(n, chunks)
 
@@ -313,22 +318,21 @@ def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, chunks
             H[:, j] = (np.mean([b["g"] for b in bj], axis=0) - g) / (yj[j] - y[j])
     H = 0.5 * (H + H.T)
     steps = accepted = fails = 0
-    lo, hi = LOG_BOUNDS
     while steps < max_steps and radius >= xtol:
-        free = ~(((y <= lo + 1e-9) & (g > 0)) | ((y >= hi - 1e-9) & (g < 0)))
+        free = free_weights(g, y)
         if not free.any() or np.linalg.norm(g[free]) < gtol:
             break
-        s = np.zeros_like(y)
-        s[free] = trust_region_step(g[free], H[np.ix_(free, free)], radius)
-        s = np.clip(y + s, lo, hi) - y
+        s = box_step(g, H, y, radius)
         pred = -(g @ s + 0.5 * s @ H @ s)
         steps += 1
-        w_new, new = at(y + s, branches, jump=True)
-        D_new = float(np.mean([b["D"] for b in new])) if new is not None else math.inf
-        fails += new is None
+        new, D_new = None, math.inf
+        if pred > 0:  # else rejected whatever the corrected paths give (a step projected onto the box): not corrected
+            w_new, new = at(y + s, branches, jump=True)
+            D_new = float(np.mean([b["D"] for b in new])) if new is not None else math.inf
+            fails += new is None
         if on_step:
             on_step(steps, D_new, min(D, D_new))
-        if new is not None and pred > 0 and D - D_new >= 0.1 * pred:
+        if new is not None and D - D_new >= 0.1 * pred:
             accepted += 1
             g_new = np.mean([b["g"] for b in new], axis=0)
             H = _damped_bfgs(H, s, g_new - g)
@@ -338,8 +342,8 @@ def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, chunks
             w, y, D, g, branches = w_new, y + s, D_new, g_new, new
             if np.linalg.norm(s) < xtol or flat:
                 break
-        else:
-            radius /= 4
+        else:  # from the same point the same step would be rejected again: not tried again
+            radius = shrunk_radius(lambda r: box_step(g, H, y, r), s, radius, xtol)
     timing["steps"] = time.perf_counter() - t0 - timing["start"]
     # as the bi-level fit: the lower levels re-solved at the fitted weights on the held horizons (warm from the
     # branches' paths), then the duration rule again there as a check of the held horizons (``fit.rule_check_chunk``)
@@ -348,18 +352,26 @@ def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, chunks
     held_terms = [d for d, _ in resolved]
     held_objective = float(np.mean([d["D"] for d in held_terms]))
     ruled = run(rule_check_chunk, lambda p: (spec, w, [(targets[i], resolved[i][1]) for i in p]))
-    terms = [d for d, _ in ruled]
+    terms, solutions = [d for d, _ in ruled], [sol for _, sol in ruled]
     changed = sum(1 for a, b in zip(held_terms, terms) if a["success"] and b["success"] and abs(a["T"] - b["T"]) > 1e-9)
     timing["resolve"] = time.perf_counter() - t0 - timing["start"] - timing["steps"]
     residual = float(max(b["residual"] for b in branches))
+    objective, start_objective = float(np.mean([d["D"] for d in terms])), float(np.mean([d["D"] for d in start_terms]))
     message = (f"single-level (published, held horizons): {accepted} of {steps} feasible-path steps accepted"
                f"{f', {fails} Newton corrections failed' if fails else ''}; D on the branches {D:.4f}, max |KKT| "
                f"{residual:.1e}; {time.perf_counter() - t0:.1f} s (start {timing['start']:.1f}, steps {timing['steps']:.1f}, "
                f"re-solves {timing['resolve']:.1f})")
-    return IOCResult(spec=spec, weights=dict(zip(names, map(float, w))), objective=float(np.mean([d["D"] for d in terms])),
-                     start_objective=float(np.mean([d["D"] for d in start_terms])), evaluations=0, iterations=steps,
+    if not objective < start_objective:  # the re-solves left the branches (another least-cost lower level, another
+        # horizon by the rule): the fit never reports weights that fit worse than its start, it keeps the start
+        warn(f"single-level IOC (published): D {objective:.4f} by the duration rule at the fitted weights against "
+             f"{start_objective:.4f} at the start: the start weights are kept, not a fit to report (use --method bilevel)")
+        message += f"; the rule's D at the fitted weights {objective:.4f}, not below the start's: the start's weights are kept"
+        w, objective, held_objective, changed = w_start, start_objective, start_objective, 0
+        terms, solutions = start_terms, [sol for _, sol in ref]
+    return IOCResult(spec=spec, weights=dict(zip(names, map(float, w))), objective=objective,
+                     start_objective=start_objective, evaluations=0, iterations=steps,
                      failed=sum(not d["success"] for d in terms), per_target=terms, message=message,
-                     held_objective=held_objective, horizons_changed=changed, solutions=[sol for _, sol in ruled])
+                     held_objective=held_objective, horizons_changed=changed, solutions=solutions)
 
 
 def _n_cons(spec: IOCSpec, horizon: int) -> int:
