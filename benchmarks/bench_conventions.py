@@ -1,4 +1,4 @@
-"""What the two conventions cost (docs/benchmarks.md, "Models under the two conventions").
+"""What the two conventions cost (docs/benchmarks.md, "OC and IOC").
 
     python benchmarks/bench_conventions.py generate --data ../shared/datasets/walking-2020 [--jobs 2]
     python benchmarks/bench_conventions.py ioc --data ../shared/datasets/walking-2020 [--jobs 2] [--max-evaluations N]

@@ -15,7 +15,7 @@
    - time normalisation to 500 samples: ``preprocess.normalisation.normalise`` vs
      ``ktk.cycles.time_normalize`` vs ``Markers.meca.time_normalize``.
 3. Recovery on the whole study: CoM and theta RMS errors against the truth (as tests/test_recovery.py).
-Prints a Markdown fragment for the "Foundation: import and preprocess" section of docs/benchmarks.md.
+Prints a Markdown fragment for the "Import + preprocess" section of docs/benchmarks.md.
 """
 
 from __future__ import annotations

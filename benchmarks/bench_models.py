@@ -1,4 +1,4 @@
-"""Benchmarks of the walking OC solver and the IOC (docs/benchmarks.md, "Models and IOC").
+"""Benchmarks of the walking OC solver and the IOC (docs/benchmarks.md, "OC and IOC").
 
     python benchmarks/bench_models.py solver            # compiled vs VM; cold / warm / window / crocoddyl
     python benchmarks/bench_models.py ioc --data ../shared/datasets/walking-2020 [--subjects 10]
