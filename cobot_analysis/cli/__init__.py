@@ -87,7 +87,7 @@ def _run(argv: list[str] | None) -> int:
 
 def main() -> None:
     # Arrow's buffers from the C allocator, not Arrow's mimalloc pool, which keeps what it frees (peak memory
-    # of a 10-minute localisation run 188 -> 178 MiB, docs/benchmarks.md). Process-wide, so the command
+    # of a 10-minute localisation run 188 -> 178 MiB, measured). Process-wide, so the command
     # line's choice and not the library's; set before pyarrow is first imported, inherited by the workers.
     os.environ.setdefault("ARROW_DEFAULT_MEMORY_POOL", "system")
     code = _command(None)  # the process ends after it: a garbage collector the command paused stays paused

@@ -116,8 +116,8 @@ def stretched(ocp: WalkerOCP, sol: OCPSolution, T: int) -> np.ndarray:
     turn and the final approach have their own time scale, independent of the horizon, so the first
     and last quarter are kept node for node and only the middle is resampled, its velocities scaled
     by n_middle / T_middle and its controls by the square; frozen nodes at rest on the last pose.
-    (A uniform stretch of the whole path needs about 2.5 times the solver iterations: those
-    boundary layers come out too slow or too fast; docs/benchmarks.md.)"""
+    (A uniform stretch of the whole path needed about 2.5 times the solver iterations, measured: those
+    boundary layers come out too slow or too fast.)"""
     n = sol.U.shape[0]
     w = np.zeros(ocp.n_vars)
     k = np.arange(T + 1, dtype=float)

@@ -330,7 +330,7 @@ class WalkerOCP:
         ``guess``: a previous ``OCPSolution.primal`` (warm start), ``"rest"`` / ``"line"``, or
         ``"coarse"``: the same problem solved from rest on ``COARSE_INTERVALS`` intervals first and
         interpolated (``coarse_guess``; without tracking only). Still a cold solve for the caller, about
-        2.5x faster at 500 nodes (docs/benchmarks.md), but the problem has several local minima and it
+        3.8x faster at 500 nodes (8.6 against 32.4 ms, docs/benchmarks.md, OC solver), but the problem has several local minima and it
         need not end in the one the rest guess ends in (1 of the 6 benchmark starts: a lower-cost one).
         If the primary solver fails and ``fallback``, IPOPT is tried from the same guess.
         ``stats=False``: a converged fatrop solve does not read the solver's statistics (about 0.1 ms of a
