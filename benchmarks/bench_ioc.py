@@ -46,9 +46,11 @@ def workspace_targets(workspace: str, model: str, intervals: int, fit: str, conv
     from cobot_analysis.api.models import goal_rule, ioc_spec, read_trajectories
     from cobot_analysis.models.ioc import targets_from_table
     from cobot_analysis.models.ioc.pace import target_durations
+    from cobot_analysis.stages.models import fit_inputs
 
     ws = Path(workspace)
-    means = read_trajectories(ws / "average" / "means.parquet")
+    means_path, traj_path = fit_inputs(ws, convention)  # the files fit-ioc reads (published: the authors' mean block)
+    means = read_trajectories(means_path if means_path is not None else traj_path)
     df = means[means["kind"] == "mean"] if "kind" in means else means
     if "scenario" in df and df["scenario"].notna().any():
         df = df[df["scenario"].notna()]
@@ -57,8 +59,8 @@ def workspace_targets(workspace: str, model: str, intervals: int, fit: str, conv
                                  convention=conventions.get(convention))
     if convention == "published":
         return spec, targets, None
-    trials = read_trajectories(ws / "import-published" / "trajectories.parquet")
-    dpath = ws / "import-published" / "durations.parquet"
+    trials = read_trajectories(traj_path)
+    dpath = traj_path.parent / "durations.parquet"
     keys = ["scenario", "condition", "direction"]
     measured_T = target_durations(targets, means=df, trials=trials[trials["kind"] == "trial"],
                                   durations=pd.read_parquet(dpath) if dpath.is_file() else None,

@@ -124,6 +124,29 @@ def _walking_means(out, means, convention: str) -> Path | None:
     return None
 
 
+def fit_inputs(out: str | os.PathLike, convention: str, *, means: str | os.PathLike | None = None,
+               trajectories: str | os.PathLike | None = None) -> tuple[Path | None, Path | None]:
+    """(means, trajectories): the files ``fit_ioc`` reads from the workspace ``out`` unless given. The
+    trajectories: import-published's, else preprocess's (None when neither). The means: under the published
+    convention the authors' own mean block (the kind=mean rows of import-published's trajectories), else
+    average/means.parquet (None when absent and trajectories were found: the kind=mean rows of those)."""
+    traj_path = Path(trajectories) if trajectories is not None else None
+    if traj_path is None:
+        try:
+            traj_path = find_input(out, "trajectories.parquet", ["import-published", "preprocess"], "--trajectories")
+        except InputError:
+            traj_path = None
+    if means is None and convention == "published" and traj_path is not None and traj_path.parent.name == "import-published":
+        means = traj_path  # the published convention compares with the authors' own mean block
+    if means is None:
+        try:
+            means = find_input(out, "means.parquet", ["average"], "--means")
+        except InputError:
+            if traj_path is None:
+                raise
+    return (Path(means) if means is not None else None), traj_path
+
+
 def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, trajectories: str | os.PathLike | None = None,
             model: str = "improved", start_weights: str | None = None, fit: list[str] | None = None, optimizer: str = "powell",
             max_evaluations: int = 2000, per: str = "all", subjects: int | None = None, goal: str = "auto", intervals: int = 50,
@@ -151,21 +174,7 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
                     max_evaluations=max_evaluations, intervals=intervals, v_nominal=v_nominal)  # options checked first
     if model == "coupled" and per == "subject":
         raise InputError("--per subject is for the walking study", remedy="fit the coupled model over the pair means (--per all)")
-    traj_path = Path(trajectories) if trajectories is not None else None
-    if traj_path is None:
-        try:
-            traj_path = find_input(out, "trajectories.parquet", ["import-published", "preprocess"], "--trajectories")
-        except InputError:
-            traj_path = None
-    if means is None and conv.name == "published" and traj_path is not None and traj_path.parent.name == "import-published":
-        means = traj_path  # the published convention compares with the authors' own mean block
-    if means is None:
-        try:
-            means = find_input(out, "means.parquet", ["average"], "--means")
-        except InputError:
-            if traj_path is None:
-                raise
-    means = Path(means) if means is not None else None
+    means, traj_path = fit_inputs(out, conv.name, means=means, trajectories=trajectories)
     mean_df = read_trajectories(means) if means is not None else read_trajectories(traj_path)
     mean_src = means if means is not None else traj_path
     traj_df = read_trajectories(traj_path) if traj_path is not None else None
