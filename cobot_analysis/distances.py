@@ -88,7 +88,7 @@ def resample_time(values: ArrayLike, n: int, *, authors: bool = False) -> FloatA
 
 
 def path_distances(measured: dict[str, ArrayLike], other: dict[str, ArrayLike], comparison: Any, *, measured_gamma: ArrayLike | None = None,
-                   resample_measured: bool | None = None) -> dict[str, float]:
+                   resample_measured: bool | None = None, measured_resampled: tuple | None = None) -> dict[str, float]:
     """d_xy, d_theta, d_gamma of ``other`` = (x, y, theta) against ``measured`` = (x, y, theta)
     (N samples) under a ``conventions.Comparison``:
 
@@ -99,6 +99,8 @@ def path_distances(measured: dict[str, ArrayLike], other: dict[str, ArrayLike], 
       its theta by time (``resample_time(authors=True)``); angles compared with
       ``comparison.angle_difference``.
 
+    ``measured_resampled``: the measured (x, y) already resampled by arc length, for a caller comparing many
+    paths with one measured path (the same values as resampling it here).
     gamma: ``measured_gamma`` when given (e.g. the published data's own), else from the measured
     path, and from the (resampled) path for ``other`` (``gamma_from_path``); d_gamma over the first
     N - 1 samples. With ``measured_gamma`` also ``d_theta_tangent``: ``other``'s theta against the
@@ -110,7 +112,7 @@ def path_distances(measured: dict[str, ArrayLike], other: dict[str, ArrayLike], 
     mg = gamma_from_path(mx, my, mth) if measured_gamma is None else np.asarray(measured_gamma, dtype=float)
     if comparison.resample == "arclength":
         if comparison.both_resampled if resample_measured is None else resample_measured:
-            mx, my = resample_arclength(mx, my, n)
+            mx, my = resample_arclength(mx, my, n) if measured_resampled is None else measured_resampled
         ox, oy = resample_arclength(ox, oy, n)
         oth = resample_time(oth, n, authors=True)
     else:

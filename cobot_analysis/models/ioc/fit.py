@@ -109,15 +109,17 @@ def held_weights(model: str, convention="continuous") -> tuple[str, ...]:
 
 
 # ---- lower level (runs on workers) -------------------------------------------------------------
-def distances(t: Target, x, y, theta, convention="continuous") -> dict[str, float]:
+def distances(t: Target, x, y, theta, convention="continuous", *, measured_resampled: tuple | None = None) -> dict[str, float]:
     """d_xy, d_theta, d_gamma of a path (x, y, theta) against target ``t`` under a convention
-    (``distances.path_distances``; the target's recorded gamma when the convention takes it)."""
+    (``distances.path_distances``; the target's recorded gamma when the convention takes it;
+    ``measured_resampled``: t's (x, y) resampled by arc length once for many paths)."""
     from cobot_analysis import conventions
     from cobot_analysis.distances import path_distances
 
     comparison = conventions.get(convention).comparison
     gamma = t.gamma if comparison.measured_gamma == "data" else None
-    return path_distances((t.x, t.y, t.theta), (x, y, theta), comparison, measured_gamma=gamma)
+    return path_distances((t.x, t.y, t.theta), (x, y, theta), comparison, measured_gamma=gamma,
+                          measured_resampled=measured_resampled)
 
 
 def duration_terms(T: float, T0: float, bounds: tuple[float, float] = T_BOUNDS) -> dict:

@@ -159,6 +159,7 @@ class HeldBranch:
 
     def __init__(self, spec: IOCSpec, target: Target, horizon: int, fitted: list[int]):
         from cobot_analysis import conventions
+        from cobot_analysis.distances import resample_arclength
 
         self.spec, self.t, self.T, self.fi = spec, target, int(horizon), list(fitted)
         self.shape = held_shape(spec, horizon)
@@ -169,6 +170,10 @@ class HeldBranch:
         self.start0, self.goal0 = (0.0, 0.0, s[2]), (g[0] - s[0], g[1] - s[1], g[2])
         self.nz = self.ocp.n_vars
         self.order = _ordering(self.shape)
+        # the measured path resampled by arc length once (the published D resamples both paths): D is evaluated
+        # 2k + 1 times per correction
+        both = conventions.PUBLISHED.comparison.both_resampled
+        self.measured = resample_arclength(target.x, target.y, len(target.x)) if both else None
 
     def p(self, w) -> np.ndarray:
         return self.ocp.parameters(self.start0, self.goal0, np.asarray(w, float), self.dt, n_active=self.T)
@@ -189,7 +194,7 @@ class HeldBranch:
 
     def terms(self, z) -> dict:
         """The published distances of the path z (as ``fit.solve_target`` computes them) and D."""
-        d = distances(self.t, *self.path(z), "published")
+        d = distances(self.t, *self.path(z), "published", measured_resampled=self.measured)
         d["D"] = d["d_xy"] + self.spec.angle_weight * d[f"d_{self.spec.angle}"]
         return d
 
