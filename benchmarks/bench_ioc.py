@@ -129,7 +129,7 @@ def main() -> None:
         if published:
             from cobot_analysis.models.ioc.single_level_published import fit_held_horizons
 
-            s = fit_held_horizons(spec, targets, pool=pool, chunks=args.chunks)
+            s = fit_held_horizons(spec, targets, pool=pool)  # one task per path
         else:
             s = fit_feasible_path(spec, targets, pool=pool, chunks=args.chunks, restarts=args.restarts, measured_T=measured_T)
     ts, cs = time.perf_counter() - t0, cpu() - c0

@@ -655,7 +655,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             measured_T = target_durations(targets, means=mean_df, trials=trial_df, durations=durations, mean_keys=mean_keys) \
                 if key == "all" and conv.name == "continuous" and model in ("improved", "table") else None
             if method == "single-level" and conv.name == "published":  # at held horizons (docs/methods.md sec. 6.1)
-                results[key] = fit_held_horizons(spec, targets, pool=pool, chunks=n_chunks,
+                results[key] = fit_held_horizons(spec, targets, pool=pool,
                                                  max_steps=min(spec.max_evaluations, MAX_STEPS), on_step=report)
             elif method == "single-level":  # max_evaluations: its budget of steps, when below the method's own
                 steps = min(spec.max_evaluations, MAX_STEPS)

@@ -230,8 +230,11 @@ class HeldBranch:
         return None
 
     def correct(self, v, w, tol: float, jump: bool) -> dict | None:
-        """The KKT point near v at w (``newton``; ``jump``: if it fails, from the lower level solved at w
-        warm from v's path), its sensitivity S = -K^-1 F_w, D and dD/dy (module docstring)."""
+        """The KKT point near v = (z, lambda) at w (``newton``; ``jump``: if it fails, from the lower level solved
+        at w warm from v's path), its sensitivity S = -K^-1 F_w, D and dD/dy (module docstring). v = z alone: lambda
+        from 0 (F is linear in lambda: the first Newton step finds it)."""
+        if len(v) == self.nz:
+            v = np.concatenate([v, np.zeros(self.ocp.n_cons)])
         out = self.newton(v, w, tol)
         if out is None and jump:
             sol = self.ocp.solve(self.start0, self.goal0, np.asarray(w, float), self.dt, guess=np.asarray(v[:self.nz]),
@@ -256,7 +259,7 @@ def correct_chunk(task) -> list:
     return [HeldBranch(spec, t, T, fitted).correct(v, w, tol, jump) for t, T, v in items]
 
 
-def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, radius: float = 0.3,
+def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, radius: float = 0.3,
                       max_steps: int = 40, tol: float = 1e-8, xtol: float = 1e-3, gtol: float = 1e-5,
                       on_step=None) -> IOCResult:
     """The single-level fit under the published convention (module docstring): the start weights' lower
@@ -268,10 +271,10 @@ def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, chunks
     ``xtol`` or lowers D by less than ``spec.ftol`` (relative, as the bi-level search), the radius falls below
     ``xtol`` (a rejected step is not tried again: ``single_level.shrunk_radius``), the projected gradient below
     ``gtol``, or after ``max_steps`` steps.
-    ``on_step(step, D at the step, least D)`` reports progress."""
+    ``on_step(step, D at the step, least D)`` reports progress. ``pool``: one task per path, the longest
+    first (the rule's horizons grow with the start-goal distance), so the workers end together."""
     from cobot_analysis.console import warn
-    from cobot_analysis.models.ioc.single_level import (box_step, check_spec, free_weights, interleaved_chunks, run_chunks,
-                                                        shrunk_radius)
+    from cobot_analysis.models.ioc.single_level import box_step, check_spec, free_weights, run_chunks, shrunk_radius
     from cobot_analysis.parallel import InlineExecutor
 
     t0 = time.perf_counter()
@@ -282,7 +285,7 @@ def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, chunks
     w[fi] = np.clip(w[fi], 10.0 ** LOG_BOUNDS[0], 10.0 ** LOG_BOUNDS[1])
     w_start = w.copy()
     pool, n = pool or InlineExecutor(), len(targets)
-    parts = interleaved_chunks(n, chunks)
+    parts = [[i] for i in sorted(range(n), key=lambda i: -math.dist(targets[i].start[:2], targets[i].goal[:2]))]
 
     def run(fn, make_task) -> list:
         return run_chunks(pool, fn, parts, make_task, n)
@@ -298,8 +301,8 @@ def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, chunks
         out = run(correct_chunk, lambda p: (held, tuple(fi), tol, jump, w, [(targets[i], horizons[i], V[i]) for i in p]))
         return None if any(b is None for b in out) else out
 
-    # lambda from one Newton step (F is linear in lambda); the primal vectors are the origin-frame NLP's
-    branches = correct(w, [np.concatenate([sol.primal, np.zeros(_n_cons(held, T))]) for (_, sol), T in zip(ref, horizons)])
+    # the primal vectors (the origin-frame NLP's) alone: lambda from one Newton step (``HeldBranch.correct``)
+    branches = correct(w, [sol.primal for _, sol in ref])
     if branches is None:
         raise RuntimeError("single-level (published): a lower-level solution at the start weights is not a regular KKT point")
     timing = {"start": time.perf_counter() - t0}
@@ -377,10 +380,6 @@ def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, chunks
                      start_objective=start_objective, evaluations=0, iterations=steps,
                      failed=sum(not d["success"] for d in terms), per_target=terms, message=message,
                      held_objective=held_objective, horizons_changed=changed, solutions=solutions)
-
-
-def _n_cons(spec: IOCSpec, horizon: int) -> int:
-    return _functions(held_shape(spec, horizon))[0].n_cons
 
 
 def _seed_chunk(task) -> list:
