@@ -241,3 +241,19 @@ def test_a_single_level_fit_that_accepts_no_step_still_writes_its_stage(tmp_path
         assert {n: r.weights[n] for n in FITTED} == {n: W[n] for n in FITTED}
     assert len(outcome.result.distances) == len(r.per_target)
     assert (outcome.directory / "results.md").is_file() and (outcome.directory / "weights.json").is_file()
+
+
+def test_fit_inputs_take_the_authors_mean_block_under_the_published_convention(tmp_path):
+    """fit-ioc (and bench_ioc.py) read the means of average/ under the continuous convention and the authors' own
+    mean block (import-published's trajectories) under the published one; without average/, the trajectories."""
+    from cobot_analysis.stages.models import fit_inputs
+
+    for stage, name in (("import-published", "trajectories.parquet"), ("average", "means.parquet")):
+        (tmp_path / stage).mkdir()
+        (tmp_path / stage / name).write_bytes(b"")
+    traj, means = tmp_path / "import-published" / "trajectories.parquet", tmp_path / "average" / "means.parquet"
+    assert fit_inputs(tmp_path, "published") == (traj, traj)
+    assert fit_inputs(tmp_path, "continuous") == (means, traj)
+    assert fit_inputs(tmp_path, "published", means=means) == (means, traj)  # given means win
+    means.unlink()
+    assert fit_inputs(tmp_path, "continuous") == (None, traj)
