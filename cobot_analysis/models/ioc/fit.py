@@ -276,6 +276,12 @@ def rule_check_chunk(task) -> list[tuple[dict, object]]:
     return out
 
 
+def longest_first(targets: list[Target]) -> list[list[int]]:
+    """One pool task per target, the longest start-goal distance first: under the published convention the
+    duration rule's horizon grows with it (up to 200 d steps), so the workers end together."""
+    return [[i] for i in sorted(range(len(targets)), key=lambda i: -math.dist(targets[i].start[:2], targets[i].goal[:2]))]
+
+
 # ---- upper level -------------------------------------------------------------------------------
 @dataclass
 class IOCResult:
@@ -376,7 +382,9 @@ def fit(spec: IOCSpec, targets: list[Target], *, pool=None, chunks: int = 2, che
         raise InputError(f"unknown optimizer {spec.optimizer!r}", remedy=f"use one of {', '.join(OPTIMIZERS)}")
     pool = pool or InlineExecutor()
     n_chunks = max(1, min(chunks, len(targets)))
-    parts = [list(range(i, len(targets), n_chunks)) for i in range(n_chunks)]  # interleaved: balanced lengths
+    # published: one task per path, longest first (the held horizons differ by 8x); else interleaved chunks
+    parts = longest_first(targets) if spec.convention == "published" else \
+        [list(range(i, len(targets), n_chunks)) for i in range(n_chunks)]
 
     def run(tasks_fn, collect):
         futures = [pool.submit(tasks_fn, task) for task in collect]

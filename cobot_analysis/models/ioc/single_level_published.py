@@ -37,8 +37,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from cobot_analysis.models.ioc.fit import (LOG_BOUNDS, IOCResult, IOCSpec, distances, evaluate_chunk, reference_chunk,
-                                          rule_check_chunk)
+from cobot_analysis.models.ioc.fit import (LOG_BOUNDS, IOCResult, IOCSpec, distances, evaluate_chunk, longest_first,
+                                          reference_chunk, rule_check_chunk)
 from cobot_analysis.models.ioc.targets import Target
 from cobot_analysis.models.presets import names_for
 
@@ -285,7 +285,7 @@ def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, radius
     w[fi] = np.clip(w[fi], 10.0 ** LOG_BOUNDS[0], 10.0 ** LOG_BOUNDS[1])
     w_start = w.copy()
     pool, n = pool or InlineExecutor(), len(targets)
-    parts = [[i] for i in sorted(range(n), key=lambda i: -math.dist(targets[i].start[:2], targets[i].goal[:2]))]
+    parts = longest_first(targets)
 
     def run(fn, make_task) -> list:
         return run_chunks(pool, fn, parts, make_task, n)
