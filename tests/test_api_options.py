@@ -37,6 +37,58 @@ def test_list_options_take_a_list_or_the_command_lines_text(walks, means):
         ca.compare(walks, means, any_vs_any="speed")
 
 
+def test_predict_takes_lists_and_single_names():
+    """``predictors=["cv"]`` was an AttributeError ('list' object has no attribute 'split'), ``entities="walker"``
+    a TypeError from pandas' isin."""
+    walk = walking_table(n_subjects=1, n_conditions=1, n_trials=1, missing_theta=0)
+    a = ca.predict(walk, settings="10:20", predictors="cv,ctrv", jobs=1)
+    b = ca.predict(walk, settings=[(10, 20)], predictors=["cv", "ctrv"], entities="walker", studies="synthetic-walking", jobs=1)
+    pd.testing.assert_frame_equal(a.predictions, b.predictions, check_exact=True)
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda w, m: ca.average(w, max_spread=-1.0), r"^--max-spread must be >= 0, got -1"),
+    (lambda w, m: ca.predict(w, settings="10:20", predictors="cv", every=0), r"^--every must be >= 1, got 0"),
+    (lambda w, m: ca.predict(w, settings="10:20", predictors="cv", limit=0), r"^--limit must be >= 1, got 0"),
+    (lambda w, m: ca.predict(w, settings="10:20", predictors="oc", g0=-1.0), r"^--g0 must be >= 0, got -1"),
+    (lambda w, m: ca.generate("clothoid", start=(-1.5, -3.4, 0.0), samples=1), r"^--samples must be >= 2, got 1"),
+    (lambda w, m: ca.generate("improved", start=(-1.5, -3.4, 0.0), v_nominal=0.0), r"^--v-nominal must be >= 0.01, got 0"),
+    (lambda w, m: ca.generate("improved", start=(-1.5, -3.4, 0.0), duration="fixed", convention="continuous"),
+     r"^unknown --duration 'fixed'; use one of free, search, grid"),
+    (lambda w, m: ca.generate("improved", start="-1.5,-3.4,0"), r"^--start must be a pose \(x, y, theta\)"),
+    (lambda w, m: ca.generate("clothoid", cases=[("E1500", (0.0, -0.9), (0.0, 0.0, 1.57))]), r"^start must be a pose"),
+    (lambda w, m: ca.generate("clothoid", cases=[("E1500", (0.0, -0.9, 0.0))]), r"^a case is \(condition, start, goal\)"),
+    (lambda w, m: ca.walking_cases("published"), r"^the published convention takes the authors' start and goal poses"),
+    (lambda w, m: ca.walking_cases("publish"), r"^--convention 'publish' is not a convention"),
+    (lambda w, m: ca.fit_ioc(m, goal="ends", bootstrap=0), r"^unknown --goal 'ends'; use one of auto, design, end"),
+    (lambda w, m: ca.fit_ioc(m, per="subjects", bootstrap=0), r"^unknown --per 'subjects'; use one of all, subject"),
+    (lambda w, m: ca.fit_ioc(m, max_evaluations=0, bootstrap=0), r"^--max-evaluations must be >= 1, got 0"),
+    (lambda w, m: ca.fit_ioc(m, intervals=5, bootstrap=0), r"^--intervals must be >= 10, got 5"),
+    (lambda w, m: ca.fit_ioc(w, bootstrap=0), r"^no mean walker trajectory \(kind = mean\) with orientation; pass the means"),
+    (lambda w, m: ca.import_published("walking-2020", "nowhere", gamma_limit=-0.5), r"^--gamma-limit must be >= 0"),
+    (lambda w, m: ca.preprocess("nowhere/markers.parquet"), r"^nowhere/markers.parquet: file not found"),
+])
+def test_bad_options_are_one_line_input_errors(walks, means, call, message):
+    """Each was a ZeroDivisionError, IndexError, ValueError, a scipy error or a silent default before."""
+    with pytest.raises(InputError, match=message):
+        call(walks, means)
+
+
+def test_fit_names_take_the_command_lines_text(means):
+    """``fit="a2,a3"`` was split into letters (``--fit names ['a', '2', ',', ...]``)."""
+    fit = ca.fit_ioc(means, fit="a2,a3", intervals=20, max_evaluations=2, bootstrap=0, compare=False, jobs=1)
+    assert fit.names == ("a2", "a3")
+
+
+def test_velocity_commands_bounds():
+    """``rate=0`` was a ZeroDivisionError; ``v_max=-1`` gave commands saturated at -1 m/s, silently."""
+    path = ca.generate("clothoid", start=(-1.5, -3.4, 0.0), samples=50, jobs=1).generated
+    with pytest.raises(InputError, match=r"^--rate must be >= 0.1, got 0"):
+        ca.velocity_commands(path, rate=0.0)
+    with pytest.raises(InputError, match=r"^--v-max must be >= 0, got -1"):
+        ca.velocity_commands(path, v_max=-1.0)
+
+
 def test_tables_of_the_wrong_kind_are_refused(walks, means):
     """An unknown ``kind`` gave 0 means silently; a table in millimetres gave distances 1000 x too large, in "m";
     means of another N a numpy broadcast error; the trajectories as distances a KeyError; a list a TypeError."""

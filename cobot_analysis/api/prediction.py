@@ -12,6 +12,7 @@ from typing import Any
 from cobot_analysis.lazy import pandas as pd
 
 from cobot_analysis import registry
+from cobot_analysis.api.options import at_least, name_list
 from cobot_analysis.errors import InputError
 from cobot_analysis.metrics import prediction as headline
 from cobot_analysis.metrics.records import Metrics, collect
@@ -19,12 +20,17 @@ from cobot_analysis.metrics.records import Metrics, collect
 DEFAULT_SETTINGS = "25:100,50:100,75:100,50:200"
 
 
-def parse_settings(text: str) -> tuple[tuple[int, int], ...]:
-    """``"25:100,50:100"`` -> ((25, 100), (50, 100)).
+def parse_settings(text: str | list) -> tuple[tuple[int, int], ...]:
+    """``"25:100,50:100"`` (or a list of ``"N0:N_OC"`` or of (N0, N_OC)) -> ((25, 100), (50, 100)).
 
-        >>> parse_settings("25:100, 50:200")
-        ((25, 100), (50, 200))
+        >>> parse_settings("25:100, 50:200"), parse_settings([(25, 100), "50:200"])
+        (((25, 100), (50, 200)), ((25, 100), (50, 200)))
     """
+    if not isinstance(text, str):
+        try:
+            text = ",".join(p if isinstance(p, str) else ":".join(str(v) for v in p) for p in text)
+        except TypeError:
+            raise InputError(f"bad settings {text!r}", remedy="write settings as N0:N_OC pairs, e.g. 25:100,50:100") from None
     out = []
     for part in filter(None, (p.strip() for p in text.split(","))):
         try:
@@ -99,7 +105,9 @@ def prediction_config(*, settings: str = DEFAULT_SETTINGS, predictors: str = "oc
     from cobot_analysis.models.prediction.sweep import SweepConfig
 
     conv = conventions.get(convention if convention is not None else weights_convention(weights) or "continuous")
-    config = SweepConfig(settings=parse_settings(settings), predictors=tuple(p.strip() for p in predictors.split(",") if p.strip()),
+    at_least(g0, "--g0", strict=False, example="10")
+    at_least(g1, "--g1", strict=False, example="10")
+    config = SweepConfig(settings=parse_settings(settings), predictors=tuple(name_list(predictors, "--predictors", example="oc,cv") or ()),
                          weights=weights, g0=g0, g1=g1, t_oc=t_oc, nominal_speed=v_nominal, orientation=orientation,
                          convention=conv, goal=None if goal is None else check_goal(goal),
                          candidates=None if candidates is None else parse_candidates(candidates))
@@ -191,11 +199,19 @@ def select(df: pd.DataFrame, config, *, studies: list[str] | None = None, entiti
         ...                          prediction_config(settings="10:20", predictors="cv"), limit=3)
         >>> [t.label for t in trajs], left_out
         (['synthetic-walking/S00_E1500_0/walker', 'synthetic-walking/S00_N1500_0/walker', 'synthetic-walking/S01_E1500_0/walker'], [])
+        >>> select(walking_table(n_subjects=2, n_conditions=2, n_trials=1), prediction_config(settings="10:20"), limit=0)
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: --limit must be >= 1, got 0; e.g. --limit 10
     """
     from cobot_analysis.models.prediction.sweep import predictable_windows, trajectories_from_table
 
     if kind not in ("trial", "mean", "all"):
         raise InputError(f"unknown --kind {kind!r}", remedy="use trial, mean or all")
+    at_least(limit, "--limit", low=1, strict=False, example="10")
+    at_least(every, "--every", low=1, strict=False, example="5")
+    at_least(per_condition, "--per-condition", low=1, strict=False, example="2")
+    studies = name_list(studies, "--only-study", example="walking-2020")
+    entities = name_list(entities, "--entity", example="walker")
     if studies:
         df = df[df["study"].isin(studies)]
     if entities:
@@ -248,6 +264,12 @@ def predict(trajectories: pd.DataFrame | str | os.PathLike, *, settings: str = D
         ('predict', 'continuous', 31)
         >>> sorted(r.figures())     # matplotlib Figures by name, as the stage writes them
         ['prediction_at_k', 'prediction_error_vs_distance', 'prediction_overlay']
+
+    List options as a list or as the command line's comma-separated text: ``predictors=["oc", "cv"]``,
+    ``entities="walker"``.
+
+        >>> predict(walk, settings=["10:20"], predictors=["cv"], entities="walker", jobs=1).summary()
+        '1 trajectory x 1 setting x 1 predictor, 31 windows per predictor'
     """
     import tempfile
 
@@ -255,6 +277,7 @@ def predict(trajectories: pd.DataFrame | str | os.PathLike, *, settings: str = D
 
     config = prediction_config(settings=settings, predictors=predictors, weights=weights, convention=convention, g0=g0, g1=g1,
                                t_oc=t_oc, orientation=orientation, v_nominal=v_nominal)
+    studies, entities = name_list(studies, "--only-study", example="walking-2020"), name_list(entities, "--entity", example="walker")
     path = None
     if not isinstance(trajectories, pd.DataFrame):
         path = Path(trajectories)
