@@ -151,3 +151,17 @@ def test_a_study_dict_of_another_study_is_refused(walks, means):
         ca.statistics(walks, distances, config={"study": "walking-2020", "analysis": [question]})
     table = ca.statistics(walks, distances, config={"study": "synthetic-walking", "analysis": [question]}).table
     assert table["id"].tolist() == ["W1.1"] and table["status"].tolist() == ["ok"]
+
+
+def test_fit_distances_have_the_documented_columns(means):
+    """docs/schemas.md (``IOC_DISTANCES``) did not list ``converged`` and ``convention``, which every fit's
+    distances table (and fit-ioc's distances.parquet) holds."""
+    from cobot_analysis.models.outputs import IOC_DISTANCES, ioc_distances_schema
+
+    dist = ca.fit_ioc(means, intervals=20, max_evaluations=2, bootstrap=0, compare=False, jobs=1).distances
+    documented = list(IOC_DISTANCES.columns)
+    assert [c for c in dist.columns if c not in documented] == []
+    assert [c for c, col in IOC_DISTANCES.columns.items() if col.required and c not in dist.columns] == []
+    assert ioc_distances_schema() is IOC_DISTANCES
+    assert list(ioc_distances_schema(coupled=True).columns)[-6:] == ["direction", "carrier", "T", "T_at_bound", "converged",
+                                                                      "convention"]
