@@ -103,7 +103,7 @@ def test_tables_of_the_wrong_kind_are_refused(walks, means):
         ca.statistics(walks, means)
     with pytest.raises(InputError, match=r"^trajectories must be a DataFrame or the path of a Parquet file, not a list"):
         ca.average([walks])
-    with pytest.raises(InputError, match=r"^trajectories must be a DataFrame or the path of a Parquet file, not a NoneType"):
+    with pytest.raises(InputError, match=r"^means must be a DataFrame or the path of a Parquet file, not None"):
         ca.compare(walks, None)
 
 
@@ -165,3 +165,27 @@ def test_fit_distances_have_the_documented_columns(means):
     assert ioc_distances_schema() is IOC_DISTANCES
     assert list(ioc_distances_schema(coupled=True).columns)[-6:] == ["direction", "carrier", "T", "T_at_bound", "converged",
                                                                       "convention"]
+
+
+def test_a_result_stands_for_its_table(walks, means):
+    """``compare(walks, average(walks))`` (the result, not its ``means``) was a TypeError from pathlib, as was a
+    result given to statistics, fit_ioc, predict or velocity_commands; each now takes the result's table."""
+    from pathlib import Path
+
+    averaged = ca.average(walks)
+    published = ca.PublishedResult("synthetic", Path("."), walks, {})
+    compared = ca.compare(published, averaged)
+    pd.testing.assert_frame_equal(compared.distances, ca.compare(walks, means).distances, check_exact=True)
+    pd.testing.assert_frame_equal(ca.average(published).means, means, check_exact=True)
+    pd.testing.assert_frame_equal(ca.statistics(published, compared).table, ca.statistics(walks, compared.distances).table,
+                                  check_exact=True)
+    fit = ca.fit_ioc(averaged, intervals=20, max_evaluations=2, bootstrap=0, compare=False, jobs=1)
+    assert fit.results["all"].weights == ca.fit_ioc(means, intervals=20, max_evaluations=2, bootstrap=0, compare=False,
+                                                    jobs=1).results["all"].weights
+    walk = walking_table(n_subjects=1, n_conditions=1, n_trials=1)
+    one = ca.PublishedResult("synthetic", Path("."), walk, {})
+    pd.testing.assert_frame_equal(ca.predict(one, settings="10:20", predictors="cv", jobs=1).predictions,
+                                  ca.predict(walk, settings="10:20", predictors="cv", jobs=1).predictions, check_exact=True)
+    path = ca.generate("clothoid", start=(-1.5, -3.4, 0.0), samples=50, jobs=1)
+    pd.testing.assert_frame_equal(ca.velocity_commands(path).commands, ca.velocity_commands(path.generated).commands,
+                                  check_exact=True)

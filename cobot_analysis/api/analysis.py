@@ -46,13 +46,15 @@ def trajectory_set(table: Any, what: tuple[str, ...] = ("trajectories", "means",
         cobot_analysis.errors.InputError: trajectory table has |x| or |y| up to 900, beyond the lab (100 m); give x and y in metres (divide millimetres by 1000)
         >>> trajectory_set([walk])
         Traceback (most recent call last):
-        cobot_analysis.errors.InputError: trajectories must be a DataFrame or the path of a Parquet file, not a list; pass the trajectories table (docs/api.md, "The one input type")
+        cobot_analysis.errors.InputError: trajectories must be a DataFrame or the path of a Parquet file, not a list; pass the table (docs/api.md, "The one input type")
     """
+    from cobot_analysis.api.options import table_of
     from cobot_analysis.compare import pivot, read_trajectory_set
     from cobot_analysis.io.plausibility import LAB_EXTENT
 
     if isinstance(table, TrajectorySet):
         return table
+    table = table_of(table, "trajectories", "trajectories", "means", "generated")
     if isinstance(table, pd.DataFrame):
         if "kind" not in table.columns:  # every analysis selects on it (a file a stage wrote always has it)
             raise InputError("trajectory table lacks column 'kind'",
@@ -67,9 +69,6 @@ def trajectory_set(table: Any, what: tuple[str, ...] = ("trajectories", "means",
             raise InputError(f"trajectory table has |x| or |y| up to {far:.4g}, beyond the lab ({LAB_EXTENT:g} m)",
                              remedy="give x and y in metres (divide millimetres by 1000)")
         return pivot(table)
-    if not isinstance(table, (str, os.PathLike)):
-        raise InputError(f"trajectories must be a DataFrame or the path of a Parquet file, not a {type(table).__name__}",
-                         remedy='pass the trajectories table (docs/api.md, "The one input type")')
     return read_trajectory_set(Path(table), what)
 
 
@@ -179,12 +178,13 @@ def average(trajectories: Any, *, by: str | list[str] | None = None, max_spread:
             E1500         6
             N1500         6
     """
-    from cobot_analysis.api.options import at_least
+    from cobot_analysis.api.options import at_least, table_of
     from cobot_analysis.averaging import MAX_FRAME_SPREAD, MEANS, check_groups, mean_trajectories, spread_warnings
     from cobot_analysis.compare import default_groups
     from cobot_analysis.schema import TRAJECTORIES, read_table
 
     at_least(max_spread, "--max-spread", strict=False, example="1.0")
+    trajectories = table_of(trajectories, "trajectories", "trajectories") if not isinstance(trajectories, TrajectorySet) else trajectories
     ts = trajectory_set(trajectories, ("trajectories",))
     path = None if isinstance(trajectories, (pd.DataFrame, TrajectorySet)) else Path(trajectories)
     groups = check_by(by, list(ts.meta.columns), path) or default_groups(ts.meta)
@@ -275,11 +275,16 @@ def compare(trajectories: Any, means: Any, *, against: Any = None, comparison: s
         (['E1500', 'N1500'], True)
     """
     from cobot_analysis import conventions
+    from cobot_analysis.api.options import table_of
     from cobot_analysis.compare import WALKING_GROUPS, against_set, against_vs_mean, any_vs_any as any_any, compare_sets
     from cobot_analysis.compare import default_groups, excluded_means
     from cobot_analysis.schema import table_metadata
 
     conv = conventions.get(convention)
+    if not isinstance(means, TrajectorySet):
+        means = table_of(means, "means", "means")
+    if against is not None and not isinstance(against, TrajectorySet):
+        against = table_of(against, "against", "generated")
     ts = trajectory_set(trajectories, ("trajectories",))
     mts = trajectory_set(means, ("means",))
     stored = table_metadata(Path(means)).get("grouping") if not isinstance(means, (pd.DataFrame, TrajectorySet)) else None
@@ -386,6 +391,7 @@ def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *
         cobot_analysis.errors.InputError: the distances table lacks column(s) ['comparison', 'global_distance', 'd_xy']; pass the distances of compare (compare(...).distances, or compare/distances.parquet)
     """
     from cobot_analysis import study as st
+    from cobot_analysis.api.options import table_of
     from cobot_analysis.compare import DISTANCES
     from cobot_analysis.schema import read_table
     from cobot_analysis.stats import analyses
@@ -408,6 +414,7 @@ def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *
     else:
         study = st.resolve(Path("."), name, Path(config)) if config is not None else st.Study(name, name, [], [], None)
     path = study.path
+    distances = table_of(distances, "distances", "distances")
     if not isinstance(distances, pd.DataFrame):
         distances = read_table(Path(distances), DISTANCES)
     missing = [c for c in ("comparison", "trial", "entity", "global_distance", "d_xy") if c not in distances.columns]
@@ -445,7 +452,8 @@ def reconstruct(trajectories: Any, *, relative_pose: Any = None, scenario: int =
     """Each subject rebuilt from the table pose and the subject's mean pose in the table frame
     (docs/methods.md sec. 8), compared with the measured trajectory: from the scenario-``scenario`` trials
     themselves and, when given, from a published relative pose: ``import_published(...).subject_wrt_table``
-    (a DataFrame, or the ``subject_wrt_table.parquet`` the stage wrote), or the mapping of
+    (a DataFrame, or the ``subject_wrt_table.parquet`` the stage wrote), the dataset's directory (its
+    ``subject1_wrt_table.dat`` and ``subject2_wrt_table.dat``, as ``--wrt-table``), or the mapping of
     ``reconstruct.read_wrt_table``.
 
         >>> from cobot_analysis.api import reconstruct
@@ -457,13 +465,18 @@ def reconstruct(trajectories: Any, *, relative_pose: Any = None, scenario: int =
         True
     """
     import cobot_analysis.reconstruct as rc
+    from cobot_analysis.api.options import table_of
 
     if relative_pose is not None and not isinstance(relative_pose, dict):
-        if not isinstance(relative_pose, pd.DataFrame):
+        relative_pose = table_of(relative_pose, "relative_pose", "subject_wrt_table")
+        if not isinstance(relative_pose, pd.DataFrame) and Path(relative_pose).is_dir():  # the dataset's .dat files (--wrt-table)
+            relative_pose = rc.read_wrt_table(relative_pose)
+        elif not isinstance(relative_pose, pd.DataFrame):
             from cobot_analysis.io.published import SUBJECT_WRT_TABLE
             from cobot_analysis.schema import read_table
 
             relative_pose = read_table(Path(relative_pose), SUBJECT_WRT_TABLE)
+    if isinstance(relative_pose, pd.DataFrame):
         missing = [c for c in ("entity", "direction", "sample", "x_rel", "y_rel", "theta_rel") if c not in relative_pose.columns]
         if missing:
             raise InputError(f"the relative pose lacks column(s) {missing}",

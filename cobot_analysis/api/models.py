@@ -16,7 +16,7 @@ import numpy as np
 from cobot_analysis.lazy import pandas as pd
 
 from cobot_analysis import registry
-from cobot_analysis.api.options import at_least, name_list, one_of
+from cobot_analysis.api.options import at_least, name_list, one_of, table_of
 from cobot_analysis.errors import InputError
 from cobot_analysis.metrics import models as headline
 from cobot_analysis.metrics.records import Metrics, collect
@@ -364,6 +364,7 @@ def velocity_commands(generated: pd.DataFrame | str | os.PathLike, *, trial: str
     at_least(rate, "--rate", low=0.1, strict=False, example="10")
     at_least(v_max, "--v-max", strict=False, example="0.1")
     at_least(omega_max, "--omega-max", strict=False, example="7")
+    generated = table_of(generated, "generated", "generated")
     if not isinstance(generated, pd.DataFrame):
         path = Path(generated)
         generated = read_table(path, GENERATED)
@@ -561,6 +562,7 @@ def read_trajectories(table: pd.DataFrame | str | os.PathLike) -> pd.DataFrame:
     from cobot_analysis.averaging import MEANS
     from cobot_analysis.schema import TRAJECTORIES, read_table, table_metadata
 
+    table = table_of(table, "the means or trajectories", "means", "trajectories")
     if isinstance(table, pd.DataFrame):
         return table
     try:
@@ -655,6 +657,8 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     at_least(v_nominal, "--v-nominal", low=0.05, strict=False, example="1.0")
     at_least(subjects, "--subjects", low=1, strict=False, example="3")
     fit = name_list(fit, "--fit", example="a2,a3,a4")
+    means = table_of(means, "means", "means", "trajectories")
+    trials = table_of(trials, "trials", "trajectories") if trials is not None else None
     if not isinstance(means, pd.DataFrame):
         means_source = means_source or means
     if trials is not None and not isinstance(trials, pd.DataFrame):

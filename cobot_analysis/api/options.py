@@ -91,3 +91,33 @@ def name_list(value: str | Iterable[str] | None, option: str, example: str = "")
         raise InputError(f"{option} takes names (a list, or one comma-separated string), got {value!r}",
                          remedy=f"e.g. {option} {example}" if example else None)
     return [v.strip() for v in items if v.strip()] or None
+
+
+def table_of(value: Any, what: str, *fields: str) -> Any:
+    """A table argument as given (a DataFrame, or the path of a Parquet file), or the table held by the result of
+    another API function (``fields``: the result's fields that may hold it, first found), so that
+    ``compare(walks, average(walks))`` is ``compare(walks, average(walks).means)``; anything else one line
+    naming the argument (``what``).
+
+        >>> import pandas as pd
+        >>> from cobot_analysis.api import AverageResult
+        >>> result = AverageResult(pd.DataFrame({"x": [0.0]}), [], "", "", 0)
+        >>> table_of(result, "means", "means").equals(result.means), table_of("means.parquet", "means", "means")
+        (True, 'means.parquet')
+        >>> table_of(None, "means", "means")
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: means must be a DataFrame or the path of a Parquet file, not None; pass the table (docs/api.md, "The one input type")
+    """
+    import os
+
+    from cobot_analysis.lazy import pandas as pd
+
+    if isinstance(value, (pd.DataFrame, str, os.PathLike)):
+        return value
+    for name in fields:
+        table = getattr(value, name, None)
+        if isinstance(table, pd.DataFrame):
+            return table
+    kind = "None" if value is None else f"a {type(value).__name__}"
+    raise InputError(f"{what} must be a DataFrame or the path of a Parquet file, not {kind}",
+                     remedy='pass the table (docs/api.md, "The one input type")')

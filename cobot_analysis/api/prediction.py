@@ -12,7 +12,7 @@ from typing import Any
 from cobot_analysis.lazy import pandas as pd
 
 from cobot_analysis import registry
-from cobot_analysis.api.options import at_least, name_list
+from cobot_analysis.api.options import at_least, name_list, table_of
 from cobot_analysis.errors import InputError
 from cobot_analysis.metrics import prediction as headline
 from cobot_analysis.metrics.records import Metrics, collect
@@ -278,6 +278,7 @@ def predict(trajectories: pd.DataFrame | str | os.PathLike, *, settings: str = D
     config = prediction_config(settings=settings, predictors=predictors, weights=weights, convention=convention, g0=g0, g1=g1,
                                t_oc=t_oc, orientation=orientation, v_nominal=v_nominal)
     studies, entities = name_list(studies, "--only-study", example="walking-2020"), name_list(entities, "--entity", example="walker")
+    trajectories = table_of(trajectories, "trajectories", "trajectories", "means")
     path = None
     if not isinstance(trajectories, pd.DataFrame):
         path = Path(trajectories)
