@@ -189,3 +189,14 @@ def test_a_result_stands_for_its_table(walks, means):
     path = ca.generate("clothoid", start=(-1.5, -3.4, 0.0), samples=50, jobs=1)
     pd.testing.assert_frame_equal(ca.velocity_commands(path).commands, ca.velocity_commands(path.generated).commands,
                                   check_exact=True)
+
+
+@pytest.mark.slow
+def test_reconstruct_takes_the_published_relative_pose_as_the_stage_does(datasets):
+    """The dataset's directory (``--wrt-table``), its import's table and the import's result give one reconstruction."""
+    folder = datasets / "pair-carriage-2022"
+    pairs = ca.import_published("pair-carriage-2022", folder)
+    from_dir = ca.reconstruct(pairs.trajectories, relative_pose=folder).reconstruction
+    from_result = ca.reconstruct(pairs, relative_pose=pairs).reconstruction
+    pd.testing.assert_frame_equal(from_dir, from_result, check_exact=True)
+    assert len(from_dir) == 62 and set(from_dir["relative_pose"]) == {"published"}
