@@ -389,9 +389,9 @@ def velocity_commands(generated: pd.DataFrame | str | os.PathLike, *, trial: str
 # ---- inverse optimal control --------------------------------------------------------------------
 @dataclass
 class FitResult:
-    """A bi-level IOC (docs/methods.md sec. 6): per fit (``all``, or a subject) the fitted weights, D at the
-    start and fitted weights, evaluations; the distances of the fitted model to every path (and, with
-    ``compare``, of every compared model to the means)."""
+    """An inverse optimal control fit, bi-level or single-level (``method``; docs/methods.md sec. 6): per fit
+    (``all``, or a subject) the fitted weights, D at the start and fitted weights, evaluations; the distances
+    of the fitted model to every path (and, with ``compare``, of every compared model to the means)."""
 
     model: str
     convention: str
