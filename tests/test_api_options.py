@@ -200,3 +200,13 @@ def test_reconstruct_takes_the_published_relative_pose_as_the_stage_does(dataset
     from_result = ca.reconstruct(pairs, relative_pose=pairs).reconstruction
     pd.testing.assert_frame_equal(from_dir, from_result, check_exact=True)
     assert len(from_dir) == 62 and set(from_dir["relative_pose"]) == {"published"}
+
+
+def test_paths_generated_without_a_study_are_explained(walks, means):
+    """Paths generated without ``study=`` (study 'model') matched no mean: the message now says how to name it."""
+    cases = [c for c in ca.walking_cases("continuous") if c[0] in ("N1500", "E1500")]
+    paths = ca.generate("clothoid", cases=cases, jobs=1).generated
+    with pytest.raises(InputError, match=r"study model \(means: synthetic-walking\).*generate them with study=\"synthetic-walking\"$"):
+        ca.compare(walks, means, against=paths, comparison="model")
+    named = ca.generate("clothoid", cases=cases, study="synthetic-walking", jobs=1).generated
+    assert (ca.compare(walks, means, against=named, comparison="model").distances["comparison"] == "model").sum() == 2
