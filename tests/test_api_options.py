@@ -210,3 +210,8 @@ def test_paths_generated_without_a_study_are_explained(walks, means):
         ca.compare(walks, means, against=paths, comparison="model")
     named = ca.generate("clothoid", cases=cases, study="synthetic-walking", jobs=1).generated
     assert (ca.compare(walks, means, against=named, comparison="model").distances["comparison"] == "model").sum() == 2
+
+
+def test_study_of_a_table(walks):
+    """``study_of(walks)`` (a DataFrame, not a TrajectorySet) was an AttributeError."""
+    assert ca.study_of(walks) == ca.study_of(ca.trajectory_set(walks)) == "synthetic-walking"

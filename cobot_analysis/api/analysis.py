@@ -72,14 +72,17 @@ def trajectory_set(table: Any, what: tuple[str, ...] = ("trajectories", "means",
     return read_trajectory_set(Path(table), what)
 
 
-def study_of(ts: TrajectorySet) -> str:
-    """The study of a set (``a+b`` when it mixes studies).
+def study_of(ts: Any) -> str:
+    """The study of a set, or of a trajectories table (as ``trajectory_set`` takes it; ``a+b`` when it mixes studies).
 
         >>> from cobot_analysis.api import study_of, trajectory_set
         >>> from cobot_analysis.synth.tables import walking_table
-        >>> study_of(trajectory_set(walking_table(n_subjects=1, n_conditions=1, n_trials=1)))
-        'synthetic-walking'
+        >>> walk = walking_table(n_subjects=1, n_conditions=1, n_trials=1)
+        >>> study_of(trajectory_set(walk)), study_of(walk)
+        ('synthetic-walking', 'synthetic-walking')
     """
+    if not isinstance(ts, TrajectorySet):  # a DataFrame was an AttributeError ('DataFrame' object has no attribute 'meta')
+        ts = trajectory_set(ts)
     studies = sorted(ts.meta["study"].dropna().astype(str).unique())
     return studies[0] if len(studies) == 1 else "+".join(studies)
 
