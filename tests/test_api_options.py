@@ -215,3 +215,22 @@ def test_paths_generated_without_a_study_are_explained(walks, means):
 def test_study_of_a_table(walks):
     """``study_of(walks)`` (a DataFrame, not a TrajectorySet) was an AttributeError."""
     assert ca.study_of(walks) == ca.study_of(ca.trajectory_set(walks)) == "synthetic-walking"
+
+
+def test_predict_takes_the_goal_options_of_the_command_line(tmp_path):
+    """``predict --goal --candidates --horizons`` had no API counterpart (``ca.predict(..., goal=...)`` a TypeError);
+    the API now gives what the stage writes."""
+    from cobot_analysis.models.prediction.sweep import PREDICTIONS
+    from cobot_analysis.schema import TRAJECTORIES, read_table, write_table
+    from cobot_analysis.stages.predict import predict as predict_stage
+
+    walk = walking_table(n_subjects=1, n_conditions=1, n_trials=1, missing_theta=0)
+    path = write_table(walk, tmp_path / "trajectories.parquet", TRAJECTORIES)
+    options = dict(settings="10:20", predictors="goal,cv", convention="continuous", goal=(0.0, 0.0, 1.5708), horizons="5,all")
+    api = ca.predict(walk, jobs=1, **options)
+    done = predict_stage(tmp_path / "ws", trajectories=path, jobs=1, **options)
+    keep = ["trial", "predictor", "n0", "n_oc", "n_windows", "delta_xy", "delta_theta", "d_pred", "ade", "fde"]
+    written = read_table(done.directory / "predictions.parquet", PREDICTIONS)
+    pd.testing.assert_frame_equal(api.predictions[keep].reset_index(drop=True), written[keep].reset_index(drop=True),
+                                  check_exact=True, check_dtype=False)
+    assert sorted(api.horizon_errors["horizon"].unique().tolist()) == [-1, 5]

@@ -237,14 +237,18 @@ def predict(trajectories: pd.DataFrame | str | os.PathLike, *, settings: str = D
             weights: str | None = None, convention: str | None = None, g0: float = 10.0, g1: float = 10.0,
             t_oc: float | None = None, orientation: str = "auto", v_nominal: float = 1.0, studies: list[str] | None = None,
             entities: list[str] | None = None, kind: str = "all", limit: int | None = None, every: int = 1,
-            per_condition: int | None = None, work: str | os.PathLike | None = None, jobs: int | None = None,
-            scheduler: str | None = None) -> PredictionResult:
+            per_condition: int | None = None, goal=None, candidates: str | None = None, horizons: str | None = None,
+            work: str | os.PathLike | None = None, jobs: int | None = None, scheduler: str | None = None) -> PredictionResult:
     """Predict every trajectory at every sample k from its last N0 samples over N_OC - N0 samples ahead, for
     each (N0, N_OC) of ``settings`` and each predictor (``oc``: receding-horizon OC; ``cv``: constant
     velocity; ``ctrv``: constant turn rate and velocity), and assess the predictions: delta_xy,
     delta_theta, d_pred (docs/methods.md sec. 7), ADE / FDE. ``work``: a directory that keeps finished
     (trajectory, setting) results, so an interrupted run resumes. The convention defaults to the one the
-    weights were made under (``published`` for the presets; docs/methods.md sec. 11).
+    weights were made under (``published`` for the presets; docs/methods.md sec. 11). The goal-aware
+    predictors (sec. 7.1), as ``predict --goal --candidates --horizons``: ``goal`` (x, y, theta) the goal
+    of ``goal`` (default each trajectory's design goal; refused when the model does not reach it),
+    ``candidates`` ("x,y;x,y") the goals ``goal-inferred`` chooses among, ``horizons`` ("5,50,all") the
+    horizon sweep at the first setting's N0 (sec. 7.2; ``horizon_errors``, ``goal_inference``).
 
     One synthetic walk of 40 samples, N0 = 10, N_OC = 20: N - N0 + 1 = 31 windows per predictor.
 
@@ -270,13 +274,23 @@ def predict(trajectories: pd.DataFrame | str | os.PathLike, *, settings: str = D
 
         >>> predict(walk, settings=["10:20"], predictors=["cv"], entities="walker", jobs=1).summary()
         '1 trajectory x 1 setting x 1 predictor, 31 windows per predictor'
+
+    The goal-aware predictor to a given goal, with the horizon sweep at N0 = 10:
+
+        >>> g = predict(walk, settings="10:20", predictors="goal,cv", convention="continuous", goal=(0.0, 0.0, 1.5708),
+        ...             horizons="5,all", jobs=1)
+        >>> sorted(g.predictions["predictor"]), sorted(g.horizon_errors["horizon"].unique().tolist())   # -1: the whole path
+        (['cv', 'goal'], [-1, 5])
     """
     import tempfile
 
     from cobot_analysis.schema import TRAJECTORIES, read_table
 
+    from cobot_analysis.models.prediction.horizons import parse_horizons
+
     config = prediction_config(settings=settings, predictors=predictors, weights=weights, convention=convention, g0=g0, g1=g1,
-                               t_oc=t_oc, orientation=orientation, v_nominal=v_nominal)
+                               t_oc=t_oc, orientation=orientation, v_nominal=v_nominal, goal=goal, candidates=candidates)
+    horizon_list = None if horizons is None else parse_horizons(horizons)
     studies, entities = name_list(studies, "--only-study", example="walking-2020"), name_list(entities, "--entity", example="walker")
     trajectories = table_of(trajectories, "trajectories", "trajectories", "means")
     path = None
@@ -286,10 +300,15 @@ def predict(trajectories: pd.DataFrame | str | os.PathLike, *, settings: str = D
     trajs, unpredictable = select(trajectories, config, studies=studies, entities=entities, kind=kind, limit=limit, every=every,
                                   path=path, per_condition=per_condition)
     config = with_turn_weight(config, trajectories, studies=studies, entities=entities)
+    if config.goal is not None and "goal" in config.predictors:
+        from cobot_analysis.models.prediction.goal import check_reachable
+
+        check_reachable(trajs, config.goal, min(n0 for n0, _ in config.settings), config.weights_for)
+    sweep = None if horizon_list is None else (config.settings[0][0], horizon_list)  # the horizon sweep at the first N0
     if work is not None:
-        return assess(trajs, config, work, unpredictable=unpredictable, jobs=jobs, scheduler=scheduler)
+        return assess(trajs, config, work, unpredictable=unpredictable, jobs=jobs, scheduler=scheduler, horizons=sweep)
     with tempfile.TemporaryDirectory() as tmp:
-        return assess(trajs, config, tmp, unpredictable=unpredictable, jobs=jobs, scheduler=scheduler)
+        return assess(trajs, config, tmp, unpredictable=unpredictable, jobs=jobs, scheduler=scheduler, horizons=sweep)
 
 
 def assess(trajs: list, config, work: str | os.PathLike, *, unpredictable: list[str] = (), jobs: int | None = None,
