@@ -5,6 +5,8 @@ taken as ``import_published`` gives it."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -234,3 +236,43 @@ def test_predict_takes_the_goal_options_of_the_command_line(tmp_path):
     pd.testing.assert_frame_equal(api.predictions[keep].reset_index(drop=True), written[keep].reset_index(drop=True),
                                   check_exact=True, check_dtype=False)
     assert sorted(api.horizon_errors["horizon"].unique().tolist()) == [-1, 5]
+
+
+def test_statistics_takes_anthropometrics_and_durations_as_the_command_line(tmp_path):
+    """``anthropometrics`` was documented as the subjects' weight and height but had to be a per-pair table of
+    differences (a subjects table was a KeyError 'pair' in a merge); the directory ``--anthropometrics`` takes is now
+    read as the stage reads it, and a table without the per-pair columns is refused."""
+    from cobot_analysis.stats.sources import read_anthropometrics
+
+    pairs = pair_table(n_pairs=2, goals=1)
+    distances = ca.compare(pairs, ca.average(pairs).means).distances
+    pd.DataFrame({"id": ["A", "B", "C", "D"], "weight": [60.0, 80.0, 70.0, 71.0],
+                  "height": [1.6, 1.8, 1.7, 1.75]}).to_csv(tmp_path / "subjects.csv", index=False)
+    pd.DataFrame({"id": ["P01", "P02"], "subject1": ["A", "C"], "subject2": ["B", "D"]}).to_csv(tmp_path / "pairs.csv", index=False)
+    table = read_anthropometrics(tmp_path)
+    assert table["weight_diff"].tolist() == [20.0, 1.0]
+    from_dir = ca.statistics(pairs, distances, anthropometrics=tmp_path).table
+    from_table = ca.statistics(pairs, distances, anthropometrics=table).table
+    pd.testing.assert_frame_equal(from_dir, from_table, check_exact=True)
+    with pytest.raises(InputError, match=r"^the anthropometrics table lacks column\(s\) \['pair', 'weight_diff', 'height_diff'\]"):
+        ca.statistics(pairs, distances, anthropometrics=pd.read_csv(tmp_path / "subjects.csv"))
+    with pytest.raises(InputError, match=r"no subjects.csv and pairs.csv here"):
+        ca.statistics(pairs, distances, anthropometrics=tmp_path / "nowhere")
+    with pytest.raises(InputError, match=r"^the durations table lacks a duration column"):
+        ca.statistics(pairs, distances, durations=distances)
+
+
+@pytest.mark.slow
+def test_statistics_takes_the_published_durations_as_a_file(datasets, tmp_path):
+    """The pair study's durations as the import gives them, as its result, or as its durations.parquet: one table."""
+    from cobot_analysis.io.published import DURATIONS
+    from cobot_analysis.schema import write_table
+
+    pairs = ca.import_published("pair-carriage-2022", datasets / "pair-carriage-2022")
+    distances = ca.compare(pairs, ca.average(pairs)).distances
+    config = Path(__file__).parents[1] / "pipelines" / "pair-carriage-2022.toml"
+    path = write_table(pairs.durations, tmp_path / "durations.parquet", DURATIONS)
+    tables = [ca.statistics(pairs, distances, config=config, durations=d).table for d in (pairs.durations, pairs, path)]
+    for other in tables[1:]:
+        pd.testing.assert_frame_equal(tables[0], other, check_exact=True)
+    assert (tables[0]["status"] == "ok").sum() == 13

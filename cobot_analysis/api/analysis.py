@@ -365,15 +365,16 @@ class StatisticsResult:
 
 
 def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *, config: Any = None,
-               durations: pd.DataFrame | None = None, anthropometrics: pd.DataFrame | None = None,
-               progress=None) -> StatisticsResult:
+               durations: Any = None, anthropometrics: Any = None, progress=None) -> StatisticsResult:
     """Every statistical question of a study (Kruskal-Wallis, Mann-Whitney, Fisher, ANOVA, Pearson, ...,
     with effect sizes and Holm correction within each family; docs/methods.md sec. 4). ``config``: a study
     file (``cobot_analysis.study``, docs/statistics.md) as a path, the same document as a dict, a loaded
     ``Study`` or ``StudyConfig``; None or a file without questions: the default descriptive questions (each
     distance and travel time by each factor, and the tests the design allows). ``distances``: the table of
-    ``compare``; ``durations`` (published pair study) and ``anthropometrics`` (subjects' weight and height)
-    feed the questions that use them.
+    ``compare``; ``durations`` (published pair study: ``import_published(...).durations``, or its
+    durations.parquet) and ``anthropometrics`` (as ``--anthropometrics``: the directory of subjects.csv (id,
+    weight, height) and pairs.csv (id, subject1, subject2), or its table per pair: pair, weight_diff,
+    height_diff, ``stats.sources.read_anthropometrics``) feed the questions that use them.
 
         >>> from cobot_analysis.api import average, compare, statistics
         >>> from cobot_analysis.synth.tables import walking_table
@@ -426,6 +427,7 @@ def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *
                          remedy="pass the distances of compare (compare(...).distances, or compare/distances.parquet)")
     distances = distances.copy()
     distances.attrs = {}
+    durations, anthropometrics = _durations(durations), _anthropometrics(anthropometrics)
     sources = build_sources(ts, distances, durations, anthropometrics, study.alpha)
     questions = st.questions(study, sources)
     cfg.check_levels(questions, sources)
@@ -433,6 +435,44 @@ def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *
     table = analyses.run(questions, sources, progress=progress)
     table["study"] = name
     return StatisticsResult(table, questions, path, name, list(unmatched), waiting, study.declared)
+
+
+def _durations(durations: Any) -> pd.DataFrame | None:
+    """The published pair study's durations: a DataFrame, the import's result, or its durations.parquet."""
+    from cobot_analysis.api.options import table_of
+
+    if durations is None:
+        return None
+    durations = table_of(durations, "durations", "durations")
+    if not isinstance(durations, pd.DataFrame):
+        from cobot_analysis.io.published import DURATIONS
+        from cobot_analysis.schema import read_table
+
+        durations = read_table(Path(durations), DURATIONS)
+    if not {"duration", "duration_s"} & set(durations.columns):
+        raise InputError("the durations table lacks a duration column",
+                         remedy="pass import_published('pair-carriage-2022', ...).durations (or its durations.parquet)")
+    return durations
+
+
+def _anthropometrics(anthropometrics: Any) -> pd.DataFrame | None:
+    """Per pair |weight_1 - weight_2| and |height_1 - height_2|: the table, or read from the directory of
+    subjects.csv and pairs.csv (``stats.sources.read_anthropometrics``)."""
+    from cobot_analysis.stats.sources import read_anthropometrics
+
+    if anthropometrics is None:
+        return None
+    remedy = ("pass the directory of subjects.csv (id, weight, height) and pairs.csv (id, subject1, subject2), or a table "
+              "per pair: pair, weight_diff (kg), height_diff (m)")
+    if not isinstance(anthropometrics, pd.DataFrame):
+        directory = Path(anthropometrics)
+        anthropometrics = read_anthropometrics(directory)
+        if anthropometrics is None:
+            raise InputError("no subjects.csv and pairs.csv here", path=directory, remedy=remedy)
+    missing = [c for c in ("pair", "weight_diff", "height_diff") if c not in anthropometrics.columns]
+    if missing:
+        raise InputError(f"the anthropometrics table lacks column(s) {missing}", remedy=remedy)
+    return anthropometrics
 
 
 # ---- reconstruct --------------------------------------------------------------------------------
