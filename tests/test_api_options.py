@@ -172,8 +172,6 @@ def test_fit_distances_have_the_documented_columns(means):
 def test_a_result_stands_for_its_table(walks, means):
     """``compare(walks, average(walks))`` (the result, not its ``means``) was a TypeError from pathlib, as was a
     result given to statistics, fit_ioc, predict or velocity_commands; each now takes the result's table."""
-    from pathlib import Path
-
     averaged = ca.average(walks)
     published = ca.PublishedResult("synthetic", Path("."), walks, {})
     compared = ca.compare(published, averaged)
