@@ -43,13 +43,9 @@ def at_least(value: float | None, option: str, low: float = 0.0, strict: bool = 
     if value is None:
         return
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        try:
-            import numpy as np
+        import numpy as np
 
-            ok = isinstance(value, (np.integer, np.floating))
-        except ImportError:  # pragma: no cover - numpy is a dependency
-            ok = False
-        if not ok:
+        if not isinstance(value, (np.integer, np.floating)):
             raise InputError(f"{option} must be a number, got {value!r}", remedy=f"e.g. {option} {example}" if example else None)
     if not math.isfinite(value) or value < low or (strict and value == low):
         raise InputError(f"{option} must be {'>' if strict else '>='} {low:g}, got {value:g}",
@@ -75,8 +71,10 @@ def name_list(value: str | Iterable[str] | None, option: str, example: str = "")
     """A list option: a list (or any iterable) of names, or one string of comma-separated names as the command
     line takes it (``"condition,entity"``); None or empty: not given.
 
-        >>> name_list("condition", "--by"), name_list("condition, entity", "--by"), name_list(("condition",), "--by"), name_list(None, "--by")
-        (['condition'], ['condition', 'entity'], ['condition'], None)
+        >>> name_list("condition", "--by"), name_list("condition, entity", "--by")
+        (['condition'], ['condition', 'entity'])
+        >>> name_list(("condition",), "--by"), name_list(None, "--by")
+        (['condition'], None)
         >>> name_list(3, "--by", example="condition,entity")
         Traceback (most recent call last):
         cobot_analysis.errors.InputError: --by takes names (a list, or one comma-separated string), got 3; e.g. --by condition,entity
