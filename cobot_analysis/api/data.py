@@ -200,7 +200,9 @@ class PreprocessResult:
 
     def summary(self) -> str:
         n = self.trajectories[["trial", "entity"]].drop_duplicates().shape[0]
-        return f"{n} trajectories from {self.n_recordings} recordings"
+        k = len(self.refused)
+        refused = f", {k} recording{'s' if k != 1 else ''} refused and left out" if k else ""
+        return f"{n} trajectories from {self.n_recordings} recordings{refused}"
 
     def params_dict(self) -> dict[str, Any]:
         return asdict(self.params)
