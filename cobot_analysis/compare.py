@@ -339,8 +339,11 @@ def against_vs_mean(other: TrajectorySet, means: TrajectorySet, by: list[str], l
                           f"{', ...' if len(ours) > 3 else ''})")
     why = "; ".join(differ) or f"no mean has their combination of {', '.join(cols)}"
     if not hit.any():
+        unnamed = "study" in cols and set(other.meta["study"].dropna().astype(str)) == {"model"}  # generate without a study
         raise InputError(f"none of its {len(other)} trajectories matches a mean on {', '.join(cols)}: {why}", path=path,
-                         remedy="compare with the means of the same study and grouping (--by, --means), or fix those columns")
+                         remedy="compare with the means of the same study and grouping (--by, --means), or fix those columns"
+                         + (f"; paths generated without a study are of study 'model': generate them with "
+                            f"study=\"{sorted(means.meta['study'].dropna().astype(str))[0]}\"" if unnamed else ""))
     warn(f"{path}: {int((~hit).sum())} of its {len(other)} trajectories match no mean on {', '.join(cols)} and are not "
          f"compared: {why}")
     return individual_vs_mean(other, means, cols, members=False).assign(comparison=label)

@@ -18,12 +18,14 @@ class InputError(Exception):
 
     >>> str(InputError("marker LASI missing", path="t1.c3d", remedy="map it with --marker-map"))
     't1.c3d: marker LASI missing; map it with --marker-map'
+    >>> str(InputError("no mean trajectory", path=""))   # a table given in memory: no file to name
+    'no mean trajectory'
     """
 
     exit_code = 2
 
     def __init__(self, message: str, *, path: str | PathLike | None = None, remedy: str | None = None):
-        self.path = None if path is None else str(path)
+        self.path = None if path is None or str(path) == "" else str(path)  # "": no file to name
         self.remedy = remedy
         self.detail = message
         text = message if self.path is None else f"{self.path}: {message}"

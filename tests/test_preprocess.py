@@ -583,3 +583,16 @@ def test_realdata_static_recording_is_reported_as_such(realdata, tmp_path, cli):
     line = " ".join(err.split())  # the only trial: the run is refused, naming the raw file and the remedy once
     assert code == 2 and "pyomeca_markers_analogs.c3d: trial static: nobody walks (static recording?)" in line
     assert "markers.parquet" not in line and line.count("leave it out") == 1
+
+
+def test_the_api_summary_says_which_recordings_were_refused(tmp_path):
+    """With skip_bad (the default) the refused recordings are left out: the result's summary said only "1 trajectories
+    from 1 recordings", so a notebook user did not see that 2 of 3 were refused (the command line lists them)."""
+    from cobot_analysis.api import preprocess
+
+    ws = tmp_path / "ws"
+    parts = walking_trial("W1") + walking_trial("W2", length=0.0) + walking_trial("W3")[:3]
+    write_workspace(ws, parts, [trials_row("W1"), trials_row("W2"), trials_row("W3")])
+    result = preprocess(ws / "import" / "markers.parquet", jobs=1)
+    assert result.summary() == "1 trajectories from 1 recordings, 2 recordings refused and left out"
+    assert sorted(r.trial for r in result.refused) == ["W2", "W3"]

@@ -26,57 +26,87 @@ Trajectories = "pd.DataFrame | str | os.PathLike | TrajectorySet"
 def trajectory_set(table: Any, what: tuple[str, ...] = ("trajectories", "means", "generated_trajectories")) -> TrajectorySet:
     """A trajectories table (DataFrame, or the path of a Parquet file a stage wrote) as a ``TrajectorySet``
     (one row of metadata and N samples of x, y, theta, gamma per trajectory); ``what``: the tables a path
-    may hold.
+    may hold. A DataFrame of your own is checked as a file is: its ``kind`` values (``trial``, ``mean``, ``model``)
+    and its positions in metres (within the lab's ``io.plausibility.LAB_EXTENT``, 100 m: not millimetres).
 
         >>> from cobot_analysis.api import trajectory_set
         >>> from cobot_analysis.synth.tables import walking_table
         >>> ts = trajectory_set(walking_table(n_subjects=2, n_conditions=1, n_trials=1))
         >>> len(ts), ts.n_samples, ts.x.shape
         (2, 40, (2, 40))
-        >>> trajectory_set(walking_table(n_subjects=1, n_conditions=1, n_trials=1).drop(columns="kind"))
+        >>> walk = walking_table(n_subjects=1, n_conditions=1, n_trials=1)
+        >>> trajectory_set(walk.drop(columns="kind"))
         Traceback (most recent call last):
         cobot_analysis.errors.InputError: trajectory table lacks column 'kind'; add it: 'trial' for a recording, 'mean' for a mean trajectory (docs/schemas.md, trajectories)
+        >>> trajectory_set(walk.assign(kind="recording"))
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: trajectory table has kind 'recording'; use 'trial' for a recording, 'mean' for a mean trajectory, 'model' for a generated path (docs/schemas.md, trajectories)
+        >>> trajectory_set(walk.assign(x=1000 * walk["x"], y=1000 * walk["y"]))
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: trajectory table has |x| or |y| up to 900, beyond the lab (100 m); give x and y in metres (divide millimetres by 1000)
+        >>> trajectory_set([walk])
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: trajectories must be a DataFrame or the path of a Parquet file, not a list; pass the table (docs/api.md, "The one input type")
     """
+    from cobot_analysis.api.options import table_of
     from cobot_analysis.compare import pivot, read_trajectory_set
+    from cobot_analysis.io.plausibility import LAB_EXTENT
 
     if isinstance(table, TrajectorySet):
         return table
+    table = table_of(table, "trajectories", "trajectories", "means", "generated")
     if isinstance(table, pd.DataFrame):
         if "kind" not in table.columns:  # every analysis selects on it (a file a stage wrote always has it)
             raise InputError("trajectory table lacks column 'kind'",
                              remedy="add it: 'trial' for a recording, 'mean' for a mean trajectory (docs/schemas.md, trajectories)")
+        kinds = sorted(set(table["kind"].dropna().astype(str)) - {"trial", "mean", "model"})
+        if kinds:  # else the analyses select nothing: a silent empty result
+            raise InputError(f"trajectory table has kind {', '.join(map(repr, kinds))}",
+                             remedy="use 'trial' for a recording, 'mean' for a mean trajectory, 'model' for a generated path "
+                                    "(docs/schemas.md, trajectories)")
+        far = max((float(table[c].abs().max()) for c in ("x", "y") if c in table.columns and table[c].notna().any()), default=0.0)
+        if far > LAB_EXTENT:
+            raise InputError(f"trajectory table has |x| or |y| up to {far:.4g}, beyond the lab ({LAB_EXTENT:g} m)",
+                             remedy="give x and y in metres (divide millimetres by 1000)")
         return pivot(table)
     return read_trajectory_set(Path(table), what)
 
 
-def study_of(ts: TrajectorySet) -> str:
-    """The study of a set (``a+b`` when it mixes studies).
+def study_of(ts: Any) -> str:
+    """The study of a set, or of a trajectories table (as ``trajectory_set`` takes it; ``a+b`` when it mixes studies).
 
         >>> from cobot_analysis.api import study_of, trajectory_set
         >>> from cobot_analysis.synth.tables import walking_table
-        >>> study_of(trajectory_set(walking_table(n_subjects=1, n_conditions=1, n_trials=1)))
-        'synthetic-walking'
+        >>> walk = walking_table(n_subjects=1, n_conditions=1, n_trials=1)
+        >>> study_of(trajectory_set(walk)), study_of(walk)
+        ('synthetic-walking', 'synthetic-walking')
     """
+    if not isinstance(ts, TrajectorySet):  # a DataFrame was an AttributeError ('DataFrame' object has no attribute 'meta')
+        ts = trajectory_set(ts)
     studies = sorted(ts.meta["study"].dropna().astype(str).unique())
     return studies[0] if len(studies) == 1 else "+".join(studies)
 
 
-def check_by(by: list[str] | None, columns, path=None) -> list[str] | None:
-    """The grouping columns asked for (``--by``), refused when one is not a column of the trajectories.
+def check_by(by: str | list[str] | None, columns, path=None, option: str = "--by") -> list[str] | None:
+    """The grouping columns asked for (``--by``; ``option``: the option named in messages), a list or one
+    comma-separated string, refused when one is not a column of the trajectories.
 
         >>> from cobot_analysis.api import check_by
-        >>> check_by(["condition"], ["trial", "condition"])
-        ['condition']
+        >>> check_by(["condition"], ["trial", "condition"]), check_by("condition", ["trial", "condition"])
+        (['condition'], ['condition'])
         >>> check_by(["speed"], ["trial", "condition"])
         Traceback (most recent call last):
         cobot_analysis.errors.InputError: --by names unknown column(s) ['speed']; use columns of the trajectories: trial, condition
     """
+    from cobot_analysis.api.options import name_list
+
+    by = name_list(by, option, example="condition,entity")
     if not by:
         return None
     bad = [c for c in by if c not in columns]
     if bad:
-        raise InputError(f"--by names unknown column(s) {bad}", path=path, remedy=f"use columns of the trajectories: {', '.join(columns)}")
-    return list(by)
+        raise InputError(f"{option} names unknown column(s) {bad}", path=path, remedy=f"use columns of the trajectories: {', '.join(columns)}")
+    return by
 
 
 # ---- average ------------------------------------------------------------------------------------
@@ -132,12 +162,14 @@ class AverageResult:
         return {"means": paths(panels, title=f"{self.study}: mean trajectories")}
 
 
-def average(trajectories: Any, *, by: list[str] | None = None, max_spread: float | None = None) -> AverageResult:
+def average(trajectories: Any, *, by: str | list[str] | None = None, max_spread: float | None = None) -> AverageResult:
     """Mean trajectory per condition (sample-wise mean of positions; circular mean of angles, trajectories
     without orientation left out of the angle means only), with counts, sd and the 95 % band
     (docs/methods.md sec. 2.9). ``by``: grouping columns (default: the study's design,
-    ``compare.default_groups``). A grouping column missing for some trials is refused (the means would
-    pool unrelated trials). A table holding only published means (pair-carriage-2022) is carried over.
+    ``compare.default_groups``; a list, or one comma-separated string). A grouping column missing for some
+    trials is refused (the means would pool unrelated trials). ``max_spread`` (m, default 1): a mean whose
+    trials' start or end points spread more is flagged ``frames_differ``. A table holding only published
+    means (pair-carriage-2022) is carried over.
 
         >>> from cobot_analysis.api import average
         >>> from cobot_analysis.synth.tables import walking_table
@@ -149,12 +181,15 @@ def average(trajectories: Any, *, by: list[str] | None = None, max_spread: float
             E1500         6
             N1500         6
     """
+    from cobot_analysis.api.options import at_least, table_of
     from cobot_analysis.averaging import MAX_FRAME_SPREAD, MEANS, check_groups, mean_trajectories, spread_warnings
     from cobot_analysis.compare import default_groups
     from cobot_analysis.schema import TRAJECTORIES, read_table
 
-    path = None if isinstance(trajectories, (pd.DataFrame, TrajectorySet)) else Path(trajectories)
+    at_least(max_spread, "--max-spread", strict=False, example="1.0")
+    trajectories = table_of(trajectories, "trajectories", "trajectories") if not isinstance(trajectories, TrajectorySet) else trajectories
     ts = trajectory_set(trajectories, ("trajectories",))
+    path = None if isinstance(trajectories, (pd.DataFrame, TrajectorySet)) else Path(trajectories)
     groups = check_by(by, list(ts.meta.columns), path) or default_groups(ts.meta)
     trials = ts.subset(ts.meta["kind"].eq("trial").to_numpy())
     if len(trials):
@@ -218,7 +253,8 @@ class CompareResult:
 
 
 def compare(trajectories: Any, means: Any, *, against: Any = None, comparison: str = "against",
-            any_vs_any: list[str] | None = None, by: list[str] | None = None, convention: str = "continuous") -> CompareResult:
+            any_vs_any: str | list[str] | None = None, by: str | list[str] | None = None,
+            convention: str = "continuous") -> CompareResult:
     """Distances d_xy, d_theta, d_gamma (docs/methods.md sec. 3): every trial vs the mean of its group,
     between scenarios, forward vs reversed return, recomputed vs published means, ``against`` (e.g. model
     paths, ``kind == "model"``) vs the means of the same group, and every two trials that agree on
@@ -242,16 +278,24 @@ def compare(trajectories: Any, means: Any, *, against: Any = None, comparison: s
         (['E1500', 'N1500'], True)
     """
     from cobot_analysis import conventions
+    from cobot_analysis.api.options import table_of
     from cobot_analysis.compare import WALKING_GROUPS, against_set, against_vs_mean, any_vs_any as any_any, compare_sets
     from cobot_analysis.compare import default_groups, excluded_means
     from cobot_analysis.schema import table_metadata
 
     conv = conventions.get(convention)
+    if not isinstance(means, TrajectorySet):
+        means = table_of(means, "means", "means")
+    if against is not None and not isinstance(against, TrajectorySet):
+        against = table_of(against, "against", "generated")
     ts = trajectory_set(trajectories, ("trajectories",))
     mts = trajectory_set(means, ("means",))
     stored = table_metadata(Path(means)).get("grouping") if not isinstance(means, (pd.DataFrame, TrajectorySet)) else None
     groups = check_by(by, list(ts.meta.columns)) or stored or default_groups(ts.meta)
-    same = check_by(any_vs_any, list(ts.meta.columns))
+    same = check_by(any_vs_any, list(ts.meta.columns), option="--any-vs-any")
+    if mts.n_samples != ts.n_samples:
+        raise InputError(f"the means have {mts.n_samples} samples per trajectory, the trajectories {ts.n_samples}",
+                         remedy="average the same trajectories (preprocess --samples gives every trajectory the same N)")
     other = None
     if against is not None:
         if isinstance(against, TrajectorySet):
@@ -321,15 +365,16 @@ class StatisticsResult:
 
 
 def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *, config: Any = None,
-               durations: pd.DataFrame | None = None, anthropometrics: pd.DataFrame | None = None,
-               progress=None) -> StatisticsResult:
+               durations: Any = None, anthropometrics: Any = None, progress=None) -> StatisticsResult:
     """Every statistical question of a study (Kruskal-Wallis, Mann-Whitney, Fisher, ANOVA, Pearson, ...,
     with effect sizes and Holm correction within each family; docs/methods.md sec. 4). ``config``: a study
     file (``cobot_analysis.study``, docs/statistics.md) as a path, the same document as a dict, a loaded
     ``Study`` or ``StudyConfig``; None or a file without questions: the default descriptive questions (each
     distance and travel time by each factor, and the tests the design allows). ``distances``: the table of
-    ``compare``; ``durations`` (published pair study) and ``anthropometrics`` (subjects' weight and height)
-    feed the questions that use them.
+    ``compare``; ``durations`` (published pair study: ``import_published(...).durations``, or its
+    durations.parquet) and ``anthropometrics`` (as ``--anthropometrics``: the directory of subjects.csv (id,
+    weight, height) and pairs.csv (id, subject1, subject2), or its table per pair: pair, weight_diff,
+    height_diff, ``stats.sources.read_anthropometrics``) feed the questions that use them.
 
         >>> from cobot_analysis.api import average, compare, statistics
         >>> from cobot_analysis.synth.tables import walking_table
@@ -342,8 +387,15 @@ def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *
         >>> row = result.table.iloc[0]
         >>> row["test"], int(row["n"]), row["levels"], bool(row["p"] < 0.05)   # the planted subject effect
         ('kruskal', 18, 'S01, S02, S03', True)
+        >>> statistics(walks, distances, config={"study": "walking-2020", "analysis": [question]})
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: study file of study 'walking-2020', but the trajectories are of study 'synthetic-walking'; set study = "synthetic-walking" in it, or pass the study file of the data
+        >>> statistics(walks, walks)   # the trajectories passed as the distances
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: the distances table lacks column(s) ['comparison', 'global_distance', 'd_xy']; pass the distances of compare (compare(...).distances, or compare/distances.parquet)
     """
     from cobot_analysis import study as st
+    from cobot_analysis.api.options import table_of
     from cobot_analysis.compare import DISTANCES
     from cobot_analysis.schema import read_table
     from cobot_analysis.stats import analyses
@@ -351,22 +403,31 @@ def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *
     from cobot_analysis.stats.sources import build_sources
 
     if isinstance(config, dict):
-        config = st.parse(config, Path("study.toml"))
+        config = st.parse(config)  # a document in memory: its messages name no file
     ts = trajectory_set(trajectories, ("trajectories",))
     name = study_of(ts)
     path = None
     if isinstance(config, cfg.StudyConfig):
         cfg.check_study(config, name)
         study = st.Study(name, name, [], [], config, config.path, config.alpha)
-    elif isinstance(config, st.Study):
+    elif isinstance(config, st.Study):  # a dict or a loaded study file: of the data's study, as a path is checked
+        if config.name and config.name != name:
+            raise InputError(f"study file of study {config.name!r}, but the trajectories are of study {name!r}", path=config.path,
+                             remedy=f'set study = "{name}" in it, or pass the study file of the data')
         study = config
     else:
         study = st.resolve(Path("."), name, Path(config)) if config is not None else st.Study(name, name, [], [], None)
     path = study.path
+    distances = table_of(distances, "distances", "distances")
     if not isinstance(distances, pd.DataFrame):
         distances = read_table(Path(distances), DISTANCES)
+    missing = [c for c in ("comparison", "trial", "entity", "global_distance", "d_xy") if c not in distances.columns]
+    if missing:
+        raise InputError(f"the distances table lacks column(s) {missing}",
+                         remedy="pass the distances of compare (compare(...).distances, or compare/distances.parquet)")
     distances = distances.copy()
     distances.attrs = {}
+    durations, anthropometrics = _durations(durations), _anthropometrics(anthropometrics)
     sources = build_sources(ts, distances, durations, anthropometrics, study.alpha)
     questions = st.questions(study, sources)
     cfg.check_levels(questions, sources)
@@ -374,6 +435,44 @@ def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *
     table = analyses.run(questions, sources, progress=progress)
     table["study"] = name
     return StatisticsResult(table, questions, path, name, list(unmatched), waiting, study.declared)
+
+
+def _durations(durations: Any) -> pd.DataFrame | None:
+    """The published pair study's durations: a DataFrame, the import's result, or its durations.parquet."""
+    from cobot_analysis.api.options import table_of
+
+    if durations is None:
+        return None
+    durations = table_of(durations, "durations", "durations")
+    if not isinstance(durations, pd.DataFrame):
+        from cobot_analysis.io.published import DURATIONS
+        from cobot_analysis.schema import read_table
+
+        durations = read_table(Path(durations), DURATIONS)
+    if not {"duration", "duration_s"} & set(durations.columns):
+        raise InputError("the durations table lacks a duration column",
+                         remedy="pass import_published('pair-carriage-2022', ...).durations (or its durations.parquet)")
+    return durations
+
+
+def _anthropometrics(anthropometrics: Any) -> pd.DataFrame | None:
+    """Per pair |weight_1 - weight_2| and |height_1 - height_2|: the table, or read from the directory of
+    subjects.csv and pairs.csv (``stats.sources.read_anthropometrics``)."""
+    from cobot_analysis.stats.sources import read_anthropometrics
+
+    if anthropometrics is None:
+        return None
+    remedy = ("pass the directory of subjects.csv (id, weight, height) and pairs.csv (id, subject1, subject2), or a table "
+              "per pair: pair, weight_diff (kg), height_diff (m)")
+    if not isinstance(anthropometrics, pd.DataFrame):
+        directory = Path(anthropometrics)
+        anthropometrics = read_anthropometrics(directory)
+        if anthropometrics is None:
+            raise InputError("no subjects.csv and pairs.csv here", path=directory, remedy=remedy)
+    missing = [c for c in ("pair", "weight_diff", "height_diff") if c not in anthropometrics.columns]
+    if missing:
+        raise InputError(f"the anthropometrics table lacks column(s) {missing}", remedy=remedy)
+    return anthropometrics
 
 
 # ---- reconstruct --------------------------------------------------------------------------------
@@ -392,10 +491,13 @@ class ReconstructResult:
         return collect(stage, headline.reconstruct, self.reconstruction)
 
 
-def reconstruct(trajectories: Any, *, relative_pose: dict | None = None, scenario: int = 3, progress=None) -> ReconstructResult:
+def reconstruct(trajectories: Any, *, relative_pose: Any = None, scenario: int = 3, progress=None) -> ReconstructResult:
     """Each subject rebuilt from the table pose and the subject's mean pose in the table frame
     (docs/methods.md sec. 8), compared with the measured trajectory: from the scenario-``scenario`` trials
-    themselves and, when given, from a published relative pose (``reconstruct.read_wrt_table``).
+    themselves and, when given, from a published relative pose: ``import_published(...).subject_wrt_table``
+    (a DataFrame, or the ``subject_wrt_table.parquet`` the stage wrote), the dataset's directory (its
+    ``subject1_wrt_table.dat`` and ``subject2_wrt_table.dat``, as ``--wrt-table``), or the mapping of
+    ``reconstruct.read_wrt_table``.
 
         >>> from cobot_analysis.api import reconstruct
         >>> from cobot_analysis.synth.tables import pair_table
@@ -406,7 +508,23 @@ def reconstruct(trajectories: Any, *, relative_pose: dict | None = None, scenari
         True
     """
     import cobot_analysis.reconstruct as rc
+    from cobot_analysis.api.options import table_of
 
+    if relative_pose is not None and not isinstance(relative_pose, dict):
+        relative_pose = table_of(relative_pose, "relative_pose", "subject_wrt_table")
+        if not isinstance(relative_pose, pd.DataFrame) and Path(relative_pose).is_dir():  # the dataset's .dat files (--wrt-table)
+            relative_pose = rc.read_wrt_table(relative_pose)
+        elif not isinstance(relative_pose, pd.DataFrame):
+            from cobot_analysis.io.published import SUBJECT_WRT_TABLE
+            from cobot_analysis.schema import read_table
+
+            relative_pose = read_table(Path(relative_pose), SUBJECT_WRT_TABLE)
+    if isinstance(relative_pose, pd.DataFrame):
+        missing = [c for c in ("entity", "direction", "sample", "x_rel", "y_rel", "theta_rel") if c not in relative_pose.columns]
+        if missing:
+            raise InputError(f"the relative pose lacks column(s) {missing}",
+                             remedy="pass import_published('pair-carriage-2022', ...).subject_wrt_table")
+        relative_pose = rc.relative_pose_table(relative_pose)
     ts = trajectory_set(trajectories, ("trajectories",))
     if not ts.meta["entity"].eq("table").any():
         raise InputError("no table trajectories to reconstruct the subjects from", remedy="use pair-study trajectories")

@@ -84,12 +84,22 @@ def import_markers(protocol: str | os.PathLike | ImportPlan, *, units: str = "au
         ({'walker': ['LASI', 'RASI', 'LPSI', 'RPSI']}, 'mm')
         >>> bool(result.markers[["x", "y", "z"]].abs().max().max() < 10)   # metres, whatever the file's unit
         True
+        >>> import_markers(protocol, max_spike=float("nan"))   # options checked before any file is read
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: --max-spike must be >= 0, got nan; e.g. --max-spike 0.05
         >>> tmp.cleanup()
     """
+    from cobot_analysis.api.options import at_least
     from cobot_analysis.errors import InputError
     from cobot_analysis.io.markers import import_or_refuse, imported_tables, plan_import, refusal_error, stream_import
     from cobot_analysis.parallel import map_tasks
 
+    at_least(lab_extent, "--lab-extent", strict=False, example="100")
+    at_least(max_speed, "--max-speed", strict=False, example="20")
+    at_least(max_spike, "--max-spike", strict=False, example="0.05")
+    if marker_map is not None and not isinstance(marker_map, dict):
+        raise InputError(f"marker_map maps the lab's marker labels to the canonical ones, as a dict; got {marker_map!r}",
+                         remedy='e.g. marker_map={"L_ASIS": "LASI"} (--map L_ASIS=LASI)')
     plan = protocol if isinstance(protocol, ImportPlan) else plan_import(
         protocol, units=units, marker_map=marker_map, marker_map_file=marker_map_file, keep_all=keep_all_markers,
         skip_bad=skip_bad, lab_extent=lab_extent, max_speed=max_speed, max_spike=max_spike)
@@ -156,10 +166,15 @@ def import_published(dataset: str, path: str | os.PathLike, *, gamma_limit: floa
         >>> import_published("walking-2021", "datasets/walking-2020")
         Traceback (most recent call last):
         cobot_analysis.errors.InputError: unknown dataset 'walking-2021'; use one of walking-2020, pair-carriage-2022
+        >>> import_published("walking-2020", "datasets/walking-2020", gamma_limit=-0.5)
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: --gamma-limit must be >= 0, got -0.5; e.g. --gamma-limit 0.5
     """
+    from cobot_analysis.api.options import at_least
     from cobot_analysis.errors import InputError
     from cobot_analysis.io import published as pub
 
+    at_least(gamma_limit, "--gamma-limit", strict=False, example="0.5")
     if dataset not in pub.DATASETS:
         raise InputError(f"unknown dataset {dataset!r}", remedy=f"use one of {', '.join(pub.DATASETS)}")
     path = Path(path)
@@ -185,7 +200,9 @@ class PreprocessResult:
 
     def summary(self) -> str:
         n = self.trajectories[["trial", "entity"]].drop_duplicates().shape[0]
-        return f"{n} trajectories from {self.n_recordings} recordings"
+        k = len(self.refused)
+        refused = f", {k} recording{'s' if k != 1 else ''} refused and left out" if k else ""
+        return f"{n} trajectories from {self.n_recordings} recordings{refused}"
 
     def params_dict(self) -> dict[str, Any]:
         return asdict(self.params)
@@ -217,6 +234,9 @@ def preprocess(markers: str | os.PathLike | ImportResult, trials: str | os.PathL
         >>> walks.groupby("trial")["sample"].count().tolist(), sorted(walks["entity"].unique())
         ([100, 100], ['walker'])
         >>> tmp.cleanup()
+        >>> preprocess("import/markers.parquet")
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: import/markers.parquet: file not found; pass the markers.parquet the import stage wrote, or import_markers()'s result
     """
     from cobot_analysis.errors import InputError
     from cobot_analysis.preprocess.stage import process
@@ -251,6 +271,8 @@ def preprocess(markers: str | os.PathLike | ImportResult, trials: str | os.PathL
             traj, gap_df, n, refused = process(path, Path(tmp) / "trials.parquet", p, jobs=jobs, scheduler=scheduler)
         return PreprocessResult(p, traj, gap_df, n, refused)
     markers = Path(markers)
+    if not markers.is_file():  # named before the trials file beside it
+        raise InputError("file not found", path=markers, remedy="pass the markers.parquet the import stage wrote, or import_markers()'s result")
     trials = Path(trials) if trials is not None else markers.with_name("trials.parquet")
     traj, gap_df, n, refused = process(markers, trials, p, jobs=jobs, scheduler=scheduler)
     return PreprocessResult(p, traj, gap_df, n, refused)

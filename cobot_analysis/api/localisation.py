@@ -12,42 +12,10 @@ from typing import Any
 
 from cobot_analysis.lazy import pandas as pd
 
+from cobot_analysis.api.options import at_least, floats
 from cobot_analysis.errors import InputError
 from cobot_analysis.metrics import localisation as headline
 from cobot_analysis.metrics.records import Metrics, collect
-
-
-def floats(text: str, n: int, option: str) -> tuple[float, ...]:
-    """``n`` comma-separated finite numbers of an option (``--delay-window 0,1.5``).
-
-        >>> floats("0,1.5", 2, "--delay-window")
-        (0.0, 1.5)
-        >>> floats("0", 2, "--delay-window")
-        Traceback (most recent call last):
-        cobot_analysis.errors.InputError: --delay-window needs 2 comma-separated numbers, got '0'; e.g. --delay-window 0,0
-    """
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        values = ()
-    if len(values) != n or not all(math.isfinite(v) for v in values):
-        raise InputError(f"{option} needs {n} comma-separated numbers, got {text!r}", remedy=f"e.g. {option} " + ",".join(["0"] * n))
-    return values
-
-
-def at_least(value: float | None, option: str, low: float = 0.0, strict: bool = True, example: str = "") -> None:
-    """Range check of a number option (before any work): one line naming the option.
-
-        >>> at_least(0.08, "--tol-xy", strict=False)
-        >>> at_least(-1.0, "--tol-xy", strict=False, example="0.08")
-        Traceback (most recent call last):
-        cobot_analysis.errors.InputError: --tol-xy must be >= 0, got -1; e.g. --tol-xy 0.08
-    """
-    if value is None:
-        return
-    if not math.isfinite(value) or value < low or (strict and value == low):
-        raise InputError(f"{option} must be {'>' if strict else '>='} {low:g}, got {value:g}",
-                         remedy=f"e.g. {option} {example}" if example else None)
 
 
 def run_labels(bags: list[Path]) -> list[str]:
@@ -151,6 +119,7 @@ def localisation_options(bags: list[Path], *, truth: str = "/mocap/pose", icp: s
     at_least(min_stop, "--min-stop", strict=False, example="3")
     at_least(tol_xy, "--tol-xy", strict=False, example="0.08")
     at_least(tol_yaw, "--tol-yaw", strict=False, example="0.07")
+    at_least(min_samples, "--min-samples", low=3, strict=False, example="20")
     try:
         up_axes = vertical.parse(up)
     except ValueError:
@@ -179,10 +148,11 @@ def localisation_options(bags: list[Path], *, truth: str = "/mocap/pose", icp: s
     return opts, labels, maps
 
 
-def localise(bags: list[str | os.PathLike], *, jobs: int | None = None, scheduler: str | None = None,
+def localise(bags: str | os.PathLike | list[str | os.PathLike], *, jobs: int | None = None, scheduler: str | None = None,
              **options: Any) -> LocalisationResult:
     """Localisation accuracy of ICP against motion capture in each bag (ROS1 .bag, ROS2 bag directory,
-    .mcap): delay, structural offset, per-axis errors, APE, drift, goal accuracy (docs/methods.md sec. 9).
+    .mcap; one bag, or a list): delay, structural offset, per-axis errors, APE, drift, goal accuracy
+    (docs/methods.md sec. 9).
     ``options``: those of ``localisation_options`` (the command line's, e.g. ``truth="/mocap/pose"``,
     ``icp="/icp/pose"``, ``delay=None`` to estimate it, ``alignment="mean"``).
 
@@ -200,9 +170,20 @@ def localise(bags: list[str | os.PathLike], *, jobs: int | None = None, schedule
         >>> run = r.runs.iloc[0]
         >>> round(float(run["offset_x"]), 2), round(float(run["offset_y"]), 2), round(float(run["offset_z"]), 2)
         (0.12, -0.08, 0.04)
+        >>> localise(bag, delay=0.55).runs["run"].tolist()   # one bag alone; the delay given
+        ['run']
+        >>> localise(bag, tol=0.1)
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: unknown localise option(s) ['tol']; use truth, icp, time, label, map_name, delay, delay_window, delay_weights, alignment, association, max_gap, max_diff, goals_csv, goal_topic, speed_threshold, yaw_rate_threshold, min_stop, tol_xy, tol_yaw, distance_window, up, min_samples
         >>> tmp.cleanup()
     """
-    bags = [Path(b) for b in bags]
+    import inspect
+
+    known = [p for p in inspect.signature(localisation_options).parameters if p != "bags"]
+    unknown = sorted(set(options) - set(known))
+    if unknown:
+        raise InputError(f"unknown localise option(s) {unknown}", remedy=f"use {', '.join(known)}")
+    bags = [Path(bags)] if isinstance(bags, (str, os.PathLike)) else [Path(b) for b in bags]
     for b in bags:
         if not b.exists():
             raise InputError("no such file or directory", path=b, remedy="check the path")

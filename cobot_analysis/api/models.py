@@ -16,6 +16,7 @@ import numpy as np
 from cobot_analysis.lazy import pandas as pd
 
 from cobot_analysis import registry
+from cobot_analysis.api.options import at_least, name_list, one_of, table_of
 from cobot_analysis.errors import InputError
 from cobot_analysis.metrics import models as headline
 from cobot_analysis.metrics.records import Metrics, collect
@@ -162,10 +163,23 @@ def generate(model: str = "improved", *, start: tuple[float, float, float] | Non
         >>> oc = generate("improved", start=(-1.5, -3.4, 0.0), samples=50, intervals=20, jobs=1)
         >>> oc.convention, bool(abs(oc.generated[["x", "y"]].iloc[-1]).max() < 0.01)
         ('published', True)
+
+    Options are checked as the command line checks them, before any solve:
+
+        >>> generate("improved", start=(-1.5, -3.4, 0.0), duration="fixed", convention="continuous")
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: unknown --duration 'fixed'; use one of free, search, grid
+        >>> generate("improved", start=(-1.5, -3.4, 0.0), samples=1)
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: --samples must be >= 2, got 1; e.g. --samples 500
     """
     from cobot_analysis.models import refuse_unreached
     from cobot_analysis.parallel import map_tasks
 
+    at_least(samples, "--samples", low=2, strict=False, example="500")
+    at_least(intervals, "--intervals", low=10, strict=False, example="100")
+    at_least(v_nominal, "--v-nominal", low=0.01, strict=False, example="1.0")
+    at_least(max_iter, "--max-iter", low=1, strict=False, example="500")
     models, conv, cases = plan_generate(model, weights=weights, start=start, goal=goal, cases=cases, duration=duration,
                                         convention=convention)
     kw = {"n_samples": samples, "n_intervals": intervals, "duration": duration, "v_nominal": v_nominal,
@@ -197,10 +211,13 @@ def plan_generate(model: str, *, weights: Any = None, start: tuple | None = None
     """
     from cobot_analysis.design import WALKING_GOAL
     from cobot_analysis.models import MODELS, check_endpoints
+    from cobot_analysis.models.oc.duration import DURATION_METHODS
     from cobot_analysis.models.presets import load_weights
 
     if model not in MODEL_CHOICES:
         raise InputError(f"unknown model {model!r}", remedy=f"use one of {', '.join(MODEL_CHOICES)}")
+    if duration is not None:
+        one_of(duration, "--duration", DURATION_METHODS)
     models = list(MODELS) if model == "all" else [model]
     if weights is not None and any(m != "clothoid" for m in models):
         load_weights(weights, "improved")  # validate before any work
@@ -208,14 +225,38 @@ def plan_generate(model: str, *, weights: Any = None, start: tuple | None = None
     if conv.name == "published" and duration is not None:
         raise InputError("--duration does not apply to the published convention (it has the authors' duration rule)",
                          remedy="leave --duration out, or use --convention continuous")
-    goal = tuple(goal) if goal is not None else WALKING_GOAL
+    goal = pose(goal, "--goal") if goal is not None else WALKING_GOAL
     if cases is None:
         if start is None:
             raise InputError("nothing to generate", remedy="give --start X Y THETA or --study walking-2020")
-        cases = [("", tuple(start), goal)]
-    for _, s, g in cases:
-        check_endpoints(s, g)
+        cases = [("", pose(start, "--start"), goal)]
+    for case in cases:
+        if not (isinstance(case, (tuple, list)) and len(case) == 3):
+            raise InputError(f"a case is (condition, start, goal), got {case!r}", remedy="build the cases with walking_cases()")
+        check_endpoints(pose(case[1], "start"), pose(case[2], "goal"))
     return models, conv, cases
+
+
+def pose(value: Any, option: str) -> tuple[float, float, float]:
+    """A pose (x, y, theta in m, m, rad) given as three numbers.
+
+        >>> from cobot_analysis.api.models import pose
+        >>> pose([-1.5, -3.4, 0], "--start")
+        (-1.5, -3.4, 0.0)
+        >>> pose("-1.5,-3.4,0", "--start")
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: --start must be a pose (x, y, theta): three numbers, got '-1.5,-3.4,0'; e.g. --start -1.5 -3.4 0
+    """
+    try:
+        if isinstance(value, str):
+            raise TypeError
+        values = tuple(float(v) for v in value)
+    except (TypeError, ValueError):
+        values = ()
+    if len(values) != 3:
+        raise InputError(f"{option} must be a pose (x, y, theta): three numbers, got {value!r}",
+                         remedy=f"e.g. {option} -1.5 -3.4 0" if option.startswith("--") else "e.g. (-1.5, -3.4, 0.0)")
+    return values
 
 
 def walking_cases(convention: str, means: pd.DataFrame | None = None, *, goal: tuple | None = None, path=None) -> list:
@@ -228,12 +269,20 @@ def walking_cases(convention: str, means: pd.DataFrame | None = None, *, goal: t
         >>> cases = walking_cases("continuous")
         >>> len(cases), cases[0]
         (40, ('N1500', (-0.0, -0.9, 1.5707963267948966), (0.0, 0.0, 1.5707963267948966)))
+        >>> walking_cases("published")
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: the published convention takes the authors' start and goal poses from the measured means; pass the walking-2020 means: walking_cases("published", means)
     """
+    from cobot_analysis import conventions
     from cobot_analysis.design import WALKING_CONDITIONS, WALKING_GOAL, walking_condition
     from cobot_analysis.models.comparison import study_cases
 
-    goal = tuple(goal) if goal is not None else WALKING_GOAL
-    if means is None and convention != "published":
+    convention = conventions.get(convention).name
+    goal = pose(goal, "--goal") if goal is not None else WALKING_GOAL
+    if means is None and convention == "published":
+        raise InputError("the published convention takes the authors' start and goal poses from the measured means",
+                         remedy='pass the walking-2020 means: walking_cases("published", means)')
+    if means is None:
         return [(c, walking_condition(c).start, goal) for c in WALKING_CONDITIONS]
     cases = study_cases(means, convention, goal, path=path)
     if not cases:
@@ -302,6 +351,9 @@ def velocity_commands(generated: pd.DataFrame | str | os.PathLike, *, trial: str
         >>> velocity_commands("no/generated.parquet")
         Traceback (most recent call last):
         cobot_analysis.errors.InputError: no/generated.parquet: file not found; run the stage that writes generated_trajectories first or check --out
+        >>> velocity_commands(path, v_max=-0.1)
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: --v-max must be >= 0, got -0.1; e.g. --v-max 0.1
     """
     import math
 
@@ -309,6 +361,10 @@ def velocity_commands(generated: pd.DataFrame | str | os.PathLike, *, trial: str
     from cobot_analysis.models.velocity_commands import check_time_law, resample_path, velocity_commands as commands
     from cobot_analysis.schema import read_table
 
+    at_least(rate, "--rate", low=0.1, strict=False, example="10")
+    at_least(v_max, "--v-max", strict=False, example="0.1")
+    at_least(omega_max, "--omega-max", strict=False, example="7")
+    generated = table_of(generated, "generated", "generated")
     if not isinstance(generated, pd.DataFrame):
         path = Path(generated)
         generated = read_table(path, GENERATED)
@@ -333,9 +389,9 @@ def velocity_commands(generated: pd.DataFrame | str | os.PathLike, *, trial: str
 # ---- inverse optimal control --------------------------------------------------------------------
 @dataclass
 class FitResult:
-    """A bi-level IOC (docs/methods.md sec. 6): per fit (``all``, or a subject) the fitted weights, D at the
-    start and fitted weights, evaluations; the distances of the fitted model to every path (and, with
-    ``compare``, of every compared model to the means)."""
+    """An inverse optimal control fit, bi-level or single-level (``method``; docs/methods.md sec. 6): per fit
+    (``all``, or a subject) the fitted weights, D at the start and fitted weights, evaluations; the distances
+    of the fitted model to every path (and, with ``compare``, of every compared model to the means)."""
 
     model: str
     convention: str
@@ -506,6 +562,7 @@ def read_trajectories(table: pd.DataFrame | str | os.PathLike) -> pd.DataFrame:
     from cobot_analysis.averaging import MEANS
     from cobot_analysis.schema import TRAJECTORIES, read_table, table_metadata
 
+    table = table_of(table, "the means or trajectories", "means", "trajectories")
     if isinstance(table, pd.DataFrame):
         return table
     try:
@@ -577,6 +634,9 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         ['convention', 'fits', 'method', 'model', 'weights', 'weights_order']
         >>> sorted(fit.uncertainty["all"]["verdicts"]) == list(fit.names)   # each weight's verdict (and interval)
         True
+        >>> fit_ioc(means, per="subjects")
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: unknown --per 'subjects'; use one of all, subject
     """
     from cobot_analysis import conventions
     from cobot_analysis.models.comparison import compare_models_keeping, compared_models, coupled_distances, orientation_of, subject_distances
@@ -590,6 +650,15 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
 
     check_method(method, bootstrap)
     check_profiles(profiles)
+    one_of(per, "--per", ("all", "subject"))
+    one_of(goal, "--goal", ("auto", "design", "end"))
+    at_least(max_evaluations, "--max-evaluations", low=1, strict=False, example="2000")
+    at_least(intervals, "--intervals", low=10, strict=False, example="50")
+    at_least(v_nominal, "--v-nominal", low=0.05, strict=False, example="1.0")
+    at_least(subjects, "--subjects", low=1, strict=False, example="3")
+    fit = name_list(fit, "--fit", example="a2,a3,a4")
+    means = table_of(means, "means", "means", "trajectories")
+    trials = table_of(trials, "trials", "trajectories") if trials is not None else None
     if not isinstance(means, pd.DataFrame):
         means_source = means_source or means
     if trials is not None and not isinstance(trials, pd.DataFrame):
@@ -620,7 +689,8 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             if model == "coupled":
                 raise InputError("no scenario-3 mean path with both carriers (subject1 and subject2, with orientation)",
                                  path=means_source, remedy="pass the pair study's means (run average on the pair workspace)")
-            raise InputError(f"no mean {entity} trajectory with orientation", path=means_source, remedy="check the input (run average first?)")
+            raise InputError(f"no mean {entity} trajectory (kind = mean) with orientation", path=means_source,
+                             remedy="pass the means of average (average/means.parquet, or average(...).means)")
         fits["all"] = mean_targets
     else:
         if trial_df is None or trial_df.empty:

@@ -12,6 +12,7 @@ from typing import Any
 from cobot_analysis.lazy import pandas as pd
 
 from cobot_analysis import registry
+from cobot_analysis.api.options import at_least, name_list, table_of
 from cobot_analysis.errors import InputError
 from cobot_analysis.metrics import prediction as headline
 from cobot_analysis.metrics.records import Metrics, collect
@@ -19,12 +20,17 @@ from cobot_analysis.metrics.records import Metrics, collect
 DEFAULT_SETTINGS = "25:100,50:100,75:100,50:200"
 
 
-def parse_settings(text: str) -> tuple[tuple[int, int], ...]:
-    """``"25:100,50:100"`` -> ((25, 100), (50, 100)).
+def parse_settings(text: str | list) -> tuple[tuple[int, int], ...]:
+    """``"25:100,50:100"`` (or a list of ``"N0:N_OC"`` or of (N0, N_OC)) -> ((25, 100), (50, 100)).
 
-        >>> parse_settings("25:100, 50:200")
-        ((25, 100), (50, 200))
+        >>> parse_settings("25:100, 50:200"), parse_settings([(25, 100), "50:200"])
+        (((25, 100), (50, 200)), ((25, 100), (50, 200)))
     """
+    if not isinstance(text, str):
+        try:
+            text = ",".join(p if isinstance(p, str) else ":".join(str(v) for v in p) for p in text)
+        except TypeError:
+            raise InputError(f"bad settings {text!r}", remedy="write settings as N0:N_OC pairs, e.g. 25:100,50:100") from None
     out = []
     for part in filter(None, (p.strip() for p in text.split(","))):
         try:
@@ -99,7 +105,9 @@ def prediction_config(*, settings: str = DEFAULT_SETTINGS, predictors: str = "oc
     from cobot_analysis.models.prediction.sweep import SweepConfig
 
     conv = conventions.get(convention if convention is not None else weights_convention(weights) or "continuous")
-    config = SweepConfig(settings=parse_settings(settings), predictors=tuple(p.strip() for p in predictors.split(",") if p.strip()),
+    at_least(g0, "--g0", strict=False, example="10")
+    at_least(g1, "--g1", strict=False, example="10")
+    config = SweepConfig(settings=parse_settings(settings), predictors=tuple(name_list(predictors, "--predictors", example="oc,cv") or ()),
                          weights=weights, g0=g0, g1=g1, t_oc=t_oc, nominal_speed=v_nominal, orientation=orientation,
                          convention=conv, goal=None if goal is None else check_goal(goal),
                          candidates=None if candidates is None else parse_candidates(candidates))
@@ -191,11 +199,19 @@ def select(df: pd.DataFrame, config, *, studies: list[str] | None = None, entiti
         ...                          prediction_config(settings="10:20", predictors="cv"), limit=3)
         >>> [t.label for t in trajs], left_out
         (['synthetic-walking/S00_E1500_0/walker', 'synthetic-walking/S00_N1500_0/walker', 'synthetic-walking/S01_E1500_0/walker'], [])
+        >>> select(walking_table(n_subjects=2, n_conditions=2, n_trials=1), prediction_config(settings="10:20"), limit=0)
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: --limit must be >= 1, got 0; e.g. --limit 10
     """
     from cobot_analysis.models.prediction.sweep import predictable_windows, trajectories_from_table
 
     if kind not in ("trial", "mean", "all"):
         raise InputError(f"unknown --kind {kind!r}", remedy="use trial, mean or all")
+    at_least(limit, "--limit", low=1, strict=False, example="10")
+    at_least(every, "--every", low=1, strict=False, example="5")
+    at_least(per_condition, "--per-condition", low=1, strict=False, example="2")
+    studies = name_list(studies, "--only-study", example="walking-2020")
+    entities = name_list(entities, "--entity", example="walker")
     if studies:
         df = df[df["study"].isin(studies)]
     if entities:
@@ -221,14 +237,18 @@ def predict(trajectories: pd.DataFrame | str | os.PathLike, *, settings: str = D
             weights: str | None = None, convention: str | None = None, g0: float = 10.0, g1: float = 10.0,
             t_oc: float | None = None, orientation: str = "auto", v_nominal: float = 1.0, studies: list[str] | None = None,
             entities: list[str] | None = None, kind: str = "all", limit: int | None = None, every: int = 1,
-            per_condition: int | None = None, work: str | os.PathLike | None = None, jobs: int | None = None,
-            scheduler: str | None = None) -> PredictionResult:
+            per_condition: int | None = None, goal=None, candidates: str | None = None, horizons: str | None = None,
+            work: str | os.PathLike | None = None, jobs: int | None = None, scheduler: str | None = None) -> PredictionResult:
     """Predict every trajectory at every sample k from its last N0 samples over N_OC - N0 samples ahead, for
     each (N0, N_OC) of ``settings`` and each predictor (``oc``: receding-horizon OC; ``cv``: constant
     velocity; ``ctrv``: constant turn rate and velocity), and assess the predictions: delta_xy,
     delta_theta, d_pred (docs/methods.md sec. 7), ADE / FDE. ``work``: a directory that keeps finished
     (trajectory, setting) results, so an interrupted run resumes. The convention defaults to the one the
-    weights were made under (``published`` for the presets; docs/methods.md sec. 11).
+    weights were made under (``published`` for the presets; docs/methods.md sec. 11). The goal-aware
+    predictors (sec. 7.1), as ``predict --goal --candidates --horizons``: ``goal`` (x, y, theta) the goal
+    of ``goal`` (default each trajectory's design goal; refused when the model does not reach it),
+    ``candidates`` ("x,y;x,y") the goals ``goal-inferred`` chooses among, ``horizons`` ("5,50,all") the
+    horizon sweep at the first setting's N0 (sec. 7.2; ``horizon_errors``, ``goal_inference``).
 
     One synthetic walk of 40 samples, N0 = 10, N_OC = 20: N - N0 + 1 = 31 windows per predictor.
 
@@ -248,13 +268,31 @@ def predict(trajectories: pd.DataFrame | str | os.PathLike, *, settings: str = D
         ('predict', 'continuous', 31)
         >>> sorted(r.figures())     # matplotlib Figures by name, as the stage writes them
         ['prediction_at_k', 'prediction_error_vs_distance', 'prediction_overlay']
+
+    List options as a list or as the command line's comma-separated text: ``predictors=["oc", "cv"]``,
+    ``entities="walker"``.
+
+        >>> predict(walk, settings=["10:20"], predictors=["cv"], entities="walker", jobs=1).summary()
+        '1 trajectory x 1 setting x 1 predictor, 31 windows per predictor'
+
+    The goal-aware predictor to a given goal, with the horizon sweep at N0 = 10:
+
+        >>> g = predict(walk, settings="10:20", predictors="goal,cv", convention="continuous", goal=(0.0, 0.0, 1.5708),
+        ...             horizons="5,all", jobs=1)
+        >>> sorted(g.predictions["predictor"]), sorted(g.horizon_errors["horizon"].unique().tolist())   # -1: the whole path
+        (['cv', 'goal'], [-1, 5])
     """
     import tempfile
 
     from cobot_analysis.schema import TRAJECTORIES, read_table
 
+    from cobot_analysis.models.prediction.horizons import parse_horizons
+
     config = prediction_config(settings=settings, predictors=predictors, weights=weights, convention=convention, g0=g0, g1=g1,
-                               t_oc=t_oc, orientation=orientation, v_nominal=v_nominal)
+                               t_oc=t_oc, orientation=orientation, v_nominal=v_nominal, goal=goal, candidates=candidates)
+    horizon_list = None if horizons is None else parse_horizons(horizons)
+    studies, entities = name_list(studies, "--only-study", example="walking-2020"), name_list(entities, "--entity", example="walker")
+    trajectories = table_of(trajectories, "trajectories", "trajectories", "means")
     path = None
     if not isinstance(trajectories, pd.DataFrame):
         path = Path(trajectories)
@@ -262,10 +300,15 @@ def predict(trajectories: pd.DataFrame | str | os.PathLike, *, settings: str = D
     trajs, unpredictable = select(trajectories, config, studies=studies, entities=entities, kind=kind, limit=limit, every=every,
                                   path=path, per_condition=per_condition)
     config = with_turn_weight(config, trajectories, studies=studies, entities=entities)
+    if config.goal is not None and "goal" in config.predictors:
+        from cobot_analysis.models.prediction.goal import check_reachable
+
+        check_reachable(trajs, config.goal, min(n0 for n0, _ in config.settings), config.weights_for)
+    sweep = None if horizon_list is None else (config.settings[0][0], horizon_list)  # the horizon sweep at the first N0
     if work is not None:
-        return assess(trajs, config, work, unpredictable=unpredictable, jobs=jobs, scheduler=scheduler)
+        return assess(trajs, config, work, unpredictable=unpredictable, jobs=jobs, scheduler=scheduler, horizons=sweep)
     with tempfile.TemporaryDirectory() as tmp:
-        return assess(trajs, config, tmp, unpredictable=unpredictable, jobs=jobs, scheduler=scheduler)
+        return assess(trajs, config, tmp, unpredictable=unpredictable, jobs=jobs, scheduler=scheduler, horizons=sweep)
 
 
 def assess(trajs: list, config, work: str | os.PathLike, *, unpredictable: list[str] = (), jobs: int | None = None,

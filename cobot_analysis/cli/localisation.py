@@ -91,7 +91,7 @@ def synth_localisation_command(
 ) -> None:
     """Synthetic robot run: mocap 200 Hz, ICP 10 Hz with a known delay, offset and noise, goals and
     cmd_vel, written as a ROS1 bag, a ROS2 bag and an MCAP file, with truth.json and goals.csv."""
-    from cobot_analysis.api.localisation import floats
+    from cobot_analysis.api.options import floats
     from cobot_analysis.localisation import synth
     from cobot_analysis.stages.localisation import SYNTH_STAGE, synth_localisation
 

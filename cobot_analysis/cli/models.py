@@ -101,7 +101,7 @@ def fit_ioc_command(
     trajectories: Annotated[Optional[Path], typer.Option("--trajectories", help="trajectories.parquet (default: OUT/import-published/ or OUT/preprocess/); its trials serve --per subject and the subjects-vs-mean statistics.")] = None,
     model: Annotated[str, typer.Option("--model", "-m", help="improved (walkers, D = d_xy + 0.5 d_gamma), table (D = d_xy + 0.5 d_theta) or coupled (two carriers, scenario-3 means, roles swapped on returns).")] = "improved",
     start_weights: Annotated[Optional[str], typer.Option("--start-weights", help="Preset or weights.json to start from; 'ones' = neutral start (every fitted weight 1).")] = None,
-    fit_names: Annotated[Optional[str], typer.Option("--fit", help="Comma-separated weights to fit, the others stay at their start value (default: all but the scale weight and the weights no path depends on: continuous, a0 (scale), a1 (time scale) and b0..b3 (goal constraint); published, a0 and b0).")] = None,
+    fit_names: Annotated[Optional[str], typer.Option("--fit", help="Comma-separated weights to fit, the others stay at their start value (default: all but the scale weights and the weights no path depends on: continuous, a0 (scale), a1 (time scale) and b0..b3 (goal constraint); published, a0 and b0; and a5, a6 (the Mombaur model's) but for the coupled model).")] = None,
     optimizer: Annotated[Optional[Optimizer], typer.Option("--optimizer", help="Upper-level derivative-free method.")] = Optimizer.powell,
     max_evaluations: Annotated[int, typer.Option("--max-evaluations", min=1, help="Budget of upper-level evaluations per fit (--method single-level: of its steps, when below its own number).")] = 2000,
     per: Annotated[Per, typer.Option("--per", help="all: one fit over the means; subject: one fit per subject over its trials.")] = Per.all,
@@ -114,15 +114,16 @@ def fit_ioc_command(
     convention: ConventionOpt = None,
     method: Annotated[str, typer.Option("--method", help="bilevel (the published method) or single-level (one NLP with the lower level's KKT conditions; improved and table models; under the published convention at held horizons; docs/methods.md 6.1).")] = "bilevel",
     bootstrap: Annotated[int, typer.Option("--bootstrap", min=0, help="Resamples of the fitted units (means, or a subject's trials) for each weight's 95 % interval, with its identifiability verdict (docs/methods.md 6.3); 0: neither. --resume reuses the finished curvature evaluations.")] = 200,
-    profiles: Annotated[str, typer.Option("--profiles", help="Where the curvature of D cannot judge (not smooth at the fit), each weight's verdict from its profile likelihood (docs/methods.md 6.3): means (the fit over the means), all (per subject too), none.")] = "means",
+    profiles: Annotated[str, typer.Option("--profiles", help="Where the curvature of D and the bootstrap cannot judge alike (D not smooth at the fit, or a 'determined' the bootstrap overturns; continuous convention), each weight's verdict from its profile likelihood (docs/methods.md 6.3), for the fits: means (the fit over the means), all (per subject too), none.")] = "means",
     seed: SeedOpt = 0,
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
     force: ForceOpt = False,
 ) -> None:
-    """Bi-level inverse optimal control: fit the OC cost weights to mean (or per-subject) trajectories.
+    """Inverse optimal control (bi-level, or --method single-level): fit the OC cost weights to mean (or per-subject) trajectories.
 
-    Writes OUT/fit-ioc/weights.json (all fits) and weights/<fit>.json (each usable as --weights),
+    --convention continuous (default: the integrated costs and free duration of docs/methods.md sec. 6)
+    or published (the authors' discrete conventions; writes fit-ioc-published/). Writes OUT/fit-ioc/weights.json (all fits) and weights/<fit>.json (each usable as --weights),
     distances.parquet (per trajectory and model), fits.csv (objective, evaluations and weights per
     fit), figures and results.md. The coupled model writes the same into OUT/fit-ioc-coupled/ (the
     table or walker fit in OUT/fit-ioc/ stays), with the distances of each carrier; --per subject

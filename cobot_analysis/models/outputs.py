@@ -50,23 +50,27 @@ IOC_DISTANCES = TableSchema(
         "d_theta_tangent": Column("float", "rad", "published convention: the model's theta against the measured path's "
                                                  "tangent (theta - recorded gamma)", required=False),
         "D": Column("float", "-", "IOC objective term: d_xy + 0.5 d_gamma (walker) or d_xy + 0.5 d_theta (table)"),
+        "converged": Column("bool", "", "the model's OC solve converged"),
+        "convention": Column("string", "", "published or continuous (docs/methods.md sec. 11)"),
     },
 )
 
 
 
 def ioc_distances_schema(coupled: bool = False) -> TableSchema:
-    """The schema of fit-ioc's distances.parquet: ``IOC_DISTANCES`` with the solve's convergence and the
-    convention, and for the coupled model the direction, carrier and the pair's duration."""
-    extra = {"converged": Column("bool", "", "the model's OC solve converged"),
-             "convention": Column("string", "", "published or continuous (docs/methods.md sec. 11)")}
-    if coupled:
-        extra = {"direction": Column("string", "", "forward or return"),
-                 "carrier": Column("int", "", "1 or 2; carrier 1 is Subject 1 forward, Subject 2 on returns (subject column)"),
-                 "T": Column("float", "s", "duration of the pair's OC solution (free, within (0.4, 2.5) x T0)"),
-                 "T_at_bound": Column("int", "", "-1 / +1: T on the lower / upper bound, 0 inside"), **extra}
+    """The schema of fit-ioc's distances.parquet: ``IOC_DISTANCES``, and for the coupled model also the direction,
+    carrier and the pair's duration (before the solve's convergence and the convention)."""
+    if not coupled:
+        return IOC_DISTANCES
+    last = ("converged", "convention")
+    columns = {k: c for k, c in IOC_DISTANCES.columns.items() if k not in last}
+    columns.update({"direction": Column("string", "", "forward or return"),
+                    "carrier": Column("int", "", "1 or 2; carrier 1 is Subject 1 forward, Subject 2 on returns (subject column)"),
+                    "T": Column("float", "s", "duration of the pair's OC solution (free, within (0.4, 2.5) x T0)"),
+                    "T_at_bound": Column("int", "", "-1 / +1: T on the lower / upper bound, 0 inside")})
+    columns.update({k: IOC_DISTANCES.columns[k] for k in last})
     return TableSchema(name=IOC_DISTANCES.name, version=IOC_DISTANCES.version, description=IOC_DISTANCES.description,
-                       columns={**IOC_DISTANCES.columns, **extra})
+                       columns=columns)
 
 
 VELOCITY_COMMANDS = TableSchema(
