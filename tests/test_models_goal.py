@@ -253,3 +253,27 @@ def test_fit_ioc_comparison_counts_a_path_that_misses_its_goal_as_not_converged(
     monkeypatch.setattr(models, "generate", missing)
     row = compare_task((target, spec, 20, 0.5, "gamma", "continuous", ()))[0][0]
     assert row["converged"] is False and np.isfinite(row["d_xy"])
+
+
+def test_generate_names_the_paths_whose_heading_no_walker_would_turn():
+    """A start heading given a whole turn away from the goal's branch: the model walks that turn (a physical
+    implausibility the solver calls converged), and generate's summary names the path; a path that turns the short
+    way and one that spins (a turn and back) are told apart (``models.heading_turns``, ``reports.models.heading_line``)."""
+    from cobot_analysis.models import heading_turns
+    from cobot_analysis.reports.models import generated_section, heading_line
+
+    h = heading_turns([0.0, 3.0, 6.0, 7.0, 6.5])
+    assert (h["net"], h["excess"]) == (6.5, pytest.approx(1.0)) and h["shortest"] == pytest.approx(6.5 - 2 * math.pi)
+    start = walking_condition("N4000").start  # facing the goal, 3.4 m straight ahead
+    short = generate("improved", start, WALKING_GOAL, convention="continuous").assign(trial="short")
+    long = generate("improved", (*start[:2], start[2] - 2 * math.pi), WALKING_GOAL, convention="continuous").assign(trial="long")
+    assert bool(long.goal_reached.iloc[-1]) and heading_turns(long.theta)["net"] == pytest.approx(2 * math.pi, abs=0.05)
+    assert abs(heading_turns(short.theta)["net"]) < 0.05
+    assert "Heading: every path turns from its start to its goal heading within half a turn" in heading_line(short)
+    text = "\n".join(generated_section(pd.concat([short, long]), "continuous"))
+    assert "**Heading: no walker's turn**" in text and "1 of 2 paths turn from their start to their goal heading more " \
+        "than half a turn beyond the shortest turn (long)" in text and "spin" not in text.split("no walker's turn")[1]
+    spin = pd.DataFrame({"trial": "spin", "theta": np.r_[np.linspace(0.0, 7.0, 11), np.linspace(7.0, 0.5, 10)], "omega": 0.0})
+    line = heading_line(pd.concat([short[["trial", "theta", "omega"]], spin]))
+    assert "1 of 2 paths spin" in line and "(sum |d theta| - |theta_N - theta_0| > 2 pi; spin)" in line
+    assert "turn from their start" not in line

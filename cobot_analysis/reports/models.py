@@ -414,8 +414,42 @@ def generated_section(df: pd.DataFrame, convention, measured: dict[str, tuple[fl
            "their search** (status column)" if ends["status"].astype(str).str.startswith("duration on a bound").any() else "")
         + ("." + (f" The subjects' own ({_subject_pace(ends, measured)}) are in the table: {source}."
                   if measured else
-                  " The input holds no subjects' durations to compare with (no travel times, no velocity rows).")), ""]
+                  " The input holds no subjects' durations to compare with (no travel times, no velocity rows).")), "",
+        heading_line(df), ""]
     return summary + lines + [""]
+
+
+def heading_line(df: pd.DataFrame) -> str:
+    """Markdown: how the generated paths' headings turn (``models.heading_turns``): the paths that turn from their
+    start to their goal heading more than half a turn beyond the shortest turn (the two headings given on other
+    branches), those that spin (turning more than a full turn beyond their net turn, ``goal.spins``' rule) and the
+    largest turning rate. Neither is a walker's path: named, never hidden."""
+    from cobot_analysis.models import heading_turns
+
+    turns = {trial: heading_turns(g["theta"].to_numpy(float)) for trial, g in df.groupby("trial", sort=False)}
+    n = len(turns)
+    long_way = [t for t, h in turns.items() if abs(h["net"]) - abs(h["shortest"]) > math.pi]
+    spin = [t for t, h in turns.items() if h["excess"] > 2 * math.pi]
+    rate = f"largest |omega| {np.nanmax(np.abs(df['omega'].to_numpy(float))):.3g} rad/s" if "omega" in df else ""
+
+    def named(trials):
+        return ", ".join(map(str, trials[:10])) + (", ..." if len(trials) > 10 else "")
+
+    if not long_way and not spin:
+        return (f"Heading: every path turns from its start to its goal heading within half a turn of the shortest turn, "
+                f"and none spins (turns more than a full turn beyond its net turn){'; ' + rate if rate else ''}.")
+    parts = []
+    if long_way:
+        parts.append(f"{len(long_way)} of {n} paths turn from their start to their goal heading more than half a turn beyond "
+                     f"the shortest turn ({named(long_way)}): the two headings were given on other branches (with --study, "
+                     "the measured first theta and the goal on the branch of the last measured theta, docs/methods.md sec. "
+                     "5.3), so the model walks the turns the measured heading winds through")
+    if spin:
+        parts.append(f"{len(spin)} of {n} paths spin, their heading turning more than a full turn beyond their net turn "
+                     f"(sum |d theta| - |theta_N - theta_0| > 2 pi; {named(spin)}): the model prices the turning rate's "
+                     "changes by a3 alone (docs/methods.md sec. 5.5), and with a3 near zero omega can alternate in sign "
+                     "from node to node at almost no cost")
+    return f"**Heading: no walker's turn** ({rate}): " + "; ".join(parts) + "."
 
 
 def _subject_pace(ends: pd.DataFrame, measured: dict) -> str:
