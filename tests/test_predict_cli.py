@@ -190,6 +190,38 @@ def test_prediction_figures_are_reviewable(tmp_path):
             plt.close(fig)
 
 
+def test_prediction_figures_of_a_long_narrow_path_are_readable(tmp_path):
+    """A path much longer than wide (a table carried 4.5 m straight ahead, swaying 5 cm): the path panels fill their
+    axes (a window of the figure's aspect, not an equal-aspect strip) with tick labels that do not collide, and each
+    panel of ``prediction_at_k`` is zoomed on its window, which holds its past, recorded future and predictions."""
+    from cobot_analysis.reports.figures import check_figure
+    from cobot_analysis.reports.prediction import figures
+
+    y = np.linspace(0.0, -4.5, N)
+    table = trajectories_table(n_traj=1).assign(x=0.05 * np.sin(np.linspace(0.0, 6.0, N)), y=y, theta=-np.pi / 2)
+    config = SweepConfig(settings=((8, 20),), predictors=("oc", "cv"))
+    trajs = trajectories_from_table(table, config)
+    metrics, _, _ = run_sweep(trajs, config, WorkDir(tmp_path), jobs=1)
+    figs = figures(metrics, trajs[0], config)
+    try:
+        for stem, fig in figs.items():
+            assert check_figure(fig) == [], stem
+        ax = figs["prediction_overlay"].axes[0]
+        (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+        assert (y1 - y0) / (x1 - x0) == pytest.approx(1.5) and y0 < -4.5 and y1 > 0.0  # the clipped aspect, all the path
+        for ax in figs["prediction_at_k"].axes[:6]:
+            (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+            assert x1 - x0 == pytest.approx(y1 - y0) and y1 - y0 < 4.5  # square, zoomed on the window
+            for line in ax.lines[1:]:  # past, future, predictions: inside the window
+                xs, ys = line.get_xdata(), line.get_ydata()
+                assert x0 <= np.nanmin(xs) and np.nanmax(xs) <= x1 and y0 <= np.nanmin(ys) and np.nanmax(ys) <= y1
+    finally:
+        import matplotlib.pyplot as plt
+
+        for fig in figs.values():
+            plt.close(fig)
+
+
 # ---- the sweep --------------------------------------------------------------------------------
 CONFIG = SweepConfig(settings=((8, 20),), predictors=("oc", "cv"))
 

@@ -98,25 +98,34 @@ def panel_titles(used, cells, titles, col_titles=None, fontsize: float = 8) -> N
 def square_limits(axes_list, margin: float = 0.06) -> float:
     """Give the panels one square window around all their data (equal aspect, one scale for the
     group); returns its side (m)."""
-    from matplotlib.ticker import MaxNLocator
-
     lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
     for ax in axes_list:
         ax.relim()
         b = ax.dataLim
         if np.isfinite([b.x0, b.y0, b.x1, b.y1]).all():
             lo, hi = np.minimum(lo, [b.x0, b.y0]), np.maximum(hi, [b.x1, b.y1])
-    if not np.isfinite(lo).all():
-        return 1.0
-    side = max(hi - lo) * (1 + 2 * margin) or 1.0
+    return window_limits(axes_list, lo, hi, margin=margin)[0]
+
+
+def window_limits(axes_list, lo, hi, aspect: float = 1.0, margin: float = 0.06) -> tuple[float, float]:
+    """Give the panels one window around the box ``lo``..``hi`` (x, y), ``aspect`` = height / width, the
+    short side widened about the box's centre so that an equal-aspect panel fills its axes instead of
+    shrinking to a strip; tick labels that do not collide. Returns the window's (width, height) (m)."""
+    from matplotlib.ticker import MaxNLocator
+
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
+        return 1.0, aspect
+    width = max((hi[0] - lo[0]) * (1 + 2 * margin), (hi[1] - lo[1]) * (1 + 2 * margin) / aspect) or 1.0
+    height = width * aspect
     mid = (lo + hi) / 2
     for ax in axes_list:
-        ax.set_xlim(mid[0] - side / 2, mid[0] + side / 2)
-        ax.set_ylim(mid[1] - side / 2, mid[1] + side / 2)
+        ax.set_xlim(mid[0] - width / 2, mid[0] + width / 2)
+        ax.set_ylim(mid[1] - height / 2, mid[1] + height / 2)
         ax.set_aspect("equal", adjustable="box")
         for axis in (ax.xaxis, ax.yaxis):
             axis.set_major_locator(MaxNLocator(4, steps=[1, 2, 5, 10]))  # tick labels that do not collide
-    return side
+    return width, height
 
 
 def orientation_arrows(ax, x, y, theta, count: int, length: float, color, label: str | None = None, zorder: float = 4):
