@@ -421,6 +421,32 @@ def overlapping_ticks(ax) -> list[str]:
     return out
 
 
+def _texts_in_view(ax) -> list:
+    """The texts an axes draws around its panel: titles, axis labels and the tick labels of the ticks in view."""
+    out = [ax.title, ax._left_title, ax._right_title, ax.xaxis.label, ax.yaxis.label]
+    for axis, (lo, hi) in ((ax.xaxis, sorted(ax.get_xlim())), (ax.yaxis, sorted(ax.get_ylim()))):
+        tol = 1e-9 * (hi - lo)
+        out += [t for t, v in zip(axis.get_majorticklabels(), axis.get_majorticklocs()) if lo - tol <= v <= hi + tol]
+    return [t for t in out if t.get_visible() and t.get_text().strip()]
+
+
+def overlapping_panels(fig) -> list[str]:
+    """Texts of one axes (title, axis labels, tick labels) that overlap a text of another on the page (after drawing),
+    e.g. a panel's title on the tick labels of the panel above it."""
+    renderer = fig.canvas.get_renderer()
+    boxes = [(i, ax.get_title() or f"axes {i}", t.get_text(), t.get_window_extent(renderer))
+             for i, ax in enumerate(fig.axes) if ax.get_visible() for t in _texts_in_view(ax)]
+    out, seen = [], set()
+    for k, (i, name_i, a, ba) in enumerate(boxes):
+        for j, name_j, b, bb in boxes[k + 1:]:
+            if i != j and (i, j) not in seen and ba.overlaps(bb):
+                inter = ba.intersection(ba, bb)
+                if inter is not None and inter.width * inter.height > 1.0:
+                    seen.add((i, j))
+                    out.append(f"axes {i} ({name_i!r}) and axes {j} ({name_j!r}): texts {a!r} and {b!r} overlap")
+    return out
+
+
 def check_figure(fig) -> list[str]:
     """What a reviewer would refuse in ``fig``, one line each (empty: nothing).
 
@@ -429,7 +455,7 @@ def check_figure(fig) -> list[str]:
     per group) needs non-empty tick labels. Every axes with more than one series (artists that differ
     in kind, colour, line style, marker or width) needs each of them named by a legend of the axes or
     of the figure, except on a categorical axis, whose ticks name its series. Tick labels must not
-    overlap their neighbours. Pies are exempt."""
+    overlap their neighbours, nor the texts of one panel those of another (``overlapping_panels``). Pies are exempt."""
     from matplotlib.patches import Wedge
 
     fig.canvas.draw()
@@ -469,4 +495,4 @@ def check_figure(fig) -> list[str]:
                     kind = next(a for a in data if _style(a) == st)
                     problems.append(f"{where}: {len(styles)} series, one ({type(kind).__name__} {kind.get_label()!r}) "
                                     "is named by no legend")
-    return problems
+    return problems + overlapping_panels(fig)
