@@ -147,14 +147,16 @@ def figure_paths(targets: list[Target], generated: dict[str, list[pd.DataFrame]]
     return _finish_grid(fig, axes, n, title, fontsize=6, cells=cells, group=lambda lab: lab.split(": ")[0])
 
 
-def figure_boxplots(df: pd.DataFrame, angle: str = "gamma"):
+def figure_boxplots(df: pd.DataFrame, angle: str = "gamma", title: str = ""):
     """Box plots (median, quartiles, whiskers to 1.5 IQR, outliers) of d_xy and d_angle per model,
-    the number of trajectories under each box."""
+    the number of trajectories under each box; ``title`` above them."""
     from cobot_analysis.plotting import pyplot
 
     plt = pyplot()
     models = list(dict.fromkeys(df["model"]))
     fig, axes = plt.subplots(1, 2, figsize=(max(8.0, 2.2 * len(models) + 2), 4.2), layout="constrained")
+    if title:
+        fig.suptitle(title)
     for ax, metric, unit in zip(axes, ("d_xy", f"d_{angle}"), ("m", "rad")):
         values = [df.loc[df["model"] == m, metric].dropna().to_numpy(float) for m in models]
         ax.boxplot(values, whis=1.5, showfliers=True, widths=0.6, medianprops={"color": "k", "lw": 1.5},
@@ -164,6 +166,16 @@ def figure_boxplots(df: pd.DataFrame, angle: str = "gamma"):
         ax.set_xlabel("model")
         ax.set_ylabel(f"{metric} to the measured path ({unit})")
     return fig
+
+
+def comparison_title(model: str, convention: str) -> str:
+    """Title of ``figure_boxplots`` in fit-ioc: what is compared, under which convention."""
+    return f"Distances of each model's paths to the mean paths ({model} OC fitted, {convention} convention)"
+
+
+def paths_title(model: str, convention: str) -> str:
+    """Title of fit-ioc's ``figure_paths``: the fitted model (improved or table) under its convention."""
+    return f"mean (black) vs {model} OC: published, fitted weights ({convention} convention)"
 
 
 # ---- T at its bound (every model) ----------------------------------------------------------------
@@ -768,8 +780,8 @@ def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal
         lines += [f"### Model comparison on the mean trajectories ({conv.name} convention)", "",
                   summary_table(comparison, angle, ddof=conv.comparison.sd_ddof), *goal_lines(comparison, conv.name),
                   "### Statistics", "", statistics(comparison, list(result.compared)[-1], angle)]
-        stage.savefig(figure_boxplots(comparison, angle), "distances_boxplot")
+        stage.savefig(figure_boxplots(comparison, angle, comparison_title(model, conv.name)), "distances_boxplot")
         lines += ["![distances per model](distances_boxplot.png)", ""]
-        stage.savefig(figure_paths(result.mean_targets, result.paths, "mean (black) vs improved OC: published, fitted"), "paths")
+        stage.savefig(figure_paths(result.mean_targets, result.paths, paths_title(model, conv.name)), "paths")
         lines += ["![generated vs mean paths](paths.png)", ""]
     return "\n".join(lines) + "\n"
