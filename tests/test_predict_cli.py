@@ -522,3 +522,26 @@ def test_goal_the_model_cannot_reach_exits_2_without_output(cli, tmp_path, traj_
     assert code == 2 and "--goal (1.5, 1.5, 0): the walking model cannot reach it" in err and "Infeasible" in err
     assert len(err.strip().splitlines()) == 1
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_goal_predictors_delta_theta_is_read_beside_the_heading_to_travel_angle(tmp_path):
+    """The goal predictors predict the heading as the direction of travel (docs/methods.md sec. 7.1); on a path walked
+    sideways (theta a quarter turn off the direction of travel, as a table carried along its short side) their
+    delta_theta is that quarter turn, and the results fragment says so with the trajectories' own angle."""
+    from dataclasses import replace
+
+    from cobot_analysis.models.prediction.sweep import compare_table, summary_table
+    from cobot_analysis.reports.prediction import results_fragment, travel_angle
+
+    table = trajectories_table(n_traj=2)
+    table["theta"] = table["theta"] + np.pi / 2  # facing away from the arc's centre: sideways to the direction of travel
+    config = SweepConfig(settings=((8, 20),), predictors=("cv", "ctrv"))
+    trajs = trajectories_from_table(table, config)
+    assert travel_angle(trajs) == {"walker": pytest.approx(np.pi / 2, abs=1e-2)}
+    metrics, windows, _ = run_sweep(trajs, config, WorkDir(tmp_path), jobs=1)
+    summary, comparison = summary_table(metrics), compare_table(metrics, windows)
+    with_goal = results_fragment(metrics, summary, comparison, replace(config, predictors=("cv", "ctrv", "goal")), trajs[0],
+                                 trajectories=trajs)
+    assert "goal predict the heading as the direction of travel" in with_goal and "median walker 1.57 rad" in with_goal
+    assert "direction of travel (the walker facing" not in results_fragment(metrics, summary, comparison, config, trajs[0],
+                                                                            trajectories=trajs)

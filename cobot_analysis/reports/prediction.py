@@ -299,8 +299,30 @@ def _p(v) -> str:
     return "n/a" if math.isnan(v) else ("< 0.001" if v < 1e-3 else f"{v:.3f}")
 
 
-def results_fragment(metrics, summary, comparison, config, example, unpredictable=(), stage_name: str = "predict") -> str:
-    """Markdown fragment of the stage (assembled into docs/results.md)."""
+def travel_angle(trajectories) -> dict[str, float]:
+    """Per entity, the median over its trajectories (orientation tracked) of their median |gamma|, gamma = wrap(theta -
+    direction of travel), the direction of travel atan2 of the positions' central differences (rad): 0 for a walker
+    facing where it goes, pi / 2 for a table carried sideways."""
+    import numpy as np
+
+    from cobot_analysis.angles import wrap
+
+    per = {}
+    for t in trajectories:
+        if not t.track_theta or not np.isfinite(t.poses[:, 2]).any():
+            continue
+        dx, dy = (np.gradient(t.poses[:, i]) for i in (0, 1))
+        moving = np.hypot(dx, dy) > 0
+        gamma = np.abs(wrap(t.poses[moving, 2] - np.arctan2(dy[moving], dx[moving])))
+        if np.isfinite(gamma).any():
+            per.setdefault(t.entity, []).append(float(np.nanmedian(gamma)))
+    return {e: float(np.median(v)) for e, v in sorted(per.items())}
+
+
+def results_fragment(metrics, summary, comparison, config, example, unpredictable=(), stage_name: str = "predict",
+                     trajectories=()) -> str:
+    """Markdown fragment of the stage (assembled into docs/results.md); ``trajectories`` (those predicted) give the
+    angle between heading and direction of travel that the goal predictors' delta_theta holds (``travel_angle``)."""
 
     traj = metrics.drop_duplicates(["study", "trial", "entity"])
     studies = ", ".join(f"{s} ({n})" for s, n in traj.groupby("study").size().items())
@@ -345,6 +367,14 @@ def results_fragment(metrics, summary, comparison, config, example, unpredictabl
         vals = [f"{_fmt(cell[k]['mean'])} +- {_fmt(cell[k]['sd'])}" for k in ("delta_xy", "delta_theta", "d_pred", "ade", "fde")]
         r = cell["delta_xy"]
         lines.append(f"| {n0} | {n_oc} | {pred} | " + " | ".join(vals) + f" | {_fmt(r['pearson_r'], 2)} (p {_p(r['pearson_p'])}) |")
+    goal_preds = [p for p in ("goal", "goal-inferred") if p in config.predictors]
+    gamma = travel_angle(trajectories) if goal_preds else {}
+    if gamma:
+        lines += ["", f"{' and '.join(goal_preds)} predict the heading as the direction of travel (the walker facing where "
+                  "it goes, docs/methods.md sec. 7.1), so their delta_theta holds the trajectories' own angle between "
+                  "heading and direction of travel, |gamma|: median " + ", ".join(f"{e} {v:.2f} rad" for e, v in gamma.items())
+                  + " (per trajectory its median, then the median over trajectories). Where it is large (a table carried "
+                  "sideways or backwards: its theta is its orientation) that delta_theta is no error of a predicted heading."]
     if len(comparison):
         lines += ["", "### OC predictor vs baselines on the same windows (delta_xy; Wilcoxon signed-rank over trajectories)", "",
                   "| N0 | N_OC | baseline | group | n | OC median (m) | baseline median (m) | median OC - baseline (m) | OC better (trajectories) | OC better (windows) | W | p | r |",
