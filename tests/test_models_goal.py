@@ -277,3 +277,17 @@ def test_generate_names_the_paths_whose_heading_no_walker_would_turn():
     line = heading_line(pd.concat([short[["trial", "theta", "omega"]], spin]))
     assert "1 of 2 paths spin" in line and "(sum |d theta| - |theta_N - theta_0| > 2 pi; spin)" in line
     assert "turn from their start" not in line
+
+
+def test_a_weight_the_time_gauge_moves_off_the_search_box_is_named():
+    """The time gauge writes a1..a3 x c^4 (docs/methods.md sec. 6.4): a weight fitted on a search limit is written
+    beyond it (walking-2020's single-level fit: a3 = 1e-7 x 0.991^4 = 9.64e-8 under 'bounds 1e-7..1e3'), and the
+    report says why instead of leaving a weight outside its box unexplained."""
+    from cobot_analysis.reports.models import gauge_limit_lines
+
+    c = 0.991
+    w = {"a2": 6.92, "a3": 1e-7 * c ** 4, "a4": 3.25}
+    text = "\n".join(gauge_limit_lines(w, ("a2", "a3", "a4"), {"c": c}))
+    assert "a1-a3 x c^4 = 0.9645: a3 = 9.64e-08 lies beyond the search limits 1e-7..1e3, fitted on a limit" in text
+    assert gauge_limit_lines(dict(w, a3=1.1e-7), ("a2", "a3", "a4"), {"c": c}) == []
+    assert gauge_limit_lines(w, ("a2", "a3", "a4"), None) == []

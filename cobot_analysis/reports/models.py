@@ -640,6 +640,24 @@ def ioc_overview(fits: dict[str, Path]) -> list[str]:
     return lines
 
 
+def gauge_limit_lines(weights: dict[str, float], fitted, pace: dict | None) -> list[str]:
+    """Markdown: the fitted weights the time gauge (a1..a3 x c^4, ``pace``) moved beyond the search limits
+    ``ioc.LOG_BOUNDS``: fitted on a limit, they are written scaled off it (the tables show the written weights)."""
+    from cobot_analysis.models.ioc.fit import LOG_BOUNDS
+    from cobot_analysis.models.ioc.pace import ACCELERATION_WEIGHTS
+
+    if not pace or not np.isfinite(pace.get("c", np.nan)):
+        return []
+    off = [n for n in fitted if n in ACCELERATION_WEIGHTS and not LOG_BOUNDS[0] <= np.log10(max(weights[n], 1e-300)) <= LOG_BOUNDS[1]]
+    if not off:
+        return []
+    return [f"The weights written (and shown above) are the time gauge's, a1-a3 x c^4 = {pace['c'] ** 4:.4g}: "
+            + ", ".join(f"{n} = {weights[n]:.3g}" for n in off)
+            + f" lie{'s' if len(off) == 1 else ''} beyond the search limits 1e{LOG_BOUNDS[0]:g}..1e{LOG_BOUNDS[1]:g}, fitted on "
+            f"{'a limit' if len(off) == 1 else 'limits'} and scaled off {'it' if len(off) == 1 else 'them'} (the verdicts' "
+            "search limits are the fit's).", ""]
+
+
 def _gauge_lines(line: str, targets, per_target: list[dict], pace: dict) -> list[str]:
     """The time-gauge calibration's summary and its per-target table (model beside subjects)."""
     M = np.asarray(pace["measured_T"], float)
@@ -773,6 +791,7 @@ def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal
                       f"{len(fits[k])} paths (D = {r.objective:.4f}).", ""]
     if conv.name == "continuous" and model != "coupled" and per == "all":
         lines += pace_lines(result.mean_keys, fits["all"], results["all"].per_target, durations, results["all"].pace)
+        lines += gauge_limit_lines(results["all"].weights, names, results["all"].pace)
     if result.coupled is not None:
         lines += coupled_section(results["all"], result.coupled, result.mean_targets, stage, durations)
     if result.comparison is not None:
