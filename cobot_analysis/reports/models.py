@@ -442,7 +442,8 @@ def heading_line(df: pd.DataFrame) -> str:
     n = len(turns)
     long_way = [t for t, h in turns.items() if abs(h["net"]) - abs(h["shortest"]) > math.pi]
     spin = [t for t, h in turns.items() if h["excess"] > 2 * math.pi]
-    rate = f"largest |omega| {np.nanmax(np.abs(df['omega'].to_numpy(float))):.3g} rad/s" if "omega" in df else ""
+    omega = np.abs(df["omega"].to_numpy(float)) if "omega" in df else np.array([np.nan])
+    rate = f"largest |omega| {np.nanmax(omega):.3g} rad/s" if np.isfinite(omega).any() else ""
 
     def named(trials):
         return ", ".join(map(str, trials[:10])) + (", ..." if len(trials) > 10 else "")
@@ -461,7 +462,7 @@ def heading_line(df: pd.DataFrame) -> str:
                      f"(sum |d theta| - |theta_N - theta_0| > 2 pi; {named(spin)}): the model prices the turning rate's "
                      "changes by a3 alone (docs/methods.md sec. 5.5), and with a3 near zero omega can alternate in sign "
                      "from node to node at almost no cost")
-    return f"**Heading: no walker's turn** ({rate}): " + "; ".join(parts) + "."
+    return f"**Heading: no walker's turn**{f' ({rate})' if rate else ''}: " + "; ".join(parts) + "."
 
 
 def _subject_pace(ends: pd.DataFrame, measured: dict) -> str:
