@@ -291,3 +291,14 @@ def test_a_weight_the_time_gauge_moves_off_the_search_box_is_named():
     assert "a1-a3 x c^4 = 0.9645: a3 = 9.64e-08 lies beyond the search limits 1e-7..1e3, fitted on a limit" in text
     assert gauge_limit_lines(dict(w, a3=1.1e-7), ("a2", "a3", "a4"), {"c": c}) == []
     assert gauge_limit_lines(w, ("a2", "a3", "a4"), None) == []
+
+
+def test_continuous_walks_have_one_smooth_speed_bell():
+    """No speed spike on a converged walk (the pace itself: the test above): with the published walking weights, from
+    every start orientation near and far, the speed is one smooth bell, peak / mean 1.5 (the minimum-acceleration
+    profile), no step between samples above 2 % of the peak."""
+    for start in STARTS:
+        df = generate("improved", start, WALKING_GOAL, weights="walking-2021", convention="continuous")
+        speed = np.hypot(df["vx"], df["vy"]).to_numpy()
+        assert speed.max() / df["mean_speed"].iloc[0] == pytest.approx(1.5, abs=0.1), start
+        assert np.abs(np.diff(speed)).max() < 0.02 * speed.max(), start
