@@ -377,6 +377,9 @@ def test_walking_report_figures_from_synthetic_tables(tmp_path):
     for stem, fig in stage.figs.items():
         assert check_figure(fig) == [], stem
     assert len(data_axes(stage.figs["paths"])) == 40
+    scatter = stage.figs["scatter_d_xy_global"].axes[0]  # says what d_xy it plots, like the boxes beside it
+    assert (scatter.get_title(), scatter.get_ylabel()) == ("Individual vs mean d_xy against the global distance",
+                                                           "d_xy individual vs mean (m)")
     ticks = [t.get_text() for t in stage.figs["box_d_xy_subject"].axes[0].get_xticklabels()]
     assert ticks == [f"S{j:02d}\n(n = 40)" for j in range(1, 5)]
     text = "\n".join(lines)  # captions cite the study file's questions and explain the letters
