@@ -32,6 +32,18 @@ def pyplot():
 LAYOUT_PASSES = 3  # a layout still moving after them is drawn as the last pass left it
 
 
+def settle_layout(fig) -> None:
+    """Draw ``fig`` (without rendering) until its layout engine stops moving the axes, at most ``LAYOUT_PASSES``
+    times: a draw places texts (titles above their tick labels) that the next pass makes room for. The layout
+    ``save`` writes, and the one ``reports.figures.check_figure`` checks."""
+    fig.draw_without_rendering()  # runs the layout engine, as savefig's first pass does
+    for _ in range(LAYOUT_PASSES - 1 if fig.get_layout_engine() is not None else 0):
+        before = [ax.get_position().bounds for ax in fig.axes]
+        fig.draw_without_rendering()
+        if [ax.get_position().bounds for ax in fig.axes] == before:
+            break
+
+
 def save(fig, paths, dpi: float = 150) -> None:
     """Write ``fig`` to each of ``paths`` (format from the suffix) at ``dpi``, cropped to its tight bounding box.
 
@@ -46,12 +58,7 @@ def save(fig, paths, dpi: float = 150) -> None:
     original_dpi = fig.dpi
     fig.set_dpi(dpi)
     try:
-        fig.draw_without_rendering()  # runs the layout engine, as savefig's first pass does
-        for _ in range(LAYOUT_PASSES - 1 if fig.get_layout_engine() is not None else 0):
-            before = [ax.get_position().bounds for ax in fig.axes]
-            fig.draw_without_rendering()
-            if [ax.get_position().bounds for ax in fig.axes] == before:
-                break
+        settle_layout(fig)
         box = fig.get_tightbbox().padded(mpl.rcParams["savefig.pad_inches"])
     finally:
         fig.set_dpi(original_dpi)

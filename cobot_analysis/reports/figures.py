@@ -19,7 +19,7 @@ import re
 
 import numpy as np
 
-from cobot_analysis.plotting import pyplot
+from cobot_analysis.plotting import pyplot, settle_layout
 
 #: one colour per entity, used in every figure.
 COLORS = {"walker": "#1f77b4", "subject1": "#d62728", "subject2": "#2ca02c", "table": "#7f7f7f"}
@@ -455,9 +455,11 @@ def check_figure(fig) -> list[str]:
     per group) needs non-empty tick labels. Every axes with more than one series (artists that differ
     in kind, colour, line style, marker or width) needs each of them named by a legend of the axes or
     of the figure, except on a categorical axis, whose ticks name its series. Tick labels must not
-    overlap their neighbours, nor the texts of one panel those of another (``overlapping_panels``). Pies are exempt."""
+    overlap their neighbours, nor the texts of one panel those of another (``overlapping_panels``). Pies are exempt.
+    The figure is checked as ``plotting.save`` writes it: laid out until its axes stop moving."""
     from matplotlib.patches import Wedge
 
+    settle_layout(fig)
     fig.canvas.draw()
     legend_texts = {t.get_text() for lg in [*fig.legends, *(a.get_legend() for a in fig.axes)] if lg is not None
                     for t in lg.get_texts() if t.get_text().strip()}
