@@ -29,19 +29,36 @@ def pyplot():
     return plt
 
 
+LAYOUT_PASSES = 3  # a layout still moving after them is drawn as the last pass left it
+
+
+def settle_layout(fig) -> None:
+    """Draw ``fig`` (without rendering) until its layout engine stops moving the axes, at most ``LAYOUT_PASSES``
+    times: a draw places texts (titles above their tick labels) that the next pass makes room for. The layout
+    ``save`` writes, and the one ``reports.figures.check_figure`` checks."""
+    fig.draw_without_rendering()  # runs the layout engine, as savefig's first pass does
+    for _ in range(LAYOUT_PASSES - 1 if fig.get_layout_engine() is not None else 0):
+        before = [ax.get_position().bounds for ax in fig.axes]
+        fig.draw_without_rendering()
+        if [ax.get_position().bounds for ax in fig.axes] == before:
+            break
+
+
 def save(fig, paths, dpi: float = 150) -> None:
     """Write ``fig`` to each of ``paths`` (format from the suffix) at ``dpi``, cropped to its tight bounding box.
 
     The layout (constrained or tight) and the bounding box (padded by ``savefig.pad_inches``) are computed once,
-    at ``dpi`` with the PNG renderer (what ``savefig(bbox_inches="tight")`` does before each format), and then
-    fixed: every format draws the same layout once. The figure's layout engine is left off.
+    at ``dpi`` with the PNG renderer, and then fixed: every format draws the same layout once. The layout engine
+    runs until the axes stop moving, at most ``LAYOUT_PASSES`` times: a draw places texts that the next pass makes
+    room for (after one pass, in a grid of equal-aspect panels, a panel's title sat on the tick labels of the panel
+    above it; ``savefig(bbox_inches="tight")`` lays out twice). The figure's layout engine is left off.
     """
     import matplotlib as mpl
 
     original_dpi = fig.dpi
     fig.set_dpi(dpi)
     try:
-        fig.draw_without_rendering()  # runs the layout engine, as savefig's first pass does
+        settle_layout(fig)
         box = fig.get_tightbbox().padded(mpl.rcParams["savefig.pad_inches"])
     finally:
         fig.set_dpi(original_dpi)

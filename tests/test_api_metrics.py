@@ -136,6 +136,11 @@ def test_fit_ioc_and_velocity_commands_take_parquet_paths(walking):
     assert by_path.means_source == str(means)
     figures = by_path.figures()
     assert sorted(figures) == ["distances_boxplot", "paths"] and all(check_figure(f) == [] for f in figures.values())
+    # each figure names the fitted model and the convention (the two conventions' PNGs sit side by side in a workspace)
+    assert figures["distances_boxplot"].get_suptitle() == ("Distances of each model's paths to the mean paths (improved OC "
+                                                           "fitted, continuous convention)")
+    assert figures["paths"].legends[0].get_title().get_text() == ("mean (black) vs improved OC: published, fitted weights "
+                                                                   "(continuous convention)")
     generated = ca.generate("clothoid", start=(-1.5, -3.4, 0.0), jobs=1).generated
     path = write_table(generated, out / "clothoid.parquet", GENERATED)
     assert ca.velocity_commands(path).commands.equals(ca.velocity_commands(generated).commands)

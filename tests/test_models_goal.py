@@ -253,3 +253,52 @@ def test_fit_ioc_comparison_counts_a_path_that_misses_its_goal_as_not_converged(
     monkeypatch.setattr(models, "generate", missing)
     row = compare_task((target, spec, 20, 0.5, "gamma", "continuous", ()))[0][0]
     assert row["converged"] is False and np.isfinite(row["d_xy"])
+
+
+def test_generate_names_the_paths_whose_heading_no_walker_would_turn():
+    """A start heading given a whole turn away from the goal's branch: the model walks that turn (a physical
+    implausibility the solver calls converged), and generate's summary names the path; a path that turns the short
+    way and one that spins (a turn and back) are told apart (``models.heading_turns``, ``reports.models.heading_line``)."""
+    from cobot_analysis.models import heading_turns
+    from cobot_analysis.reports.models import generated_section, heading_line
+
+    h = heading_turns([0.0, 3.0, 6.0, 7.0, 6.5])
+    assert (h["net"], h["excess"]) == (6.5, pytest.approx(1.0)) and h["shortest"] == pytest.approx(6.5 - 2 * math.pi)
+    start = walking_condition("N4000").start  # facing the goal, 3.4 m straight ahead
+    short = generate("improved", start, WALKING_GOAL, convention="continuous").assign(trial="short")
+    long = generate("improved", (*start[:2], start[2] - 2 * math.pi), WALKING_GOAL, convention="continuous").assign(trial="long")
+    assert bool(long.goal_reached.iloc[-1]) and heading_turns(long.theta)["net"] == pytest.approx(2 * math.pi, abs=0.05)
+    assert abs(heading_turns(short.theta)["net"]) < 0.05
+    assert "Heading: every path turns from its start to its goal heading within half a turn" in heading_line(short)
+    text = "\n".join(generated_section(pd.concat([short, long]), "continuous"))
+    assert "**Heading: no walker's turn**" in text and "1 of 2 paths turn from their start to their goal heading more " \
+        "than half a turn beyond the shortest turn (long)" in text and "spin" not in text.split("no walker's turn")[1]
+    spin = pd.DataFrame({"trial": "spin", "theta": np.r_[np.linspace(0.0, 7.0, 11), np.linspace(7.0, 0.5, 10)], "omega": 0.0})
+    line = heading_line(pd.concat([short[["trial", "theta", "omega"]], spin]))
+    assert "1 of 2 paths spin" in line and "(sum |d theta| - |theta_N - theta_0| > 2 pi; spin)" in line
+    assert "turn from their start" not in line
+
+
+def test_a_weight_the_time_gauge_moves_off_the_search_box_is_named():
+    """The time gauge writes a1..a3 x c^4 (docs/methods.md sec. 6.4): a weight fitted on a search limit is written
+    beyond it (walking-2020's single-level fit: a3 = 1e-7 x 0.991^4 = 9.64e-8 under 'bounds 1e-7..1e3'), and the
+    report says why instead of leaving a weight outside its box unexplained."""
+    from cobot_analysis.reports.models import gauge_limit_lines
+
+    c = 0.991
+    w = {"a2": 6.92, "a3": 1e-7 * c ** 4, "a4": 3.25}
+    text = "\n".join(gauge_limit_lines(w, ("a2", "a3", "a4"), {"c": c}))
+    assert "a1-a3 x c^4 = 0.9645: a3 = 9.64e-08 lies beyond the search limits 1e-7..1e3, fitted on a limit" in text
+    assert gauge_limit_lines(dict(w, a3=1.1e-7), ("a2", "a3", "a4"), {"c": c}) == []
+    assert gauge_limit_lines(w, ("a2", "a3", "a4"), None) == []
+
+
+def test_continuous_walks_have_one_smooth_speed_bell():
+    """No speed spike on a converged walk (the pace itself: the test above): with the published walking weights, from
+    every start orientation near and far, the speed is one smooth bell, peak / mean 1.5 (the minimum-acceleration
+    profile), no step between samples above 2 % of the peak."""
+    for start in STARTS:
+        df = generate("improved", start, WALKING_GOAL, weights="walking-2021", convention="continuous")
+        speed = np.hypot(df["vx"], df["vy"]).to_numpy()
+        assert speed.max() / df["mean_speed"].iloc[0] == pytest.approx(1.5, abs=0.1), start
+        assert np.abs(np.diff(speed)).max() < 0.02 * speed.max(), start

@@ -190,6 +190,38 @@ def test_prediction_figures_are_reviewable(tmp_path):
             plt.close(fig)
 
 
+def test_prediction_figures_of_a_long_narrow_path_are_readable(tmp_path):
+    """A path much longer than wide (a table carried 4.5 m straight ahead, swaying 5 cm): the path panels fill their
+    axes (a window of the figure's aspect, not an equal-aspect strip) with tick labels that do not collide, and each
+    panel of ``prediction_at_k`` is zoomed on its window, which holds its past, recorded future and predictions."""
+    from cobot_analysis.reports.figures import check_figure
+    from cobot_analysis.reports.prediction import figures
+
+    y = np.linspace(0.0, -4.5, N)
+    table = trajectories_table(n_traj=1).assign(x=0.05 * np.sin(np.linspace(0.0, 6.0, N)), y=y, theta=-np.pi / 2)
+    config = SweepConfig(settings=((8, 20),), predictors=("oc", "cv"))
+    trajs = trajectories_from_table(table, config)
+    metrics, _, _ = run_sweep(trajs, config, WorkDir(tmp_path), jobs=1)
+    figs = figures(metrics, trajs[0], config)
+    try:
+        for stem, fig in figs.items():
+            assert check_figure(fig) == [], stem
+        ax = figs["prediction_overlay"].axes[0]
+        (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+        assert (y1 - y0) / (x1 - x0) == pytest.approx(1.5) and y0 < -4.5 and y1 > 0.0  # the clipped aspect, all the path
+        for ax in figs["prediction_at_k"].axes[:6]:
+            (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+            assert x1 - x0 == pytest.approx(y1 - y0) and y1 - y0 < 4.5  # square, zoomed on the window
+            for line in ax.lines[1:]:  # past, future, predictions: inside the window
+                xs, ys = line.get_xdata(), line.get_ydata()
+                assert x0 <= np.nanmin(xs) and np.nanmax(xs) <= x1 and y0 <= np.nanmin(ys) and np.nanmax(ys) <= y1
+    finally:
+        import matplotlib.pyplot as plt
+
+        for fig in figs.values():
+            plt.close(fig)
+
+
 # ---- the sweep --------------------------------------------------------------------------------
 CONFIG = SweepConfig(settings=((8, 20),), predictors=("oc", "cv"))
 
@@ -490,3 +522,26 @@ def test_goal_the_model_cannot_reach_exits_2_without_output(cli, tmp_path, traj_
     assert code == 2 and "--goal (1.5, 1.5, 0): the walking model cannot reach it" in err and "Infeasible" in err
     assert len(err.strip().splitlines()) == 1
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_goal_predictors_delta_theta_is_read_beside_the_heading_to_travel_angle(tmp_path):
+    """The goal predictors predict the heading as the direction of travel (docs/methods.md sec. 7.1); on a path walked
+    sideways (theta a quarter turn off the direction of travel, as a table carried along its short side) their
+    delta_theta is that quarter turn, and the results fragment says so with the trajectories' own angle."""
+    from dataclasses import replace
+
+    from cobot_analysis.models.prediction.sweep import compare_table, summary_table
+    from cobot_analysis.reports.prediction import results_fragment, travel_angle
+
+    table = trajectories_table(n_traj=2)
+    table["theta"] = table["theta"] + np.pi / 2  # facing away from the arc's centre: sideways to the direction of travel
+    config = SweepConfig(settings=((8, 20),), predictors=("cv", "ctrv"))
+    trajs = trajectories_from_table(table, config)
+    assert travel_angle(trajs) == {"walker": pytest.approx(np.pi / 2, abs=1e-2)}
+    metrics, windows, _ = run_sweep(trajs, config, WorkDir(tmp_path), jobs=1)
+    summary, comparison = summary_table(metrics), compare_table(metrics, windows)
+    with_goal = results_fragment(metrics, summary, comparison, replace(config, predictors=("cv", "ctrv", "goal")), trajs[0],
+                                 trajectories=trajs)
+    assert "goal predict the heading as the direction of travel" in with_goal and "median walker 1.57 rad" in with_goal
+    assert "direction of travel (the walker facing" not in results_fragment(metrics, summary, comparison, config, trajs[0],
+                                                                            trajectories=trajs)

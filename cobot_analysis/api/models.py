@@ -442,12 +442,12 @@ class FitResult:
         ``distances_boxplot`` (distances per compared model) and ``paths`` (the mean paths vs the model at the
         published and fitted weights), by ``reports.models``; none without the comparison. The coupled model's
         ``pair_paths`` is drawn by the stage only (``reports.models.coupled_section``)."""
-        from cobot_analysis.reports.models import figure_boxplots, figure_paths
+        from cobot_analysis.reports.models import comparison_title, figure_boxplots, figure_paths, paths_title
 
         if self.comparison is None:
             return {}
-        return {"distances_boxplot": figure_boxplots(self.comparison, self.spec.angle),
-                "paths": figure_paths(self.mean_targets, self.paths, "mean (black) vs improved OC: published, fitted")}
+        return {"distances_boxplot": figure_boxplots(self.comparison, self.spec.angle, comparison_title(self.model, self.convention)),
+                "paths": figure_paths(self.mean_targets, self.paths, paths_title(self.model, self.convention))}
 
     def weights_json(self) -> dict:
         return {"model": self.model, "convention": self.convention, "weights_order": list(self.all_names),

@@ -14,7 +14,8 @@ theta (omega): the difference to a 500-interval solve is measured in tests/test_
 
 Every path says whether it reached its goal (``goal_check``: end position within ``GOAL_TOLERANCE``
 [0] m and heading within [1] rad; columns ``end_position_error``, ``end_heading_error``,
-``goal_reached``) and the time law it implies (``mean_speed`` = path length / T, m/s). Under the
+``goal_reached``), the time law it implies (``mean_speed`` = path length / T, m/s) and how its heading turns
+(``heading_turns``). Under the
 continuous convention the goal at rest is a constraint (docs/methods.md sec. 5.5, 11): a path that
 misses it is never ``converged``.
 """
@@ -36,7 +37,7 @@ GOAL_TOLERANCE = (0.01, 0.05)  # m, rad: a path ends at its goal (docs/methods.m
 GOAL_EXTENT = 10.0  # m: |x|, |y| of a start or goal in the studies' frames, the goal predictor's bound too
 # (imported by models.prediction.goal; their paths lie within 6 m of the origin)
 
-__all__ = ["GOAL_EXTENT", "GOAL_TOLERANCE", "MODELS", "OC_MODELS", "PRESETS", "generate", "check_endpoints", "goal_check", "mean_speed",
+__all__ = ["GOAL_EXTENT", "GOAL_TOLERANCE", "MODELS", "OC_MODELS", "PRESETS", "generate", "check_endpoints", "goal_check", "heading_turns", "mean_speed",
            "refuse_unreached"]
 
 
@@ -49,6 +50,23 @@ def goal_check(x, y, theta, goal) -> dict[str, float | bool]:
     eh = abs(float(angle_diff(float(theta[-1]), goal[2])))
     ok = bool(np.isfinite(ep) and np.isfinite(eh) and ep <= GOAL_TOLERANCE[0] and eh <= GOAL_TOLERANCE[1])
     return {"end_position_error": ep, "end_heading_error": eh, "goal_reached": ok}
+
+
+def heading_turns(theta) -> dict[str, float]:
+    """How a path's heading turns (rad, theta unwrapped): ``net`` = theta_N - theta_0, ``shortest`` = wrap(net), the
+    shortest turn between the same two headings, and ``excess`` = sum |theta_{i+1} - theta_i| - |net|, the turning
+    beyond the net turn (a turn and back, a loop: a full turn adds 2 pi).
+
+        >>> from cobot_analysis.models import heading_turns
+        >>> h = heading_turns([0.0, 3.0, 6.0])   # turning the long way to a heading 0.28 rad to the right
+        >>> round(h["net"], 2), round(h["shortest"], 2), h["excess"]
+        (6.0, -0.28, 0.0)
+    """
+    from cobot_analysis.angles import wrap
+
+    theta = np.asarray(theta, float)
+    net = float(theta[-1] - theta[0])
+    return {"net": net, "shortest": float(wrap(net)), "excess": float(np.abs(np.diff(theta)).sum()) - abs(net)}
 
 
 def mean_speed(x, y, T: float) -> float:

@@ -262,12 +262,14 @@ def _distance_section(study, data: dict, stage, lines: list[str]) -> None:
                                                      source="distances", value=col, group=f.column), lines)
     if ind["global_distance"].dropna().nunique() > 1:
         _fig(stage, figures.scatter_r({e: (v["global_distance"], v["d_xy"]) for e, v in ind.groupby("entity")},
-                                      "global distance (m)", "d_xy (m)"), "scatter_d_xy_global",
+                                      "global distance (m)", "d_xy individual vs mean (m)",
+                                      "Individual vs mean d_xy against the global distance"), "scatter_d_xy_global",
              study.cite("individual vs mean d_xy against the global distance (start-goal distance)", source="distances",
                         value="d_xy", group="global_distance"), lines)
     if "orientation_change" in ind and ind["orientation_change"].fillna(0).abs().gt(1e-9).any() and several:
         _fig(stage, figures.scatter_r({e: (v["orientation_change"], v["d_xy"]) for e, v in ind.groupby("entity")},
-                                      "change of orientation |theta_end - theta_start| (rad)", "d_xy (m)"), "scatter_d_xy_turn",
+                                      "change of orientation |theta_end - theta_start| (rad)", "d_xy individual vs mean (m)",
+                                      "Individual vs mean d_xy against the change of orientation"), "scatter_d_xy_turn",
              "Individual vs mean d_xy against the change of orientation", lines)
     model = d[d["comparison"].eq("model")]
     if len(model):  # rows of `compare --against generated.parquet --comparison model`

@@ -19,7 +19,7 @@ import re
 
 import numpy as np
 
-from cobot_analysis.plotting import pyplot
+from cobot_analysis.plotting import pyplot, settle_layout
 
 #: one colour per entity, used in every figure.
 COLORS = {"walker": "#1f77b4", "subject1": "#d62728", "subject2": "#2ca02c", "table": "#7f7f7f"}
@@ -98,25 +98,34 @@ def panel_titles(used, cells, titles, col_titles=None, fontsize: float = 8) -> N
 def square_limits(axes_list, margin: float = 0.06) -> float:
     """Give the panels one square window around all their data (equal aspect, one scale for the
     group); returns its side (m)."""
-    from matplotlib.ticker import MaxNLocator
-
     lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
     for ax in axes_list:
         ax.relim()
         b = ax.dataLim
         if np.isfinite([b.x0, b.y0, b.x1, b.y1]).all():
             lo, hi = np.minimum(lo, [b.x0, b.y0]), np.maximum(hi, [b.x1, b.y1])
-    if not np.isfinite(lo).all():
-        return 1.0
-    side = max(hi - lo) * (1 + 2 * margin) or 1.0
+    return window_limits(axes_list, lo, hi, margin=margin)[0]
+
+
+def window_limits(axes_list, lo, hi, aspect: float = 1.0, margin: float = 0.06) -> tuple[float, float]:
+    """Give the panels one window around the box ``lo``..``hi`` (x, y), ``aspect`` = height / width, the
+    short side widened about the box's centre so that an equal-aspect panel fills its axes instead of
+    shrinking to a strip; tick labels that do not collide. Returns the window's (width, height) (m)."""
+    from matplotlib.ticker import MaxNLocator
+
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
+        return 1.0, aspect
+    width = max((hi[0] - lo[0]) * (1 + 2 * margin), (hi[1] - lo[1]) * (1 + 2 * margin) / aspect) or 1.0
+    height = width * aspect
     mid = (lo + hi) / 2
     for ax in axes_list:
-        ax.set_xlim(mid[0] - side / 2, mid[0] + side / 2)
-        ax.set_ylim(mid[1] - side / 2, mid[1] + side / 2)
+        ax.set_xlim(mid[0] - width / 2, mid[0] + width / 2)
+        ax.set_ylim(mid[1] - height / 2, mid[1] + height / 2)
         ax.set_aspect("equal", adjustable="box")
         for axis in (ax.xaxis, ax.yaxis):
             axis.set_major_locator(MaxNLocator(4, steps=[1, 2, 5, 10]))  # tick labels that do not collide
-    return side
+    return width, height
 
 
 def orientation_arrows(ax, x, y, theta, count: int, length: float, color, label: str | None = None, zorder: float = 4):
@@ -412,6 +421,32 @@ def overlapping_ticks(ax) -> list[str]:
     return out
 
 
+def _texts_in_view(ax) -> list:
+    """The texts an axes draws around its panel: titles, axis labels and the tick labels of the ticks in view."""
+    out = [ax.title, ax._left_title, ax._right_title, ax.xaxis.label, ax.yaxis.label]
+    for axis, (lo, hi) in ((ax.xaxis, sorted(ax.get_xlim())), (ax.yaxis, sorted(ax.get_ylim()))):
+        tol = 1e-9 * (hi - lo)
+        out += [t for t, v in zip(axis.get_majorticklabels(), axis.get_majorticklocs()) if lo - tol <= v <= hi + tol]
+    return [t for t in out if t.get_visible() and t.get_text().strip()]
+
+
+def overlapping_panels(fig) -> list[str]:
+    """Texts of one axes (title, axis labels, tick labels) that overlap a text of another on the page (after drawing),
+    e.g. a panel's title on the tick labels of the panel above it."""
+    renderer = fig.canvas.get_renderer()
+    boxes = [(i, ax.get_title() or f"axes {i}", t.get_text(), t.get_window_extent(renderer))
+             for i, ax in enumerate(fig.axes) if ax.get_visible() for t in _texts_in_view(ax)]
+    out, seen = [], set()
+    for k, (i, name_i, a, ba) in enumerate(boxes):
+        for j, name_j, b, bb in boxes[k + 1:]:
+            if i != j and (i, j) not in seen and ba.overlaps(bb):
+                inter = ba.intersection(ba, bb)
+                if inter is not None and inter.width * inter.height > 1.0:
+                    seen.add((i, j))
+                    out.append(f"axes {i} ({name_i!r}) and axes {j} ({name_j!r}): texts {a!r} and {b!r} overlap")
+    return out
+
+
 def check_figure(fig) -> list[str]:
     """What a reviewer would refuse in ``fig``, one line each (empty: nothing).
 
@@ -420,9 +455,11 @@ def check_figure(fig) -> list[str]:
     per group) needs non-empty tick labels. Every axes with more than one series (artists that differ
     in kind, colour, line style, marker or width) needs each of them named by a legend of the axes or
     of the figure, except on a categorical axis, whose ticks name its series. Tick labels must not
-    overlap their neighbours. Pies are exempt."""
+    overlap their neighbours, nor the texts of one panel those of another (``overlapping_panels``). Pies are exempt.
+    The figure is checked as ``plotting.save`` writes it: laid out until its axes stop moving."""
     from matplotlib.patches import Wedge
 
+    settle_layout(fig)
     fig.canvas.draw()
     legend_texts = {t.get_text() for lg in [*fig.legends, *(a.get_legend() for a in fig.axes)] if lg is not None
                     for t in lg.get_texts() if t.get_text().strip()}
@@ -460,4 +497,4 @@ def check_figure(fig) -> list[str]:
                     kind = next(a for a in data if _style(a) == st)
                     problems.append(f"{where}: {len(styles)} series, one ({type(kind).__name__} {kind.get_label()!r}) "
                                     "is named by no legend")
-    return problems
+    return problems + overlapping_panels(fig)

@@ -147,14 +147,16 @@ def figure_paths(targets: list[Target], generated: dict[str, list[pd.DataFrame]]
     return _finish_grid(fig, axes, n, title, fontsize=6, cells=cells, group=lambda lab: lab.split(": ")[0])
 
 
-def figure_boxplots(df: pd.DataFrame, angle: str = "gamma"):
+def figure_boxplots(df: pd.DataFrame, angle: str = "gamma", title: str = ""):
     """Box plots (median, quartiles, whiskers to 1.5 IQR, outliers) of d_xy and d_angle per model,
-    the number of trajectories under each box."""
+    the number of trajectories under each box; ``title`` above them."""
     from cobot_analysis.plotting import pyplot
 
     plt = pyplot()
     models = list(dict.fromkeys(df["model"]))
     fig, axes = plt.subplots(1, 2, figsize=(max(8.0, 2.2 * len(models) + 2), 4.2), layout="constrained")
+    if title:
+        fig.suptitle(title)
     for ax, metric, unit in zip(axes, ("d_xy", f"d_{angle}"), ("m", "rad")):
         values = [df.loc[df["model"] == m, metric].dropna().to_numpy(float) for m in models]
         ax.boxplot(values, whis=1.5, showfliers=True, widths=0.6, medianprops={"color": "k", "lw": 1.5},
@@ -164,6 +166,16 @@ def figure_boxplots(df: pd.DataFrame, angle: str = "gamma"):
         ax.set_xlabel("model")
         ax.set_ylabel(f"{metric} to the measured path ({unit})")
     return fig
+
+
+def comparison_title(model: str, convention: str) -> str:
+    """Title of ``figure_boxplots`` in fit-ioc: what is compared, under which convention."""
+    return f"Distances of each model's paths to the mean paths ({model} OC fitted, {convention} convention)"
+
+
+def paths_title(model: str, convention: str) -> str:
+    """Title of fit-ioc's ``figure_paths``: the fitted model (improved or table) under its convention."""
+    return f"mean (black) vs {model} OC: published, fitted weights ({convention} convention)"
 
 
 # ---- T at its bound (every model) ----------------------------------------------------------------
@@ -414,8 +426,43 @@ def generated_section(df: pd.DataFrame, convention, measured: dict[str, tuple[fl
            "their search** (status column)" if ends["status"].astype(str).str.startswith("duration on a bound").any() else "")
         + ("." + (f" The subjects' own ({_subject_pace(ends, measured)}) are in the table: {source}."
                   if measured else
-                  " The input holds no subjects' durations to compare with (no travel times, no velocity rows).")), ""]
+                  " The input holds no subjects' durations to compare with (no travel times, no velocity rows).")), "",
+        heading_line(df), ""]
     return summary + lines + [""]
+
+
+def heading_line(df: pd.DataFrame) -> str:
+    """Markdown: how the generated paths' headings turn (``models.heading_turns``): the paths that turn from their
+    start to their goal heading more than half a turn beyond the shortest turn (the two headings given on other
+    branches), those that spin (turning more than a full turn beyond their net turn, ``goal.spins``' rule) and the
+    largest turning rate. Neither is a walker's path: named, never hidden."""
+    from cobot_analysis.models import heading_turns
+
+    turns = {trial: heading_turns(g["theta"].to_numpy(float)) for trial, g in df.groupby("trial", sort=False)}
+    n = len(turns)
+    long_way = [t for t, h in turns.items() if abs(h["net"]) - abs(h["shortest"]) > math.pi]
+    spin = [t for t, h in turns.items() if h["excess"] > 2 * math.pi]
+    omega = np.abs(df["omega"].to_numpy(float)) if "omega" in df else np.array([np.nan])
+    rate = f"largest |omega| {np.nanmax(omega):.3g} rad/s" if np.isfinite(omega).any() else ""
+
+    def named(trials):
+        return ", ".join(map(str, trials[:10])) + (", ..." if len(trials) > 10 else "")
+
+    if not long_way and not spin:
+        return (f"Heading: every path turns from its start to its goal heading within half a turn of the shortest turn, "
+                f"and none spins (turns more than a full turn beyond its net turn){'; ' + rate if rate else ''}.")
+    parts = []
+    if long_way:
+        parts.append(f"{len(long_way)} of {n} paths turn from their start to their goal heading more than half a turn beyond "
+                     f"the shortest turn ({named(long_way)}): the two headings were given on other branches (with --study, "
+                     "the measured first theta and the goal on the branch of the last measured theta, docs/methods.md sec. "
+                     "5.3), so the model walks the turns the measured heading winds through")
+    if spin:
+        parts.append(f"{len(spin)} of {n} paths spin, their heading turning more than a full turn beyond their net turn "
+                     f"(sum |d theta| - |theta_N - theta_0| > 2 pi; {named(spin)}): the model prices the turning rate's "
+                     "changes by a3 alone (docs/methods.md sec. 5.5), and with a3 near zero omega can alternate in sign "
+                     "from node to node at almost no cost")
+    return f"**Heading: no walker's turn**{f' ({rate})' if rate else ''}: " + "; ".join(parts) + "."
 
 
 def _subject_pace(ends: pd.DataFrame, measured: dict) -> str:
@@ -594,6 +641,24 @@ def ioc_overview(fits: dict[str, Path]) -> list[str]:
     return lines
 
 
+def gauge_limit_lines(weights: dict[str, float], fitted, pace: dict | None) -> list[str]:
+    """Markdown: the fitted weights the time gauge (a1..a3 x c^4, ``pace``) moved beyond the search limits
+    ``ioc.LOG_BOUNDS``: fitted on a limit, they are written scaled off it (the tables show the written weights)."""
+    from cobot_analysis.models.ioc.fit import LOG_BOUNDS
+    from cobot_analysis.models.ioc.pace import ACCELERATION_WEIGHTS
+
+    if not pace or not np.isfinite(pace.get("c", np.nan)):
+        return []
+    off = [n for n in fitted if n in ACCELERATION_WEIGHTS and not LOG_BOUNDS[0] <= np.log10(max(weights[n], 1e-300)) <= LOG_BOUNDS[1]]
+    if not off:
+        return []
+    return [f"The weights written (and shown above) are the time gauge's, a1-a3 x c^4 = {pace['c'] ** 4:.4g}: "
+            + ", ".join(f"{n} = {weights[n]:.3g}" for n in off)
+            + f" lie{'s' if len(off) == 1 else ''} beyond the search limits 1e{LOG_BOUNDS[0]:g}..1e{LOG_BOUNDS[1]:g}, fitted on "
+            f"{'a limit' if len(off) == 1 else 'limits'} and scaled off {'it' if len(off) == 1 else 'them'} (the verdicts' "
+            "search limits are the fit's).", ""]
+
+
 def _gauge_lines(line: str, targets, per_target: list[dict], pace: dict) -> list[str]:
     """The time-gauge calibration's summary and its per-target table (model beside subjects)."""
     M = np.asarray(pace["measured_T"], float)
@@ -727,6 +792,7 @@ def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal
                       f"{len(fits[k])} paths (D = {r.objective:.4f}).", ""]
     if conv.name == "continuous" and model != "coupled" and per == "all":
         lines += pace_lines(result.mean_keys, fits["all"], results["all"].per_target, durations, results["all"].pace)
+        lines += gauge_limit_lines(results["all"].weights, names, results["all"].pace)
     if result.coupled is not None:
         lines += coupled_section(results["all"], result.coupled, result.mean_targets, stage, durations)
     if result.comparison is not None:
@@ -734,8 +800,8 @@ def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal
         lines += [f"### Model comparison on the mean trajectories ({conv.name} convention)", "",
                   summary_table(comparison, angle, ddof=conv.comparison.sd_ddof), *goal_lines(comparison, conv.name),
                   "### Statistics", "", statistics(comparison, list(result.compared)[-1], angle)]
-        stage.savefig(figure_boxplots(comparison, angle), "distances_boxplot")
+        stage.savefig(figure_boxplots(comparison, angle, comparison_title(model, conv.name)), "distances_boxplot")
         lines += ["![distances per model](distances_boxplot.png)", ""]
-        stage.savefig(figure_paths(result.mean_targets, result.paths, "mean (black) vs improved OC: published, fitted"), "paths")
+        stage.savefig(figure_paths(result.mean_targets, result.paths, paths_title(model, conv.name)), "paths")
         lines += ["![generated vs mean paths](paths.png)", ""]
     return "\n".join(lines) + "\n"

@@ -193,9 +193,9 @@ def example_trajectory(metrics, trajs, config):
 
 
 def figures(metrics, traj, config) -> dict:
-    """The stage's figures by file stem: every prediction of one trajectory (``prediction_overlay``),
-    the predictions at six samples k (``prediction_at_k``) and the error against the global distance
-    (``prediction_error_vs_distance``)."""
+    """The stage's figures by file stem: every prediction of one trajectory (``prediction_overlay``, one window of
+    the figure's aspect around the path and the predictions), the predictions at six samples k (``prediction_at_k``,
+    each panel zoomed on its window) and the error against the global distance (``prediction_error_vs_distance``)."""
     import numpy as np
 
     from cobot_analysis.plotting import pyplot
@@ -213,10 +213,17 @@ def figures(metrics, traj, config) -> dict:
         preds[name] = make_predictor(name, n0, n_oc, traj.dt, convention=config.convention, **options).predict_offline(traj.seen)
     xy = traj.poses[:, :2]
     from cobot_analysis.plotting import PREDICTOR_COLOURS as colours
+    from cobot_analysis.reports.figures import window_limits
     conv = config.convention
     span = np.nanmax(xy, axis=0) - np.nanmin(xy, axis=0)
     aspect = float(np.clip(span[1] / max(span[0], 1e-9), 0.3, 1.5))  # of the equal-aspect path panels
     out = {}
+
+    def box(*arrays):
+        """(lo, hi) over the finite points of ``arrays`` (each n x 2)."""
+        pts = np.concatenate([np.asarray(a, float).reshape(-1, 2) for a in arrays])
+        pts = pts[np.isfinite(pts).all(axis=1)]
+        return pts.min(axis=0), pts.max(axis=0)
 
     # the predictors' panels compared side by side: one scale (shared axes)
     fig, axes = plt.subplots(1, len(preds), figsize=(4.2 * len(preds), 4.2 * aspect + 1.2), squeeze=False, sharex=True,
@@ -227,26 +234,29 @@ def figures(metrics, traj, config) -> dict:
         ax.add_collection(LineCollection(P[ok, :, :2], colors=colours[name], linewidths=0.5, alpha=0.4, zorder=2,
                                          label=f"{name}: prediction from each k"))
         ax.set_title(f"{name}: all {ok.sum()} predictions")
-        ax.set_aspect("equal")
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
         ax.legend(loc="best", fontsize=7)
+    # one window of the figure's aspect (a path much longer than wide fills its panels, not a strip), shared
+    window_limits(axes[0], *box(xy, *(P[..., :2] for P in preds.values())), aspect=aspect)
     step = f"OC nodes of {conv.prediction.node_dt:g} s" if conv.prediction.node_dt else f"T_OC = {traj.dt * 1000:.1f} ms"
     fig.suptitle(f"{traj.label}, N0 = {n0}, N_OC = {n_oc}, {step}, {conv.name} convention")
     out["prediction_overlay"] = fig
 
     ks = np.linspace(n0 - 1, len(xy) - 1 - (n_oc - n0) // 2, 6).astype(int)
-    fig, axes = plt.subplots(2, 3, figsize=(12, 2 * 4 * aspect + 1.6), squeeze=False, layout="constrained")
+    fig, axes = plt.subplots(2, 3, figsize=(12, 9.0), squeeze=False, layout="constrained")
     for ax, k in zip(axes.ravel(), ks):
+        past, future = xy[k - n0 + 1: k + 1], xy[k: k + n_oc - n0 + 1]
         ax.plot(*xy.T, color="0.8", lw=1, label="recorded path")
-        ax.plot(*xy[k - n0 + 1: k + 1].T, color="k", lw=2.5, label="measured past (N0 samples)")
-        ax.plot(*xy[k: k + n_oc - n0 + 1].T, color="k", ls="--", lw=1, label="recorded future (N_OC - N0 samples)")
+        ax.plot(*past.T, color="k", lw=2.5, label="measured past (N0 samples)")
+        ax.plot(*future.T, color="k", ls="--", lw=1, label="recorded future (N_OC - N0 samples)")
         for name, P in reversed(preds.items()):  # the first predictor (oc) drawn on top
             ax.plot(*P[k - n0 + 1][:, :2].T, color=colours[name], lw=1.5, label=f"{name} prediction")
         ax.set_title(f"k = {k} ({100 * k / (len(xy) - 1):.0f} %)")
-        ax.set_aspect("equal")
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
+        # zoomed on the window (its past, recorded future and predictions), square: the predictions told apart
+        window_limits([ax], *box(past, future, *(P[k - n0 + 1][:, :2] for P in preds.values())))
     handles, labels = axes[0, 0].get_legend_handles_labels()
     order = [*range(3), *reversed(range(3, len(labels)))]  # the predictors in the order given
     fig.legend([handles[i] for i in order], [labels[i] for i in order], loc="outside lower center", ncol=3 + len(preds),
@@ -289,8 +299,30 @@ def _p(v) -> str:
     return "n/a" if math.isnan(v) else ("< 0.001" if v < 1e-3 else f"{v:.3f}")
 
 
-def results_fragment(metrics, summary, comparison, config, example, unpredictable=(), stage_name: str = "predict") -> str:
-    """Markdown fragment of the stage (assembled into docs/results.md)."""
+def travel_angle(trajectories) -> dict[str, float]:
+    """Per entity, the median over its trajectories (orientation tracked) of their median |gamma|, gamma = wrap(theta -
+    direction of travel), the direction of travel atan2 of the positions' central differences (rad): 0 for a walker
+    facing where it goes, pi / 2 for a table carried sideways."""
+    import numpy as np
+
+    from cobot_analysis.angles import wrap
+
+    per = {}
+    for t in trajectories:
+        if not t.track_theta or not np.isfinite(t.poses[:, 2]).any():
+            continue
+        dx, dy = (np.gradient(t.poses[:, i]) for i in (0, 1))
+        moving = np.hypot(dx, dy) > 0
+        gamma = np.abs(wrap(t.poses[moving, 2] - np.arctan2(dy[moving], dx[moving])))
+        if np.isfinite(gamma).any():
+            per.setdefault(t.entity, []).append(float(np.nanmedian(gamma)))
+    return {e: float(np.median(v)) for e, v in sorted(per.items())}
+
+
+def results_fragment(metrics, summary, comparison, config, example, unpredictable=(), stage_name: str = "predict",
+                     trajectories=()) -> str:
+    """Markdown fragment of the stage (assembled into docs/results.md); ``trajectories`` (those predicted) give the
+    angle between heading and direction of travel that the goal predictors' delta_theta holds (``travel_angle``)."""
 
     traj = metrics.drop_duplicates(["study", "trial", "entity"])
     studies = ", ".join(f"{s} ({n})" for s, n in traj.groupby("study").size().items())
@@ -335,6 +367,14 @@ def results_fragment(metrics, summary, comparison, config, example, unpredictabl
         vals = [f"{_fmt(cell[k]['mean'])} +- {_fmt(cell[k]['sd'])}" for k in ("delta_xy", "delta_theta", "d_pred", "ade", "fde")]
         r = cell["delta_xy"]
         lines.append(f"| {n0} | {n_oc} | {pred} | " + " | ".join(vals) + f" | {_fmt(r['pearson_r'], 2)} (p {_p(r['pearson_p'])}) |")
+    goal_preds = [p for p in ("goal", "goal-inferred") if p in config.predictors]
+    gamma = travel_angle(trajectories) if goal_preds else {}
+    if gamma:
+        lines += ["", f"{' and '.join(goal_preds)} predict the heading as the direction of travel (the walker facing where "
+                  "it goes, docs/methods.md sec. 7.1), so their delta_theta holds the trajectories' own angle between "
+                  "heading and direction of travel, |gamma|: median " + ", ".join(f"{e} {v:.2f} rad" for e, v in gamma.items())
+                  + " (per trajectory its median, then the median over trajectories). Where it is large (a table carried "
+                  "sideways or backwards: its theta is its orientation) that delta_theta is no error of a predicted heading."]
     if len(comparison):
         lines += ["", "### OC predictor vs baselines on the same windows (delta_xy; Wilcoxon signed-rank over trajectories)", "",
                   "| N0 | N_OC | baseline | group | n | OC median (m) | baseline median (m) | median OC - baseline (m) | OC better (trajectories) | OC better (windows) | W | p | r |",

@@ -95,7 +95,8 @@ def predict(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
         example = report.example_trajectory(metrics, trajs, config)
         for stem, fig in report.figures(metrics, example, config).items():
             stage.savefig(fig, stem)
-        text = report.results_fragment(metrics, result.summary_table, result.comparison, config, example, unpredictable, directory)
+        text = report.results_fragment(metrics, result.summary_table, result.comparison, config, example, unpredictable, directory,
+                                       trajectories=trajs)
         other = Path(out) / registry.directory(stage_name, next(n for n in conventions.NAMES if n != conv.name))
         if (other / "prediction_summary.parquet").is_file() and (other / "prediction_comparison.parquet").is_file():
             try:

@@ -51,6 +51,7 @@ import numpy as np
 
 from cobot_analysis.errors import InputError
 from cobot_analysis.models import GOAL_EXTENT as LAB_EXTENT  # the lab's bound on a goal, generate's too
+from cobot_analysis.models import heading_turns
 from cobot_analysis.models.prediction.base import Predictor
 
 N_INTERVALS = 20  # intervals of the plan: solved afresh every window
@@ -153,7 +154,7 @@ def plan_start(past: np.ndarray, filt: np.ndarray) -> np.ndarray:
 def spins(theta: np.ndarray) -> bool:
     """The heading turns more than a full turn beyond the pose change, ``sum |dtheta| - |theta_N - theta_0| > 2 pi``
     (theta at the plan's nodes, unwrapped): no walker's plan; a loop adds a full turn."""
-    return float(np.abs(np.diff(theta)).sum() - abs(theta[-1] - theta[0])) > 2 * math.pi
+    return heading_turns(theta)["excess"] > 2 * math.pi
 
 
 class Planner:
