@@ -299,3 +299,19 @@ def test_vectorised_kruskal_property(k, n, seed):
     v = np.round(rng.normal(size=(3, k, n)), 1)  # rounding makes ties common
     expected = [stats.kruskal(*row).pvalue if np.ptp(row) > 0 else np.nan for row in v]
     np.testing.assert_allclose(kruskal_rows(v), expected, rtol=1e-9, equal_nan=True)
+
+
+def test_a_paired_wilcoxon_counts_the_pairs_it_tests():
+    """n of a paired test is the pairs tested (docs/schemas.md, stats: 'number of values (or pairs) tested'), not the
+    trials: 3 trials per subject and condition, 6 subjects, one subject without condition B -> 5 pairs of means."""
+    rng = np.random.default_rng(3)
+    rows = [{"subject": f"S{s}", "condition": c, "d": float(rng.normal(1.0 if c == "A" else 1.5, 0.1))}
+            for s in range(6) for c in "AB" for _ in range(3) if not (s == 5 and c == "B")]
+    df = pd.DataFrame(rows)
+    a = config.Analysis(id="q", description="", source="t", value="d", test="wilcoxon", family="f", group="condition",
+                        paired_by=["subject"], min_size=3)
+    (row,) = analyses.run_analysis(a, df, 0.05)
+    assert row["status"] == "ok" and row["n"] == 5, row
+    assert row["n_groups"] == "A: 18; B: 15" and "5 pairs" in row["note"]
+    means = df.groupby(["subject", "condition"])["d"].mean().unstack().dropna()
+    assert row["p"] == pytest.approx(stats.wilcoxon(means["A"], means["B"]).pvalue)

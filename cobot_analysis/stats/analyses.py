@@ -200,6 +200,7 @@ def _run_one(a: Analysis, df: pd.DataFrame, groups: dict, alpha: float) -> dict:
         sub = sub[sub["_g"].isin([k1, k2])]
         w = sub.pivot_table(index=a.paired_by, columns="_g", values=a.value, aggfunc="mean")
         w = w.dropna(subset=[k1, k2]) if {k1, k2} <= set(w.columns) else w.iloc[0:0]
+        row["n"] = len(w)  # the pairs tested (n_groups keeps each group's values)
         if len(w) < a.minimum:
             row["status"] = f"skipped: {len(w)} matched pairs, wilcoxon needs {a.minimum}"
             return row
