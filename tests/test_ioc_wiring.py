@@ -88,6 +88,18 @@ def test_verdict_categories():
                             "stencil unexplained)") == "not judged"
 
 
+@pytest.mark.parametrize("w, at", [(1.05e-7, True), (1.09e-7, True), (1.2e-7, False), (900.0, True), (850.0, False)])
+def test_a_verdict_is_tagged_at_the_search_limit_where_the_report_warns(w, at):
+    """One rule for "at the search limit": within a factor 1.12 (0.05 in log10) of 1e-7 or 1e3, in the verdict's tag and
+    in the report's warning (per-subject fits ended at a3 = 1.09e-7 and 1.05e-7 with the warning and no tag)."""
+    from cobot_analysis.models.ioc.uncertainty import verdicts
+    from cobot_analysis.reports.models import weight_limit_flag
+
+    v = verdicts(("a2", "a3"), np.eye(2), 0.1, {"a2": 5.0, "a3": w})
+    assert v["a2"] == "determined" and v["a3"].endswith(f"(at the search limit {1e-7 if w < 1 else 1e3:g})") == at
+    assert ("a3 = " in weight_limit_flag({"a2": 5.0, "a3": w}, ("a2", "a3"))) == at
+
+
 @pytest.mark.slow  # the module's fits: about 16 s of CPU
 def test_results_md_shows_both_methods_with_intervals_and_verdicts(fits, tmp_path):
     from cobot_analysis.reports.results import write_results

@@ -203,12 +203,12 @@ def duration_flag(terms: list[dict], v_nominal: float = 1.0, convention: str = "
 
 
 def weight_limit_flag(weights: dict[str, float], fitted: tuple[str, ...]) -> str:
-    """Markdown line naming the fitted weights that end within a factor 1.12 (0.05 in log10) of the search
-    limits ``ioc.LOG_BOUNDS``; there the data ask for a term the bounds cut, so the weight is a bound, not an estimate."""
-    from cobot_analysis.models.ioc.fit import LOG_BOUNDS
+    """Markdown line naming the fitted weights that end within a factor 1.12 (``fit.AT_LIMIT``, 0.05 in log10) of the
+    search limits ``fit.LOG_BOUNDS``; there the data ask for a term the bounds cut, so the weight is a bound, not an estimate."""
+    from cobot_analysis.models.ioc.fit import AT_LIMIT, LOG_BOUNDS
 
     near = [f"{n} = {weights[n]:.3g} at the {'lower' if np.log10(weights[n]) < sum(LOG_BOUNDS) / 2 else 'upper'} limit"
-            for n in fitted if min(abs(np.log10(max(weights[n], 1e-300)) - b) for b in LOG_BOUNDS) < 0.05]
+            for n in fitted if min(abs(np.log10(max(weights[n], 1e-300)) - b) for b in LOG_BOUNDS) < AT_LIMIT]
     if not near:
         return f"Fitted weights inside the search limits 1e{LOG_BOUNDS[0]:g}..1e{LOG_BOUNDS[1]:g}."
     return (f"**Warning: fitted weights at a search limit** (1e{LOG_BOUNDS[0]:g}..1e{LOG_BOUNDS[1]:g}): {', '.join(near)}; "

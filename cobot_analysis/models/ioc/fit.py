@@ -45,6 +45,7 @@ T_BOUNDS = (0.4, 2.5)  # free T within these multiples of T0: coupled model (cou
 FAILED_D = 10.0  # objective term of a lower level that did not converge (m-equivalent; >> any real D)
 OPTIMIZERS = ("powell", "nelder-mead")
 LOG_BOUNDS = (-7.0, 3.0)  # log10 of a fitted weight
+AT_LIMIT = 0.05  # log10: a fitted weight within a factor 1.12 of a search limit is at that limit (a bound, not an estimate)
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,8 @@ A weight taking part (V_ji^2 >= 0.1) in a direction of negative curvature beyond
 (0.5 |mu| (log10 2)^2 >= rel_tol D: a fit stopped short of a minimum, e.g. by its evaluation budget) is "not
 judged: the fit is not at a minimum of D" (counted as sloppy, such a direction would call the weight "not
 determined").
-A weight within 0.01 of a log10 search limit carries "(at the search limit ...)" beside its verdict.
+A weight within 0.05 of a log10 search limit (a factor 1.12: ``fit.AT_LIMIT``, as the report's warning) carries "(at the
+search limit ...)" beside its verdict.
 A "determined" weight whose bootstrap interval (below) reaches a search limit is not determined after
 all: resamples of the same data cannot exclude the limit (``interval_verdicts``).
 No verdict at all ("not judged: D is not smooth at the fit") when a quadratic fitted by least squares
@@ -65,7 +66,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cobot_analysis.models.ioc.fit import LOG_BOUNDS, IOCSpec, fit_key, published_terms, solve_target
+from cobot_analysis.models.ioc.fit import AT_LIMIT, LOG_BOUNDS, IOCSpec, fit_key, published_terms, solve_target
 from cobot_analysis.models.ioc.targets import Target
 from cobot_analysis.models.presets import names_for
 
@@ -270,9 +271,9 @@ def verdicts(fitted, H: np.ndarray, D: float, weights: dict[str, float], rel_tol
 
 
 def _at_limit(w: float) -> str:
-    """" (at the search limit L)" for a weight within 0.01 of a log10 search limit, else ""."""
+    """" (at the search limit L)" for a weight within ``AT_LIMIT`` (0.05, a factor 1.12) of a log10 search limit, else ""."""
     y = math.log10(max(w, 1e-300))
-    if abs(y - LOG_BOUNDS[0]) < 0.01 or abs(y - LOG_BOUNDS[1]) < 0.01:
+    if abs(y - LOG_BOUNDS[0]) < AT_LIMIT or abs(y - LOG_BOUNDS[1]) < AT_LIMIT:
         return f" (at the search limit {10.0 ** (LOG_BOUNDS[0] if y < 0 else LOG_BOUNDS[1]):g})"
     return ""
 
