@@ -309,6 +309,9 @@ def velocity_commands(generated: pd.DataFrame | str | os.PathLike, *, trial: str
     from cobot_analysis.models.velocity_commands import check_time_law, resample_path, velocity_commands as commands
     from cobot_analysis.schema import read_table
 
+    for option, value, low in (("--rate", rate, 0.1), ("--v-max", v_max, 0.0), ("--omega-max", omega_max, 0.0)):
+        if not (math.isfinite(value) and value >= low):
+            raise InputError(f"{option} {value:g} is not a finite number >= {low:g}", remedy=f"give {option} a finite value")
     if not isinstance(generated, pd.DataFrame):
         path = Path(generated)
         generated = read_table(path, GENERATED)
@@ -321,8 +324,10 @@ def velocity_commands(generated: pd.DataFrame | str | os.PathLike, *, trial: str
     g = generated[generated["trial"] == trial].sort_values("sample")
     if g.empty:
         raise InputError(f"no generated trajectory {trial!r}", path=path, remedy=f"use one of {', '.join(trials[:8])}")
-    if g[["time", "x", "y", "theta"]].isna().any().any():
-        raise InputError(f"trajectory {trial!r} has NaN time or pose", path=path, remedy="re-run generate")
+    if len(g) < 2:
+        raise InputError(f"trajectory {trial!r} has {len(g)} sample: no path to follow", path=path, remedy="re-run generate")
+    if not np.isfinite(g[["time", "x", "y", "theta"]].to_numpy(float)).all():
+        raise InputError(f"trajectory {trial!r} has NaN or infinite time or pose", path=path, remedy="re-run generate")
     check_time_law(g, path=path)
     sim = resample_path(g["time"], g["x"], g["y"], g["theta"], rate)
     cmd = commands(sim, rate, v_max=v_max, omega_max=math.radians(omega_max))
