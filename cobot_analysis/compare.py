@@ -123,7 +123,7 @@ def read_trajectory_set(path: str | Path, tables: tuple[str, ...] = ("trajectori
     """
     import pyarrow.parquet as pq
 
-    from cobot_analysis.schema import SCHEMAS, TRAJECTORIES, check_file, check_values, table_metadata
+    from cobot_analysis.schema import SCHEMAS, TRAJECTORIES, VERIFY, check_file, check_values, table_metadata
 
     path = check_file(path, "run the stage that writes it first or check --out")
 
@@ -132,7 +132,7 @@ def read_trajectory_set(path: str | Path, tables: tuple[str, ...] = ("trajectori
 
     def read(**kw):
         try:
-            return pq.read_table(path, use_threads=False, **kw)
+            return pq.read_table(path, use_threads=False, **VERIFY, **kw)
         except Exception as exc:
             raise unreadable(exc) from None
 
@@ -443,11 +443,11 @@ def against_set(path: Path, n_samples: int, convention) -> TrajectorySet:
 
     from cobot_analysis import conventions
     from cobot_analysis.distances import gamma_from_path, resample_arclength, resample_time
-    from cobot_analysis.schema import TRAJECTORIES, check_file, check_values, table_metadata
+    from cobot_analysis.schema import TRAJECTORIES, VERIFY, check_file, check_values, table_metadata
 
     path = check_file(path, "pass the table generate wrote")
     try:
-        table = pq.read_table(path)
+        table = pq.read_table(path, **VERIFY)
         stored = table_metadata(path).get("convention")
     except Exception as exc:  # pyarrow raises several types for corrupt files
         raise InputError(f"not a readable trajectory table ({type(exc).__name__})", path=path, remedy="pass a Parquet trajectory table") from None

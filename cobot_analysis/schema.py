@@ -7,7 +7,8 @@ is null in one table is never written as Arrow's Null type and two tables of the
 concatenate), stores each column's unit and description as Arrow field metadata
 (``unit``, ``description``), stores the schema (name, version, per-column unit and description) and
 any stage metadata (e.g. sampling rate, source units) as JSON in the Parquet key-value metadata under
-``cobot_analysis``, and writes atomically (temporary file, then rename). ``read_table`` checks a
+``cobot_analysis``, gives every data page its CRC32 checksum (``VERIFY``: the readers check it, so that a
+flipped bit is an error and never a changed value), and writes atomically (temporary file, then rename). ``read_table`` checks a
 file is the table it claims to be (name, columns, the types and ``limits`` of its number columns:
 ``check_values``) and returns the DataFrame with its metadata in ``df.attrs["cobot_analysis"]``.
 
@@ -30,6 +31,10 @@ from cobot_analysis.errors import InputError
 
 METADATA_KEY = b"cobot_analysis"
 SCHEMAS: dict[str, "TableSchema"] = {}
+
+#: keyword of pyarrow's readers: check the CRC32 of every data page that has one (all the tables ``write_table``
+#: writes; a file without checksums reads as before)
+VERIFY = {"page_checksum_verification": True}
 
 #: m: largest |coordinate| from the lab origin (the largest motion-capture volumes span a few tens of
 #: metres); a farther position is corrupt or not in metres (``import --lab-extent``'s default).
@@ -182,7 +187,7 @@ def write_table(df: pd.DataFrame | Any, path: str | os.PathLike, schema: TableSc
     try:
         # No dictionary for float columns: they rarely repeat, and trying it costs memory (+36 MB on
         # 125,000 rows x 9 floats) and time before Parquet falls back to plain encoding.
-        pq.write_table(table, tmp, compression="zstd",
+        pq.write_table(table, tmp, compression="zstd", write_page_checksum=True,
                        use_dictionary=[f.name for f in table.schema if not pa.types.is_floating(f.type)])
         os.replace(tmp, path)
     finally:
@@ -270,7 +275,7 @@ def read_table(path: str | os.PathLike, schema: TableSchema, columns: list[str] 
     path = check_file(path, f"run the stage that writes {schema.name} first or check --out")
     try:
         meta = table_metadata(path)
-        table = pq.read_table(path, columns=columns)
+        table = pq.read_table(path, columns=columns, **VERIFY)
     except Exception as exc:  # pyarrow raises several types for corrupt files
         raise InputError(f"not a readable Parquet file ({type(exc).__name__})", path=path, remedy="re-run the stage that wrote it") from exc
     if meta.get("table") != schema.name:

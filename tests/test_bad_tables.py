@@ -133,12 +133,19 @@ def test_velocity_commands_of_a_damaged_path(tmp_path, cli, edit, expected):
     assert expected in line, line
 
 
-def test_a_trials_table_with_a_rate_in_words(tmp_path, cli):
+@pytest.fixture(scope="module")
+def imported(tmp_path_factory) -> Path:
+    """A workspace with one imported synthetic walking trial."""
     from cobot_analysis.cli import run
 
-    ws = tmp_path / "study"
+    ws = tmp_path_factory.mktemp("study") / "study"
     assert run(["-q", "synth", "walking", "--out", str(ws), "--subjects", "1", "--repetitions", "1", "--conditions", "1", "-j", "1"]) == 0
     assert run(["-q", "import", str(ws / "synth-walking" / "protocol.yaml"), "--out", str(ws), "-j", "1"]) == 0
+    return ws
+
+
+def test_a_trials_table_with_a_rate_in_words(imported, tmp_path, cli):
+    ws = imported
     bad = edited(ws / "import" / "trials.parquet", tmp_path / "trials.parquet", lambda df: df.assign(rate="fast"))
     line = refused(cli, tmp_path / "ws", bad, "preprocess", "--out", tmp_path / "ws", "--markers", ws / "import" / "markers.parquet",
                    "--trials", bad, "-j", "1")
@@ -154,3 +161,54 @@ def test_velocity_commands_at_an_infinite_rate(tmp_path, cli):
     code, _, err = cli("velocity-commands", "--out", ws, "--rate", "inf")
     assert code == 2 and err.strip().splitlines() == ["error: --rate inf is not a finite number >= 0.1; give --rate a finite value"]
     assert sorted(p.name for p in ws.iterdir()) == before
+
+
+@pytest.mark.parametrize("reader", ["read_trajectory_set", "read_table"])
+def test_a_flipped_bit_in_a_data_page_is_an_error_never_a_changed_value(table, tmp_path, reader):
+    """Every data page carries its CRC32 (``schema.write_table``), checked by the readers: 40 single-bit
+    flips across the x and theta column chunks each give an ``InputError``, none a silently changed value
+    (without checksums, a flip inside zstd's literals decodes to other numbers)."""
+    from cobot_analysis.compare import read_trajectory_set
+    from cobot_analysis.errors import InputError
+    from cobot_analysis.schema import read_table
+
+    def read(path):
+        if reader == "read_table":
+            return read_table(path, TRAJECTORIES)[["x", "y", "theta", "gamma"]].to_numpy()
+        ts = read_trajectory_set(path)
+        return np.stack([ts.x, ts.y, ts.theta, ts.gamma])
+
+    data, ref = table.read_bytes(), read(table)
+    meta = pq.ParquetFile(table).metadata.row_group(0)
+    chunks = [meta.column(i) for i in range(meta.num_columns) if meta.column(i).path_in_schema in ("x", "theta")]
+    outcomes = []
+    for k in range(40):
+        chunk = chunks[k % 2]
+        offset = chunk.data_page_offset + 30 + (k * 7919) % (chunk.total_compressed_size - 30)
+        flipped = bytearray(data)
+        flipped[offset] ^= 1 << (k % 8)
+        bad = tmp_path / "flipped.parquet"
+        bad.write_bytes(bytes(flipped))
+        try:
+            outcomes.append("same" if np.array_equal(read(bad), ref, equal_nan=True) else "changed")
+        except InputError as exc:
+            assert "not a readable Parquet file" in str(exc)
+            outcomes.append("refused")
+    assert "changed" not in outcomes and outcomes.count("refused") >= 30, outcomes
+
+
+@pytest.mark.parametrize("back", [100, 3000])
+def test_a_flipped_bit_in_the_markers_is_refused_by_preprocess(imported, tmp_path, cli, back):
+    """The markers table ``import`` streams has page checksums too. Before, these two flips (``back`` bytes
+    before the end of the x column's page) decoded to other coordinates, and preprocess wrote other
+    trajectories from them with exit 0."""
+    markers = imported / "import" / "markers.parquet"
+    meta = pq.ParquetFile(markers).metadata.row_group(0)
+    x = next(meta.column(i) for i in range(meta.num_columns) if meta.column(i).path_in_schema == "x")
+    flipped = bytearray(markers.read_bytes())
+    flipped[x.data_page_offset + x.total_compressed_size - back] ^= 1 << (back % 8)
+    bad = tmp_path / "markers.parquet"
+    bad.write_bytes(bytes(flipped))
+    line = refused(cli, tmp_path / "ws", bad, "-q", "preprocess", "--out", tmp_path / "ws", "--markers", bad,
+                   "--trials", imported / "import" / "trials.parquet", "-j", "1")
+    assert "cannot read the marker columns" in line and "re-run `cobot-analysis import`" in line
