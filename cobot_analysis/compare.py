@@ -18,7 +18,7 @@ import pandas as pd
 
 from cobot_analysis.errors import InputError
 from cobot_analysis.distances import pair_distances, reverse_time
-from cobot_analysis.schema import TRIAL_COLUMNS, Column, TableSchema
+from cobot_analysis.schema import NONNEGATIVE, TRIAL_COLUMNS, Column, TableSchema
 
 KEY = ["study", "trial", "entity"]
 #: per-trajectory metadata carried from a trajectory table (columns that exist are kept).
@@ -40,13 +40,14 @@ DISTANCES = TableSchema(
         **{k: Column(c.dtype, c.unit, f"trajectory a: {c.description}", required=c.required) for k, c in TRIAL_COLUMNS.items()},
         "entity": Column("string", "", "walker, subject1, subject2 or table (same for a and b)"),
         **{f"b_{k}": Column(TRIAL_COLUMNS[k].dtype, TRIAL_COLUMNS[k].unit, f"trajectory b: {k}", required=False) for k in B_COLUMNS},
-        "travel_time": Column("float", "s", "travel time of trajectory a (NaN if unknown)", required=False),
+        "travel_time": Column("float", "s", "travel time of trajectory a (NaN if unknown)", required=False, limits=NONNEGATIVE),
         "travelled_distance": Column("float", "m", "start-end distance of trajectory a", required=False),
         "global_distance": Column("float", "m", "start-goal distance of the condition (walker / table path of a's trial)", required=False),
         "orientation_change": Column("float", "rad", "|theta_end - theta_start| of trajectory a (unwrapped)", required=False),
-        "d_xy": Column("float", "m", "linear distance (1/N) sum |p_a - p_b|"),
-        "d_theta": Column("float", "rad", "angular distance (1/N) sum |wrap(theta_a - theta_b)|; NaN if an orientation is missing"),
-        "d_gamma": Column("float", "rad", "local angular distance over N-1 samples; NaN if missing"),
+        "d_xy": Column("float", "m", "linear distance (1/N) sum |p_a - p_b|", limits=NONNEGATIVE),
+        "d_theta": Column("float", "rad", "angular distance (1/N) sum |wrap(theta_a - theta_b)|; NaN if an orientation is missing",
+                          limits=NONNEGATIVE),
+        "d_gamma": Column("float", "rad", "local angular distance over N-1 samples; NaN if missing", limits=NONNEGATIVE),
         "convention": Column("string", "", "published or continuous: how the paths were compared (docs/methods.md sec. 11)",
                              required=False),
     },

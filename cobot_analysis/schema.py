@@ -304,8 +304,7 @@ def check_file(path: str | os.PathLike, remedy: str) -> Path:
 
 
 #: what a value outside a column's limits most likely is, by the column's unit
-_OUT_OF_LIMITS = {"m": "lengths in metres, not millimetres", "rad": "angles in radians, not degrees",
-                  "s": "durations in seconds, >= 0"}
+_OUT_OF_LIMITS = {"m": "lengths in metres, not millimetres", "rad": "angles in radians, not degrees"}
 
 
 def check_values(table, schema: TableSchema, path: str | os.PathLike | None = None) -> None:
@@ -333,10 +332,11 @@ def check_values(table, schema: TableSchema, path: str | os.PathLike | None = No
         bad = np.isinf(values) | (values < lo) | (values > hi)
         if bad.any():
             example = float(values[np.argmax(bad)])
-            allowed = "infinite" if (lo, hi) == REAL else f"outside [{lo:.6g}, {hi:.6g}] {spec.unit}"
+            bounded = math.isfinite(lo) and math.isfinite(hi)
+            allowed = f"outside [{lo:.6g}, {hi:.6g}] {spec.unit}" if bounded else "negative or infinite" if lo == 0 else "infinite"
+            hint = f"{_OUT_OF_LIMITS.get(spec.unit, 'docs/schemas.md')}; " if bounded else ""
             raise InputError(f"column {name!r}: {int(bad.sum())} value(s) {allowed} (e.g. {example:g})", path=path,
-                             remedy=f"give {name} in {spec.unit} ({_OUT_OF_LIMITS.get(spec.unit, 'docs/schemas.md')}; NaN for an "
-                                    f"unknown value), or re-run the stage that wrote it")
+                             remedy=f"give {name} in {spec.unit} ({hint}NaN for an unknown value), or re-run the stage that wrote it")
 
 
 def schemas_markdown() -> str:

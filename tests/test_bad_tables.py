@@ -212,3 +212,19 @@ def test_a_flipped_bit_in_the_markers_is_refused_by_preprocess(imported, tmp_pat
     line = refused(cli, tmp_path / "ws", bad, "-q", "preprocess", "--out", tmp_path / "ws", "--markers", bad,
                    "--trials", imported / "import" / "trials.parquet", "-j", "1")
     assert "cannot read the marker columns" in line and "re-run `cobot-analysis import`" in line
+
+
+@pytest.mark.parametrize("edit, expected", [
+    (lambda df: df.assign(d_xy=-df["d_xy"]), "column 'd_xy': 8 value(s) negative or infinite"),
+    (lambda df: df.assign(d_theta=np.where(df.index == 0, np.inf, df["d_theta"])), "column 'd_theta': 1 value(s) negative or infinite"),
+])
+def test_stats_on_distances_no_comparison_gives(table, tmp_path, cli, edit, expected):
+    """Distances are >= 0 and finite (before: stats ran its tests on them, exit 0)."""
+    from cobot_analysis.cli import run
+
+    ws = tmp_path / "good"
+    for args in (["average"], ["compare"]):
+        assert run(["-q", *args, "--out", str(ws), "--trajectories", str(table)]) == 0
+    bad = edited(ws / "compare" / "distances.parquet", tmp_path / "distances.parquet", edit)
+    line = refused(cli, tmp_path / "ws", bad, "stats", "--out", tmp_path / "ws", "--trajectories", table, "--distances", bad)
+    assert expected in line, line
