@@ -107,15 +107,21 @@ def test_a_directory_is_not_a_missing_file(tmp_path, cli):
     assert "is a directory, not a table; pass the Parquet file itself" in line
 
 
-def test_means_in_mm_are_refused_before_fitting(table, tmp_path, cli):
+@pytest.mark.parametrize("edit, expected", [
+    (lambda df: df.assign(x=df["x"] * 1000, y=df["y"] * 1000), "column 'y': 70 value(s) outside [-100, 100] m"),
+    (lambda df: df[df["sample"] == 0], "trajectories of 1 sample: no path"),
+])
+def test_means_no_stage_writes_are_refused_before_fitting(table, tmp_path, cli, edit, expected):
+    """Before: millimetres gave an internal error (no target with a model and a measured duration), one
+    sample a KeyError (exit 1)."""
     from cobot_analysis.cli import run
 
     ws = tmp_path / "good"
     assert run(["-q", "average", "--out", str(ws), "--trajectories", str(table)]) == 0
-    bad = edited(ws / "average" / "means.parquet", tmp_path / "means.parquet", lambda df: df.assign(x=df["x"] * 1000, y=df["y"] * 1000))
+    bad = edited(ws / "average" / "means.parquet", tmp_path / "means.parquet", edit)
     line = refused(cli, tmp_path / "ws", bad, "fit-ioc", "--out", tmp_path / "ws", "--means", bad, "--max-evaluations", "2",
                    "--no-compare", "-j", "1")
-    assert "column 'y'" in line and "metres, not millimetres" in line
+    assert expected in line, line
     assert MEANS.columns["x"].limits == TRAJECTORIES.columns["x"].limits
 
 

@@ -517,7 +517,11 @@ def read_trajectories(table: pd.DataFrame | str | os.PathLike) -> pd.DataFrame:
         name = table_metadata(table).get("table")
     except Exception:  # noqa: BLE001 - read_table below reports the file properly
         name = None
-    return read_table(table, MEANS if name == "means" else TRAJECTORIES)
+    df = read_table(table, MEANS if name == "means" else TRAJECTORIES)
+    if len(df) and df.groupby(["study", "trial", "entity"], observed=True, dropna=False)["sample"].size().min() < 2:
+        raise InputError("trajectories of 1 sample: no path", path=table,
+                         remedy="time-normalise every trajectory to N >= 2 samples (preprocess --samples)")
+    return df
 
 
 PROFILES = ("means", "all", "none")  # fit_ioc's profiles: which fits get profile likelihoods where curvature and bootstrap cannot judge alike
