@@ -67,3 +67,11 @@ def test_generate_from_a_start_that_is_not_finite(tmp_path, cli, start):
     line = one_line(*cli("generate", "--out", tmp_path / "ws", "--start", *start)[::2])
     assert "--start (" in line and ") has a NaN or infinite value; give --start as three finite numbers (m, m, rad)" in line
     assert not (tmp_path / "ws").exists() or not any((tmp_path / "ws").iterdir())
+
+
+def test_metrics_show_of_a_workspace_without_metrics(tmp_path, cli):
+    """Before: 'study: unknown' and exit 0, as if the workspace had been read."""
+    ws = tmp_path / "ws"
+    ws.mkdir()
+    line = one_line(*cli("metrics", "show", ws)[::2])
+    assert line == f"error: {ws}: no stage metrics (metrics.json) in the workspace(s); run the study's stages with this --out first"
