@@ -20,7 +20,7 @@ import pandas as pd
 
 from cobot_analysis.compare import TrajectorySet, default_groups, group_keys
 from cobot_analysis.errors import InputError
-from cobot_analysis.schema import TRIAL_COLUMNS, Column, TableSchema
+from cobot_analysis.schema import NONNEGATIVE, POSITION, REAL, TRIAL_COLUMNS, WRAPPED, Column, TableSchema
 
 Z95 = 1.959963984540054
 #: largest spread (m) of the members' start or end points around the group's median start or end:
@@ -39,10 +39,10 @@ MEANS = TableSchema(
         "sample": Column("int", "-", "sample index 0..N-1"),
         "phase": Column("float", "%", "100 * sample / (N - 1)"),
         "time": Column("float", "s", "phase * mean travel time / 100 (NaN if unknown)"),
-        "x": Column("float", "m", "mean position"),
-        "y": Column("float", "m", "mean position"),
-        "theta": Column("float", "rad", "circular mean of the global orientation, unwrapped along the path"),
-        "gamma": Column("float", "rad", "circular mean of the local orientation, wrapped"),
+        "x": Column("float", "m", "mean position", limits=POSITION),
+        "y": Column("float", "m", "mean position", limits=POSITION),
+        "theta": Column("float", "rad", "circular mean of the global orientation, unwrapped along the path", limits=REAL),
+        "gamma": Column("float", "rad", "circular mean of the local orientation, wrapped", limits=WRAPPED),
         "n_theta": Column("int", "-", "trajectories with orientation that entered the angle means"),
         "x_sd": Column("float", "m", "sample-wise standard deviation of x"),
         "y_sd": Column("float", "m", "sample-wise standard deviation of y"),
@@ -54,8 +54,8 @@ MEANS = TableSchema(
         "y_hi": Column("float", "m", "y + 1.96 y_sd"),
         "theta_lo": Column("float", "rad", "theta - 1.96 theta_sd"),
         "theta_hi": Column("float", "rad", "theta + 1.96 theta_sd"),
-        "travel_time": Column("float", "s", "mean travel time of the group (NaN if unknown)"),
-        "travelled_distance": Column("float", "m", "start-end distance of the mean path"),
+        "travel_time": Column("float", "s", "mean travel time of the group (NaN if unknown)", limits=NONNEGATIVE),
+        "travelled_distance": Column("float", "m", "start-end distance of the mean path", limits=NONNEGATIVE),
         "quality": Column("string", "", "'ok' or 'orientation_missing' when no member had orientation"),
     },
 )

@@ -18,7 +18,7 @@ import pandas as pd
 
 from cobot_analysis.errors import InputError
 from cobot_analysis.distances import pair_distances, reverse_time
-from cobot_analysis.schema import TRIAL_COLUMNS, Column, TableSchema
+from cobot_analysis.schema import NONNEGATIVE, TRIAL_COLUMNS, Column, TableSchema
 
 KEY = ["study", "trial", "entity"]
 #: per-trajectory metadata carried from a trajectory table (columns that exist are kept).
@@ -40,13 +40,14 @@ DISTANCES = TableSchema(
         **{k: Column(c.dtype, c.unit, f"trajectory a: {c.description}", required=c.required) for k, c in TRIAL_COLUMNS.items()},
         "entity": Column("string", "", "walker, subject1, subject2 or table (same for a and b)"),
         **{f"b_{k}": Column(TRIAL_COLUMNS[k].dtype, TRIAL_COLUMNS[k].unit, f"trajectory b: {k}", required=False) for k in B_COLUMNS},
-        "travel_time": Column("float", "s", "travel time of trajectory a (NaN if unknown)", required=False),
+        "travel_time": Column("float", "s", "travel time of trajectory a (NaN if unknown)", required=False, limits=NONNEGATIVE),
         "travelled_distance": Column("float", "m", "start-end distance of trajectory a", required=False),
         "global_distance": Column("float", "m", "start-goal distance of the condition (walker / table path of a's trial)", required=False),
         "orientation_change": Column("float", "rad", "|theta_end - theta_start| of trajectory a (unwrapped)", required=False),
-        "d_xy": Column("float", "m", "linear distance (1/N) sum |p_a - p_b|"),
-        "d_theta": Column("float", "rad", "angular distance (1/N) sum |wrap(theta_a - theta_b)|; NaN if an orientation is missing"),
-        "d_gamma": Column("float", "rad", "local angular distance over N-1 samples; NaN if missing"),
+        "d_xy": Column("float", "m", "linear distance (1/N) sum |p_a - p_b|", limits=NONNEGATIVE),
+        "d_theta": Column("float", "rad", "angular distance (1/N) sum |wrap(theta_a - theta_b)|; NaN if an orientation is missing",
+                          limits=NONNEGATIVE),
+        "d_gamma": Column("float", "rad", "local angular distance over N-1 samples; NaN if missing", limits=NONNEGATIVE),
         "convention": Column("string", "", "published or continuous: how the paths were compared (docs/methods.md sec. 11)",
                              required=False),
     },
@@ -123,28 +124,42 @@ def read_trajectory_set(path: str | Path, tables: tuple[str, ...] = ("trajectori
     """
     import pyarrow.parquet as pq
 
-    from cobot_analysis.schema import table_metadata
+    from cobot_analysis.schema import SCHEMAS, TRAJECTORIES, VERIFY, check_file, check_values, table_metadata
 
-    path = Path(path)
-    if not path.is_file():
-        raise InputError("file not found", path=path, remedy="run the stage that writes it first or check --out")
+    path = check_file(path, "run the stage that writes it first or check --out")
+
+    def unreadable(exc: Exception) -> InputError:  # pyarrow raises several types for a damaged footer or data page
+        return InputError(f"not a readable Parquet file ({type(exc).__name__})", path=path, remedy="re-run the stage that wrote it")
+
+    def read(**kw):
+        try:
+            return pq.read_table(path, use_threads=False, **VERIFY, **kw)
+        except Exception as exc:
+            raise unreadable(exc) from None
+
     try:
         name = table_metadata(path).get("table")
         names = pq.ParquetFile(path).schema_arrow.names
-    except Exception as exc:  # pyarrow raises several types for corrupt files
-        raise InputError(f"not a readable Parquet file ({type(exc).__name__})", path=path, remedy="re-run the stage that wrote it") from None
+    except Exception as exc:
+        raise unreadable(exc) from None
     if name not in tables:
         raise InputError(f"is not a trajectory table (found {name!r})", path=path, remedy=f"pass one of: {', '.join(tables)}")
     missing = [c for c in (*KEY, "kind", "sample", "x", "y") if c not in names]
     if missing:
         raise InputError(f"{name} table lacks columns {missing}", path=path, remedy="re-run the stage that wrote it")
-    num = pq.read_table(path, columns=[c for c in ("sample", *SIGNALS) if c in names], use_threads=False)
+    schema = SCHEMAS.get(name, TRAJECTORIES)  # generated paths: the trajectories' columns
+    num = read(columns=[c for c in ("sample", *SIGNALS) if c in names])
+    check_values(num, schema, path)
     sample = num["sample"].to_numpy(zero_copy_only=False)
     n_traj = int((sample == 0).sum())
     n = len(sample) // n_traj if n_traj else 0
     if not n or n * n_traj != len(sample) or not (sample.reshape(-1, n) == np.arange(n)).all():
-        return pivot(pq.read_table(path, use_threads=False).to_pandas(), path)
-    meta = pq.read_table(path, columns=[c for c in META if c in names], filters=[("sample", "=", 0)], use_threads=False).to_pandas()
+        table = read()
+        check_values(table, schema, path)
+        return pivot(table.to_pandas(), path)
+    meta = read(columns=[c for c in META if c in names], filters=[("sample", "=", 0)])
+    check_values(meta, schema, path)
+    meta = meta.to_pandas()
     if meta.duplicated(KEY).any():
         raise InputError("several trajectories share a (study, trial, entity) key", path=path, remedy="re-run the stage that wrote it")
 
@@ -157,6 +172,9 @@ def read_trajectory_set(path: str | Path, tables: tuple[str, ...] = ("trajectori
 
 
 def _finish(meta, x, y, theta, gamma, path) -> TrajectorySet:
+    if x.shape[1] < 2:
+        raise InputError(f"trajectories of {x.shape[1]} sample: no path", path=path,
+                         remedy="time-normalise every trajectory to N >= 2 samples (preprocess --samples)")
     ts = TrajectorySet(meta, x, y, theta, gamma)
     snap_configurations(ts)
     bad = ~np.isfinite(ts.x).all(axis=1) | ~np.isfinite(ts.y).all(axis=1)
@@ -429,13 +447,16 @@ def against_set(path: Path, n_samples: int, convention) -> TrajectorySet:
 
     from cobot_analysis import conventions
     from cobot_analysis.distances import gamma_from_path, resample_arclength, resample_time
-    from cobot_analysis.schema import table_metadata
+    from cobot_analysis.schema import TRAJECTORIES, VERIFY, check_file, check_values, table_metadata
 
+    path = check_file(path, "pass the table generate wrote")
     try:
-        df = pq.read_table(path).to_pandas()
+        table = pq.read_table(path, **VERIFY)
         stored = table_metadata(path).get("convention")
     except Exception as exc:  # pyarrow raises several types for corrupt files
         raise InputError(f"not a readable trajectory table ({type(exc).__name__})", path=path, remedy="pass a Parquet trajectory table") from None
+    check_values(table, TRAJECTORIES, path)  # a model path has the trajectories' columns
+    df = table.to_pandas()
     found = {str(path): stored or (str(df["convention"].iloc[0]) if "convention" in df and len(df) else None),
              "--convention": convention.name}
     conventions.check_same(found, "the --against table and this comparison")

@@ -7,9 +7,10 @@ is null in one table is never written as Arrow's Null type and two tables of the
 concatenate), stores each column's unit and description as Arrow field metadata
 (``unit``, ``description``), stores the schema (name, version, per-column unit and description) and
 any stage metadata (e.g. sampling rate, source units) as JSON in the Parquet key-value metadata under
-``cobot_analysis``, and writes atomically (temporary file, then rename). ``read_table`` checks a
-file is the table it claims to be and returns the DataFrame with its metadata in
-``df.attrs["cobot_analysis"]``.
+``cobot_analysis``, gives every data page its CRC32 checksum (``VERIFY``: the readers check it, so that a
+flipped bit is an error and never a changed value), and writes atomically (temporary file, then rename). ``read_table`` checks a
+file is the table it claims to be (name, columns, the types and ``limits`` of its number columns:
+``check_values``) and returns the DataFrame with its metadata in ``df.attrs["cobot_analysis"]``.
 
 Angles are in radians, lengths in metres, times in seconds, unless a column says otherwise.
 ``docs/schemas.md`` is generated from the declarations (``cobot-analysis schemas``).
@@ -18,6 +19,7 @@ Angles are in radians, lengths in metres, times in seconds, unless a column says
 from __future__ import annotations
 
 import json
+import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,6 +32,16 @@ from cobot_analysis.errors import InputError
 METADATA_KEY = b"cobot_analysis"
 SCHEMAS: dict[str, "TableSchema"] = {}
 
+#: keyword of pyarrow's readers: check the CRC32 of every data page that has one (all the tables ``write_table``
+#: writes; a file without checksums reads as before)
+VERIFY = {"page_checksum_verification": True}
+
+#: m: largest |coordinate| from the lab origin (the largest motion-capture volumes span a few tens of
+#: metres); a farther position is corrupt or not in metres (``import --lab-extent``'s default).
+LAB_EXTENT = 100.0
+#: the values of a position in the lab, an angle wrapped to (-pi, pi], a duration or a distance
+POSITION, WRAPPED, REAL, NONNEGATIVE = (-LAB_EXTENT, LAB_EXTENT), (-math.pi, math.pi), (-math.inf, math.inf), (0.0, math.inf)
+
 
 @dataclass(frozen=True)
 class Column:
@@ -37,6 +49,7 @@ class Column:
     unit: str  # "m", "rad", "s", "%", "-" (dimensionless), "" for labels
     description: str
     required: bool = True
+    limits: tuple[float, float] | None = None  # closed range of a float column's values (NaN: unknown); +-inf never
 
 
 @dataclass(frozen=True)
@@ -75,7 +88,8 @@ TRIAL_COLUMNS: dict[str, Column] = {
     "direction": Column("string", "", "pair study: 'forward' (start->goal) or 'return'", required=False),
     "scenario": Column("int", "-", "pair study: 1 = S1 leader, 2 = S2 leader, 3 = both know the goal", required=False),
     "configuration": Column("string", "", "pair study: end configuration family ('gris': 0/pi, 'jaune': +-pi/2)", required=False),
-    "end_orientation": Column("float", "rad", "pair study: table orientation at the end of the path", required=False),
+    "end_orientation": Column("float", "rad", "pair study: table orientation at the end of the path", required=False,
+                              limits=REAL),
     "repetition": Column("int", "-", "repetition number of the trial within its condition", required=False),
 }
 
@@ -127,14 +141,16 @@ TRAJECTORIES = TableSchema(
         "phase": Column("float", "%", "100 * sample / (N - 1): 0 = onset, 100 = offset (both included)"),
         "time": Column("float", "s", "phase * travel_time / 100; NaN when the duration is unknown"),
         "record_time": Column("float", "s", "time in the raw recording (onset_time + time); NaN if unknown", required=False),
-        "x": Column("float", "m", "pelvis CoM (subjects) or table centre, horizontal"),
-        "y": Column("float", "m", "pelvis CoM (subjects) or table centre, horizontal"),
-        "theta": Column("float", "rad", "global orientation (pelvis normal or table long axis), unwrapped"),
-        "gamma": Column("float", "rad", "local orientation: theta minus the path tangent, wrapped to (-pi, pi]", required=False),
+        "x": Column("float", "m", "pelvis CoM (subjects) or table centre, horizontal", limits=POSITION),
+        "y": Column("float", "m", "pelvis CoM (subjects) or table centre, horizontal", limits=POSITION),
+        "theta": Column("float", "rad", "global orientation (pelvis normal or table long axis), unwrapped", limits=REAL),
+        "gamma": Column("float", "rad", "local orientation: theta minus the path tangent, wrapped to (-pi, pi]", required=False,
+                        limits=WRAPPED),
         "vx": Column("float", "m/s", "CoM velocity", required=False),
         "vy": Column("float", "m/s", "CoM velocity", required=False),
-        "travel_time": Column("float", "s", "duration of the trajectory (onset to offset); NaN if unknown"),
-        "travelled_distance": Column("float", "m", "straight-line distance start -> end position (docs/methods.md sec. 3)"),
+        "travel_time": Column("float", "s", "duration of the trajectory (onset to offset); NaN if unknown", limits=NONNEGATIVE),
+        "travelled_distance": Column("float", "m", "straight-line distance start -> end position (docs/methods.md sec. 3)",
+                                 limits=NONNEGATIVE),
         "quality": Column("string", "", "'ok' or ';'-separated flags, e.g. orientation_missing;long_gap;truncated "
                                         "(truncated: the walk or carriage runs off the recording)"),
         "pelvis_markers": Column("string", "", "pelvis markers the CoM and orientation come from, e.g. 'LASI,RASI,SACR' "
@@ -171,7 +187,7 @@ def write_table(df: pd.DataFrame | Any, path: str | os.PathLike, schema: TableSc
     try:
         # No dictionary for float columns: they rarely repeat, and trying it costs memory (+36 MB on
         # 125,000 rows x 9 floats) and time before Parquet falls back to plain encoding.
-        pq.write_table(table, tmp, compression="zstd",
+        pq.write_table(table, tmp, compression="zstd", write_page_checksum=True,
                        use_dictionary=[f.name for f in table.schema if not pa.types.is_floating(f.type)])
         os.replace(tmp, path)
     finally:
@@ -256,22 +272,71 @@ def read_table(path: str | os.PathLike, schema: TableSchema, columns: list[str] 
     """Read a table written by ``write_table``; bad or foreign files raise ``InputError``."""
     import pyarrow.parquet as pq
 
-    path = Path(path)
-    if not path.is_file():
-        raise InputError("file not found", path=path, remedy=f"run the stage that writes {schema.name} first or check --out")
+    path = check_file(path, f"run the stage that writes {schema.name} first or check --out")
     try:
         meta = table_metadata(path)
-        df = pq.read_table(path, columns=columns).to_pandas()
+        table = pq.read_table(path, columns=columns, **VERIFY)
     except Exception as exc:  # pyarrow raises several types for corrupt files
         raise InputError(f"not a readable Parquet file ({type(exc).__name__})", path=path, remedy="re-run the stage that wrote it") from exc
     if meta.get("table") != schema.name:
         raise InputError(f"is not a {schema.name} table (found {meta.get('table')!r})", path=path, remedy="pass the right file")
     need = schema.required if columns is None else [c for c in columns if c in schema.required]
-    missing = [c for c in need if c not in df.columns]
+    missing = [c for c in need if c not in table.column_names]
     if missing:
         raise InputError(f"{schema.name} table lacks columns {missing}", path=path, remedy="re-run the stage that wrote it")
+    check_values(table, schema, path)
+    try:
+        df = table.to_pandas()
+    except Exception as exc:
+        raise InputError(f"not a readable Parquet file ({type(exc).__name__})", path=path, remedy="re-run the stage that wrote it") from exc
     df.attrs["cobot_analysis"] = meta
     return df
+
+
+def check_file(path: str | os.PathLike, remedy: str) -> Path:
+    """``path`` as a ``Path`` when it is a file, else ``InputError`` (missing, or a directory) with ``remedy``."""
+    path = Path(path)
+    if path.is_dir():
+        raise InputError("is a directory, not a table", path=path, remedy="pass the Parquet file itself")
+    if not path.is_file():
+        raise InputError("file not found", path=path, remedy=remedy)
+    return path
+
+
+#: what a value outside a column's limits most likely is, by the column's unit
+_OUT_OF_LIMITS = {"m": "lengths in metres, not millimetres", "rad": "angles in radians, not degrees"}
+
+
+def check_values(table, schema: TableSchema, path: str | os.PathLike | None = None) -> None:
+    """Refuse (``InputError``) what no stage writes: a declared number column holding no numbers (text,
+    say), and in a float column with ``limits`` an infinite value or one outside its limits (e.g. positions
+    in millimetres beyond the lab's ``LAB_EXTENT`` m, angles in degrees beyond pi). NaN is a value not
+    known (a missing orientation) and passes. ``table``: a pyarrow Table."""
+    import numpy as np
+    import pyarrow as pa
+
+    for name, column in zip(table.column_names, table.columns):
+        spec = schema.columns.get(name)
+        if spec is None or spec.dtype not in ("int", "float"):
+            continue
+        kind = column.type.value_type if pa.types.is_dictionary(column.type) else column.type
+        if not (pa.types.is_integer(kind) or pa.types.is_floating(kind) or pa.types.is_null(kind)
+                or (spec.dtype == "float" and pa.types.is_decimal(kind))):
+            unit = f" in {spec.unit}" if spec.unit not in ("", "-") else ""
+            raise InputError(f"column {name!r} holds {kind} values, not numbers", path=path,
+                             remedy=f"write {name} as {spec.dtype} numbers{unit} (docs/schemas.md, {schema.name})")
+        if spec.limits is None or pa.types.is_null(kind):
+            continue
+        values = column.to_numpy(zero_copy_only=False).astype(float)
+        lo, hi = spec.limits
+        bad = np.isinf(values) | (values < lo) | (values > hi)
+        if bad.any():
+            example = float(values[np.argmax(bad)])
+            bounded = math.isfinite(lo) and math.isfinite(hi)
+            allowed = f"outside [{lo:.6g}, {hi:.6g}] {spec.unit}" if bounded else "negative or infinite" if lo == 0 else "infinite"
+            hint = f"{_OUT_OF_LIMITS.get(spec.unit, 'docs/schemas.md')}; " if bounded else ""
+            raise InputError(f"column {name!r}: {int(bad.sum())} value(s) {allowed} (e.g. {example:g})", path=path,
+                             remedy=f"give {name} in {spec.unit} ({hint}NaN for an unknown value), or re-run the stage that wrote it")
 
 
 def schemas_markdown() -> str:
@@ -288,12 +353,26 @@ def schemas_markdown() -> str:
              "columns `int64`, float columns `float64` (double), bool columns `bool`; every column is nullable and "
              "keeps its declared type when all its values are null, so any two tables of the same kind "
              "concatenate (polars `concat`, duckdb `read_parquet([...])`, `pandas.concat`). pandas reads an int "
-             "column holding nulls as the nullable `Int64`.", ""]
+             "column holding nulls as the nullable `Int64`.", "",
+             "Limits: a stage refuses a table whose number column holds no numbers (text, say) or, where a column "
+             "gives its limits, an infinite value or one outside them (`schema.check_values`: positions within "
+             f"{LAB_EXTENT:g} m of the lab origin, so not millimetres; wrapped angles within pi, so not degrees; "
+             "durations and distances >= 0). NaN is a value not known and passes.", ""]
     for schema in sorted(SCHEMAS.values(), key=lambda s: s.name):
         lines += [f"## `{schema.name}` (version {schema.version})", "", schema.description, "",
                   "| column | type | unit | description |", "|---|---|---|---|"]
         for name, col in schema.columns.items():
             opt = "" if col.required else " (optional)"
-            lines.append(f"| `{name}` | {col.dtype}{opt} | {col.unit} | {col.description} |")
+            unit = col.unit if col.limits is None else f"{col.unit}, {_limits_text(col.limits)}".lstrip(", ")
+            lines.append(f"| `{name}` | {col.dtype}{opt} | {unit} | {col.description} |")
         lines.append("")
     return "\n".join(lines)
+
+
+def _limits_text(limits: tuple[float, float]) -> str:
+    lo, hi = limits
+    if limits == REAL:
+        return "finite"
+    if limits == WRAPPED:
+        return "[-pi, pi]"
+    return f">= {lo:g}, finite" if hi == math.inf else f"[{lo:g}, {hi:g}]"

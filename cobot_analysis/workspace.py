@@ -139,6 +139,21 @@ def check_workspace(out: str | os.PathLike) -> None:
         raise InputError("is not a directory", path=out, remedy="pass a workspace directory (new or existing) with --out")
 
 
+def check_destination(path: str | os.PathLike, option: str, *, directory: bool) -> Path:
+    """Where a command writes outside the workspace (``report --to``: a directory, ``results --to``: a file),
+    refused before any work when it cannot be written: a file where a directory is needed (``path`` or one
+    of its parents), or a directory where the file should be."""
+    path = Path(path)
+    parent = next((p for p in path.parents if p.exists()), None)
+    if parent is not None and not parent.is_dir():
+        raise InputError("is a file, not a directory", path=parent, remedy=f"give {option} a path whose parents are directories")
+    if directory and path.exists() and not path.is_dir():
+        raise InputError("is a file, not a directory", path=path, remedy=f"give {option} a directory (new or existing)")
+    if not directory and path.is_dir():
+        raise InputError("is a directory", path=path, remedy=f"give {option} a file name, e.g. {path / 'results.md'}")
+    return path
+
+
 def _abandoned(d: Path) -> bool:
     """A temporary stage directory whose run is over: its lock is free, or (no lock file) it is old."""
     try:

@@ -219,3 +219,24 @@ def test_the_command_as_a_process_flushes_its_lines_and_exit_code(tmp_path, shor
     assert [ln.split("\t")[0] for ln in info.stdout.splitlines()[-3:]] == ["tf:base_link->os_sensor", "tf:map->odom", "tf:odom->base_link"]
     bad = subprocess.run([*cmd, "--out", str(tmp_path / "bad"), "--tol-xy", "-1"], capture_output=True, text=True, env=env, timeout=120)
     assert bad.returncode == 2 and "--tol-xy must be >= 0" in _one_line(bad.stdout + bad.stderr)
+
+
+# ---- 11. two runs under one label, goals beyond the lab -----------------------------------------------
+def test_two_bags_with_one_label_are_refused(cli, tmp_path, short):
+    """A run's label names its rows and metrics (before: exit 0, metrics.json holding an error instead
+    of the metrics, and two runs under one name in the tables)."""
+    other = tmp_path / "day2" / "level.mcap"
+    other.parent.mkdir()
+    other.write_bytes((short[0] / "level.mcap").read_bytes())
+    _fails(cli, tmp_path / "ws", short[0] / "level.mcap", short[0] / "level.mcap", match=["level.mcap: bag given twice; give each bag once"])
+    _fails(cli, tmp_path / "ws", short[0] / "level.mcap", other,
+           match=[f"{other}: run label 'level.mcap' given to two bags", "give each bag its own --label"])
+    _fails(cli, tmp_path / "ws", short[0] / "level.mcap", other, "--label", "a", "--label", "a",
+           match=["run label 'a' given to two bags"])
+
+
+def test_goals_in_millimetres_are_refused(cli, tmp_path, short):
+    goals = tmp_path / "goals.csv"
+    goals.write_text("goal,x,y,yaw\n1,1500,-800,0\n")
+    _fails(cli, tmp_path / "ws", short[0] / "level.mcap", "--goals-csv", goals,
+           match=[f"{goals}: goal 1 (1500, -800) lies beyond the lab (|x|, |y| <= 100 m); give x and y in metres"])

@@ -172,7 +172,7 @@ def test_clothoid_joins_start_and_goal_with_tangent_heading():
     assert step.std() / step.mean() < 1e-3  # equally spaced in arc length
 
 
-def test_presets_and_weights_files(tmp_path):
+def test_presets_and_weights_files(tmp_path, caplog):
     assert load_weights("walking-2021")["a2"] == 20.15
     with pytest.raises(InputError, match="unknown preset"):
         load_weights("walking-2099")
@@ -185,6 +185,10 @@ def test_presets_and_weights_files(tmp_path):
     assert load_weights(good) == PRESETS["table-2022"]
     with pytest.raises(InputError, match="another model"):
         load_weights("pair-2022", "improved")
+    partial = tmp_path / "partial.json"
+    partial.write_text(json.dumps({"weights": {k: v for k, v in PRESETS["walking-2021"].items() if k != "a1"}}))
+    assert load_weights(partial)["a1"] == 0.0  # a weight a file leaves out is 0, said once (before: silently)
+    assert f"{partial}: weights a1 of model 'improved' not given, taken as 0" in caplog.text
 
 
 def test_start_equal_to_goal_is_refused():

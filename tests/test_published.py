@@ -192,6 +192,15 @@ def test_damaged_walking_file(walking_dir, tmp_path, cli):
     assert_rejected(cli, tmp_path / "ws", "walking-2020", d, "E4015.dat: not a whitespace-separated numeric matrix")
 
 
+def test_walking_file_in_millimetres(walking_dir, tmp_path, cli):
+    """Positions beyond the lab are not metres (before: imported, exit 0, and every later stage refused them)."""
+    d = tmp_path / "w"
+    shutil.copytree(walking_dir, d)
+    np.savetxt(d / "E4015.dat", np.loadtxt(d / "E4015.dat") * 1000)
+    assert_rejected(cli, tmp_path / "ws", "walking-2020", d, "E4015.dat: x, y (rows 1-2 of each block) reach", "beyond the lab",
+                    "positions are in metres")
+
+
 def test_corrupt_pair_json(tmp_path, cli):
     d = tmp_path / "p"
     d.mkdir()
@@ -207,6 +216,9 @@ def test_corrupt_pair_json(tmp_path, cli):
     doc = {"Trajectoires_Moyennes": {e: {"Sujet 1": {"Orientation_Table_End : 0.0": leaf}} for e in ("Sujet 1", "Sujet 2", "Table")}}
     (d / "d1_p4_gris_1_mean.json").write_text(json.dumps(doc))
     assert_rejected(cli, tmp_path / "ws", "pair-carriage-2022", d, "Sujet 1 / Sujet 1 / Orientation_Table_End : 0.0 / x: expected 500 finite numbers")
+    leaf["x"] = [2000.0] * N  # millimetres
+    (d / "d1_p4_gris_1_mean.json").write_text(json.dumps(doc))
+    assert_rejected(cli, tmp_path / "ws", "pair-carriage-2022", d, "Sujet 1 / Sujet 1 / Orientation_Table_End : 0.0 / x, y reach 2000 m")
     (d / "time_and_vel_sub1_leader.json").unlink()
     assert_rejected(cli, tmp_path / "ws", "pair-carriage-2022", d, "time_and_vel_sub1_leader.json: dataset incomplete")
 

@@ -133,6 +133,13 @@ def localisation_options(bags: list[Path], *, truth: str = "/mocap/pose", icp: s
     labels = list(label) if label else run_labels(bags)
     if len(labels) != len(bags):
         raise InputError(f"{len(labels)} --label for {len(bags)} bags", remedy="give one --label per bag")
+    for i, b in enumerate(bags):  # a run's label names its rows and metrics: two runs cannot share one
+        j = labels.index(labels[i])
+        if j < i and bags[j].resolve() == b.resolve():
+            raise InputError("bag given twice", path=b, remedy="give each bag once")
+        if j < i:
+            raise InputError(f"run label {labels[i]!r} given to two bags ({bags[j]} and this one)", path=b,
+                             remedy="give each bag its own --label, once per bag, in order")
     maps = list(map_name or [""])
     if len(maps) == 1:
         maps = maps * len(bags)

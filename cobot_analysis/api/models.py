@@ -377,8 +377,10 @@ def velocity_commands(generated: pd.DataFrame | str | os.PathLike, *, trial: str
     g = generated[generated["trial"] == trial].sort_values("sample")
     if g.empty:
         raise InputError(f"no generated trajectory {trial!r}", path=path, remedy=f"use one of {', '.join(trials[:8])}")
-    if g[["time", "x", "y", "theta"]].isna().any().any():
-        raise InputError(f"trajectory {trial!r} has NaN time or pose", path=path, remedy="re-run generate")
+    if len(g) < 2:
+        raise InputError(f"trajectory {trial!r} has {len(g)} sample: no path to follow", path=path, remedy="re-run generate")
+    if not np.isfinite(g[["time", "x", "y", "theta"]].to_numpy(float)).all():
+        raise InputError(f"trajectory {trial!r} has NaN or infinite time or pose", path=path, remedy="re-run generate")
     check_time_law(g, path=path)
     sim = resample_path(g["time"], g["x"], g["y"], g["theta"], rate)
     cmd = commands(sim, rate, v_max=v_max, omega_max=math.radians(omega_max))
@@ -569,7 +571,11 @@ def read_trajectories(table: pd.DataFrame | str | os.PathLike) -> pd.DataFrame:
         name = table_metadata(table).get("table")
     except Exception:  # noqa: BLE001 - read_table below reports the file properly
         name = None
-    return read_table(table, MEANS if name == "means" else TRAJECTORIES)
+    df = read_table(table, MEANS if name == "means" else TRAJECTORIES)
+    if len(df) and df.groupby(["study", "trial", "entity"], observed=True, dropna=False)["sample"].size().min() < 2:
+        raise InputError("trajectories of 1 sample: no path", path=table,
+                         remedy="time-normalise every trajectory to N >= 2 samples (preprocess --samples)")
+    return df
 
 
 PROFILES = ("means", "all", "none")  # fit_ioc's profiles: which fits get profile likelihoods where curvature and bootstrap cannot judge alike

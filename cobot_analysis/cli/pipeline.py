@@ -21,8 +21,9 @@ def results_command(
 ) -> None:
     """Assemble docs/results.md from the results.md fragments of the given workspaces (generated, never typed)."""
     from cobot_analysis.reports.results import write_results
+    from cobot_analysis.workspace import check_destination
 
-    sections = write_results(workspaces, to, title=title, preface=preface)
+    sections = write_results(workspaces, check_destination(to, "--to", directory=False), title=title, preface=preface)
     finished("results", f"{count(sections, 'section')} from {count(len(workspaces), 'workspace')}", to)
 
 

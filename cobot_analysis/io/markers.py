@@ -532,8 +532,8 @@ def stream_import(plan: ImportPlan, markers_path: Path, *, jobs: int | None = No
                 # LZ4 (not the pipeline's zstd): as small for these coordinates (+9 %), half the CPU to write
                 # and read; statistics of the labels and frames only (the trial's say which row group is whose);
                 # the coordinates byte-stream-split, not dictionary-encoded (1.0 instead of 1.5 ms per trial to
-                # write, 0.43 instead of 0.56 to read, +8 % size)
-                writer = pq.ParquetWriter(markers_path, schema, compression="lz4",
+                # write, 0.43 instead of 0.56 to read, +8 % size); page checksums, as schema.write_table
+                writer = pq.ParquetWriter(markers_path, schema, compression="lz4", write_page_checksum=True,
                                           use_dictionary=["trial", "entity", "marker", "frame", "occluded"],
                                           column_encoding={c: "BYTE_STREAM_SPLIT" for c in ("x", "y", "z")},
                                           write_statistics=["trial", "entity", "marker", "frame"])

@@ -36,9 +36,8 @@ from pathlib import Path
 import numpy as np
 
 from cobot_analysis.errors import InputError
+from cobot_analysis.schema import LAB_EXTENT  # m: largest |coordinate| of a marker from the lab origin
 
-#: m: largest |coordinate| of a marker from the lab origin.
-LAB_EXTENT = 100.0
 #: m/s: largest marker speed between consecutive visible samples.
 MAX_SPEED = 20.0
 #: m: largest distance of a sample from the midpoint of its two neighbours (single-sample spike).

@@ -50,7 +50,7 @@ from cobot_analysis.angles import angle_diff, wrap
 from cobot_analysis.console import track
 from cobot_analysis.design import WALKING_CONDITIONS, WALKING_GOAL
 from cobot_analysis.errors import InputError
-from cobot_analysis.schema import TRAJECTORIES, Column, TableSchema
+from cobot_analysis.schema import LAB_EXTENT, TRAJECTORIES, Column, TableSchema
 
 WALKING = "walking-2020"
 PAIRS = "pair-carriage-2022"
@@ -133,6 +133,13 @@ def _load_matrix(path: Path, shape: tuple[int, int]) -> np.ndarray:
     return a
 
 
+def _in_lab(xy: np.ndarray, path: Path, where: str = "positions") -> None:
+    """Positions (m) within ``LAB_EXTENT`` of the lab origin: farther ones are not in metres, or corrupt."""
+    if np.abs(xy).max(initial=0.0) > LAB_EXTENT:
+        raise InputError(f"{where} reach {np.abs(xy).max():g} m, beyond the lab (|x|, |y| <= {LAB_EXTENT:g} m)", path=path,
+                         remedy=f"positions are in metres: {REMEDY_DATASET}")
+
+
 def _array(value: Any, path: Path, where: str) -> np.ndarray:
     a = np.asarray(value, dtype=float) if isinstance(value, list) else np.empty(0)
     if a.shape != (N_SAMPLES,) or not np.isfinite(a).all():
@@ -190,6 +197,8 @@ def read_walking_2020(directory: str | os.PathLike, gamma_limit: float = GAMMA_L
     _require(directory, [f"{c}.dat" for c in WALKING_CONDITIONS] + ["StartAndEnd.dat"])
     blocks = np.stack([_load_matrix(directory / f"{c}.dat", (66, N_SAMPLES)).reshape(11, 6, N_SAMPLES)
                        for c in track(WALKING_CONDITIONS, "walking-2020")])  # (40, 11, 6, N)
+    for c, block in zip(WALKING_CONDITIONS, blocks):
+        _in_lab(block[:, :2], directory / f"{c}.dat", "x, y (rows 1-2 of each block)")
     conds = np.repeat(np.array(WALKING_CONDITIONS), 11)
     block = np.tile(np.arange(11), len(WALKING_CONDITIONS))
     b = blocks.reshape(-1, 6, N_SAMPLES)
@@ -291,6 +300,7 @@ def read_pair_carriage_2022(directory: str | os.PathLike) -> tuple[pd.DataFrame,
                         try:
                             nb = int(leaf["nb"])
                             x, y = _array(leaf["x"], path, where + " / x"), _array(leaf["y"], path, where + " / y")
+                            _in_lab(np.stack([x, y]), path, where + " / x, y")
                             theta = _array(leaf["Orientation_Globale"], path, where + " / Orientation_Globale")
                             gamma = _array(leaf["Orientation_Locale"], path, where + " / Orientation_Locale")
                         except (KeyError, TypeError, ValueError) as exc:

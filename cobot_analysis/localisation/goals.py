@@ -26,6 +26,7 @@ from cobot_analysis.angles import angle_diff, circular_mean
 from cobot_analysis.errors import InputError
 from cobot_analysis.localisation.compare import Alignment
 from cobot_analysis.localisation.poses import PoseStream
+from cobot_analysis.schema import LAB_EXTENT
 
 
 @dataclass(frozen=True)
@@ -75,6 +76,11 @@ def read_goals_csv(path: str | os.PathLike) -> np.ndarray:
     g = df[["x", "y", "yaw"]].to_numpy(float)
     if len(g) == 0 or not np.isfinite(g).all():
         raise InputError("goals file is empty or has NaN", path=path, remedy="give one finite goal per row")
+    far = np.abs(g[:, :2]).max(axis=1) > LAB_EXTENT
+    if far.any():
+        i = int(np.argmax(far))
+        raise InputError(f"goal {i + 1} ({g[i, 0]:g}, {g[i, 1]:g}) lies beyond the lab (|x|, |y| <= {LAB_EXTENT:g} m)", path=path,
+                         remedy="give x and y in metres in the ICP map frame (not millimetres)")
     return g
 
 

@@ -81,8 +81,11 @@ def check_endpoints(start, goal, *, path=None, min_distance: float = 0.01, optio
     start, goal = np.asarray(start, float), np.asarray(goal, float)
     if start.shape[-1] < 3 or goal.shape[-1] < 3:
         raise InputError("start and goal must be poses (x, y, theta)", path=path, remedy="give three numbers each")
-    if not (np.all(np.isfinite(start[:3])) and np.all(np.isfinite(goal[:3]))):
-        raise InputError("start or goal pose has NaN", path=path, remedy="check the trajectory's first and last samples")
+    for option, pose in zip(options, (start, goal)):
+        if not np.all(np.isfinite(pose[:3])):
+            raise InputError(f"{option} ({', '.join(f'{v:g}' for v in pose[:3])}) has a NaN or infinite value", path=path,
+                             remedy=f"give {option} as three finite numbers (m, m, rad); a study's mean gives its first and "
+                                    "last samples")
     for option, pose in zip(options, (start, goal)):
         if max(abs(pose[0]), abs(pose[1])) > GOAL_EXTENT:
             raise InputError(f"{option} ({pose[0]:g}, {pose[1]:g}) lies outside the lab (|x|, |y| <= {GOAL_EXTENT:g} m)",

@@ -50,6 +50,17 @@ def weights_vector(weights: dict[str, float], model: str = "improved") -> np.nda
     return np.array([float(weights.get(n, 0.0)) for n in names_for(model)])
 
 
+_WARNED: set[str] = set()  # what this process said already (a stage reads its weights more than once)
+
+
+def _warn_once(message: str) -> None:
+    from cobot_analysis.console import warn
+
+    if message not in _WARNED:
+        _WARNED.add(message)
+        warn(message)
+
+
 def load_weights(spec: str | Path | dict | None, model: str = "improved") -> dict[str, float]:
     """Weights from a preset name, a fitted-weights JSON file (``{"weights": {...}}`` or a plain
     ``{name: value}`` mapping, or a list in the model's order), or a mapping (either form: a fit's
@@ -88,6 +99,9 @@ def load_weights(spec: str | Path | dict | None, model: str = "improved") -> dic
     if unknown:
         raise InputError(f"weights {unknown} are not weights of model {model!r} ({', '.join(names)})", path=path,
                          remedy="pass a weights file written for this model")
+    missing = [n for n in names if n not in data]
+    if path is not None and missing:  # fit-ioc writes every weight: a file without some is typed by hand
+        _warn_once(f"{path}: weights {', '.join(missing)} of model {model!r} not given, taken as 0")
     try:
         values = {n: float(data.get(n, 0.0)) for n in names}
     except (TypeError, ValueError) as exc:

@@ -61,7 +61,7 @@ from cobot_analysis.io.markers import Refused, refusal_error
 from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, MAX_SPIKE, check_positions
 from cobot_analysis.io.protocol import PELVIS_MARKERS, SACRUM, TABLE_MARKERS, pelvis_definition, pelvis_requirement
 from cobot_analysis.preprocess import filtering, gaps, normalisation, segmentation
-from cobot_analysis.schema import MARKERS, TRIAL_COLUMNS, TRIALS, read_table, table_metadata
+from cobot_analysis.schema import MARKERS, TRIAL_COLUMNS, TRIALS, VERIFY, read_table, table_metadata
 
 SUBJECT_ENTITIES = ("walker", "subject1", "subject2")
 USED_MARKERS = PELVIS_MARKERS + (SACRUM,) + TABLE_MARKERS
@@ -323,7 +323,7 @@ def _read_marker_rows(path: Path, row_groups: tuple[int, ...] | None = None, pf=
     import pyarrow.parquet as pq
 
     cols = ["trial", "frame", "entity", "marker", "x", "y", "z", "occluded"]
-    pf = pf or pq.ParquetFile(path, read_dictionary=["trial", "entity", "marker"])
+    pf = pf or pq.ParquetFile(path, read_dictionary=["trial", "entity", "marker"], **VERIFY)
     names = set(pf.schema_arrow.names)  # (schema_arrow is rebuilt at each access)
     missing = [c for c in cols if c not in names]
     if missing:
@@ -575,7 +575,7 @@ def _process_chunk(item: tuple[Path, list[Recording], Params]) -> list[dict[str,
     out = []
     for r in recs:
         if r.row_groups is not None and pf is None:
-            pf = pq.ParquetFile(markers_path, read_dictionary=["trial", "entity", "marker"])
+            pf = pq.ParquetFile(markers_path, read_dictionary=["trial", "entity", "marker"], **VERIFY)
         out.append(process_or_refuse(load_markers(r, markers_path, pf), p))
         r.markers = {}
     return out

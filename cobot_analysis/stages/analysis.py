@@ -125,6 +125,9 @@ def statistics(out: str | os.PathLike, *, config: str | os.PathLike | None = Non
     anthro_dir = Path(anthropometrics) if anthropometrics is not None else (
         out / "synth-pairs" if (out / "synth-pairs" / "pairs.csv").is_file() else None)
     anthro = read_anthropometrics(anthro_dir)
+    if anthropometrics is not None and anthro is None:
+        raise InputError("no subjects.csv and pairs.csv in this directory", path=anthro_dir,
+                         remedy="pass the folder synth pairs wrote (OUT/synth-pairs), or omit --anthropometrics")
     inputs = [p for p in (config, path, dist_path, dur_path if dur is not None else None) if p] + \
         ([anthro_dir / "subjects.csv", anthro_dir / "pairs.csv"] if anthro is not None else [])
     with Stage(out, registry.directory("stats", conv.name), inputs=inputs,
@@ -192,7 +195,11 @@ def report(out: str | os.PathLike, study: str | None = None, *, to: str | os.Pat
     must be the workspace's study."""
     from cobot_analysis import study as st
     from cobot_analysis.reports.builders import build_report, report_inputs
+    from cobot_analysis.workspace import check_destination, check_workspace
 
+    check_workspace(out)
+    if to is not None:
+        check_destination(to, "--to", directory=True)
     inputs = report_inputs(Path(out))
     if not inputs:
         raise InputError("nothing to report in this workspace", path=out, remedy="run average, compare and stats first")
@@ -204,7 +211,7 @@ def report(out: str | os.PathLike, study: str | None = None, *, to: str | os.Pat
     described = st.resolve(Path(out), name, Path(study_file) if study_file is not None else None)
     if described.path is not None:
         inputs = {**inputs, "study_file": described.path}
-    to = Path(to) if to is not None else Path("reports") / name
+    to = Path(to) if to is not None else check_destination(Path("reports") / name, "--to", directory=True)
     with Stage(out, "report", inputs=list(inputs.values()), params={"study": name}, force=force) as stage:
         if not stage.skipped:
             build_report(described, {k: v for k, v in inputs.items() if k != "study_file"}, stage, Path(out))

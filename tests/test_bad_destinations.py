@@ -1,0 +1,77 @@
+"""Where a command is told to write, and options that name files: refused before any work, in one line
+naming the path, exit code 2 (before: an internal error, or the option silently ignored)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+
+def one_line(code: int, err: str) -> str:
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, err
+    return lines[0]
+
+
+@pytest.fixture
+def a_file(tmp_path) -> Path:
+    path = tmp_path / "notes.txt"
+    path.write_text("mine\n")
+    return path
+
+
+@pytest.mark.parametrize("to, named", [("{f}", "{f}: is a file, not a directory; give --to a directory"),
+                                       ("{f}/report", "{f}: is a file, not a directory; give --to a path whose parents")])
+def test_report_to_a_file(tmp_path, cli, a_file, to, named):
+    ws = tmp_path / "ws"
+    ws.mkdir()
+    line = one_line(*cli("report", "--out", ws, "--to", to.format(f=a_file))[::2])
+    assert named.format(f=a_file) in line
+    assert a_file.read_text() == "mine\n" and not any(ws.iterdir())
+
+
+def test_report_out_a_file(cli, a_file):
+    line = one_line(*cli("report", "--out", a_file)[::2])
+    assert f"{a_file}: is not a directory; pass a workspace directory" in line
+
+
+@pytest.mark.parametrize("to, named", [("{f}/results.md", "{f}: is a file, not a directory"),
+                                       ("{d}", "{d}: is a directory; give --to a file name")])
+def test_results_to_a_path_that_cannot_be_written(tmp_path, cli, a_file, to, named):
+    d = tmp_path / "folder"
+    d.mkdir()
+    line = one_line(*cli("results", tmp_path, "--to", to.format(f=a_file, d=d))[::2])
+    assert named.format(f=a_file, d=d) in line
+    assert a_file.read_text() == "mine\n" and not any(d.iterdir())
+
+
+def test_stats_anthropometrics_without_its_files_is_not_ignored(tmp_path, cli):
+    from cobot_analysis.schema import TRAJECTORIES, write_table
+    from cobot_analysis.synth.tables import walking_table
+
+    ws = tmp_path / "ws"
+    write_table(walking_table(seed=3, n_subjects=3, n_conditions=2, n_trials=2, missing_theta=0.0),
+                ws / "preprocess" / "trajectories.parquet", TRAJECTORIES)
+    for args in (["average"], ["compare"]):
+        assert cli("-q", *args, "--out", ws)[0] == 0
+    empty = tmp_path / "anthro"
+    empty.mkdir()
+    line = one_line(*cli("stats", "--out", ws, "--anthropometrics", empty)[::2])
+    assert f"{empty}: no subjects.csv and pairs.csv in this directory; pass the folder synth pairs wrote" in line
+    assert not (ws / "stats").exists()
+
+
+@pytest.mark.parametrize("start", [["inf", "0", "0"], ["0", "0", "nan"]])
+def test_generate_from_a_start_that_is_not_finite(tmp_path, cli, start):
+    line = one_line(*cli("generate", "--out", tmp_path / "ws", "--start", *start)[::2])
+    assert "--start (" in line and ") has a NaN or infinite value; give --start as three finite numbers (m, m, rad)" in line
+    assert not (tmp_path / "ws").exists() or not any((tmp_path / "ws").iterdir())
+
+
+def test_metrics_show_of_a_workspace_without_metrics(tmp_path, cli):
+    """Before: 'study: unknown' and exit 0, as if the workspace had been read."""
+    ws = tmp_path / "ws"
+    ws.mkdir()
+    line = one_line(*cli("metrics", "show", ws)[::2])
+    assert line == f"error: {ws}: no stage metrics (metrics.json) in the workspace(s); run the study's stages with this --out first"

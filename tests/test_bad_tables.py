@@ -1,0 +1,236 @@
+"""Tables a stage reads that no stage could have written: numbers stored as text, +-inf, positions in
+millimetres, angles in degrees, negative durations, trajectories of one sample, a damaged data page, a
+directory instead of a file. Each is refused by the reader every stage shares (``schema.check_values``,
+``compare.read_trajectory_set``) with one line naming the file, exit code 2, nothing written and the
+input unchanged."""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+from cobot_analysis.averaging import MEANS
+from cobot_analysis.schema import TRAJECTORIES, write_table
+from cobot_analysis.synth.tables import walking_table
+
+
+@pytest.fixture(scope="module")
+def table(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("tables") / "trajectories.parquet"
+    write_table(walking_table(seed=1, n_subjects=2, n_conditions=2, n_trials=2, missing_theta=0.0), path, TRAJECTORIES)
+    return path
+
+
+def edited(src: Path, dst: Path, edit) -> Path:
+    """``src`` with its DataFrame changed by ``edit``, keeping the table's cobot_analysis metadata."""
+    t = pq.read_table(src)
+    out = pa.Table.from_pandas(edit(t.to_pandas()), preserve_index=False)
+    pq.write_table(out.replace_schema_metadata({**out.schema.metadata, b"cobot_analysis": t.schema.metadata[b"cobot_analysis"]}), dst)
+    return dst
+
+
+def one_row(col, value):
+    def edit(df):
+        df.loc[3, col] = value
+        return df
+    return edit
+
+
+def sha(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def refused(cli, ws: Path, bad: Path, *args) -> str:
+    """Run a stage on ``bad``: exit 2, one line naming ``bad``, nothing in the workspace, ``bad`` unchanged."""
+    before = sha(bad) if bad.is_file() else None
+    code, _, err = cli(*args)
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, err
+    assert str(bad) in lines[0]
+    assert not ws.exists() or not any(ws.iterdir())
+    assert (sha(bad) if bad.is_file() else None) == before
+    return " ".join(lines[0].split())
+
+
+CASES = {
+    "x as text": (lambda df: df.assign(x=df["x"].astype(str)), "column 'x' holds large_string values, not numbers; write x as float numbers in m"),
+    "positions in mm": (lambda df: df.assign(x=df["x"] * 1000, y=df["y"] * 1000), "column 'y': 280 value(s) outside [-100, 100] m"),
+    "x infinite": (one_row("x", np.inf), "column 'x': 1 value(s) outside [-100, 100] m (e.g. inf)"),
+    "theta infinite": (one_row("theta", -np.inf), "column 'theta': 1 value(s) infinite (e.g. -inf); give theta in rad"),
+    "gamma in degrees": (lambda df: df.assign(gamma=np.degrees(df["gamma"] + 0.5)), "outside [-3.14159, 3.14159] rad"),
+    "negative duration": (lambda df: df.assign(travel_time=-df["travel_time"]), "column 'travel_time'"),
+    "one sample": (lambda df: df[df["sample"] == 0], "trajectories of 1 sample: no path; time-normalise every trajectory to N >= 2"),
+}
+
+
+@pytest.mark.parametrize("case", CASES)
+@pytest.mark.parametrize("stage", ["average", "compare", "stats"])
+def test_a_table_no_stage_writes_is_refused_by_every_stage(table, tmp_path, cli, case, stage):
+    edit, expected = CASES[case]
+    bad = edited(table, tmp_path / "bad.parquet", edit)
+    ws = tmp_path / "ws"
+    line = refused(cli, ws, bad, stage, "--out", ws, "--trajectories", bad)
+    assert expected in line, line
+
+
+def test_the_same_values_pass(table, tmp_path, cli):
+    """The editing itself is harmless: the unchanged table goes through."""
+    same = edited(table, tmp_path / "same.parquet", lambda df: df)
+    code, _, err = cli("average", "--out", tmp_path / "ws", "--trajectories", same)
+    assert code == 0, err
+
+
+def test_nan_orientation_is_unknown_not_refused(table, tmp_path, cli):
+    bad = edited(table, tmp_path / "nan.parquet", one_row("theta", np.nan))
+    code, _, err = cli("average", "--out", tmp_path / "ws", "--trajectories", bad)
+    assert code == 0, err
+
+
+def test_a_damaged_data_page_is_one_line(table, tmp_path, cli):
+    data = bytearray(table.read_bytes())
+    data[100:400] = bytes(300)  # inside the first column chunks
+    bad = tmp_path / "damaged.parquet"
+    bad.write_bytes(bytes(data))
+    line = refused(cli, tmp_path / "ws", bad, "average", "--out", tmp_path / "ws", "--trajectories", bad)
+    assert "not a readable Parquet file" in line and "re-run the stage that wrote it" in line
+
+
+def test_a_directory_is_not_a_missing_file(tmp_path, cli):
+    folder = tmp_path / "folder"
+    folder.mkdir()
+    line = refused(cli, tmp_path / "ws", folder, "average", "--out", tmp_path / "ws", "--trajectories", folder)
+    assert "is a directory, not a table; pass the Parquet file itself" in line
+
+
+@pytest.mark.parametrize("edit, expected", [
+    (lambda df: df.assign(x=df["x"] * 1000, y=df["y"] * 1000), "column 'y': 70 value(s) outside [-100, 100] m"),
+    (lambda df: df[df["sample"] == 0], "trajectories of 1 sample: no path"),
+])
+def test_means_no_stage_writes_are_refused_before_fitting(table, tmp_path, cli, edit, expected):
+    """Before: millimetres gave an internal error (no target with a model and a measured duration), one
+    sample a KeyError (exit 1)."""
+    from cobot_analysis.cli import run
+
+    ws = tmp_path / "good"
+    assert run(["-q", "average", "--out", str(ws), "--trajectories", str(table)]) == 0
+    bad = edited(ws / "average" / "means.parquet", tmp_path / "means.parquet", edit)
+    line = refused(cli, tmp_path / "ws", bad, "fit-ioc", "--out", tmp_path / "ws", "--means", bad, "--max-evaluations", "2",
+                   "--no-compare", "-j", "1")
+    assert expected in line, line
+    assert MEANS.columns["x"].limits == TRAJECTORIES.columns["x"].limits
+
+
+@pytest.mark.parametrize("edit, expected", [
+    (one_row("x", np.inf), "column 'x': 1 value(s) outside [-100, 100] m"),
+    (lambda df: df[df["sample"] == 0], "trajectory 'clothoid' has 1 sample"),
+])
+def test_velocity_commands_of_a_damaged_path(tmp_path, cli, edit, expected):
+    from cobot_analysis.cli import run
+
+    ws = tmp_path / "gen"
+    assert run(["-q", "generate", "--out", str(ws), "-m", "clothoid", "--start", "-1.5", "-3.4", "0", "-j", "1"]) == 0
+    bad = edited(next(ws.glob("generate*/generated.parquet")), tmp_path / "generated.parquet", edit)
+    line = refused(cli, tmp_path / "ws", bad, "velocity-commands", "--out", tmp_path / "ws", "--generated", bad)
+    assert expected in line, line
+
+
+@pytest.fixture(scope="module")
+def imported(tmp_path_factory) -> Path:
+    """A workspace with one imported synthetic walking trial."""
+    from cobot_analysis.cli import run
+
+    ws = tmp_path_factory.mktemp("study") / "study"
+    assert run(["-q", "synth", "walking", "--out", str(ws), "--subjects", "1", "--repetitions", "1", "--conditions", "1", "-j", "1"]) == 0
+    assert run(["-q", "import", str(ws / "synth-walking" / "protocol.yaml"), "--out", str(ws), "-j", "1"]) == 0
+    return ws
+
+
+def test_a_trials_table_with_a_rate_in_words(imported, tmp_path, cli):
+    ws = imported
+    bad = edited(ws / "import" / "trials.parquet", tmp_path / "trials.parquet", lambda df: df.assign(rate="fast"))
+    line = refused(cli, tmp_path / "ws", bad, "preprocess", "--out", tmp_path / "ws", "--markers", ws / "import" / "markers.parquet",
+                   "--trials", bad, "-j", "1")
+    assert "column 'rate' holds large_string values, not numbers; write rate as float numbers in Hz" in line
+
+
+def test_velocity_commands_at_an_infinite_rate(tmp_path, cli):
+    from cobot_analysis.cli import run
+
+    ws = tmp_path / "gen"
+    assert run(["-q", "generate", "--out", str(ws), "-m", "clothoid", "--start", "-1.5", "-3.4", "0", "-j", "1"]) == 0
+    before = sorted(p.name for p in ws.iterdir())
+    code, _, err = cli("velocity-commands", "--out", ws, "--rate", "inf")
+    assert code == 2 and err.strip().splitlines() == ["error: --rate must be >= 0.1, got inf; e.g. --rate 10"]
+    assert sorted(p.name for p in ws.iterdir()) == before
+
+
+@pytest.mark.parametrize("reader", ["read_trajectory_set", "read_table"])
+def test_a_flipped_bit_in_a_data_page_is_an_error_never_a_changed_value(table, tmp_path, reader):
+    """Every data page carries its CRC32 (``schema.write_table``), checked by the readers: 40 single-bit
+    flips across the x and theta column chunks each give an ``InputError``, none a silently changed value
+    (without checksums, a flip inside zstd's literals decodes to other numbers)."""
+    from cobot_analysis.compare import read_trajectory_set
+    from cobot_analysis.errors import InputError
+    from cobot_analysis.schema import read_table
+
+    def read(path):
+        if reader == "read_table":
+            return read_table(path, TRAJECTORIES)[["x", "y", "theta", "gamma"]].to_numpy()
+        ts = read_trajectory_set(path)
+        return np.stack([ts.x, ts.y, ts.theta, ts.gamma])
+
+    data, ref = table.read_bytes(), read(table)
+    meta = pq.ParquetFile(table).metadata.row_group(0)
+    chunks = [meta.column(i) for i in range(meta.num_columns) if meta.column(i).path_in_schema in ("x", "theta")]
+    outcomes = []
+    for k in range(40):
+        chunk = chunks[k % 2]
+        offset = chunk.data_page_offset + 30 + (k * 7919) % (chunk.total_compressed_size - 30)
+        flipped = bytearray(data)
+        flipped[offset] ^= 1 << (k % 8)
+        bad = tmp_path / "flipped.parquet"
+        bad.write_bytes(bytes(flipped))
+        try:
+            outcomes.append("same" if np.array_equal(read(bad), ref, equal_nan=True) else "changed")
+        except InputError as exc:
+            assert "not a readable Parquet file" in str(exc)
+            outcomes.append("refused")
+    assert "changed" not in outcomes and outcomes.count("refused") >= 30, outcomes
+
+
+@pytest.mark.parametrize("back", [100, 3000])
+def test_a_flipped_bit_in_the_markers_is_refused_by_preprocess(imported, tmp_path, cli, back):
+    """The markers table ``import`` streams has page checksums too. Before, these two flips (``back`` bytes
+    before the end of the x column's page) decoded to other coordinates, and preprocess wrote other
+    trajectories from them with exit 0."""
+    markers = imported / "import" / "markers.parquet"
+    meta = pq.ParquetFile(markers).metadata.row_group(0)
+    x = next(meta.column(i) for i in range(meta.num_columns) if meta.column(i).path_in_schema == "x")
+    flipped = bytearray(markers.read_bytes())
+    flipped[x.data_page_offset + x.total_compressed_size - back] ^= 1 << (back % 8)
+    bad = tmp_path / "markers.parquet"
+    bad.write_bytes(bytes(flipped))
+    line = refused(cli, tmp_path / "ws", bad, "-q", "preprocess", "--out", tmp_path / "ws", "--markers", bad,
+                   "--trials", imported / "import" / "trials.parquet", "-j", "1")
+    assert "cannot read the marker columns" in line and "re-run `cobot-analysis import`" in line
+
+
+@pytest.mark.parametrize("edit, expected", [
+    (lambda df: df.assign(d_xy=-df["d_xy"]), "column 'd_xy': 8 value(s) negative or infinite"),
+    (lambda df: df.assign(d_theta=np.where(df.index == 0, np.inf, df["d_theta"])), "column 'd_theta': 1 value(s) negative or infinite"),
+])
+def test_stats_on_distances_no_comparison_gives(table, tmp_path, cli, edit, expected):
+    """Distances are >= 0 and finite (before: stats ran its tests on them, exit 0)."""
+    from cobot_analysis.cli import run
+
+    ws = tmp_path / "good"
+    for args in (["average"], ["compare"]):
+        assert run(["-q", *args, "--out", str(ws), "--trajectories", str(table)]) == 0
+    bad = edited(ws / "compare" / "distances.parquet", tmp_path / "distances.parquet", edit)
+    line = refused(cli, tmp_path / "ws", bad, "stats", "--out", tmp_path / "ws", "--trajectories", table, "--distances", bad)
+    assert expected in line, line
