@@ -274,3 +274,13 @@ def test_statistics_takes_the_published_durations_as_a_file(datasets, tmp_path):
     for other in tables[1:]:
         pd.testing.assert_frame_equal(tables[0], other, check_exact=True)
     assert (tables[0]["status"] == "ok").sum() == 13
+
+
+def test_a_lab_extent_beyond_what_later_stages_accept_is_refused_before_any_work(tmp_path, cli):
+    """import --lab-extent above 100 m would import positions that every later stage refuses (the trajectory tables'
+    limit, schema.LAB_EXTENT): refused at once, in one line, nothing written."""
+    with pytest.raises(InputError, match=r"--lab-extent 200 m is beyond the 100 m"):
+        ca.import_markers(tmp_path / "missing.yaml", lab_extent=200.0)
+    code, _, err = cli("import", tmp_path / "missing.yaml", "--out", tmp_path / "ws", "--lab-extent", "200")
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "at most 100" in err
+    assert not (tmp_path / "ws").exists()

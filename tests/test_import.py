@@ -546,7 +546,7 @@ def test_plug_in_gait_file_with_keep_all_markers(realdata, tmp_path, cli):
 
 @pytest.mark.parametrize("mm, expected, remedy", [
     (1.2e38, "implausible marker positions, up to 1.2e+35 m from the lab origin (limit 100 m): RASI (frame 30, from t = 0.150 s)",
-     "--lab-extent"),
+     "origin inside the capture volume"),
     (float("inf"), "infinite marker coordinates: RASI (frame 30, from t = 0.150 s)", "re-export"),
     (-120.0 - 120.0, "implausible jump of marker RASI: 0.12 m between frames 29 and 30 (t = 0.145 s), 24 m/s (limit 20 m/s)",
      "--max-speed"),  # y of RASI is -120 mm: moved by 120 mm in one frame
@@ -574,8 +574,14 @@ def test_plausibility_limits_are_options(tmp_path, cli):
     assert meta["max_speed"] == 30.0 and meta["max_spike"] == 0.07 and meta["lab_extent"] == 100.0
     far = {k: v + np.array([150.0, 0, 0]) for k, v in person(20).items()}  # a lab whose origin is 150 m away
     proto = protocol(tmp_path, [write_c3d(tmp_path / "b.c3d", far)])
-    assert_rejected(cli, tmp_path / "ws2", [proto], "b.c3d: implausible marker positions, up to 150 m", "--lab-extent")
-    assert cli("import", proto, "--out", tmp_path / "ws2", "--jobs", "1", "--lab-extent", "200")[0] == 0
+    assert_rejected(cli, tmp_path / "ws2", [proto], "b.c3d: implausible marker positions, up to 150 m", "origin inside the capture volume")
+    # every later stage refuses trajectories beyond 100 m of the origin (schema.LAB_EXTENT): a wider lab is refused at once
+    assert_rejected(cli, tmp_path / "ws2", [proto, "--lab-extent", "200"], "--lab-extent 200 m is beyond the 100 m", "at most 100")
+    near = {k: v + np.array([60.0, 0, 0]) for k, v in person(20).items()}  # 60 m away: inside a --lab-extent of 100 m
+    small = protocol(tmp_path, [write_c3d(tmp_path / "c.c3d", near)])
+    assert_rejected(cli, tmp_path / "ws3", [small, "--lab-extent", "50"], "c.c3d: implausible marker positions, up to 60",
+                    "--lab-extent up to 100")
+    assert cli("import", small, "--out", tmp_path / "ws3", "--jobs", "1")[0] == 0
 
 
 def test_sacrum_pelvis_is_imported_and_named(tmp_path, cli):

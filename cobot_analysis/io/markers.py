@@ -45,7 +45,7 @@ from cobot_analysis.lazy import pandas as pd
 from cobot_analysis import refusals
 from cobot_analysis.errors import InputError
 from cobot_analysis.io.c3d import RawMarkers, is_c3d, read_c3d
-from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, MAX_SPIKE, check_positions, trial_rate
+from cobot_analysis.io.plausibility import FAR_REMEDY, LAB_EXTENT, MAX_SPEED, MAX_SPIKE, check_positions, trial_rate
 from cobot_analysis.io.protocol import (ENTITIES, KEPT_SUBJECT_MARKERS, PELVIS_DEFINITIONS, PELVIS_MARKERS, SACRUM, TABLE_MARKERS,
                                         Protocol, load_protocol, pelvis_definition, read_yaml)
 from cobot_analysis.io.text_exports import read_qualisys_tsv, read_vicon_csv, sniff_text_format
@@ -432,6 +432,9 @@ def plan_import(protocol_path: str | os.PathLike, *, units: str = "auto", marker
     raise ``InputError`` here, before any raw file is read."""
     if units not in UNITS:
         raise InputError(f"unknown --units {units!r}", remedy=f"use one of {', '.join(UNITS)}")
+    if lab_extent > LAB_EXTENT:  # the trajectory tables' limit (schema.POSITION): every later stage would refuse them
+        raise InputError(f"--lab-extent {lab_extent:g} m is beyond the {LAB_EXTENT:g} m of the lab origin that every later "
+                         "stage accepts", remedy=f"give --lab-extent at most {LAB_EXTENT:g}, {FAR_REMEDY}")
     protocol = load_protocol(protocol_path)
     mapping = dict(protocol.marker_map)
     inputs: list[Path] = [protocol.path]

@@ -49,6 +49,7 @@ RATE_RANGE = (1.0, 10_000.0)
 
 REMEDY = ("check the trial in the capture software (a corrupt file or a mislabelled marker) and re-export it, "
           "or leave it out of the protocol")
+FAR_REMEDY = "positions in metres from an origin inside the capture volume"  # what a position beyond the lab means
 
 
 def check_rate(rate: float, path: str | os.PathLike, what: str = "") -> None:
@@ -130,7 +131,8 @@ def check_positions(xyz: np.ndarray, labels: list[str], rate: float, path: str |
             worst = float(np.nanmax(size))
             raise InputError(f"{what}implausible marker positions, up to {worst:.3g} m from the lab origin (limit {lab_extent:g} m): "
                              f"{_where(labels, far, rate)}", path=path,
-                             remedy=f"{REMEDY}; a lab larger than {lab_extent:g} m: import with --lab-extent")
+                             remedy=f"{REMEDY}; " + (f"a lab larger than {lab_extent:g} m: import with --lab-extent up to {LAB_EXTENT:g}"
+                                                     if lab_extent < LAB_EXTENT else f"the pipeline takes {FAR_REMEDY}"))
     x, y, z = (xyz[:, :, c] for c in range(3))  # (frames, markers) each: no reduction over a 3-long axis (slow)
     visible = ~(np.isnan(x) | np.isnan(y) | np.isnan(z))
     n_frames = len(xyz)
