@@ -96,7 +96,7 @@ def test_tables_of_the_wrong_kind_are_refused(walks, means):
     means of another N a numpy broadcast error; the trajectories as distances a KeyError; a list a TypeError."""
     with pytest.raises(InputError, match=r"^trajectory table has kind 'recording'"):
         ca.average(walks.assign(kind="recording"))
-    with pytest.raises(InputError, match=r"beyond the lab \(100 m\); give x and y in metres"):
+    with pytest.raises(InputError, match=r"value\(s\) outside \[-100, 100\] m .*lengths in metres, not millimetres"):
         ca.compare(walks.assign(x=1000 * walks["x"], y=1000 * walks["y"]), means)
     short = ca.average(walking_table(n_subjects=3, n_conditions=2, n_trials=2, n=20)).means
     with pytest.raises(InputError, match=r"^the means have 20 samples per trajectory, the trajectories 40"):

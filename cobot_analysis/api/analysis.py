@@ -43,14 +43,16 @@ def trajectory_set(table: Any, what: tuple[str, ...] = ("trajectories", "means",
         cobot_analysis.errors.InputError: trajectory table has kind 'recording'; use 'trial' for a recording, 'mean' for a mean trajectory, 'model' for a generated path (docs/schemas.md, trajectories)
         >>> trajectory_set(walk.assign(x=1000 * walk["x"], y=1000 * walk["y"]))
         Traceback (most recent call last):
-        cobot_analysis.errors.InputError: trajectory table has |x| or |y| up to 900, beyond the lab (100 m); give x and y in metres (divide millimetres by 1000)
+        cobot_analysis.errors.InputError: column 'y': 35 value(s) outside [-100, 100] m (e.g. -900); give y in m (lengths in metres, not millimetres; NaN for an unknown value), or re-run the stage that wrote it
         >>> trajectory_set([walk])
         Traceback (most recent call last):
         cobot_analysis.errors.InputError: trajectories must be a DataFrame or the path of a Parquet file, not a list; pass the table (docs/api.md, "The one input type")
     """
     from cobot_analysis.api.options import table_of
     from cobot_analysis.compare import pivot, read_trajectory_set
-    from cobot_analysis.io.plausibility import LAB_EXTENT
+    import pyarrow as pa
+
+    from cobot_analysis.schema import TRAJECTORIES, check_values
 
     if isinstance(table, TrajectorySet):
         return table
@@ -64,10 +66,10 @@ def trajectory_set(table: Any, what: tuple[str, ...] = ("trajectories", "means",
             raise InputError(f"trajectory table has kind {', '.join(map(repr, kinds))}",
                              remedy="use 'trial' for a recording, 'mean' for a mean trajectory, 'model' for a generated path "
                                     "(docs/schemas.md, trajectories)")
-        far = max((float(table[c].abs().max()) for c in ("x", "y") if c in table.columns and table[c].notna().any()), default=0.0)
-        if far > LAB_EXTENT:
-            raise InputError(f"trajectory table has |x| or |y| up to {far:.4g}, beyond the lab ({LAB_EXTENT:g} m)",
-                             remedy="give x and y in metres (divide millimetres by 1000)")
+        # the checks of a table read from a file (schema.check_values: numbers, no +-inf, positions within the lab, so
+        # not millimetres, wrapped angles within pi, so not degrees)
+        check_values(pa.Table.from_pandas(table[[c for c in table.columns if c in TRAJECTORIES.columns]], preserve_index=False),
+                     TRAJECTORIES)
         return pivot(table)
     return read_trajectory_set(Path(table), what)
 
