@@ -284,3 +284,16 @@ def test_a_lab_extent_beyond_what_later_stages_accept_is_refused_before_any_work
     code, _, err = cli("import", tmp_path / "missing.yaml", "--out", tmp_path / "ws", "--lab-extent", "200")
     assert code == 2 and len(err.strip().splitlines()) == 1 and "at most 100" in err
     assert not (tmp_path / "ws").exists()
+
+
+def test_the_statistics_summary_counts_tests_apart_from_descriptive_summaries(walks, means):
+    """A ``describe`` row has no p: the summary counted it among the "tests run" (docs/results.md: 17 tests run for 14
+    tests and 3 summaries on walking-2020)."""
+    distances = ca.compare(walks, means).distances
+    ask = {"source": "distances", "filter": {"comparison": "individual-mean"}, "value": "d_xy", "group": "subject",
+           "family": "study"}
+    config = {"study": "synthetic-walking", "analysis": [{**ask, "id": "A", "description": "test", "test": "kruskal"},
+                                                        {**ask, "id": "B", "description": "summary", "test": "describe"}]}
+    result = ca.statistics(walks, distances, config=config)
+    assert result.table["status"].tolist() == ["ok", "ok"]
+    assert result.summary().startswith("1 test run (and 1 descriptive summary), 0 skipped (reason in the table); ")

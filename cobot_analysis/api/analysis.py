@@ -356,8 +356,12 @@ class StatisticsResult:
     declared: bool = True  # False: no questions declared, the default descriptive ones (cobot_analysis.study)
 
     def summary(self) -> str:
+        """"T tests run (and S descriptive summaries), K skipped ...": a ``describe`` row is no test (no p)."""
         ok = self.table["status"].eq("ok")
-        return (f"{int(ok.sum())} tests run, {int((~ok).sum())} skipped (reason in the table); "
+        described = int((ok & self.table["test"].eq("describe")).sum())
+        also = f" (and {described} descriptive summar{'y' if described == 1 else 'ies'})" if described else ""
+        tests = int(ok.sum()) - described
+        return (f"{tests} test{'' if tests == 1 else 's'} run{also}, {int((~ok).sum())} skipped (reason in the table); "
                 f"{int(self.table['significant'].sum())} significant after Holm within each family.")
 
     def metrics(self, *, stage: str = "stats") -> Metrics:
