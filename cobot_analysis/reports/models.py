@@ -205,10 +205,10 @@ def duration_flag(terms: list[dict], v_nominal: float = 1.0, convention: str = "
 def weight_limit_flag(weights: dict[str, float], fitted: tuple[str, ...]) -> str:
     """Markdown line naming the fitted weights that end within a factor 1.12 (``fit.AT_LIMIT``, 0.05 in log10) of the
     search limits ``fit.LOG_BOUNDS``; there the data ask for a term the bounds cut, so the weight is a bound, not an estimate."""
-    from cobot_analysis.models.ioc.fit import AT_LIMIT, LOG_BOUNDS
+    from cobot_analysis.models.ioc.fit import LOG_BOUNDS, search_limit_at
 
-    near = [f"{n} = {weights[n]:.3g} at the {'lower' if np.log10(weights[n]) < sum(LOG_BOUNDS) / 2 else 'upper'} limit"
-            for n in fitted if min(abs(np.log10(max(weights[n], 1e-300)) - b) for b in LOG_BOUNDS) < AT_LIMIT]
+    near = [f"{n} = {weights[n]:.3g} at the {'lower' if search_limit_at(weights[n]) == LOG_BOUNDS[0] else 'upper'} limit"
+            for n in fitted if search_limit_at(weights[n]) is not None]
     if not near:
         return f"Fitted weights inside the search limits 1e{LOG_BOUNDS[0]:g}..1e{LOG_BOUNDS[1]:g}."
     return (f"**Warning: fitted weights at a search limit** (1e{LOG_BOUNDS[0]:g}..1e{LOG_BOUNDS[1]:g}): {', '.join(near)}; "

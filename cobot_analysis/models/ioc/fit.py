@@ -48,6 +48,12 @@ LOG_BOUNDS = (-7.0, 3.0)  # log10 of a fitted weight
 AT_LIMIT = 0.05  # log10: a fitted weight within a factor 1.12 of a search limit is at that limit (a bound, not an estimate)
 
 
+
+def search_limit_at(w: float) -> float | None:
+    """The log10 search limit (``LOG_BOUNDS``) a fitted weight ``w`` is at (within ``AT_LIMIT``), else None."""
+    y = math.log10(max(w, 1e-300))
+    return next((b for b in LOG_BOUNDS if abs(y - b) < AT_LIMIT), None)
+
 @dataclass(frozen=True)
 class IOCSpec:
     """What the fit is (hashed into the checkpoint so a resume only continues the same fit)."""

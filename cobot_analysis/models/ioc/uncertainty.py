@@ -66,7 +66,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cobot_analysis.models.ioc.fit import AT_LIMIT, LOG_BOUNDS, IOCSpec, fit_key, published_terms, solve_target
+from cobot_analysis.models.ioc.fit import LOG_BOUNDS, IOCSpec, fit_key, published_terms, search_limit_at, solve_target
 from cobot_analysis.models.ioc.targets import Target
 from cobot_analysis.models.presets import names_for
 
@@ -272,10 +272,8 @@ def verdicts(fitted, H: np.ndarray, D: float, weights: dict[str, float], rel_tol
 
 def _at_limit(w: float) -> str:
     """" (at the search limit L)" for a weight within ``AT_LIMIT`` (0.05, a factor 1.12) of a log10 search limit, else ""."""
-    y = math.log10(max(w, 1e-300))
-    if abs(y - LOG_BOUNDS[0]) < AT_LIMIT or abs(y - LOG_BOUNDS[1]) < AT_LIMIT:
-        return f" (at the search limit {10.0 ** (LOG_BOUNDS[0] if y < 0 else LOG_BOUNDS[1]):g})"
-    return ""
+    b = search_limit_at(w)
+    return "" if b is None else f" (at the search limit {10.0 ** b:g})"
 
 
 def disputed(lack: float, curvature: dict[str, str], bootstrap: dict[str, str]) -> tuple[str, ...]:
