@@ -9,6 +9,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from cobot_analysis.errors import InputError
 from cobot_analysis.schema import TRAJECTORIES, read_table, write_table
 from cobot_analysis.stats.analyses import STATS
 
@@ -139,3 +140,19 @@ def test_binary_configuration_is_one_line(ws, tmp_path, cli):
                                         "TOML file (docs/statistics.md)")
     code, _, err = cli("stats", "--out", ws, "--config", tmp_path)
     assert code == 2 and "cannot read the study file" in _line(err)
+
+
+def test_distances_without_rows_are_refused(ws, tmp_path, cli):
+    """An empty distances table made every question 'skipped' and exited 0: an empty result, not an answer."""
+    from cobot_analysis.api import statistics
+    from cobot_analysis.compare import DISTANCES
+
+    empty = tmp_path / "distances.parquet"
+    write_table(read_table(ws / "compare" / "distances.parquet", DISTANCES).iloc[:0], empty, DISTANCES)
+    remedy = ("re-run compare on these trajectories and their means (cobot-analysis compare --force with the same --out), "
+              "and check that it reports compared pairs")
+    code, _, err = cli("stats", "--out", ws, "--distances", empty, "--force")
+    assert code == 2 and _line(err) == f"error: {empty}: the distances table has no rows; {remedy}"
+    with pytest.raises(InputError) as refused:
+        statistics(ws / "preprocess" / "trajectories.parquet", read_table(empty, DISTANCES))
+    assert str(refused.value) == f"the distances table has no rows; {remedy}"

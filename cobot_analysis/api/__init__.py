@@ -31,7 +31,7 @@ EXPORTS = {
     # analyses
     "trajectory_set": "analysis", "study_of": "analysis", "check_by": "analysis",
     "average": "analysis", "AverageResult": "analysis", "compare": "analysis", "CompareResult": "analysis",
-    "statistics": "analysis", "StatisticsResult": "analysis", "reconstruct": "analysis", "ReconstructResult": "analysis",
+    "statistics": "analysis", "StatisticsResult": "analysis", "distances_table": "analysis", "reconstruct": "analysis", "ReconstructResult": "analysis",
     # models
     "generate": "models", "GenerateResult": "models", "walking_cases": "models", "fit_ioc": "models", "FitResult": "models",
     "velocity_commands": "models", "VelocityCommands": "models",

@@ -401,9 +401,6 @@ def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *
         cobot_analysis.errors.InputError: the distances table lacks column(s) ['comparison', 'global_distance', 'd_xy']; pass the distances of compare (compare(...).distances, or compare/distances.parquet)
     """
     from cobot_analysis import study as st
-    from cobot_analysis.api.options import table_of
-    from cobot_analysis.compare import DISTANCES
-    from cobot_analysis.schema import read_table
     from cobot_analysis.stats import analyses
     from cobot_analysis.stats import config as cfg
     from cobot_analysis.stats.sources import build_sources
@@ -424,15 +421,7 @@ def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *
     else:
         study = st.resolve(Path("."), name, Path(config)) if config is not None else st.Study(name, name, [], [], None)
     path = study.path
-    distances = table_of(distances, "distances", "distances")
-    if not isinstance(distances, pd.DataFrame):
-        distances = read_table(Path(distances), DISTANCES)
-    missing = [c for c in ("comparison", "trial", "entity", "global_distance", "d_xy") if c not in distances.columns]
-    if missing:
-        raise InputError(f"the distances table lacks column(s) {missing}",
-                         remedy="pass the distances of compare (compare(...).distances, or compare/distances.parquet)")
-    distances = distances.copy()
-    distances.attrs = {}
+    distances = distances_table(distances)
     durations, anthropometrics = _durations(durations), _anthropometrics(anthropometrics)
     sources = build_sources(ts, distances, durations, anthropometrics, study.alpha)
     questions = st.questions(study, sources)
@@ -441,6 +430,42 @@ def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *
     table = analyses.run(questions, sources, progress=progress)
     table["study"] = name
     return StatisticsResult(table, questions, path, name, list(unmatched), waiting, study.declared)
+
+
+def distances_table(distances: Any) -> pd.DataFrame:
+    """The distances of ``compare`` (a DataFrame, or the path of its distances.parquet) as ``statistics`` reads
+    them: refused when a column it needs is missing or when they hold no row (the statistics would all be
+    skipped: an empty result, not an answer).
+
+        >>> from cobot_analysis.api import average, compare, distances_table
+        >>> from cobot_analysis.synth.tables import walking_table
+        >>> walks = walking_table(n_subjects=2, n_conditions=1, n_trials=1)
+        >>> len(distances_table(compare(walks, average(walks).means).distances))
+        2
+        >>> distances_table(compare(walks, average(walks).means).distances.iloc[:0])
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: the distances table has no rows; re-run compare on these trajectories and their means (cobot-analysis compare --force with the same --out), and check that it reports compared pairs
+    """
+    from cobot_analysis.api.options import table_of
+    from cobot_analysis.compare import DISTANCES
+    from cobot_analysis.schema import read_table
+
+    distances = table_of(distances, "distances", "distances")
+    path = None
+    if not isinstance(distances, pd.DataFrame):
+        path = Path(distances)
+        distances = read_table(path, DISTANCES)
+    missing = [c for c in ("comparison", "trial", "entity", "global_distance", "d_xy") if c not in distances.columns]
+    if missing:
+        raise InputError(f"the distances table lacks column(s) {missing}", path=path,
+                         remedy="pass the distances of compare (compare(...).distances, or compare/distances.parquet)")
+    if distances.empty:
+        raise InputError("the distances table has no rows", path=path,
+                         remedy="re-run compare on these trajectories and their means (cobot-analysis compare --force with "
+                                "the same --out), and check that it reports compared pairs")
+    distances = distances.copy()
+    distances.attrs = {}
+    return distances
 
 
 def _durations(durations: Any) -> pd.DataFrame | None:

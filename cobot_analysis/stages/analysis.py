@@ -96,9 +96,7 @@ def statistics(out: str | os.PathLike, *, config: str | os.PathLike | None = Non
     if config is not None:
         st.load(config)  # validate a given study file before anything else
     path, ts = trajectories_input(out, trajectories)  # refuses a missing input before the heavy imports below
-    from cobot_analysis.compare import DISTANCES
     from cobot_analysis.reports.analysis import statistics_markdown
-    from cobot_analysis.schema import read_table
     from cobot_analysis.stats import analyses
     from cobot_analysis.stats.sources import read_anthropometrics
 
@@ -107,8 +105,7 @@ def statistics(out: str | os.PathLike, *, config: str | os.PathLike | None = Non
     conv = conventions.get(convention or "continuous")
     dist_path = Path(distances) if distances is not None else find_input(
         out, "distances.parquet", [registry.directory("compare", conv.name)], "--distances")
-    dist = read_table(dist_path, DISTANCES)
-    dist.attrs = {}
+    dist = api.distances_table(dist_path)  # refused before the stage starts: a missing column, no row
     dur_path = Path(durations) if durations is not None else out / "import-published" / "durations.parquet"
     dur = None
     if dur_path.is_file():
