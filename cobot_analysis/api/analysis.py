@@ -43,7 +43,7 @@ def trajectory_set(table: Any, what: tuple[str, ...] = ("trajectories", "means",
         cobot_analysis.errors.InputError: trajectory table has kind 'recording'; use 'trial' for a recording, 'mean' for a mean trajectory, 'model' for a generated path (docs/schemas.md, trajectories)
         >>> trajectory_set(walk.assign(x=1000 * walk["x"], y=1000 * walk["y"]))
         Traceback (most recent call last):
-        cobot_analysis.errors.InputError: column 'y': 35 value(s) outside [-100, 100] m (e.g. -900); give y in m (lengths in metres, not millimetres; NaN for an unknown value), or re-run the stage that wrote it
+        cobot_analysis.errors.InputError: column 'y': 35 value(s) outside [-100, 100] m (e.g. -900; millimetres?); give y in m (lengths in metres, not millimetres; NaN for an unknown value), or re-run the stage that wrote it
         >>> trajectory_set([walk])
         Traceback (most recent call last):
         cobot_analysis.errors.InputError: trajectories must be a DataFrame or the path of a Parquet file, not a list; pass the table (docs/api.md, "The one input type")
@@ -67,7 +67,7 @@ def trajectory_set(table: Any, what: tuple[str, ...] = ("trajectories", "means",
                              remedy="use 'trial' for a recording, 'mean' for a mean trajectory, 'model' for a generated path "
                                     "(docs/schemas.md, trajectories)")
         # the checks of a table read from a file (schema.check_values: numbers, no +-inf, positions within the lab, so
-        # not millimetres, wrapped angles within pi, so not degrees)
+        # not millimetres, wrapped angles within pi and unwrapped ones within schema.TURNS turns, so not degrees)
         check_values(pa.Table.from_pandas(table[[c for c in table.columns if c in TRAJECTORIES.columns]], preserve_index=False),
                      TRAJECTORIES)
         return pivot(table)
