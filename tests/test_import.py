@@ -730,6 +730,26 @@ def test_nan_coordinate_with_a_valid_residual_is_an_occluded_sample(tmp_path, cl
     assert lasi["occluded"].tolist() == [False] * 12 + [True] + [False] * 27 and lasi[["x", "y", "z"]].iloc[12].isna().all()
 
 
+@pytest.mark.parametrize("axis", ["X", "Y"])
+@pytest.mark.parametrize("fmt", ["c3d", "csv", "tsv"])
+def test_a_sample_missing_one_coordinate_is_occluded_in_every_format(tmp_path, cli, fmt, axis):
+    """LASI's x (or y) missing in every frame, the other coordinates given (a NaN with a valid residual, an empty
+    CSV cell, a NaN TSV cell): each sample is occluded as a whole by the reader, so the trial is refused because
+    LASI is never visible. The import's later checks look at x alone: a y missing with x given relies on it."""
+    m = person(40)
+    m["LASI"][:, "XYZ".index(axis)] = np.nan
+    if fmt == "tsv":  # the writer fills NaN with QTM's 0 0 0: write the cells as NaN text instead
+        f = write_qtm_tsv(tmp_path / "a.tsv", person(40))
+        lines = f.read_text().splitlines()
+        column = lines[8].split("\t").index(f"LASI {axis}")
+        lines[9:] = ["\t".join(c[:column] + ["NaN"] + c[column + 1:]) for c in (ln.split("\t") for ln in lines[9:])]
+        f.write_text("\n".join(lines) + "\n")
+    else:
+        f = (write_c3d if fmt == "c3d" else write_vicon_csv)(tmp_path / f"a.{fmt}", m)
+    assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])],
+                    f"a.{fmt}: marker LASI of walker is never visible (all 40 samples missing)")
+
+
 def test_label_bytes_that_are_not_utf8(tmp_path, cli):
     m = person(30)
     m["XHEE"] = m.pop("LHEE")
