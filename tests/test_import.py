@@ -750,6 +750,17 @@ def test_a_sample_missing_one_coordinate_is_occluded_in_every_format(tmp_path, c
                     f"a.{fmt}: marker LASI of walker is never visible (all 40 samples missing)")
 
 
+def test_a_failed_import_prints_its_error_line_alone(tmp_path, cli):
+    """Without -q, the progress lines of the work that then failed came first ('import: 0/1 (0 %)', 'import: 1/1
+    (100 %)'): the error is the one line now."""
+    m = person(40)
+    m["LASI"][:] = np.nan
+    f = write_c3d(tmp_path / "a.c3d", m)
+    code, _, err = cli("import", protocol(tmp_path, [f]), "--out", tmp_path / "ws", "--jobs", "1")
+    assert code == 2 and err.splitlines() == [f"error: {f}: marker LASI of walker is never visible (all 40 samples missing); check "
+                                              "the labelling of the trial in the capture software, or leave the trial out of the protocol"]
+
+
 def test_label_bytes_that_are_not_utf8(tmp_path, cli):
     m = person(30)
     m["XHEE"] = m.pop("LHEE")
