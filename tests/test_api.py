@@ -78,8 +78,25 @@ def test_generate_summary_states_the_time_law_beside_the_subjects():
                          "mean_speed": [0.4, 0.8, 2.5]})
     cases = [(c, (-1.0, -1.0, 0.0), (0.0, 0.0, 1.0)) for c in "abc"]  # the subjects' pace is per case (trial m_<case>)
     r = GenerateResult(ends, ["m"], None, cases, "continuous", 500, 100, {"a": (3.0, 0.45), "b": (2.0, 0.9)})
-    assert r.summary() == ("3 trajectories, 1 not reaching their goal (results.md), mean speed 0.4-2.5 m/s "
-                           "(2 of 3 outside 0.5-2 m/s; the subjects' 1 of 2)")
+    assert r.summary() == ("3 trajectories, 1 not reaching their goal (status in .generated), mean speed 0.4-2.5 m/s "
+                           "(2 of 3 outside 0.5-2 m/s; the subjects' 1 of 2)")  # from Python: no results.md was written
+    assert r.summary(where="ws/generate/results.md").startswith("3 trajectories, 1 not reaching their goal (ws/generate/results.md)")
     published = GenerateResult(ends.iloc[:1], ["m"], "walking-2021", [], "published", 500, 100)
     assert published.summary() == ("1 trajectory, all at their goal, mean speed 0.4 m/s (the published duration rule: "
                                    "no human pace; velocity-commands refuses it)")
+
+
+def test_import_summary_says_where_the_refused_trials_are():
+    """The summary said "(listed above and in results.md)" from Python too, where nothing was listed above and no
+    results.md was written: from Python it names the result's ``refused``, the command line its own places."""
+    from pathlib import Path
+
+    import pandas as pd
+
+    from cobot_analysis.api.data import ImportResult
+    from cobot_analysis.refusals import Refused
+
+    r = ImportResult(None, None, pd.DataFrame({"trial": ["t1", "t2"]}), {}, [Refused("t3", Path("t3.c3d"), "LASI never visible")],
+                     [], n_samples=200, n_occluded=3)
+    assert r.summary() == "2 trials, 1 refused (why: .refused), 200 marker samples (1.5% occluded)"
+    assert r.summary(where="listed above and in ws/import/results.md").startswith("2 trials, 1 refused (listed above and in ws/")

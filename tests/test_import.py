@@ -674,6 +674,7 @@ def test_bad_files_are_skipped_and_listed_or_named_in_one_error_with_strict(tmp_
     text = " ".join(err.split())
     assert "import: 3 of 4 trials refused and left out, the other 1 went on (exit code 3" in text
     assert all(f"{t} ({f}): " in text for t, f in (("t2", "short.c3d"), ("t3", "notc3d.c3d"), ("t4", "nopelvis.c3d")))
+    assert err.splitlines()[-1].startswith(f"import: 1 trials, 3 refused (listed above and in {tmp_path / 'ws' / 'import' / 'results.md'}), ")
     trials = read_table(tmp_path / "ws" / "import" / "trials.parquet", TRIALS)
     assert trials["trial"].tolist() == ["t1"]
     assert set(read_table(tmp_path / "ws" / "import" / "markers.parquet", MARKERS)["trial"]) == {"t1"}

@@ -40,8 +40,10 @@ class ImportResult:
     def notes(self) -> list[str]:
         return [n for t in self.imported for n in t.notes]
 
-    def summary(self) -> str:
-        skipped = f", {len(self.refused)} refused (listed above and in results.md)" if self.refused else ""
+    def summary(self, where: str = "why: .refused") -> str:
+        """Trials, refused ones, marker samples and the share occluded; ``where``: where the refused trials' reasons
+        are (the command line: its warnings and the stage's results.md)."""
+        skipped = f", {len(self.refused)} refused ({where})" if self.refused else ""
         return (f"{len(self.trials)} trials{skipped}, {self.n_samples} marker samples "
                 f"({self.n_occluded / max(self.n_samples, 1):.1%} occluded)")
 
@@ -198,10 +200,12 @@ class PreprocessResult:
     n_recordings: int
     refused: list[Refused] = field(default_factory=list)
 
-    def summary(self) -> str:
+    def summary(self, where: str = "why: .refused") -> str:
+        """Trajectories, recordings, and the refused ones (``where``: where their reasons are; the command line: its
+        warnings and the stage's results.md)."""
         n = self.trajectories[["trial", "entity"]].drop_duplicates().shape[0]
         k = len(self.refused)
-        refused = f", {k} recording{'s' if k != 1 else ''} refused and left out" if k else ""
+        refused = f", {k} recording{'s' if k != 1 else ''} refused and left out ({where})" if k else ""
         return f"{n} trajectories from {self.n_recordings} recordings{refused}"
 
     def params_dict(self) -> dict[str, Any]:

@@ -163,7 +163,7 @@ def localisation_command(
                         min_samples=min_samples)
     if done.skipped:
         return
-    for line in done.result.run_lines():
+    for line in done.result.run_lines(where=str(done.directory / "results.md")):
         run, _, rest = line.partition(": ")
         info(f"[green]{run}[/green]: {rest}")
     finished(STAGE, done.result.summary(), done.directory)

@@ -85,7 +85,8 @@ def generate_command(
                            intervals=intervals, duration=duration.value if duration else None, v_nominal=v_nominal,
                            max_iter=max_iter, means=means, convention=convention, jobs=jobs, scheduler=scheduler, force=force)
     if not done.skipped:
-        finished(f"generate ({done.result.convention})", done.result.summary(), done.directory / "generated.parquet")
+        finished(f"generate ({done.result.convention})", done.result.summary(where=str(done.directory / "results.md")),
+                 done.directory / "generated.parquet")
 
 
 # ---- fit-ioc -----------------------------------------------------------------------------------
