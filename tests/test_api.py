@@ -100,3 +100,32 @@ def test_import_summary_says_where_the_refused_trials_are():
                      [], n_samples=200, n_occluded=3)
     assert r.summary() == "2 trials, 1 refused (why: .refused), 200 marker samples (1.5% occluded)"
     assert r.summary(where="listed above and in ws/import/results.md").startswith("2 trials, 1 refused (listed above and in ws/")
+
+
+def test_the_synthetic_studies_are_in_the_api(tmp_path):
+    """``synth walking|pairs|localisation`` had no API function (``ca.synth_walking`` was an AttributeError): each
+    writes what the command writes into a directory, and its result names what the next function takes."""
+    study = ca.synth_walking(tmp_path / "walk", subjects=1, repetitions=1, conditions="E4015", jobs=1)
+    assert study.summary() == "1 trials" and study.protocol == tmp_path / "walk" / "protocol.yaml"
+    assert (tmp_path / "walk" / "study.toml").is_file() and len(list((tmp_path / "walk" / "raw").glob("*.c3d"))) == 1
+    assert ca.import_markers(study.protocol, jobs=1).trials["condition"].tolist() == ["E4015"]
+    pairs = ca.synth_pairs(tmp_path / "pairs", pairs=1, goals=1, scenarios="3", jobs=1)
+    assert pairs.summary() == "1 recordings" and sorted(pairs.truth_trials["scenario"].dropna().unique()) == [3]
+    robot = ca.synth_localisation(tmp_path / "robot", goals_per_lap=1, stop=3.0, speed=0.3, formats=["mcap"])
+    assert robot.bags == [tmp_path / "robot" / "run.mcap"] and robot.run.params.delay == 0.55
+    with pytest.raises(InputError, match=r"^--goals-per-lap must be a whole number in \[1, 6\], got 7; e.g. --goals-per-lap 1$"):
+        ca.synth_localisation(tmp_path / "bad", goals_per_lap=7)
+    assert not (tmp_path / "bad").exists()  # refused before anything is written
+
+
+@pytest.mark.parametrize("args, message", [
+    (("--goals-per-lap", "7"), "--goals-per-lap must be a whole number in [1, 6], got 7; e.g. --goals-per-lap 1"),
+    (("--speed", "0"), "--speed must be >= 0.01, got 0; e.g. --speed 0.12"),
+    (("--delay", "-1"), "--delay must be >= 0, got -1; e.g. --delay 0.55"),
+    (("--formats", "bag"), "unknown format(s) ['bag']; use --formats ros1,ros2,mcap (or some of them)"),
+])
+def test_synth_localisation_options_are_checked_by_the_api(cli, tmp_path, args, message):
+    """The ranges typer checked (min=, max=) are the API's checks: the same exit code 2, one line naming the option."""
+    code, _, err = cli("synth", "localisation", "--out", tmp_path / "ws", *args)
+    assert code == 2 and err.splitlines() == [f"error: {message}"]
+    assert not (tmp_path / "ws" / "synth-localisation").exists()

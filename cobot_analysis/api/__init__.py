@@ -3,8 +3,9 @@
 Each function takes the documented tables (pandas DataFrames, as ``schema.TRAJECTORIES`` and the
 stages' schemas describe; ``cobot-analysis schemas`` prints them) or the paths of the files that hold
 them, keyword-only options with the command line's names and defaults, and returns a result object
-that carries its tables (and ``summary()``). Nothing is written to disk: ``cobot_analysis.stages``
-runs the same functions into a workspace, which is what the command line does.
+that carries its tables (and ``summary()``). Nothing is written to disk (but by the synthetic studies'
+``synth_*``, whose product is raw files): ``cobot_analysis.stages`` runs the same functions into a
+workspace, which is what the command line does.
 
     >>> import cobot_analysis.api as ca
     >>> from cobot_analysis.synth.tables import walking_table
@@ -38,6 +39,9 @@ EXPORTS = {
     # prediction and localisation
     "predict": "prediction", "PredictionResult": "prediction",
     "localise": "localisation", "LocalisationResult": "localisation", "bag_topics": "localisation",
+    # synthetic studies (raw inputs written to a directory)
+    "synth_walking": "synth", "synth_pairs": "synth", "synth_localisation": "synth", "synth_options": "synth",
+    "SynthStudy": "synth", "SynthRobotRun": "synth",
 }
 __all__ = sorted(EXPORTS)
 
