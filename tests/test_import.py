@@ -911,3 +911,14 @@ def test_vicon_csv_with_a_lone_carriage_return(tmp_path, cli):
     f.write_bytes(data[:row + 12] + b"\r" + data[row + 12:])
     msg = assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])], "a.csv: ")
     assert "internal error" not in msg
+
+
+@pytest.mark.parametrize("option, example", [("--lab-extent", "100"), ("--max-speed", "20"), ("--max-spike", "0.05")])
+def test_import_limits_are_checked_by_the_api_for_the_command_line_too(tmp_path, cli, option, example):
+    """The range of the plausibility limits was typer's (min=0, a usage block of 4 lines) on the command line, and
+    api.import_markers' own check, which the import stage bypassed (it planned the import itself): both now call
+    api.options.import_limits, one line naming the option, nothing written."""
+    proto = protocol(tmp_path, [write_c3d(tmp_path / "a.c3d", person(10))])
+    code, _, err = cli("import", proto, "--out", tmp_path / "ws", option, "-1")
+    assert code == 2 and err.splitlines() == [f"error: {option} must be >= 0, got -1; e.g. {option} {example}"]
+    assert not (tmp_path / "ws").exists()

@@ -91,14 +91,12 @@ def import_markers(protocol: str | os.PathLike | ImportPlan, *, units: str = "au
         cobot_analysis.errors.InputError: --max-spike must be >= 0, got nan; e.g. --max-spike 0.05
         >>> tmp.cleanup()
     """
-    from cobot_analysis.api.options import at_least
+    from cobot_analysis.api.options import import_limits
     from cobot_analysis.errors import InputError
     from cobot_analysis.io.markers import import_or_refuse, imported_tables, plan_import, refusal_error, stream_import
     from cobot_analysis.parallel import map_tasks
 
-    at_least(lab_extent, "--lab-extent", strict=False, example="100")
-    at_least(max_speed, "--max-speed", strict=False, example="20")
-    at_least(max_spike, "--max-spike", strict=False, example="0.05")
+    import_limits(lab_extent, max_speed, max_spike)
     if marker_map is not None and not isinstance(marker_map, dict):
         raise InputError(f"marker_map maps the lab's marker labels to the canonical ones, as a dict; got {marker_map!r}",
                          remedy='e.g. marker_map={"L_ASIS": "LASI"} (--map L_ASIS=LASI)')

@@ -173,3 +173,17 @@ def choose(value: str | int | Iterable, universe: Iterable, option: str, counts:
         raise InputError(f"{option}: unknown value(s) {unknown or [value]}",
                          remedy=f"use all{', a count' if counts else ''}, or a comma-separated list of {', '.join(names)}")
     return [names[s] for s in dict.fromkeys(chosen)]
+
+
+def import_limits(lab_extent: float | None = None, max_speed: float | None = None, max_spike: float | None = None) -> None:
+    """The plausibility limits of ``import`` (``--lab-extent`` m, ``--max-speed`` m/s, ``--max-spike`` m; None: not
+    given), each a number >= 0: checked by ``import_markers`` and by the ``import`` stage before it plans the import.
+
+        >>> import_limits(lab_extent=100.0, max_spike=0.05)
+        >>> import_limits(max_speed=-1)
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: --max-speed must be >= 0, got -1; e.g. --max-speed 20
+    """
+    at_least(lab_extent, "--lab-extent", strict=False, example="100")
+    at_least(max_speed, "--max-speed", strict=False, example="20")
+    at_least(max_spike, "--max-spike", strict=False, example="0.05")

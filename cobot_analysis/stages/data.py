@@ -52,8 +52,10 @@ def import_markers(out: str | os.PathLike, protocol: str | os.PathLike, *, jobs:
     """``import``: raw markers of a protocol -> ``import/markers.parquet`` and ``trials.parquet``
     (options: those of ``api.import_markers``). ``preprocess``: options of the preprocess stage (``{}``: its
     defaults): each trial is also preprocessed where it is read (``import_and_preprocess``)."""
+    from cobot_analysis.api.options import import_limits
     from cobot_analysis.io.markers import plan_import
 
+    import_limits(*(options.get(k) for k in ("lab_extent", "max_speed", "max_spike")))  # as import_markers checks them
     keep_all = options.pop("keep_all_markers", False)
     plan = plan_import(protocol, keep_all=keep_all, **options)
     if preprocess is not None:  # a --samples too large for the memory is refused before any work, as preprocess does
