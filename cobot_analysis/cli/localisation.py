@@ -131,7 +131,7 @@ def localisation_command(
     tol_yaw: Annotated[float, typer.Option(help="Controller stop tolerance, yaw (rad).")] = 0.07,
     distance_window: Annotated[float, typer.Option(help="Moving-average window for the travelled distance (s).")] = 2.0,
     up: Annotated[str, typer.Option(help="Vertical axis of the frames: auto (detected from the motion, warned when not z), x, y, z, -x, -y, -z, or TRUTH,ICP (e.g. -y,z for a camera-frame truth). Planar quantities (distance, drift, stops, yaw) are computed in the plane normal to it.")] = "auto",
-    min_samples: Annotated[int, typer.Option(help="Fewest associated ICP poses accepted.")] = 20,
+    min_samples: Annotated[int, typer.Option(help="Fewest associated ICP poses accepted (>= 3).")] = 20,
     figures: Annotated[bool, typer.Option("--figures/--no-figures", help="Draw the figures (PNG and PDF).")] = True,
 ) -> None:
     """Localisation accuracy of ICP against motion capture: delay, structural offset, per-axis errors,
