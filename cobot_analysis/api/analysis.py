@@ -433,36 +433,40 @@ def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *
 
 
 def distances_table(distances: Any) -> pd.DataFrame:
-    """The distances of ``compare`` (a DataFrame, or the path of its distances.parquet) as ``statistics`` reads
-    them: refused when a column it needs is missing or when they hold no row (the statistics would all be
-    skipped: an empty result, not an answer).
+    """The distances of ``compare`` (a DataFrame, ``compare``'s result, or the path of its distances.parquet) as
+    ``statistics`` reads them: refused when a column it needs is missing, or when they hold no row and ``compare``
+    did not say why (its result's ``excluded``, recorded in the file: every trial left out, e.g. means whose trials
+    do not share a frame); else every distance question would be skipped on a table that lost its rows.
 
         >>> from cobot_analysis.api import average, compare, distances_table
         >>> from cobot_analysis.synth.tables import walking_table
         >>> walks = walking_table(n_subjects=2, n_conditions=1, n_trials=1)
-        >>> len(distances_table(compare(walks, average(walks).means).distances))
-        2
-        >>> distances_table(compare(walks, average(walks).means).distances.iloc[:0])
+        >>> result = compare(walks, average(walks).means)
+        >>> len(distances_table(result.distances)), len(distances_table(result))
+        (2, 2)
+        >>> distances_table(result.distances.iloc[:0])
         Traceback (most recent call last):
-        cobot_analysis.errors.InputError: the distances table has no rows; re-run compare on these trajectories and their means (cobot-analysis compare --force with the same --out), and check that it reports compared pairs
+        cobot_analysis.errors.InputError: the distances table has no rows and does not say why; re-run compare on these trajectories and their means (cobot-analysis compare --force with the same --out) and pass what it writes
     """
     from cobot_analysis.api.options import table_of
     from cobot_analysis.compare import DISTANCES
     from cobot_analysis.schema import read_table
 
+    excluded = getattr(distances, "excluded", None)  # compare's result: the trials it left out, by reason
     distances = table_of(distances, "distances", "distances")
     path = None
     if not isinstance(distances, pd.DataFrame):
         path = Path(distances)
         distances = read_table(path, DISTANCES)
+        excluded = distances.attrs["cobot_analysis"].get("excluded")
     missing = [c for c in ("comparison", "trial", "entity", "global_distance", "d_xy") if c not in distances.columns]
     if missing:
         raise InputError(f"the distances table lacks column(s) {missing}", path=path,
                          remedy="pass the distances of compare (compare(...).distances, or compare/distances.parquet)")
-    if distances.empty:
-        raise InputError("the distances table has no rows", path=path,
+    if distances.empty and not any((excluded or {}).values()):
+        raise InputError("the distances table has no rows and does not say why", path=path,
                          remedy="re-run compare on these trajectories and their means (cobot-analysis compare --force with "
-                                "the same --out), and check that it reports compared pairs")
+                                "the same --out) and pass what it writes")
     distances = distances.copy()
     distances.attrs = {}
     return distances
