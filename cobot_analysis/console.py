@@ -98,7 +98,8 @@ def warn(message: str) -> None:
     logger.warning(message)
 
 
-#: seconds between two progress lines when stderr is not a terminal (a log file, CI, a pipe).
+#: seconds between two progress lines when stderr is not a terminal (a log file, CI, a pipe); work quicker than it
+#: prints none.
 PLAIN_EVERY = 5.0
 
 
