@@ -20,7 +20,7 @@ import pandas as pd
 
 from cobot_analysis.compare import TrajectorySet, default_groups, group_keys
 from cobot_analysis.errors import InputError
-from cobot_analysis.schema import NONNEGATIVE, POSITION, REAL, TRIAL_COLUMNS, WRAPPED, Column, TableSchema
+from cobot_analysis.schema import NONNEGATIVE, POSITION, TRIAL_COLUMNS, UNWRAPPED, WRAPPED, Column, TableSchema
 
 Z95 = 1.959963984540054
 #: largest spread (m) of the members' start or end points around the group's median start or end:
@@ -41,7 +41,7 @@ MEANS = TableSchema(
         "time": Column("float", "s", "phase * mean travel time / 100 (NaN if unknown)"),
         "x": Column("float", "m", "mean position", limits=POSITION),
         "y": Column("float", "m", "mean position", limits=POSITION),
-        "theta": Column("float", "rad", "circular mean of the global orientation, unwrapped along the path", limits=REAL),
+        "theta": Column("float", "rad", "circular mean of the global orientation, unwrapped along the path", limits=UNWRAPPED),
         "gamma": Column("float", "rad", "circular mean of the local orientation, wrapped", limits=WRAPPED),
         "n_theta": Column("int", "-", "trajectories with orientation that entered the angle means"),
         "x_sd": Column("float", "m", "sample-wise standard deviation of x"),

@@ -98,7 +98,8 @@ def warn(message: str) -> None:
     logger.warning(message)
 
 
-#: seconds between two progress lines when stderr is not a terminal (a log file, CI, a pipe).
+#: seconds between two progress lines when stderr is not a terminal (a log file, CI, a pipe); work quicker than it
+#: prints none.
 PLAIN_EVERY = 5.0
 
 
@@ -134,9 +135,10 @@ class QuietProgress:
 @functools.cache
 def _plain_progress():
     """``PlainProgress``: a rich ``Progress`` that, when the console is not a terminal (where rich would print the
-    bars only at the end), prints one plain line per task when it starts, at most every ``PLAIN_EVERY`` seconds
-    while it advances, and when it completes: "IOC all: 12/50 (24 %), 0:01:10, about 0:03:40 left; D = 0.41".
-    Defined at first use, with rich."""
+    bars only at the end), prints plain lines for a task that has run ``PLAIN_EVERY`` seconds: at most one every
+    ``PLAIN_EVERY`` seconds while it advances, and one when it completes: "IOC all: 12/50 (24 %), 0:01:10, about
+    0:03:40 left; D = 0.41". Quicker work says nothing: a stage that then fails prints its error line alone, one
+    that succeeds its summary line. Defined at first use, with rich."""
     from rich.progress import Progress
 
     class PlainProgress(Progress):
@@ -148,7 +150,7 @@ def _plain_progress():
         def add_task(self, description: str, *args, **kwargs):
             task = super().add_task(description, *args, **kwargs)
             if self._plain:
-                self._say(task, force=True)
+                self._say(task)
             return task
 
         def update(self, task_id, **kwargs) -> None:
@@ -161,14 +163,16 @@ def _plain_progress():
             if self._plain:
                 self._say(task_id)
 
-        def _say(self, task_id, force: bool = False) -> None:
+        def _say(self, task_id) -> None:
             import time
             from datetime import timedelta
 
             task = self._tasks[task_id]
             now = time.monotonic()
             done = task.total is not None and task.completed >= task.total
-            if not force and not done and now - self._last.get(task_id, -1e9) < PLAIN_EVERY:
+            if (task.elapsed or 0.0) < PLAIN_EVERY:
+                return
+            if not done and now - self._last.get(task_id, -1e9) < PLAIN_EVERY:
                 return
             if done and self._last.get(task_id) == "done":
                 return
@@ -202,7 +206,7 @@ def progress():
         TextColumn("{task.fields[status]}"),
         console=console,
         disable=plain,
-        transient=False,
+        transient=True,  # the bars go when their work ends: the stage's summary line or its error line stays alone
         plain=plain,
     )
 

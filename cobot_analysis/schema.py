@@ -40,7 +40,13 @@ VERIFY = {"page_checksum_verification": True}
 #: metres); a farther position is corrupt or not in metres (``import --lab-extent``'s default).
 LAB_EXTENT = 100.0
 #: the values of a position in the lab, an angle wrapped to (-pi, pi], a duration or a distance
-POSITION, WRAPPED, REAL, NONNEGATIVE = (-LAB_EXTENT, LAB_EXTENT), (-math.pi, math.pi), (-math.inf, math.inf), (0.0, math.inf)
+POSITION, WRAPPED, NONNEGATIVE = (-LAB_EXTENT, LAB_EXTENT), (-math.pi, math.pi), (0.0, math.inf)
+#: turns: largest |angle| of an unwrapped orientation (theta). Measured: 1.32 turns (8.30 rad) in walking-2020's
+#: trials (their headings start up to 5.7 rad from 0 and some turn 1.8 turns), 0.79 in pair-carriage-2022, 1.0 in
+#: the synthetic tables; so a table whose headings reach 19 (degrees) is refused (one walking along x within
+#: +-19 degrees still passes: its degrees look like radians)
+TURNS = 3
+UNWRAPPED = (-TURNS * 2 * math.pi, TURNS * 2 * math.pi)
 
 
 @dataclass(frozen=True)
@@ -89,7 +95,7 @@ TRIAL_COLUMNS: dict[str, Column] = {
     "scenario": Column("int", "-", "pair study: 1 = S1 leader, 2 = S2 leader, 3 = both know the goal", required=False),
     "configuration": Column("string", "", "pair study: end configuration family ('gris': 0/pi, 'jaune': +-pi/2)", required=False),
     "end_orientation": Column("float", "rad", "pair study: table orientation at the end of the path", required=False,
-                              limits=REAL),
+                              limits=UNWRAPPED),
     "repetition": Column("int", "-", "repetition number of the trial within its condition", required=False),
 }
 
@@ -143,7 +149,7 @@ TRAJECTORIES = TableSchema(
         "record_time": Column("float", "s", "time in the raw recording (onset_time + time); NaN if unknown", required=False),
         "x": Column("float", "m", "pelvis CoM (subjects) or table centre, horizontal", limits=POSITION),
         "y": Column("float", "m", "pelvis CoM (subjects) or table centre, horizontal", limits=POSITION),
-        "theta": Column("float", "rad", "global orientation (pelvis normal or table long axis), unwrapped", limits=REAL),
+        "theta": Column("float", "rad", "global orientation (pelvis normal or table long axis), unwrapped", limits=UNWRAPPED),
         "gamma": Column("float", "rad", "local orientation: theta minus the path tangent, wrapped to (-pi, pi]", required=False,
                         limits=WRAPPED),
         "vx": Column("float", "m/s", "CoM velocity", required=False),
@@ -303,15 +309,16 @@ def check_file(path: str | os.PathLike, remedy: str) -> Path:
     return path
 
 
-#: what a value outside a column's limits most likely is, by the column's unit
-_OUT_OF_LIMITS = {"m": "lengths in metres, not millimetres", "rad": "angles in radians, not degrees"}
+#: what a value outside a column's bounded limits most likely is, by the column's unit: the guess, and the remedy
+_OUT_OF_LIMITS = {"m": ("millimetres?", "lengths in metres, not millimetres"),
+                  "rad": ("degrees?", "angles in radians, not degrees: multiply degrees by pi/180")}
 
 
 def check_values(table, schema: TableSchema, path: str | os.PathLike | None = None) -> None:
     """Refuse (``InputError``) what no stage writes: a declared number column holding no numbers (text,
     say), and in a float column with ``limits`` an infinite value or one outside its limits (e.g. positions
-    in millimetres beyond the lab's ``LAB_EXTENT`` m, angles in degrees beyond pi). NaN is a value not
-    known (a missing orientation) and passes. ``table``: a pyarrow Table."""
+    in millimetres beyond the lab's ``LAB_EXTENT`` m, wrapped angles in degrees beyond pi, unwrapped ones beyond
+    ``TURNS`` turns). NaN is a value not known (a missing orientation) and passes. ``table``: a pyarrow Table."""
     import numpy as np
     import pyarrow as pa
 
@@ -334,8 +341,10 @@ def check_values(table, schema: TableSchema, path: str | os.PathLike | None = No
             example = float(values[np.argmax(bad)])
             bounded = math.isfinite(lo) and math.isfinite(hi)
             allowed = f"outside [{lo:.6g}, {hi:.6g}] {spec.unit}" if bounded else "negative or infinite" if lo == 0 else "infinite"
-            hint = f"{_OUT_OF_LIMITS.get(spec.unit, 'docs/schemas.md')}; " if bounded else ""
-            raise InputError(f"column {name!r}: {int(bad.sum())} value(s) {allowed} (e.g. {example:g})", path=path,
+            guess, hint = _OUT_OF_LIMITS.get(spec.unit, ("", "docs/schemas.md")) if bounded else ("", "")
+            guess = f"; {guess}" if guess and math.isfinite(example) else ""  # an infinite value is in no unit
+            hint = f"{hint}; " if hint else ""
+            raise InputError(f"column {name!r}: {int(bad.sum())} value(s) {allowed} (e.g. {example:g}{guess})", path=path,
                              remedy=f"give {name} in {spec.unit} ({hint}NaN for an unknown value), or re-run the stage that wrote it")
 
 
@@ -356,7 +365,8 @@ def schemas_markdown() -> str:
              "column holding nulls as the nullable `Int64`.", "",
              "Limits: a stage refuses a table whose number column holds no numbers (text, say) or, where a column "
              "gives its limits, an infinite value or one outside them (`schema.check_values`: positions within "
-             f"{LAB_EXTENT:g} m of the lab origin, so not millimetres; wrapped angles within pi, so not degrees; "
+             f"{LAB_EXTENT:g} m of the lab origin, so not millimetres; wrapped angles within pi and unwrapped ones within "
+             f"{TURNS} turns, so not degrees; "
              "durations and distances >= 0). NaN is a value not known and passes.", ""]
     for schema in sorted(SCHEMAS.values(), key=lambda s: s.name):
         lines += [f"## `{schema.name}` (version {schema.version})", "", schema.description, "",
@@ -371,8 +381,8 @@ def schemas_markdown() -> str:
 
 def _limits_text(limits: tuple[float, float]) -> str:
     lo, hi = limits
-    if limits == REAL:
-        return "finite"
     if limits == WRAPPED:
         return "[-pi, pi]"
+    if limits == UNWRAPPED:
+        return f"[-{2 * TURNS}pi, {2 * TURNS}pi] ({TURNS} turns)"
     return f">= {lo:g}, finite" if hi == math.inf else f"[{lo:g}, {hi:g}]"

@@ -9,6 +9,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from cobot_analysis.errors import InputError
 from cobot_analysis.schema import TRAJECTORIES, read_table, write_table
 from cobot_analysis.stats.analyses import STATS
 
@@ -139,3 +140,28 @@ def test_binary_configuration_is_one_line(ws, tmp_path, cli):
                                         "TOML file (docs/statistics.md)")
     code, _, err = cli("stats", "--out", ws, "--config", tmp_path)
     assert code == 2 and "cannot read the study file" in _line(err)
+
+
+def test_distances_without_rows_are_refused_unless_compare_said_why(ws, tmp_path, cli):
+    """An empty distances table made every question 'skipped' and exited 0: an empty result, not an answer. A
+    compare that left every trial out (e.g. means whose trials do not share a frame) records why in the file
+    (``excluded``), and that table goes on (tests/test_realdata_study.py: three labs, nothing compared)."""
+    from cobot_analysis.api import distances_table, statistics
+    from cobot_analysis.compare import DISTANCES
+    from cobot_analysis.schema import table_metadata
+
+    assert table_metadata(ws / "compare" / "distances.parquet")["excluded"] == {"single": 0, "frames": 0}
+    empty = tmp_path / "distances.parquet"
+    write_table(read_table(ws / "compare" / "distances.parquet", DISTANCES).iloc[:0], empty, DISTANCES)
+    message = ("the distances table has no rows and does not say why; re-run compare on these trajectories and their means "
+               "(cobot-analysis compare --force with the same --out) and pass what it writes")
+    code, _, err = cli("stats", "--out", ws, "--distances", empty, "--force")
+    assert code == 2 and _line(err) == f"error: {empty}: {message}"
+    with pytest.raises(InputError) as refused:
+        statistics(ws / "preprocess" / "trajectories.parquet", read_table(empty, DISTANCES))
+    assert str(refused.value) == message
+    said = tmp_path / "none-compared.parquet"
+    write_table(read_table(empty, DISTANCES), said, DISTANCES, excluded={"single": 0, "frames": 3})
+    assert distances_table(said).empty
+    code, _, err = cli("stats", "--out", ws, "--distances", said, "--force")
+    assert code == 0, err

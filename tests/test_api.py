@@ -78,8 +78,54 @@ def test_generate_summary_states_the_time_law_beside_the_subjects():
                          "mean_speed": [0.4, 0.8, 2.5]})
     cases = [(c, (-1.0, -1.0, 0.0), (0.0, 0.0, 1.0)) for c in "abc"]  # the subjects' pace is per case (trial m_<case>)
     r = GenerateResult(ends, ["m"], None, cases, "continuous", 500, 100, {"a": (3.0, 0.45), "b": (2.0, 0.9)})
-    assert r.summary() == ("3 trajectories, 1 not reaching their goal (results.md), mean speed 0.4-2.5 m/s "
-                           "(2 of 3 outside 0.5-2 m/s; the subjects' 1 of 2)")
+    assert r.summary() == ("3 trajectories, 1 not reaching their goal (status in .generated), mean speed 0.4-2.5 m/s "
+                           "(2 of 3 outside 0.5-2 m/s; the subjects' 1 of 2)")  # from Python: no results.md was written
+    assert r.summary(where="ws/generate/results.md").startswith("3 trajectories, 1 not reaching their goal (ws/generate/results.md)")
     published = GenerateResult(ends.iloc[:1], ["m"], "walking-2021", [], "published", 500, 100)
     assert published.summary() == ("1 trajectory, all at their goal, mean speed 0.4 m/s (the published duration rule: "
                                    "no human pace; velocity-commands refuses it)")
+
+
+def test_import_summary_says_where_the_refused_trials_are():
+    """The summary said "(listed above and in results.md)" from Python too, where nothing was listed above and no
+    results.md was written: from Python it names the result's ``refused``, the command line its own places."""
+    from pathlib import Path
+
+    import pandas as pd
+
+    from cobot_analysis.api.data import ImportResult
+    from cobot_analysis.refusals import Refused
+
+    r = ImportResult(None, None, pd.DataFrame({"trial": ["t1", "t2"]}), {}, [Refused("t3", Path("t3.c3d"), "LASI never visible")],
+                     [], n_samples=200, n_occluded=3)
+    assert r.summary() == "2 trials, 1 refused (why: .refused), 200 marker samples (1.5% occluded)"
+    assert r.summary(where="listed above and in ws/import/results.md").startswith("2 trials, 1 refused (listed above and in ws/")
+
+
+def test_the_synthetic_studies_are_in_the_api(tmp_path):
+    """``synth walking|pairs|localisation`` had no API function (``ca.synth_walking`` was an AttributeError): each
+    writes what the command writes into a directory, and its result names what the next function takes."""
+    study = ca.synth_walking(tmp_path / "walk", subjects=1, repetitions=1, conditions="E4015", jobs=1)
+    assert study.summary() == "1 trials" and study.protocol == tmp_path / "walk" / "protocol.yaml"
+    assert (tmp_path / "walk" / "study.toml").is_file() and len(list((tmp_path / "walk" / "raw").glob("*.c3d"))) == 1
+    assert ca.import_markers(study.protocol, jobs=1).trials["condition"].tolist() == ["E4015"]
+    pairs = ca.synth_pairs(tmp_path / "pairs", pairs=1, goals=1, scenarios="3", jobs=1)
+    assert pairs.summary() == "1 recordings" and sorted(pairs.truth_trials["scenario"].dropna().unique()) == [3]
+    robot = ca.synth_localisation(tmp_path / "robot", goals_per_lap=1, stop=3.0, speed=0.3, formats=["mcap"])
+    assert robot.bags == [tmp_path / "robot" / "run.mcap"] and robot.run.params.delay == 0.55
+    with pytest.raises(InputError, match=r"^--goals-per-lap must be a whole number in \[1, 6\], got 7; e.g. --goals-per-lap 1$"):
+        ca.synth_localisation(tmp_path / "bad", goals_per_lap=7)
+    assert not (tmp_path / "bad").exists()  # refused before anything is written
+
+
+@pytest.mark.parametrize("args, message", [
+    (("--goals-per-lap", "7"), "--goals-per-lap must be a whole number in [1, 6], got 7; e.g. --goals-per-lap 1"),
+    (("--speed", "0"), "--speed must be >= 0.01, got 0; e.g. --speed 0.12"),
+    (("--delay", "-1"), "--delay must be >= 0, got -1; e.g. --delay 0.55"),
+    (("--formats", "bag"), "unknown format(s) ['bag']; use --formats ros1,ros2,mcap (or some of them)"),
+])
+def test_synth_localisation_options_are_checked_by_the_api(cli, tmp_path, args, message):
+    """The ranges typer checked (min=, max=) are the API's checks: the same exit code 2, one line naming the option."""
+    code, _, err = cli("synth", "localisation", "--out", tmp_path / "ws", *args)
+    assert code == 2 and err.splitlines() == [f"error: {message}"]
+    assert not (tmp_path / "ws" / "synth-localisation").exists()

@@ -101,7 +101,6 @@ def test_the_pages_examples_run_in_order(datasets, tmp_path, monkeypatch):
 
     import matplotlib
 
-    from cobot_analysis.localisation.synth import SynthParams
     from cobot_analysis.stages import data
     from cobot_analysis.stages.localisation import synth_localisation
     from cobot_analysis.synth import walking
@@ -113,7 +112,7 @@ def test_the_pages_examples_run_in_order(datasets, tmp_path, monkeypatch):
     repo.mkdir()
     monkeypatch.chdir(repo)
     walking.generate(Path("study"), n_subjects=2, n_trials=1, conditions=["E4015", "N1500"])
-    synth_localisation(tmp_path / "robot", SynthParams(n_goals=1, stop=3.0, speed=0.3), ["ros1"])
+    synth_localisation(tmp_path / "robot", goals_per_lap=1, stop=3.0, speed=0.3, formats="ros1")
     for name in ("run.bag", "goals.csv"):
         shutil.copy(tmp_path / "robot" / "synth-localisation" / name, name)
     data.synth_walking("ws", subjects=3, repetitions=2, conditions=["N1500", "E4015"], jobs=1)

@@ -86,10 +86,9 @@ def test_reconstruct_result(tmp_path):
 
 
 def test_localisation_result(tmp_path):
-    from cobot_analysis.localisation.synth import SynthParams
     from cobot_analysis.stages.localisation import localisation, synth_localisation
 
-    synth_localisation(tmp_path, SynthParams(n_goals=1, stop=3.0, speed=0.3), ["ros1"])
+    synth_localisation(tmp_path, goals_per_lap=1, stop=3.0, speed=0.3, formats="ros1")
     outcome = localisation(tmp_path, figures=False, jobs=1)
     numbers = check(outcome).as_dict()
     assert numbers["localisation.runs"] == 1

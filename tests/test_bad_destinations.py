@@ -75,3 +75,21 @@ def test_metrics_show_of_a_workspace_without_metrics(tmp_path, cli):
     ws.mkdir()
     line = one_line(*cli("metrics", "show", ws)[::2])
     assert line == f"error: {ws}: no stage metrics (metrics.json) in the workspace(s); run the study's stages with this --out first"
+
+
+def test_every_metrics_command_refuses_a_workspace_without_metrics(tmp_path, cli):
+    """The check lived in the show command (cli/); regression.baseline.collect makes it now, for show, check and update
+    alike (before: check named the baseline's first stage as missing, update had its own wording)."""
+    from cobot_analysis.errors import InputError
+    from cobot_analysis.regression.baseline import collect
+
+    ws = tmp_path / "ws"
+    ws.mkdir()
+    expected = f"{ws}: no stage metrics (metrics.json) in the workspace(s); run the study's stages with this --out first"
+    with pytest.raises(InputError) as refused:
+        collect([ws])
+    assert str(refused.value) == expected
+    baseline = Path(__file__).parent / "baselines" / "walking-2020.json"
+    for args in (("check", baseline), ("update", tmp_path / "new.json")):
+        assert one_line(*cli("metrics", *args, ws)[::2]) == f"error: {expected}"
+    assert not (tmp_path / "new.json").exists()

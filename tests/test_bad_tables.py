@@ -61,8 +61,13 @@ CASES = {
     "x as text": (lambda df: df.assign(x=df["x"].astype(str)), "column 'x' holds large_string values, not numbers; write x as float numbers in m"),
     "positions in mm": (lambda df: df.assign(x=df["x"] * 1000, y=df["y"] * 1000), "column 'y': 280 value(s) outside [-100, 100] m"),
     "x infinite": (one_row("x", np.inf), "column 'x': 1 value(s) outside [-100, 100] m (e.g. inf)"),
-    "theta infinite": (one_row("theta", -np.inf), "column 'theta': 1 value(s) infinite (e.g. -inf); give theta in rad"),
+    "theta infinite": (one_row("theta", -np.inf), "column 'theta': 1 value(s) outside [-18.8496, 18.8496] rad (e.g. -inf); give "
+                                                  "theta in rad"),
     "gamma in degrees": (lambda df: df.assign(gamma=np.degrees(df["gamma"] + 0.5)), "outside [-3.14159, 3.14159] rad"),
+    # theta is unwrapped: no +-pi limit; without gamma (optional) degrees passed (3 turns: schema.TURNS)
+    "theta in degrees, no gamma": (lambda df: df.assign(theta=np.degrees(df["theta"])).drop(columns="gamma"),
+                                   "column 'theta': 320 value(s) outside [-18.8496, 18.8496] rad (e.g. 90; degrees?); give theta "
+                                   "in rad (angles in radians, not degrees: multiply degrees by pi/180; NaN for an unknown value)"),
     "negative duration": (lambda df: df.assign(travel_time=-df["travel_time"]), "column 'travel_time'"),
     "one sample": (lambda df: df[df["sample"] == 0], "trajectories of 1 sample: no path; time-normalise every trajectory to N >= 2"),
 }
@@ -109,6 +114,8 @@ def test_a_directory_is_not_a_missing_file(tmp_path, cli):
 
 @pytest.mark.parametrize("edit, expected", [
     (lambda df: df.assign(x=df["x"] * 1000, y=df["y"] * 1000), "column 'y': 70 value(s) outside [-100, 100] m"),
+    (lambda df: df.assign(theta=np.degrees(df["theta"])), "column 'theta': 80 value(s) outside [-18.8496, 18.8496] rad (e.g. 90; "
+                                                          "degrees?)"),
     (lambda df: df[df["sample"] == 0], "trajectories of 1 sample: no path"),
 ])
 def test_means_no_stage_writes_are_refused_before_fitting(table, tmp_path, cli, edit, expected):
@@ -234,3 +241,17 @@ def test_stats_on_distances_no_comparison_gives(table, tmp_path, cli, edit, expe
     bad = edited(ws / "compare" / "distances.parquet", tmp_path / "distances.parquet", edit)
     line = refused(cli, tmp_path / "ws", bad, "stats", "--out", tmp_path / "ws", "--trajectories", table, "--distances", bad)
     assert expected in line, line
+
+
+@pytest.mark.parametrize("dataset, largest", [("walking-2020", 8.30), ("pair-carriage-2022", 4.98)])
+def test_published_orientations_pass_the_unwrapped_limit_and_their_degrees_do_not(datasets, dataset, largest):
+    """theta's limit (schema.TURNS turns) is above the largest |theta| of the published trajectories (walking-2020:
+    8.30 rad, 1.32 turns), and the same table in degrees without gamma is refused (before: it passed)."""
+    from cobot_analysis.api import import_published, trajectory_set
+    from cobot_analysis.errors import InputError
+
+    t = import_published(dataset, datasets / dataset).trajectories
+    assert round(float(t["theta"].abs().max()), 2) == largest
+    assert len(trajectory_set(t)) == t.groupby(["trial", "entity"]).ngroups
+    with pytest.raises(InputError, match=r"column 'theta': .* rad \(e\.g\. .*; degrees\?\); give theta in rad"):
+        trajectory_set(t.assign(theta=np.degrees(t["theta"])).drop(columns="gamma"))

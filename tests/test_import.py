@@ -674,6 +674,7 @@ def test_bad_files_are_skipped_and_listed_or_named_in_one_error_with_strict(tmp_
     text = " ".join(err.split())
     assert "import: 3 of 4 trials refused and left out, the other 1 went on (exit code 3" in text
     assert all(f"{t} ({f}): " in text for t, f in (("t2", "short.c3d"), ("t3", "notc3d.c3d"), ("t4", "nopelvis.c3d")))
+    assert err.splitlines()[-1].startswith(f"import: 1 trials, 3 refused (listed above and in {tmp_path / 'ws' / 'import' / 'results.md'}), ")
     trials = read_table(tmp_path / "ws" / "import" / "trials.parquet", TRIALS)
     assert trials["trial"].tolist() == ["t1"]
     assert set(read_table(tmp_path / "ws" / "import" / "markers.parquet", MARKERS)["trial"]) == {"t1"}
@@ -728,6 +729,37 @@ def test_nan_coordinate_with_a_valid_residual_is_an_occluded_sample(tmp_path, cl
     df = read_table(tmp_path / "ws" / "import" / "markers.parquet", MARKERS)
     lasi = df[df["marker"] == "LASI"].sort_values("frame")
     assert lasi["occluded"].tolist() == [False] * 12 + [True] + [False] * 27 and lasi[["x", "y", "z"]].iloc[12].isna().all()
+
+
+@pytest.mark.parametrize("axis", ["X", "Y"])
+@pytest.mark.parametrize("fmt", ["c3d", "csv", "tsv"])
+def test_a_sample_missing_one_coordinate_is_occluded_in_every_format(tmp_path, cli, fmt, axis):
+    """LASI's x (or y) missing in every frame, the other coordinates given (a NaN with a valid residual, an empty
+    CSV cell, a NaN TSV cell): each sample is occluded as a whole by the reader, so the trial is refused because
+    LASI is never visible. The import's later checks look at x alone: a y missing with x given relies on it."""
+    m = person(40)
+    m["LASI"][:, "XYZ".index(axis)] = np.nan
+    if fmt == "tsv":  # the writer fills NaN with QTM's 0 0 0: write the cells as NaN text instead
+        f = write_qtm_tsv(tmp_path / "a.tsv", person(40))
+        lines = f.read_text().splitlines()
+        column = lines[8].split("\t").index(f"LASI {axis}")
+        lines[9:] = ["\t".join(c[:column] + ["NaN"] + c[column + 1:]) for c in (ln.split("\t") for ln in lines[9:])]
+        f.write_text("\n".join(lines) + "\n")
+    else:
+        f = (write_c3d if fmt == "c3d" else write_vicon_csv)(tmp_path / f"a.{fmt}", m)
+    assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])],
+                    f"a.{fmt}: marker LASI of walker is never visible (all 40 samples missing)")
+
+
+def test_a_failed_import_prints_its_error_line_alone(tmp_path, cli):
+    """Without -q, the progress lines of the work that then failed came first ('import: 0/1 (0 %)', 'import: 1/1
+    (100 %)'): the error is the one line now."""
+    m = person(40)
+    m["LASI"][:] = np.nan
+    f = write_c3d(tmp_path / "a.c3d", m)
+    code, _, err = cli("import", protocol(tmp_path, [f]), "--out", tmp_path / "ws", "--jobs", "1")
+    assert code == 2 and err.splitlines() == [f"error: {f}: marker LASI of walker is never visible (all 40 samples missing); check "
+                                              "the labelling of the trial in the capture software, or leave the trial out of the protocol"]
 
 
 def test_label_bytes_that_are_not_utf8(tmp_path, cli):
@@ -879,3 +911,14 @@ def test_vicon_csv_with_a_lone_carriage_return(tmp_path, cli):
     f.write_bytes(data[:row + 12] + b"\r" + data[row + 12:])
     msg = assert_rejected(cli, tmp_path / "ws", [protocol(tmp_path, [f])], "a.csv: ")
     assert "internal error" not in msg
+
+
+@pytest.mark.parametrize("option, example", [("--lab-extent", "100"), ("--max-speed", "20"), ("--max-spike", "0.05")])
+def test_import_limits_are_checked_by_the_api_for_the_command_line_too(tmp_path, cli, option, example):
+    """The range of the plausibility limits was typer's (min=0, a usage block of 4 lines) on the command line, and
+    api.import_markers' own check, which the import stage bypassed (it planned the import itself): both now call
+    api.options.import_limits, one line naming the option, nothing written."""
+    proto = protocol(tmp_path, [write_c3d(tmp_path / "a.c3d", person(10))])
+    code, _, err = cli("import", proto, "--out", tmp_path / "ws", option, "-1")
+    assert code == 2 and err.splitlines() == [f"error: {option} must be >= 0, got -1; e.g. {option} {example}"]
+    assert not (tmp_path / "ws").exists()

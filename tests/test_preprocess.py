@@ -594,5 +594,5 @@ def test_the_api_summary_says_which_recordings_were_refused(tmp_path):
     parts = walking_trial("W1") + walking_trial("W2", length=0.0) + walking_trial("W3")[:3]
     write_workspace(ws, parts, [trials_row("W1"), trials_row("W2"), trials_row("W3")])
     result = preprocess(ws / "import" / "markers.parquet", jobs=1)
-    assert result.summary() == "1 trajectories from 1 recordings, 2 recordings refused and left out"
+    assert result.summary() == "1 trajectories from 1 recordings, 2 recordings refused and left out (why: .refused)"
     assert sorted(r.trial for r in result.refused) == ["W2", "W3"]

@@ -207,6 +207,7 @@ def test_default_report_questions_run(tmp_path):
 
 def test_progress_prints_plain_lines_when_the_output_is_not_a_terminal(monkeypatch):
     import io
+    import time
 
     from rich.console import Console
 
@@ -220,7 +221,17 @@ def test_progress_prints_plain_lines_when_the_output_is_not_a_terminal(monkeypat
     lines = buffer.getvalue().splitlines()
     assert [line.split(",")[0] for line in lines] == ["IOC all: 0/3 (0 %)", "IOC all: 1/3 (33 %)", "IOC all: 2/3 (67 %)",
                                                       "IOC all: 3/3 (100 %)"]
-    monkeypatch.setattr(c, "PLAIN_EVERY", 3600.0)  # slow items: the start and the end only
+    monkeypatch.setattr(c, "PLAIN_EVERY", 3600.0)  # work quicker than PLAIN_EVERY says nothing (before: its start and end)
     buffer.truncate(0), buffer.seek(0)
     list(c.track(range(50), "preprocess"))
-    assert [line.split(",")[0] for line in buffer.getvalue().splitlines()] == ["preprocess: 0/50 (0 %)", "preprocess: 50/50 (100 %)"]
+    assert buffer.getvalue() == ""
+    monkeypatch.setattr(c, "PLAIN_EVERY", 0.05)  # work that has run PLAIN_EVERY: its lines, the end's included
+
+    def slow(n):
+        for i in range(n):
+            time.sleep(0.06)
+            yield i
+
+    buffer.truncate(0), buffer.seek(0)
+    list(c.track(slow(2), "fit", total=2))
+    assert [line.split(",")[0] for line in buffer.getvalue().splitlines()] == ["fit: 1/2 (50 %)", "fit: 2/2 (100 %)"]

@@ -321,11 +321,11 @@ def test_cli_synth_walking_small_study_and_skip(cli, tmp_path):
 
 
 @pytest.mark.parametrize("args, message", [
-    (("--subjects", "0"), "--subjects"),
-    (("--repetitions", "0"), "--repetitions"),
+    (("--subjects", "0"), "error: --subjects must be a whole number >= 1, got 0; e.g. --subjects 1"),
+    (("--repetitions", "0"), "error: --repetitions must be a whole number >= 1, got 0; e.g. --repetitions 1"),
     (("--conditions", "X1500"), "unknown value"),
     (("--conditions", "41"), "between 1 and 40"),
-    (("--seed", "-1"), "seeds must be >= 0"),
+    (("--seed", "-1"), "error: --seed must be a whole number >= 0, got -1; e.g. --seed 0"),
 ])
 def test_cli_synth_walking_bad_usage_exits_2_without_output(cli, tmp_path, args, message):
     out = tmp_path / "ws"
@@ -497,11 +497,11 @@ def test_cli_synth_pairs_small_study(cli, tmp_path):
 
 
 @pytest.mark.parametrize("args, message", [
-    (("--pairs", "0"), "--pairs"),
+    (("--pairs", "0"), "error: --pairs must be a whole number >= 1, got 0; e.g. --pairs 1"),
     (("--goals", "d9_p1_gris"), "unknown value"),
     (("--scenarios", "4"), "unknown value"),
     (("--scenarios", ""), "unknown value"),
-    (("--seed", "-3"), "seeds must be >= 0"),
+    (("--seed", "-3"), "error: --seed must be a whole number >= 0, got -3; e.g. --seed 0"),
 ])
 def test_cli_synth_pairs_bad_usage_exits_2_without_output(cli, tmp_path, args, message):
     out = tmp_path / "ws"

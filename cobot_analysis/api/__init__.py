@@ -3,8 +3,9 @@
 Each function takes the documented tables (pandas DataFrames, as ``schema.TRAJECTORIES`` and the
 stages' schemas describe; ``cobot-analysis schemas`` prints them) or the paths of the files that hold
 them, keyword-only options with the command line's names and defaults, and returns a result object
-that carries its tables (and ``summary()``). Nothing is written to disk: ``cobot_analysis.stages``
-runs the same functions into a workspace, which is what the command line does.
+that carries its tables (and ``summary()``). Nothing is written to disk (but by the synthetic studies'
+``synth_*``, whose product is raw files): ``cobot_analysis.stages`` runs the same functions into a
+workspace, which is what the command line does.
 
     >>> import cobot_analysis.api as ca
     >>> from cobot_analysis.synth.tables import walking_table
@@ -31,13 +32,16 @@ EXPORTS = {
     # analyses
     "trajectory_set": "analysis", "study_of": "analysis", "check_by": "analysis",
     "average": "analysis", "AverageResult": "analysis", "compare": "analysis", "CompareResult": "analysis",
-    "statistics": "analysis", "StatisticsResult": "analysis", "reconstruct": "analysis", "ReconstructResult": "analysis",
+    "statistics": "analysis", "StatisticsResult": "analysis", "distances_table": "analysis", "reconstruct": "analysis", "ReconstructResult": "analysis",
     # models
     "generate": "models", "GenerateResult": "models", "walking_cases": "models", "fit_ioc": "models", "FitResult": "models",
     "velocity_commands": "models", "VelocityCommands": "models",
     # prediction and localisation
     "predict": "prediction", "PredictionResult": "prediction",
     "localise": "localisation", "LocalisationResult": "localisation", "bag_topics": "localisation",
+    # synthetic studies (raw inputs written to a directory)
+    "synth_walking": "synth", "synth_pairs": "synth", "synth_localisation": "synth", "synth_options": "synth",
+    "SynthStudy": "synth", "SynthRobotRun": "synth",
 }
 __all__ = sorted(EXPORTS)
 

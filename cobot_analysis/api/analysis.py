@@ -43,7 +43,7 @@ def trajectory_set(table: Any, what: tuple[str, ...] = ("trajectories", "means",
         cobot_analysis.errors.InputError: trajectory table has kind 'recording'; use 'trial' for a recording, 'mean' for a mean trajectory, 'model' for a generated path (docs/schemas.md, trajectories)
         >>> trajectory_set(walk.assign(x=1000 * walk["x"], y=1000 * walk["y"]))
         Traceback (most recent call last):
-        cobot_analysis.errors.InputError: column 'y': 35 value(s) outside [-100, 100] m (e.g. -900); give y in m (lengths in metres, not millimetres; NaN for an unknown value), or re-run the stage that wrote it
+        cobot_analysis.errors.InputError: column 'y': 35 value(s) outside [-100, 100] m (e.g. -900; millimetres?); give y in m (lengths in metres, not millimetres; NaN for an unknown value), or re-run the stage that wrote it
         >>> trajectory_set([walk])
         Traceback (most recent call last):
         cobot_analysis.errors.InputError: trajectories must be a DataFrame or the path of a Parquet file, not a list; pass the table (docs/api.md, "The one input type")
@@ -67,7 +67,7 @@ def trajectory_set(table: Any, what: tuple[str, ...] = ("trajectories", "means",
                              remedy="use 'trial' for a recording, 'mean' for a mean trajectory, 'model' for a generated path "
                                     "(docs/schemas.md, trajectories)")
         # the checks of a table read from a file (schema.check_values: numbers, no +-inf, positions within the lab, so
-        # not millimetres, wrapped angles within pi, so not degrees)
+        # not millimetres, wrapped angles within pi and unwrapped ones within schema.TURNS turns, so not degrees)
         check_values(pa.Table.from_pandas(table[[c for c in table.columns if c in TRAJECTORIES.columns]], preserve_index=False),
                      TRAJECTORIES)
         return pivot(table)
@@ -401,9 +401,6 @@ def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *
         cobot_analysis.errors.InputError: the distances table lacks column(s) ['comparison', 'global_distance', 'd_xy']; pass the distances of compare (compare(...).distances, or compare/distances.parquet)
     """
     from cobot_analysis import study as st
-    from cobot_analysis.api.options import table_of
-    from cobot_analysis.compare import DISTANCES
-    from cobot_analysis.schema import read_table
     from cobot_analysis.stats import analyses
     from cobot_analysis.stats import config as cfg
     from cobot_analysis.stats.sources import build_sources
@@ -424,15 +421,7 @@ def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *
     else:
         study = st.resolve(Path("."), name, Path(config)) if config is not None else st.Study(name, name, [], [], None)
     path = study.path
-    distances = table_of(distances, "distances", "distances")
-    if not isinstance(distances, pd.DataFrame):
-        distances = read_table(Path(distances), DISTANCES)
-    missing = [c for c in ("comparison", "trial", "entity", "global_distance", "d_xy") if c not in distances.columns]
-    if missing:
-        raise InputError(f"the distances table lacks column(s) {missing}",
-                         remedy="pass the distances of compare (compare(...).distances, or compare/distances.parquet)")
-    distances = distances.copy()
-    distances.attrs = {}
+    distances = distances_table(distances)
     durations, anthropometrics = _durations(durations), _anthropometrics(anthropometrics)
     sources = build_sources(ts, distances, durations, anthropometrics, study.alpha)
     questions = st.questions(study, sources)
@@ -441,6 +430,46 @@ def statistics(trajectories: Any, distances: pd.DataFrame | str | os.PathLike, *
     table = analyses.run(questions, sources, progress=progress)
     table["study"] = name
     return StatisticsResult(table, questions, path, name, list(unmatched), waiting, study.declared)
+
+
+def distances_table(distances: Any) -> pd.DataFrame:
+    """The distances of ``compare`` (a DataFrame, ``compare``'s result, or the path of its distances.parquet) as
+    ``statistics`` reads them: refused when a column it needs is missing, or when they hold no row and ``compare``
+    did not say why (its result's ``excluded``, recorded in the file: every trial left out, e.g. means whose trials
+    do not share a frame); else every distance question would be skipped on a table that lost its rows.
+
+        >>> from cobot_analysis.api import average, compare, distances_table
+        >>> from cobot_analysis.synth.tables import walking_table
+        >>> walks = walking_table(n_subjects=2, n_conditions=1, n_trials=1)
+        >>> result = compare(walks, average(walks).means)
+        >>> len(distances_table(result.distances)), len(distances_table(result))
+        (2, 2)
+        >>> distances_table(result.distances.iloc[:0])
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: the distances table has no rows and does not say why; re-run compare on these trajectories and their means (cobot-analysis compare --force with the same --out) and pass what it writes
+    """
+    from cobot_analysis.api.options import table_of
+    from cobot_analysis.compare import DISTANCES
+    from cobot_analysis.schema import read_table
+
+    excluded = getattr(distances, "excluded", None)  # compare's result: the trials it left out, by reason
+    distances = table_of(distances, "distances", "distances")
+    path = None
+    if not isinstance(distances, pd.DataFrame):
+        path = Path(distances)
+        distances = read_table(path, DISTANCES)
+        excluded = distances.attrs["cobot_analysis"].get("excluded")
+    missing = [c for c in ("comparison", "trial", "entity", "global_distance", "d_xy") if c not in distances.columns]
+    if missing:
+        raise InputError(f"the distances table lacks column(s) {missing}", path=path,
+                         remedy="pass the distances of compare (compare(...).distances, or compare/distances.parquet)")
+    if distances.empty and not any((excluded or {}).values()):
+        raise InputError("the distances table has no rows and does not say why", path=path,
+                         remedy="re-run compare on these trajectories and their means (cobot-analysis compare --force with "
+                                "the same --out) and pass what it writes")
+    distances = distances.copy()
+    distances.attrs = {}
+    return distances
 
 
 def _durations(durations: Any) -> pd.DataFrame | None:

@@ -40,8 +40,10 @@ class ImportResult:
     def notes(self) -> list[str]:
         return [n for t in self.imported for n in t.notes]
 
-    def summary(self) -> str:
-        skipped = f", {len(self.refused)} refused (listed above and in results.md)" if self.refused else ""
+    def summary(self, where: str = "why: .refused") -> str:
+        """Trials, refused ones, marker samples and the share occluded; ``where``: where the refused trials' reasons
+        are (the command line: its warnings and the stage's results.md)."""
+        skipped = f", {len(self.refused)} refused ({where})" if self.refused else ""
         return (f"{len(self.trials)} trials{skipped}, {self.n_samples} marker samples "
                 f"({self.n_occluded / max(self.n_samples, 1):.1%} occluded)")
 
@@ -89,14 +91,12 @@ def import_markers(protocol: str | os.PathLike | ImportPlan, *, units: str = "au
         cobot_analysis.errors.InputError: --max-spike must be >= 0, got nan; e.g. --max-spike 0.05
         >>> tmp.cleanup()
     """
-    from cobot_analysis.api.options import at_least
+    from cobot_analysis.api.options import import_limits
     from cobot_analysis.errors import InputError
     from cobot_analysis.io.markers import import_or_refuse, imported_tables, plan_import, refusal_error, stream_import
     from cobot_analysis.parallel import map_tasks
 
-    at_least(lab_extent, "--lab-extent", strict=False, example="100")
-    at_least(max_speed, "--max-speed", strict=False, example="20")
-    at_least(max_spike, "--max-spike", strict=False, example="0.05")
+    import_limits(lab_extent, max_speed, max_spike)
     if marker_map is not None and not isinstance(marker_map, dict):
         raise InputError(f"marker_map maps the lab's marker labels to the canonical ones, as a dict; got {marker_map!r}",
                          remedy='e.g. marker_map={"L_ASIS": "LASI"} (--map L_ASIS=LASI)')
@@ -198,10 +198,12 @@ class PreprocessResult:
     n_recordings: int
     refused: list[Refused] = field(default_factory=list)
 
-    def summary(self) -> str:
+    def summary(self, where: str = "why: .refused") -> str:
+        """Trajectories, recordings, and the refused ones (``where``: where their reasons are; the command line: its
+        warnings and the stage's results.md)."""
         n = self.trajectories[["trial", "entity"]].drop_duplicates().shape[0]
         k = len(self.refused)
-        refused = f", {k} recording{'s' if k != 1 else ''} refused and left out" if k else ""
+        refused = f", {k} recording{'s' if k != 1 else ''} refused and left out ({where})" if k else ""
         return f"{n} trajectories from {self.n_recordings} recordings{refused}"
 
     def params_dict(self) -> dict[str, Any]:

@@ -67,8 +67,9 @@ class LocalisationResult:
             figs["timeseries_" + re.sub(r"[^A-Za-z0-9_-]+", "_", r["run"])] = report.figure_timeseries(r)
         return figs
 
-    def run_lines(self) -> list[str]:
-        """One line per run: delay, RMSE, goals, warnings."""
+    def run_lines(self, where: str = "the warnings column of .runs") -> list[str]:
+        """One line per run: delay, RMSE, goals, how many warnings (``where``: where to read them; the command line
+        names the stage's results.md)."""
         lines = []
         for r in self.per_run:
             row = r["row"]
@@ -76,7 +77,7 @@ class LocalisationResult:
                  else f"{row['delay']:.3f} s (given)" if row["delay_method"] == "given" else f"{row['delay']:.3f} ± {row['delay_sd']:.3f} s")
             lines.append(f"{r['run']}: delay {d}, RMSE {1000 * row['ape_rmse']:.1f} mm"
                          + (f", goals {row['goals_found']}/{row['goals_commanded']}" if "goals_found" in row else "")
-                         + (f", {len(row['warnings'].split(' | '))} warning(s) (results.md)" if row["warnings"] else ""))
+                         + (f", {len(row['warnings'].split(' | '))} warning(s) ({where})" if row["warnings"] else ""))
         return lines
 
 

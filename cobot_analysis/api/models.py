@@ -49,10 +49,10 @@ class GenerateResult:
         return {self.trial_of(m, c): self.measured[c] for m in self.models for c, _, _ in self.cases
                 if c in (self.measured or {})}
 
-    def summary(self) -> str:
-        """Paths, how many missed their goal, and the time law: mean speed (m/s), with several paths how many lie
-        outside 0.5-2 m/s beside the subjects' own (``measured``), under the published convention that its
-        duration rule is no human pace."""
+    def summary(self, where: str = "status in .generated") -> str:
+        """Paths, how many missed their goal (``where``: where to read why; the command line names the stage's
+        results.md), and the time law: mean speed (m/s), with several paths how many lie outside 0.5-2 m/s beside
+        the subjects' own (``measured``), under the published convention that its duration rule is no human pace."""
         ends = self.generated.groupby("trial").tail(1)
         n, missed = len(ends), int((~ends["goal_reached"].astype(bool)).sum())
         v = ends["mean_speed"].to_numpy(float)
@@ -68,7 +68,7 @@ class GenerateResult:
         if self.convention == "published":
             pace += " (the published duration rule: no human pace; velocity-commands refuses it)"
         return (f"{n} {'trajectory' if n == 1 else 'trajectories'}"
-                + (f", {missed} not reaching their goal (results.md)" if missed else ", all at their goal")
+                + (f", {missed} not reaching their goal ({where})" if missed else ", all at their goal")
                 + f", mean speed {_span(ends['mean_speed'])} m/s" + pace)
 
     def metrics(self, *, stage: str | None = None) -> Metrics:

@@ -119,3 +119,71 @@ def table_of(value: Any, what: str, *fields: str) -> Any:
     kind = "None" if value is None else f"a {type(value).__name__}"
     raise InputError(f"{what} must be a DataFrame or the path of a Parquet file, not {kind}",
                      remedy='pass the table (docs/api.md, "The one input type")')
+
+
+def whole(value: Any, option: str, low: int = 0, high: int | None = None) -> int:
+    """A whole-number option within ``[low, high]`` (``high`` None: no upper bound): one line naming the option.
+
+        >>> whole(3, "--subjects", 1)
+        3
+        >>> whole(0, "--subjects", 1)
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: --subjects must be a whole number >= 1, got 0; e.g. --subjects 1
+        >>> whole(2.5, "--goals-per-lap", 1, 6)
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: --goals-per-lap must be a whole number in [1, 6], got 2.5; e.g. --goals-per-lap 1
+    """
+    import numpy as np
+
+    ok = isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+    if not ok or value < low or (high is not None and value > high):
+        allowed = f">= {low}" if high is None else f"in [{low}, {high}]"
+        raise InputError(f"{option} must be a whole number {allowed}, got {value!r}", remedy=f"e.g. {option} {low}")
+    return int(value)
+
+
+def choose(value: str | int | Iterable, universe: Iterable, option: str, counts: bool = True) -> list:
+    """The items of ``universe`` an option names: ``all`` (or None), a count N (the first N; when ``counts``), or a
+    list (a list, or one comma-separated string) of them, each checked.
+
+        >>> choose("2", ["N1500", "E1500", "S1500"], "--conditions"), choose(["S1500"], ["N1500", "E1500", "S1500"], "--conditions")
+        (['N1500', 'E1500'], ['S1500'])
+        >>> choose("1,3", [1, 2, 3], "--scenarios", counts=False)
+        [1, 3]
+        >>> choose("X1500", ["N1500", "E1500"], "--conditions")
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: --conditions: unknown value(s) ['X1500']; use all, a count, or a comma-separated list of N1500, E1500
+    """
+    universe = list(universe)
+    spec = value if isinstance(value, str) else str(value) if isinstance(value, int) and not isinstance(value, bool) else None
+    if value is None or (spec is not None and spec.strip().lower() == "all"):
+        return universe
+    if counts and spec is not None and spec.strip().isdigit():
+        n = int(spec)
+        if not 1 <= n <= len(universe):
+            raise InputError(f"{option} {spec}: must be between 1 and {len(universe)}", remedy=f"pass {option} all, a count, or a list")
+        return universe[:n]
+    names = {str(u): u for u in universe}
+    try:
+        chosen = [str(s).strip() for s in (spec.split(",") if spec is not None else value) if str(s).strip()]
+    except TypeError:  # not a list: named below as an unknown value
+        chosen = []
+    unknown = [s for s in chosen if s not in names]
+    if unknown or not chosen:
+        raise InputError(f"{option}: unknown value(s) {unknown or [value]}",
+                         remedy=f"use all{', a count' if counts else ''}, or a comma-separated list of {', '.join(names)}")
+    return [names[s] for s in dict.fromkeys(chosen)]
+
+
+def import_limits(lab_extent: float | None = None, max_speed: float | None = None, max_spike: float | None = None) -> None:
+    """The plausibility limits of ``import`` (``--lab-extent`` m, ``--max-speed`` m/s, ``--max-spike`` m; None: not
+    given), each a number >= 0: checked by ``import_markers`` and by the ``import`` stage before it plans the import.
+
+        >>> import_limits(lab_extent=100.0, max_spike=0.05)
+        >>> import_limits(max_speed=-1)
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: --max-speed must be >= 0, got -1; e.g. --max-speed 20
+    """
+    at_least(lab_extent, "--lab-extent", strict=False, example="100")
+    at_least(max_speed, "--max-speed", strict=False, example="20")
+    at_least(max_spike, "--max-spike", strict=False, example="0.05")

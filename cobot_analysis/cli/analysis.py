@@ -36,7 +36,7 @@ def average_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     trajectories: TrajOpt = None,
     by: ByOpt = None,
-    max_spread: Annotated[Optional[float], typer.Option("--max-spread", min=0.0, help="Largest spread (m) of a group's start or end points around their median; beyond it the trials do not share a frame and their mean is flagged frames_differ, not compared (default 1 m).")] = None,
+    max_spread: Annotated[Optional[float], typer.Option("--max-spread", help="Largest spread (m) of a group's start or end points around their median; beyond it the trials do not share a frame and their mean is flagged frames_differ, not compared (default 1 m) (>= 0).")] = None,
     force: ForceOpt = False,
 ) -> None:
     """Mean trajectory per condition (circular means for angles) with counts, sd and 95 % band -> average/means.parquet.

@@ -215,7 +215,8 @@ def finished_with_refusals(stage: str, done) -> None:
     from cobot_analysis.refusals import exit_code
 
     if not done.skipped:
-        info(f"[green]{stage}[/green]: {done.result.summary()} -> {done.directory}")
+        summary = done.result.summary(where=f"listed above and in {done.directory / 'results.md'}")
+        info(f"[green]{stage}[/green]: {summary} -> {done.directory}")
     code = exit_code(done.directory)
     if code:
         raise typer.Exit(code)

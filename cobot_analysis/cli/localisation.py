@@ -80,29 +80,23 @@ def synth_localisation_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     force: ForceOpt = False,
     seed: SeedOpt = 0,
-    laps: Annotated[int, typer.Option(min=1, help="Tours through the 6 goals (about 10 m and 2.4 min each).")] = 1,
-    goals_per_lap: Annotated[int, typer.Option(min=1, max=6, help="Goals per lap (the first N of the 6; fewer = shorter run).")] = 6,
-    speed: Annotated[float, typer.Option(min=0.01, help="Walking speed (m/s).")] = 0.12,
-    delay: Annotated[float, typer.Option(min=0.0, help="Planted ICP delay (s).")] = 0.55,
+    laps: Annotated[int, typer.Option(help="Tours through the 6 goals (about 10 m and 2.4 min each; >= 1).")] = 1,
+    goals_per_lap: Annotated[int, typer.Option(help="Goals per lap (the first N of the 6, 1-6; fewer = shorter run).")] = 6,
+    speed: Annotated[float, typer.Option(help="Walking speed (m/s, >= 0.01).")] = 0.12,
+    delay: Annotated[float, typer.Option(help="Planted ICP delay (s, >= 0).")] = 0.55,
     offset: Annotated[str, typer.Option(help="Planted structural offset x,y,z,yaw (m, rad), ICP minus truth.")] = "0.12,-0.085,0.045,0.03",
     noise: Annotated[str, typer.Option(help="ICP noise sd x,y,z,yaw (m, rad).")] = "0.006,0.006,0.003,0.004",
-    stop: Annotated[float, typer.Option(min=0.0, help="Stop duration on each goal (s).")] = 8.0,
+    stop: Annotated[float, typer.Option(help="Stop duration on each goal (s, >= 0).")] = 8.0,
     formats: Annotated[str, typer.Option(help="Comma list of ros1 (run.bag), ros2 (run_ros2/, sqlite3), mcap (run.mcap).")] = "ros1,ros2,mcap",
 ) -> None:
     """Synthetic robot run: mocap 200 Hz, ICP 10 Hz with a known delay, offset and noise, goals and
     cmd_vel, written as a ROS1 bag, a ROS2 bag and an MCAP file, with truth.json and goals.csv."""
-    from cobot_analysis.api.options import floats
-    from cobot_analysis.localisation import synth
     from cobot_analysis.stages.localisation import SYNTH_STAGE, synth_localisation
 
-    fmts = [f.strip() for f in formats.split(",") if f.strip()]
-    params = synth.SynthParams(seed=seed, laps=laps, n_goals=goals_per_lap, speed=speed, delay=delay, offset=floats(offset, 4, "--offset"),
-                               noise=floats(noise, 4, "--noise"), stop=stop)
-    done = synth_localisation(out, params, fmts, force=force)
+    done = synth_localisation(out, force=force, seed=seed, laps=laps, goals_per_lap=goals_per_lap, speed=speed, delay=delay,
+                              offset=offset, noise=noise, stop=stop, formats=formats)
     if not done.skipped:
-        run = done.result
-        finished(SYNTH_STAGE, f"{len(run.t_mocap)} mocap and {len(run.t_icp)} ICP poses, {run.distance:.2f} m, {len(run.goals)} goals",
-                 done.directory)
+        finished(SYNTH_STAGE, done.result.summary(), done.directory)
 
 
 @app.command("localisation", rich_help_panel=PANEL_LOCALISATION, epilog=examples(
@@ -137,7 +131,7 @@ def localisation_command(
     tol_yaw: Annotated[float, typer.Option(help="Controller stop tolerance, yaw (rad).")] = 0.07,
     distance_window: Annotated[float, typer.Option(help="Moving-average window for the travelled distance (s).")] = 2.0,
     up: Annotated[str, typer.Option(help="Vertical axis of the frames: auto (detected from the motion, warned when not z), x, y, z, -x, -y, -z, or TRUTH,ICP (e.g. -y,z for a camera-frame truth). Planar quantities (distance, drift, stops, yaw) are computed in the plane normal to it.")] = "auto",
-    min_samples: Annotated[int, typer.Option(min=3, help="Fewest associated ICP poses accepted.")] = 20,
+    min_samples: Annotated[int, typer.Option(help="Fewest associated ICP poses accepted (>= 3).")] = 20,
     figures: Annotated[bool, typer.Option("--figures/--no-figures", help="Draw the figures (PNG and PDF).")] = True,
 ) -> None:
     """Localisation accuracy of ICP against motion capture: delay, structural offset, per-axis errors,
@@ -163,7 +157,7 @@ def localisation_command(
                         min_samples=min_samples)
     if done.skipped:
         return
-    for line in done.result.run_lines():
+    for line in done.result.run_lines(where=str(done.directory / "results.md")):
         run, _, rest = line.partition(": ")
         info(f"[green]{run}[/green]: {rest}")
     finished(STAGE, done.result.summary(), done.directory)

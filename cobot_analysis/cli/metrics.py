@@ -27,12 +27,7 @@ def show_command(workspaces: WorkspacesArg) -> None:
     """Print every stage metric of the workspaces: name, value, unit, stage, convention."""
     from cobot_analysis.regression.baseline import collect
 
-    study, metrics, errors, _ = collect(workspaces)
-    if not metrics and not errors:
-        from cobot_analysis.errors import InputError
-
-        raise InputError("no stage metrics (metrics.json) in the workspace(s)", path=", ".join(map(str, workspaces)),
-                         remedy="run the study's stages with this --out first")
+    study, metrics, errors, _ = collect(workspaces)  # refuses workspaces without metrics
     typer.echo(f"study: {study or 'unknown'}")
     for key, m in metrics.items():
         typer.echo(f"{key}\t{m.value!r}\t{m.unit}\t{m.stage}\t{m.convention or ''}")

@@ -56,11 +56,11 @@ def generate_command(
     start: Annotated[Optional[tuple[float, float, float]], typer.Option("--start", metavar="X Y THETA", help="Start pose (m, m, rad): --start 2 3 0 or --start 2,3,0.")] = None,
     goal: Annotated[Optional[tuple[float, float, float]], typer.Option("--goal", metavar="X Y THETA", help="Goal pose (m, m, rad), as --start (default: the walking goal 0 0 1.5708, pi/2).")] = None,
     study: Annotated[Optional[str], typer.Option("--study", help="Generate every mean of a study instead of one start: walking-2020 (its 40 conditions) or pair-carriage-2022 (its per-scenario table means, start and goal their first and last poses).")] = None,
-    samples: Annotated[int, typer.Option("--samples", "-n", min=2, help="Samples of each generated trajectory.")] = 500,
-    intervals: Annotated[int, typer.Option("--intervals", min=10, help="Intervals of the OC grid (solution resampled to --samples).")] = 100,
+    samples: Annotated[int, typer.Option("--samples", "-n", help="Samples of each generated trajectory (>= 2).")] = 500,
+    intervals: Annotated[int, typer.Option("--intervals", help="Intervals of the OC grid (solution resampled to --samples) (>= 10).")] = 100,
     duration: Annotated[Optional[Duration], typer.Option("--duration", help="Duration T: free (decision variable), search (1-D Brent), grid (Mombaur); default per model.")] = None,
-    v_nominal: Annotated[float, typer.Option("--v-nominal", min=0.01, help="Nominal speed for the initial duration d / v + 1 s (m/s); clothoid speed.")] = 1.0,
-    max_iter: Annotated[int, typer.Option("--max-iter", min=1, help="Iteration limit of the OC solver (a path that hits it is flagged with --study, refused alone).")] = 500,
+    v_nominal: Annotated[float, typer.Option("--v-nominal", help="Nominal speed for the initial duration d / v + 1 s (m/s); clothoid speed (>= 0.01).")] = 1.0,
+    max_iter: Annotated[int, typer.Option("--max-iter", help="Iteration limit of the OC solver (a path that hits it is flagged with --study, refused alone) (>= 1).")] = 500,
     means: Annotated[Optional[Path], typer.Option("--means", help="With --study: the mean trajectories whose starts (and, published or pair study, ends) the paths take, one path per mean they hold, as fit-ioc compares them (default: OUT/average/ (continuous), else the kind=mean rows of OUT/import-published/; walking, continuous, without means: the design's starts).")] = None,
     convention: ConventionOpt = None,
     jobs: JobsOpt = None,
@@ -85,7 +85,8 @@ def generate_command(
                            intervals=intervals, duration=duration.value if duration else None, v_nominal=v_nominal,
                            max_iter=max_iter, means=means, convention=convention, jobs=jobs, scheduler=scheduler, force=force)
     if not done.skipped:
-        finished(f"generate ({done.result.convention})", done.result.summary(), done.directory / "generated.parquet")
+        finished(f"generate ({done.result.convention})", done.result.summary(where=str(done.directory / "results.md")),
+                 done.directory / "generated.parquet")
 
 
 # ---- fit-ioc -----------------------------------------------------------------------------------
@@ -103,17 +104,17 @@ def fit_ioc_command(
     start_weights: Annotated[Optional[str], typer.Option("--start-weights", help="Preset or weights.json to start from; 'ones' = neutral start (every fitted weight 1).")] = None,
     fit_names: Annotated[Optional[str], typer.Option("--fit", help="Comma-separated weights to fit, the others stay at their start value (default: all but the scale weights and the weights no path depends on: continuous, a0 (scale), a1 (time scale) and b0..b3 (goal constraint); published, a0 and b0; and a5, a6 (the Mombaur model's) but for the coupled model).")] = None,
     optimizer: Annotated[Optional[Optimizer], typer.Option("--optimizer", help="Upper-level derivative-free method.")] = Optimizer.powell,
-    max_evaluations: Annotated[int, typer.Option("--max-evaluations", min=1, help="Budget of upper-level evaluations per fit (--method single-level: of its steps, when below its own number).")] = 2000,
+    max_evaluations: Annotated[int, typer.Option("--max-evaluations", help="Budget of upper-level evaluations per fit (--method single-level: of its steps, when below its own number) (>= 1).")] = 2000,
     per: Annotated[Per, typer.Option("--per", help="all: one fit over the means; subject: one fit per subject over its trials.")] = Per.all,
-    subjects: Annotated[Optional[int], typer.Option("--subjects", min=1, help="With --per subject: fit only the first N subjects.")] = None,
+    subjects: Annotated[Optional[int], typer.Option("--subjects", help="With --per subject: fit only the first N subjects (>= 1).")] = None,
     goal: Annotated[GoalChoice, typer.Option("--goal", help="Goal of each OC problem: design (walking goal 0 0 pi/2), end (last measured pose), auto (design for walking conditions).")] = GoalChoice.auto,
-    intervals: Annotated[int, typer.Option("--intervals", min=10, help="Intervals of the OC grid (50: 2-12 mm from a 500-interval solve).")] = 50,
-    v_nominal: Annotated[float, typer.Option("--v-nominal", min=0.05, help="Nominal speed (m/s) of T0 = distance / v + 1 s; the free duration T is bounded to (0.4, 2.5) x T0.")] = 1.0,
+    intervals: Annotated[int, typer.Option("--intervals", help="Intervals of the OC grid (50: 2-12 mm from a 500-interval solve) (>= 10).")] = 50,
+    v_nominal: Annotated[float, typer.Option("--v-nominal", help="Nominal speed (m/s) of T0 = distance / v + 1 s; the free duration T is bounded to (0.4, 2.5) x T0 (>= 0.05).")] = 1.0,
     compare: Annotated[bool, typer.Option("--compare/--no-compare", help="Compare unicycle, clothoid, Mombaur, published and fitted models.")] = True,
     resume: Annotated[bool, typer.Option("--resume", help="Continue from the checkpoint of an interrupted run with the same inputs and options.")] = False,
     convention: ConventionOpt = None,
     method: Annotated[str, typer.Option("--method", help="bilevel (the published method) or single-level (one NLP with the lower level's KKT conditions; improved and table models; under the published convention at held horizons; docs/methods.md 6.1).")] = "bilevel",
-    bootstrap: Annotated[int, typer.Option("--bootstrap", min=0, help="Resamples of the fitted units (means, or a subject's trials) for each weight's 95 % interval, with its identifiability verdict (docs/methods.md 6.3); 0: neither. --resume reuses the finished curvature evaluations.")] = 200,
+    bootstrap: Annotated[int, typer.Option("--bootstrap", help="Resamples of the fitted units (means, or a subject's trials) for each weight's 95 % interval, with its identifiability verdict (docs/methods.md 6.3); 0: neither. --resume reuses the finished curvature evaluations (>= 0).")] = 200,
     profiles: Annotated[str, typer.Option("--profiles", help="Where the curvature of D and the bootstrap cannot judge alike (D not smooth at the fit, or a 'determined' the bootstrap overturns; continuous convention), each weight's verdict from its profile likelihood (docs/methods.md 6.3), for the fits: means (the fit over the means), all (per subject too), none.")] = "means",
     seed: SeedOpt = 0,
     jobs: JobsOpt = None,
@@ -176,9 +177,9 @@ def velocity_commands_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     generated: Annotated[Optional[Path], typer.Option("--generated", help="generated.parquet (default: OUT/generate/).")] = None,
     trial: Annotated[Optional[str], typer.Option("--trial", help="Generated trajectory to export (default: the only one).")] = None,
-    rate: Annotated[float, typer.Option("--rate", min=0.1, help="Command rate f (Hz).")] = 10.0,
-    v_max: Annotated[float, typer.Option("--v-max", min=0.0, help="Saturation of the x and y velocity commands (m/s).")] = 0.1,
-    omega_max: Annotated[float, typer.Option("--omega-max", min=0.0, help="Saturation of the yaw-rate command (deg/s).")] = 7.0,
+    rate: Annotated[float, typer.Option("--rate", help="Command rate f (Hz) (>= 0.1).")] = 10.0,
+    v_max: Annotated[float, typer.Option("--v-max", help="Saturation of the x and y velocity commands (m/s) (>= 0).")] = 0.1,
+    omega_max: Annotated[float, typer.Option("--omega-max", help="Saturation of the yaw-rate command (deg/s) (>= 0).")] = 7.0,
     fmt: Annotated[Format, typer.Option("--format", help="Output format.")] = Format.csv,
     force: ForceOpt = False,
 ) -> None:

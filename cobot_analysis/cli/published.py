@@ -25,7 +25,7 @@ def import_published_command(
     dataset: Annotated[Dataset, typer.Argument(help="Which published dataset PATH holds.")],
     path: Annotated[Path, typer.Argument(help="Folder of the dataset (e.g. ../shared/datasets/walking-2020).")],
     out: OutOpt = DEFAULT_OUT_PATH,
-    gamma_limit: Annotated[float, typer.Option("--gamma-limit", min=0.0, help="walking-2020: flag a trajectory implausible_gamma when its median |gamma| over 20-80 % of the path exceeds this (rad).")] = 0.5,
+    gamma_limit: Annotated[float, typer.Option("--gamma-limit", help="walking-2020: flag a trajectory implausible_gamma when its median |gamma| over 20-80 % of the path exceeds this (rad) (>= 0).")] = 0.5,
     force: ForceOpt = False,
 ) -> None:
     """Read a published dataset into OUT/import-published/trajectories.parquet (500-sample

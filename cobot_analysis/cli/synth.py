@@ -2,37 +2,11 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from typing import Annotated
 
 import typer
 
 from cobot_analysis.cli.app import DEFAULT_OUT_PATH, ForceOpt, JobsOpt, OutOpt, SchedulerOpt, SeedOpt, examples, finished, synth_app
-from cobot_analysis.errors import InputError
-
-
-def check_seed(seed: int) -> None:
-    if seed < 0:
-        raise InputError(f"--seed {seed}: seeds must be >= 0", remedy="pass a non-negative integer")
-
-
-def select(spec: str, universe: Sequence, option: str, counts: bool = True) -> list:
-    """``all`` -> every item; ``N`` -> the first N (if ``counts``); ``a,b,c`` -> those items (checked)."""
-    spec = spec.strip()
-    if spec.lower() == "all":
-        return list(universe)
-    if counts and spec.isdigit():
-        n = int(spec)
-        if not 1 <= n <= len(universe):
-            raise InputError(f"{option} {spec}: must be between 1 and {len(universe)}", remedy=f"pass {option} all, a count, or a list")
-        return list(universe[:n])
-    names = {str(u): u for u in universe}
-    chosen = [s.strip() for s in spec.split(",") if s.strip()]
-    unknown = [s for s in chosen if s not in names]
-    if unknown or not chosen:
-        raise InputError(f"{option}: unknown value(s) {unknown or [spec]}",
-                         remedy=f"use all{', a count' if counts else ''}, or a comma-separated list of {', '.join(names)}")
-    return [names[s] for s in dict.fromkeys(chosen)]
 
 
 @synth_app.command("walking", epilog=examples(
@@ -43,8 +17,8 @@ def select(spec: str, universe: Sequence, option: str, counts: bool = True) -> l
 def walking_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     seed: SeedOpt = 0,
-    subjects: Annotated[int, typer.Option("--subjects", min=1, help="Number of subjects.")] = 10,
-    repetitions: Annotated[int, typer.Option("--repetitions", min=1, help="Trials of each subject per start condition.")] = 3,
+    subjects: Annotated[int, typer.Option("--subjects", help="Number of subjects (>= 1).")] = 10,
+    repetitions: Annotated[int, typer.Option("--repetitions", help="Trials of each subject per start condition (>= 1).")] = 3,
     conditions: Annotated[str, typer.Option("--conditions", help="Start conditions: all, N (the first N of the design), or codes like E4015,N1500.")] = "all",
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
@@ -56,15 +30,12 @@ def walking_command(
     trials.csv, subjects.csv, raw/*.c3d (200 Hz, mm, 14 markers), truth.parquet (true CoM and
     pelvis orientation per frame), truth_trials.parquet.
     """
-    from cobot_analysis.design import WALKING_CONDITIONS
     from cobot_analysis.stages import data
 
-    check_seed(seed)
-    codes = select(conditions, WALKING_CONDITIONS, "--conditions")
-    done = data.synth_walking(out, seed=seed, subjects=subjects, repetitions=repetitions, conditions=codes, jobs=jobs,
+    done = data.synth_walking(out, seed=seed, subjects=subjects, repetitions=repetitions, conditions=conditions, jobs=jobs,
                               scheduler=scheduler, force=force)
     if not done.skipped:
-        finished("synth-walking", done.result, done.directory)
+        finished("synth-walking", done.result.summary(), done.directory)
 
 
 @synth_app.command("pairs", epilog=examples(
@@ -74,7 +45,7 @@ def walking_command(
 def pairs_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     seed: SeedOpt = 0,
-    pairs: Annotated[int, typer.Option("--pairs", min=1, help="Number of pairs (2 subjects each).")] = 20,
+    pairs: Annotated[int, typer.Option("--pairs", help="Number of pairs (2 subjects each; >= 1).")] = 20,
     goals: Annotated[str, typer.Option("--goals", help="Goals: all, N (the first N of the design), or stems like d1_p4_gris,d3_p7_gris.")] = "all",
     scenarios: Annotated[str, typer.Option("--scenarios", help="Scenarios of the forward carriage: all or a list like 1,3 (1 = S1 leader, 2 = S2 leader, 3 = both know).")] = "all",
     jobs: JobsOpt = None,
@@ -88,13 +59,9 @@ def pairs_command(
     subjects.csv, pairs.csv, raw/*.c3d (200 Hz, mm, S1:/S2:/Table: labels), truth.parquet,
     truth_trials.parquet (with the planted effects).
     """
-    from cobot_analysis.design import PAIR_GOALS, SCENARIOS
     from cobot_analysis.stages import data
 
-    check_seed(seed)
-    stems = select(goals, [g.stem for g in PAIR_GOALS], "--goals")
-    scens = select(scenarios, sorted(SCENARIOS), "--scenarios", counts=False)
-    done = data.synth_pairs(out, seed=seed, pairs=pairs, goals=stems, scenarios=scens, jobs=jobs, scheduler=scheduler,
+    done = data.synth_pairs(out, seed=seed, pairs=pairs, goals=goals, scenarios=scenarios, jobs=jobs, scheduler=scheduler,
                             force=force)
     if not done.skipped:
-        finished("synth-pairs", done.result, done.directory)
+        finished("synth-pairs", done.result.summary(), done.directory)

@@ -160,7 +160,8 @@ def baseline_metrics(doc: dict[str, Any]) -> dict[str, Metric]:
 def collect(workspaces: list[Path]) -> tuple[str | None, dict[str, Metric], list[str], set[tuple[str, str | None]]]:
     """The metrics of one study's workspaces: (study, metrics by key, extraction errors, (stage, convention)s).
 
-    ``InputError`` when the workspaces hold different studies or disagree on a metric they share."""
+    ``InputError`` when the workspaces hold no stage metrics (nothing to show, check or update), hold different
+    studies, or disagree on a metric they share."""
     studies: dict[str, Path] = {}
     metrics: dict[str, tuple[Metric, Path]] = {}
     errors: list[str] = []
@@ -184,6 +185,9 @@ def collect(workspaces: list[Path]) -> tuple[str | None, dict[str, Metric], list
                                      f"({metrics[m.key][0].value!r} vs {m.value!r})", path=ws,
                                      remedy="pass workspaces of one run of the study (model stages of each convention in their own workspace)")
                 metrics.setdefault(m.key, (m, Path(ws)))
+    if not metrics and not errors:  # before: 'study: unknown' and exit 0 (show), an empty comparison (check)
+        raise InputError("no stage metrics (metrics.json) in the workspace(s)", path=", ".join(map(str, workspaces)),
+                         remedy="run the study's stages with this --out first")
     study = next(iter(studies), None)
     return study, {k: m for k, (m, _) in metrics.items()}, errors, stages
 
@@ -328,9 +332,9 @@ def update(baseline: Path, workspaces: list[Path], *, write: bool = True) -> tup
         doc = load_baseline(baseline)
         old, old_study = baseline_metrics(doc), doc.get("study")
     study, now, errors, _ = collect(workspaces)
-    if not now:
-        raise InputError("no stage metrics in the workspaces", path=", ".join(map(str, workspaces)),
-                         remedy="run the study's stages with --out first")
+    if not now:  # only stages whose metrics could not be computed
+        raise InputError(f"no stage metrics in the workspaces ({errors[0]})", path=", ".join(map(str, workspaces)),
+                         remedy="re-run that stage with --force, then update")
     if old_study and study and old_study != study:
         raise InputError(f"baseline is for study {old_study}, the workspaces hold {study}", path=baseline,
                          remedy="pass the baseline of that study, or a new file name for a new baseline")

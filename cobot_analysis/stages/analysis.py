@@ -76,7 +76,8 @@ def compare(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
             return Outcome.skip(stage)
         result = api.compare(ts, mts, against=against, comparison=comparison, any_vs_any=same, by=groups, convention=conv.name)
         stage.result = result  # its own numbers are the stage's metrics.json
-        stage.write_table("distances.parquet", result.distances, DISTANCES, grouping=groups, convention=conv.name)
+        stage.write_table("distances.parquet", result.distances, DISTANCES, grouping=groups, convention=conv.name,
+                          excluded=result.excluded)  # why trials were left out: stats reads it (api.distances_table)
         stage.path("results.md").write_text(compare_markdown(result, conv.comparison.sd_ddof))
     return Outcome(stage.final_dir, result)
 
@@ -96,9 +97,7 @@ def statistics(out: str | os.PathLike, *, config: str | os.PathLike | None = Non
     if config is not None:
         st.load(config)  # validate a given study file before anything else
     path, ts = trajectories_input(out, trajectories)  # refuses a missing input before the heavy imports below
-    from cobot_analysis.compare import DISTANCES
     from cobot_analysis.reports.analysis import statistics_markdown
-    from cobot_analysis.schema import read_table
     from cobot_analysis.stats import analyses
     from cobot_analysis.stats.sources import read_anthropometrics
 
@@ -107,8 +106,7 @@ def statistics(out: str | os.PathLike, *, config: str | os.PathLike | None = Non
     conv = conventions.get(convention or "continuous")
     dist_path = Path(distances) if distances is not None else find_input(
         out, "distances.parquet", [registry.directory("compare", conv.name)], "--distances")
-    dist = read_table(dist_path, DISTANCES)
-    dist.attrs = {}
+    api.distances_table(dist_path)  # refused before the stage starts: a missing column, no row (and no why)
     dur_path = Path(durations) if durations is not None else out / "import-published" / "durations.parquet"
     dur = None
     if dur_path.is_file():
@@ -134,7 +132,7 @@ def statistics(out: str | os.PathLike, *, config: str | os.PathLike | None = Non
                params={"config": str(config), "convention": conv.name}, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
-        result = api.statistics(ts, dist, config=study, durations=dur, anthropometrics=anthro, progress=track)
+        result = api.statistics(ts, dist_path, config=study, durations=dur, anthropometrics=anthro, progress=track)
         stage.result = result  # its own numbers are the stage's metrics.json
         if result.unmatched:  # a typo, or data not there yet: said once
             warn(f"{config}: {len(result.unmatched)} filter value(s) match no row, their analyses are skipped (stats.md says "

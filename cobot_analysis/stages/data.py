@@ -8,47 +8,42 @@ from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
 
-from cobot_analysis import api, refusals, study
+from cobot_analysis import api, refusals
 from cobot_analysis.console import warn
 from cobot_analysis.stages import Outcome
 from cobot_analysis.workspace import Stage, find_input
 
 
 def synth_walking(out: str | os.PathLike, *, seed: int = 0, subjects: int = 10, repetitions: int = 3,
-                  conditions: list[str] | None = None, jobs: int | None = None, scheduler: str | None = None,
+                  conditions: str | int | list[str] | None = None, jobs: int | None = None, scheduler: str | None = None,
                   force: bool = False) -> Outcome:
-    """``synth-walking``: the synthetic walking study's raw C3D, protocol and ground truth."""
-    from cobot_analysis.design import WALKING_CONDITIONS
+    """``synth-walking``: the synthetic walking study's raw C3D, protocol and ground truth (``api.synth_walking``)."""
     from cobot_analysis.synth import GENERATOR_VERSION, walking
 
-    codes = list(conditions or WALKING_CONDITIONS)
-    params = {"seed": seed, "subjects": subjects, "trials": repetitions, "conditions": codes, "generator": GENERATOR_VERSION}
+    o = api.synth_options("walking", seed=seed, subjects=subjects, repetitions=repetitions, conditions=conditions)
+    params = {"seed": o["seed"], "subjects": o["subjects"], "trials": o["repetitions"], "conditions": o["conditions"],
+              "generator": GENERATOR_VERSION}
     with Stage(out, walking.STAGE, params=params, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
-        walking.generate(stage.dir, seed=seed, n_subjects=subjects, n_trials=repetitions, conditions=codes,
-                         jobs=jobs, scheduler=scheduler)
-        study.write_synthetic(stage.dir, walking.STUDY, "walking-2020")
-    return Outcome(stage.final_dir, f"{subjects * len(codes) * repetitions} trials")
+        result = api.synth_walking(stage.dir, **o, jobs=jobs, scheduler=scheduler)
+    return Outcome(stage.final_dir, result)
 
 
-def synth_pairs(out: str | os.PathLike, *, seed: int = 0, pairs: int = 20, goals: list[str] | None = None,
-                scenarios: list[int] | None = None, jobs: int | None = None, scheduler: str | None = None,
+def synth_pairs(out: str | os.PathLike, *, seed: int = 0, pairs: int = 20, goals: str | int | list[str] | None = None,
+                scenarios: str | list[int] | None = None, jobs: int | None = None, scheduler: str | None = None,
                 force: bool = False) -> Outcome:
-    """``synth-pairs``: the synthetic pair-carriage study's raw C3D, protocol and ground truth."""
-    from cobot_analysis.design import PAIR_GOALS, SCENARIOS
+    """``synth-pairs``: the synthetic pair-carriage study's raw C3D, protocol and ground truth (``api.synth_pairs``)."""
     from cobot_analysis.synth import GENERATOR_VERSION
     from cobot_analysis.synth import pairs as synth
 
-    stems = list(goals or [g.stem for g in PAIR_GOALS])
-    scens = list(scenarios or sorted(SCENARIOS))
-    params = {"seed": seed, "pairs": pairs, "goals": stems, "scenarios": scens, "generator": GENERATOR_VERSION}
+    o = api.synth_options("pairs", seed=seed, pairs=pairs, goals=goals, scenarios=scenarios)
+    params = {"seed": o["seed"], "pairs": o["pairs"], "goals": o["goals"], "scenarios": o["scenarios"], "generator": GENERATOR_VERSION}
     with Stage(out, synth.STAGE, params=params, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
-        synth.generate(stage.dir, seed=seed, n_pairs=pairs, goals=stems, scenarios=scens, jobs=jobs, scheduler=scheduler)
-        study.write_synthetic(stage.dir, synth.STUDY, "synthetic-pairs")
-    return Outcome(stage.final_dir, f"{pairs * len(stems) * len(scens)} recordings")
+        result = api.synth_pairs(stage.dir, **o, jobs=jobs, scheduler=scheduler)
+    return Outcome(stage.final_dir, result)
 
 
 def import_markers(out: str | os.PathLike, protocol: str | os.PathLike, *, jobs: int | None = None,
@@ -57,8 +52,10 @@ def import_markers(out: str | os.PathLike, protocol: str | os.PathLike, *, jobs:
     """``import``: raw markers of a protocol -> ``import/markers.parquet`` and ``trials.parquet``
     (options: those of ``api.import_markers``). ``preprocess``: options of the preprocess stage (``{}``: its
     defaults): each trial is also preprocessed where it is read (``import_and_preprocess``)."""
+    from cobot_analysis.api.options import import_limits
     from cobot_analysis.io.markers import plan_import
 
+    import_limits(*(options.get(k) for k in ("lab_extent", "max_speed", "max_spike")))  # as import_markers checks them
     keep_all = options.pop("keep_all_markers", False)
     plan = plan_import(protocol, keep_all=keep_all, **options)
     if preprocess is not None:  # a --samples too large for the memory is refused before any work, as preprocess does

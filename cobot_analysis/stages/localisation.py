@@ -16,26 +16,18 @@ SYNTH_FILES = ("run.bag", "run_ros2", "run.mcap")
 STAGE = "localisation"
 
 
-def synth_localisation(out: str | os.PathLike, params, formats: list[str], *, force: bool = False) -> Outcome:
-    """``synth-localisation``: a synthetic robot run (``localisation.synth.SynthParams``) written in each format
-    (ros1 -> run.bag, ros2 -> run_ros2/, mcap -> run.mcap), with truth.json and goals.csv."""
+def synth_localisation(out: str | os.PathLike, *, force: bool = False, **options: Any) -> Outcome:
+    """``synth-localisation``: a synthetic robot run written in each format (ros1 -> run.bag, ros2 -> run_ros2/,
+    mcap -> run.mcap), with truth.json and goals.csv (``options``: those of ``api.synth_localisation``)."""
+    from cobot_analysis import api
     from cobot_analysis.console import track
-    from cobot_analysis.localisation import synth
 
-    unknown = sorted(set(formats) - {"ros1", "ros2", "mcap"})
-    if unknown or not formats:
-        raise InputError(f"unknown format(s) {unknown or formats!r}", remedy="use --formats ros1,ros2,mcap")
-    with Stage(out, SYNTH_STAGE, params={**params.__dict__, "formats": formats}, force=force) as stage:
+    o = api.synth_options("localisation", **options)
+    with Stage(out, SYNTH_STAGE, params=o, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
-        run = synth.make_run(params)
-        writers = {"ros1": ("run.bag", synth.write_ros1), "ros2": ("run_ros2", synth.write_ros2), "mcap": ("run.mcap", synth.write_mcap)}
-        for fmt in track(formats, "write bags"):
-            name, write = writers[fmt]
-            write(run, stage.path(name))
-        synth.write_goals_csv(run, stage.path("goals.csv"))
-        synth.write_truth(run, stage.path("truth.json"))
-    return Outcome(stage.final_dir, run)
+        result = api.synth_localisation(stage.dir, **o, progress=track)
+    return Outcome(stage.final_dir, result)
 
 
 def localisation(out: str | os.PathLike, bags: list[str | os.PathLike] | None = None, *, figures: bool = True,

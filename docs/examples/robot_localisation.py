@@ -24,11 +24,9 @@ matplotlib.use("Agg")  # files only, no window
 import matplotlib.pyplot as plt  # noqa: E402
 
 import cobot_analysis.api as ca  # noqa: E402
-from cobot_analysis.localisation.synth import SynthParams  # noqa: E402
-from cobot_analysis.stages.localisation import synth_localisation  # noqa: E402
 
 # the smallest run: one goal, 3 s stop, 0.3 m/s (about 14 s of recording)
-RUN = SynthParams(n_goals=1, stop=3.0, speed=0.3)
+RUN = dict(goals_per_lap=1, stop=3.0, speed=0.3)
 
 
 def main(out: str | Path = "robot-example") -> dict:
@@ -36,8 +34,7 @@ def main(out: str | Path = "robot-example") -> dict:
     out = Path(out)
 
     # 1. the recording: out/synth-localisation/run.bag, goals.csv and truth.json
-    synth_localisation(out, RUN, ["ros1"])
-    bag = out / "synth-localisation" / "run.bag"
+    bag = ca.synth_localisation(out / "synth-localisation", **RUN, formats="ros1").bags[0]
     planted = json.loads((out / "synth-localisation" / "truth.json").read_text())
 
     # 2. what the bag holds: pose-like topics and tf frame pairs (choose the truth and ICP streams)
