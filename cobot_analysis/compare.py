@@ -438,11 +438,12 @@ def compare_sets(trials: TrajectorySet, means: TrajectorySet | None, *, by: list
     return pd.concat(parts, ignore_index=True)
 
 
-def against_set(path: Path, n_samples: int, convention) -> TrajectorySet:
+def against_set(path: Path, n_samples: int, convention, schema=None) -> TrajectorySet:
     """``compare --against`` table as a set on ``n_samples`` samples, under ``convention``: its
     ``convention`` (column or metadata, when it has one) must be the one asked for; each trajectory is
     put on ``n_samples`` samples as the convention compares a model path with a measured one
-    (arc length, or time; ``distances.path_distances``)."""
+    (arc length, or time; ``distances.path_distances``). ``schema``: the table's, whose limits its values are checked
+    against (generate's ``models.outputs.GENERATED``; default the trajectories')."""
     import pyarrow.parquet as pq
 
     from cobot_analysis import conventions
@@ -455,7 +456,7 @@ def against_set(path: Path, n_samples: int, convention) -> TrajectorySet:
         stored = table_metadata(path).get("convention")
     except Exception as exc:  # pyarrow raises several types for corrupt files
         raise InputError(f"not a readable trajectory table ({type(exc).__name__})", path=path, remedy="pass a Parquet trajectory table") from None
-    check_values(table, TRAJECTORIES, path)  # a model path has the trajectories' columns
+    check_values(table, schema or TRAJECTORIES, path)  # a model path has the trajectories' columns
     df = table.to_pandas()
     found = {str(path): stored or (str(df["convention"].iloc[0]) if "convention" in df and len(df) else None),
              "--convention": convention.name}

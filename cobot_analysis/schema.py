@@ -39,8 +39,8 @@ VERIFY = {"page_checksum_verification": True}
 #: m: largest |coordinate| from the lab origin (the largest motion-capture volumes span a few tens of
 #: metres); a farther position is corrupt or not in metres (``import --lab-extent``'s default).
 LAB_EXTENT = 100.0
-#: the values of a position in the lab, an angle wrapped to (-pi, pi], a duration or a distance
-POSITION, WRAPPED, NONNEGATIVE = (-LAB_EXTENT, LAB_EXTENT), (-math.pi, math.pi), (0.0, math.inf)
+#: the values of a position in the lab, an angle wrapped to (-pi, pi], a duration or a distance, any finite number
+POSITION, WRAPPED, NONNEGATIVE, REAL = (-LAB_EXTENT, LAB_EXTENT), (-math.pi, math.pi), (0.0, math.inf), (-math.inf, math.inf)
 #: turns: largest |angle| of an unwrapped orientation (theta). Measured: 1.32 turns (8.30 rad) in walking-2020's
 #: trials (their headings start up to 5.7 rad from 0 and some turn 1.8 turns), 0.79 in pair-carriage-2022, 1.0 in
 #: the synthetic tables; so a table whose headings reach 19 (degrees) is refused (one walking along x within
@@ -381,6 +381,8 @@ def schemas_markdown() -> str:
 
 def _limits_text(limits: tuple[float, float]) -> str:
     lo, hi = limits
+    if limits == REAL:
+        return "finite"
     if limits == WRAPPED:
         return "[-pi, pi]"
     if limits == UNWRAPPED:

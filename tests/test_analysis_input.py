@@ -74,6 +74,23 @@ def test_against_table_matching_some_means_is_warned(ws, tmp_path, cli):
     assert len(model) == 2 and model["d_xy"].round(9).eq(0.05).all() and not model["condition"].isin(first).any()
 
 
+def test_against_table_of_a_model_that_spins_is_compared(ws, tmp_path, cli):
+    """A model's path may turn any number of times: `generate --study walking-2020` at the fitted weights wrote paths
+    that spin to theta -18.86 rad, beyond the 3 turns a measured heading is held to (schema.TURNS), and `make walking`
+    stopped at `compare --against` on 'degrees?'. The generated table's theta is any finite number: compared."""
+    import shutil
+
+    import numpy as np
+
+    ws = shutil.copytree(ws, tmp_path / "ws")
+    path = _model(ws, tmp_path, theta=lambda m: m["theta"] - 8 * np.pi * m["sample"] / m["sample"].max())
+    assert pd.read_parquet(path)["theta"].min() < -6 * np.pi
+    code, _, err = cli("compare", "--out", ws, "--against", path, "--comparison", "model", "--force")
+    assert code == 0, err
+    model = pd.read_parquet(ws / "compare" / "distances.parquet").query("comparison == 'model'")
+    assert len(model) == 4 and model["d_xy"].round(9).eq(0.05).all() and (model["d_theta"] > 1).all()
+
+
 # ---- stats --------------------------------------------------------------------------------------------
 def _config(tmp_path, text: str) -> Path:
     cfg = tmp_path / "stats.toml"

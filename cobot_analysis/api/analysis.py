@@ -283,6 +283,7 @@ def compare(trajectories: Any, means: Any, *, against: Any = None, comparison: s
     from cobot_analysis.api.options import table_of
     from cobot_analysis.compare import WALKING_GROUPS, against_set, against_vs_mean, any_vs_any as any_any, compare_sets
     from cobot_analysis.compare import default_groups, excluded_means
+    from cobot_analysis.models.outputs import GENERATED
     from cobot_analysis.schema import table_metadata
 
     conv = conventions.get(convention)
@@ -313,12 +314,12 @@ def compare(trajectories: Any, means: Any, *, against: Any = None, comparison: s
                 table.attrs = {}
                 table.to_parquet(file)
                 try:
-                    other = against_set(file, mts.n_samples, conv)
+                    other = against_set(file, mts.n_samples, conv, GENERATED)
                 except InputError as exc:
                     raise InputError(str(exc).replace(str(file), against_name)) from None
             against = against_name
         else:
-            other = against_set(Path(against), mts.n_samples, conv)
+            other = against_set(Path(against), mts.n_samples, conv, GENERATED)
     if (ts.meta["kind"] == "model").all():
         raise InputError("the trajectories are generated paths (kind = model), not trials",
                          remedy="pass the model paths as `against` (compare --against generated.parquet) and the measured "

@@ -67,8 +67,9 @@ def compare(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
     same = api.check_by(any_vs_any, list(ts.meta.columns), path)
     if against is not None:
         from cobot_analysis.compare import against_set
+        from cobot_analysis.models.outputs import GENERATED
 
-        against_set(Path(against), mts.n_samples, conv)  # a bad --against table is refused before the stage starts
+        against_set(Path(against), mts.n_samples, conv, GENERATED)  # a bad --against table is refused before the stage starts
     inputs = [path, means_path] + ([Path(against)] if against is not None else [])
     params = {"by": groups, "label": comparison, "any_vs_any": same, "convention": conv.name}
     with Stage(out, registry.directory("compare", conv.name), inputs=inputs, params=params, force=force) as stage:
