@@ -91,6 +91,20 @@ def test_against_table_of_a_model_that_spins_is_compared(ws, tmp_path, cli):
     assert len(model) == 4 and model["d_xy"].round(9).eq(0.05).all() and (model["d_theta"] > 1).all()
 
 
+def test_a_spinning_model_table_is_a_trajectory_set_and_a_measured_one_is_refused():
+    """In memory as from a file: a model's path may turn past schema.TURNS (api.trajectory_set checks model rows as
+    generate's table), a measured heading that far is refused as degrees."""
+    import numpy as np
+
+    from cobot_analysis.api import trajectory_set
+
+    walk = walking_table(n_subjects=2, n_conditions=1, n_trials=1)
+    spun = walk.assign(theta=walk["theta"] - 8 * np.pi * walk["sample"] / walk["sample"].max())
+    assert trajectory_set(spun.assign(kind="model")).theta.min() < -6 * np.pi
+    with pytest.raises(InputError, match=r"column 'theta': 16 value\(s\) outside \[-18.8496, 18.8496\] rad .*degrees\?"):
+        trajectory_set(spun)
+
+
 # ---- stats --------------------------------------------------------------------------------------------
 def _config(tmp_path, text: str) -> Path:
     cfg = tmp_path / "stats.toml"

@@ -67,9 +67,13 @@ def trajectory_set(table: Any, what: tuple[str, ...] = ("trajectories", "means",
                              remedy="use 'trial' for a recording, 'mean' for a mean trajectory, 'model' for a generated path "
                                     "(docs/schemas.md, trajectories)")
         # the checks of a table read from a file (schema.check_values: numbers, no +-inf, positions within the lab, so
-        # not millimetres, wrapped angles within pi and unwrapped ones within schema.TURNS turns, so not degrees)
+        # not millimetres, wrapped angles within pi and measured headings within schema.TURNS turns, so not degrees; a
+        # model's path may turn any number of times: generated paths are checked as generate's table)
+        from cobot_analysis.models.outputs import GENERATED
+
+        schema = GENERATED if table["kind"].eq("model").any() else TRAJECTORIES
         check_values(pa.Table.from_pandas(table[[c for c in table.columns if c in TRAJECTORIES.columns]], preserve_index=False),
-                     TRAJECTORIES)
+                     schema)
         return pivot(table)
     return read_trajectory_set(Path(table), what)
 
