@@ -17,6 +17,7 @@ import pytest
 
 from cobot_analysis.metrics.models import verdict_category
 from cobot_analysis.models.presets import load_weights, names_for, weights_vector
+from cobot_analysis.reports.models import p_text
 
 W = dict(zip(names_for("improved"), map(float, weights_vector(load_weights("walking-2021", "improved"), "improved"))))
 CONDITIONS = ("E4015", "O1515", "N-0615", "S4040", "E1500")
@@ -144,6 +145,15 @@ def test_results_md_shows_both_methods_with_intervals_and_verdicts(fits, tmp_pat
     assert text.index("Bi-level IOC (docs/methods.md sec. 6)") < text.index("Single-level IOC (docs/methods.md sec. 6.1)")
 
 
+def test_a_p_value_that_underflowed_is_printed_as_its_bound():
+    """Cochran's Q of 1950 on 2 degrees of freedom (the make run's single-level subjects on 2026-11-26): chi2.sf is
+    exp(-975), 0 in doubles; the table printed p = 0."""
+    from scipy.stats import chi2
+
+    assert chi2.sf(1950, 2) == 0 and p_text(chi2.sf(1950, 2)) == "< 1e-300"
+    assert p_text(chi2.sf(15.5, 3)) == "0.00144" and p_text(1.0) == "1"
+
+
 @pytest.mark.slow  # the module's fits: about 16 s of CPU
 def test_per_subject_section_shows_each_subjects_interval_and_the_subjects_test(fits):
     out, _ = fits
@@ -160,7 +170,7 @@ def test_per_subject_section_shows_each_subjects_interval_and_the_subjects_test(
         if r["differ"] is None:
             assert f"| {r['weight']} | {r['subjects']} | – | – | – | – | – |" in text
         else:
-            assert (f"| {r['weight']} | {r['subjects']} | {r['Q']:.3g} | {r['df']} | {r['p']:.3g} | {r['p_holm']:.3g} | "
+            assert (f"| {r['weight']} | {r['subjects']} | {r['Q']:.3g} | {r['df']} | {p_text(r['p'])} | {p_text(r['p_holm'])} | "
                     f"{'yes' if r['differ'] else 'no'} |") in text
 
 

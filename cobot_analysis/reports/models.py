@@ -15,6 +15,12 @@ from cobot_analysis.design import GLOBAL_DISTANCE_SPLIT
 from cobot_analysis.models.ioc import FAILED_D, Target
 
 
+def p_text(p: float) -> str:
+    """A p-value in 3 significant digits; 0 is a survival function that underflowed (chi2(2) at Q = 2000 is about
+    exp(-1000)), printed as the bound it is: '< 1e-300'."""
+    return "< 1e-300" if p == 0 else f"{p:.3g}"
+
+
 def _ms(v: pd.Series, digits: int = 3, ddof: int = 1) -> str:
     v = v.dropna()
     return f"{v.mean():.{digits}f} ± {v.std(ddof=ddof):.{digits}f}" if len(v) > 1 else (f"{v.mean():.{digits}f}" if len(v) else "–")
@@ -562,7 +568,7 @@ def uncertainty_lines(result) -> list[str]:
                   "| weight | subjects | Q | df | p | p (Holm) | subjects differ |", "|---|---|---|---|---|---|---|"]
         for r in result.subjects_test:
             differ = "–" if r["differ"] is None else ("yes" if r["differ"] else "no")
-            cells = [f"{r['Q']:.3g}", str(r["df"]), f"{r['p']:.3g}", f"{r['p_holm']:.3g}"] if r["differ"] is not None else ["–"] * 4
+            cells = [f"{r['Q']:.3g}", str(r["df"]), p_text(r["p"]), p_text(r["p_holm"])] if r["differ"] is not None else ["–"] * 4
             lines.append(f"| {r['weight']} | {r['subjects']} | " + " | ".join(cells) + f" | {differ} |")
         lines.append("")
     return lines
@@ -636,7 +642,7 @@ def ioc_overview(fits: dict[str, Path]) -> list[str]:
     for stage, rows in tests:
         cells = [f"{r['weight']}: " + ("not tested (fewer than 2 subjects where it is determined)" if r.get("differ") is None else
                                        f"{'differ' if r['differ'] else 'do not differ'} (Q = {r['Q']:.3g}, {r['subjects']} subjects, "
-                                       f"p (Holm) = {r['p_holm']:.3g})") for r in rows]
+                                       f"p (Holm) {'' if r['p_holm'] == 0 else '= '}{p_text(r['p_holm'])})") for r in rows]
         lines += [f"Do the subjects' weights differ ({stage}, Cochran's Q, docs/methods.md sec. 6.3)? " + "; ".join(cells) + ".", ""]
     return lines
 
