@@ -46,3 +46,24 @@ def circular_std(angles: ArrayLike, axis: int = 0) -> FloatArray:
     with np.errstate(invalid="ignore"):
         r = np.hypot(np.nanmean(np.sin(a), axis=axis), np.nanmean(np.cos(a), axis=axis))
         return np.sqrt(-2.0 * np.log(np.clip(r, 1e-300, 1.0)))
+
+
+def turns_with_path(x: ArrayLike, y: ArrayLike, theta: ArrayLike, limit: float) -> bool:
+    """Whether an unwrapped heading ``theta`` that passes ``limit`` (rad) turns that far with its own path
+    (laps of a track), not because it is in degrees: it starts within ``limit``, and its range is at most
+    that of the path's tangent ``phi = unwrap(atan2(dy, dx))`` (over the steps longer than a tenth of the
+    median step: the tangent of a walker at rest is noise) plus one turn. The same heading in degrees
+    starts beyond ``limit`` (any start above 19 degrees for 3 turns) or spans about 57 times its path's
+    turning. Samples with a NaN are left out."""
+    x, y, th = (np.asarray(v, dtype=float) for v in (x, y, theta))
+    ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(th)
+    x, y, th = x[ok], y[ok], th[ok]
+    if len(th) < 3 or abs(th[0]) > limit:
+        return False
+    dx, dy = np.diff(x), np.diff(y)
+    step = np.hypot(dx, dy)
+    moving = step > 0.1 * np.median(step)
+    if moving.sum() < 2:
+        return False
+    phi = np.unwrap(np.arctan2(dy[moving], dx[moving]))
+    return bool(np.ptp(th) <= np.ptp(phi) + 2 * np.pi)

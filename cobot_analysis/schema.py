@@ -44,7 +44,8 @@ POSITION, WRAPPED, NONNEGATIVE, REAL = (-LAB_EXTENT, LAB_EXTENT), (-math.pi, mat
 #: turns: largest |angle| of an unwrapped orientation (theta). Measured: 1.32 turns (8.30 rad) in walking-2020's
 #: trials (their headings start up to 5.7 rad from 0 and some turn 1.8 turns), 0.79 in pair-carriage-2022, 1.0 in
 #: the synthetic tables; so a table whose headings reach 19 (degrees) is refused (one walking along x within
-#: +-19 degrees still passes: its degrees look like radians)
+#: +-19 degrees still passes: its degrees look like radians). A trajectory's heading may pass it where its path
+#: turns as often (laps of a track: ``angles.turns_with_path``, checked in ``check_values``)
 TURNS = 3
 UNWRAPPED = (-TURNS * 2 * math.pi, TURNS * 2 * math.pi)
 
@@ -318,7 +319,8 @@ def check_values(table, schema: TableSchema, path: str | os.PathLike | None = No
     """Refuse (``InputError``) what no stage writes: a declared number column holding no numbers (text,
     say), and in a float column with ``limits`` an infinite value or one outside its limits (e.g. positions
     in millimetres beyond the lab's ``LAB_EXTENT`` m, wrapped angles in degrees beyond pi, unwrapped ones beyond
-    ``TURNS`` turns). NaN is a value not known (a missing orientation) and passes. ``table``: a pyarrow Table."""
+    ``TURNS`` turns, unless the trajectory's path turns as often: ``_laps``). NaN is a value not known (a missing
+    orientation) and passes. ``table``: a pyarrow Table."""
     import numpy as np
     import pyarrow as pa
 
@@ -337,15 +339,45 @@ def check_values(table, schema: TableSchema, path: str | os.PathLike | None = No
         values = column.to_numpy(zero_copy_only=False).astype(float)
         lo, hi = spec.limits
         bad = np.isinf(values) | (values < lo) | (values > hi)
+        if bad.any() and spec.limits == UNWRAPPED:
+            bad &= ~_laps(table, name, values, bad)
         if bad.any():
             example = float(values[np.argmax(bad)])
             bounded = math.isfinite(lo) and math.isfinite(hi)
             allowed = f"outside [{lo:.6g}, {hi:.6g}] {spec.unit}" if bounded else "negative or infinite" if lo == 0 else "infinite"
             guess, hint = _OUT_OF_LIMITS.get(spec.unit, ("", "docs/schemas.md")) if bounded else ("", "")
+            if spec.limits == UNWRAPPED:
+                hint += f"; a heading passes {TURNS} turns only along its path's own turning (laps)"
             guess = f"; {guess}" if guess and math.isfinite(example) else ""  # an infinite value is in no unit
             hint = f"{hint}; " if hint else ""
             raise InputError(f"column {name!r}: {int(bad.sum())} value(s) {allowed} (e.g. {example:g}{guess})", path=path,
                              remedy=f"give {name} in {spec.unit} ({hint}NaN for an unknown value), or re-run the stage that wrote it")
+
+
+def _laps(table, name: str, values, bad):
+    """Rows of the finite values of ``bad`` (an unwrapped heading ``name`` beyond ``TURNS`` turns) whose trajectory
+    turns that often along its own path (``angles.turns_with_path``): laps, not degrees. A trajectory: the rows of
+    one (study, trial, entity) in sample order, or, in a table read without them, a run of rows from a sample 0
+    (the layout every stage writes). A table without the path (x, y, sample) has none."""
+    import numpy as np
+
+    if not {"x", "y", "sample"} <= set(table.column_names):
+        return np.zeros(len(values), bool)
+    from cobot_analysis.angles import turns_with_path
+
+    keys = [c for c in ("study", "trial", "entity") if c in table.column_names]
+    df = table.select([*keys, "sample", "x", "y"]).to_pandas()
+    if not keys:
+        keys = ["run"]
+        df["run"] = np.cumsum(df["sample"].to_numpy() == 0)
+    df[name], df["bad"] = values, bad & np.isfinite(values)
+    df = df[df.groupby(keys, observed=True, sort=False)["bad"].transform("any")]
+    laps = np.zeros(len(values), bool)
+    for _, g in df.groupby(keys, observed=True, sort=False):
+        g = g.sort_values("sample")
+        if turns_with_path(g["x"], g["y"], g[name], UNWRAPPED[1]):
+            laps[g.index.to_numpy()] = True
+    return laps
 
 
 def schemas_markdown() -> str:
@@ -366,7 +398,7 @@ def schemas_markdown() -> str:
              "Limits: a stage refuses a table whose number column holds no numbers (text, say) or, where a column "
              "gives its limits, an infinite value or one outside them (`schema.check_values`: positions within "
              f"{LAB_EXTENT:g} m of the lab origin, so not millimetres; wrapped angles within pi and unwrapped ones within "
-             f"{TURNS} turns, so not degrees; "
+             f"{TURNS} turns, so not degrees, unless the trajectory's path turns as often (laps of a track); "
              "durations and distances >= 0). NaN is a value not known and passes.", ""]
     for schema in sorted(SCHEMAS.values(), key=lambda s: s.name):
         lines += [f"## `{schema.name}` (version {schema.version})", "", schema.description, "",

@@ -67,7 +67,8 @@ CASES = {
     # theta is unwrapped: no +-pi limit; without gamma (optional) degrees passed (3 turns: schema.TURNS)
     "theta in degrees, no gamma": (lambda df: df.assign(theta=np.degrees(df["theta"])).drop(columns="gamma"),
                                    "column 'theta': 320 value(s) outside [-18.8496, 18.8496] rad (e.g. 90; degrees?); give theta "
-                                   "in rad (angles in radians, not degrees: multiply degrees by pi/180; NaN for an unknown value)"),
+                                   "in rad (angles in radians, not degrees: multiply degrees by pi/180; a heading passes 3 turns only along "
+                                   "its path's own turning (laps); NaN for an unknown value)"),
     "negative duration": (lambda df: df.assign(travel_time=-df["travel_time"]), "column 'travel_time'"),
     "one sample": (lambda df: df[df["sample"] == 0], "trajectories of 1 sample: no path; time-normalise every trajectory to N >= 2"),
 }
@@ -255,3 +256,65 @@ def test_published_orientations_pass_the_unwrapped_limit_and_their_degrees_do_no
     assert len(trajectory_set(t)) == t.groupby(["trial", "entity"]).ngroups
     with pytest.raises(InputError, match=r"column 'theta': .* rad \(e\.g\. .*; degrees\?\); give theta in rad"):
         trajectory_set(t.assign(theta=np.degrees(t["theta"])).drop(columns="gamma"))
+
+
+def _laps_recording(trial, turns, r=1.5, duration=40.0):
+    """Marker rows of a walker at rest 1 s, then ``turns`` laps of a circle of radius ``r`` (min-jerk along the
+    circle, facing the way it walks), then at rest: its heading turns ``turns`` times with its path."""
+    from test_preprocess import RATE, _min_jerk, _rows, pelvis
+
+    t = np.arange(0, duration, 1 / RATE)
+    phi = 2 * np.pi * turns * _min_jerk(t, 1.0, duration - 1.0)
+    return _rows(trial, "walker", pelvis(r * np.sin(phi), r * (1 - np.cos(phi)), phi))
+
+
+def test_a_walker_lapping_a_track_goes_through_and_the_same_heading_in_degrees_does_not(tmp_path, cli):
+    """4 and 4.5 laps of a circle: preprocess wrote headings up to 28.3 rad (4.5 turns), and every later stage
+    refused its own table as 'degrees?' (schema.TURNS = 3). A heading beyond 3 turns now passes where the path
+    turns as often (angles.turns_with_path); in degrees, or one turning 3 times more than its path, it does not."""
+    from test_preprocess import trials_row, write_workspace
+
+    ws = tmp_path / "ws"
+    write_workspace(ws, _laps_recording("L1", 4.0) + _laps_recording("L2", 4.5),
+                    [trials_row("L1", subject="S01"), trials_row("L2", subject="S02")])
+    for stage in ("preprocess", "average", "compare"):
+        code, _, err = cli(stage, "--out", ws, *(["--jobs", "1", "--samples", "101"] if stage == "preprocess" else []))
+        assert code == 0, err
+    traj = ws / "preprocess" / "trajectories.parquet"
+    theta = pq.read_table(traj, columns=["trial", "theta"]).to_pandas().groupby("trial")["theta"].max()
+    assert theta["L1"] == pytest.approx(8 * np.pi, abs=0.05) and theta["L2"] == pytest.approx(9 * np.pi, abs=0.05)
+    means = ws / "average" / "means.parquet"
+    assert pq.read_table(means, columns=["theta"])["theta"].to_numpy().max() > 6 * np.pi  # the mean laps too
+    for name, edit in [("degrees", lambda df: df.assign(theta=np.degrees(df["theta"])).drop(columns="gamma")),
+                       ("three times", lambda df: df.assign(theta=3 * df["theta"]).drop(columns="gamma"))]:
+        bad = edited(traj, tmp_path / f"{name}.parquet", edit)
+        line = refused(cli, tmp_path / f"ws-{name}", bad, "average", "--out", tmp_path / f"ws-{name}", "--trajectories", bad)
+        assert "column 'theta'" in line and "degrees?" in line and "laps" in line, line
+
+
+@pytest.mark.parametrize("case, expected", [
+    ("laps", True),  # 4 laps of a circle, facing the way it walks
+    ("laps, starting 2 turns round", True),
+    ("laps in degrees", False),  # spans 57 times its path's turning
+    ("straight in degrees", False),  # starts beyond 3 turns (90)
+    ("a quarter turn in degrees from 0", False),  # starts within 3 turns, spans 90 for a path turning pi/2
+    ("spinning on a straight path", False),  # 4 turns of the heading, none of the path
+    ("at rest", False),  # no path to turn with
+])
+def test_turns_with_path_on_analytic_headings(case, expected):
+    from cobot_analysis.angles import turns_with_path
+
+    s = np.linspace(0, 1, 500)
+    phi = 8 * np.pi * s
+    circle = (1.5 * np.sin(phi), 1.5 * (1 - np.cos(phi)))
+    arc = (np.sin(np.pi / 2 * s), 1 - np.cos(np.pi / 2 * s))
+    x, y, theta = {
+        "laps": (*circle, phi),
+        "laps, starting 2 turns round": (*circle, phi + 4 * np.pi),
+        "laps in degrees": (*circle, np.degrees(phi)),
+        "straight in degrees": (3 * s, 0 * s, np.full_like(s, 90.0)),
+        "a quarter turn in degrees from 0": (*arc, 90 * s),
+        "spinning on a straight path": (3 * s, 0 * s, phi),
+        "at rest": (0 * s, 0 * s, phi),
+    }[case]
+    assert turns_with_path(x, y, theta, 6 * np.pi) is expected
