@@ -110,6 +110,49 @@ def pelvis_theta(lasi: FloatArray, rasi: FloatArray) -> FloatArray:
     return unwrap_nan(np.arctan2(-l[..., 0], l[..., 1]))
 
 
+# ---- the vertical axis of the laboratory frame ----------------------------------------------------
+#: the lab axes a frame's vertical may be (Vicon and Qualisys: z; OptiTrack Motive: y; a camera: -y)
+UP_AXES = ("z", "y", "x", "-z", "-y", "-x")
+#: the pelvis's up direction is within the pelvic tilt (about 10-20 deg) of the vertical: a lab axis within
+#: 37 deg of it (cos 0.8) is the vertical one
+UP_MIN_COS = 0.8
+
+
+def levelling(axis: str) -> FloatArray:
+    """The proper rotation ``R`` with ``R u = e_z`` for the lab axis ``axis`` (``u = +-e_k``): rows ``a``,
+    ``u x a``, ``u`` with ``a = e_(k+1 mod 3)``; ``p' = R p`` puts the vertical on z (for ``"y"``: ``p' = (z, x, y)``)."""
+    k = "xyz".index(axis[-1])
+    u = np.eye(3)[k] * (-1.0 if axis.startswith("-") else 1.0)
+    a = np.eye(3)[(k + 1) % 3]
+    return np.vstack([a, np.cross(u, a), u])
+
+
+def pelvis_up(lasi: FloatArray, rasi: FloatArray, back: FloatArray) -> FloatArray | None:
+    """The pelvis's up direction in the lab frame: the median over frames of the unit vector
+    ``f x l``, ``f = (LASI + RASI) / 2 - back`` (forward), ``l = LASI - RASI`` (left), as x forward, y left,
+    z up; ``back`` the PSIS midpoint or the sacrum marker. It leans from the vertical by the pelvic tilt only,
+    whatever the lab's axes, floor origin or the walker's heading. None when no frame has the three."""
+    lasi, rasi, back = (np.asarray(m, dtype=float).reshape(-1, 3) for m in (lasi, rasi, back))
+    up = np.cross((lasi + rasi) / 2 - back, lasi - rasi)
+    up = up[np.isfinite(up).all(axis=1)]
+    norm = np.linalg.norm(up, axis=1)
+    up = up[norm > 0] / norm[norm > 0, None]
+    if not len(up):
+        return None
+    m = np.median(up, axis=0)
+    return m / np.linalg.norm(m) if np.linalg.norm(m) > 0 else None
+
+
+def vertical_axis(up: FloatArray | None, min_cos: float = UP_MIN_COS) -> str | None:
+    """The signed lab axis (``UP_AXES``) within ``arccos(min_cos)`` of the direction ``up``, or None."""
+    if up is None:
+        return None
+    k = int(np.argmax(np.abs(up)))
+    if abs(up[k]) < min_cos:
+        return None
+    return ("-" if up[k] < 0 else "") + "xyz"[k]
+
+
 # ---- velocity and local orientation ---------------------------------------------------------------
 def velocity(xy: np.ndarray, rate: float) -> np.ndarray:
     """CoM velocity ``v_i`` by central differences ``(c_{i+1} - c_{i-1}) rate / 2`` (one-sided at the ends)."""

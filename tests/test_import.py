@@ -922,3 +922,99 @@ def test_import_limits_are_checked_by_the_api_for_the_command_line_too(tmp_path,
     code, _, err = cli("import", proto, "--out", tmp_path / "ws", option, "-1")
     assert code == 2 and err.splitlines() == [f"error: {option} must be >= 0, got -1; e.g. {option} {example}"]
     assert not (tmp_path / "ws").exists()
+
+
+# ---- the lab's vertical axis ----------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def z_and_y_up(tmp_path_factory):
+    """A synthetic walking study (z-up, as it is written) and a copy of its C3D files in a y-up lab (OptiTrack
+    Motive's frame: x kept, y = height, z = -y), each imported and preprocessed with --up auto."""
+    import shutil
+
+    import ezc3d
+
+    from cobot_analysis.cli import run
+    from cobot_analysis.synth import walking
+
+    root = tmp_path_factory.mktemp("vertical")
+    walking.generate(root / "z-up", n_subjects=1, n_trials=1, conditions=["N1500", "E1515"])
+    shutil.copytree(root / "z-up", root / "y-up")
+    for f in sorted((root / "y-up").rglob("*.c3d")):
+        c = ezc3d.c3d(str(f))
+        p = c["data"]["points"]
+        p[:3] = p[0], p[2], -p[1]
+        c["data"]["points"] = p
+        c.write(str(f))
+    for lab in ("z-up", "y-up"):
+        assert run(["-q", "import", str(root / lab / "protocol.yaml"), "--out", str(root / f"ws-{lab}"), "--preprocess", "-j", "1"]) == 0
+    return root
+
+
+def test_a_y_up_lab_is_found_from_the_pelvis_and_turned_to_z_up(z_and_y_up, cli):
+    """Read as z-up, the y-up copy lost a horizontal coordinate: its walk along z became a path along x alone (N1500
+    'nobody walks', E1515 0.03 m wide instead of 0.6 m), and average took it. Its vertical axis is now found from the
+    pelvis and every trial rotated to z up ((x, y, z) -> (z, x, y)): the z-up study's trajectories turned by a quarter
+    turn about z, bit for bit, and the import says so."""
+    from cobot_analysis.schema import TRAJECTORIES
+
+    z, y = (read_table(z_and_y_up / f"ws-{lab}" / "preprocess" / "trajectories.parquet", TRAJECTORIES) for lab in ("z-up", "y-up"))
+    assert len(z) == len(y) == 1000
+    assert np.array_equal(y["x"], -z["y"]) and np.array_equal(y["y"], z["x"]) and np.array_equal(y["travel_time"], z["travel_time"])
+    np.testing.assert_allclose(np.angle(np.exp(1j * (y["theta"] - z["theta"] - np.pi / 2))), 0, atol=1e-12)
+    meta = [table_metadata(z_and_y_up / f"ws-{lab}" / "import" / "markers.parquet")["vertical"] for lab in ("z-up", "y-up")]
+    assert set(meta[0].values()) == {"z (detected)"} and set(meta[1].values()) == {"y (detected)"}
+    assert "2 of 2 trials had y as their vertical axis (detected from the pelvis markers): rotated to z up." in \
+        (z_and_y_up / "ws-y-up" / "import" / "results.md").read_text()
+    code, _, err = cli("import", z_and_y_up / "y-up" / "protocol.yaml", "--out", z_and_y_up / "ws-y-again", "-j", "1")
+    assert code == 0 and "warning: 2 of 2 trials had y as their vertical axis (detected from the pelvis markers): rotated to z " \
+                          "up; pass --up to say so, or --up z to keep the files' axes" in " ".join(err.split()), err
+
+
+@pytest.mark.parametrize("up, axis", [("y", "y (given)"), ("z", "z (given)")])
+def test_up_gives_the_vertical_axis(z_and_y_up, up, axis):
+    """--up y imports the y-up copy as auto does (given, not detected, and not said on the console); --up z keeps the
+    file's axes: the markers as the file has them."""
+    from cobot_analysis.cli import run
+
+    ws = z_and_y_up / f"ws-y-up-{up}"
+    assert run(["-q", "import", str(z_and_y_up / "y-up" / "protocol.yaml"), "--out", str(ws), "--up", up, "-j", "1"]) == 0
+    assert set(table_metadata(ws / "import" / "markers.parquet")["vertical"].values()) == {axis}
+    got = read_table(ws / "import" / "markers.parquet", MARKERS)
+    auto = read_table(z_and_y_up / "ws-y-up" / "import" / "markers.parquet", MARKERS)
+    if up == "y":
+        assert got[["x", "y", "z"]].equals(auto[["x", "y", "z"]])
+    else:  # the file's axes: auto's rotation (x, y, z) -> (z, x, y) undone
+        assert np.array_equal(got[["x", "y", "z"]].to_numpy(), auto[["y", "z", "x"]].to_numpy(), equal_nan=True)
+
+
+def test_an_unknown_up_is_refused_before_reading(tmp_path, cli):
+    proto = protocol(tmp_path, [write_c3d(tmp_path / "a.c3d", person(10))])
+    msg = assert_rejected(cli, tmp_path / "ws", [proto, "--up", "w"], "unknown --up 'w': the lab's vertical axis",
+                          "use one of auto, z, y, x, -z, -y, -x")
+    assert msg.count("error") == 1
+
+
+@pytest.mark.parametrize("axis", ["z", "y", "x", "-z", "-y", "-x"])
+@pytest.mark.parametrize("pelvis", ["psis", "sacrum"])
+def test_pelvis_up_finds_each_lab_axis_through_a_tilted_turning_pelvis(axis, pelvis):
+    """A pelvis tilted 20 degrees forward, walking a half circle (every heading): its up direction is within 20 degrees
+    of the vertical, and the axis the frame has as vertical is found, for each of the six; left and right swapped, it
+    points down."""
+    from cobot_analysis.kinematics import levelling, pelvis_up, vertical_axis
+
+    heading = np.linspace(0, np.pi, 50)
+    tilt = np.radians(20)
+    c, s = np.cos(heading), np.sin(heading)
+
+    def point(fwd, left, up):  # pelvis frame (x forward, y left, z up), tilted about y, turned about z, walked along a circle
+        fx, fz = fwd * np.cos(tilt) + up * np.sin(tilt), -fwd * np.sin(tilt) + up * np.cos(tilt)
+        return np.column_stack([2 * s + c * fx - s * left, 2 - 2 * c + s * fx + c * left, np.full_like(c, 0.95 + fz)])
+
+    back = point(-0.16, 0.0, 0.02) if pelvis == "sacrum" else (point(-0.16, 0.045, 0.02) + point(-0.16, -0.045, 0.02)) / 2
+    lasi, rasi = point(0.0, 0.12, 0.0), point(0.0, -0.12, 0.0)
+    R = levelling(axis).T  # z-up lab -> a lab whose vertical is ``axis``
+    up = pelvis_up(lasi @ R.T, rasi @ R.T, back @ R.T)
+    assert vertical_axis(up) == axis
+    assert np.degrees(np.arccos(up @ (R @ [0, 0, 1]))) == pytest.approx(20, abs=0.5)
+    assert vertical_axis(pelvis_up(rasi @ R.T, lasi @ R.T, back @ R.T)) == ("-" + axis).replace("--", "")
+    assert pelvis_up(np.full((3, 3), np.nan), rasi[:3], back[:3]) is None

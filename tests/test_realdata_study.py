@@ -50,6 +50,11 @@ def test_a_study_of_three_labs_runs_from_import_to_report(realdata, tmp_path, cl
     ws = tmp_path / "ws"
     code, _, err = cli("import", lab / "protocol.yaml", "--out", ws, "--jobs", "1")
     assert code == 0, err
+    # three labs' z-up frames, each pelvis found upright (io.markers.lab_vertical): nothing rotated, nothing said
+    from cobot_analysis.schema import table_metadata
+
+    assert set(table_metadata(ws / "import" / "markers.parquet")["vertical"].values()) == {"z (detected)"}
+    assert "vertical axis" not in err
     code, _, err = cli("preprocess", "--out", ws, "--jobs", "1")  # the static recordings are refused, the walks go on
     assert code == 3, err
     refused = json.loads((ws / "preprocess" / "manifest.json").read_text())["refused"]

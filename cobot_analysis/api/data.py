@@ -54,11 +54,13 @@ class ImportResult:
 
 def import_markers(protocol: str | os.PathLike | ImportPlan, *, units: str = "auto", marker_map: dict[str, str] | None = None,
                    marker_map_file: str | os.PathLike | None = None, keep_all_markers: bool = False, skip_bad: bool = True,
-                   lab_extent: float = LAB_EXTENT, max_speed: float = MAX_SPEED, max_spike: float = MAX_SPIKE,
+                   lab_extent: float = LAB_EXTENT, max_speed: float = MAX_SPEED, max_spike: float = MAX_SPIKE, up: str = "auto",
                    jobs: int | None = None, scheduler: str | None = None,
                    markers_path: str | os.PathLike | None = None, preprocess: dict[str, Any] | None = None) -> ImportResult:
     """Import every trial of a protocol (C3D, Vicon Nexus CSV, Qualisys TSV; docs/protocol.md).
 
+    ``up``: the lab's vertical axis (z, y, x, -z, -y, -x), each trial rotated to z up; ``auto`` (the default) finds it
+    from the pelvis markers (``io.markers.lab_vertical``; ``result.meta["vertical"]`` says, per trial).
     Every trial is read and checked before anything is returned: with ``skip_bad`` (the default) the
     refused ones are left out and listed in ``result.refused`` (``cobot_analysis.refusals``); without
     it, or when every trial is refused, they are named together in one ``InputError``. With
@@ -102,7 +104,7 @@ def import_markers(protocol: str | os.PathLike | ImportPlan, *, units: str = "au
                          remedy='e.g. marker_map={"L_ASIS": "LASI"} (--map L_ASIS=LASI)')
     plan = protocol if isinstance(protocol, ImportPlan) else plan_import(
         protocol, units=units, marker_map=marker_map, marker_map_file=marker_map_file, keep_all=keep_all_markers,
-        skip_bad=skip_bad, lab_extent=lab_extent, max_speed=max_speed, max_spike=max_spike)
+        skip_bad=skip_bad, lab_extent=lab_extent, max_speed=max_speed, max_spike=max_spike, up=up)
     if preprocess is not None and markers_path is None:
         raise InputError("preprocess in the same pass needs markers_path (the markers are written as they are read)",
                          remedy="pass markers_path, or call preprocess() on the import's result")

@@ -33,6 +33,7 @@ def import_command(
     lab_extent: Annotated[float, typer.Option("--lab-extent", help="Largest |coordinate| of a marker from the lab origin (m, at most 100: the limit of every later stage's tables); farther positions are refused as corrupt (docs/methods.md sec. 2) (>= 0).")] = 100.0,
     max_speed: Annotated[float, typer.Option("--max-speed", help="Largest marker speed between consecutive visible samples (m/s); faster jumps are refused as corrupt or mislabelled (docs/methods.md sec. 2) (>= 0).")] = 20.0,
     max_spike: Annotated[float, typer.Option("--max-spike", help="Largest distance of a sample from the midpoint of its two neighbours (m; raised below 100 Hz to what 100 g allows); larger single-sample spikes are refused as corrupt (docs/methods.md sec. 2) (>= 0).")] = 0.05,
+    up: Annotated[str, typer.Option("--up", help="Vertical axis of the lab frame: auto (found from the pelvis markers; trials whose vertical is not z are rotated to z up, and the import says so), z, y (OptiTrack Motive), x, -z, -y, -x.")] = "auto",
     preprocess: Annotated[bool, typer.Option("--preprocess", help="Also run the preprocess stage (its default parameters) in the same pass: each trial is preprocessed where it is read; the same outputs as `preprocess --out OUT` after the import.")] = False,
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
@@ -53,7 +54,7 @@ def import_command(
 
     options = dict(units=units.value, marker_map=parse_map_options(map_ or []), marker_map_file=marker_map,
                    keep_all_markers=keep_all_markers, skip_bad=skip_bad, lab_extent=lab_extent, max_speed=max_speed,
-                   max_spike=max_spike, jobs=jobs, scheduler=scheduler, force=force)
+                   max_spike=max_spike, up=up, jobs=jobs, scheduler=scheduler, force=force)
     if not preprocess:
         finished_with_refusals("import", data.import_markers(out, protocol, **options))
         return

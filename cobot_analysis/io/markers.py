@@ -24,7 +24,13 @@ a sampling rate outside 1 Hz-10 kHz, an invalid declared rate (0, negative, NaN:
 infinite, outside the lab, jumps, single-sample spikes), and an implausible length scale. Scale check: the median inter-ASIS distance |LASI - RASI| of adults is
 0.15-0.40 m (for a table-only recording, |TAB1 - TAB2| is 0.5-2.5 m); a value 1000 times too
 large or too small means mm and m were confused. Pelvis heights are not used: labs differ in
-their vertical axis and floor origin, distances do not. Every trial is checked before the stage
+their vertical axis and floor origin, distances do not.
+
+Vertical axis (``--up``, ``lab_vertical``): the pipeline's frame is z-up. A lab whose vertical is another axis
+(OptiTrack Motive: y) is found from the pelvis itself, whose up direction (forward x left, ``kinematics.pelvis_up``)
+leans from the vertical by the pelvic tilt only, and each such trial is rotated to z up (``kinematics.levelling``:
+for y up, (x, y, z) -> (z, x, y)); ``--up AXIS`` gives it, ``--up z`` keeps the file's axes. The axis of each trial is in
+the markers file's metadata (``vertical``) and in ``import/results.md``. Every trial is checked before the stage
 keeps anything (the markers are written trial by trial into the stage's temporary directory,
 ``stream_import``, which a refused run discards), and all refused trials are named in one error (or
 skipped and listed with ``--skip-bad``).
@@ -49,6 +55,7 @@ from cobot_analysis.io.plausibility import FAR_REMEDY, LAB_EXTENT, MAX_SPEED, MA
 from cobot_analysis.io.protocol import (ENTITIES, KEPT_SUBJECT_MARKERS, PELVIS_DEFINITIONS, PELVIS_MARKERS, SACRUM, TABLE_MARKERS,
                                         Protocol, load_protocol, pelvis_definition, read_yaml)
 from cobot_analysis.io.text_exports import read_qualisys_tsv, read_vicon_csv, sniff_text_format
+from cobot_analysis.kinematics import UP_AXES, levelling, pelvis_up, vertical_axis
 from cobot_analysis.refusals import Refused
 from cobot_analysis.schema import TRIAL_COLUMNS, TRIALS
 
@@ -111,6 +118,7 @@ class TrialTask:
     max_spike: float = MAX_SPIKE
     invalid_rate: str = "refuse"
     sha256: str | None = None  # the raw file's SHA-256 when the caller has it (the stage's input hashes): not hashed again
+    up: str = "auto"  # the lab's vertical axis (``kinematics.UP_AXES``) or auto (``lab_vertical``)
 
 
 @dataclass
@@ -125,6 +133,8 @@ class ImportedTrial:
     sha256: str
     notes: list[str] = field(default_factory=list)
     pelvis: dict[str, tuple[str, ...]] = field(default_factory=dict)  # person -> pelvis markers used
+    vertical: str = "z"  # the file's vertical axis, rotated to z (``lab_vertical``)
+    vertical_how: str = "assumed"  # given (--up), detected (from the pelvis) or assumed
 
 
 def _is_person(entity: str) -> bool:
@@ -263,7 +273,27 @@ def import_trial(task: TrialTask) -> ImportedTrial:
                      "table side |TAB1 - TAB2|")
     check_positions(xyz, [raw.labels[j] for j in keep], float(rate), path, lab_extent=task.lab_extent, max_speed=task.max_speed,
                     max_spike=task.max_spike)
-    return ImportedTrial(task.trial, ents, marks, xyz, float(rate), raw.units, fmt, task.sha256 or file_sha256(path), notes, pelvis)
+    vertical, how = lab_vertical(task.up, xyz, col, pelvis)
+    if vertical != "z":
+        xyz = xyz @ levelling(vertical).T
+    return ImportedTrial(task.trial, ents, marks, xyz, float(rate), raw.units, fmt, task.sha256 or file_sha256(path), notes, pelvis,
+                         vertical, how)
+
+
+def lab_vertical(up: str, xyz: np.ndarray, col: dict[tuple[str, str], int], pelvis: dict[str, tuple[str, ...]]) -> tuple[str, str]:
+    """(the vertical axis of a trial's lab frame, how it was found): ``up`` when given ("given"); ``auto``: the lab
+    axis along the up direction of its persons' pelvis (``kinematics.pelvis_up`` over every person's frames,
+    ``vertical_axis``: within 37 degrees), "detected"; else z "assumed" (no pelvis, no axis near it, or -z:
+    a pelvis upside down in a z-up lab has its left and right markers swapped, not a frame upside down)."""
+    if up != "auto":
+        return up, "given"
+    ups = []
+    for e, markers in pelvis.items():
+        back = [xyz[:, col[e, m]] for m in markers[2:]]  # LPSI and RPSI, or SACR
+        ups.append(pelvis_up(xyz[:, col[e, "LASI"]], xyz[:, col[e, "RASI"]], sum(back) / len(back)))
+    ups = [u for u in ups if u is not None]
+    axis = vertical_axis(np.mean(ups, axis=0)) if ups else None
+    return (axis, "detected") if axis not in (None, "-z") else ("z", "assumed")
 
 
 def import_or_refuse(task: TrialTask) -> ImportedTrial | Refused:
@@ -427,11 +457,14 @@ class ImportPlan:
 
 def plan_import(protocol_path: str | os.PathLike, *, units: str = "auto", marker_map: dict[str, str] | None = None,
                 marker_map_file: str | os.PathLike | None = None, keep_all: bool = False, skip_bad: bool = True,
-                lab_extent: float = LAB_EXTENT, max_speed: float = MAX_SPEED, max_spike: float = MAX_SPIKE) -> ImportPlan:
+                lab_extent: float = LAB_EXTENT, max_speed: float = MAX_SPEED, max_spike: float = MAX_SPIKE,
+                up: str = "auto") -> ImportPlan:
     """Read the protocol (and marker map) and list what importing it means; bad options and a bad protocol
     raise ``InputError`` here, before any raw file is read."""
     if units not in UNITS:
         raise InputError(f"unknown --units {units!r}", remedy=f"use one of {', '.join(UNITS)}")
+    if up not in ("auto", *UP_AXES):
+        raise InputError(f"unknown --up {up!r}: the lab's vertical axis", remedy=f"use one of auto, {', '.join(UP_AXES)} (e.g. --up y for OptiTrack Motive)")
     if lab_extent > LAB_EXTENT:  # the trajectory tables' limit (schema.POSITION): every later stage would refuse them
         raise InputError(f"--lab-extent {lab_extent:g} m is beyond the {LAB_EXTENT:g} m of the lab origin that every later "
                          "stage accepts", remedy=f"give --lab-extent at most {LAB_EXTENT:g}, {FAR_REMEDY}")
@@ -447,12 +480,12 @@ def plan_import(protocol_path: str | os.PathLike, *, units: str = "auto", marker
     files = [protocol.file_path(f) for f in protocol.trials["file"]]  # resolved
     pair_study = "pair" in protocol.trials.columns and protocol.trials["pair"].notna().any()
     tasks = [TrialTask(str(trial), f, bool(pair_study), units, dict(protocol.entities), mapping, keep_all, protocol.rate,
-                       lab_extent, max_speed, max_spike, protocol.invalid_rate) for trial, f in zip(protocol.trials["trial"], files)]
+                       lab_extent, max_speed, max_spike, protocol.invalid_rate, up=up) for trial, f in zip(protocol.trials["trial"], files)]
     limits = {"lab_extent": lab_extent, "max_speed": max_speed, "max_spike": max_spike}
     root = protocol.path.parent.resolve()  # allow_outside: the files outside(protocol.path.parent, f)
     outside_files = [str(f) for f in [*(Path(t).resolve() for t in tables), *files] if not f.is_relative_to(root)]
     params = {"units": units, "marker_map": mapping, "keep_all_markers": keep_all, "entities": protocol.entities,
-              "skip_bad": skip_bad, "allow_outside": protocol.allow_outside, "outside_files": outside_files, **limits}
+              "skip_bad": skip_bad, "allow_outside": protocol.allow_outside, "outside_files": outside_files, "up": up, **limits}
     return ImportPlan(protocol, tasks, inputs + [Path(f) for f in files], params, limits)
 
 
@@ -474,6 +507,7 @@ def imported_summary(plan: ImportPlan, imported: list[ImportedTrial], refused: l
             "source_units": {t.trial: t.source_units for t in imported},
             "source_format": {t.trial: t.source_format for t in imported},
             "pelvis_markers": {t.trial: {e: list(m) for e, m in t.pelvis.items()} for t in imported},
+            "vertical": {t.trial: f"{t.vertical} ({t.vertical_how})" for t in imported},
             "skipped": {r.trial: r.reason for r in refused}, **plan.limits}
     return trials, meta
 

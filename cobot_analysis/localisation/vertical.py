@@ -26,10 +26,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cobot_analysis.kinematics import UP_AXES, levelling
 from cobot_analysis.localisation.poses import PoseStream, conjugate, from_matrix, multiply
 
 RATIO = 0.2  # the vertical spread must be below this fraction of the next smallest one
-CHOICES = ("x", "y", "z", "-x", "-y", "-z")
 
 
 @dataclass(frozen=True)
@@ -42,11 +42,8 @@ class Vertical:
 
     @property
     def rotation(self) -> np.ndarray:
-        """``R`` with ``R u = e_z`` (module doc)."""
-        k = "xyz".index(self.axis[-1])
-        u = np.eye(3)[k] * (-1.0 if self.axis.startswith("-") else 1.0)
-        a = np.eye(3)[(k + 1) % 3]
-        return np.vstack([a, np.cross(u, a), u])
+        """``R`` with ``R u = e_z`` (module doc; ``kinematics.levelling``)."""
+        return levelling(self.axis)
 
     def describe(self) -> str:
         return f"{self.axis} ({self.how})"
@@ -57,7 +54,7 @@ def parse(text: str) -> tuple[str | None, str | None]:
     parts = [p.strip().lower() for p in text.split(",")]
     if len(parts) == 1:
         parts = parts * 2
-    if len(parts) != 2 or any(p not in (*CHOICES, "auto") for p in parts):
+    if len(parts) != 2 or any(p not in (*UP_AXES, "auto") for p in parts):
         raise ValueError(text)
     return tuple(None if p == "auto" else p for p in parts)  # type: ignore[return-value]
 

@@ -410,7 +410,7 @@ def _check(rec: Recording) -> tuple[list[str], bool, dict[str, tuple[str, ...]]]
     if not 0.2 < zmed < 3.0:
         hint = "millimetres" if zmed > 200 else "a wrong unit or a vertical axis other than z"
         raise InputError(f"trial {rec.trial}: median marker height {zmed:.4g} m looks like {hint}", path=rec.source,
-                         remedy="re-import with the right --units (markers.parquet must be in metres, z up)")
+                         remedy="re-import with the right --units and --up (markers.parquet must be in metres, z up)")
     check_positions(np.stack([rec.markers[k] for k in keys], axis=1), [f"{e}:{m}" for e, m in keys], rec.rate, rec.source,
                     what=f"trial {rec.trial}: ", **rec.limits)
     return entities, has_table, used

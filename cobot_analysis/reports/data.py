@@ -31,6 +31,8 @@ def import_summary(protocol: Protocol, imported: list[ImportedTrial], refused: l
              f"{limits['max_spike']:g} m.", "",
              "| pelvis markers | pelvis trajectories |", "|---|---|",
              *[f"| {k} | {n} |" for k, n in sorted(pelvis.items())], ""]
+    if line := vertical_line(imported):
+        lines += [line + ".", ""]
     notes = [n for t in imported for n in t.notes]
     if notes:
         lines += ["Notes:", "", *[f"- {n}" for n in notes], ""]
@@ -38,6 +40,17 @@ def import_summary(protocol: Protocol, imported: list[ImportedTrial], refused: l
     if outside_files:
         lines += [f"Files outside the protocol's folder (allow_outside: true): {', '.join(outside_files)}.", ""]
     return "\n".join(lines)
+
+
+def vertical_line(imported, how: str | None = None) -> str:
+    """'4 of 10 trials had y as their vertical axis (detected from the pelvis markers): rotated to z up', for the
+    trials whose vertical axis is not z (``how``: only those found so: given, detected); '' when none."""
+    from collections import Counter
+
+    words = {"given": "given by --up", "detected": "detected from the pelvis markers"}
+    axes = Counter((t.vertical, t.vertical_how) for t in imported if t.vertical != "z" and how in (None, t.vertical_how))
+    parts = [f"{n} of {len(imported)} trials had {axis} as their vertical axis ({words[h]})" for (axis, h), n in sorted(axes.items())]
+    return "; ".join(parts) + ": rotated to z up" if parts else ""
 
 
 def walking_results_markdown(facts: dict[str, Any]) -> str:

@@ -64,7 +64,7 @@ def import_markers(out: str | os.PathLike, protocol: str | os.PathLike, *, jobs:
         trials = plan.protocol.trials
         check_memory_for(Params(**preprocess), len(trials), "pair" in trials.columns and trials["pair"].notna().any(),
                          plan.protocol.path)
-    from cobot_analysis.reports.data import import_summary
+    from cobot_analysis.reports.data import import_summary, vertical_line
     from cobot_analysis.schema import TRIALS
 
     # each raw file hashed once, for the manifest and trials.parquet's sha256: by the worker that reads it, or on
@@ -82,6 +82,8 @@ def import_markers(out: str | os.PathLike, protocol: str | os.PathLike, *, jobs:
         stage.result = result  # its own numbers are the stage's metrics.json
         for note in result.notes:
             warn(note)
+        if line := vertical_line(result.imported, "detected"):
+            warn(f"{line}; pass --up to say so, or --up z to keep the files' axes")
         refusals.record(stage, result.refused, len(plan.tasks), "import")
         stage.path("results.md").write_text(import_summary(plan.protocol, result.imported, result.refused, plan.limits,
                                                            plan.params["outside_files"]))
