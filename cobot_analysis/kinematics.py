@@ -143,6 +143,20 @@ def pelvis_up(lasi: FloatArray, rasi: FloatArray, back: FloatArray) -> FloatArra
     return m / np.linalg.norm(m) if np.linalg.norm(m) > 0 else None
 
 
+def table_normal(tab1: FloatArray, tab2: FloatArray, tab3: FloatArray) -> FloatArray | None:
+    """The normal of the table's top, ``(TAB2 - TAB1) x (TAB3 - TAB1)``, its median over frames (each frame's turned to
+    agree with the first's), up to its sign (the corners' order fixes it, not the lab). None without a frame."""
+    a, b, c = (np.asarray(m, dtype=float).reshape(-1, 3) for m in (tab1, tab2, tab3))
+    n = np.cross(b - a, c - a)
+    n = n[np.isfinite(n).all(axis=1)]
+    norm = np.linalg.norm(n, axis=1)
+    n = n[norm > 0] / norm[norm > 0, None]
+    if not len(n):
+        return None
+    m = np.median(n * np.sign(n @ n[0])[:, None], axis=0)
+    return m / np.linalg.norm(m) if np.linalg.norm(m) > 0 else None
+
+
 def vertical_axis(up: FloatArray | None, min_cos: float = UP_MIN_COS) -> str | None:
     """The signed lab axis (``UP_AXES``) within ``arccos(min_cos)`` of the direction ``up``, or None."""
     if up is None:

@@ -967,24 +967,70 @@ def test_a_y_up_lab_is_found_from_the_pelvis_and_turned_to_z_up(z_and_y_up, cli)
         (z_and_y_up / "ws-y-up" / "import" / "results.md").read_text()
     code, _, err = cli("import", z_and_y_up / "y-up" / "protocol.yaml", "--out", z_and_y_up / "ws-y-again", "-j", "1")
     assert code == 0 and "warning: 2 of 2 trials had y as their vertical axis (detected from the pelvis markers): rotated to z " \
-                          "up; pass --up to say so, or --up z to keep the files' axes" in " ".join(err.split()), err
+                          "up (--up gives the axis)" in " ".join(err.split()), err
 
 
-@pytest.mark.parametrize("up, axis", [("y", "y (given)"), ("z", "z (given)")])
-def test_up_gives_the_vertical_axis(z_and_y_up, up, axis):
-    """--up y imports the y-up copy as auto does (given, not detected, and not said on the console); --up z keeps the
-    file's axes: the markers as the file has them."""
+@pytest.mark.parametrize("lab", ["y-up", "z-up"])
+def test_up_gives_the_vertical_axis(z_and_y_up, lab):
+    """--up y imports the y-up copy as auto does, --up z the z-up study (given, not detected; nothing said)."""
     from cobot_analysis.cli import run
 
-    ws = z_and_y_up / f"ws-y-up-{up}"
-    assert run(["-q", "import", str(z_and_y_up / "y-up" / "protocol.yaml"), "--out", str(ws), "--up", up, "-j", "1"]) == 0
-    assert set(table_metadata(ws / "import" / "markers.parquet")["vertical"].values()) == {axis}
-    got = read_table(ws / "import" / "markers.parquet", MARKERS)
-    auto = read_table(z_and_y_up / "ws-y-up" / "import" / "markers.parquet", MARKERS)
-    if up == "y":
-        assert got[["x", "y", "z"]].equals(auto[["x", "y", "z"]])
-    else:  # the file's axes: auto's rotation (x, y, z) -> (z, x, y) undone
-        assert np.array_equal(got[["x", "y", "z"]].to_numpy(), auto[["y", "z", "x"]].to_numpy(), equal_nan=True)
+    ws = z_and_y_up / f"ws-{lab}-given"
+    axis = lab[0]
+    assert run(["-q", "import", str(z_and_y_up / lab / "protocol.yaml"), "--out", str(ws), "--up", axis, "-j", "1"]) == 0
+    assert set(table_metadata(ws / "import" / "markers.parquet")["vertical"].values()) == {f"{axis} (given)"}
+    got, auto = (read_table(w / "import" / "markers.parquet", MARKERS) for w in (ws, z_and_y_up / f"ws-{lab}"))
+    assert got[["x", "y", "z"]].equals(auto[["x", "y", "z"]])
+
+
+def test_an_up_the_pelvis_contradicts_is_refused(z_and_y_up, cli):
+    """--up z on the y-up copy: every pelvis points along y of the file, sideways in the frame --up z gives."""
+    assert_rejected(cli, z_and_y_up / "ws-contradicted", [z_and_y_up / "y-up" / "protocol.yaml", "--up", "z"],
+                    "S01_N1500_1.c3d): the pelvis of walker has its up direction along y of the file's frame, not along its "
+                    "vertical z (given)", "give the lab's vertical axis with --up (auto finds it from the pelvis)")
+
+
+def test_left_and_right_swapped_are_refused_and_the_marker_map_swaps_them(z_and_y_up, tmp_path, cli):
+    """LASI and RASI swapped in the labels (the walker's orientation would be off by pi, walking backwards): the pelvis
+    points down once the frame is z-up. Refused, whatever --up says; the remedy's marker map imports it as the original."""
+    import shutil
+
+    import ezc3d
+
+    from cobot_analysis.cli import run
+
+    lab = tmp_path / "swapped"
+    shutil.copytree(z_and_y_up / "z-up", lab)
+    for f in sorted(lab.rglob("*.c3d")):
+        c = ezc3d.c3d(str(f))
+        labels = list(c["parameters"]["POINT"]["LABELS"]["value"])
+        i, j = labels.index("LASI"), labels.index("RASI")
+        labels[i], labels[j] = "RASI", "LASI"
+        c["parameters"]["POINT"]["LABELS"]["value"] = labels
+        c.write(str(f))
+    for up in ("auto", "z"):
+        assert_rejected(cli, tmp_path / f"ws-{up}", [lab / "protocol.yaml", "--up", up],
+                        "the pelvis of walker points down (its up direction, forward x left, is -z in the file, whose vertical "
+                        "is z", "LASI and RASI look swapped", "--map LASI=RASI --map RASI=LASI")
+    ws = tmp_path / "ws-mapped"
+    assert run(["-q", "import", str(lab / "protocol.yaml"), "--out", str(ws), "--map", "LASI=RASI", "--map", "RASI=LASI", "-j", "1"]) == 0
+    got, original = (read_table(w / "import" / "markers.parquet", MARKERS) for w in (ws, z_and_y_up / "ws-z-up"))
+    assert got[["marker", "x", "y", "z"]].equals(original[["marker", "x", "y", "z"]])
+
+
+def test_a_table_alone_in_a_y_up_lab_asks_for_the_axis(tmp_path, cli):
+    """A table recorded without anyone: its top is vertical in a frame read as z-up; a table cannot tell the sign of
+    the vertical, so the axis is asked for; given, the table lies flat."""
+    from cobot_analysis.cli import run
+
+    flat = table(50, prefix="")
+    yup = {k: np.column_stack([v[:, 0], v[:, 2], -v[:, 1]]) for k, v in flat.items()}
+    proto = protocol(tmp_path, [write_c3d(tmp_path / "a.c3d", yup)], study="test-table")
+    assert_rejected(cli, tmp_path / "ws", [proto], "the table's top is not horizontal in a frame whose vertical is z (assumed): "
+                    "its normal is along y of the file's frame", "--up y or --up -y (a table alone cannot tell its sign)")
+    assert run(["-q", "import", str(proto), "--out", str(tmp_path / "ws-y"), "--up", "y", "-j", "1"]) == 0
+    z = read_table(tmp_path / "ws-y" / "import" / "markers.parquet", MARKERS).groupby("marker")["z"].agg(["min", "max"])
+    assert np.allclose(z.to_numpy(), 0.77)  # (x, y, z) -> (z, x, y): the height back on z
 
 
 def test_an_unknown_up_is_refused_before_reading(tmp_path, cli):

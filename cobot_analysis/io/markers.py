@@ -29,7 +29,8 @@ their vertical axis and floor origin, distances do not.
 Vertical axis (``--up``, ``lab_vertical``): the pipeline's frame is z-up. A lab whose vertical is another axis
 (OptiTrack Motive: y) is found from the pelvis itself, whose up direction (forward x left, ``kinematics.pelvis_up``)
 leans from the vertical by the pelvic tilt only, and each such trial is rotated to z up (``kinematics.levelling``:
-for y up, (x, y, z) -> (z, x, y)); ``--up AXIS`` gives it, ``--up z`` keeps the file's axes. The axis of each trial is in
+for y up, (x, y, z) -> (z, x, y)); ``--up AXIS`` gives it. Once turned, every pelvis must point up: one pointing
+down has its left and right markers swapped, one pointing sideways contradicts the axis given. The axis of each trial is in
 the markers file's metadata (``vertical``) and in ``import/results.md``. Every trial is checked before the stage
 keeps anything (the markers are written trial by trial into the stage's temporary directory,
 ``stream_import``, which a refused run discards), and all refused trials are named in one error (or
@@ -55,7 +56,7 @@ from cobot_analysis.io.plausibility import FAR_REMEDY, LAB_EXTENT, MAX_SPEED, MA
 from cobot_analysis.io.protocol import (ENTITIES, KEPT_SUBJECT_MARKERS, PELVIS_DEFINITIONS, PELVIS_MARKERS, SACRUM, TABLE_MARKERS,
                                         Protocol, load_protocol, pelvis_definition, read_yaml)
 from cobot_analysis.io.text_exports import read_qualisys_tsv, read_vicon_csv, sniff_text_format
-from cobot_analysis.kinematics import UP_AXES, levelling, pelvis_up, vertical_axis
+from cobot_analysis.kinematics import UP_AXES, levelling, pelvis_up, table_normal, vertical_axis
 from cobot_analysis.refusals import Refused
 from cobot_analysis.schema import TRIAL_COLUMNS, TRIALS
 
@@ -273,27 +274,58 @@ def import_trial(task: TrialTask) -> ImportedTrial:
                      "table side |TAB1 - TAB2|")
     check_positions(xyz, [raw.labels[j] for j in keep], float(rate), path, lab_extent=task.lab_extent, max_speed=task.max_speed,
                     max_spike=task.max_spike)
-    vertical, how = lab_vertical(task.up, xyz, col, pelvis)
+    vertical, how = lab_vertical(task.up, xyz, col, pelvis, path)
     if vertical != "z":
         xyz = xyz @ levelling(vertical).T
     return ImportedTrial(task.trial, ents, marks, xyz, float(rate), raw.units, fmt, task.sha256 or file_sha256(path), notes, pelvis,
                          vertical, how)
 
 
-def lab_vertical(up: str, xyz: np.ndarray, col: dict[tuple[str, str], int], pelvis: dict[str, tuple[str, ...]]) -> tuple[str, str]:
-    """(the vertical axis of a trial's lab frame, how it was found): ``up`` when given ("given"); ``auto``: the lab
-    axis along the up direction of its persons' pelvis (``kinematics.pelvis_up`` over every person's frames,
-    ``vertical_axis``: within 37 degrees), "detected"; else z "assumed" (no pelvis, no axis near it, or -z:
-    a pelvis upside down in a z-up lab has its left and right markers swapped, not a frame upside down)."""
-    if up != "auto":
-        return up, "given"
-    ups = []
+def lab_vertical(up: str, xyz: np.ndarray, col: dict[tuple[str, str], int], pelvis: dict[str, tuple[str, ...]],
+                 path: Path) -> tuple[str, str]:
+    """(the vertical axis of a trial's lab frame, how it was found), and the pelvis and table checked against it.
+
+    ``up`` when given ("given"); ``auto``: the lab axis along the up direction of its persons' pelvis
+    (``kinematics.pelvis_up``, ``vertical_axis``: within 37 degrees), the most persons' (ties: z, then a positive axis),
+    "detected"; else z "assumed" (no pelvis or no axis near it; -z is no lab frame but a pelvis whose left and right
+    markers are swapped). Then, in the frame turned to z up, every person's pelvis must point up: ``InputError`` when
+    one points down (LASI and RASI swapped) or sideways (another vertical axis than the one given or found); a table
+    alone (no pelvis) must have its top horizontal (``kinematics.table_normal`` within 37 degrees of z), else the lab's
+    vertical is another axis, which a table cannot tell the sign of: given with --up."""
+    from collections import Counter
+
+    ups = {}
     for e, markers in pelvis.items():
         back = [xyz[:, col[e, m]] for m in markers[2:]]  # LPSI and RPSI, or SACR
-        ups.append(pelvis_up(xyz[:, col[e, "LASI"]], xyz[:, col[e, "RASI"]], sum(back) / len(back)))
-    ups = [u for u in ups if u is not None]
-    axis = vertical_axis(np.mean(ups, axis=0)) if ups else None
-    return (axis, "detected") if axis not in (None, "-z") else ("z", "assumed")
+        if (u := pelvis_up(xyz[:, col[e, "LASI"]], xyz[:, col[e, "RASI"]], sum(back) / len(back))) is not None:
+            ups[e] = u
+    found = Counter(a for u in ups.values() if (a := vertical_axis(u)) is not None)
+    if up != "auto":
+        axis, how = up, "given"
+    elif found and (axis := max(found, key=lambda a: (found[a], a == "z", not a.startswith("-")))) != "-z":
+        how = "detected"
+    else:
+        axis, how = "z", "assumed"
+    R = levelling(axis)
+    for e, u in sorted(ups.items()):
+        turned = vertical_axis(R @ u)
+        if turned == "-z":
+            raise InputError(f"the pelvis of {e} points down (its up direction, forward x left, is {vertical_axis(u)} in the "
+                             f"file, whose vertical is {axis} ({how})): LASI and RASI look swapped", path=path,
+                             remedy="fix the labels in the capture software, or swap them with the marker map (e.g. --map "
+                                    "LASI=RASI --map RASI=LASI, as the file names them); --up -z if the lab's vertical points down")
+        if turned not in (None, "z"):
+            raise InputError(f"the pelvis of {e} has its up direction along {vertical_axis(u)} of the file's frame, not along its "
+                             f"vertical {axis} ({how})", path=path,
+                             remedy="give the lab's vertical axis with --up (auto finds it from the pelvis), or check the pelvis labels")
+    if not pelvis and all(("table", m) in col for m in TABLE_MARKERS):
+        n = table_normal(*(xyz[:, col["table", m]] for m in TABLE_MARKERS))
+        if n is not None and (turned := vertical_axis(R @ n)) is not None and turned.lstrip("-") != "z":
+            k = vertical_axis(n).lstrip("-")
+            raise InputError(f"the table's top is not horizontal in a frame whose vertical is {axis} ({how}): its normal is "
+                             f"along {k} of the file's frame", path=path,
+                             remedy=f"give the lab's vertical axis, --up {k} or --up -{k} (a table alone cannot tell its sign)")
+    return axis, how
 
 
 def import_or_refuse(task: TrialTask) -> ImportedTrial | Refused:

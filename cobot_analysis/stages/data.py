@@ -83,7 +83,7 @@ def import_markers(out: str | os.PathLike, protocol: str | os.PathLike, *, jobs:
         for note in result.notes:
             warn(note)
         if line := vertical_line(result.imported, "detected"):
-            warn(f"{line}; pass --up to say so, or --up z to keep the files' axes")
+            warn(f"{line} (--up gives the axis)")
         refusals.record(stage, result.refused, len(plan.tasks), "import")
         stage.path("results.md").write_text(import_summary(plan.protocol, result.imported, result.refused, plan.limits,
                                                            plan.params["outside_files"]))
