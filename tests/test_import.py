@@ -1064,3 +1064,28 @@ def test_pelvis_up_finds_each_lab_axis_through_a_tilted_turning_pelvis(axis, pel
     assert np.degrees(np.arccos(up @ (R @ [0, 0, 1]))) == pytest.approx(20, abs=0.5)
     assert vertical_axis(pelvis_up(rasi @ R.T, lasi @ R.T, back @ R.T)) == ("-" + axis).replace("--", "")
     assert pelvis_up(np.full((3, 3), np.nan), rasi[:3], back[:3]) is None
+
+
+def test_the_same_recording_under_two_trials_is_refused_once(tmp_path, cli):
+    """A trials table that lists one file twice, or a copy of it: one recording counted as two trials (it weighed twice in
+    every mean and test). The later trials are refused and listed, the first kept; with --strict the run is refused; the
+    API (markers returned, not streamed) refuses them alike."""
+    import shutil
+
+    from cobot_analysis.api import import_markers
+
+    a = write_c3d(tmp_path / "a.c3d", person(30))
+    b = write_c3d(tmp_path / "b.c3d", person(30, y0=1.0))
+    shutil.copy(a, tmp_path / "copy.c3d")
+    proto = protocol(tmp_path, [a, b, a, tmp_path / "copy.c3d"])
+    code, _, err = cli("import", proto, "--out", tmp_path / "ws", "--jobs", "1")
+    text = " ".join(err.split())
+    assert code == 3, err
+    assert "t3 (a.c3d): the same recording as trial 't1' (the files are identical, SHA-256" in text
+    assert "t4 (copy.c3d): the same recording as trial 't1'" in text
+    assert "remedy: give each trial its own recording: remove the repeated row from the protocol's trials" in text
+    assert read_table(tmp_path / "ws" / "import" / "trials.parquet", TRIALS)["trial"].tolist() == ["t1", "t2"]
+    assert_rejected(cli, tmp_path / "ws-strict", [proto, "--strict"], "t3 (a.c3d): the same recording as trial 't1'")
+    result = import_markers(proto, jobs=1)
+    assert [r.trial for r in result.refused] == ["t3", "t4"] and result.trials["trial"].tolist() == ["t1", "t2"]
+    assert sorted(result.markers["trial"].unique()) == ["t1", "t2"]

@@ -95,7 +95,7 @@ def import_markers(protocol: str | os.PathLike | ImportPlan, *, units: str = "au
     """
     from cobot_analysis.api.options import import_limits
     from cobot_analysis.errors import InputError
-    from cobot_analysis.io.markers import import_or_refuse, imported_tables, plan_import, refusal_error, stream_import
+    from cobot_analysis.io.markers import import_or_refuse, imported_tables, plan_import, refusal_error, repeated, stream_import
     from cobot_analysis.parallel import map_tasks
 
     import_limits(lab_extent, max_speed, max_spike)
@@ -124,6 +124,8 @@ def import_markers(protocol: str | os.PathLike | ImportPlan, *, units: str = "au
         return ImportResult(plan, None, streamed.trials, streamed.meta, streamed.refused, streamed.imported, Path(markers_path),
                             streamed.n_samples, streamed.n_occluded, streamed.also if one_pass else None, one_pass)
     results = map_tasks(import_or_refuse, plan.tasks, jobs=jobs, scheduler=scheduler, description="import")
+    first, files = {}, {t.trial: t.path for t in plan.tasks}
+    results = [r if isinstance(r, Refused) else repeated(r, first, files) or r for r in results]
     refused = [r for r in results if isinstance(r, Refused)]
     imported: list[ImportedTrial] = [r for r in results if isinstance(r, ImportedTrial)]
     if refused and (not plan.params["skip_bad"] or not imported):

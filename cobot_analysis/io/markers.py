@@ -26,6 +26,9 @@ infinite, outside the lab, jumps, single-sample spikes), and an implausible leng
 large or too small means mm and m were confused. Pelvis heights are not used: labs differ in
 their vertical axis and floor origin, distances do not.
 
+A trial whose file is identical to an earlier trial's (``repeated``: one path listed twice, or a copy) is refused:
+one recording would count as two.
+
 Vertical axis (``--up``, ``lab_vertical``): the pipeline's frame is z-up. A lab whose vertical is another axis
 (OptiTrack Motive: y) is found from the pelvis itself, whose up direction (forward x left, ``kinematics.pelvis_up``)
 leans from the vertical by the pelvic tilt only, and each such trial is rotated to z up (``kinematics.levelling``:
@@ -328,6 +331,19 @@ def lab_vertical(up: str, xyz: np.ndarray, col: dict[tuple[str, str], int], pelv
     return axis, how
 
 
+def repeated(trial: ImportedTrial, first: dict[str, str], files: dict[str, Path]) -> Refused | None:
+    """``trial`` refused when its file is byte for byte the file of an earlier trial (the same SHA-256: one path listed
+    twice, or a copy): one recording counted as two trials would weigh twice in every mean and test. ``first``: the
+    SHA-256 -> trial of the trials kept so far (updated); ``files``: trial -> raw file."""
+    earlier = first.setdefault(trial.sha256, trial.trial)
+    if earlier == trial.trial:
+        return None
+    path = files[trial.trial]
+    return Refused.of(trial.trial, path, InputError(
+        f"the same recording as trial {earlier!r} (the files are identical, SHA-256 {trial.sha256[:12]}...)", path=path,
+        remedy="give each trial its own recording: remove the repeated row from the protocol's trials, or point it at its file"))
+
+
 def import_or_refuse(task: TrialTask) -> ImportedTrial | Refused:
     """``import_trial``, with bad input returned as ``Refused`` so that one run names every bad file."""
     try:
@@ -587,8 +603,12 @@ def stream_import(plan: ImportPlan, markers_path: Path, *, jobs: int | None = No
     out = Streamed([], [])
     writer = None
     done = False
+    first: dict[str, str] = {}
+    files = {t.trial: t.path for t in plan.tasks}
     try:
         for r in imap_tasks(worker, todo, jobs=jobs, scheduler=scheduler, description="import", chunk=chunk):
+            if not isinstance(r, Refused):
+                r = repeated(r[0] if isinstance(r, tuple) else r, first, files) or r
             if isinstance(r, Refused):
                 out.refused.append(r)
                 continue
