@@ -178,6 +178,45 @@ def test_walking_bounds_by_speed():
     assert t[a] == pytest.approx(1.1, abs=1 / RATE) and t[b] == pytest.approx(4.9, abs=1 / RATE)
 
 
+@pytest.mark.parametrize("stand, apart", [(0.5, False), (0.9, False), (1.1, True), (3.0, True)])
+def test_walks_are_apart_when_the_subject_stands_still_long_enough(stand, apart):
+    """Two runs of walking with the subject standing still (0.02 m/s) for ``stand`` s between them: one walk below
+    --min-rest (1 s: a hesitation), two above it; a gap in the data (NaN) of the same length is no rest."""
+    t = np.arange(0, 8 + stand, 1 / RATE)
+    speed = np.where(((t >= 1.0) & (t <= 3.0)) | ((t >= 3.0 + stand) & (t <= 6.0 + stand)), 1.0, 0.02)
+    found = segmentation.walks(speed, RATE)
+    got = np.array([(t[a], t[b]) for a, b in found])
+    expected = np.array([(1.0, 3.0), (3.0 + stand, 6.0 + stand)] if apart else [(1.0, 6.0 + stand)])
+    assert got.shape == expected.shape and np.allclose(got, expected, atol=1.01 / RATE), got
+    gap = np.where((t > 3.0) & (t < 3.0 + stand), np.nan, speed)
+    assert len(segmentation.walks(gap, RATE)) == 1
+    assert segmentation.walking_bounds(speed, RATE) == (found[0][0], found[-1][1])  # the walk to the table: one span
+    assert len(segmentation.walks(speed, RATE, min_rest=np.inf)) == 1
+
+
+def test_a_recording_that_walks_back_to_the_start_keeps_the_walk_to_the_goal(tmp_path, cli):
+    """Rest, 3 m to the goal, 2 s standing there turning round, 3 m back, rest: one trajectory to the goal and back,
+    10.7 s long with the stop, ended at its start, flagged ok. Now the first walk is the trial (3 m, 2.7 s), flagged
+    later_walks, and the stage's results say so; a turn on the spot of 0.5 s stays inside one walk (--min-rest)."""
+    def there_and_back(trial, stop):
+        t = np.arange(0, 9 + stop, 1 / RATE)
+        s = 3.0 * (_min_jerk(t, 1.0, 4.0) - _min_jerk(t, 4.0 + stop, 7.0 + stop))
+        return _rows(trial, "walker", pelvis(s, 0 * s, np.pi * _min_jerk(t, 4.0, 4.0 + stop)))
+
+    ws = tmp_path / "ws"
+    write_workspace(ws, there_and_back("B1", 2.0) + there_and_back("B2", 0.5),
+                    [trials_row("B1", subject="S01"), trials_row("B2", subject="S02")])
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1")
+    assert code == 0, err
+    traj = read_table(ws / "preprocess" / "trajectories.parquet", TRAJECTORIES)
+    per = traj.groupby("trial").agg(T=("travel_time", "first"), end=("x", "last"), far=("x", "max"), q=("quality", "first"))
+    assert per.loc["B1", "q"] == "later_walks" and per.loc["B1", "T"] == pytest.approx(2.74, abs=0.01)
+    assert per.loc["B1", "end"] == pytest.approx(3.0, abs=0.01) == per.loc["B1", "far"]
+    assert per.loc["B2", "q"] == "ok" and per.loc["B2", "end"] == pytest.approx(0.0, abs=0.01)  # one walk, there and back
+    assert "1 trajectories are `later_walks`: their recording holds more walks after the first" in \
+        (ws / "preprocess" / "results.md").read_text()
+
+
 # ---- normalisation --------------------------------------------------------------------------------
 def test_phase_endpoints_and_spacing():
     ph = normalisation.phase(500)

@@ -43,6 +43,7 @@ def preprocess_command(
     speed_threshold: Annotated[float, typer.Option("--speed-threshold", help="Walking: CoM speed that marks walking (m/s) (>= 0).")] = 0.1,
     rest_speed: Annotated[float, typer.Option("--rest-speed", help="Walking: the walk is extended to where the CoM speed falls below this (m/s) (>= 0).")] = 0.05,
     min_duration: Annotated[float, typer.Option("--min-duration", help="Shortest carriage / walk kept (s); shorter runs are ignored (>= 0).")] = 0.5,
+    min_rest: Annotated[float, typer.Option("--min-rest", help="Walking: standing still this long (s, below --rest-speed) between two walks of a recording makes them two walks: the first is the trial, the later ones (e.g. back to the start) are left out and the trial flagged 'later_walks' (>= 0).")] = 1.0,
     gamma_min_speed: Annotated[float, typer.Option("--gamma-min-speed", help="Below this speed (m/s) gamma holds its last well-defined value (>= 0).")] = 0.1,
     keep_approach: Annotated[bool, typer.Option("--keep-approach", help="Pair study: also keep each subject's walk to the table as a trial '<recording>_approach'.")] = False,
     orientation_markers: Annotated[OrientationMarkers, typer.Option(
@@ -59,14 +60,15 @@ def preprocess_command(
     Reads OUT/import/markers.parquet and trials.parquet; writes OUT/preprocess/trajectories.parquet
     (one row per trajectory and sample, with the pelvis markers used), gaps.parquet (every gap of
     the pelvis and table markers) and results.md (gap and quality summary). A walk or carriage that
-    runs off the start or end of its recording is flagged 'truncated'.
+    runs off the start or end of its recording is flagged 'truncated'; a walking recording holding more walks
+    (e.g. back to the start) keeps the first, flagged 'later_walks'.
     """
     from cobot_analysis.stages import data
 
     done = data.preprocess(out, markers=markers, trials=trials, max_gap=max_gap, cutoff=cutoff, order=order,
                            order_convention=order_convention.value, n_samples=samples, lift_threshold=lift_threshold,
                            floor_window=floor_window, speed_threshold=speed_threshold, rest_speed=rest_speed,
-                           min_duration=min_duration, gamma_min_speed=gamma_min_speed, keep_approach=keep_approach,
+                           min_duration=min_duration, min_rest=min_rest, gamma_min_speed=gamma_min_speed, keep_approach=keep_approach,
                            orientation_markers=orientation_markers.value, skip_bad=skip_bad, jobs=jobs, scheduler=scheduler,
                            force=force)
     finished_with_refusals("preprocess", done)

@@ -11,10 +11,12 @@ table height ``h`` (mean z of the visible table corners, ``kinematics.table_heig
 
 Walking trials are cut by the pelvis CoM speed, with hysteresis: the subject walks while
 ``|v| >= threshold`` (default 0.1 m/s); runs shorter than ``min_duration`` (default 0.5 s) are
-ignored (sway while standing); the walk spans the first to the last such run (a brief slow-down in
-between stays inside) and is then extended outwards while ``|v| >= rest_speed`` (default
-0.05 m/s, above the speed noise of a standing subject), so that onset and offset lie where the
-subject starts and stops moving rather than where it passes the detection threshold.
+ignored (sway while standing); runs with no rest of ``min_rest`` (default 1 s, measured: ``|v| <
+rest_speed``) between them are one walk (a slow-down or a hesitation stays inside), and a recording
+may hold several walks (``walks``: e.g. to the goal, then back to the start); each walk is then
+extended outwards while ``|v| >= rest_speed`` (default 0.05 m/s, above the speed noise of a standing
+subject), so that onset and offset lie where the subject starts and stops moving rather than where it
+passes the detection threshold.
 
 A trajectory whose onset is the first sample of the recording, or of a run of valid samples (the
 markers were not seen before), started before it was recorded; likewise at its offset
@@ -31,6 +33,7 @@ FLOOR_WINDOW = 0.5  # s at the start of the recording
 SPEED_THRESHOLD = 0.1  # m/s
 REST_SPEED = 0.05  # m/s
 MIN_DURATION = 0.5  # s
+MIN_REST = 1.0  # s: standing still this long between two walks of a recording makes them two walks
 
 
 def runs(active: np.ndarray, min_samples: int = 1) -> list[tuple[int, int]]:
@@ -56,22 +59,40 @@ def carriages(height: np.ndarray, rate: float, threshold: float = LIFT_THRESHOLD
     return runs(lifted, max(1, int(round(min_duration * rate)))), h0
 
 
-def walking_bounds(speed: np.ndarray, rate: float, threshold: float = SPEED_THRESHOLD,
-                   min_duration: float = MIN_DURATION, rest_speed: float = REST_SPEED) -> tuple[int, int] | None:
-    """(onset, offset) samples of a walking trial from its CoM speed; None if it never walks."""
+def walks(speed: np.ndarray, rate: float, threshold: float = SPEED_THRESHOLD, min_duration: float = MIN_DURATION,
+          rest_speed: float = REST_SPEED, min_rest: float = MIN_REST) -> list[tuple[int, int]]:
+    """(onset, offset) samples of each walk of a recording from its CoM speed (module docstring); [] if it never
+    walks. Two runs of walking are one walk unless the subject stands still (``|v| < rest_speed``, measured: a
+    gap in the data is no rest) for ``min_rest`` seconds between them."""
     speed = np.asarray(speed, dtype=float)
     with np.errstate(invalid="ignore"):
         moving = speed >= threshold
         resting = ~(speed >= min(rest_speed, threshold))  # NaN counts as rest
+        still = speed < min(rest_speed, threshold)
     found = runs(moving, max(1, int(round(min_duration * rate))))
     if not found:
-        return None
-    on, off = found[0][0], found[-1][1]
-    before = np.flatnonzero(resting[:on])
-    after = np.flatnonzero(resting[off + 1:])
-    on = int(before[-1]) + 1 if before.size else 0
-    off = off + int(after[0]) if after.size else len(speed) - 1
-    return on, off
+        return []
+    long_rests = runs(still, max(1, int(round(min_rest * rate)))) if np.isfinite(min_rest) else []
+    groups = [[found[0]]]
+    for prev, run in zip(found, found[1:]):
+        if any(prev[1] < r0 and r1 < run[0] for r0, r1 in long_rests):
+            groups.append([])
+        groups[-1].append(run)
+    out = []
+    for g in groups:
+        on, off = g[0][0], g[-1][1]
+        before = np.flatnonzero(resting[:on])
+        after = np.flatnonzero(resting[off + 1:])
+        out.append((int(before[-1]) + 1 if before.size else 0, off + int(after[0]) if after.size else len(speed) - 1))
+    return out
+
+
+def walking_bounds(speed: np.ndarray, rate: float, threshold: float = SPEED_THRESHOLD,
+                   min_duration: float = MIN_DURATION, rest_speed: float = REST_SPEED) -> tuple[int, int] | None:
+    """(onset, offset) samples spanning every walk of ``speed`` (``walks`` as one: a subject's walk to the table,
+    whatever its pauses); None if it never walks."""
+    found = walks(speed, rate, threshold, min_duration, rest_speed, min_rest=np.inf)
+    return found[0] if found else None
 
 
 def cut_off(signal: np.ndarray, onset: int, offset: int, end: bool = True) -> bool:

@@ -42,7 +42,9 @@ trajectory, position is kept, docs/methods.md sec. 2.2), ``position_missing`` (s
 x, y are NaN: two or more pelvis markers missing at once), ``gamma_undefined`` (the speed never
 reaches ``gamma_min_speed``), ``truncated`` (the walk or carriage runs off the start or end of the
 recording, or of the visible data, while moving: ``segmentation.cut_off``; its travel time and
-distance cover only the recorded part).
+distance cover only the recorded part), ``later_walks`` (a walking recording holds more walks after the
+first, separated by a rest of at least ``min_rest``, e.g. back to the start: the first is the trial, the
+later ones are left out).
 """
 
 from __future__ import annotations
@@ -85,6 +87,7 @@ class Params:
     speed_threshold: float = segmentation.SPEED_THRESHOLD  # m/s
     rest_speed: float = segmentation.REST_SPEED  # m/s
     min_duration: float = segmentation.MIN_DURATION  # s
+    min_rest: float = segmentation.MIN_REST  # s
     gamma_min_speed: float = kin.GAMMA_MIN_SPEED  # m/s
     keep_approach: bool = False
     orientation_markers: str = "pelvis"  # "pelvis": theta needs all the pelvis markers used; "asis": LASI and RASI
@@ -94,7 +97,7 @@ class Params:
         """Bounded before any work: durations, rates and thresholds finite and >= 0 (``inf`` overflowed
         in ``round(max_gap * rate)``), at least 2 samples and an order >= 1."""
         for name in ("max_gap", "cutoff", "lift_threshold", "floor_window", "speed_threshold", "rest_speed", "min_duration",
-                     "gamma_min_speed"):
+                     "min_rest", "gamma_min_speed"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value < 0:
                 raise InputError(f"{option_name(name)} {value!r} is not a finite number >= 0",
@@ -469,7 +472,7 @@ def process_recording(rec: Recording, p: Params) -> dict[str, Any]:
     segs = _segments(rec, p, entities, has_table, mk, kinem)
     # 6. trajectories
     out = []
-    for label, on, off, ents, cut in segs:
+    for label, on, off, ents, cut, later in segs:
         base = {c: rec.meta.get(c) for c in META_COLUMNS}
         base.update(kind="trial", n_trials=1, direction=label)
         base["trial"] = f"{rec.trial}_{label}" if label else rec.trial
@@ -478,7 +481,7 @@ def process_recording(rec: Recording, p: Params) -> dict[str, Any]:
             th = kinem["table"]["theta"][off] if "table" in kinem else np.nan
             base["end_orientation"] = float(wrap(th))  # measured: the table's orientation at the offset
         for e in ents:
-            meta, numeric = _trajectory(base, e, kinem[e], on, off, rate, p, cut)
+            meta, numeric = _trajectory(base, e, kinem[e], on, off, rate, p, cut, later)
             meta["pelvis_markers"] = None if e == "table" else ",".join(used[e])
             out.append((meta, numeric))
     return {"gaps": gap_rows, "trajectories": out}
@@ -493,15 +496,15 @@ def process_or_refuse(rec: Recording, p: Params) -> dict[str, Any] | Refused:
 
 
 def _segments(rec: Recording, p: Params, entities: list[str], has_table: bool, mk: dict, kinem: dict) -> list[tuple]:
-    """``[(direction label or None, onset frame, offset frame, entities, cut), ...]`` of one recording;
+    """``[(direction label or None, onset frame, offset frame, entities, cut, later), ...]`` of one recording;
     ``cut``: the trajectory runs off the start or end of the recording or of its visible data
-    (``segmentation.cut_off``)."""
+    (``segmentation.cut_off``); ``later``: walks of the recording after this one, left out (a walking trial's)."""
     subjects = [e for e in entities if e != "table"]
     rate = rec.rate
     if not has_table:
         speed = np.hypot(*kinem[subjects[0]]["v"].T)
-        bounds = segmentation.walking_bounds(speed, rate, p.speed_threshold, p.min_duration, p.rest_speed)
-        if bounds is None:
+        found = segmentation.walks(speed, rate, p.speed_threshold, p.min_duration, p.rest_speed, p.min_rest)
+        if not found:
             xy = kinem[subjects[0]]["xy"]
             with np.errstate(invalid="ignore"):
                 spread = float(np.nanmax(np.hypot(*(xy - np.nanmedian(xy, axis=0)).T))) if np.isfinite(xy).any() else float("nan")
@@ -510,7 +513,8 @@ def _segments(rec: Recording, p: Params, entities: list[str], has_table: bool, m
                              f"over {len(speed) / rate:.3g} s, top speed {top:.2f} m/s; a walk is above {p.speed_threshold:g} m/s "
                              f"for {p.min_duration:g} s", path=rec.source,
                              remedy="leave it out of the protocol; for a slow walk lower --speed-threshold / --min-duration")
-        return [(None, bounds[0], bounds[1], subjects, segmentation.cut_off(speed, *bounds))]
+        # the first walk is the trial's (later ones: e.g. back to the start, flagged later_walks)
+        return [(None, *found[0], subjects, segmentation.cut_off(speed, *found[0]), len(found) - 1)]
     height = kin.table_height(*(mk[("table", m)] for m in TABLE_MARKERS))
     found, h0 = segmentation.carriages(height, rate, p.lift_threshold, p.floor_window, p.min_duration)
     direction = rec.meta.get("direction")
@@ -520,7 +524,7 @@ def _segments(rec: Recording, p: Params, entities: list[str], has_table: bool, m
                          f"{h0:.3f} m + {p.lift_threshold * 1000:g} mm for {p.min_duration} s), expected {len(labels)} "
                          f"({', '.join(labels)})", path=rec.source,
                          remedy="check the table markers, or adjust --lift-threshold / --floor-window / --min-duration")
-    segs = [(lab, a, b, entities, segmentation.cut_off(height, a, b)) for lab, (a, b) in zip(labels, found)]
+    segs = [(lab, a, b, entities, segmentation.cut_off(height, a, b), 0) for lab, (a, b) in zip(labels, found)]
     if p.keep_approach:  # each subject's walk to the table: speed segmentation before the first lift
         on = found[0][0]
         approach = []
@@ -528,13 +532,13 @@ def _segments(rec: Recording, p: Params, entities: list[str], has_table: bool, m
             speed = np.hypot(*kinem[e]["v"][: on + 1].T)
             bounds = segmentation.walking_bounds(speed, rate, p.speed_threshold, p.min_duration, p.rest_speed)
             if bounds is not None:  # it ends where the carriage starts: only a cut-off start counts
-                approach.append(("approach", bounds[0], bounds[1], [e], segmentation.cut_off(speed, bounds[0], bounds[1], end=False)))
+                approach.append(("approach", bounds[0], bounds[1], [e], segmentation.cut_off(speed, bounds[0], bounds[1], end=False), 0))
         segs = approach + segs
     return segs
 
 
 def _trajectory(base: dict[str, Any], entity: str, k: dict[str, np.ndarray], on: int, off: int, rate: float,
-                p: Params, cut: bool = False) -> tuple[dict[str, Any], np.ndarray]:
+                p: Params, cut: bool = False, later: int = 0) -> tuple[dict[str, Any], np.ndarray]:
     sl = slice(on, off + 1)
     xy, v, theta = k["xy"][sl], k["v"][sl], k["theta"][sl]
     orientation_missing = bool(k["theta_gap"][sl].any() or np.isnan(theta).any())
@@ -561,6 +565,7 @@ def _trajectory(base: dict[str, Any], entity: str, k: dict[str, np.ndarray], on:
         ("position_missing", bool(np.isnan(xy).any())),
         ("gamma_undefined", not orientation_missing and bool(np.isnan(g).all())),
         ("truncated", cut),
+        ("later_walks", later > 0),
     )
     return {**base, "entity": entity, "quality": quality}, numeric
 

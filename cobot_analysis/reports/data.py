@@ -145,7 +145,7 @@ def preprocess_summary(traj: pd.DataFrame, gap_df: pd.DataFrame, p: Params, n_re
         f"{p.cutoff:g} Hz, zero-phase; gaps up to {p.max_gap:g} s filled by cubic spline. Segmentation: pair "
         f"recordings where the table is {p.lift_threshold * 1000:g} mm above its resting height (median of the first "
         f"{p.floor_window:g} s), walking trials where the CoM speed exceeds {p.speed_threshold:g} m/s for "
-        f"{p.min_duration:g} s (extended to {p.rest_speed:g} m/s). Orientation is reported missing for a trajectory "
+        f"{p.min_duration:g} s (extended to {p.rest_speed:g} m/s; a rest of {p.min_rest:g} s separates two walks). Orientation is reported missing for a trajectory "
         f"with a long gap on {'any pelvis marker' if p.orientation_markers == 'pelvis' else 'LASI or RASI'}.", "",
         f"Gaps in the pelvis/table markers: {len(gap_df)} ({int(gap_df['filled'].sum())} filled, "
         f"{int((~gap_df['filled']).sum())} left open; {gap_df['n_frames'].sum() if len(gap_df) else 0} frames).", "",
@@ -160,6 +160,9 @@ def preprocess_summary(traj: pd.DataFrame, gap_df: pd.DataFrame, p: Params, n_re
         *([f"{int(flags['truncated'])} trajectories are `truncated`: they run off the start or end of the recording (or of "
            "the visible data) while moving, so their travel time and distance cover only the recorded part.", ""]
           if "truncated" in flags else []),
+        *([f"{int(flags['later_walks'])} trajectories are `later_walks`: their recording holds more walks after the first "
+           f"(standing still at least {p.min_rest:g} s between them, e.g. back to the start); the first is the trial, the "
+           "later ones are left out.", ""] if "later_walks" in flags else []),
         "| entity | direction | trajectories | travel time (s), median [IQR] | travelled distance (m), median |",
         "|---|---|---|---|---|",
     ]
