@@ -1089,3 +1089,25 @@ def test_the_same_recording_under_two_trials_is_refused_once(tmp_path, cli):
     result = import_markers(proto, jobs=1)
     assert [r.trial for r in result.refused] == ["t3", "t4"] and result.trials["trial"].tolist() == ["t1", "t2"]
     assert sorted(result.markers["trial"].unique()) == ["t1", "t2"]
+
+
+@pytest.mark.parametrize("labels, expected", [
+    ({"TAB2": "TAB3", "TAB3": "TAB2"}, "table corners: TAB1 -> TAB2 (0.80 m) is shorter than TAB1 -> TAB3 (1.22 m): TAB2 "
+                                       "must be along a long side; swap TAB2 and TAB3 with the marker map (--map TAB2=TAB3 --map TAB3=TAB2)"),
+    ({"TAB1": "TAB2", "TAB2": "TAB1"}, "table corners: the angle at TAB1 between TAB2 and TAB3 is 33 degrees, not a right "
+                                       "angle: TAB1 is not the corner between TAB2 and TAB3"),
+])
+def test_table_corners_against_the_convention_are_refused(tmp_path, cli, labels, expected):
+    """The table's centre is the midpoint of TAB2 and TAB3, its orientation TAB2 - TAB1: corners labelled otherwise gave
+    a side's midpoint and a quarter turn, without a word. The marker map the remedy names imports them as labelled right."""
+    from cobot_analysis.cli import run
+
+    m = {**person(50, prefix="S1:"), **person(50, x0=1.8, prefix="S2:", extra=()), **table(50)}
+    relabelled = {f"Table:{labels.get(k.split(':')[1], k.split(':')[1])}" if k.startswith("Table:") else k: v for k, v in m.items()}
+    proto = protocol(tmp_path, [write_c3d(tmp_path / "a.c3d", relabelled)], pair=["P1"])
+    assert_rejected(cli, tmp_path / "ws", [proto], expected)
+    maps = [a for k, v in labels.items() for a in ("--map", f"{v}={k}")]
+    assert run(["-q", "import", str(proto), "--out", str(tmp_path / "ok"), *maps, "-j", "1"]) == 0
+    right = read_table(tmp_path / "ok" / "import" / "markers.parquet", MARKERS)
+    centre = right[right["entity"] == "table"].groupby("marker")[["x", "y"]].first()
+    assert centre.loc["TAB2"].to_numpy() - centre.loc["TAB1"].to_numpy() == pytest.approx([1.22, 0.0])

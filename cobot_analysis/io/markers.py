@@ -23,7 +23,8 @@ a sampling rate outside 1 Hz-10 kHz, an invalid declared rate (0, negative, NaN:
 ``allow_outside``), implausible positions (``plausibility.check_positions``:
 infinite, outside the lab, jumps, single-sample spikes), and an implausible length scale. Scale check: the median inter-ASIS distance |LASI - RASI| of adults is
 0.15-0.40 m (for a table-only recording, |TAB1 - TAB2| is 0.5-2.5 m); a value 1000 times too
-large or too small means mm and m were confused. Pelvis heights are not used: labs differ in
+large or too small means mm and m were confused. Table corners labelled against the convention the table pose needs
+(``check_table_corners``: TAB1 -> TAB2 a long side, TAB1 -> TAB3 a short side) are refused. Pelvis heights are not used: labs differ in
 their vertical axis and floor origin, distances do not.
 
 A trial whose file is identical to an earlier trial's (``repeated``: one path listed twice, or a copy) is refused:
@@ -275,6 +276,8 @@ def import_trial(task: TrialTask) -> ImportedTrial:
     else:
         _scale_check(path, raw.units, [(xyz[:, col["table", "TAB1"]], xyz[:, col["table", "TAB2"]])], TABLE_SIDE_RANGE,
                      "table side |TAB1 - TAB2|")
+    if all(("table", m) in col for m in TABLE_MARKERS):
+        check_table_corners(path, *(xyz[:, col["table", m]] for m in TABLE_MARKERS))
     check_positions(xyz, [raw.labels[j] for j in keep], float(rate), path, lab_extent=task.lab_extent, max_speed=task.max_speed,
                     max_spike=task.max_spike)
     vertical, how = lab_vertical(task.up, xyz, col, pelvis, path)
@@ -282,6 +285,33 @@ def import_trial(task: TrialTask) -> ImportedTrial:
         xyz = xyz @ levelling(vertical).T
     return ImportedTrial(task.trial, ents, marks, xyz, float(rate), raw.units, fmt, task.sha256 or file_sha256(path), notes, pelvis,
                          vertical, how)
+
+
+def check_table_corners(path: Path, tab1: np.ndarray, tab2: np.ndarray, tab3: np.ndarray) -> None:
+    """Refuse table corners labelled against the convention the table pose needs (docs/protocol.md): TAB1 -> TAB2
+    along a long side and TAB1 -> TAB3 along a short side, so TAB2 and TAB3 are opposite corners (the centre is their
+    midpoint, the orientation TAB2 - TAB1). Over the frames where the three are seen: the angle at TAB1 within 15
+    degrees of a right angle (else TAB1 is not the corner between the two), and the median |TAB1 - TAB2| at least
+    0.95 |TAB1 - TAB3| (a square table passes either way). Otherwise the centre would be a side's midpoint and the
+    orientation a quarter turn off, without a word."""
+    a, b = tab2 - tab1, tab3 - tab1
+    seen = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
+    if not seen.any():
+        return
+    a, b = a[seen], b[seen]
+    la, lb = np.linalg.norm(a, axis=1), np.linalg.norm(b, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        angle = float(np.degrees(np.nanmedian(np.arccos(np.clip(np.sum(a * b, axis=1) / (la * lb), -1, 1)))))
+    long, short = float(np.median(la)), float(np.median(lb))
+    convention = "TAB1 -> TAB2 along a long side, TAB1 -> TAB3 along a short side (docs/protocol.md)"
+    if abs(angle - 90.0) > 15.0:
+        raise InputError(f"table corners: the angle at TAB1 between TAB2 and TAB3 is {angle:.0f} degrees, not a right angle: "
+                         "TAB1 is not the corner between TAB2 and TAB3", path=path,
+                         remedy=f"relabel the corners with the marker map (--map LABEL=TAB1 ..., as the file names them): {convention}")
+    if long < 0.95 * short:
+        raise InputError(f"table corners: TAB1 -> TAB2 ({long:.2f} m) is shorter than TAB1 -> TAB3 ({short:.2f} m): TAB2 must "
+                         "be along a long side", path=path,
+                         remedy=f"swap TAB2 and TAB3 with the marker map (--map TAB2=TAB3 --map TAB3=TAB2): {convention}")
 
 
 def lab_vertical(up: str, xyz: np.ndarray, col: dict[tuple[str, str], int], pelvis: dict[str, tuple[str, ...]],
