@@ -1111,3 +1111,22 @@ def test_table_corners_against_the_convention_are_refused(tmp_path, cli, labels,
     right = read_table(tmp_path / "ok" / "import" / "markers.parquet", MARKERS)
     centre = right[right["entity"] == "table"].groupby("marker")[["x", "y"]].first()
     assert centre.loc["TAB2"].to_numpy() - centre.loc["TAB1"].to_numpy() == pytest.approx([1.22, 0.0])
+
+
+@pytest.mark.parametrize("names, expected", [
+    ({"LASI": "L_IAS", "RASI": "R_IAS", "LPSI": "L_IPS", "RPSI": "R_IPS"},  # Qualisys sports marker set
+     "--map L_IAS=LASI --map L_IPS=LPSI --map R_IAS=RASI --map R_IPS=RPSI"),
+    ({"LASI": "Daphnee:ASISl", "RASI": "Daphnee:ASISr", "LPSI": "Daphnee:PSISl", "RPSI": "Daphnee:PSISr"},  # pyomeca's
+     "--map Daphnee:ASISl=LASI --map Daphnee:PSISl=LPSI --map Daphnee:ASISr=RASI --map Daphnee:PSISr=RPSI"),
+])
+def test_a_pelvis_of_another_marker_set_is_refused_with_the_map_that_imports_it(tmp_path, cli, names, expected):
+    """The remedy was a generic 'map the lab's labels with --map LAB=CANON'; for the pelvis names of common marker sets it
+    is now the exact options (never applied on its own: a guess would be a silent error), and they import the file."""
+    from cobot_analysis.cli import run
+
+    m = {names.get(k, k): v for k, v in person(30).items()}
+    proto = protocol(tmp_path, [write_c3d(tmp_path / "a.c3d", m)])
+    msg = assert_rejected(cli, tmp_path / "ws", [proto], "required markers missing: walker:LASI",
+                          f"the labels look like another marker set's pelvis: {expected}")
+    assert msg.count("--map") == 4
+    assert run(["-q", "import", str(proto), "--out", str(tmp_path / "ok"), *expected.split(), "-j", "1"]) == 0

@@ -72,6 +72,35 @@ ASIS_RANGE = (0.15, 0.40)  # m, median |LASI - RASI| of adults
 TABLE_SIDE_RANGE = (0.5, 2.5)  # m, |TAB1 - TAB2| (a long side of the table)
 TRIALS_PER_TASK = 8  # trials sent to a pool worker at once (stream_import)
 MAP_REMEDY = "map the lab's labels with --map LAB=CANON (repeatable), --marker-map FILE.yaml or marker_map in the protocol"
+#: the pelvis markers' names in other marker sets (Qualisys sports, CAST / Visual3D, OpenSim, pyomeca), compared
+#: without case, '_', '.', '-' and spaces: never mapped on their own (a guess would be a silent error), only
+#: suggested as the exact --map options of a refusal
+PELVIS_SYNONYMS = {
+    "LASI": ("L_IAS", "LIAS", "LASIS", "L_ASIS", "ASISl", "ASIS_L", "LeftASIS"),
+    "RASI": ("R_IAS", "RIAS", "RASIS", "R_ASIS", "ASISr", "ASIS_R", "RightASIS"),
+    "LPSI": ("L_IPS", "LIPS", "LPSIS", "L_PSIS", "PSISl", "PSIS_L", "LeftPSIS"),
+    "RPSI": ("R_IPS", "RIPS", "RPSIS", "R_PSIS", "PSISr", "PSIS_R", "RightPSIS"),
+    "SACR": ("SACRUM", "S_SACR", "MPSIS", "PSIS_mid"),
+}
+
+
+def suggested_map(labels: list[str], missing: set[str]) -> list[str]:
+    """``--map LABEL=CANON`` for each ``missing`` pelvis marker one of whose ``PELVIS_SYNONYMS`` is in ``labels``, as the
+    file names it (per label prefix, i.e. per person; none where a prefix has two candidates), e.g.
+    ``['--map L_IAS=LASI', ...]``."""
+    def key(name: str) -> str:
+        return "".join(ch for ch in name.lower() if ch.isalnum())
+
+    out = []
+    for canon in sorted(missing):
+        names = {key(s) for s in PELVIS_SYNONYMS.get(canon, ())}
+        found: dict[str, list[str]] = {}
+        for lab in labels:
+            prefix, _, name = lab.rpartition(":")
+            if key(name) in names:
+                found.setdefault(prefix, []).append(lab)
+        out += [f"--map {labs[0]}={canon}" for _, labs in sorted(found.items()) if len(labs) == 1]
+    return out
 
 
 def detect_format(path: str | os.PathLike) -> str:
@@ -254,7 +283,10 @@ def import_trial(task: TrialTask) -> ImportedTrial:
         pelvis[e] = use
     if missing:
         found = ", ".join(raw.labels[:20]) + (" ..." if len(raw.labels) > 20 else "")
-        raise InputError(f"required markers missing: {', '.join(missing)} (labels found: {found})", path=path, remedy=MAP_REMEDY)
+        absent = {m for e in expected if e != "table" for m in (*PELVIS_MARKERS, SACRUM) if (e, m) not in seen}
+        hint = suggested_map(raw.labels, absent)
+        raise InputError(f"required markers missing: {', '.join(missing)} (labels found: {found})", path=path,
+                         remedy=f"the labels look like another marker set's pelvis: {' '.join(hint)}" if hint else MAP_REMEDY)
 
     keep.sort(key=lambda j: resolved[j])  # canonical order: entity, then marker
     xyz = raw.xyz[:, keep, :]
