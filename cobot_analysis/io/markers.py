@@ -286,7 +286,8 @@ def import_trial(task: TrialTask) -> ImportedTrial:
         absent = {m for e in expected if e != "table" for m in (*PELVIS_MARKERS, SACRUM) if (e, m) not in seen}
         hint = suggested_map(raw.labels, absent)
         raise InputError(f"required markers missing: {', '.join(missing)} (labels found: {found})", path=path,
-                         remedy=f"the labels look like another marker set's pelvis: {' '.join(hint)}" if hint else MAP_REMEDY)
+                         remedy=f"the labels look like another marker set's pelvis: {' '.join(hint)} (or the same in --marker-map "
+                                f"FILE.yaml or the protocol's marker_map)" if hint else MAP_REMEDY)
 
     keep.sort(key=lambda j: resolved[j])  # canonical order: entity, then marker
     xyz = raw.xyz[:, keep, :]
