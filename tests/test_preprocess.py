@@ -471,6 +471,50 @@ def test_bad_pair_recording_with_one_carriage(tmp_path, cli):
     _bad(tmp_path, cli, parts, [trials_row("P1")], "found 1 table carriages")
 
 
+def _table(parts, change):
+    """``change(marker rows)`` applied to each table corner of a recording's parts."""
+    for p in parts:
+        if p["entity"].iloc[0] == "table":
+            change(p)
+    return parts
+
+
+def _regrip(p):
+    """The table set down for 0.5 s (5.5-6.0 s) in the middle of the forward carriage, then lifted again."""
+    t = p["time"].to_numpy()
+    p["z"] -= 0.15 * (_min_jerk(t, 5.5, 5.7) - _min_jerk(t, 5.8, 6.0))
+
+
+def test_a_forward_carriage_set_down_to_regrip_is_no_return(tmp_path, cli):
+    """The recording stops before the return: the two lifts of the forward carriage were a forward and a
+    'return' to the goal (scenario 3, its end orientation measured) without a word."""
+    parts = [p[p["frame"] < 11 * RATE].copy() for p in _table(pair_recording("P1"), _regrip)]
+    _bad(tmp_path, cli, parts, [trials_row("P1", pair="P01", scenario=1)],
+         "trial P1: the second table carriage (5.8-8.9 s) ends 3.00 m from where the first (3.1-5.7 s) started and "
+         "1.83 m from where it ended: it does not carry the table back to the start")
+    ws = tmp_path / "ws2"  # the remedy: one forward carriage, its two lifts joined
+    write_workspace(ws, parts, [trials_row("P1", pair="P01", scenario=1, direction="forward")])
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1", "--min-set-down", "0.2")
+    assert code == 0, err
+    table = read_table(ws / "preprocess" / "trajectories.parquet", TRAJECTORIES).query("entity == 'table'")
+    assert set(table["trial"]) == {"P1_forward"} and table["travel_time"].iloc[0] == pytest.approx(5.87, abs=0.01)
+
+
+def test_a_regrip_is_named_and_min_set_down_joins_the_lifts(tmp_path, cli):
+    parts = _table(pair_recording("P1"), _regrip)
+    _bad(tmp_path, cli, parts, [trials_row("P1", pair="P01", scenario=1)],
+         "found 3 table carriages (3.1-5.7 s, 5.8-8.9 s, 12.1-17.9 s; set down 0.17 s, 3.13 s between them)")
+    ws = tmp_path / "ws"
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1")
+    assert "join the lifts with --min-set-down 0.2;" in err
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1", "--min-set-down", "0.2")
+    assert code == 0, err
+    traj = read_table(ws / "preprocess" / "trajectories.parquet", TRAJECTORIES)
+    table = traj[traj["entity"] == "table"].groupby("trial")
+    assert table["travel_time"].first().to_dict() == pytest.approx({"P1_forward": 5.87, "P1_return": 5.87}, abs=0.01)
+    assert table["x"].last().to_dict() == pytest.approx({"P1_forward": 3.0, "P1_return": 0.0}, abs=1e-3)
+
+
 def test_bad_markers_of_a_trial_not_in_trials(tmp_path, cli):
     _bad(tmp_path, cli, walking_trial("W1") + walking_trial("W9"), [trials_row("W1")], "marker rows of trials ['W9']")
 

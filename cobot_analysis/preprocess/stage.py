@@ -62,7 +62,7 @@ from cobot_analysis.errors import InputError
 from cobot_analysis.io.markers import Refused, refusal_error
 from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, MAX_SPIKE, check_positions
 from cobot_analysis.io.protocol import PELVIS_MARKERS, SACRUM, TABLE_MARKERS, pelvis_definition, pelvis_requirement
-from cobot_analysis.preprocess import filtering, gaps, normalisation, segmentation
+from cobot_analysis.preprocess import filtering, gaps, normalisation, pairs, segmentation
 from cobot_analysis.schema import MARKERS, TRIAL_COLUMNS, TRIALS, VERIFY, read_table, table_metadata
 
 SUBJECT_ENTITIES = ("walker", "subject1", "subject2")
@@ -87,6 +87,7 @@ class Params:
     speed_threshold: float = segmentation.SPEED_THRESHOLD  # m/s
     rest_speed: float = segmentation.REST_SPEED  # m/s
     min_duration: float = segmentation.MIN_DURATION  # s
+    min_set_down: float = segmentation.MIN_SET_DOWN  # s: a shorter set-down joins two lifts (a re-grip)
     min_rest: float = segmentation.MIN_REST  # s
     gamma_min_speed: float = kin.GAMMA_MIN_SPEED  # m/s
     keep_approach: bool = False
@@ -97,7 +98,7 @@ class Params:
         """Bounded before any work: durations, rates and thresholds finite and >= 0 (``inf`` overflowed
         in ``round(max_gap * rate)``), at least 2 samples and an order >= 1."""
         for name in ("max_gap", "cutoff", "lift_threshold", "floor_window", "speed_threshold", "rest_speed", "min_duration",
-                     "min_rest", "gamma_min_speed"):
+                     "min_set_down", "min_rest", "gamma_min_speed"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value < 0:
                 raise InputError(f"{option_name(name)} {value!r} is not a finite number >= 0",
@@ -516,14 +517,12 @@ def _segments(rec: Recording, p: Params, entities: list[str], has_table: bool, m
         # the first walk is the trial's (later ones: e.g. back to the start, flagged later_walks)
         return [(None, *found[0], subjects, segmentation.cut_off(speed, *found[0]), len(found) - 1)]
     height = kin.table_height(*(mk[("table", m)] for m in TABLE_MARKERS))
-    found, h0 = segmentation.carriages(height, rate, p.lift_threshold, p.floor_window, p.min_duration)
+    found, h0 = segmentation.carriages(height, rate, p.lift_threshold, p.floor_window, p.min_duration, p.min_set_down)
     direction = rec.meta.get("direction")
     labels = [str(direction)] if isinstance(direction, str) and direction else ["forward", "return"]
-    if len(found) != len(labels):
-        raise InputError(f"trial {rec.trial}: found {len(found)} table carriages (height above the floor level "
-                         f"{h0:.3f} m + {p.lift_threshold * 1000:g} mm for {p.min_duration} s), expected {len(labels)} "
-                         f"({', '.join(labels)})", path=rec.source,
-                         remedy="check the table markers, or adjust --lift-threshold / --floor-window / --min-duration")
+    pairs.check_count(rec.trial, rec.source, found, labels, h0, rate, p.lift_threshold, p.min_duration)
+    if labels == ["forward", "return"]:
+        pairs.check_return(rec.trial, rec.source, found, kinem["table"]["xy"], rate)
     segs = [(lab, a, b, entities, segmentation.cut_off(height, a, b), 0) for lab, (a, b) in zip(labels, found)]
     if p.keep_approach:  # each subject's walk to the table: speed segmentation before the first lift
         on = found[0][0]
