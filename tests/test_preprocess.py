@@ -515,6 +515,22 @@ def test_a_regrip_is_named_and_min_set_down_joins_the_lifts(tmp_path, cli):
     assert table["x"].last().to_dict() == pytest.approx({"P1_forward": 3.0, "P1_return": 0.0}, abs=1e-3)
 
 
+@pytest.mark.parametrize("row, expected", [
+    (dict(configuration="gris", end_orientation=np.pi),
+     "trial P1: end_orientation 3.142 rad in the trials table, but the table ended its forward carriage at 0.000 rad "
+     "(the direction TAB1 -> TAB2), a half turn off"),
+    (dict(configuration="gris", end_orientation=-np.pi / 2),
+     "a quarter turn off"),
+    (dict(configuration="gris", end_orientation=15.0), "(degrees?)"),
+    (dict(configuration="jaune", end_orientation=0.0),
+     "trial P1: end_orientation 0.000 rad is no end orientation of configuration jaune (1.571 or -1.571 rad)"),
+])
+def test_end_orientation_contradicting_the_table_or_its_configuration(tmp_path, cli, row, expected):
+    """The table ends its forward carriage at 0 rad: a declared end half or a quarter turn off (or in degrees), or
+    one that is no orientation of its configuration family, grouped the trial by a configuration it did not end in."""
+    _bad(tmp_path, cli, pair_recording("P1"), [trials_row("P1", pair="P01", scenario=1, **row)], expected)
+
+
 def test_bad_markers_of_a_trial_not_in_trials(tmp_path, cli):
     _bad(tmp_path, cli, walking_trial("W1") + walking_trial("W9"), [trials_row("W1")], "marker rows of trials ['W9']")
 

@@ -9,7 +9,11 @@ what was found, rather than labelled wrong:
   during a carriage);
 - ``check_return``: the return carries the table back to the start, so it ends nearer the forward
   carriage's start than its end (the two lifts of a forward carriage set down to re-grip it would
-  otherwise be a forward and a "return" to the goal).
+  otherwise be a forward and a "return" to the goal);
+- ``check_end_orientation``: the trials table's ``end_orientation`` is the table's orientation at the
+  end of the forward carriage (within ``END_TOLERANCE``) and one of its configuration's two
+  (``design.CONFIGURATIONS``); else the trial would be grouped by a configuration it did not end in
+  (``compare.snap_configurations``): a quarter or half turn off, or an angle in degrees.
 """
 
 from __future__ import annotations
@@ -19,7 +23,13 @@ from typing import Sequence
 
 import numpy as np
 
+from cobot_analysis.angles import angle_diff
+from cobot_analysis.design import CONFIGURATIONS
 from cobot_analysis.errors import InputError
+
+#: largest difference (rad) between a declared end orientation and the measured one, or its configuration's:
+#: half of a quarter turn (a carriage ends within a few degrees of its marks).
+END_TOLERANCE = math.pi / 4
 
 
 def _spans(found: Sequence[tuple[int, int]], rate: float) -> str:
@@ -68,3 +78,27 @@ def check_return(trial: str, source: str, found: list[tuple[int, int]], table_xy
                      "to re-grip it during the forward carriage, the return not recorded?)", path=source,
                      remedy=f"if the file holds the forward carriage only, give it direction 'forward' in the trials "
                             f"table and join its lifts with --min-set-down {join:g}; else leave it out")
+
+
+def check_end_orientation(trial: str, source: str, meta: dict, measured: float) -> None:
+    """Refuse a declared ``end_orientation`` (``meta``) off the table's orientation at the end of the forward
+    carriage (``measured``, rad) or off its configuration's orientations."""
+    try:
+        declared = float(meta.get("end_orientation"))  # type: ignore[arg-type]
+    except (TypeError, ValueError):  # None or NA: not given
+        return
+    if not np.isfinite(declared):
+        return
+    remedy = ("give end_orientation in radians, the direction TAB1 -> TAB2 of the table at the goal, in the trials "
+              "table and re-import")
+    off = abs(float(angle_diff(declared, measured)))
+    if off > END_TOLERANCE:
+        turns = {1: "a quarter turn off", 2: "a half turn off"}.get(round(off / (math.pi / 2)), f"{off:.2f} rad off")
+        raise InputError(f"trial {trial}: end_orientation {declared:.3f} rad in the trials table, but the table ended its "
+                         f"forward carriage at {float(angle_diff(measured, 0.0)):.3f} rad (the direction TAB1 -> TAB2), "
+                         f"{turns}{' (degrees?)' if abs(declared) > 2 * math.pi else ''}", path=source, remedy=remedy)
+    options = CONFIGURATIONS.get(meta.get("configuration"))
+    if options and min(abs(float(angle_diff(declared, o))) for o in options) > END_TOLERANCE:
+        raise InputError(f"trial {trial}: end_orientation {declared:.3f} rad is no end orientation of configuration "
+                         f"{meta['configuration']} ({' or '.join(f'{o:.3f}' for o in options)} rad)", path=source,
+                         remedy="correct its configuration or end_orientation in the trials table and re-import")

@@ -523,6 +523,8 @@ def _segments(rec: Recording, p: Params, entities: list[str], has_table: bool, m
     pairs.check_count(rec.trial, rec.source, found, labels, h0, rate, p.lift_threshold, p.min_duration)
     if labels == ["forward", "return"]:
         pairs.check_return(rec.trial, rec.source, found, kinem["table"]["xy"], rate)
+    if "forward" in labels:
+        pairs.check_end_orientation(rec.trial, rec.source, rec.meta, kinem["table"]["theta"][found[labels.index("forward")][1]])
     segs = [(lab, a, b, entities, segmentation.cut_off(height, a, b), 0) for lab, (a, b) in zip(labels, found)]
     if p.keep_approach:  # each subject's walk to the table: speed segmentation before the first lift
         on = found[0][0]
