@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cobot_analysis.preprocess import filtering, gaps, normalisation, segmentation
+from cobot_analysis.preprocess import filtering, gaps, normalisation, pairs, segmentation
 from cobot_analysis.schema import MARKERS, TRAJECTORIES, TRIALS, read_table, write_table
 
 RATE = 200.0
@@ -529,6 +529,31 @@ def test_end_orientation_contradicting_the_table_or_its_configuration(tmp_path, 
     """The table ends its forward carriage at 0 rad: a declared end half or a quarter turn off (or in degrees), or
     one that is no orientation of its configuration family, grouped the trial by a configuration it did not end in."""
     _bad(tmp_path, cli, pair_recording("P1"), [trials_row("P1", pair="P01", scenario=1, **row)], expected)
+
+
+def _swap_subjects(parts):
+    """The recording's Subject 1 and Subject 2 labels swapped (the other pair member's labels)."""
+    swap = {"subject1": "subject2", "subject2": "subject1"}
+    return [p.assign(entity=swap.get(p["entity"].iloc[0], p["entity"].iloc[0])) for p in parts]
+
+
+def test_subjects_swapped_in_one_recording_are_refused(tmp_path, cli):
+    """Subject 1 holds the TAB2 end of the table in P1 and P2, the TAB1 end in P3: its S1 and S2 are swapped, and
+    its scenario 1 (Subject 1 leads) was Subject 2 leading, pooled with the others without a word."""
+    ws = tmp_path / "ws"
+    parts = pair_recording("P1") + pair_recording("P2") + _swap_subjects(pair_recording("P3"))
+    write_workspace(ws, parts, [trials_row(t, pair="P01", scenario=1) for t in ("P1", "P2", "P3")])
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1")
+    assert code == 3, err
+    assert ("P3 (P3.c3d): Subject 1 holds the TAB1 end of the table, Subject 2 the TAB2 end, the other way round "
+            "in 2 other pair recordings: S1 and S2 swapped in this file?") in err
+    traj = read_table(ws / "preprocess" / "trajectories.parquet", TRAJECTORIES)
+    assert sorted(set(traj["trial"])) == ["P1_forward", "P1_return", "P2_forward", "P2_return"]
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1", "--strict", "--force")
+    assert code == 2 and "P3" in err and "P1" not in err.replace("P1.c3d", "")
+    # one recording each way: which is right cannot be told, both are refused; an unknown end (0) is no vote
+    tie = pairs.swapped_subjects([("A", "a.c3d", 1), ("B", "b.c3d", -1), ("C", "c.c3d", 0)])
+    assert [r.trial for r in tie] == ["A", "B"] and "which is right cannot be told" in tie[0].reason
 
 
 def test_bad_markers_of_a_trial_not_in_trials(tmp_path, cli):

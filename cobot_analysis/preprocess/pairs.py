@@ -13,12 +13,16 @@ what was found, rather than labelled wrong:
 - ``check_end_orientation``: the trials table's ``end_orientation`` is the table's orientation at the
   end of the forward carriage (within ``END_TOLERANCE``) and one of its configuration's two
   (``design.CONFIGURATIONS``); else the trial would be grouped by a configuration it did not end in
-  (``compare.snap_configurations``): a quarter or half turn off, or an angle in degrees.
+  (``compare.snap_configurations``): a quarter or half turn off, or an angle in degrees;
+- ``subject1_end`` and ``swapped_subjects``: Subject 1 holds the same end of the table (the TAB1 or the
+  TAB2 end of its long axis) in every recording of the study; a recording where it holds the other end
+  has the labels S1 and S2 swapped, and its scenario (who knows the goal) would be the other subject's.
 """
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Sequence
 
 import numpy as np
@@ -26,10 +30,13 @@ import numpy as np
 from cobot_analysis.angles import angle_diff
 from cobot_analysis.design import CONFIGURATIONS
 from cobot_analysis.errors import InputError
+from cobot_analysis.refusals import Refused
 
 #: largest difference (rad) between a declared end orientation and the measured one, or its configuration's:
 #: half of a quarter turn (a carriage ends within a few degrees of its marks).
 END_TOLERANCE = math.pi / 4
+#: least distance (m) between the two subjects along the table's long axis for the end each holds to count.
+MIN_APART = 0.5
 
 
 def _spans(found: Sequence[tuple[int, int]], rate: float) -> str:
@@ -102,3 +109,32 @@ def check_end_orientation(trial: str, source: str, meta: dict, measured: float) 
         raise InputError(f"trial {trial}: end_orientation {declared:.3f} rad is no end orientation of configuration "
                          f"{meta['configuration']} ({' or '.join(f'{o:.3f}' for o in options)} rad)", path=source,
                          remedy="correct its configuration or end_orientation in the trials table and re-import")
+
+
+def subject1_end(xy1: np.ndarray, xy2: np.ndarray, theta: np.ndarray) -> int:
+    """The end of the table Subject 1 holds over the frames given: +1 the TAB2 end (Subject 2 the TAB1 end), -1 the
+    TAB1 end, 0 unknown (positions missing, or the subjects less than ``MIN_APART`` apart along the long axis)."""
+    with np.errstate(invalid="ignore"):
+        along = np.nanmedian(np.sum((xy1 - xy2) * np.column_stack([np.cos(theta), np.sin(theta)]), axis=1)) \
+            if np.isfinite(theta).any() else np.nan
+    return 0 if not abs(along) >= MIN_APART else int(np.sign(along))
+
+
+def swapped_subjects(ends: list[tuple[str, str, int]]) -> list[Refused]:
+    """The recordings ``(trial, raw file, subject1_end)`` whose Subject 1 holds the other end of the table than in
+    most of the others (at a tie, all of them: which is right cannot be told)."""
+    known = [e for e in ends if e[2]]
+    total = sum(end for _, _, end in known)
+    name = {1: "TAB2", -1: "TAB1"}
+    out = []
+    for trial, source, end in known:
+        if total * end > 0:
+            continue
+        other = sum(1 for _, _, e in known if e == -end)
+        out.append(Refused(trial, Path(source), f"Subject 1 holds the {name[end]} end of the table, Subject 2 the "
+                           f"{name[-end]} end, the other way round in {other} other pair recording{'s' * (other != 1)}"
+                           f"{'' if total else ' (as many as the same way: which is right cannot be told)'}: "
+                           "S1 and S2 swapped in this file?",
+                           "check who is labelled Subject 1 in the file (the capture's subject names, the protocol's "
+                           "entities), fix it and re-import, or leave the trial out"))
+    return out

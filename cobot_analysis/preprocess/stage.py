@@ -17,7 +17,10 @@ Order of operations, per recording:
    ``end_orientation`` is the measured table orientation at its offset), walking trials by CoM
    speed. With ``keep_approach``, each subject's walk to the table (speed segmentation before the
    first lift) is kept as ``<recording>_approach`` (direction "approach", subjects only). A walking
-   recording where nobody walks (a static recording) is refused as such;
+   recording where nobody walks (a static recording) is refused as such, and so is a pair recording that
+   contradicts the protocol (``pairs.py``: the number of carriages, a return that does not go back to the
+   start, an end orientation off the table's, Subject 1 at the other end of the table than in the study's
+   other recordings);
 6. per trajectory: gamma (``kinematics.gamma``, ends held below ``gamma_min_speed``), quality
    flags, time normalisation to N samples (``normalisation.py``) -> ``trajectories.parquet``, with
    the pelvis markers used (``pelvis_markers``, e.g. 'LASI,RASI,SACR'; empty for the table).
@@ -485,7 +488,13 @@ def process_recording(rec: Recording, p: Params) -> dict[str, Any]:
             meta, numeric = _trajectory(base, e, kinem[e], on, off, rate, p, cut, later)
             meta["pelvis_markers"] = None if e == "table" else ",".join(used[e])
             out.append((meta, numeric))
-    return {"gaps": gap_rows, "trajectories": out}
+    result: dict[str, Any] = {"gaps": gap_rows, "trajectories": out}
+    if {"subject1", "subject2", "table"} <= set(entities):  # the end each subject holds, checked across recordings
+        carried = np.concatenate([np.arange(on, off + 1) for label, on, off, *_ in segs if label != "approach"])
+        k = {e: kinem[e]["xy"][carried] for e in ("subject1", "subject2")}
+        result["subject1_end"] = (rec.trial, rec.source, pairs.subject1_end(k["subject1"], k["subject2"],
+                                                                            kinem["table"]["theta"][carried]))
+    return result
 
 
 def process_or_refuse(rec: Recording, p: Params) -> dict[str, Any] | Refused:
@@ -650,6 +659,11 @@ def finish(done: list[dict[str, Any] | Refused], p: Params, markers_path: Path) 
     refused ones named together in one ``InputError`` unless ``p.skip_bad`` (and some recording is good)."""
     refused = [r for r in done if isinstance(r, Refused)]
     results = [r for r in done if not isinstance(r, Refused)]
+    swapped = pairs.swapped_subjects([r["subject1_end"] for r in results if "subject1_end" in r])
+    if swapped:  # Subject 1 at the other end of the table than in the other recordings
+        names = {r.trial for r in swapped}
+        results = [r for r in results if r.get("subject1_end", ("",))[0] not in names]
+        refused += swapped
     if refused and (not p.skip_bad or not results):
         raise refusal_error(refused, len(done), markers_path, "preprocess")
     traj, gap_df = assemble(results, p.n_samples)
