@@ -556,6 +556,17 @@ def test_subjects_swapped_in_one_recording_are_refused(tmp_path, cli):
     assert [r.trial for r in tie] == ["A", "B"] and "which is right cannot be told" in tie[0].reason
 
 
+def test_a_table_already_lifted_in_the_floor_window_is_refused(tmp_path, cli):
+    """The recording starts with the table held 8 cm up, then lifted to 15 cm for the forward carriage: the floor
+    level was measured on the lifted table, and the forward carriage began at the second lift (3 s), not before the
+    recording, without a word."""
+    def held(p):
+        p["z"] += 0.08 * (1 - _min_jerk(p["time"].to_numpy(), 3.0, 3.4))
+    _bad(tmp_path, cli, _table(pair_recording("P1"), held), [trials_row("P1", pair="P01", scenario=1)],
+         "trial P1: the table rests at 0.770 m at 8.8-12.2 s, 0.080 m below the floor level measured over the first "
+         "0.5 s (0.850 m): it was lifted when the recording started, and its first carriage is cut off")
+
+
 def test_bad_markers_of_a_trial_not_in_trials(tmp_path, cli):
     _bad(tmp_path, cli, walking_trial("W1") + walking_trial("W9"), [trials_row("W1")], "marker rows of trials ['W9']")
 

@@ -4,6 +4,9 @@ The carriages the table height gives (``segmentation.carriages``) are labelled f
 their order. The protocol says more about them, and a recording that contradicts it is refused, with
 what was found, rather than labelled wrong:
 
+- ``check_floor``: the floor level is measured while the table rests (the first ``--floor-window``
+  seconds): a table that rests later more than ``FLOOR_MARGIN`` lower was lifted when the recording
+  started, and its first carriage is cut off (its onset would be a second lift, or none);
 - ``check_count``: as many carriages as the trial's labels; the refusal lists them and the set-downs
   between them, and names the ``--min-set-down`` that joins a re-grip (the table set down briefly
   during a carriage);
@@ -30,11 +33,15 @@ import numpy as np
 from cobot_analysis.angles import angle_diff
 from cobot_analysis.design import CONFIGURATIONS
 from cobot_analysis.errors import InputError
+from cobot_analysis.preprocess.segmentation import runs
 from cobot_analysis.refusals import Refused
 
 #: largest difference (rad) between a declared end orientation and the measured one, or its configuration's:
 #: half of a quarter turn (a carriage ends within a few degrees of its marks).
 END_TOLERANCE = math.pi / 4
+#: a rest this much (m) below the floor level measured says the table was lifted in the floor window (more
+#: than the lift threshold: floors differ by a few millimetres across a lab).
+FLOOR_MARGIN = 0.02
 #: least distance (m) between the two subjects along the table's long axis for the end each holds to count.
 MIN_APART = 0.5
 
@@ -46,6 +53,22 @@ def _spans(found: Sequence[tuple[int, int]], rate: float) -> str:
 def _joining(samples: int, rate: float) -> float:
     """The ``--min-set-down`` (s, one decimal) that joins two lifts set down ``samples`` apart."""
     return math.floor(samples / rate * 10 + 1) / 10
+
+
+def check_floor(trial: str, source: str, height: np.ndarray, h0: float, rate: float, window: float,
+                min_duration: float) -> None:
+    """Refuse a recording whose table rests, for ``min_duration`` or more, ``FLOOR_MARGIN`` below the floor level
+    ``h0`` measured over its first ``window`` seconds."""
+    with np.errstate(invalid="ignore"):
+        low = runs(np.asarray(height) < h0 - FLOOR_MARGIN, max(1, int(round(min_duration * rate))))
+    if not low:
+        return
+    a, b = low[0]
+    rest = float(np.median(height[a:b + 1]))
+    raise InputError(f"trial {trial}: the table rests at {rest:.3f} m at {_spans([(a, b)], rate)}, {h0 - rest:.3f} m "
+                     f"below the floor level measured over the first {window:g} s ({h0:.3f} m): it was lifted when the "
+                     "recording started, and its first carriage is cut off", path=source,
+                     remedy="re-export the recording from before the table is lifted, or leave the trial out")
 
 
 def check_count(trial: str, source: str, found: list[tuple[int, int]], labels: list[str], h0: float, rate: float,
