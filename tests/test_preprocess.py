@@ -567,6 +567,17 @@ def test_a_table_already_lifted_in_the_floor_window_is_refused(tmp_path, cli):
          "0.5 s (0.850 m): it was lifted when the recording started, and its first carriage is cut off")
 
 
+def test_a_table_carried_back_without_a_set_down_is_one_carriage_and_refused(tmp_path, cli):
+    """No set-down at the goal: one carriage there and back, which cannot be split into forward and return."""
+    def no_set_down(p):
+        t = p["time"].to_numpy()
+        p["z"] += 0.15 * (_min_jerk(t, 8.6, 9.0) - _min_jerk(t, 12.0, 12.4))
+    _bad(tmp_path, cli, _table(pair_recording("P1"), no_set_down), [trials_row("P1", pair="P01", scenario=1)],
+         "trial P1: found 1 table carriages (3.1-17.9 s), height above the floor level 0.770 m + 5 mm for 0.5 s; "
+         "expected 2 (forward, return); if the table was carried back without being set down, its carriages cannot "
+         "be told apart: leave the trial out")
+
+
 def test_bad_markers_of_a_trial_not_in_trials(tmp_path, cli):
     _bad(tmp_path, cli, walking_trial("W1") + walking_trial("W9"), [trials_row("W1")], "marker rows of trials ['W9']")
 

@@ -72,7 +72,7 @@ def check_floor(trial: str, source: str, height: np.ndarray, h0: float, rate: fl
 
 
 def check_count(trial: str, source: str, found: list[tuple[int, int]], labels: list[str], h0: float, rate: float,
-                threshold: float, min_duration: float) -> None:
+                threshold: float, min_duration: float, min_set_down: float) -> None:
     """Refuse a recording with another number of carriages than ``labels``, naming them and the set-downs."""
     if len(found) == len(labels):
         return
@@ -83,6 +83,10 @@ def check_count(trial: str, source: str, found: list[tuple[int, int]], labels: l
     what += ")" if found else ""
     remedy = "check the table markers, or adjust --lift-threshold / --floor-window / --min-duration"
     extra = len(found) - len(labels)
+    if extra < 0 and found:
+        joined = f" (or lower --min-set-down {min_set_down:g}, which joins lifts set down for less)" if min_set_down else ""
+        remedy = ("if the table was carried back without being set down, its carriages cannot be told apart: leave the "
+                  f"trial out{joined}; else {remedy}")
     if extra > 0:  # the shortest set-downs would join: a re-grip if shorter than the others
         short = sorted(downs)
         join = _joining(short[extra - 1] * rate, rate)

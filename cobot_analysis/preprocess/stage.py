@@ -530,7 +530,8 @@ def _segments(rec: Recording, p: Params, entities: list[str], has_table: bool, m
     direction = rec.meta.get("direction")
     labels = [str(direction)] if isinstance(direction, str) and direction else ["forward", "return"]
     pairs.check_floor(rec.trial, rec.source, height, h0, rate, p.floor_window, p.min_duration)
-    pairs.check_count(rec.trial, rec.source, found, labels, h0, rate, p.lift_threshold, p.min_duration)
+    pairs.check_count(rec.trial, rec.source, found, labels, h0, rate, p.lift_threshold, p.min_duration,
+                      p.min_set_down)
     if labels == ["forward", "return"]:
         pairs.check_return(rec.trial, rec.source, found, kinem["table"]["xy"], rate)
     if "forward" in labels:
