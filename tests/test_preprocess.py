@@ -578,6 +578,19 @@ def test_a_table_carried_back_without_a_set_down_is_one_carriage_and_refused(tmp
          "be told apart: leave the trial out")
 
 
+@pytest.mark.parametrize("row, expected", [
+    (dict(direction="Return"), "trial P1: direction 'Return' is neither 'forward' nor 'return'"),
+    (dict(direction="forward", scenario=4), "trial P1: scenario 4 is not 1 (Subject 1 knows the goal), 2 (Subject 2) or 3 (both)"),
+])
+def test_pair_labels_outside_the_protocol_are_refused(tmp_path, cli, row, expected):
+    """A direction 'Return' was a direction of its own (its scenario not set to 3, its end not measured), a scenario 4
+    a scenario of its own, without a word."""
+    def one_carriage(p):
+        p.loc[p["time"] > 10.0, "z"] = 0.77
+    _bad(tmp_path, cli, _table(pair_recording("P1"), one_carriage), [trials_row("P1", pair="P01", **{"scenario": 1, **row})],
+         expected)
+
+
 def test_bad_markers_of_a_trial_not_in_trials(tmp_path, cli):
     _bad(tmp_path, cli, walking_trial("W1") + walking_trial("W9"), [trials_row("W1")], "marker rows of trials ['W9']")
 

@@ -4,6 +4,8 @@ The carriages the table height gives (``segmentation.carriages``) are labelled f
 their order. The protocol says more about them, and a recording that contradicts it is refused, with
 what was found, rather than labelled wrong:
 
+- ``check_labels``: ``direction`` (when given) is ``forward`` or ``return`` and ``scenario`` 1, 2 or 3, as
+  written (another label would make a direction or scenario of its own: a "Return" not scenario 3);
 - ``check_floor``: the floor level is measured while the table rests (the first ``--floor-window``
   seconds): a table that rests later more than ``FLOOR_MARGIN`` lower was lifted when the recording
   started, and its first carriage is cut off (its onset would be a second lift, or none);
@@ -53,6 +55,22 @@ def _spans(found: Sequence[tuple[int, int]], rate: float) -> str:
 def _joining(samples: int, rate: float) -> float:
     """The ``--min-set-down`` (s, one decimal) that joins two lifts set down ``samples`` apart."""
     return math.floor(samples / rate * 10 + 1) / 10
+
+
+def check_labels(trial: str, source: str, meta: dict) -> None:
+    """Refuse a ``direction`` other than forward or return, or a ``scenario`` other than 1, 2 or 3."""
+    direction, scenario = meta.get("direction"), meta.get("scenario")
+    if isinstance(direction, str) and direction and direction not in ("forward", "return"):
+        raise InputError(f"trial {trial}: direction {direction!r} is neither 'forward' nor 'return'", path=source,
+                         remedy="write forward or return (lower case) in the direction column of the trials table, or "
+                                "leave it empty for a file holding both carriages, and re-import")
+    try:
+        known = scenario is None or np.isnan(float(scenario)) or float(scenario) in (1.0, 2.0, 3.0)
+    except (TypeError, ValueError):  # NA: not given
+        known = True
+    if not known:
+        raise InputError(f"trial {trial}: scenario {scenario} is not 1 (Subject 1 knows the goal), 2 (Subject 2) or 3 "
+                         "(both)", path=source, remedy="correct the scenario column of the trials table and re-import")
 
 
 def check_floor(trial: str, source: str, height: np.ndarray, h0: float, rate: float, window: float,

@@ -525,6 +525,7 @@ def _segments(rec: Recording, p: Params, entities: list[str], has_table: bool, m
                              remedy="leave it out of the protocol; for a slow walk lower --speed-threshold / --min-duration")
         # the first walk is the trial's (later ones: e.g. back to the start, flagged later_walks)
         return [(None, *found[0], subjects, segmentation.cut_off(speed, *found[0]), len(found) - 1)]
+    pairs.check_labels(rec.trial, rec.source, rec.meta)
     height = kin.table_height(*(mk[("table", m)] for m in TABLE_MARKERS))
     found, h0 = segmentation.carriages(height, rate, p.lift_threshold, p.floor_window, p.min_duration, p.min_set_down)
     direction = rec.meta.get("direction")
