@@ -574,8 +574,9 @@ def test_a_table_carried_back_without_a_set_down_is_one_carriage_and_refused(tmp
         p["z"] += 0.15 * (_min_jerk(t, 8.6, 9.0) - _min_jerk(t, 12.0, 12.4))
     _bad(tmp_path, cli, _table(pair_recording("P1"), no_set_down), [trials_row("P1", pair="P01", scenario=1)],
          "trial P1: found 1 table carriages (3.1-17.9 s), height above the floor level 0.770 m + 5 mm for 0.5 s; "
-         "expected 2 (forward, return); if the table was carried back without being set down, its carriages cannot "
-         "be told apart: leave the trial out")
+         "expected 2 (forward, return); if the file holds one carriage, give its direction (forward or return) in the "
+         "trials table; if the table was carried back without being set down, its carriages cannot be told apart: "
+         "leave the trial out")
 
 
 @pytest.mark.parametrize("row, expected", [

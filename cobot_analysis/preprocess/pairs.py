@@ -103,8 +103,9 @@ def check_count(trial: str, source: str, found: list[tuple[int, int]], labels: l
     extra = len(found) - len(labels)
     if extra < 0 and found:
         joined = f" (or lower --min-set-down {min_set_down:g}, which joins lifts set down for less)" if min_set_down else ""
-        remedy = ("if the table was carried back without being set down, its carriages cannot be told apart: leave the "
-                  f"trial out{joined}; else {remedy}")
+        remedy = ("if the file holds one carriage, give its direction (forward or return) in the trials table; if the "
+                  "table was carried back without being set down, its carriages cannot be told apart: leave the trial "
+                  f"out{joined}; else {remedy}")
     if extra > 0:  # the shortest set-downs would join: a re-grip if shorter than the others
         short = sorted(downs)
         join = _joining(short[extra - 1] * rate, rate)
