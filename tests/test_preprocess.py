@@ -592,6 +592,15 @@ def test_pair_labels_outside_the_protocol_are_refused(tmp_path, cli, row, expect
          expected)
 
 
+def test_floor_level_from_the_first_seconds_the_table_is_seen():
+    """The table unseen for the first second of the recording: the floor level is measured when it is first seen
+    (before: NaN, and no carriage found)."""
+    t, h = _lift_profile()
+    h[t < 1.0] = np.nan
+    found, h0 = segmentation.carriages(h, RATE, threshold=0.005)
+    assert h0 == pytest.approx(0.77) and len(found) == 2
+
+
 def test_bad_markers_of_a_trial_not_in_trials(tmp_path, cli):
     _bad(tmp_path, cli, walking_trial("W1") + walking_trial("W9"), [trials_row("W1")], "marker rows of trials ['W9']")
 

@@ -4,7 +4,8 @@ Pair-study recordings (walk-to-table, forward carriage, set-down, return carriag
 table height ``h`` (mean z of the visible table corners, ``kinematics.table_height``):
 
 - floor level ``h0`` = median of ``h`` over the first ``floor_window`` seconds (default 0.5 s) of
-  the recording, when the table rests on the floor before the subjects reach it;
+  the recording from the first sample where the table is seen, when it rests on the floor before the
+  subjects reach it;
 - the table is carried while ``h > h0 + threshold`` (default 5 mm); each maximal run of such
   samples lasting at least ``min_duration`` (default 0.5 s, to ignore bumps) is a carriage;
 - two carriages set down for less than ``min_set_down`` (default 0 s: never) between them are one: the
@@ -47,10 +48,14 @@ def runs(active: np.ndarray, min_samples: int = 1) -> list[tuple[int, int]]:
 
 
 def floor_level(height: np.ndarray, rate: float, window: float = FLOOR_WINDOW) -> float:
-    """Resting table height: median of the valid heights in the first ``window`` seconds."""
-    head = np.asarray(height, dtype=float)[: max(1, int(round(window * rate)))]
-    head = head[~np.isnan(head)]
-    return float(np.median(head)) if head.size else float("nan")
+    """Resting table height: median of the valid heights in the first ``window`` seconds from the first sample where
+    the table is seen."""
+    height = np.asarray(height, dtype=float)
+    seen = np.flatnonzero(~np.isnan(height))
+    if not seen.size:
+        return float("nan")
+    head = height[seen[0]: seen[0] + max(1, int(round(window * rate)))]
+    return float(np.median(head[~np.isnan(head)]))
 
 
 def carriages(height: np.ndarray, rate: float, threshold: float = LIFT_THRESHOLD, window: float = FLOOR_WINDOW,
