@@ -601,6 +601,12 @@ def test_floor_level_from_the_first_seconds_the_table_is_seen():
     assert h0 == pytest.approx(0.77) and len(found) == 2
 
 
+def test_a_file_with_a_direction_holding_both_carriages_is_told_to_leave_it_empty(tmp_path, cli):
+    _bad(tmp_path, cli, pair_recording("P1"), [trials_row("P1", pair="P01", scenario=1, direction="forward")],
+         "expected 1 (forward); if the file holds a forward and a return carriage, leave its direction empty in the "
+         "trials table;")
+
+
 def test_bad_markers_of_a_trial_not_in_trials(tmp_path, cli):
     _bad(tmp_path, cli, walking_trial("W1") + walking_trial("W9"), [trials_row("W1")], "marker rows of trials ['W9']")
 

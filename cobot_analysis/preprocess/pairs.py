@@ -52,9 +52,9 @@ def _spans(found: Sequence[tuple[int, int]], rate: float) -> str:
     return ", ".join(f"{a / rate:.1f}-{b / rate:.1f} s" for a, b in found)
 
 
-def _joining(samples: int, rate: float) -> float:
-    """The ``--min-set-down`` (s, one decimal) that joins two lifts set down ``samples`` apart."""
-    return math.floor(samples / rate * 10 + 1) / 10
+def _joining(set_down: float) -> float:
+    """The ``--min-set-down`` (s, one decimal) that joins two lifts set down ``set_down`` seconds apart."""
+    return math.floor(set_down * 10 + 1) / 10
 
 
 def check_labels(trial: str, source: str, meta: dict) -> None:
@@ -108,10 +108,13 @@ def check_count(trial: str, source: str, found: list[tuple[int, int]], labels: l
                   f"out{joined}; else {remedy}")
     if extra > 0:  # the shortest set-downs would join: a re-grip if shorter than the others
         short = sorted(downs)
-        join = _joining(short[extra - 1] * rate, rate)
+        join = _joining(short[extra - 1])
         if extra == len(short) or join < short[extra]:
             remedy = (f"if the table was set down briefly during a carriage (a re-grip), join the lifts with "
                       f"--min-set-down {join:g}; else {remedy}")
+        if labels != ["forward", "return"] and len(found) == 2:
+            remedy = ("if the file holds a forward and a return carriage, leave its direction empty in the trials table; "
+                      + remedy)
     raise InputError(f"trial {trial}: found {len(found)} table carriages{what}, height above the floor level "
                      f"{h0:.3f} m + {threshold * 1000:g} mm for {min_duration:g} s; expected {len(labels)} "
                      f"({', '.join(labels)})", path=source, remedy=remedy)
@@ -124,7 +127,7 @@ def check_return(trial: str, source: str, found: list[tuple[int, int]], table_xy
     to_start, to_goal = float(np.hypot(*(end - start))), float(np.hypot(*(end - goal)))
     if not to_start >= to_goal:  # nearer the start, or a position unknown (NaN): nothing to tell
         return
-    join = _joining(r0 - f1, rate)
+    join = _joining((r0 - f1) / rate)
     raise InputError(f"trial {trial}: the second table carriage ({_spans([(r0, r1)], rate)}) ends {to_start:.2f} m "
                      f"from where the first ({_spans([(f0, f1)], rate)}) started and {to_goal:.2f} m from where it "
                      "ended: it does not carry the table back to the start, so it is no return (the table set down "
