@@ -581,11 +581,13 @@ def test_a_table_carried_back_without_a_set_down_is_one_carriage_and_refused(tmp
 
 @pytest.mark.parametrize("row, expected", [
     (dict(direction="Return"), "trial P1: direction 'Return' is neither 'forward' nor 'return'"),
+    (dict(direction="forward", configuration="Gris"), "trial P1: configuration 'Gris' is neither 'gris' nor 'jaune'"),
     (dict(direction="forward", scenario=4), "trial P1: scenario 4 is not 1 (Subject 1 knows the goal), 2 (Subject 2) or 3 (both)"),
 ])
 def test_pair_labels_outside_the_protocol_are_refused(tmp_path, cli, row, expected):
     """A direction 'Return' was a direction of its own (its scenario not set to 3, its end not measured), a scenario 4
-    a scenario of its own, without a word."""
+    a scenario of its own, and a configuration 'Gris' no family: its returns, grouped by their measured end
+    orientation instead of the configuration, made one mean each, without a word."""
     def one_carriage(p):
         p.loc[p["time"] > 10.0, "z"] = 0.77
     _bad(tmp_path, cli, _table(pair_recording("P1"), one_carriage), [trials_row("P1", pair="P01", **{"scenario": 1, **row})],

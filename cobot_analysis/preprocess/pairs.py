@@ -4,8 +4,10 @@ The carriages the table height gives (``segmentation.carriages``) are labelled f
 their order. The protocol says more about them, and a recording that contradicts it is refused, with
 what was found, rather than labelled wrong:
 
-- ``check_labels``: ``direction`` (when given) is ``forward`` or ``return`` and ``scenario`` 1, 2 or 3, as
-  written (another label would make a direction or scenario of its own: a "Return" not scenario 3);
+- ``check_labels``: ``direction`` (when given) is ``forward`` or ``return``, ``configuration`` ``gris`` or
+  ``jaune`` and ``scenario`` 1, 2 or 3, as written (another label would make a direction or scenario of its
+  own: a "Return" not scenario 3; a configuration "Gris" snaps no end orientation, and each return, grouped by
+  its measured one, would be a mean of its own);
 - ``check_floor``: the floor level is measured while the table rests (the first ``--floor-window``
   seconds): a table that rests later more than ``FLOOR_MARGIN`` lower was lifted when the recording
   started, and its first carriage is cut off (its onset would be a second lift, or none);
@@ -58,12 +60,20 @@ def _joining(set_down: float) -> float:
 
 
 def check_labels(trial: str, source: str, meta: dict) -> None:
-    """Refuse a ``direction`` other than forward or return, or a ``scenario`` other than 1, 2 or 3."""
-    direction, scenario = meta.get("direction"), meta.get("scenario")
+    """Refuse a ``direction`` other than forward or return, a ``configuration`` not of ``design.CONFIGURATIONS``, or a
+    ``scenario`` other than 1, 2 or 3."""
+    direction, scenario, family = meta.get("direction"), meta.get("scenario"), meta.get("configuration")
     if isinstance(direction, str) and direction and direction not in ("forward", "return"):
         raise InputError(f"trial {trial}: direction {direction!r} is neither 'forward' nor 'return'", path=source,
                          remedy="write forward or return (lower case) in the direction column of the trials table, or "
                                 "leave it empty for a file holding both carriages, and re-import")
+    if isinstance(family, str) and family and family not in CONFIGURATIONS:
+        raise InputError(f"trial {trial}: configuration {family!r} is neither "
+                         f"{' nor '.join(repr(f) for f in CONFIGURATIONS)}: its returns would be grouped by their "
+                         "measured end orientation, one mean each", path=source,
+                         remedy=f"write {' or '.join(CONFIGURATIONS)} (lower case) in the configuration column of the "
+                                "trials table and re-import (goals of other end orientations: leave it empty, and choose "
+                                "the groups of their means with average --by)")
     try:
         known = scenario is None or np.isnan(float(scenario)) or float(scenario) in (1.0, 2.0, 3.0)
     except (TypeError, ValueError):  # NA: not given
