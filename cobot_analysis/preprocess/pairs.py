@@ -150,7 +150,7 @@ def check_end_orientation(trial: str, source: str, meta: dict, measured: float) 
     """Refuse a declared ``end_orientation`` (``meta``) off the table's orientation at the end of the forward
     carriage (``measured``, rad) or off its configuration's orientations."""
     try:
-        declared = float(meta.get("end_orientation"))  # type: ignore[arg-type]
+        declared = float(meta.get("end_orientation"))
     except (TypeError, ValueError):  # None or NA: not given
         return
     if not np.isfinite(declared):
