@@ -173,10 +173,10 @@ def check_end_orientation(trial: str, source: str, meta: dict, measured: float) 
 def subject1_end(xy1: np.ndarray, xy2: np.ndarray, theta: np.ndarray) -> int:
     """The end of the table Subject 1 holds over the frames given: +1 the TAB2 end (Subject 2 the TAB1 end), -1 the
     TAB1 end, 0 unknown (positions missing, or the subjects less than ``MIN_APART`` apart along the long axis)."""
-    with np.errstate(invalid="ignore"):
-        along = np.nanmedian(np.sum((xy1 - xy2) * np.column_stack([np.cos(theta), np.sin(theta)]), axis=1)) \
-            if np.isfinite(theta).any() else np.nan
-    return 0 if not abs(along) >= MIN_APART else int(np.sign(along))
+    along = np.sum((xy1 - xy2) * np.column_stack([np.cos(theta), np.sin(theta)]), axis=1)
+    along = along[np.isfinite(along)]
+    median = float(np.median(along)) if along.size else 0.0
+    return int(np.sign(median)) if abs(median) >= MIN_APART else 0
 
 
 def swapped_subjects(ends: list[tuple[str, str, int]]) -> list[Refused]:
