@@ -10,7 +10,8 @@ band of the mean itself would be ``+- 1.96 sd / sqrt(n)``).
 
 Groups must be real conditions (``check_groups``): a grouping column that is empty for some trials
 (a trials table without ``condition``) would average unrelated trials into one mean, so it is
-refused with the trials concerned (docs/methods.md sec. 2).
+refused with the trials concerned, and so are two labels that differ only by case or spaces (two
+spellings of one condition, which would make two means; docs/methods.md sec. 2.9).
 """
 
 from __future__ import annotations
@@ -75,10 +76,12 @@ def check_groups(meta: pd.DataFrame, by: list[str], path=None) -> None:
 
     Every column of ``by`` (``entity`` is always set) must be given for every trial: one empty
     for all trials would make one mean of the whole study, one empty for some would pool those
-    trials, whatever their conditions, into a group of their own.
+    trials, whatever their conditions, into a group of their own. Nor may two labels of a column differ
+    only by case or spaces (``_check_spellings``).
     """
     per = meta.drop_duplicates(["trial", "entity"]) if {"trial", "entity"} <= set(meta.columns) else meta
     for c in by:
+        _check_spellings(per[c], c, path)
         empty = per[c].isna() | per[c].astype(str).str.strip().eq("")
         if not empty.any():
             continue
@@ -92,6 +95,22 @@ def check_groups(meta: pd.DataFrame, by: list[str], path=None) -> None:
                          remedy=f"give every trial its {c} in the protocol's trials table and re-run import and preprocess, "
                                 f"or choose the grouping with --by (e.g. --by {','.join(b for b in by if b != c)} for one mean "
                                 f"over all {c}s)")
+
+
+def _check_spellings(values: pd.Series, column: str, path=None) -> None:
+    """Refuse two labels of ``column`` that differ only by case or spaces ("d1_p4" and "D1_P4 "): two trials
+    tables' spellings of one condition, which would be averaged as two."""
+    labels = pd.Series(values.dropna().astype(str).unique())
+    if labels.empty:
+        return
+    key = labels.str.split().str.join(" ").str.casefold()
+    clash = labels[key.duplicated(keep=False)]
+    if clash.empty:
+        return
+    first = sorted(clash[key[clash.index] == key[clash.index[0]]])
+    raise InputError(f"{column} labels {' and '.join(repr(v) for v in first)} differ only by case or spaces: they "
+                     "would be averaged as two conditions", path=path,
+                     remedy=f"write each {column} alike in the protocol's trials table and re-run import and preprocess")
 
 
 def frame_spread(ts: TrajectorySet, by: list[str]) -> pd.DataFrame:

@@ -11,7 +11,7 @@ from cobot_analysis.averaging import MEANS
 from cobot_analysis.schema import TRAJECTORIES, read_table, write_table
 
 sys.path.insert(0, str(Path(__file__).parent))
-from cobot_analysis.synth.tables import walking_table  # noqa: E402
+from cobot_analysis.synth.tables import pair_table, walking_table  # noqa: E402
 
 
 def _workspace(tmp_path, df) -> Path:
@@ -56,3 +56,16 @@ def test_truncated_trajectories_are_counted(tmp_path, cli):
     code, _, err = cli("average", "--out", ws)
     assert code == 0, err
     assert "1 of the 4 trajectories averaged are flagged `truncated`" in (ws / "average" / "results.md").read_text()
+
+
+def test_labels_that_differ_only_by_case_or_spaces_are_refused(tmp_path, cli):
+    """Two trials tables' spellings of one goal ("d1_p4_gris" and "D1_P4_GRIS ") made two conditions, each mean
+    over part of the trials, without a word."""
+    df = pair_table(seed=1, n_pairs=2, goals=1)
+    pair2 = df["pair"] == "P02"
+    assert df["condition"].unique().tolist() == ["d1_p4_gris"]
+    ws = _workspace(tmp_path, df.assign(condition=df["condition"].where(~pair2, "D1_P4_GRIS ")))
+    msg = _refused(cli, ws)
+    assert ("trajectories.parquet: condition labels 'D1_P4_GRIS ' and 'd1_p4_gris' differ only by case or spaces: "
+            "they would be averaged as two conditions") in msg
+    assert "write each condition alike in the protocol's trials table" in msg

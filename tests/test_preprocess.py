@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cobot_analysis.preprocess import filtering, gaps, normalisation, segmentation
+from cobot_analysis.preprocess import filtering, gaps, normalisation, pairs, segmentation
 from cobot_analysis.schema import MARKERS, TRAJECTORIES, TRIALS, read_table, write_table
 
 RATE = 200.0
@@ -469,6 +469,144 @@ def test_bad_pair_recording_with_one_carriage(tmp_path, cli):
         if p["entity"].iloc[0] == "table":
             p.loc[p["frame"] > 2200, "z"] = 0.77  # the return is never lifted
     _bad(tmp_path, cli, parts, [trials_row("P1")], "found 1 table carriages")
+
+
+def _table(parts, change):
+    """``change(marker rows)`` applied to each table corner of a recording's parts."""
+    for p in parts:
+        if p["entity"].iloc[0] == "table":
+            change(p)
+    return parts
+
+
+def _regrip(p):
+    """The table set down for 0.5 s (5.5-6.0 s) in the middle of the forward carriage, then lifted again."""
+    t = p["time"].to_numpy()
+    p["z"] -= 0.15 * (_min_jerk(t, 5.5, 5.7) - _min_jerk(t, 5.8, 6.0))
+
+
+def test_a_forward_carriage_set_down_to_regrip_is_no_return(tmp_path, cli):
+    """The recording stops before the return: the two lifts of the forward carriage were a forward and a
+    'return' to the goal (scenario 3, its end orientation measured) without a word."""
+    parts = [p[p["frame"] < 11 * RATE].copy() for p in _table(pair_recording("P1"), _regrip)]
+    _bad(tmp_path, cli, parts, [trials_row("P1", pair="P01", scenario=1)],
+         "trial P1: the second table carriage (5.8-8.9 s) ends 3.00 m from where the first (3.1-5.7 s) started and "
+         "1.83 m from where it ended: it does not carry the table back to the start")
+    ws = tmp_path / "ws2"  # the remedy: one forward carriage, its two lifts joined
+    write_workspace(ws, parts, [trials_row("P1", pair="P01", scenario=1, direction="forward")])
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1", "--min-set-down", "0.2")
+    assert code == 0, err
+    table = read_table(ws / "preprocess" / "trajectories.parquet", TRAJECTORIES).query("entity == 'table'")
+    assert set(table["trial"]) == {"P1_forward"} and table["travel_time"].iloc[0] == pytest.approx(5.87, abs=0.01)
+
+
+def test_a_regrip_is_named_and_min_set_down_joins_the_lifts(tmp_path, cli):
+    parts = _table(pair_recording("P1"), _regrip)
+    _bad(tmp_path, cli, parts, [trials_row("P1", pair="P01", scenario=1)],
+         "found 3 table carriages (3.1-5.7 s, 5.8-8.9 s, 12.1-17.9 s; set down 0.17 s, 3.13 s between them)")
+    ws = tmp_path / "ws"
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1")
+    assert "join the lifts with --min-set-down 0.2;" in err
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1", "--min-set-down", "0.2")
+    assert code == 0, err
+    traj = read_table(ws / "preprocess" / "trajectories.parquet", TRAJECTORIES)
+    table = traj[traj["entity"] == "table"].groupby("trial")
+    assert table["travel_time"].first().to_dict() == pytest.approx({"P1_forward": 5.87, "P1_return": 5.87}, abs=0.01)
+    assert table["x"].last().to_dict() == pytest.approx({"P1_forward": 3.0, "P1_return": 0.0}, abs=1e-3)
+
+
+@pytest.mark.parametrize("row, expected", [
+    (dict(configuration="gris", end_orientation=np.pi),
+     "trial P1: end_orientation 3.142 rad in the trials table, but the table ended its forward carriage at 0.000 rad "
+     "(the direction TAB1 -> TAB2), a half turn off"),
+    (dict(configuration="gris", end_orientation=-np.pi / 2),
+     "a quarter turn off"),
+    (dict(configuration="gris", end_orientation=15.0), "(degrees?)"),
+    (dict(configuration="jaune", end_orientation=0.0),
+     "trial P1: end_orientation 0.000 rad is no end orientation of configuration jaune (1.571 or -1.571 rad)"),
+])
+def test_end_orientation_contradicting_the_table_or_its_configuration(tmp_path, cli, row, expected):
+    """The table ends its forward carriage at 0 rad: a declared end half or a quarter turn off (or in degrees), or
+    one that is no orientation of its configuration family, grouped the trial by a configuration it did not end in."""
+    _bad(tmp_path, cli, pair_recording("P1"), [trials_row("P1", pair="P01", scenario=1, **row)], expected)
+
+
+def _swap_subjects(parts):
+    """The recording's Subject 1 and Subject 2 labels swapped (the other pair member's labels)."""
+    swap = {"subject1": "subject2", "subject2": "subject1"}
+    return [p.assign(entity=swap.get(p["entity"].iloc[0], p["entity"].iloc[0])) for p in parts]
+
+
+def test_subjects_swapped_in_one_recording_are_refused(tmp_path, cli):
+    """Subject 1 holds the TAB2 end of the table in P1 and P2, the TAB1 end in P3: its S1 and S2 are swapped, and
+    its scenario 1 (Subject 1 leads) was Subject 2 leading, pooled with the others without a word."""
+    ws = tmp_path / "ws"
+    parts = pair_recording("P1") + pair_recording("P2") + _swap_subjects(pair_recording("P3"))
+    write_workspace(ws, parts, [trials_row(t, pair="P01", scenario=1) for t in ("P1", "P2", "P3")])
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1")
+    assert code == 3, err
+    assert ("P3 (P3.c3d): Subject 1 holds the TAB1 end of the table, Subject 2 the TAB2 end, the other way round "
+            "in 2 other pair recordings: S1 and S2 swapped in this file?") in err
+    traj = read_table(ws / "preprocess" / "trajectories.parquet", TRAJECTORIES)
+    assert sorted(set(traj["trial"])) == ["P1_forward", "P1_return", "P2_forward", "P2_return"]
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1", "--strict", "--force")
+    assert code == 2 and "P3" in err and "P1" not in err.replace("P1.c3d", "")
+    # one recording each way: which is right cannot be told, both are refused; an unknown end (0) is no vote
+    tie = pairs.swapped_subjects([("A", "a.c3d", 1), ("B", "b.c3d", -1), ("C", "c.c3d", 0)])
+    assert [r.trial for r in tie] == ["A", "B"] and "which is right cannot be told" in tie[0].reason
+
+
+def test_a_table_already_lifted_in_the_floor_window_is_refused(tmp_path, cli):
+    """The recording starts with the table held 8 cm up, then lifted to 15 cm for the forward carriage: the floor
+    level was measured on the lifted table, and the forward carriage began at the second lift (3 s), not before the
+    recording, without a word."""
+    def held(p):
+        p["z"] += 0.08 * (1 - _min_jerk(p["time"].to_numpy(), 3.0, 3.4))
+    _bad(tmp_path, cli, _table(pair_recording("P1"), held), [trials_row("P1", pair="P01", scenario=1)],
+         "trial P1: the table rests at 0.770 m at 8.8-12.2 s, 0.080 m below the floor level measured over the first "
+         "0.5 s (0.850 m): it was lifted when the recording started, and its first carriage is cut off")
+
+
+def test_a_table_carried_back_without_a_set_down_is_one_carriage_and_refused(tmp_path, cli):
+    """No set-down at the goal: one carriage there and back, which cannot be split into forward and return."""
+    def no_set_down(p):
+        t = p["time"].to_numpy()
+        p["z"] += 0.15 * (_min_jerk(t, 8.6, 9.0) - _min_jerk(t, 12.0, 12.4))
+    _bad(tmp_path, cli, _table(pair_recording("P1"), no_set_down), [trials_row("P1", pair="P01", scenario=1)],
+         "trial P1: found 1 table carriages (3.1-17.9 s), height above the floor level 0.770 m + 5 mm for 0.5 s; "
+         "expected 2 (forward, return); if the file holds one carriage, give its direction (forward or return) in the "
+         "trials table; if the table was carried back without being set down, its carriages cannot be told apart: "
+         "leave the trial out")
+
+
+@pytest.mark.parametrize("row, expected", [
+    (dict(direction="Return"), "trial P1: direction 'Return' is neither 'forward' nor 'return'"),
+    (dict(direction="forward", configuration="Gris"), "trial P1: configuration 'Gris' is neither 'gris' nor 'jaune'"),
+    (dict(direction="forward", scenario=4), "trial P1: scenario 4 is not 1 (Subject 1 knows the goal), 2 (Subject 2) or 3 (both)"),
+])
+def test_pair_labels_outside_the_protocol_are_refused(tmp_path, cli, row, expected):
+    """A direction 'Return' was a direction of its own (its scenario not set to 3, its end not measured), a scenario 4
+    a scenario of its own, and a configuration 'Gris' no family: its returns, grouped by their measured end
+    orientation instead of the configuration, made one mean each, without a word."""
+    def one_carriage(p):
+        p.loc[p["time"] > 10.0, "z"] = 0.77
+    _bad(tmp_path, cli, _table(pair_recording("P1"), one_carriage), [trials_row("P1", pair="P01", **{"scenario": 1, **row})],
+         expected)
+
+
+def test_floor_level_from_the_first_seconds_the_table_is_seen():
+    """The table unseen for the first second of the recording: the floor level is measured when it is first seen
+    (before: NaN, and no carriage found)."""
+    t, h = _lift_profile()
+    h[t < 1.0] = np.nan
+    found, h0 = segmentation.carriages(h, RATE, threshold=0.005)
+    assert h0 == pytest.approx(0.77) and len(found) == 2
+
+
+def test_a_file_with_a_direction_holding_both_carriages_is_told_to_leave_it_empty(tmp_path, cli):
+    _bad(tmp_path, cli, pair_recording("P1"), [trials_row("P1", pair="P01", scenario=1, direction="forward")],
+         "expected 1 (forward); if the file holds a forward and a return carriage, leave its direction empty in the "
+         "trials table;")
 
 
 def test_bad_markers_of_a_trial_not_in_trials(tmp_path, cli):

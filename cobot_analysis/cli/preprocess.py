@@ -39,7 +39,8 @@ def preprocess_command(
              "forward-backward (effective order 2*ORDER, -6 dB at the cut-off).")] = OrderConvention.effective,
     samples: Annotated[int, typer.Option("--samples", "-n", help="Samples per time-normalised trajectory (endpoints included) (>= 2).")] = 500,
     lift_threshold: Annotated[float, typer.Option("--lift-threshold", help="Pair study: table height above the floor level that marks a carriage (m) (>= 0).")] = 0.005,
-    floor_window: Annotated[float, typer.Option("--floor-window", help="Pair study: floor level = median table height over this first part of the recording (s) (>= 0).")] = 0.5,
+    floor_window: Annotated[float, typer.Option("--floor-window", help="Pair study: floor level = median table height over the first seconds (this many) in which the table is seen (>= 0).")] = 0.5,
+    min_set_down: Annotated[float, typer.Option("--min-set-down", help="Pair study: two lifts of the table set down for less than this (s) between them are one carriage (the carriers re-grip it); 0: never (>= 0).")] = 0.0,
     speed_threshold: Annotated[float, typer.Option("--speed-threshold", help="Walking: CoM speed that marks walking (m/s) (>= 0).")] = 0.1,
     rest_speed: Annotated[float, typer.Option("--rest-speed", help="Walking: the walk is extended to where the CoM speed falls below this (m/s) (>= 0).")] = 0.05,
     min_duration: Annotated[float, typer.Option("--min-duration", help="Shortest carriage / walk kept (s); shorter runs are ignored (>= 0).")] = 0.5,
@@ -67,7 +68,7 @@ def preprocess_command(
 
     done = data.preprocess(out, markers=markers, trials=trials, max_gap=max_gap, cutoff=cutoff, order=order,
                            order_convention=order_convention.value, n_samples=samples, lift_threshold=lift_threshold,
-                           floor_window=floor_window, speed_threshold=speed_threshold, rest_speed=rest_speed,
+                           floor_window=floor_window, min_set_down=min_set_down, speed_threshold=speed_threshold, rest_speed=rest_speed,
                            min_duration=min_duration, min_rest=min_rest, gamma_min_speed=gamma_min_speed, keep_approach=keep_approach,
                            orientation_markers=orientation_markers.value, skip_bad=skip_bad, jobs=jobs, scheduler=scheduler,
                            force=force)

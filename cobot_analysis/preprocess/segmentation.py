@@ -4,9 +4,12 @@ Pair-study recordings (walk-to-table, forward carriage, set-down, return carriag
 table height ``h`` (mean z of the visible table corners, ``kinematics.table_height``):
 
 - floor level ``h0`` = median of ``h`` over the first ``floor_window`` seconds (default 0.5 s) of
-  the recording, when the table rests on the floor before the subjects reach it;
+  the recording from the first sample where the table is seen, when it rests on the floor before the
+  subjects reach it;
 - the table is carried while ``h > h0 + threshold`` (default 5 mm); each maximal run of such
   samples lasting at least ``min_duration`` (default 0.5 s, to ignore bumps) is a carriage;
+- two carriages set down for less than ``min_set_down`` (default 0 s: never) between them are one: the
+  carriers set the table down to re-grip it;
 - onset = first sample of the run, offset = its last sample (so ``travel_time = offset - onset``).
 
 Walking trials are cut by the pelvis CoM speed, with hysteresis: the subject walks while
@@ -33,6 +36,7 @@ FLOOR_WINDOW = 0.5  # s at the start of the recording
 SPEED_THRESHOLD = 0.1  # m/s
 REST_SPEED = 0.05  # m/s
 MIN_DURATION = 0.5  # s
+MIN_SET_DOWN = 0.0  # s: a shorter set-down between two lifts (a re-grip) joins them into one carriage
 MIN_REST = 1.0  # s: standing still this long between two walks of a recording makes them two walks
 
 
@@ -44,19 +48,30 @@ def runs(active: np.ndarray, min_samples: int = 1) -> list[tuple[int, int]]:
 
 
 def floor_level(height: np.ndarray, rate: float, window: float = FLOOR_WINDOW) -> float:
-    """Resting table height: median of the valid heights in the first ``window`` seconds."""
-    head = np.asarray(height, dtype=float)[: max(1, int(round(window * rate)))]
-    head = head[~np.isnan(head)]
-    return float(np.median(head)) if head.size else float("nan")
+    """Resting table height: median of the valid heights in the first ``window`` seconds from the first sample where
+    the table is seen."""
+    height = np.asarray(height, dtype=float)
+    seen = np.flatnonzero(~np.isnan(height))
+    if not seen.size:
+        return float("nan")
+    head = height[seen[0]: seen[0] + max(1, int(round(window * rate)))]
+    return float(np.median(head[~np.isnan(head)]))
 
 
 def carriages(height: np.ndarray, rate: float, threshold: float = LIFT_THRESHOLD, window: float = FLOOR_WINDOW,
-              min_duration: float = MIN_DURATION) -> tuple[list[tuple[int, int]], float]:
+              min_duration: float = MIN_DURATION, min_set_down: float = MIN_SET_DOWN) -> tuple[list[tuple[int, int]], float]:
     """Carriage (onset, offset) sample pairs of a pair recording and the floor level used."""
     h0 = floor_level(height, rate, window)
     with np.errstate(invalid="ignore"):
         lifted = np.asarray(height, dtype=float) > h0 + threshold
-    return runs(lifted, max(1, int(round(min_duration * rate)))), h0
+    found = runs(lifted, max(1, int(round(min_duration * rate))))
+    joined = found[:1]
+    for on, off in found[1:]:
+        if (on - joined[-1][1]) / rate < min_set_down:
+            joined[-1] = (joined[-1][0], off)
+        else:
+            joined.append((on, off))
+    return joined, h0
 
 
 def walks(speed: np.ndarray, rate: float, threshold: float = SPEED_THRESHOLD, min_duration: float = MIN_DURATION,

@@ -17,7 +17,10 @@ Order of operations, per recording:
    ``end_orientation`` is the measured table orientation at its offset), walking trials by CoM
    speed. With ``keep_approach``, each subject's walk to the table (speed segmentation before the
    first lift) is kept as ``<recording>_approach`` (direction "approach", subjects only). A walking
-   recording where nobody walks (a static recording) is refused as such;
+   recording where nobody walks (a static recording) is refused as such, and so is a pair recording that
+   contradicts the protocol (``pairs.py``: the number of carriages, a return that does not go back to the
+   start, an end orientation off the table's, Subject 1 at the other end of the table than in the study's
+   other recordings);
 6. per trajectory: gamma (``kinematics.gamma``, ends held below ``gamma_min_speed``), quality
    flags, time normalisation to N samples (``normalisation.py``) -> ``trajectories.parquet``, with
    the pelvis markers used (``pelvis_markers``, e.g. 'LASI,RASI,SACR'; empty for the table).
@@ -62,7 +65,7 @@ from cobot_analysis.errors import InputError
 from cobot_analysis.io.markers import Refused, refusal_error
 from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, MAX_SPIKE, check_positions
 from cobot_analysis.io.protocol import PELVIS_MARKERS, SACRUM, TABLE_MARKERS, pelvis_definition, pelvis_requirement
-from cobot_analysis.preprocess import filtering, gaps, normalisation, segmentation
+from cobot_analysis.preprocess import filtering, gaps, normalisation, pairs, segmentation
 from cobot_analysis.schema import MARKERS, TRIAL_COLUMNS, TRIALS, VERIFY, read_table, table_metadata
 
 SUBJECT_ENTITIES = ("walker", "subject1", "subject2")
@@ -87,6 +90,7 @@ class Params:
     speed_threshold: float = segmentation.SPEED_THRESHOLD  # m/s
     rest_speed: float = segmentation.REST_SPEED  # m/s
     min_duration: float = segmentation.MIN_DURATION  # s
+    min_set_down: float = segmentation.MIN_SET_DOWN  # s: a shorter set-down joins two lifts (a re-grip)
     min_rest: float = segmentation.MIN_REST  # s
     gamma_min_speed: float = kin.GAMMA_MIN_SPEED  # m/s
     keep_approach: bool = False
@@ -97,7 +101,7 @@ class Params:
         """Bounded before any work: durations, rates and thresholds finite and >= 0 (``inf`` overflowed
         in ``round(max_gap * rate)``), at least 2 samples and an order >= 1."""
         for name in ("max_gap", "cutoff", "lift_threshold", "floor_window", "speed_threshold", "rest_speed", "min_duration",
-                     "min_rest", "gamma_min_speed"):
+                     "min_set_down", "min_rest", "gamma_min_speed"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value < 0:
                 raise InputError(f"{option_name(name)} {value!r} is not a finite number >= 0",
@@ -484,7 +488,13 @@ def process_recording(rec: Recording, p: Params) -> dict[str, Any]:
             meta, numeric = _trajectory(base, e, kinem[e], on, off, rate, p, cut, later)
             meta["pelvis_markers"] = None if e == "table" else ",".join(used[e])
             out.append((meta, numeric))
-    return {"gaps": gap_rows, "trajectories": out}
+    result: dict[str, Any] = {"gaps": gap_rows, "trajectories": out}
+    if {"subject1", "subject2", "table"} <= set(entities):  # the end each subject holds, checked across recordings
+        carried = np.concatenate([np.arange(on, off + 1) for label, on, off, *_ in segs if label != "approach"])
+        k = {e: kinem[e]["xy"][carried] for e in ("subject1", "subject2")}
+        result["subject1_end"] = (rec.trial, rec.source, pairs.subject1_end(k["subject1"], k["subject2"],
+                                                                            kinem["table"]["theta"][carried]))
+    return result
 
 
 def process_or_refuse(rec: Recording, p: Params) -> dict[str, Any] | Refused:
@@ -515,15 +525,18 @@ def _segments(rec: Recording, p: Params, entities: list[str], has_table: bool, m
                              remedy="leave it out of the protocol; for a slow walk lower --speed-threshold / --min-duration")
         # the first walk is the trial's (later ones: e.g. back to the start, flagged later_walks)
         return [(None, *found[0], subjects, segmentation.cut_off(speed, *found[0]), len(found) - 1)]
+    pairs.check_labels(rec.trial, rec.source, rec.meta)
     height = kin.table_height(*(mk[("table", m)] for m in TABLE_MARKERS))
-    found, h0 = segmentation.carriages(height, rate, p.lift_threshold, p.floor_window, p.min_duration)
+    found, h0 = segmentation.carriages(height, rate, p.lift_threshold, p.floor_window, p.min_duration, p.min_set_down)
     direction = rec.meta.get("direction")
     labels = [str(direction)] if isinstance(direction, str) and direction else ["forward", "return"]
-    if len(found) != len(labels):
-        raise InputError(f"trial {rec.trial}: found {len(found)} table carriages (height above the floor level "
-                         f"{h0:.3f} m + {p.lift_threshold * 1000:g} mm for {p.min_duration} s), expected {len(labels)} "
-                         f"({', '.join(labels)})", path=rec.source,
-                         remedy="check the table markers, or adjust --lift-threshold / --floor-window / --min-duration")
+    pairs.check_floor(rec.trial, rec.source, height, h0, rate, p.floor_window, p.min_duration)
+    pairs.check_count(rec.trial, rec.source, found, labels, h0, rate, p.lift_threshold, p.min_duration,
+                      p.min_set_down)
+    if labels == ["forward", "return"]:
+        pairs.check_return(rec.trial, rec.source, found, kinem["table"]["xy"], rate)
+    if "forward" in labels:
+        pairs.check_end_orientation(rec.trial, rec.source, rec.meta, kinem["table"]["theta"][found[labels.index("forward")][1]])
     segs = [(lab, a, b, entities, segmentation.cut_off(height, a, b), 0) for lab, (a, b) in zip(labels, found)]
     if p.keep_approach:  # each subject's walk to the table: speed segmentation before the first lift
         on = found[0][0]
@@ -649,6 +662,11 @@ def finish(done: list[dict[str, Any] | Refused], p: Params, markers_path: Path) 
     refused ones named together in one ``InputError`` unless ``p.skip_bad`` (and some recording is good)."""
     refused = [r for r in done if isinstance(r, Refused)]
     results = [r for r in done if not isinstance(r, Refused)]
+    swapped = pairs.swapped_subjects([r["subject1_end"] for r in results if "subject1_end" in r])
+    if swapped:  # Subject 1 at the other end of the table than in the other recordings
+        names = {r.trial for r in swapped}
+        results = [r for r in results if r.get("subject1_end", ("",))[0] not in names]
+        refused += swapped
     if refused and (not p.skip_bad or not results):
         raise refusal_error(refused, len(done), markers_path, "preprocess")
     traj, gap_df = assemble(results, p.n_samples)

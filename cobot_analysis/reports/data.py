@@ -144,7 +144,7 @@ def preprocess_summary(traj: pd.DataFrame, gap_df: pd.DataFrame, p: Params, n_re
         f"{p.n_samples} samples. Filter: Butterworth low-pass order {p.order} ({p.order_convention} convention), "
         f"{p.cutoff:g} Hz, zero-phase; gaps up to {p.max_gap:g} s filled by cubic spline. Segmentation: pair "
         f"recordings where the table is {p.lift_threshold * 1000:g} mm above its resting height (median of the first "
-        f"{p.floor_window:g} s), walking trials where the CoM speed exceeds {p.speed_threshold:g} m/s for "
+        f"{p.floor_window:g} s{f'; lifts set down less than {p.min_set_down:g} s apart are one carriage' if p.min_set_down else ''}), walking trials where the CoM speed exceeds {p.speed_threshold:g} m/s for "
         f"{p.min_duration:g} s (extended to {p.rest_speed:g} m/s; a rest of {p.min_rest:g} s separates two walks). Orientation is reported missing for a trajectory "
         f"with a long gap on {'any pelvis marker' if p.orientation_markers == 'pelvis' else 'LASI or RASI'}.", "",
         f"Gaps in the pelvis/table markers: {len(gap_df)} ({int(gap_df['filled'].sum())} filled, "
