@@ -58,7 +58,7 @@ def test_stats_anthropometrics_without_its_files_is_not_ignored(tmp_path, cli):
     empty = tmp_path / "anthro"
     empty.mkdir()
     line = one_line(*cli("stats", "--out", ws, "--anthropometrics", empty)[::2])
-    assert f"{empty}: no subjects.csv and pairs.csv in this directory; pass the folder synth pairs wrote" in line
+    assert f"{empty}: no subjects.csv and pairs.csv in this directory; pass the folder of the study's subjects.csv and pairs.csv" in line
     assert not (ws / "stats").exists()
 
 

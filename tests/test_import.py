@@ -1131,3 +1131,29 @@ def test_a_pelvis_of_another_marker_set_is_refused_with_the_map_that_imports_it(
                           f"the labels look like another marker set's pelvis: {expected}")
     assert msg.count("--map") == 4
     assert run(["-q", "import", str(proto), "--out", str(tmp_path / "ok"), *expected.split(), "-j", "1"]) == 0
+
+
+def test_stats_take_the_anthropometrics_of_the_study_imported_not_of_a_synthetic_study_beside_it(tmp_path):
+    """stats' default anthropometrics were OUT/synth-pairs's whenever the workspace held the synthetic study: a lab's
+    pairs P1... imported into the same workspace got the synthetic pairs' weights and heights, without a word. Now they
+    are the subjects and pairs of the protocol the import read; none without weights and heights."""
+    from cobot_analysis.cli import run
+    from cobot_analysis.stages.analysis import protocol_anthropometrics
+
+    m = {**person(50, prefix="S1:"), **person(50, x0=1.8, prefix="S2:", extra=()), **table(50)}
+    write_c3d(tmp_path / "a.c3d", m)
+    trials = pd.DataFrame({"trial": ["t1"], "file": ["a.c3d"], "pair": ["P1"]})
+    subjects = pd.DataFrame({"id": ["A", "B"], "weight": [60.0, 85.5], "height": [1.60, 1.90]})
+    pairs = pd.DataFrame({"id": ["P1"], "subject1": ["A"], "subject2": ["B"]})
+    proto = save_protocol(tmp_path / "protocol.yaml", "lab-pairs", trials, subjects=subjects, pairs=pairs)
+    ws = tmp_path / "ws"
+    (ws / "synth-pairs").mkdir(parents=True)  # a synthetic study's tables beside it, with the same pair id
+    pairs.to_csv(ws / "synth-pairs" / "pairs.csv", index=False)
+    subjects.assign(weight=[70.0, 70.0], height=[1.7, 1.7]).to_csv(ws / "synth-pairs" / "subjects.csv", index=False)
+    assert run(["-q", "import", str(proto), "--out", str(ws), "-j", "1"]) == 0
+    anthro, files = protocol_anthropometrics(ws)
+    assert anthro.to_dict("records") == [{"pair": "P1", "weight_diff": 25.5, "height_diff": pytest.approx(0.30)}]
+    assert files == [proto, tmp_path / "subjects.csv", tmp_path / "pairs.csv"]
+    save_protocol(proto, "lab-pairs", trials, subjects=subjects.drop(columns=["weight", "height"]), pairs=pairs)
+    assert protocol_anthropometrics(ws) == (None, [])
+    assert protocol_anthropometrics(tmp_path / "no-import") == (None, [])

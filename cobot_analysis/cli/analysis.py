@@ -97,7 +97,7 @@ def stats_command(
     trajectories: TrajOpt = None,
     distances: Annotated[Optional[Path], typer.Option("--distances", help="distances.parquet (default: WS/compare/).")] = None,
     durations: Annotated[Optional[Path], typer.Option("--durations", help="Published per-trial durations (default: WS/import-published/durations.parquet if present).")] = None,
-    anthropometrics: Annotated[Optional[Path], typer.Option("--anthropometrics", help="Directory with subjects.csv (id, weight, height) and pairs.csv (id, subject1, subject2).")] = None,
+    anthropometrics: Annotated[Optional[Path], typer.Option("--anthropometrics", help="Directory with subjects.csv (id, weight, height) and pairs.csv (id, subject1, subject2) (default: the subjects and pairs of the protocol the workspace's import read).")] = None,
     convention: ConventionOpt = None,
     force: ForceOpt = False,
 ) -> None:

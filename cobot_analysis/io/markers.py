@@ -586,7 +586,7 @@ def plan_import(protocol_path: str | os.PathLike, *, units: str = "auto", marker
         mapping.update(load_marker_map(marker_map_file))
         inputs.append(Path(marker_map_file))
     mapping.update(marker_map or {})
-    tables = [ref for key in ("trials", "subjects", "pairs") if (ref := _protocol_csv(protocol.path, key)) is not None]
+    tables = protocol_tables(protocol.path)
     inputs += tables
     files = [protocol.file_path(f) for f in protocol.trials["file"]]  # resolved
     pair_study = "pair" in protocol.trials.columns and protocol.trials["pair"].notna().any()
@@ -595,7 +595,8 @@ def plan_import(protocol_path: str | os.PathLike, *, units: str = "auto", marker
     limits = {"lab_extent": lab_extent, "max_speed": max_speed, "max_spike": max_spike}
     root = protocol.path.parent.resolve()  # allow_outside: the files outside(protocol.path.parent, f)
     outside_files = [str(f) for f in [*(Path(t).resolve() for t in tables), *files] if not f.is_relative_to(root)]
-    params = {"units": units, "marker_map": mapping, "keep_all_markers": keep_all, "entities": protocol.entities,
+    params = {"protocol": str(protocol.path.resolve()), "units": units, "marker_map": mapping, "keep_all_markers": keep_all,
+              "entities": protocol.entities,
               "skip_bad": skip_bad, "allow_outside": protocol.allow_outside, "outside_files": outside_files, "up": up, **limits}
     return ImportPlan(protocol, tasks, inputs + [Path(f) for f in files], params, limits)
 
@@ -708,9 +709,9 @@ def stream_import(plan: ImportPlan, markers_path: Path, *, jobs: int | None = No
     return out
 
 
-def _protocol_csv(protocol_path: Path, key: str) -> Path | None:
-    """The CSV file a protocol section points to, if it is one (for the stage's input hashes)."""
+def protocol_tables(protocol_path: Path, keys: tuple[str, ...] = ("trials", "subjects", "pairs")) -> list[Path]:
+    """The CSV files the protocol's sections ``keys`` point to (those given inline have none), for input hashes."""
     import yaml
 
-    ref = (yaml.safe_load(protocol_path.read_text()) or {}).get(key)
-    return protocol_path.parent / ref if isinstance(ref, str) else None
+    doc = yaml.safe_load(Path(protocol_path).read_text()) or {}
+    return [Path(protocol_path).parent / doc[k] for k in keys if isinstance(doc.get(k), str)]

@@ -83,6 +83,31 @@ def compare(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
     return Outcome(stage.final_dir, result)
 
 
+def protocol_anthropometrics(out: Path) -> tuple[object, list[Path]]:
+    """(``stats.sources.anthropometrics`` of the subjects and pairs of the protocol the workspace's ``import`` read, the
+    files they come from); (None, []) without an import, its protocol, pairs in it, or the subjects' weight and
+    height. Not a synthetic study's
+    tables because the workspace holds one: a lab's pairs P01... would get the synthetic pairs' weights."""
+    import json
+
+    from cobot_analysis.io.markers import protocol_tables
+    from cobot_analysis.io.protocol import load_protocol
+    from cobot_analysis.stats.sources import anthropometrics
+
+    manifest = out / "import" / "manifest.json"
+    try:
+        protocol = Path(json.loads(manifest.read_text())["params"]["protocol"])
+    except (OSError, ValueError, KeyError, IndexError, TypeError):
+        return None, []
+    if not protocol.is_file():
+        return None, []
+    p = load_protocol(protocol)
+    if not {"weight", "height"} <= set(p.subjects.columns):
+        return None, []
+    table = anthropometrics(p.subjects, p.pairs, protocol)
+    return table, ([protocol, *protocol_tables(protocol, ("subjects", "pairs"))] if table is not None else [])
+
+
 def statistics(out: str | os.PathLike, *, config: str | os.PathLike | None = None, trajectories: str | os.PathLike | None = None,
                distances: str | os.PathLike | None = None, durations: str | os.PathLike | None = None,
                anthropometrics: str | os.PathLike | None = None, convention: str | None = None,
@@ -121,14 +146,16 @@ def statistics(out: str | os.PathLike, *, config: str | os.PathLike | None = Non
             raise InputError("durations table lacks a duration column", path=dur_path, remedy="re-run import-published")
     elif durations is not None:
         raise InputError("file not found", path=durations, remedy="check --durations")
-    anthro_dir = Path(anthropometrics) if anthropometrics is not None else (
-        out / "synth-pairs" if (out / "synth-pairs" / "pairs.csv").is_file() else None)
-    anthro = read_anthropometrics(anthro_dir)
-    if anthropometrics is not None and anthro is None:
-        raise InputError("no subjects.csv and pairs.csv in this directory", path=anthro_dir,
-                         remedy="pass the folder synth pairs wrote (OUT/synth-pairs), or omit --anthropometrics")
-    inputs = [p for p in (config, path, dist_path, dur_path if dur is not None else None) if p] + \
-        ([anthro_dir / "subjects.csv", anthro_dir / "pairs.csv"] if anthro is not None else [])
+    if anthropometrics is not None:
+        anthro_dir = Path(anthropometrics)
+        anthro = read_anthropometrics(anthro_dir)
+        if anthro is None:
+            raise InputError("no subjects.csv and pairs.csv in this directory", path=anthro_dir,
+                             remedy="pass the folder of the study's subjects.csv and pairs.csv, or omit --anthropometrics")
+        anthro_files = [anthro_dir / "subjects.csv", anthro_dir / "pairs.csv"]
+    else:  # the study's own subjects and pairs: those of the protocol its import read
+        anthro, anthro_files = protocol_anthropometrics(out)
+    inputs = [p for p in (config, path, dist_path, dur_path if dur is not None else None) if p] + anthro_files
     with Stage(out, registry.directory("stats", conv.name), inputs=inputs,
                params={"config": str(config), "convention": conv.name}, force=force) as stage:
         if stage.skipped:

@@ -241,21 +241,31 @@ def return_variability_source(ts: TrajectorySet, alpha: float = 0.05, n_points: 
 
 
 def read_anthropometrics(directory: Path | None) -> pd.DataFrame | None:
-    """``pairs.csv`` (id, subject1, subject2) and ``subjects.csv`` (id, weight, height) -> per pair
-    |weight_1 - weight_2| (kg) and |height_1 - height_2| (m); None when not available."""
+    """``pairs.csv`` (id, subject1, subject2) and ``subjects.csv`` (id, weight, height) of ``directory`` ->
+    ``anthropometrics``; None when not available."""
     if directory is None:
         return None
     pairs_csv, subjects_csv = Path(directory) / "pairs.csv", Path(directory) / "subjects.csv"
     if not (pairs_csv.is_file() and subjects_csv.is_file()):
         return None
+    return anthropometrics(pd.read_csv(subjects_csv), pd.read_csv(pairs_csv), directory)
+
+
+def anthropometrics(subjects: pd.DataFrame, pairs: pd.DataFrame, path=None) -> pd.DataFrame | None:
+    """A study's subjects (id, weight, height) and pairs (id, subject1, subject2) -> per pair
+    |weight_1 - weight_2| (kg) and |height_1 - height_2| (m); None when the study has no pairs or no subjects.
+    ``path``: where they come from, for the message of a table that lacks a column."""
     from cobot_analysis.errors import InputError
 
-    pairs, subjects = pd.read_csv(pairs_csv), pd.read_csv(subjects_csv)
+    if pairs.empty or subjects.empty:
+        return None
     need = {"id", "weight", "height"}
     if not need <= set(subjects.columns) or not {"id", "subject1", "subject2"} <= set(pairs.columns):
-        raise InputError("anthropometrics need subjects.csv (id, weight, height) and pairs.csv (id, subject1, subject2)",
-                         path=directory, remedy="fix the CSV headers or omit --anthropometrics")
-    s = subjects.set_index("id")
+        raise InputError("anthropometrics need subjects (id, weight, height) and pairs (id, subject1, subject2)",
+                         path=path, remedy="fix the tables' columns, or give --anthropometrics a directory of subjects.csv "
+                                           "and pairs.csv")
+    s = subjects.assign(id=subjects["id"].astype(str)).set_index("id")
+    pairs = pairs.assign(subject1=pairs["subject1"].astype(str), subject2=pairs["subject2"].astype(str))
     out = pd.DataFrame({"pair": pairs["id"].astype(str)})
     out["weight_diff"] = (pairs["subject1"].map(s["weight"]) - pairs["subject2"].map(s["weight"])).abs().to_numpy()
     out["height_diff"] = (pairs["subject1"].map(s["height"]) - pairs["subject2"].map(s["height"])).abs().to_numpy()
