@@ -65,7 +65,7 @@ COLUMNS = {
                         levels={"forward": "to the goal", "return": "back to the start"}),
     "scenario": Factor("scenario", "scenario", "who knows the goal", short="sc"),
     "configuration": Factor("configuration", "end configuration", "family of the table's end orientations"),
-    "end_orientation": Factor("end_orientation", "end orientation", "the table's planned orientation at the goal (rad)"),
+    "end_orientation": Factor("end_orientation", "end orientation", "the table's orientation at the goal, the direction TAB1 -> TAB2 (rad)"),
     "repetition": Factor("repetition", "repetition", "repetition number within the condition", short="rep"),
     "entity": Factor("entity", "entity", "who or what moves",
                      levels={"walker": "the walking subject", "subject1": "Subject 1", "subject2": "Subject 2",
