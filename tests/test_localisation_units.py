@@ -394,3 +394,21 @@ def test_isolated_spikes_and_stray_stamps_are_refused_and_a_jump_at_an_end_is_wa
     assert len(s) == 200 and s.xyz[0, 0] == -1.0
     assert "1 jump(s) between consecutive poses faster than 10 m/s or 10 rad/s (up to 100 m/s" in s.meta["notes"][0]
     assert "1 jump(s)" in caplog.text
+
+
+def test_truth_dropout_is_not_interpolated_in_the_delay_search():
+    """The motion capture missing 30 s in the middle (a rigid body out of view): the delay search must not
+    compare the ICP with the straight line the interpolation draws across the gap (it pulled the delay
+    of this walk from 0.537 s to 0.605 s), and the run says how many ICP poses were left out and why."""
+    truth = _walk()
+    icp = _icp_of(truth, 0.537, np.zeros(4), np.array([0.005, 0.005, 0.003, 0.003]))
+    gap = (truth.t > truth.t[0] + 10) & (truth.t < truth.t[0] + 40)
+    truth = truth.select(~gap)
+    d = estimate_delay(truth, icp, (0.0, 1.5), max_gap=0.05)
+    assert abs(d.value - 0.537) < 0.005
+    c = compare(truth, icp)
+    assert abs(c.delay.value - 0.537) < 0.005
+    assert c.summary["n"] == pytest.approx(len(icp) - 300, abs=2)
+    text = c.coverage
+    assert text.startswith(f"{c.summary['n']} of {len(icp)} ICP poses compared") and "gap of 30 s" in text
+    assert compare(_walk(), _icp_of(_walk(), 0.537, np.zeros(4), np.zeros(4))).coverage is None

@@ -80,10 +80,10 @@ def analyse_run(task: tuple[str, str, str, Options]) -> dict:
     cmp = compare(truth, icp, delay=o.delay, window=o.window, weights=o.weights, alignment=o.alignment,
                   association=o.association, max_gap=o.max_gap, max_diff=o.max_diff,
                   distance_window=o.distance_window, min_samples=o.min_samples, path=path)
-    edge = cmp.delay.edge_warning()
-    if edge:
-        warn(f"{path}: {edge}")
-        notes.append(edge)
+    for text in (cmp.delay.edge_warning(), cmp.coverage):
+        if text:
+            warn(f"{path}: {text}")
+            notes.append(text)
     row = {"run": run, "file": str(path), "map": map_label, "truth": o.truth, "icp": o.icp, "time_base": o.time,
            "up_truth": up_truth.describe(), "up_icp": up_icp.describe(), **{k: v for k, v in cmp.summary.items()}}
     goals_df = None

@@ -10,13 +10,15 @@ Notation: ``s_i`` the ICP stamps, ``P(t)`` the motion-capture (truth) pose, ``Q_
    0.05 s, so that one missing sample is bridged at any rate). ``association="nearest"`` instead
    takes the truth sample nearest to ``s_i - d`` within ``max_diff`` (the nearest-stamp matching
    of evo). Too few associated poses is an error that names its cause (no common time span, or
-   truth gaps longer than ``max_gap``, or no truth sample within ``max_diff``).
+   truth gaps longer than ``max_gap``, or no truth sample within ``max_diff``); a comparison that
+   leaves out many ICP poses, or any in a truth dropout, carries a ``coverage`` warning (``_coverage``).
 2. Delay: ``d* = argmin_d J(d)``, ``J(d) = sum_i sum_a w_a (r_ia(d) - mean_i r_ia(d))^2`` with
    ``r_i(d) = Q_i - P(s_i - d)`` on the axes (x, y, z, yaw) - i.e. the difference that remains
    after the mean offset is removed. A grid scan every 20 ms (or the motion-capture period if
    longer) over the search window finds the basin (far narrower than the gait period, so the
    scan cannot miss it); a golden-section search between the grid neighbours of the best grid
-   point refines it to 1e-6 s. With a rigid alignment (se3, yaw) the position residual is taken
+   point refines it to 1e-6 s. ICP poses whose window ``[s - hi, s - lo]`` meets a truth gap
+   longer than ``max_gap`` are left out of ``J`` (a dropout's interpolated line biases it). With a rigid alignment (se3, yaw) the position residual is taken
    after that alignment at each ``d`` instead of after the mean. Standard error (sandwich, Gauss-Newton):
    ``var d = sum_ia w_a^2 sigma_a^2 g_ia^2 / (sum_ia w_a g_ia^2)^2``, ``g_i = dP/dt (s_i - d)``
    centred, ``sigma_a`` the residual sd of axis a (serially uncorrelated noise assumed). A minimum
@@ -98,6 +100,7 @@ class Comparison:
     alignment: Alignment
     samples: pd.DataFrame  # one row per associated ICP sample
     summary: dict
+    coverage: str | None = None  # the warning when the samples leave out much of the ICP stream (``_coverage``)
 
 
 # ---- 1. time base -----------------------------------------------------------------------------
@@ -132,14 +135,16 @@ def _channels(stream: PoseStream) -> np.ndarray:
 # ---- 2. delay ---------------------------------------------------------------------------------
 def estimate_delay(truth: PoseStream, icp: PoseStream, window: tuple[float, float] = (0.0, 1.5),
                    weights=(1.0, 1.0, 1.0, 1.0), min_samples: int = 20, grid_step: float = 0.02,
-                   rigid: str | None = None) -> Delay:
+                   rigid: str | None = None, max_gap: float = np.inf) -> Delay:
     """Delay of ``icp`` behind ``truth`` (s) minimising ``J(d)`` over ``window`` (module docstring).
 
     ``rigid="se3"`` or ``"yaw"``: the position residual is taken after the rigid alignment of the
-    ICP positions onto the truth at each ``d`` (for frames that differ by a rotation)."""
+    ICP positions onto the truth at each ``d`` (for frames that differ by a rotation). ICP poses
+    whose window ``[s - hi, s - lo]`` meets a truth gap longer than ``max_gap`` are left out (the
+    straight line interpolated across a dropout is no truth, and it biases the delay)."""
     lo, hi = window
     w = np.asarray(weights, dtype=float)
-    keep = (icp.t - hi >= truth.t[0]) & (icp.t - lo <= truth.t[-1])
+    keep = (icp.t - hi >= truth.t[0]) & (icp.t - lo <= truth.t[-1]) & ~_meets_gap(truth.t, icp.t - hi, icp.t - lo, max_gap)
     s = icp.t[keep]
     if len(s) < min_samples:
         return Delay(float("nan"), float("nan"), "not enough overlap", n=len(s), window=(lo, hi))
@@ -187,6 +192,16 @@ def estimate_delay(truth: PoseStream, icp: PoseStream, window: tuple[float, floa
     at_edge = k in (0, len(grid) - 1)
     method = "least squares: grid scan + golden section" + (" (minimum at the window edge)" if at_edge else "")
     return Delay(d, float("nan") if at_edge else sd, method, np.column_stack([grid, costs]), int(len(s)), (lo, hi), at_edge)
+
+
+def _meets_gap(t: np.ndarray, u: np.ndarray, v: np.ndarray, max_gap: float) -> np.ndarray:
+    """Whether each interval ``[u, v]`` overlaps a sample interval of ``t`` longer than ``max_gap``."""
+    if len(t) < 2:
+        return np.zeros(len(u), bool)
+    long = np.concatenate([[0], np.cumsum(np.diff(t) > max_gap)])  # long intervals before each sample
+    first = np.clip(np.searchsorted(t, u, side="right") - 1, 0, len(t) - 2)  # interval k is [t_k, t_k+1]
+    last = np.clip(np.searchsorted(t, v, side="left") - 1, 0, len(t) - 2)
+    return long[last + 1] - long[first] > 0
 
 
 def golden_section(f, a: float, b: float, tol: float) -> float:
@@ -321,6 +336,28 @@ def _too_few(truth: PoseStream, icp: PoseStream, tq, valid, d: Delay, associatio
                                         "across such gaps is acceptable")
 
 
+DROPOUT = 1.0  # s: a truth gap this long that leaves ICP poses out is a dropout the run must mention
+COVERED = 0.9  # fraction of the ICP poses below which the compared samples are said to leave much out
+
+
+def _coverage(truth: PoseStream, icp: PoseStream, tq, valid, max_gap: float, max_diff: float, association: str) -> str | None:
+    """The warning when the compared ICP poses leave out more than ``1 - COVERED`` of them, or any in a truth
+    gap of ``DROPOUT`` s or more: how many, why (outside the truth's span, in its gaps) and the longest gap."""
+    inside = (tq >= truth.t[0]) & (tq <= truth.t[-1])
+    n, total, lost = int(valid.sum()), len(icp), int((inside & ~valid).sum())
+    spacing = np.diff(truth.t)
+    k = int(np.argmax(spacing)) if len(spacing) else 0
+    longest = float(spacing[k]) if len(spacing) else 0.0
+    if n >= COVERED * total and not (lost and longest >= DROPOUT):
+        return None
+    rule = f"--max-gap {max_gap:g} s" if association == "interpolate" else f"no sample within --max-diff {max_diff:g} s"
+    gap = (f", the longest a gap of {longest:.3g} s from {truth.t[k] - truth.t[0]:.1f} s into the motion capture"
+           if lost and longest > max_gap else "")
+    return (f"{n} of {total} ICP poses compared: {total - int(inside.sum())} fall outside the motion-capture span "
+            f"(after the delay), {lost} in its gaps ({rule}{gap}); the errors, the drift and the delay describe the "
+            "compared poses only")
+
+
 def compare(truth: PoseStream, icp: PoseStream, *, delay: float | None = None, window=(0.0, 1.5),
             weights=(1.0, 1.0, 1.0, 1.0), alignment: str = "mean", association: str = "interpolate",
             max_gap: float | None = None, max_diff: float = 0.01, distance_window: float = 2.0,
@@ -329,7 +366,12 @@ def compare(truth: PoseStream, icp: PoseStream, *, delay: float | None = None, w
     None: ``default_max_gap``)."""
     max_gap = default_max_gap(truth) if max_gap is None else float(max_gap)
     if delay is None:
-        dl = estimate_delay(truth, icp, window, weights, min_samples, rigid=alignment if alignment in ("se3", "yaw") else None)
+        dl = estimate_delay(truth, icp, window, weights, min_samples, rigid=alignment if alignment in ("se3", "yaw") else None,
+                            max_gap=max_gap)
+        span = (icp.t - window[1] >= truth.t[0]) & (icp.t - window[0] <= truth.t[-1])
+        if not np.isfinite(dl.value) and span.sum() >= min_samples:  # enough poses, but next to truth gaps
+            near_gap = _meets_gap(truth.t, icp.t - window[1], icp.t - window[0], max_gap)
+            raise _too_few(truth, icp, icp.t - window[0], span & ~near_gap, dl, "interpolate", max_gap, max_diff, min_samples, path)
         if not np.isfinite(dl.value):
             raise InputError(f"too few overlapping samples to estimate the delay ({dl.n} ICP poses inside the motion-capture "
                              f"span for a search window of {window[0]:g}..{window[1]:g} s, need {min_samples}; "
@@ -371,5 +413,5 @@ def compare(truth: PoseStream, icp: PoseStream, *, delay: float | None = None, w
         **{f"err_{a}": err[:, k] for k, a in enumerate(AXES)},
         "err_xyz": np.linalg.norm(err[:, :3], axis=1),
     })
-    return Comparison(dl, al, samples, summary)
+    return Comparison(dl, al, samples, summary, _coverage(truth, icp, tq, valid, max_gap, max_diff, association))
 

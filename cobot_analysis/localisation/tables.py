@@ -61,7 +61,7 @@ RUNS = TableSchema(
         "drift_sd": Column("float", "m/m", "standard error of the slope"),
         "drift_intercept": Column("float", "m", "intercept of that line"),
         "warnings": Column("string", "", "what to read with care, ' | '-separated (frame not z-up, delay at the window edge, "
-                                         "dropped messages, ...); empty when none"),
+                                         "dropped messages, ICP poses not compared, ...); empty when none"),
         "goals_commanded": Column("int", "-", "commanded goals", required=False),
         "goals_found": Column("int", "-", "goals matched to a detected stop", required=False),
         "goals_within_tolerance": Column("int", "-", "goals reached within the stop tolerances", required=False),
