@@ -8,6 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from cobot_analysis.errors import InputError
 from cobot_analysis.localisation import poses as P
 from cobot_analysis.localisation.compare import (
     align,
@@ -412,3 +413,21 @@ def test_truth_dropout_is_not_interpolated_in_the_delay_search():
     text = c.coverage
     assert text.startswith(f"{c.summary['n']} of {len(icp)} ICP poses compared") and "gap of 30 s" in text
     assert compare(_walk(), _icp_of(_walk(), 0.537, np.zeros(4), np.zeros(4))).coverage is None
+
+
+@pytest.mark.parametrize("motion", ["standing", "straight"])
+def test_delay_of_a_run_without_velocity_changes_is_refused(motion):
+    """Standing still, or driving straight at a constant speed, every delay fits alike (the mean offset
+    absorbs a constant shift): the scan's minimum was noise, reported as 1.2 +- 0.07 s."""
+    t = np.arange(0, 30, 0.005) + 1e9
+    rng = np.random.default_rng(0)
+    speed = 0.0 if motion == "standing" else 0.3
+    xyz = np.column_stack([1.0 + speed * (t - t[0]), 0.5 + 0 * t, 0.3 + 0 * t])
+    truth = PoseStream(t, xyz + rng.normal(0, 2e-4, xyz.shape), P.from_yaw(np.zeros_like(t)))
+    icp = _icp_of(truth, 0.55, np.zeros(4), np.array([0.006, 0.006, 0.003, 0.004]))
+    with pytest.raises(InputError, match="the delay cannot be estimated from this run: the motion capture hardly changes "
+                                         "its velocity") as err:
+        compare(truth, icp)
+    assert "give it with --delay" in err.value.remedy
+    assert compare(truth, icp, delay=0.55).summary["ape_rmse"] < 0.02  # the errors themselves are fine
+    assert estimate_delay(_walk(), _icp_of(_walk(), 0.537, np.zeros(4), np.array([0.005] * 4))).determined

@@ -23,7 +23,11 @@ Notation: ``s_i`` the ICP stamps, ``P(t)`` the motion-capture (truth) pose, ``Q_
    ``var d = sum_ia w_a^2 sigma_a^2 g_ia^2 / (sum_ia w_a g_ia^2)^2``, ``g_i = dP/dt (s_i - d)``
    centred, ``sigma_a`` the residual sd of axis a (serially uncorrelated noise assumed). A minimum
    on the first or last grid point of the window is no minimum of ``J``: ``at_edge`` is set, the
-   standard error is NaN, and the run carries a warning to widen the window.
+   standard error is NaN, and the run carries a warning to widen the window. The delay is told only
+   by changes of the truth's velocity (the mean removes a constant shift): when the same estimate
+   with the velocity differenced over +-0.5 s (free of the motion capture's noise, which over +-0.05 s
+   passes for motion when the robot stands still) exceeds ``UNDETERMINED``, ``determined`` is False
+   and ``compare`` refuses to estimate it.
 3. Structural offset: ``o = mean_i (Q_i - P(s_i - d))`` per axis (circular mean for yaw) and
    ``Q_i - o`` (docs/methods.md), or a rigid alignment of the ICP positions onto the truth: Umeyama
    SE(3) (``"se3"``) or a rotation about z plus a translation (``"yaw"``, 4 DoF).
@@ -45,6 +49,7 @@ from cobot_analysis.errors import InputError
 from cobot_analysis.localisation.poses import PoseStream, from_matrix, from_yaw, multiply, normalise, slerp, yaw_of
 
 AXES = ("x", "y", "z", "yaw")
+UNDETERMINED = 0.1  # s: a delay whose standard error from the truth's smoothed velocity exceeds this is not estimated
 
 
 @dataclass
@@ -56,6 +61,7 @@ class Delay:
     n: int = 0
     window: tuple[float, float] = (float("nan"), float("nan"))
     at_edge: bool = False  # the minimum of the scan is on an end of the window
+    determined: bool = True  # the truth's velocity changes enough to tell delays apart (module doc, step 2)
 
     def edge_warning(self) -> str | None:
         """Advice when the estimate is on an end of its search window (module doc, step 2)."""
@@ -183,15 +189,23 @@ def estimate_delay(truth: PoseStream, icp: PoseStream, window: tuple[float, floa
     a, b = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
     d = golden_section(cost, a, b, 1e-6)
     r = residuals(d)
-    h = 0.05  # s, half-width of the centred difference of the truth velocity
-    g = (truth_at(np.clip(s - d + h, tref[0], tref[-1])) - truth_at(np.clip(s - d - h, tref[0], tref[-1]))) / (2 * h)
-    g -= g.mean(axis=0)
     sigma2 = r.var(axis=0, ddof=1)
-    denom = np.sum(w * g * g)
-    sd = float(np.sqrt(np.sum(w * w * sigma2 * g * g)) / denom) if denom > 0 else float("inf")
+
+    def standard_error(h):
+        """The sandwich estimate with the truth velocity as centred differences over +-h seconds (at the ICP
+        poses whose +-h lies inside the truth span: a difference cut short at an end is no velocity)."""
+        tq = s - d
+        inside = (tq - h >= tref[0]) & (tq + h <= tref[-1])
+        g = (truth_at(tq[inside] + h) - truth_at(tq[inside] - h)) / (2 * h)
+        g -= g.mean(axis=0) if len(g) else 0.0
+        denom = np.sum(w * g * g)
+        return float(np.sqrt(np.sum(w * w * sigma2 * g * g)) / denom) if denom > 0 else float("inf")
+
+    sd = standard_error(0.05)
     at_edge = k in (0, len(grid) - 1)
     method = "least squares: grid scan + golden section" + (" (minimum at the window edge)" if at_edge else "")
-    return Delay(d, float("nan") if at_edge else sd, method, np.column_stack([grid, costs]), int(len(s)), (lo, hi), at_edge)
+    return Delay(d, float("nan") if at_edge else sd, method, np.column_stack([grid, costs]), int(len(s)), (lo, hi), at_edge,
+                 standard_error(0.5) <= UNDETERMINED)
 
 
 def _meets_gap(t: np.ndarray, u: np.ndarray, v: np.ndarray, max_gap: float) -> np.ndarray:
@@ -378,6 +392,11 @@ def compare(truth: PoseStream, icp: PoseStream, *, delay: float | None = None, w
                              f"{_spans(truth, icp, None)})", path=path,
                              remedy="check that both topics cover the same time (bag-info) and the --time option (header "
                                     "stamps or record time); a delay outside the window needs a wider --delay-window")
+        if not dl.determined:
+            raise InputError("the delay cannot be estimated from this run: the motion capture hardly changes its velocity "
+                             "(a robot standing still, or moving straight at a constant speed), so every delay in the window "
+                             f"fits alike (the scan's minimum, {dl.value:.3f} s, is noise)", path=path,
+                             remedy="give it with --delay (standing still, any value gives the same errors, e.g. --delay 0)")
     else:
         dl = Delay(float(delay), 0.0, "given")
     tq = icp.t - dl.value
