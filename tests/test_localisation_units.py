@@ -431,3 +431,27 @@ def test_delay_of_a_run_without_velocity_changes_is_refused(motion):
     assert "give it with --delay" in err.value.remedy
     assert compare(truth, icp, delay=0.55).summary["ape_rmse"] < 0.02  # the errors themselves are fine
     assert estimate_delay(_walk(), _icp_of(_walk(), 0.537, np.zeros(4), np.array([0.005] * 4))).determined
+
+
+@pytest.mark.parametrize("motion, alignment, spread", [
+    ("standing", "se3", "hardly spread in any direction"), ("standing", "yaw", "hardly spread in the horizontal plane"),
+    ("straight", "se3", "spread along one direction only")])
+def test_rigid_alignment_fitted_to_noise_is_refused(motion, alignment, spread):
+    """A rotation needs positions spread across it: standing still (se3, yaw), or on a straight line
+    (se3: the roll about the line) the fit rotated the frames by the noise (a yaw offset of -2.98 rad
+    reported for a robot standing still, planted 0.03)."""
+    t = np.arange(0, 30, 0.005) + 1e9
+    rng = np.random.default_rng(0)
+    speed = 0.0 if motion == "standing" else 0.3
+    xyz = np.column_stack([1.0 + speed * (t - t[0]), 0.5 + 0 * t, 0.3 + 0 * t])
+    truth = PoseStream(t, xyz + rng.normal(0, 2e-4, xyz.shape), P.from_yaw(np.zeros_like(t)))
+    icp = _icp_of(truth, 0.55, np.array([0.1, -0.1, 0.05, 0.03]), np.array([0.006, 0.006, 0.003, 0.004]))
+    with pytest.raises(InputError, match=f"--alignment {alignment} is ill-posed on this run: the motion-capture positions "
+                                         f"{spread}") as err:
+        compare(truth, icp, delay=0.55, alignment=alignment)
+    assert "--alignment" in err.value.remedy
+    if motion == "straight":  # the line fixes the rotation about the vertical
+        assert compare(truth, icp, delay=0.55, alignment="yaw").summary["offset_x"] == pytest.approx(0.1, abs=0.002)
+    walk = _walk()
+    for method in ("se3", "yaw"):
+        compare(walk, _icp_of(walk, 0.5, np.zeros(4), np.array([0.005] * 4)), alignment=method)

@@ -276,6 +276,32 @@ def align(method: str, truth_xyz, truth_yaw, icp_xyz, icp_yaw) -> Alignment:
     return Alignment(method, r, t, np.concatenate([inv_t, [-np.arctan2(r[1, 0], r[0, 0])]]))
 
 
+ROTATION_SE = 0.02  # rad: a rigid alignment whose rotation has a larger standard error is fitted to the noise
+
+
+def _check_rotation(method: str, truth_xyz, r, path) -> None:
+    """Refuse a rigid alignment (``se3``, ``yaw``) whose rotation the positions do not fix: its standard
+    error ``sigma / (spread sqrt(n))`` (``sigma`` the sd per axis of the residuals ``r`` left by the fit,
+    ``spread`` the sd of the truth positions along the direction the rotation needs: the second principal
+    one for se3, the first horizontal one for yaw) above ``ROTATION_SE``."""
+    n = len(truth_xyz)
+    sigma = float(np.sqrt(np.mean(r.var(axis=0))))
+    cols = slice(0, 3) if method == "se3" else slice(0, 2)
+    sd = np.linalg.svd(truth_xyz[:, cols] - truth_xyz[:, cols].mean(axis=0), compute_uv=False) / np.sqrt(n)
+    spread = sd[1] if method == "se3" else sd[0]
+    se = sigma / (spread * np.sqrt(n)) if spread > 0 else np.inf
+    if se <= ROTATION_SE:
+        return
+    still = sd[0] * np.sqrt(n) * ROTATION_SE < sigma  # no direction fixes a rotation
+    where = ("hardly spread in the horizontal plane" if method == "yaw" else "hardly spread in any direction" if still
+             else "spread along one direction only")
+    raise InputError(f"--alignment {method} is ill-posed on this run: the motion-capture positions {where} "
+                     f"(sd {', '.join(f'{1000 * v:.3g}' for v in sd)} mm against a residual sd of {1000 * sigma:.3g} mm), so the "
+                     f"rotation would be fitted to the noise (standard error {se:.2g} rad)", path=path,
+                     remedy="use --alignment mean" + (" or yaw (the line fixes the rotation about the vertical)"
+                                                      if method == "se3" and not still else ""))
+
+
 # ---- 4. errors and drift ------------------------------------------------------------------------
 def travelled_distance(truth: PoseStream, window: float = 2.0) -> np.ndarray:
     """Cumulative planar path length of the truth smoothed by a centred moving average over
@@ -392,11 +418,6 @@ def compare(truth: PoseStream, icp: PoseStream, *, delay: float | None = None, w
                              f"{_spans(truth, icp, None)})", path=path,
                              remedy="check that both topics cover the same time (bag-info) and the --time option (header "
                                     "stamps or record time); a delay outside the window needs a wider --delay-window")
-        if not dl.determined:
-            raise InputError("the delay cannot be estimated from this run: the motion capture hardly changes its velocity "
-                             "(a robot standing still, or moving straight at a constant speed), so every delay in the window "
-                             f"fits alike (the scan's minimum, {dl.value:.3f} s, is noise)", path=path,
-                             remedy="give it with --delay (standing still, any value gives the same errors, e.g. --delay 0)")
     else:
         dl = Delay(float(delay), 0.0, "given")
     tq = icp.t - dl.value
@@ -415,6 +436,13 @@ def compare(truth: PoseStream, icp: PoseStream, *, delay: float | None = None, w
     i_yaw = np.unwrap(yaw_of(i_quat))
     al = align(alignment, t_xyz, t_yaw, i_xyz, i_yaw)
     c_xyz, c_quat = al.apply(i_xyz, i_quat)
+    if alignment in ("se3", "yaw"):  # first: the remedy of the delay's error below must work
+        _check_rotation(alignment, t_xyz, c_xyz - t_xyz, path)
+    if not dl.determined:
+        raise InputError("the delay cannot be estimated from this run: the motion capture hardly changes its velocity "
+                         "(a robot standing still, or moving straight at a constant speed), so every delay in the window "
+                         f"fits alike (the scan's minimum, {dl.value:.3f} s, is noise)", path=path,
+                         remedy="give it with --delay (standing still, any value gives the same errors, e.g. --delay 0)")
     c_yaw = np.unwrap(yaw_of(c_quat))
     err = np.column_stack([c_xyz - t_xyz, angle_diff(c_yaw, t_yaw)])
     travelled = travelled_distance(truth, distance_window)
