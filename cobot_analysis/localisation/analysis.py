@@ -80,7 +80,7 @@ def analyse_run(task: tuple[str, str, str, Options]) -> dict:
     cmp = compare(truth, icp, delay=o.delay, window=o.window, weights=o.weights, alignment=o.alignment,
                   association=o.association, max_gap=o.max_gap, max_diff=o.max_diff,
                   distance_window=o.distance_window, min_samples=o.min_samples, path=path)
-    for text in (cmp.delay.edge_warning(), cmp.coverage):
+    for text in (cmp.delay.edge_warning(), *cmp.notes):
         if text:
             warn(f"{path}: {text}")
             notes.append(text)

@@ -34,7 +34,10 @@ Notation: ``s_i`` the ICP stamps, ``P(t)`` the motion-capture (truth) pose, ``Q_
 4. Errors: ``e_i = Q'_i - P(s_i - d)`` per axis; mean +- sd of ``|e|``, RMSE, max; the 3-D
    position error ``||e_xyz||`` (RMSE, mean, max as evo's APE on the translation part); drift:
    least-squares line ``||e_xy|| = a + b s`` against the travelled distance ``s`` (planar path
-   length of the truth smoothed by a centred moving average), b in m per m.
+   length of the truth smoothed by a centred moving average), b in m per m. Jumps (``_jumps``: steps
+   of ``e`` between consecutive poses of at least ``JUMP`` and ``JUMP_FACTOR`` times the median step,
+   a relocalisation) are counted and warned about; with jumps, an estimated delay is estimated again
+   with the mean of each stretch between them removed from the residuals (``segments``).
 """
 
 from __future__ import annotations
@@ -106,7 +109,7 @@ class Comparison:
     alignment: Alignment
     samples: pd.DataFrame  # one row per associated ICP sample
     summary: dict
-    coverage: str | None = None  # the warning when the samples leave out much of the ICP stream (``_coverage``)
+    notes: list[str] = field(default_factory=list)  # warnings: ICP poses left out (``_coverage``), jumps (``_jumps``)
 
 
 # ---- 1. time base -----------------------------------------------------------------------------
@@ -141,13 +144,14 @@ def _channels(stream: PoseStream) -> np.ndarray:
 # ---- 2. delay ---------------------------------------------------------------------------------
 def estimate_delay(truth: PoseStream, icp: PoseStream, window: tuple[float, float] = (0.0, 1.5),
                    weights=(1.0, 1.0, 1.0, 1.0), min_samples: int = 20, grid_step: float = 0.02,
-                   rigid: str | None = None, max_gap: float = np.inf) -> Delay:
+                   rigid: str | None = None, max_gap: float = np.inf, segments: np.ndarray | None = None) -> Delay:
     """Delay of ``icp`` behind ``truth`` (s) minimising ``J(d)`` over ``window`` (module docstring).
 
     ``rigid="se3"`` or ``"yaw"``: the position residual is taken after the rigid alignment of the
     ICP positions onto the truth at each ``d`` (for frames that differ by a rotation). ICP poses
     whose window ``[s - hi, s - lo]`` meets a truth gap longer than ``max_gap`` are left out (the
-    straight line interpolated across a dropout is no truth, and it biases the delay)."""
+    straight line interpolated across a dropout is no truth, and it biases the delay). ``segments``: a
+    label per ICP pose (the stretches between relocalisation jumps), whose offsets are removed one by one."""
     lo, hi = window
     w = np.asarray(weights, dtype=float)
     keep = (icp.t - hi >= truth.t[0]) & (icp.t - lo <= truth.t[-1]) & ~_meets_gap(truth.t, icp.t - hi, icp.t - lo, max_gap)
@@ -155,6 +159,8 @@ def estimate_delay(truth: PoseStream, icp: PoseStream, window: tuple[float, floa
     if len(s) < min_samples:
         return Delay(float("nan"), float("nan"), "not enough overlap", n=len(s), window=(lo, hi))
     q = _channels(icp)[keep]
+    label = np.zeros(len(s), int) if segments is None else np.unique(segments[keep], return_inverse=True)[1]
+    size = np.bincount(label)
     ref = _channels(truth)
     tref = truth.t
 
@@ -172,10 +178,10 @@ def estimate_delay(truth: PoseStream, icp: PoseStream, window: tuple[float, floa
         if rigid:
             rot, t = (umeyama if rigid == "se3" else yaw_alignment)(q[:, :3], p[:, :3])
             r[:, :3] = q[:, :3] @ rot.T + t - p[:, :3]
-        else:
-            r[:, :3] -= r[:, :3].mean(axis=0)
+        for k in range(3):  # the mean of each stretch between jumps (of the whole run without jumps)
+            r[:, k] -= (np.bincount(label, r[:, k]) / size)[label]
         yaw = wrap(r[:, 3])  # finite (both streams are), so its circular mean needs no NaN handling
-        r[:, 3] = wrap(yaw - np.arctan2(np.sin(yaw).sum(), np.cos(yaw).sum()))
+        r[:, 3] = wrap(yaw - np.arctan2(np.bincount(label, np.sin(yaw)), np.bincount(label, np.cos(yaw)))[label])
         return r
 
     def cost(d):
@@ -405,9 +411,54 @@ def compare(truth: PoseStream, icp: PoseStream, *, delay: float | None = None, w
     """Steps 1-4 of docs/methods.md sec. 9 on one run (``delay`` given or estimated; ``max_gap``
     None: ``default_max_gap``)."""
     max_gap = default_max_gap(truth) if max_gap is None else float(max_gap)
+    segments = None
+    while True:  # twice when the ICP jumps: the delay is then estimated between the jumps
+        cmp = _compare_once(truth, icp, delay, window, weights, alignment, association, max_gap, max_diff, distance_window,
+                            min_samples, path, segments)
+        steps = _jumps(cmp.samples["t"].to_numpy(), cmp.samples[[f"err_{a}" for a in AXES]].to_numpy())
+        if delay is not None or segments is not None or not steps.any():
+            break
+        segments = np.searchsorted(cmp.samples["t"].to_numpy()[1:][steps], icp.t, side="right")
+    cmp.summary["jumps"] = int(steps.sum())
+    if steps.any():
+        cmp.notes.append(_jump_note(icp, cmp.samples, steps, delay is None))
+    return cmp
+
+
+JUMP = (0.1, 0.1)  # m, rad: the smallest step of the ICP-minus-truth difference between consecutive poses taken as a jump
+JUMP_FACTOR = 10.0  # ... and it must be this many times the median step (the noise)
+
+
+def _jumps(t: np.ndarray, err: np.ndarray) -> np.ndarray:
+    """Steps ``k -> k + 1`` of the ICP-minus-truth difference ``err`` (n, 4: x, y, z, yaw) that are jumps: a
+    position step of at least ``JUMP[0]`` and ``JUMP_FACTOR`` times the median step, or a yaw step likewise."""
+    if len(t) < 3:
+        return np.zeros(max(len(t) - 1, 0), bool)
+    dp = np.linalg.norm(np.diff(err[:, :3], axis=0), axis=1)
+    dy = np.abs(wrap(np.diff(err[:, 3])))
+    return ((dp >= max(JUMP[0], JUMP_FACTOR * np.median(dp))) | (dy >= max(JUMP[1], JUMP_FACTOR * np.median(dy))))
+
+
+def _jump_note(icp: PoseStream, samples: pd.DataFrame, steps: np.ndarray, estimated: bool) -> str:
+    """The warning for the ICP's jumps: how many, when (s into the ICP stream) and how large."""
+    err = samples[[f"err_{a}" for a in AXES]].to_numpy()
+    k = np.flatnonzero(steps)
+    sizes = np.linalg.norm(err[k + 1, :3] - err[k, :3], axis=1), np.abs(wrap(err[k + 1, 3] - err[k, 3]))
+    t = samples["t"].to_numpy()[k + 1] - icp.t[0]
+    where = ", ".join(f"{a:.1f} s ({b:.2g} m, {c:.2g} rad)" for a, b, c in list(zip(t, *sizes))[:5]) + (", ..." if len(k) > 5 else "")
+    return (f"{len(k)} jump{'s' if len(k) > 1 else ''} of the ICP against the motion capture (a relocalisation: its "
+            f"difference to the truth steps by at least {JUMP[0]:g} m or {JUMP[1]:g} rad between consecutive poses) at "
+            f"{where} into the ICP stream; the errors include {'them' if len(k) > 1 else 'it'}"
+            + (", the delay is estimated with the offset of each stretch between jumps removed" if estimated else ""))
+
+
+def _compare_once(truth: PoseStream, icp: PoseStream, delay, window, weights, alignment: str, association: str,
+                  max_gap: float, max_diff: float, distance_window: float, min_samples: int, path,
+                  segments: np.ndarray | None) -> Comparison:
+    """``compare`` with the delay's stretches between jumps given (``segments``, a label per ICP pose)."""
     if delay is None:
         dl = estimate_delay(truth, icp, window, weights, min_samples, rigid=alignment if alignment in ("se3", "yaw") else None,
-                            max_gap=max_gap)
+                            max_gap=max_gap, segments=segments)
         span = (icp.t - window[1] >= truth.t[0]) & (icp.t - window[0] <= truth.t[-1])
         if not np.isfinite(dl.value) and span.sum() >= min_samples:  # enough poses, but next to truth gaps
             near_gap = _meets_gap(truth.t, icp.t - window[1], icp.t - window[0], max_gap)
@@ -460,5 +511,6 @@ def compare(truth: PoseStream, icp: PoseStream, *, delay: float | None = None, w
         **{f"err_{a}": err[:, k] for k, a in enumerate(AXES)},
         "err_xyz": np.linalg.norm(err[:, :3], axis=1),
     })
-    return Comparison(dl, al, samples, summary, _coverage(truth, icp, tq, valid, max_gap, max_diff, association))
+    coverage = _coverage(truth, icp, tq, valid, max_gap, max_diff, association)
+    return Comparison(dl, al, samples, summary, [coverage] if coverage else [])
 
