@@ -240,3 +240,22 @@ def test_goals_in_millimetres_are_refused(cli, tmp_path, short):
     goals.write_text("goal,x,y,yaw\n1,1500,-800,0\n")
     _fails(cli, tmp_path / "ws", short[0] / "level.mcap", "--goals-csv", goals,
            match=[f"{goals}: goal 1 (1500, -800) lies beyond the lab (|x|, |y| <= 100 m); give x and y in metres"])
+
+
+def test_unset_header_stamps_ask_for_the_record_time(cli, tmp_path, short):
+    """A node that publishes its poses without stamping them (header.stamp 0): all but one message were
+    dropped as repeated stamps and the run refused as '1 pose(s), too few to compare', a remedy that
+    does not work. The record times do."""
+    from dataclasses import replace
+
+    def unstamped(msgs, store):
+        zero = store.types["builtin_interfaces/msg/Time"](sec=0, nanosec=0)
+        return [(ts, tp, mt, replace(m, header=replace(m.header, stamp=zero)) if tp == "/icp/pose" else m)
+                for ts, tp, mt, m in msgs]
+
+    bag = synth.write_ros1(short[1], tmp_path / "unstamped.bag", edit=unstamped)
+    _fails(cli, tmp_path / "ws", bag, match=[f"unstamped.bag: /icp/pose: {len(short[1].t_icp)} of {len(short[1].t_icp)} "
+                                             "messages share the header stamp 0.000 s (unset)", "--time record"])
+    code, _, err = cli("localisation", bag, "--time", "record", "--out", tmp_path / "ok", "--no-figures")
+    assert code == 0, err
+    assert abs(_runs(tmp_path / "ok").iloc[0]["delay"] - SHORT.delay) < 0.01

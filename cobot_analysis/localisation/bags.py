@@ -575,7 +575,8 @@ def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continu
     with a warning: unsorted stamps. Warned about: jumps faster than ``MAX_SPEED`` / ``MAX_TURN``
     (a relocalisation, or damage at an end of the stream). Refused (``InputError`` naming the
     message), as values no recording holds: a stamp whose nanosec is not below 1e9, a position
-    beyond ``POSITION_LIMIT``; in a ``continuous`` stream (not the goals) a stamp whose offset to the
+    beyond ``POSITION_LIMIT``; in a ``continuous`` stream (not the goals) most messages sharing one
+    stamp (unstamped: --time record), a stamp whose offset to the
     record time jumps by more than ``CLOCK_JUMP`` from the message before, a stamp ``STAMP_STEP`` away
     from both its neighbours in the bag, an end stamp further from the others than they span, and
     an isolated spike (a pose leaving both neighbours faster than the limits while they agree).
@@ -617,6 +618,12 @@ def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continu
            (np.abs(rows[:, 1:4]) > POSITION_LIMIT).any(axis=1))
     t = rows[:, 0]
     if continuous and len(rows) > 2:
+        values, counts = np.unique(t, return_counts=True)
+        if len(t) - len(values) > len(t) / 2:  # most messages repeat a stamp: the publisher does not stamp them
+            mode = values[np.argmax(counts)]
+            raise InputError(f"{name}: {len(t) - len(values) + 1} of {n_msgs} messages share the header stamp {mode:.3f} s"
+                             + (" (unset)" if mode == 0 else ""), path=path,
+                             remedy="the publisher does not stamp its poses: analyse with the bag's record times (--time record)")
         gap = np.abs(np.diff(t)) > STAMP_STEP
         refuse(f"a stamp out of place (more than {STAMP_STEP:g} s from the stamps of the messages before and after it)",
                _isolated(gap, np.abs(t[2:] - t[:-2]) > STAMP_STEP))
