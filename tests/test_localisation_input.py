@@ -259,3 +259,33 @@ def test_unset_header_stamps_ask_for_the_record_time(cli, tmp_path, short):
     code, _, err = cli("localisation", bag, "--time", "record", "--out", tmp_path / "ok", "--no-figures")
     assert code == 0, err
     assert abs(_runs(tmp_path / "ok").iloc[0]["delay"] - SHORT.delay) < 0.01
+
+
+def test_truth_in_millimetres_is_refused_and_read_with_units(cli, tmp_path, short):
+    """Some motion-capture bridges publish millimetres. A lab beyond 1 m from the origin was refused as
+    'a damaged bag'; a small one (a rigid body within 1 m of the origin) was compared as metres (the
+    delay and the errors of a 1000-times larger motion). Both are refused naming --units, and
+    --units mm,m reads the run as the same run in metres."""
+    run = synth.make_run(synth.SynthParams(n_goals=1, stop=3.0, speed=0.3, mocap_noise=(0.0, 0.0)))  # within 1 m of `centre`
+    centre = np.array([0.8, 0.2, 1.0])
+
+    def shifted(scale):
+        return damage.edit_poses(lambda topic, i, xyz, q: ((scale if topic == "/mocap/pose" else 1) * (xyz - centre), q))
+
+    metres = synth.write_ros1(run, tmp_path / "m.bag", edit=shifted(1))
+    mm = synth.write_ros1(run, tmp_path / "mm.bag", edit=shifted(1000))
+    _fails(cli, tmp_path / "ws", mm, match=["mm.bag: the positions of /mocap/pose spread 972 times as far as those of "
+                                            "/icp/pose", "not the same units", "read it with --units mm,m"])
+    for bag, units in ((metres, "m"), (mm, "mm,m")):
+        code, _, err = cli("localisation", bag, "--units", units, "--out", tmp_path / units, "--no-figures")
+        assert code == 0, err
+    r, m = _runs(tmp_path / "mm,m").iloc[0], _runs(tmp_path / "m").iloc[0]
+    for col in ("delay", "ape_rmse", "err_x_mean", "offset_x", "distance", "goal_err_xy_mean"):
+        assert r[col] == pytest.approx(m[col], rel=1e-6), col
+    far = synth.write_ros1(short[1], tmp_path / "far.bag", edit=damage.edit_poses(
+        lambda topic, i, xyz, q: (1000 * xyz if topic == "/mocap/pose" else xyz, q)))
+    _fails(cli, tmp_path / "ws", far, match=["far.bag: /mocap/pose: a position beyond 1000 m", "in millimetres: --units"])
+    noisy = synth.write_ros1(synth.make_run(synth.SynthParams(n_goals=1, stop=3.0, speed=0.3)), tmp_path / "noisy.bag",
+                             edit=shifted(1000))  # 0.2 mm marker noise read as metres: 40 m/s back and forth at 200 Hz
+    _fails(cli, tmp_path / "ws", noisy, match=["noisy.bag: /mocap/pose: a position spike", "in millimetres: --units"])
+    assert cli("-q", "localisation", noisy, "--units", "mm,m", "--out", tmp_path / "noisy", "--no-figures")[0] == 0

@@ -29,6 +29,7 @@ class Options:
     association: str = "interpolate"
     max_gap: float | None = None  # None: from the truth's sample spacing (compare.default_max_gap)
     up: tuple[str | None, str | None] = (None, None)  # vertical axis of truth and ICP; None: detect
+    scale: tuple[float, float] = (1.0, 1.0)  # metres per unit of the truth's and the ICP's positions (--units)
     max_diff: float = 0.01
     distance_window: float = 2.0
     min_samples: int = 20
@@ -52,6 +53,31 @@ def _return_freed_memory() -> None:
         pass
 
 
+SCALE_RATIO = 5.0  # the spreads of the truth's and the ICP's positions over their common time differ at most this much
+MOVING = 0.05  # m: ... when the larger spread is at least this (below it both may be noise: a robot standing still)
+
+
+def _check_units(path: Path, o: Options, truth, icp) -> None:
+    """Refuse streams whose positions spread ``SCALE_RATIO`` times as far as the other's over their common
+    time (the same motion in other units: millimetres), naming the ``--units`` that reads them."""
+    lo, hi = max(truth.t[0], icp.t[0]), min(truth.t[-1], icp.t[-1])
+    sd = [float(np.sqrt(np.sum(np.var(s.xyz[(s.t >= lo) & (s.t <= hi)], axis=0)))) if np.sum((s.t >= lo) & (s.t <= hi)) > 1
+          else 0.0 for s in (truth, icp)]
+    if min(sd) <= 0 or max(sd) < MOVING or max(sd) < SCALE_RATIO * min(sd):
+        return
+    ratio = sd[0] / sd[1]
+    unit = ["mm" if v == 0.001 else "m" for v in o.scale]
+    if 300 < ratio < 3000 and unit[0] == "m":
+        fix = f"--units mm,{unit[1]}"
+    elif 300 < 1 / ratio < 3000 and unit[1] == "m":
+        fix = f"--units {unit[0]},mm"
+    else:
+        fix = "check that --truth and --icp are the same robot's poses, and their units (--units TRUTH,ICP)"
+    raise InputError(f"the positions of {o.truth} spread {ratio:.3g} times as far as those of {o.icp} (sd {sd[0]:.3g} against "
+                     f"{sd[1]:.3g} over their common time): not the same units", path=path,
+                     remedy=fix if fix.startswith("check") else f"a stream in millimetres: read it with {fix}")
+
+
 def analyse_run(task: tuple[str, str, str, Options]) -> dict:
     """``(path, run label, map label, options)`` -> poses, comparison, goals and the per-run row."""
     _return_freed_memory()
@@ -60,13 +86,15 @@ def analyse_run(task: tuple[str, str, str, Options]) -> dict:
     specs = {"truth": PoseSpec.parse(o.truth), "icp": PoseSpec.parse(o.icp)}
     if o.goals is None and o.goal_topic:
         specs["goals"] = PoseSpec.parse(o.goal_topic)
-    streams = read_streams(path, specs, o.time, optional=("goals",), sparse=("goals",))
+    streams = read_streams(path, specs, o.time, optional=("goals",), sparse=("goals",),
+                           scale={"truth": o.scale[0], "icp": o.scale[1], "goals": o.scale[1]})  # goals: in the ICP's map
     goal_from_bag = "goals" in streams
     truth, icp = streams["truth"], streams["icp"]
     for spec, s in ((o.truth, truth), (o.icp, icp)):
         if len(s) < 2:
             raise InputError(f"{spec}: {len(s)} pose(s), too few to compare", path=path,
                              remedy="check the stream with `cobot-analysis bag-info` (for tf: both edges must overlap in time)")
+    _check_units(path, o, truth, icp)
     notes = [n for s in (truth, icp) for n in s.meta.get("notes", [])]
     up_truth, up_icp = vertical.find(truth, o.up[0]), vertical.find(icp, o.up[1])
     for name, v in (("motion-capture", up_truth), ("ICP", up_icp)):

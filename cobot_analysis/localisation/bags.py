@@ -320,14 +320,17 @@ def _pose_of(msg, msgtype: str):
 
 
 def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str = "header",
-                 optional: tuple[str, ...] = (), sparse: tuple[str, ...] = ()) -> dict[str, PoseStream]:
+                 optional: tuple[str, ...] = (), sparse: tuple[str, ...] = (),
+                 scale: dict[str, float] | None = None) -> dict[str, PoseStream]:
     """Read several pose streams in one pass over the bag: ``{name: PoseStream}``; the names in
     ``optional`` are left out (instead of an error) when their topic is not in the bag; those in
-    ``sparse`` (commands such as goals) are not checked for continuity (``_stream``)."""
+    ``sparse`` (commands such as goals) are not checked for continuity (``_stream``); ``scale``: metres
+    per unit of a stream's positions (0.001 for millimetres; 1 when not given), applied before the checks."""
     if time not in ("header", "record"):
         raise ValueError("time must be 'header' or 'record'")
     path = Path(path)
-    fast = _indexed_streams(path, specs, time, optional, sparse)
+    scale = scale or {}
+    fast = _indexed_streams(path, specs, time, optional, sparse, scale)
     if fast is not None:
         return fast
     with open_bag(path) as src:
@@ -391,18 +394,19 @@ def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str 
     out = {}
     for name, spec in specs.items():
         if spec.is_tf:
-            out[name] = _chain(path, spec, tf, static)
+            out[name] = _chain(path, spec, tf, static, scale.get(name, 1.0))
         else:
             rows = np.asarray(data.get(spec.topic, []), dtype=float).reshape(-1, 9)
             if len(rows) == 0:
                 raise InputError(f"topic {spec.topic} has no messages", path=path, remedy=f"topics in the bag: {_topic_list_from(data)}")
+            rows[:, 1:4] *= scale.get(name, 1.0)
             out[name] = _stream(path, str(spec), rows[:, :8], frame_ids.get(spec.topic, ""), continuous=name not in sparse,
                                 record=rows[:, 8])
     return out
 
 
 def _indexed_streams(path: Path, specs: dict[str, PoseSpec], time: str, optional: tuple[str, ...],
-                     sparse: tuple[str, ...]) -> dict[str, PoseStream] | None:
+                     sparse: tuple[str, ...], scale: dict[str, float] | None = None) -> dict[str, PoseStream] | None:
     """``read_streams`` through the bag's own index (``indexed``) when every stream is a pose topic of
     the bag whose messages share one layout; None otherwise (the general path then reads the bag)."""
     if any(spec.is_tf for spec in specs.values()):
@@ -429,6 +433,7 @@ def _indexed_streams(path: Path, specs: dict[str, PoseSpec], time: str, optional
         record = msgs.record_ns * 1e-9
         if time == "record":
             rows[:, 0] = record
+        rows[:, 1:4] *= (scale or {}).get(name, 1.0)
         read[name] = (rows, frame_id, record)
     messages = msgs = None  # the serialised messages are no longer needed
     return {name: _stream(path, str(spec), read[name][0], _frame(read[name][1]), continuous=name not in sparse,
@@ -541,6 +546,7 @@ MAX_SPEED = 10.0  # m/s between consecutive poses: beyond this a pose is a jump 
 MAX_TURN = 10.0  # rad/s between consecutive orientations: beyond this likewise
 STAMP_STEP = 0.5  # s: a stamp this far from the stamps before and after it in the bag (which agree) is out of place
 CLOCK_JUMP = 10.0  # s: stamps of consecutive messages whose offsets to the bag's record times differ by more jump
+MILLIMETRES = "or positions in millimetres: --units gives the unit of each stream (TRUTH,ICP, e.g. --units mm,m)"
 DAMAGED = ("a damaged bag: re-export it or record it again (a stream that really glitched there: leave that message "
            "out of the bag, e.g. with rosbag filter)")
 
@@ -615,7 +621,7 @@ def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continu
         note(f"{n_msgs - int(keep.sum())} of {n_msgs} message(s) dropped: {'; '.join(drops)}")
         rows, order = rows[keep], order[keep]
     refuse(f"a position beyond {POSITION_LIMIT:g} m from the frame origin ({np.abs(rows[:, 1:4]).max():.3g} m)",
-           (np.abs(rows[:, 1:4]) > POSITION_LIMIT).any(axis=1))
+           (np.abs(rows[:, 1:4]) > POSITION_LIMIT).any(axis=1), remedy=f"{DAMAGED}; {MILLIMETRES}")
     t = rows[:, 0]
     if continuous and len(rows) > 2:
         values, counts = np.unique(t, return_counts=True)
@@ -649,7 +655,7 @@ def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continu
         refuse("a stamp far from all others (further from them than they span)", lone)
         dt2 = t[2:] - t[:-2]
         refuse(f"a position spike (to and from its neighbours faster than {MAX_SPEED:g} m/s)",
-               _isolated(speed > MAX_SPEED, row_norm(xyz[2:] - xyz[:-2]) / dt2 > MAX_SPEED))
+               _isolated(speed > MAX_SPEED, row_norm(xyz[2:] - xyz[:-2]) / dt2 > MAX_SPEED), remedy=f"{DAMAGED}; {MILLIMETRES}")
         refuse(f"an orientation spike (to and from its neighbours faster than {MAX_TURN:g} rad/s)",
                _isolated(turn > MAX_TURN, _turn(quat[2:], quat[:-2]) / dt2 > MAX_TURN))
     if len(rows) > 1:
@@ -661,8 +667,9 @@ def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continu
     return PoseStream(t.copy(), xyz.copy(), quat, name=name, frame_id=frame_id, meta={"notes": notes})
 
 
-def _chain(path: Path, spec: PoseSpec, tf: dict, static: dict) -> PoseStream:
-    """Pose of ``spec.child`` in ``spec.parent`` through the frame tree (see module docstring)."""
+def _chain(path: Path, spec: PoseSpec, tf: dict, static: dict, scale: float = 1.0) -> PoseStream:
+    """Pose of ``spec.child`` in ``spec.parent`` through the frame tree (see module docstring); ``scale``:
+    metres per unit of the transforms' translations."""
     edges = set(tf) | set(static)
     graph = defaultdict(set)
     for p, c in edges:
@@ -697,6 +704,7 @@ def _chain(path: Path, spec: PoseSpec, tf: dict, static: dict) -> PoseStream:
         key = (a, b) if (a, b) in edges else (b, a)
         if key in tf:
             rows = np.asarray(tf[key], dtype=float)
+            rows[:, 1:4] *= scale
             dynamic[key] = _stream(path, f"tf:{key[0]}->{key[1]}", rows[:, :8], record=rows[:, 8])
     if not dynamic:
         raise InputError(f"tf:{spec.parent}->{spec.child} is static (only /tf_static edges)", path=path,
@@ -717,7 +725,7 @@ def _chain(path: Path, spec: PoseSpec, tf: dict, static: dict) -> PoseStream:
             ep, eq = _interpolate(dynamic[key], t)
         else:
             sp, sq = static[key]
-            ep, eq = np.tile(sp, (len(t), 1)), np.tile(normalise(np.asarray(sq, dtype=float)), (len(t), 1))
+            ep, eq = np.tile(np.asarray(sp, dtype=float) * scale, (len(t), 1)), np.tile(normalise(np.asarray(sq, dtype=float)), (len(t), 1))
         if not forward:
             ep, eq = invert(ep, eq)
         p, q = compose(p, q, ep, eq)
