@@ -472,3 +472,13 @@ def test_relocalisation_jumps_are_counted_and_the_delay_is_taken_between_them():
     assert text.startswith("1 jump of the ICP against the motion capture") and "at 30.0 s (0.35 m, 0.0024 rad)" in text
     clean = compare(truth, icp)
     assert clean.summary["jumps"] == 0 and not clean.notes
+
+
+def test_icp_dropout_is_said():
+    """The ICP silent for 10 s (localisation lost, or its node stalled): the errors were taken over the
+    poses it did publish without a word; the run now says so."""
+    truth = _walk()
+    icp = _icp_of(truth, 0.537, np.zeros(4), np.array([0.005, 0.005, 0.003, 0.003]))
+    rel = icp.t - icp.t[0]
+    c = compare(truth, icp.select((rel < 20) | (rel > 30)))
+    assert len(c.notes) == 1 and "the ICP stream has 1 gap of 1 s or more (the longest 10 s from 19.9 s into it)" in c.notes[0]

@@ -404,6 +404,21 @@ def _coverage(truth: PoseStream, icp: PoseStream, tq, valid, max_gap: float, max
             "compared poses only")
 
 
+def _icp_gaps(icp: PoseStream) -> str | None:
+    """The warning when the ICP stream falls silent (localisation lost, its node stalled) for ``DROPOUT`` s or
+    more and 5 times its median sample spacing: the errors cannot cover that time."""
+    spacing = np.diff(icp.t)
+    if not len(spacing):
+        return None
+    limit = max(DROPOUT, 5.0 * float(np.median(spacing)))
+    k = int(np.argmax(spacing))
+    n = int(np.sum(spacing >= limit))
+    if not n:
+        return None
+    return (f"the ICP stream has {n} gap{'s' if n > 1 else ''} of {limit:.2g} s or more (the longest {spacing[k]:.2g} s from "
+            f"{icp.t[k] - icp.t[0]:.1f} s into it): no pose was published there, so the errors do not cover that time")
+
+
 def compare(truth: PoseStream, icp: PoseStream, *, delay: float | None = None, window=(0.0, 1.5),
             weights=(1.0, 1.0, 1.0, 1.0), alignment: str = "mean", association: str = "interpolate",
             max_gap: float | None = None, max_diff: float = 0.01, distance_window: float = 2.0,
@@ -511,6 +526,6 @@ def _compare_once(truth: PoseStream, icp: PoseStream, delay, window, weights, al
         **{f"err_{a}": err[:, k] for k, a in enumerate(AXES)},
         "err_xyz": np.linalg.norm(err[:, :3], axis=1),
     })
-    coverage = _coverage(truth, icp, tq, valid, max_gap, max_diff, association)
-    return Comparison(dl, al, samples, summary, [coverage] if coverage else [])
+    notes = [_coverage(truth, icp, tq, valid, max_gap, max_diff, association), _icp_gaps(icp)]
+    return Comparison(dl, al, samples, summary, [n for n in notes if n])
 
