@@ -43,20 +43,25 @@ TF_MSGDEF = "geometry_msgs/TransformStamped[] transforms\n"
 
 @dataclass(frozen=True)
 class PoseSpec:
-    """Where a pose stream is in a bag: a topic, or a tf frame pair ``tf:PARENT->CHILD``."""
+    """Where a pose stream is in a bag: a topic, or a tf frame pair ``tf:PARENT->CHILD`` (on ``/tf`` and
+    ``/tf_static``), ``TOPIC:PARENT->CHILD`` on another tf topic (e.g. ``/robot1/tf``, with ``/robot1/tf_static``
+    and ``/tf_static``; ROS topic names hold no ``:``)."""
 
     topic: str | None = None
     parent: str | None = None
     child: str | None = None
+    tf_topic: str = "/tf"
 
     @classmethod
     def parse(cls, text: str) -> "PoseSpec":
         text = text.strip()
-        if text.startswith("tf:"):
-            parent, sep, child = text[3:].partition("->")
+        tf_topic, colon, pair = text.partition(":")
+        if colon and (tf_topic == "tf" or tf_topic.startswith("/")):
+            parent, sep, child = pair.partition("->")
             if not sep or not parent.strip() or not child.strip():
-                raise InputError(f"bad tf pose spec {text!r}", remedy="write it tf:PARENT->CHILD, e.g. tf:map->base_link")
-            return cls(parent=_frame(parent), child=_frame(child))
+                raise InputError(f"bad tf pose spec {text!r}", remedy="write it tf:PARENT->CHILD, e.g. tf:map->base_link "
+                                                                       "(TOPIC:PARENT->CHILD on another tf topic)")
+            return cls(parent=_frame(parent), child=_frame(child), tf_topic="/tf" if tf_topic == "tf" else tf_topic)
         if not text:
             raise InputError("empty pose topic", remedy="pass a topic such as /icp/pose or tf:map->base_link")
         return cls(topic=text)
@@ -65,8 +70,15 @@ class PoseSpec:
     def is_tf(self) -> bool:
         return self.topic is None
 
+    @property
+    def tf_topics(self) -> tuple[str, ...]:
+        """The tf topics a frame pair is read from: its dynamic topic and the static ones."""
+        return (self.tf_topic, "/tf_static") if self.tf_topic == "/tf" else (self.tf_topic, f"{self.tf_topic}_static", "/tf_static")
+
     def __str__(self) -> str:
-        return f"tf:{self.parent}->{self.child}" if self.is_tf else str(self.topic)
+        if not self.is_tf:
+            return str(self.topic)
+        return f"{'tf' if self.tf_topic == '/tf' else self.tf_topic}:{self.parent}->{self.child}"
 
 
 def _frame(name: str) -> str:
@@ -272,7 +284,7 @@ def bag_info(path: str | os.PathLike) -> tuple[list[dict], list[dict]]:
                 for tr in _decode(src, raw, msgtype).transforms:
                     e = edges[(_frame(tr.header.frame_id), _frame(tr.child_frame_id))]
                     e["count"] += 1
-                    e["static"] |= topic == "/tf_static"
+                    e["static"] |= topic.endswith("tf_static")
         for name in topics:
             t = src.topics[name]
             t0, t1 = first.get(name), last.get(name)
@@ -341,10 +353,13 @@ def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str 
             raise missing_topics(path, src, missing)
         for spec in specs.values():
             if spec.is_tf:
-                present = [t for t in TF_TOPICS if t in src.topics]
-                if not present:
-                    raise InputError(f"no /tf or /tf_static topic for {spec}", path=path,
-                                     remedy=f"topics in the bag: {_topic_list(src)}")
+                present = [t for t in spec.tf_topics if t in src.topics]
+                if spec.tf_topic not in src.topics:
+                    others = sorted(t for t in src.topics if src.topics[t].msgtype == TF_TYPE and not t.endswith("_static"))
+                    raise InputError(f"no topic {spec.tf_topic} for {spec}", path=path, remedy=(
+                        f"tf topics in the bag: {', '.join(others)}: a frame pair on another topic is given as "
+                        f"TOPIC:PARENT->CHILD (e.g. {others[0]}:{spec.parent}->{spec.child})" if others
+                        else f"topics in the bag: {_topic_list(src)}"))
                 for t in present:
                     if src.topics[t].msgtype != TF_TYPE:
                         raise InputError(f"topic {t} has message type {src.topics[t].msgtype.replace('/msg/', '/')}, "
@@ -358,9 +373,11 @@ def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str 
                     raise InputError(f"topic {spec.topic} has message type {mt.replace('/msg/', '/')}, which holds no pose",
                                      path=path, remedy="use a PoseStamped, PoseWithCovarianceStamped, TransformStamped or Odometry topic, or tf:PARENT->CHILD")
                 if mt == TF_TYPE:
-                    raise InputError(f"topic {spec.topic} is a tf topic", path=path, remedy="ask for a frame pair: tf:PARENT->CHILD")
+                    raise InputError(f"topic {spec.topic} is a tf topic", path=path,
+                                     remedy=f"ask for a frame pair on it: {spec.topic}:PARENT->CHILD")
                 need.add(spec.topic)
         data: dict[str, np.ndarray] = {}
+        static_topics = {t for spec in specs.values() if spec.is_tf for t in spec.tf_topics[1:]}
         tf: dict[tuple[str, str], list] = defaultdict(list)
         static: dict[tuple[str, str], tuple] = {}
         frame_ids: dict[str, str] = {}
@@ -371,7 +388,7 @@ def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str 
                 for tr in _decode(src, raw, msgtype).transforms:
                     key = (_frame(tr.header.frame_id), _frame(tr.child_frame_id))
                     pose = _pose_of(tr, "geometry_msgs/msg/TransformStamped")
-                    if topic == "/tf_static":
+                    if topic in static_topics:
                         static[key] = pose
                     else:
                         tf[key].append((_stamp(tr) if time == "header" else ts * 1e-9, *pose[0], *pose[1], ts * 1e-9))
@@ -679,7 +696,7 @@ def _chain(path: Path, spec: PoseSpec, tf: dict, static: dict, scale: float = 1.
     if spec.parent not in graph or spec.child not in graph:
         missing = [f for f in (spec.parent, spec.child) if f not in graph]
         raise InputError(f"tf frame(s) {', '.join(missing)} not in the bag", path=path,
-                         remedy=f"frames in /tf and /tf_static: {', '.join(frames) or 'none'}")
+                         remedy=f"frames in {' and '.join(spec.tf_topics)}: {', '.join(frames) or 'none'}")
     # Breadth-first search for the path parent -> ... -> child.
     prev = {spec.parent: None}
     queue = deque([spec.parent])
@@ -691,7 +708,7 @@ def _chain(path: Path, spec: PoseSpec, tf: dict, static: dict, scale: float = 1.
                 queue.append(g)
     if spec.child not in prev:
         raise InputError(f"tf frames {spec.parent} and {spec.child} are not connected", path=path,
-                         remedy=f"frames in /tf and /tf_static: {', '.join(frames)}; edges: "
+                         remedy=f"frames in {' and '.join(spec.tf_topics)}: {', '.join(frames)}; edges: "
                                 + ", ".join(f"{p}->{c}" for p, c in sorted(edges)))
     hops = []
     f = spec.child
