@@ -118,6 +118,11 @@ def test_bad_options(cli, tmp_path, short):
     goals.write_text("x,y\n1,2\n")
     _fails(cli, tmp_path / "ws", d / "short.bag", "--goals-csv", goals, match=["goals.csv", "lacks columns ['yaw']"])
     _fails(cli, tmp_path / "ws", match=["no bag given and no synthetic runs"])
+    # The same stream twice (a typo): it was compared with itself, RMSE 0.0 mm beside a delay-edge warning.
+    _fails(cli, tmp_path / "ws", d / "short.bag", "--truth", "/icp/pose", "--icp", "/icp/pose",
+           match=["--truth and --icp are the same stream /icp/pose", "bag-info"])
+    _fails(cli, tmp_path / "ws", d / "short.bag", "--truth", "tf:map->base_link", "--icp", " tf:/map->base_link",
+           match=["--truth and --icp are the same stream tf:map->base_link"])
 
 
 # ---- damaged bags (what `benchmarks/fuzz_inputs.py` found) -------------------------------------------

@@ -102,6 +102,7 @@ def localisation_options(bags: list[Path], *, truth: str = "/mocap/pose", icp: s
         cobot_analysis.errors.InputError: --alignment must be mean, se3, yaw or none, not 'umeyama'
     """
     from cobot_analysis.localisation.analysis import Options
+    from cobot_analysis.localisation.bags import PoseSpec
     from cobot_analysis.localisation.goals import StopRule, read_goals_csv
 
     goals = goals_csv
@@ -133,6 +134,10 @@ def localisation_options(bags: list[Path], *, truth: str = "/mocap/pose", icp: s
         raise InputError(f"--units must be m, mm or TRUTH,ICP (e.g. mm,m), got {units!r}", remedy="e.g. --units mm,m")
     if time not in ("header", "record"):
         raise InputError(f"--time must be header or record, not {time!r}")
+    if PoseSpec.parse(truth) == PoseSpec.parse(icp):
+        raise InputError(f"--truth and --icp are the same stream {PoseSpec.parse(truth)}",
+                         remedy="pass the motion capture with --truth and the robot's estimate with --icp (`cobot-analysis "
+                                "bag-info BAG` lists the streams)")
     if alignment not in ("mean", "se3", "yaw", "none"):
         raise InputError(f"--alignment must be mean, se3, yaw or none, not {alignment!r}")
     if association not in ("interpolate", "nearest"):
