@@ -266,7 +266,7 @@ def test_truth_in_millimetres_is_refused_and_read_with_units(cli, tmp_path, shor
     'a damaged bag'; a small one (a rigid body within 1 m of the origin) was compared as metres (the
     delay and the errors of a 1000-times larger motion). Both are refused naming --units, and
     --units mm,m reads the run as the same run in metres."""
-    run = synth.make_run(synth.SynthParams(n_goals=1, stop=3.0, speed=0.3, mocap_noise=(0.0, 0.0)))  # within 1 m of `centre`
+    run = synth.make_run(synth.SynthParams(n_goals=1, stop=3.0, speed=0.3, mocap_noise=(1e-6, 0.0)))  # within 1 m of `centre`
     centre = np.array([0.8, 0.2, 1.0])
 
     def shifted(scale):
@@ -289,3 +289,24 @@ def test_truth_in_millimetres_is_refused_and_read_with_units(cli, tmp_path, shor
                              edit=shifted(1000))  # 0.2 mm marker noise read as metres: 40 m/s back and forth at 200 Hz
     _fails(cli, tmp_path / "ws", noisy, match=["noisy.bag: /mocap/pose: a position spike", "in millimetres: --units"])
     assert cli("-q", "localisation", noisy, "--units", "mm,m", "--out", tmp_path / "noisy", "--no-figures")[0] == 0
+
+
+def test_truth_frozen_on_its_last_pose_is_a_gap(cli, tmp_path, short, level):
+    """A motion-capture bridge that repeats the last pose of a lost rigid body (5 s while the robot walks):
+    the ICP was compared with a truth standing still (RMSE 0.2 m instead of 9 mm). The repeats are now
+    dropped with a warning, so the comparison leaves that time out like any truth gap."""
+    frozen = {}
+
+    def freeze(topic, i, xyz, q):
+        if topic == "/mocap/pose" and i == 999:
+            frozen["pose"] = (xyz, q)
+        return frozen["pose"] if topic == "/mocap/pose" and 1000 <= i < 2000 else (xyz, q)
+
+    bag = synth.write_ros1(short[1], tmp_path / "frozen.bag", edit=damage.edit_poses(freeze))
+    code, _, err = cli("localisation", bag, "--out", tmp_path / "ws", "--no-figures")
+    assert code == 0, err
+    flat = " ".join(err.split())
+    assert ("1000 motion-capture poses repeating the pose before them exactly dropped (a lost rigid body whose last pose "
+            "the bridge repeats; the longest stretch 5 s from 5.0 s into the stream)") in flat
+    r = _runs(tmp_path / "ws").iloc[0]
+    assert r["ape_rmse"] == pytest.approx(level["ape_rmse"], rel=0.1) and r["n"] < level["n"] - 40

@@ -1,6 +1,7 @@
 """One run end to end: read the streams from the bag, level them (vertical axis), compare, goal
 accuracy (one task per bag). What a run needs to be read with care (a frame that is not z-up, a
-delay on the edge of its window, dropped messages) is warned about and kept in ``warnings``."""
+delay on the edge of its window, dropped messages, a frozen truth) is warned about and kept in
+``warnings``; streams in other units than each other are refused (``_check_units``)."""
 
 from __future__ import annotations
 
@@ -53,6 +54,22 @@ def _return_freed_memory() -> None:
         pass
 
 
+def _unfrozen(truth):
+    """The truth without the poses that repeat the one before them exactly (x, y, z and quaternion: a
+    tracked rigid body's noise never does; a bridge repeating the last pose of a lost one does), and the
+    warning that says how many were dropped and the longest stretch (None when none were)."""
+    same = np.all(np.diff(np.column_stack([truth.xyz, truth.quat]), axis=0) == 0, axis=1)
+    if not same.any():
+        return truth, None
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], same.astype(int), [0]])))  # runs of repeats: [start, end)
+    start, end = edges[0::2], edges[1::2]
+    k = int(np.argmax(truth.t[end] - truth.t[start]))
+    text = (f"{int(same.sum())} motion-capture poses repeating the pose before them exactly dropped (a lost rigid body whose "
+            f"last pose the bridge repeats; the longest stretch {truth.t[end[k]] - truth.t[start[k]]:.2g} s from "
+            f"{truth.t[start[k]] - truth.t[0]:.1f} s into the stream)")
+    return truth.select(np.concatenate([[True], ~same])), text
+
+
 SCALE_RATIO = 5.0  # the spreads of the truth's and the ICP's positions over their common time differ at most this much
 MOVING = 0.05  # m: ... when the larger spread is at least this (below it both may be noise: a robot standing still)
 
@@ -89,13 +106,16 @@ def analyse_run(task: tuple[str, str, str, Options]) -> dict:
     streams = read_streams(path, specs, o.time, optional=("goals",), sparse=("goals",),
                            scale={"truth": o.scale[0], "icp": o.scale[1], "goals": o.scale[1]})  # goals: in the ICP's map
     goal_from_bag = "goals" in streams
-    truth, icp = streams["truth"], streams["icp"]
+    (truth, frozen), icp = _unfrozen(streams["truth"]), streams["icp"]
     for spec, s in ((o.truth, truth), (o.icp, icp)):
         if len(s) < 2:
             raise InputError(f"{spec}: {len(s)} pose(s), too few to compare", path=path,
                              remedy="check the stream with `cobot-analysis bag-info` (for tf: both edges must overlap in time)")
     _check_units(path, o, truth, icp)
     notes = [n for s in (truth, icp) for n in s.meta.get("notes", [])]
+    if frozen:
+        warn(f"{path}: {frozen}")
+        notes.append(frozen)
     up_truth, up_icp = vertical.find(truth, o.up[0]), vertical.find(icp, o.up[1])
     for name, v in (("motion-capture", up_truth), ("ICP", up_icp)):
         text = vertical.warning(name, v)
