@@ -25,9 +25,10 @@ Notation: ``s_i`` the ICP stamps, ``P(t)`` the motion-capture (truth) pose, ``Q_
    on the first or last grid point of the window is no minimum of ``J``: ``at_edge`` is set, the
    standard error is NaN, and the run carries a warning to widen the window. The delay is told only
    by changes of the truth's velocity (the mean removes a constant shift): when the same estimate
-   with the velocity differenced over +-0.5 s (free of the motion capture's noise, which over +-0.05 s
-   passes for motion when the robot stands still) exceeds ``UNDETERMINED``, ``determined`` is False
-   and ``compare`` refuses to estimate it.
+   with the velocity differenced over +-0.5 s (``motion_sd``: free of the motion capture's noise, which
+   over +-0.05 s passes for motion when the robot stands still) exceeds ``UNDETERMINED``,
+   ``determined`` is False and ``compare`` refuses to estimate it. With the mean offset, frames
+   rotated about the vertical (``_check_not_rotated``) are refused first: they bias the delay.
 3. Structural offset: ``o = mean_i (Q_i - P(s_i - d))`` per axis (circular mean for yaw) and
    ``Q_i - o`` (docs/methods.md), or a rigid alignment of the ICP positions onto the truth: Umeyama
    SE(3) (``"se3"``) or a rotation about z plus a translation (``"yaw"``, 4 DoF).
@@ -64,7 +65,12 @@ class Delay:
     n: int = 0
     window: tuple[float, float] = (float("nan"), float("nan"))
     at_edge: bool = False  # the minimum of the scan is on an end of the window
-    determined: bool = True  # the truth's velocity changes enough to tell delays apart (module doc, step 2)
+    motion_sd: float = 0.0  # s: the standard error with the truth velocity over +-0.5 s (module doc, step 2)
+
+    @property
+    def determined(self) -> bool:
+        """The truth's velocity changes enough to tell delays apart."""
+        return self.motion_sd <= UNDETERMINED
 
     def edge_warning(self) -> str | None:
         """Advice when the estimate is on an end of its search window (module doc, step 2)."""
@@ -211,7 +217,7 @@ def estimate_delay(truth: PoseStream, icp: PoseStream, window: tuple[float, floa
     at_edge = k in (0, len(grid) - 1)
     method = "least squares: grid scan + golden section" + (" (minimum at the window edge)" if at_edge else "")
     return Delay(d, float("nan") if at_edge else sd, method, np.column_stack([grid, costs]), int(len(s)), (lo, hi), at_edge,
-                 standard_error(0.5) <= UNDETERMINED)
+                 standard_error(0.5))
 
 
 def _meets_gap(t: np.ndarray, u: np.ndarray, v: np.ndarray, max_gap: float) -> np.ndarray:
@@ -280,6 +286,25 @@ def align(method: str, truth_xyz, truth_yaw, icp_xyz, icp_yaw) -> Alignment:
     # Reported offset: the transform from the truth frame to the ICP frame, as x, y, z, yaw.
     inv_t = -r.T @ t
     return Alignment(method, r, t, np.concatenate([inv_t, [-np.arctan2(r[1, 0], r[0, 0])]]))
+
+
+ROTATED = 1.5  # a rotation about the vertical that divides the RMS position residual of the mean offset by more is refused
+
+
+def _check_not_rotated(truth_xyz, icp_xyz, path) -> None:
+    """Refuse the mean offset when the ICP frame is rotated about the vertical against the truth's: when a
+    rotation about z plus a translation (``yaw_alignment``) leaves an RMS position residual ``ROTATED``
+    times smaller than the mean offset does (the mean cannot remove a rotation; it biased the delay too)."""
+    rot, t = yaw_alignment(icp_xyz, truth_xyz)
+    fit = np.sqrt(np.mean(np.sum((icp_xyz @ rot.T + t - truth_xyz) ** 2, axis=1)))
+    d = icp_xyz - truth_xyz
+    mean = np.sqrt(np.mean(np.sum((d - d.mean(axis=0)) ** 2, axis=1)))
+    if mean > ROTATED * fit:
+        raise InputError(f"the ICP frame is rotated about the vertical against the motion capture's by about "
+                         f"{-np.arctan2(rot[1, 0], rot[0, 0]):.3g} rad (fitted to the positions, it leaves an RMS residual "
+                         f"of {1000 * fit:.3g} mm where the mean offset leaves {1000 * mean:.3g} mm), which the mean offset "
+                         "cannot remove", path=path,
+                         remedy="use --alignment yaw (a rotation about the vertical and a translation) or se3")
 
 
 ROTATION_SE = 0.02  # rad: a rigid alignment whose rotation has a larger standard error is fitted to the noise
@@ -502,13 +527,18 @@ def _compare_once(truth: PoseStream, icp: PoseStream, delay, window, weights, al
     i_yaw = np.unwrap(yaw_of(i_quat))
     al = align(alignment, t_xyz, t_yaw, i_xyz, i_yaw)
     c_xyz, c_quat = al.apply(i_xyz, i_quat)
+    if alignment == "mean":
+        _check_not_rotated(t_xyz, i_xyz, path)
     if alignment in ("se3", "yaw"):  # first: the remedy of the delay's error below must work
         _check_rotation(alignment, t_xyz, c_xyz - t_xyz, path)
     if not dl.determined:
-        raise InputError("the delay cannot be estimated from this run: the motion capture hardly changes its velocity "
-                         "(a robot standing still, or moving straight at a constant speed), so every delay in the window "
-                         f"fits alike (the scan's minimum, {dl.value:.3f} s, is noise)", path=path,
-                         remedy="give it with --delay (standing still, any value gives the same errors, e.g. --delay 0)")
+        left = 1000 * float(np.sqrt(np.mean(np.sum((c_xyz - t_xyz) ** 2, axis=1))))
+        raise InputError("the delay cannot be estimated from this run: the motion capture hardly changes its velocity against "
+                         f"the {left:.3g} mm left between the streams (standard error {dl.motion_sd:.2g} s; a robot standing "
+                         "still or moving straight at a constant speed, or streams that do not match), so every delay in "
+                         f"the window fits alike (the scan's minimum, {dl.value:.3f} s, is noise)", path=path,
+                         remedy="give it with --delay (standing still, any value gives the same errors, e.g. --delay 0); "
+                                "if the robot moved, check --truth and --icp")
     c_yaw = np.unwrap(yaw_of(c_quat))
     err = np.column_stack([c_xyz - t_xyz, angle_diff(c_yaw, t_yaw)])
     travelled = travelled_distance(truth, distance_window)
