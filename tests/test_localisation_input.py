@@ -310,3 +310,26 @@ def test_truth_frozen_on_its_last_pose_is_a_gap(cli, tmp_path, short, level):
             "the bridge repeats; the longest stretch 5 s from 5.0 s into the stream)") in flat
     r = _runs(tmp_path / "ws").iloc[0]
     assert r["ape_rmse"] == pytest.approx(level["ape_rmse"], rel=0.1) and r["n"] < level["n"] - 40
+
+
+def test_header_stamps_in_clocks_seconds_apart_are_said(cli, tmp_path, short):
+    """The motion-capture PC's clock 3 s ahead of the robot's: with a window wide enough the delay found is
+    the 3 s offset minus the robot's 0.55 s, reported as 'the delay' without a word. The run now says that
+    the two streams' header stamps stand 3 s apart against the bag's record times."""
+    from dataclasses import replace
+
+    def ahead(msgs, store):
+        Time = store.types["builtin_interfaces/msg/Time"]
+
+        def shifted(m):
+            ns = m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec + 3_000_000_000
+            return replace(m, header=replace(m.header, stamp=Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)))
+        return [(ts, tp, mt, shifted(m) if tp == "/mocap/pose" else m) for ts, tp, mt, m in msgs]
+
+    bag = synth.write_ros1(short[1], tmp_path / "ahead.bag", edit=ahead)
+    code, _, err = cli("localisation", bag, "--delay-window=-4,1", "--out", tmp_path / "ws", "--no-figures")
+    assert code == 0, err
+    flat = " ".join(err.split())
+    assert ("the header stamps of /mocap/pose are +3 s from the bag's record times, those of /icp/pose -0.001 s: their "
+            "clocks differ by about 3 s, which the delay includes (--time record compares them on the bag's clock)") in flat
+    assert _runs(tmp_path / "ws").iloc[0]["delay"] == pytest.approx(SHORT.delay - 3.0, abs=0.01)

@@ -70,6 +70,19 @@ def _unfrozen(truth):
     return truth.select(np.concatenate([[True], ~same])), text
 
 
+CLOCKS = 1.0  # s: header stamps whose offsets to the bag's record times differ more between the streams are in other clocks
+
+
+def _clocks(o: Options, truth, icp) -> str | None:
+    """The warning when the two streams' header stamps stand ``CLOCKS`` s or more apart against the bag's
+    record times (a motion-capture PC's clock not synchronised with the robot's): the delay includes it."""
+    a, b = truth.meta.get("clock"), icp.meta.get("clock")
+    if o.time != "header" or a is None or b is None or abs(a - b) < CLOCKS:
+        return None
+    return (f"the header stamps of {o.truth} are {a:+.3g} s from the bag's record times, those of {o.icp} {b:+.3g} s: their "
+            f"clocks differ by about {a - b:.2g} s, which the delay includes (--time record compares them on the bag's clock)")
+
+
 SCALE_RATIO = 5.0  # the spreads of the truth's and the ICP's positions over their common time differ at most this much
 MOVING = 0.05  # m: ... when the larger spread is at least this (below it both may be noise: a robot standing still)
 
@@ -113,9 +126,10 @@ def analyse_run(task: tuple[str, str, str, Options]) -> dict:
                              remedy="check the stream with `cobot-analysis bag-info` (for tf: both edges must overlap in time)")
     _check_units(path, o, truth, icp)
     notes = [n for s in (truth, icp) for n in s.meta.get("notes", [])]
-    if frozen:
-        warn(f"{path}: {frozen}")
-        notes.append(frozen)
+    for text in (frozen, _clocks(o, truth, icp)):
+        if text:
+            warn(f"{path}: {text}")
+            notes.append(text)
     up_truth, up_icp = vertical.find(truth, o.up[0]), vertical.find(icp, o.up[1])
     for name, v in (("motion-capture", up_truth), ("ICP", up_icp)):
         text = vertical.warning(name, v)

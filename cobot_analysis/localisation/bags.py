@@ -591,7 +591,8 @@ def _turn(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continuous: bool = True,
             record: np.ndarray | None = None) -> PoseStream:
     """Sorted, de-duplicated stream from rows ``(t, x, y, z, qx, qy, qz, qw)`` in the order read
-    (``record``: the bag's record time of each, s).
+    (``record``: the bag's record time of each, s; the median of stamp minus record time is kept in
+    ``meta["clock"]``).
 
     Dropped with a warning (kept in ``meta["notes"]``): messages with NaN/inf (a lost rigid body), a
     zero quaternion (orientation unset) or a quaternion far from unit norm; repeated stamps. Sorted
@@ -681,7 +682,8 @@ def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continu
             note(f"{int(fast.sum())} jump(s) between consecutive poses faster than {MAX_SPEED:g} m/s or {MAX_TURN:g} rad/s "
                  f"(up to {speed.max():.3g} m/s, {turn.max():.3g} rad/s): a relocalisation, lost tracking or a damaged bag; "
                  "check the poses (poses.parquet)")
-    return PoseStream(t.copy(), xyz.copy(), quat, name=name, frame_id=frame_id, meta={"notes": notes})
+    clock = {} if record is None else {"clock": float(np.median(t - record[order]))}  # stamps minus record times, s
+    return PoseStream(t.copy(), xyz.copy(), quat, name=name, frame_id=frame_id, meta={"notes": notes, **clock})
 
 
 def _chain(path: Path, spec: PoseSpec, tf: dict, static: dict, scale: float = 1.0) -> PoseStream:
@@ -746,7 +748,8 @@ def _chain(path: Path, spec: PoseSpec, tf: dict, static: dict, scale: float = 1.
         if not forward:
             ep, eq = invert(ep, eq)
         p, q = compose(p, q, ep, eq)
-    return PoseStream(t, p, normalise(q), name=str(spec), frame_id=spec.parent, meta={"notes": notes})
+    clock = {"clock": base.meta["clock"]} if "clock" in base.meta else {}
+    return PoseStream(t, p, normalise(q), name=str(spec), frame_id=spec.parent, meta={"notes": notes, **clock})
 
 
 def _interpolate(s: PoseStream, t: np.ndarray):
