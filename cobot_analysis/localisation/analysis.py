@@ -91,21 +91,19 @@ def _check_units(path: Path, o: Options, truth, icp) -> None:
     """Refuse streams whose positions spread ``SCALE_RATIO`` times as far as the other's over their common
     time (the same motion in other units: millimetres), naming the ``--units`` that reads them."""
     lo, hi = max(truth.t[0], icp.t[0]), min(truth.t[-1], icp.t[-1])
-    sd = [float(np.sqrt(np.sum(np.var(s.xyz[(s.t >= lo) & (s.t <= hi)], axis=0)))) if np.sum((s.t >= lo) & (s.t <= hi)) > 1
-          else 0.0 for s in (truth, icp)]
+    common = [s.xyz[(s.t >= lo) & (s.t <= hi)] for s in (truth, icp)]
+    sd = [float(np.sqrt(np.sum(np.var(xyz, axis=0)))) if len(xyz) > 1 else 0.0 for xyz in common]
     if min(sd) <= 0 or max(sd) < MOVING or max(sd) < SCALE_RATIO * min(sd):
         return
     ratio = sd[0] / sd[1]
     unit = ["mm" if v == 0.001 else "m" for v in o.scale]
+    remedy = "check that --truth and --icp are the same robot's poses, and their units (--units TRUTH,ICP)"
     if 300 < ratio < 3000 and unit[0] == "m":
-        fix = f"--units mm,{unit[1]}"
+        remedy = f"a stream in millimetres: read it with --units mm,{unit[1]}"
     elif 300 < 1 / ratio < 3000 and unit[1] == "m":
-        fix = f"--units {unit[0]},mm"
-    else:
-        fix = "check that --truth and --icp are the same robot's poses, and their units (--units TRUTH,ICP)"
+        remedy = f"a stream in millimetres: read it with --units {unit[0]},mm"
     raise InputError(f"the positions of {o.truth} spread {ratio:.3g} times as far as those of {o.icp} (sd {sd[0]:.3g} against "
-                     f"{sd[1]:.3g} over their common time): not the same units", path=path,
-                     remedy=fix if fix.startswith("check") else f"a stream in millimetres: read it with {fix}")
+                     f"{sd[1]:.3g} over their common time): not the same units", path=path, remedy=remedy)
 
 
 def analyse_run(task: tuple[str, str, str, Options]) -> dict:

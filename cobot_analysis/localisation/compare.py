@@ -455,7 +455,7 @@ def compare(truth: PoseStream, icp: PoseStream, *, delay: float | None = None, w
     while True:  # twice when the ICP jumps: the delay is then estimated between the jumps
         cmp = _compare_once(truth, icp, delay, window, weights, alignment, association, max_gap, max_diff, distance_window,
                             min_samples, path, segments)
-        steps = _jumps(cmp.samples["t"].to_numpy(), cmp.samples[[f"err_{a}" for a in AXES]].to_numpy())
+        steps = _jumps(cmp.samples[[f"err_{a}" for a in AXES]].to_numpy())
         if delay is not None or segments is not None or not steps.any():
             break
         segments = np.searchsorted(cmp.samples["t"].to_numpy()[1:][steps], icp.t, side="right")
@@ -469,11 +469,12 @@ JUMP = (0.1, 0.1)  # m, rad: the smallest step of the ICP-minus-truth difference
 JUMP_FACTOR = 10.0  # ... and it must be this many times the median step (the noise)
 
 
-def _jumps(t: np.ndarray, err: np.ndarray) -> np.ndarray:
-    """Steps ``k -> k + 1`` of the ICP-minus-truth difference ``err`` (n, 4: x, y, z, yaw) that are jumps: a
-    position step of at least ``JUMP[0]`` and ``JUMP_FACTOR`` times the median step, or a yaw step likewise."""
-    if len(t) < 3:
-        return np.zeros(max(len(t) - 1, 0), bool)
+def _jumps(err: np.ndarray) -> np.ndarray:
+    """Steps ``k -> k + 1`` of the ICP-minus-truth difference ``err`` (n, 4: x, y, z, yaw; consecutive compared
+    poses) that are jumps: a position step of at least ``JUMP[0]`` and ``JUMP_FACTOR`` times the median step,
+    or a yaw step likewise."""
+    if len(err) < 3:
+        return np.zeros(max(len(err) - 1, 0), bool)
     dp = np.linalg.norm(np.diff(err[:, :3], axis=0), axis=1)
     dy = np.abs(wrap(np.diff(err[:, 3])))
     return ((dp >= max(JUMP[0], JUMP_FACTOR * np.median(dp))) | (dy >= max(JUMP[1], JUMP_FACTOR * np.median(dy))))
