@@ -118,6 +118,11 @@ def test_bad_options(cli, tmp_path, short):
     goals.write_text("x,y\n1,2\n")
     _fails(cli, tmp_path / "ws", d / "short.bag", "--goals-csv", goals, match=["goals.csv", "lacks columns ['yaw']"])
     _fails(cli, tmp_path / "ws", match=["no bag given and no synthetic runs"])
+    # The same stream twice (a typo): it was compared with itself, RMSE 0.0 mm beside a delay-edge warning.
+    _fails(cli, tmp_path / "ws", d / "short.bag", "--truth", "/icp/pose", "--icp", "/icp/pose",
+           match=["--truth and --icp are the same stream /icp/pose", "bag-info"])
+    _fails(cli, tmp_path / "ws", d / "short.bag", "--truth", "tf:map->base_link", "--icp", " tf:/map->base_link",
+           match=["--truth and --icp are the same stream tf:map->base_link"])
 
 
 # ---- damaged bags (what `benchmarks/fuzz_inputs.py` found) -------------------------------------------
@@ -180,3 +185,24 @@ def test_tf_topic_of_another_type_is_one_line(cli, tmp_path, short):
     damage.replace_bytes(bag, b"tf2_msgs/TFMessage", b"tf2_msgs/TF1essage")  # the schema of /tf_static, recorded first
     _fails(cli, tmp_path / "ws", bag, "--icp", "tf:map->base_link",
            match=[str(bag), "topic /tf_static has message type tf2_msgs/TF1essage, not tf2_msgs/TFMessage", "pass a pose topic"])
+
+
+def test_namespaced_tf_topic_is_read_as_topic_frame_pair(cli, tmp_path, short):
+    """A robot whose tf is recorded on /robot1/tf (a namespace, multi-robot setups): `--icp /robot1/tf` was told
+    to 'ask for a frame pair: tf:PARENT->CHILD', which reads /tf only and then found no 'map' in the bag.
+    The pair on that topic is written /robot1/tf:PARENT->CHILD and gives the numbers of tf:map->base_link."""
+    d, run = short
+    bag = synth.write_ros1(run, tmp_path / "ns.bag", edit=damage.rename_topic("/tf", "/robot1/tf"))
+    _fails(cli, tmp_path / "ws", bag, "--icp", "/robot1/tf", match=["topic /robot1/tf is a tf topic",
+                                                                     "/robot1/tf:PARENT->CHILD"])
+    _fails(cli, tmp_path / "ws", bag, "--icp", "tf:map->base_link",
+           match=["no topic /tf for tf:map->base_link", "tf topics in the bag: /robot1/tf:",
+                  "TOPIC:PARENT->CHILD (e.g. /robot1/tf:map->base_link)"])
+    code, _, err = cli("localisation", bag, "--icp", "/robot1/tf:map->base_link", "--out", tmp_path / "ns", "--no-figures")
+    assert code == 0, err
+    code, _, err = cli("localisation", d / "short.bag", "--icp", "tf:map->base_link", "--out", tmp_path / "tf", "--no-figures")
+    assert code == 0, err
+    ns, tf = (read_table(tmp_path / w / "localisation" / "localisation.parquet", RUNS).iloc[0] for w in ("ns", "tf"))
+    assert ns["icp"] == "/robot1/tf:map->base_link"
+    for col in ("delay", "ape_rmse", "offset_x", "n"):
+        assert ns[col] == tf[col], col

@@ -240,3 +240,96 @@ def test_goals_in_millimetres_are_refused(cli, tmp_path, short):
     goals.write_text("goal,x,y,yaw\n1,1500,-800,0\n")
     _fails(cli, tmp_path / "ws", short[0] / "level.mcap", "--goals-csv", goals,
            match=[f"{goals}: goal 1 (1500, -800) lies beyond the lab (|x|, |y| <= 100 m); give x and y in metres"])
+
+
+def test_unset_header_stamps_ask_for_the_record_time(cli, tmp_path, short):
+    """A node that publishes its poses without stamping them (header.stamp 0): all but one message were
+    dropped as repeated stamps and the run refused as '1 pose(s), too few to compare', a remedy that
+    does not work. The record times do."""
+    from dataclasses import replace
+
+    def unstamped(msgs, store):
+        zero = store.types["builtin_interfaces/msg/Time"](sec=0, nanosec=0)
+        return [(ts, tp, mt, replace(m, header=replace(m.header, stamp=zero)) if tp == "/icp/pose" else m)
+                for ts, tp, mt, m in msgs]
+
+    bag = synth.write_ros1(short[1], tmp_path / "unstamped.bag", edit=unstamped)
+    _fails(cli, tmp_path / "ws", bag, match=[f"unstamped.bag: /icp/pose: {len(short[1].t_icp)} of {len(short[1].t_icp)} "
+                                             "messages share the header stamp 0.000 s (unset)", "--time record"])
+    code, _, err = cli("localisation", bag, "--time", "record", "--out", tmp_path / "ok", "--no-figures")
+    assert code == 0, err
+    assert abs(_runs(tmp_path / "ok").iloc[0]["delay"] - SHORT.delay) < 0.01
+
+
+def test_truth_in_millimetres_is_refused_and_read_with_units(cli, tmp_path, short):
+    """Some motion-capture bridges publish millimetres. A lab beyond 1 m from the origin was refused as
+    'a damaged bag'; a small one (a rigid body within 1 m of the origin) was compared as metres (the
+    delay and the errors of a 1000-times larger motion). Both are refused naming --units, and
+    --units mm,m reads the run as the same run in metres."""
+    run = synth.make_run(synth.SynthParams(n_goals=1, stop=3.0, speed=0.3, mocap_noise=(1e-6, 0.0)))  # within 1 m of `centre`
+    centre = np.array([0.8, 0.2, 1.0])
+
+    def shifted(scale):
+        return damage.edit_poses(lambda topic, i, xyz, q: ((scale if topic == "/mocap/pose" else 1) * (xyz - centre), q))
+
+    metres = synth.write_ros1(run, tmp_path / "m.bag", edit=shifted(1))
+    mm = synth.write_ros1(run, tmp_path / "mm.bag", edit=shifted(1000))
+    _fails(cli, tmp_path / "ws", mm, match=["mm.bag: the positions of /mocap/pose spread 972 times as far as those of "
+                                            "/icp/pose", "not the same units", "read it with --units mm,m"])
+    for bag, units in ((metres, "m"), (mm, "mm,m")):
+        code, _, err = cli("localisation", bag, "--units", units, "--out", tmp_path / units, "--no-figures")
+        assert code == 0, err
+    r, m = _runs(tmp_path / "mm,m").iloc[0], _runs(tmp_path / "m").iloc[0]
+    for col in ("delay", "ape_rmse", "err_x_mean", "offset_x", "distance", "goal_err_xy_mean"):
+        assert r[col] == pytest.approx(m[col], rel=1e-6), col
+    far = synth.write_ros1(short[1], tmp_path / "far.bag", edit=damage.edit_poses(
+        lambda topic, i, xyz, q: (1000 * xyz if topic == "/mocap/pose" else xyz, q)))
+    _fails(cli, tmp_path / "ws", far, match=["far.bag: /mocap/pose: a position beyond 1000 m", "in millimetres: --units"])
+    noisy = synth.write_ros1(synth.make_run(synth.SynthParams(n_goals=1, stop=3.0, speed=0.3)), tmp_path / "noisy.bag",
+                             edit=shifted(1000))  # 0.2 mm marker noise read as metres: 40 m/s back and forth at 200 Hz
+    _fails(cli, tmp_path / "ws", noisy, match=["noisy.bag: /mocap/pose: a position spike", "in millimetres: --units"])
+    assert cli("-q", "localisation", noisy, "--units", "mm,m", "--out", tmp_path / "noisy", "--no-figures")[0] == 0
+
+
+def test_truth_frozen_on_its_last_pose_is_a_gap(cli, tmp_path, short, level):
+    """A motion-capture bridge that repeats the last pose of a lost rigid body (5 s while the robot walks):
+    the ICP was compared with a truth standing still (RMSE 0.2 m instead of 9 mm). The repeats are now
+    dropped with a warning, so the comparison leaves that time out like any truth gap."""
+    frozen = {}
+
+    def freeze(topic, i, xyz, q):
+        if topic == "/mocap/pose" and i == 999:
+            frozen["pose"] = (xyz, q)
+        return frozen["pose"] if topic == "/mocap/pose" and 1000 <= i < 2000 else (xyz, q)
+
+    bag = synth.write_ros1(short[1], tmp_path / "frozen.bag", edit=damage.edit_poses(freeze))
+    code, _, err = cli("localisation", bag, "--out", tmp_path / "ws", "--no-figures")
+    assert code == 0, err
+    flat = " ".join(err.split())
+    assert ("1000 motion-capture poses repeating the pose before them exactly dropped (a lost rigid body whose last pose "
+            "the bridge repeats; the longest stretch 5 s from 5.0 s into the stream)") in flat
+    r = _runs(tmp_path / "ws").iloc[0]
+    assert r["ape_rmse"] == pytest.approx(level["ape_rmse"], rel=0.1) and r["n"] < level["n"] - 40
+
+
+def test_header_stamps_in_clocks_seconds_apart_are_said(cli, tmp_path, short):
+    """The motion-capture PC's clock 3 s ahead of the robot's: with a window wide enough the delay found is
+    the 3 s offset minus the robot's 0.55 s, reported as 'the delay' without a word. The run now says that
+    the two streams' header stamps stand 3 s apart against the bag's record times."""
+    from dataclasses import replace
+
+    def ahead(msgs, store):
+        Time = store.types["builtin_interfaces/msg/Time"]
+
+        def shifted(m):
+            ns = m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec + 3_000_000_000
+            return replace(m, header=replace(m.header, stamp=Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)))
+        return [(ts, tp, mt, shifted(m) if tp == "/mocap/pose" else m) for ts, tp, mt, m in msgs]
+
+    bag = synth.write_ros1(short[1], tmp_path / "ahead.bag", edit=ahead)
+    code, _, err = cli("localisation", bag, "--delay-window=-4,1", "--out", tmp_path / "ws", "--no-figures")
+    assert code == 0, err
+    flat = " ".join(err.split())
+    assert ("the header stamps of /mocap/pose are +3 s from the bag's record times, those of /icp/pose -0.001 s: their "
+            "clocks differ by about 3 s, which the delay includes (--time record compares them on the bag's clock)") in flat
+    assert _runs(tmp_path / "ws").iloc[0]["delay"] == pytest.approx(SHORT.delay - 3.0, abs=0.01)

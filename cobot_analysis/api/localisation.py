@@ -81,13 +81,16 @@ class LocalisationResult:
         return lines
 
 
+UNITS = {"m": 1.0, "mm": 0.001}  # metres per unit of a stream's positions (--units)
+
+
 def localisation_options(bags: list[Path], *, truth: str = "/mocap/pose", icp: str = "/icp/pose", time: str = "header",
                          label: list[str] | None = None, map_name: list[str] | None = None, delay: float | None = None,
                          delay_window: str = "0,1.5", delay_weights: str = "1,1,1,1", alignment: str = "mean",
                          association: str = "interpolate", max_gap: float | None = None, max_diff: float = 0.01,
                          goals_csv: str | os.PathLike | None = None, goal_topic: str = "/goal", speed_threshold: float = 0.02,
                          yaw_rate_threshold: float = 0.03, min_stop: float = 3.0, tol_xy: float = 0.08, tol_yaw: float = 0.07,
-                         distance_window: float = 2.0, up: str = "auto", min_samples: int = 20):
+                         distance_window: float = 2.0, up: str = "auto", min_samples: int = 20, units: str = "m"):
     """(Options, labels, maps): the options of ``localise`` checked (one line naming the option otherwise).
 
         >>> from pathlib import Path
@@ -99,6 +102,7 @@ def localisation_options(bags: list[Path], *, truth: str = "/mocap/pose", icp: s
         cobot_analysis.errors.InputError: --alignment must be mean, se3, yaw or none, not 'umeyama'
     """
     from cobot_analysis.localisation.analysis import Options
+    from cobot_analysis.localisation.bags import PoseSpec
     from cobot_analysis.localisation.goals import StopRule, read_goals_csv
 
     goals = goals_csv
@@ -125,8 +129,15 @@ def localisation_options(bags: list[Path], *, truth: str = "/mocap/pose", icp: s
         up_axes = vertical.parse(up)
     except ValueError:
         raise InputError(f"--up must be auto, x, y, z, -x, -y, -z or TRUTH,ICP, got {up!r}", remedy="e.g. --up -y,z") from None
+    scale = tuple(UNITS.get(u.strip().lower()) for u in (units.split(",") * 2 if "," not in units else units.split(",")))
+    if len(scale) != 2 or None in scale:
+        raise InputError(f"--units must be m, mm or TRUTH,ICP (e.g. mm,m), got {units!r}", remedy="e.g. --units mm,m")
     if time not in ("header", "record"):
         raise InputError(f"--time must be header or record, not {time!r}")
+    if PoseSpec.parse(truth) == PoseSpec.parse(icp):
+        raise InputError(f"--truth and --icp are the same stream {PoseSpec.parse(truth)}",
+                         remedy="pass the motion capture with --truth and the robot's estimate with --icp (`cobot-analysis "
+                                "bag-info BAG` lists the streams)")
     if alignment not in ("mean", "se3", "yaw", "none"):
         raise InputError(f"--alignment must be mean, se3, yaw or none, not {alignment!r}")
     if association not in ("interpolate", "nearest"):
@@ -149,7 +160,7 @@ def localisation_options(bags: list[Path], *, truth: str = "/mocap/pose", icp: s
     goal_rows = tuple(map(tuple, read_goals_csv(goals))) if goals else None
     opts = Options(truth=truth, icp=icp, time=time, delay=delay, window=window, weights=weights, alignment=alignment,
                    association=association, max_gap=max_gap, max_diff=max_diff, distance_window=distance_window,
-                   min_samples=min_samples, up=up_axes,
+                   min_samples=min_samples, up=up_axes, scale=scale,
                    goal_topic=goal_topic or None, goals=goal_rows,
                    rule=StopRule(speed_threshold=speed_threshold, yaw_rate_threshold=yaw_rate_threshold,
                                  min_duration=min_stop, tol_xy=tol_xy, tol_yaw=tol_yaw))
@@ -182,7 +193,7 @@ def localise(bags: str | os.PathLike | list[str | os.PathLike], *, jobs: int | N
         ['run']
         >>> localise(bag, tol=0.1)
         Traceback (most recent call last):
-        cobot_analysis.errors.InputError: unknown localise option(s) ['tol']; use truth, icp, time, label, map_name, delay, delay_window, delay_weights, alignment, association, max_gap, max_diff, goals_csv, goal_topic, speed_threshold, yaw_rate_threshold, min_stop, tol_xy, tol_yaw, distance_window, up, min_samples
+        cobot_analysis.errors.InputError: unknown localise option(s) ['tol']; use truth, icp, time, label, map_name, delay, delay_window, delay_weights, alignment, association, max_gap, max_diff, goals_csv, goal_topic, speed_threshold, yaw_rate_threshold, min_stop, tol_xy, tol_yaw, distance_window, up, min_samples, units
         >>> tmp.cleanup()
     """
     import inspect

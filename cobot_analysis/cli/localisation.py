@@ -110,8 +110,8 @@ def localisation_command(
     force: ForceOpt = False,
     jobs: JobsOpt = None,
     scheduler: SchedulerOpt = None,
-    truth: Annotated[str, typer.Option(help="Motion-capture stream: a topic or tf:PARENT->CHILD.")] = "/mocap/pose",
-    icp: Annotated[str, typer.Option(help="ICP stream: a topic or tf:PARENT->CHILD.")] = "/icp/pose",
+    truth: Annotated[str, typer.Option(help="Motion-capture stream: a topic, or tf:PARENT->CHILD (TOPIC:PARENT->CHILD on a tf topic other than /tf).")] = "/mocap/pose",
+    icp: Annotated[str, typer.Option(help="ICP stream: a topic, or tf:PARENT->CHILD (TOPIC:PARENT->CHILD on a tf topic other than /tf).")] = "/icp/pose",
     time: Annotated[str, typer.Option(help="Stamps: 'header' (message header) or 'record' (bag receive time).")] = "header",
     label: Annotated[Optional[list[str]], typer.Option(help="Run label, once per bag (default: file stem).")] = None,
     map_name: Annotated[Optional[list[str]], typer.Option("--map-name", help="Name of the map the ICP localised in (e.g. scanned), once for all bags or once per bag.")] = None,
@@ -132,6 +132,7 @@ def localisation_command(
     distance_window: Annotated[float, typer.Option(help="Moving-average window for the travelled distance (s).")] = 2.0,
     up: Annotated[str, typer.Option(help="Vertical axis of the frames: auto (detected from the motion, warned when not z), x, y, z, -x, -y, -z, or TRUTH,ICP (e.g. -y,z for a camera-frame truth). Planar quantities (distance, drift, stops, yaw) are computed in the plane normal to it.")] = "auto",
     min_samples: Annotated[int, typer.Option(help="Fewest associated ICP poses accepted (>= 3).")] = 20,
+    units: Annotated[str, typer.Option(help="Unit of the positions: m or mm, or TRUTH,ICP (e.g. mm,m for a motion-capture bridge publishing millimetres).")] = "m",
     figures: Annotated[bool, typer.Option("--figures/--no-figures", help="Draw the figures (PNG and PDF).")] = True,
 ) -> None:
     """Localisation accuracy of ICP against motion capture: delay, structural offset, per-axis errors,
@@ -154,7 +155,7 @@ def localisation_command(
                         alignment=alignment, association=association, max_gap=max_gap, max_diff=max_diff, goals_csv=goals,
                         goal_topic=goal_topic, speed_threshold=speed_threshold, yaw_rate_threshold=yaw_rate_threshold,
                         min_stop=min_stop, tol_xy=tol_xy, tol_yaw=tol_yaw, distance_window=distance_window, up=up,
-                        min_samples=min_samples)
+                        min_samples=min_samples, units=units)
     if done.skipped:
         return
     for line in done.result.run_lines(where=str(done.directory / "results.md")):

@@ -43,20 +43,25 @@ TF_MSGDEF = "geometry_msgs/TransformStamped[] transforms\n"
 
 @dataclass(frozen=True)
 class PoseSpec:
-    """Where a pose stream is in a bag: a topic, or a tf frame pair ``tf:PARENT->CHILD``."""
+    """Where a pose stream is in a bag: a topic, or a tf frame pair ``tf:PARENT->CHILD`` (on ``/tf`` and
+    ``/tf_static``), ``TOPIC:PARENT->CHILD`` on another tf topic (e.g. ``/robot1/tf``, with ``/robot1/tf_static``
+    and ``/tf_static``; ROS topic names hold no ``:``)."""
 
     topic: str | None = None
     parent: str | None = None
     child: str | None = None
+    tf_topic: str = "/tf"
 
     @classmethod
     def parse(cls, text: str) -> "PoseSpec":
         text = text.strip()
-        if text.startswith("tf:"):
-            parent, sep, child = text[3:].partition("->")
+        tf_topic, colon, pair = text.partition(":")
+        if colon and (tf_topic == "tf" or tf_topic.startswith("/")):
+            parent, sep, child = pair.partition("->")
             if not sep or not parent.strip() or not child.strip():
-                raise InputError(f"bad tf pose spec {text!r}", remedy="write it tf:PARENT->CHILD, e.g. tf:map->base_link")
-            return cls(parent=_frame(parent), child=_frame(child))
+                raise InputError(f"bad tf pose spec {text!r}", remedy="write it tf:PARENT->CHILD, e.g. tf:map->base_link "
+                                                                       "(TOPIC:PARENT->CHILD on another tf topic)")
+            return cls(parent=_frame(parent), child=_frame(child), tf_topic="/tf" if tf_topic == "tf" else tf_topic)
         if not text:
             raise InputError("empty pose topic", remedy="pass a topic such as /icp/pose or tf:map->base_link")
         return cls(topic=text)
@@ -65,8 +70,15 @@ class PoseSpec:
     def is_tf(self) -> bool:
         return self.topic is None
 
+    @property
+    def tf_topics(self) -> tuple[str, ...]:
+        """The tf topics a frame pair is read from: its dynamic topic and the static ones."""
+        return (self.tf_topic, "/tf_static") if self.tf_topic == "/tf" else (self.tf_topic, f"{self.tf_topic}_static", "/tf_static")
+
     def __str__(self) -> str:
-        return f"tf:{self.parent}->{self.child}" if self.is_tf else str(self.topic)
+        if not self.is_tf:
+            return str(self.topic)
+        return f"{'tf' if self.tf_topic == '/tf' else self.tf_topic}:{self.parent}->{self.child}"
 
 
 def _frame(name: str) -> str:
@@ -272,7 +284,7 @@ def bag_info(path: str | os.PathLike) -> tuple[list[dict], list[dict]]:
                 for tr in _decode(src, raw, msgtype).transforms:
                     e = edges[(_frame(tr.header.frame_id), _frame(tr.child_frame_id))]
                     e["count"] += 1
-                    e["static"] |= topic == "/tf_static"
+                    e["static"] |= topic.endswith("tf_static")
         for name in topics:
             t = src.topics[name]
             t0, t1 = first.get(name), last.get(name)
@@ -320,14 +332,17 @@ def _pose_of(msg, msgtype: str):
 
 
 def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str = "header",
-                 optional: tuple[str, ...] = (), sparse: tuple[str, ...] = ()) -> dict[str, PoseStream]:
+                 optional: tuple[str, ...] = (), sparse: tuple[str, ...] = (),
+                 scale: dict[str, float] | None = None) -> dict[str, PoseStream]:
     """Read several pose streams in one pass over the bag: ``{name: PoseStream}``; the names in
     ``optional`` are left out (instead of an error) when their topic is not in the bag; those in
-    ``sparse`` (commands such as goals) are not checked for continuity (``_stream``)."""
+    ``sparse`` (commands such as goals) are not checked for continuity (``_stream``); ``scale``: metres
+    per unit of a stream's positions (0.001 for millimetres; 1 when not given), applied before the checks."""
     if time not in ("header", "record"):
         raise ValueError("time must be 'header' or 'record'")
     path = Path(path)
-    fast = _indexed_streams(path, specs, time, optional, sparse)
+    scale = scale or {}
+    fast = _indexed_streams(path, specs, time, optional, sparse, scale)
     if fast is not None:
         return fast
     with open_bag(path) as src:
@@ -338,10 +353,13 @@ def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str 
             raise missing_topics(path, src, missing)
         for spec in specs.values():
             if spec.is_tf:
-                present = [t for t in TF_TOPICS if t in src.topics]
-                if not present:
-                    raise InputError(f"no /tf or /tf_static topic for {spec}", path=path,
-                                     remedy=f"topics in the bag: {_topic_list(src)}")
+                present = [t for t in spec.tf_topics if t in src.topics]
+                if spec.tf_topic not in src.topics:
+                    others = sorted(t for t in src.topics if src.topics[t].msgtype == TF_TYPE and not t.endswith("_static"))
+                    raise InputError(f"no topic {spec.tf_topic} for {spec}", path=path, remedy=(
+                        f"tf topics in the bag: {', '.join(others)}: a frame pair on another topic is given as "
+                        f"TOPIC:PARENT->CHILD (e.g. {others[0]}:{spec.parent}->{spec.child})" if others
+                        else f"topics in the bag: {_topic_list(src)}"))
                 for t in present:
                     if src.topics[t].msgtype != TF_TYPE:
                         raise InputError(f"topic {t} has message type {src.topics[t].msgtype.replace('/msg/', '/')}, "
@@ -355,9 +373,11 @@ def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str 
                     raise InputError(f"topic {spec.topic} has message type {mt.replace('/msg/', '/')}, which holds no pose",
                                      path=path, remedy="use a PoseStamped, PoseWithCovarianceStamped, TransformStamped or Odometry topic, or tf:PARENT->CHILD")
                 if mt == TF_TYPE:
-                    raise InputError(f"topic {spec.topic} is a tf topic", path=path, remedy="ask for a frame pair: tf:PARENT->CHILD")
+                    raise InputError(f"topic {spec.topic} is a tf topic", path=path,
+                                     remedy=f"ask for a frame pair on it: {spec.topic}:PARENT->CHILD")
                 need.add(spec.topic)
         data: dict[str, np.ndarray] = {}
+        static_topics = {t for spec in specs.values() if spec.is_tf for t in spec.tf_topics[1:]}
         tf: dict[tuple[str, str], list] = defaultdict(list)
         static: dict[tuple[str, str], tuple] = {}
         frame_ids: dict[str, str] = {}
@@ -368,7 +388,7 @@ def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str 
                 for tr in _decode(src, raw, msgtype).transforms:
                     key = (_frame(tr.header.frame_id), _frame(tr.child_frame_id))
                     pose = _pose_of(tr, "geometry_msgs/msg/TransformStamped")
-                    if topic == "/tf_static":
+                    if topic in static_topics:
                         static[key] = pose
                     else:
                         tf[key].append((_stamp(tr) if time == "header" else ts * 1e-9, *pose[0], *pose[1], ts * 1e-9))
@@ -391,18 +411,19 @@ def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str 
     out = {}
     for name, spec in specs.items():
         if spec.is_tf:
-            out[name] = _chain(path, spec, tf, static)
+            out[name] = _chain(path, spec, tf, static, scale.get(name, 1.0))
         else:
             rows = np.asarray(data.get(spec.topic, []), dtype=float).reshape(-1, 9)
             if len(rows) == 0:
                 raise InputError(f"topic {spec.topic} has no messages", path=path, remedy=f"topics in the bag: {_topic_list_from(data)}")
+            rows[:, 1:4] *= scale.get(name, 1.0)
             out[name] = _stream(path, str(spec), rows[:, :8], frame_ids.get(spec.topic, ""), continuous=name not in sparse,
                                 record=rows[:, 8])
     return out
 
 
 def _indexed_streams(path: Path, specs: dict[str, PoseSpec], time: str, optional: tuple[str, ...],
-                     sparse: tuple[str, ...]) -> dict[str, PoseStream] | None:
+                     sparse: tuple[str, ...], scale: dict[str, float] | None = None) -> dict[str, PoseStream] | None:
     """``read_streams`` through the bag's own index (``indexed``) when every stream is a pose topic of
     the bag whose messages share one layout; None otherwise (the general path then reads the bag)."""
     if any(spec.is_tf for spec in specs.values()):
@@ -429,6 +450,7 @@ def _indexed_streams(path: Path, specs: dict[str, PoseSpec], time: str, optional
         record = msgs.record_ns * 1e-9
         if time == "record":
             rows[:, 0] = record
+        rows[:, 1:4] *= (scale or {}).get(name, 1.0)
         read[name] = (rows, frame_id, record)
     messages = msgs = None  # the serialised messages are no longer needed
     return {name: _stream(path, str(spec), read[name][0], _frame(read[name][1]), continuous=name not in sparse,
@@ -541,6 +563,7 @@ MAX_SPEED = 10.0  # m/s between consecutive poses: beyond this a pose is a jump 
 MAX_TURN = 10.0  # rad/s between consecutive orientations: beyond this likewise
 STAMP_STEP = 0.5  # s: a stamp this far from the stamps before and after it in the bag (which agree) is out of place
 CLOCK_JUMP = 10.0  # s: stamps of consecutive messages whose offsets to the bag's record times differ by more jump
+MILLIMETRES = "or positions in millimetres: --units gives the unit of each stream (TRUTH,ICP, e.g. --units mm,m)"
 DAMAGED = ("a damaged bag: re-export it or record it again (a stream that really glitched there: leave that message "
            "out of the bag, e.g. with rosbag filter)")
 
@@ -568,14 +591,16 @@ def _turn(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continuous: bool = True,
             record: np.ndarray | None = None) -> PoseStream:
     """Sorted, de-duplicated stream from rows ``(t, x, y, z, qx, qy, qz, qw)`` in the order read
-    (``record``: the bag's record time of each, s).
+    (``record``: the bag's record time of each, s; the median of stamp minus record time is kept in
+    ``meta["clock"]``).
 
     Dropped with a warning (kept in ``meta["notes"]``): messages with NaN/inf (a lost rigid body), a
     zero quaternion (orientation unset) or a quaternion far from unit norm; repeated stamps. Sorted
     with a warning: unsorted stamps. Warned about: jumps faster than ``MAX_SPEED`` / ``MAX_TURN``
     (a relocalisation, or damage at an end of the stream). Refused (``InputError`` naming the
     message), as values no recording holds: a stamp whose nanosec is not below 1e9, a position
-    beyond ``POSITION_LIMIT``; in a ``continuous`` stream (not the goals) a stamp whose offset to the
+    beyond ``POSITION_LIMIT``; in a ``continuous`` stream (not the goals) most messages sharing one
+    stamp (unstamped: --time record), a stamp whose offset to the
     record time jumps by more than ``CLOCK_JUMP`` from the message before, a stamp ``STAMP_STEP`` away
     from both its neighbours in the bag, an end stamp further from the others than they span, and
     an isolated spike (a pose leaving both neighbours faster than the limits while they agree).
@@ -614,9 +639,15 @@ def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continu
         note(f"{n_msgs - int(keep.sum())} of {n_msgs} message(s) dropped: {'; '.join(drops)}")
         rows, order = rows[keep], order[keep]
     refuse(f"a position beyond {POSITION_LIMIT:g} m from the frame origin ({np.abs(rows[:, 1:4]).max():.3g} m)",
-           (np.abs(rows[:, 1:4]) > POSITION_LIMIT).any(axis=1))
+           (np.abs(rows[:, 1:4]) > POSITION_LIMIT).any(axis=1), remedy=f"{DAMAGED}; {MILLIMETRES}")
     t = rows[:, 0]
     if continuous and len(rows) > 2:
+        values, counts = np.unique(t, return_counts=True)
+        if len(t) - len(values) > len(t) / 2:  # most messages repeat a stamp: the publisher does not stamp them
+            mode = values[np.argmax(counts)]
+            raise InputError(f"{name}: {len(t) - len(values) + 1} of {n_msgs} messages share the header stamp {mode:.3f} s"
+                             + (" (unset)" if mode == 0 else ""), path=path,
+                             remedy="the publisher does not stamp its poses: analyse with the bag's record times (--time record)")
         gap = np.abs(np.diff(t)) > STAMP_STEP
         refuse(f"a stamp out of place (more than {STAMP_STEP:g} s from the stamps of the messages before and after it)",
                _isolated(gap, np.abs(t[2:] - t[:-2]) > STAMP_STEP))
@@ -642,7 +673,7 @@ def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continu
         refuse("a stamp far from all others (further from them than they span)", lone)
         dt2 = t[2:] - t[:-2]
         refuse(f"a position spike (to and from its neighbours faster than {MAX_SPEED:g} m/s)",
-               _isolated(speed > MAX_SPEED, row_norm(xyz[2:] - xyz[:-2]) / dt2 > MAX_SPEED))
+               _isolated(speed > MAX_SPEED, row_norm(xyz[2:] - xyz[:-2]) / dt2 > MAX_SPEED), remedy=f"{DAMAGED}; {MILLIMETRES}")
         refuse(f"an orientation spike (to and from its neighbours faster than {MAX_TURN:g} rad/s)",
                _isolated(turn > MAX_TURN, _turn(quat[2:], quat[:-2]) / dt2 > MAX_TURN))
     if len(rows) > 1:
@@ -651,11 +682,13 @@ def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continu
             note(f"{int(fast.sum())} jump(s) between consecutive poses faster than {MAX_SPEED:g} m/s or {MAX_TURN:g} rad/s "
                  f"(up to {speed.max():.3g} m/s, {turn.max():.3g} rad/s): a relocalisation, lost tracking or a damaged bag; "
                  "check the poses (poses.parquet)")
-    return PoseStream(t.copy(), xyz.copy(), quat, name=name, frame_id=frame_id, meta={"notes": notes})
+    clock = {} if record is None else {"clock": float(np.median(t - record[order]))}  # stamps minus record times, s
+    return PoseStream(t.copy(), xyz.copy(), quat, name=name, frame_id=frame_id, meta={"notes": notes, **clock})
 
 
-def _chain(path: Path, spec: PoseSpec, tf: dict, static: dict) -> PoseStream:
-    """Pose of ``spec.child`` in ``spec.parent`` through the frame tree (see module docstring)."""
+def _chain(path: Path, spec: PoseSpec, tf: dict, static: dict, scale: float = 1.0) -> PoseStream:
+    """Pose of ``spec.child`` in ``spec.parent`` through the frame tree (see module docstring); ``scale``:
+    metres per unit of the transforms' translations."""
     edges = set(tf) | set(static)
     graph = defaultdict(set)
     for p, c in edges:
@@ -665,7 +698,7 @@ def _chain(path: Path, spec: PoseSpec, tf: dict, static: dict) -> PoseStream:
     if spec.parent not in graph or spec.child not in graph:
         missing = [f for f in (spec.parent, spec.child) if f not in graph]
         raise InputError(f"tf frame(s) {', '.join(missing)} not in the bag", path=path,
-                         remedy=f"frames in /tf and /tf_static: {', '.join(frames) or 'none'}")
+                         remedy=f"frames in {' and '.join(spec.tf_topics)}: {', '.join(frames) or 'none'}")
     # Breadth-first search for the path parent -> ... -> child.
     prev = {spec.parent: None}
     queue = deque([spec.parent])
@@ -677,7 +710,7 @@ def _chain(path: Path, spec: PoseSpec, tf: dict, static: dict) -> PoseStream:
                 queue.append(g)
     if spec.child not in prev:
         raise InputError(f"tf frames {spec.parent} and {spec.child} are not connected", path=path,
-                         remedy=f"frames in /tf and /tf_static: {', '.join(frames)}; edges: "
+                         remedy=f"frames in {' and '.join(spec.tf_topics)}: {', '.join(frames)}; edges: "
                                 + ", ".join(f"{p}->{c}" for p, c in sorted(edges)))
     hops = []
     f = spec.child
@@ -690,6 +723,7 @@ def _chain(path: Path, spec: PoseSpec, tf: dict, static: dict) -> PoseStream:
         key = (a, b) if (a, b) in edges else (b, a)
         if key in tf:
             rows = np.asarray(tf[key], dtype=float)
+            rows[:, 1:4] *= scale
             dynamic[key] = _stream(path, f"tf:{key[0]}->{key[1]}", rows[:, :8], record=rows[:, 8])
     if not dynamic:
         raise InputError(f"tf:{spec.parent}->{spec.child} is static (only /tf_static edges)", path=path,
@@ -710,11 +744,12 @@ def _chain(path: Path, spec: PoseSpec, tf: dict, static: dict) -> PoseStream:
             ep, eq = _interpolate(dynamic[key], t)
         else:
             sp, sq = static[key]
-            ep, eq = np.tile(sp, (len(t), 1)), np.tile(normalise(np.asarray(sq, dtype=float)), (len(t), 1))
+            ep, eq = np.tile(np.asarray(sp, dtype=float) * scale, (len(t), 1)), np.tile(normalise(np.asarray(sq, dtype=float)), (len(t), 1))
         if not forward:
             ep, eq = invert(ep, eq)
         p, q = compose(p, q, ep, eq)
-    return PoseStream(t, p, normalise(q), name=str(spec), frame_id=spec.parent, meta={"notes": notes})
+    clock = {"clock": base.meta["clock"]} if "clock" in base.meta else {}
+    return PoseStream(t, p, normalise(q), name=str(spec), frame_id=spec.parent, meta={"notes": notes, **clock})
 
 
 def _interpolate(s: PoseStream, t: np.ndarray):

@@ -10,25 +10,35 @@ Notation: ``s_i`` the ICP stamps, ``P(t)`` the motion-capture (truth) pose, ``Q_
    0.05 s, so that one missing sample is bridged at any rate). ``association="nearest"`` instead
    takes the truth sample nearest to ``s_i - d`` within ``max_diff`` (the nearest-stamp matching
    of evo). Too few associated poses is an error that names its cause (no common time span, or
-   truth gaps longer than ``max_gap``, or no truth sample within ``max_diff``).
+   truth gaps longer than ``max_gap``, or no truth sample within ``max_diff``); a comparison that
+   leaves out many ICP poses, or any in a truth dropout, carries a ``coverage`` warning (``_coverage``).
 2. Delay: ``d* = argmin_d J(d)``, ``J(d) = sum_i sum_a w_a (r_ia(d) - mean_i r_ia(d))^2`` with
    ``r_i(d) = Q_i - P(s_i - d)`` on the axes (x, y, z, yaw) - i.e. the difference that remains
    after the mean offset is removed. A grid scan every 20 ms (or the motion-capture period if
    longer) over the search window finds the basin (far narrower than the gait period, so the
    scan cannot miss it); a golden-section search between the grid neighbours of the best grid
-   point refines it to 1e-6 s. With a rigid alignment (se3, yaw) the position residual is taken
+   point refines it to 1e-6 s. ICP poses whose window ``[s - hi, s - lo]`` meets a truth gap
+   longer than ``max_gap`` are left out of ``J`` (a dropout's interpolated line biases it). With a rigid alignment (se3, yaw) the position residual is taken
    after that alignment at each ``d`` instead of after the mean. Standard error (sandwich, Gauss-Newton):
    ``var d = sum_ia w_a^2 sigma_a^2 g_ia^2 / (sum_ia w_a g_ia^2)^2``, ``g_i = dP/dt (s_i - d)``
    centred, ``sigma_a`` the residual sd of axis a (serially uncorrelated noise assumed). A minimum
    on the first or last grid point of the window is no minimum of ``J``: ``at_edge`` is set, the
-   standard error is NaN, and the run carries a warning to widen the window.
+   standard error is NaN, and the run carries a warning to widen the window. The delay is told only
+   by changes of the truth's velocity (the mean removes a constant shift): when the same estimate
+   with the velocity differenced over +-0.5 s (``motion_sd``: free of the motion capture's noise, which
+   over +-0.05 s passes for motion when the robot stands still) exceeds ``UNDETERMINED``,
+   ``determined`` is False and ``compare`` refuses to estimate it. With the mean offset, frames
+   rotated about the vertical (``_check_not_rotated``) are refused first: they bias the delay.
 3. Structural offset: ``o = mean_i (Q_i - P(s_i - d))`` per axis (circular mean for yaw) and
    ``Q_i - o`` (docs/methods.md), or a rigid alignment of the ICP positions onto the truth: Umeyama
    SE(3) (``"se3"``) or a rotation about z plus a translation (``"yaw"``, 4 DoF).
 4. Errors: ``e_i = Q'_i - P(s_i - d)`` per axis; mean +- sd of ``|e|``, RMSE, max; the 3-D
    position error ``||e_xyz||`` (RMSE, mean, max as evo's APE on the translation part); drift:
    least-squares line ``||e_xy|| = a + b s`` against the travelled distance ``s`` (planar path
-   length of the truth smoothed by a centred moving average), b in m per m.
+   length of the truth smoothed by a centred moving average), b in m per m. Jumps (``_jumps``: steps
+   of ``e`` between consecutive poses of at least ``JUMP`` and ``JUMP_FACTOR`` times the median step,
+   a relocalisation) are counted and warned about; with jumps, an estimated delay is estimated again
+   with the mean of each stretch between them removed from the residuals (``segments``).
 """
 
 from __future__ import annotations
@@ -43,6 +53,7 @@ from cobot_analysis.errors import InputError
 from cobot_analysis.localisation.poses import PoseStream, from_matrix, from_yaw, multiply, normalise, slerp, yaw_of
 
 AXES = ("x", "y", "z", "yaw")
+UNDETERMINED = 0.1  # s: a delay whose standard error from the truth's smoothed velocity exceeds this is not estimated
 
 
 @dataclass
@@ -54,6 +65,12 @@ class Delay:
     n: int = 0
     window: tuple[float, float] = (float("nan"), float("nan"))
     at_edge: bool = False  # the minimum of the scan is on an end of the window
+    motion_sd: float = 0.0  # s: the standard error with the truth velocity over +-0.5 s (module doc, step 2)
+
+    @property
+    def determined(self) -> bool:
+        """The truth's velocity changes enough to tell delays apart."""
+        return self.motion_sd <= UNDETERMINED
 
     def edge_warning(self) -> str | None:
         """Advice when the estimate is on an end of its search window (module doc, step 2)."""
@@ -98,6 +115,7 @@ class Comparison:
     alignment: Alignment
     samples: pd.DataFrame  # one row per associated ICP sample
     summary: dict
+    notes: list[str] = field(default_factory=list)  # warnings: ICP poses left out (``_coverage``), jumps (``_jumps``)
 
 
 # ---- 1. time base -----------------------------------------------------------------------------
@@ -132,18 +150,23 @@ def _channels(stream: PoseStream) -> np.ndarray:
 # ---- 2. delay ---------------------------------------------------------------------------------
 def estimate_delay(truth: PoseStream, icp: PoseStream, window: tuple[float, float] = (0.0, 1.5),
                    weights=(1.0, 1.0, 1.0, 1.0), min_samples: int = 20, grid_step: float = 0.02,
-                   rigid: str | None = None) -> Delay:
+                   rigid: str | None = None, max_gap: float = np.inf, segments: np.ndarray | None = None) -> Delay:
     """Delay of ``icp`` behind ``truth`` (s) minimising ``J(d)`` over ``window`` (module docstring).
 
     ``rigid="se3"`` or ``"yaw"``: the position residual is taken after the rigid alignment of the
-    ICP positions onto the truth at each ``d`` (for frames that differ by a rotation)."""
+    ICP positions onto the truth at each ``d`` (for frames that differ by a rotation). ICP poses
+    whose window ``[s - hi, s - lo]`` meets a truth gap longer than ``max_gap`` are left out (the
+    straight line interpolated across a dropout is no truth, and it biases the delay). ``segments``: a
+    label per ICP pose (the stretches between relocalisation jumps), whose offsets are removed one by one."""
     lo, hi = window
     w = np.asarray(weights, dtype=float)
-    keep = (icp.t - hi >= truth.t[0]) & (icp.t - lo <= truth.t[-1])
+    keep = (icp.t - hi >= truth.t[0]) & (icp.t - lo <= truth.t[-1]) & ~_meets_gap(truth.t, icp.t - hi, icp.t - lo, max_gap)
     s = icp.t[keep]
     if len(s) < min_samples:
         return Delay(float("nan"), float("nan"), "not enough overlap", n=len(s), window=(lo, hi))
     q = _channels(icp)[keep]
+    label = np.zeros(len(s), int) if segments is None else np.unique(segments[keep], return_inverse=True)[1]
+    size = np.bincount(label)
     ref = _channels(truth)
     tref = truth.t
 
@@ -161,10 +184,10 @@ def estimate_delay(truth: PoseStream, icp: PoseStream, window: tuple[float, floa
         if rigid:
             rot, t = (umeyama if rigid == "se3" else yaw_alignment)(q[:, :3], p[:, :3])
             r[:, :3] = q[:, :3] @ rot.T + t - p[:, :3]
-        else:
-            r[:, :3] -= r[:, :3].mean(axis=0)
+        for k in range(3):  # the mean of each stretch between jumps (of the whole run without jumps)
+            r[:, k] -= (np.bincount(label, r[:, k]) / size)[label]
         yaw = wrap(r[:, 3])  # finite (both streams are), so its circular mean needs no NaN handling
-        r[:, 3] = wrap(yaw - np.arctan2(np.sin(yaw).sum(), np.cos(yaw).sum()))
+        r[:, 3] = wrap(yaw - np.arctan2(np.bincount(label, np.sin(yaw)), np.bincount(label, np.cos(yaw)))[label])
         return r
 
     def cost(d):
@@ -178,15 +201,33 @@ def estimate_delay(truth: PoseStream, icp: PoseStream, window: tuple[float, floa
     a, b = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
     d = golden_section(cost, a, b, 1e-6)
     r = residuals(d)
-    h = 0.05  # s, half-width of the centred difference of the truth velocity
-    g = (truth_at(np.clip(s - d + h, tref[0], tref[-1])) - truth_at(np.clip(s - d - h, tref[0], tref[-1]))) / (2 * h)
-    g -= g.mean(axis=0)
     sigma2 = r.var(axis=0, ddof=1)
-    denom = np.sum(w * g * g)
-    sd = float(np.sqrt(np.sum(w * w * sigma2 * g * g)) / denom) if denom > 0 else float("inf")
+
+    def standard_error(h):
+        """The sandwich estimate with the truth velocity as centred differences over +-h seconds (at the ICP
+        poses whose +-h lies inside the truth span: a difference cut short at an end is no velocity)."""
+        tq = s - d
+        inside = (tq - h >= tref[0]) & (tq + h <= tref[-1])
+        g = (truth_at(tq[inside] + h) - truth_at(tq[inside] - h)) / (2 * h)
+        g -= g.mean(axis=0) if len(g) else 0.0
+        denom = np.sum(w * g * g)
+        return float(np.sqrt(np.sum(w * w * sigma2 * g * g)) / denom) if denom > 0 else float("inf")
+
+    sd = standard_error(0.05)
     at_edge = k in (0, len(grid) - 1)
     method = "least squares: grid scan + golden section" + (" (minimum at the window edge)" if at_edge else "")
-    return Delay(d, float("nan") if at_edge else sd, method, np.column_stack([grid, costs]), int(len(s)), (lo, hi), at_edge)
+    return Delay(d, float("nan") if at_edge else sd, method, np.column_stack([grid, costs]), int(len(s)), (lo, hi), at_edge,
+                 standard_error(0.5))
+
+
+def _meets_gap(t: np.ndarray, u: np.ndarray, v: np.ndarray, max_gap: float) -> np.ndarray:
+    """Whether each interval ``[u, v]`` overlaps a sample interval of ``t`` longer than ``max_gap``."""
+    if len(t) < 2:
+        return np.zeros(len(u), bool)
+    long = np.concatenate([[0], np.cumsum(np.diff(t) > max_gap)])  # long intervals before each sample
+    first = np.clip(np.searchsorted(t, u, side="right") - 1, 0, len(t) - 2)  # interval k is [t_k, t_k+1]
+    last = np.clip(np.searchsorted(t, v, side="left") - 1, 0, len(t) - 2)
+    return long[last + 1] - long[first] > 0
 
 
 def golden_section(f, a: float, b: float, tol: float) -> float:
@@ -245,6 +286,51 @@ def align(method: str, truth_xyz, truth_yaw, icp_xyz, icp_yaw) -> Alignment:
     # Reported offset: the transform from the truth frame to the ICP frame, as x, y, z, yaw.
     inv_t = -r.T @ t
     return Alignment(method, r, t, np.concatenate([inv_t, [-np.arctan2(r[1, 0], r[0, 0])]]))
+
+
+ROTATED = 1.5  # a rotation about the vertical that divides the RMS position residual of the mean offset by more is refused
+
+
+def _check_not_rotated(truth_xyz, icp_xyz, path) -> None:
+    """Refuse the mean offset when the ICP frame is rotated about the vertical against the truth's: when a
+    rotation about z plus a translation (``yaw_alignment``) leaves an RMS position residual ``ROTATED``
+    times smaller than the mean offset does (the mean cannot remove a rotation; it biased the delay too)."""
+    rot, t = yaw_alignment(icp_xyz, truth_xyz)
+    fit = np.sqrt(np.mean(np.sum((icp_xyz @ rot.T + t - truth_xyz) ** 2, axis=1)))
+    d = icp_xyz - truth_xyz
+    mean = np.sqrt(np.mean(np.sum((d - d.mean(axis=0)) ** 2, axis=1)))
+    if mean > ROTATED * fit:
+        raise InputError(f"the ICP frame is rotated about the vertical against the motion capture's by about "
+                         f"{-np.arctan2(rot[1, 0], rot[0, 0]):.3g} rad (fitted to the positions, it leaves an RMS residual "
+                         f"of {1000 * fit:.3g} mm where the mean offset leaves {1000 * mean:.3g} mm), which the mean offset "
+                         "cannot remove", path=path,
+                         remedy="use --alignment yaw (a rotation about the vertical and a translation) or se3")
+
+
+ROTATION_SE = 0.02  # rad: a rigid alignment whose rotation has a larger standard error is fitted to the noise
+
+
+def _check_rotation(method: str, truth_xyz, r, path) -> None:
+    """Refuse a rigid alignment (``se3``, ``yaw``) whose rotation the positions do not fix: its standard
+    error ``sigma / (spread sqrt(n))`` (``sigma`` the sd per axis of the residuals ``r`` left by the fit,
+    ``spread`` the sd of the truth positions along the direction the rotation needs: the second principal
+    one for se3, the first horizontal one for yaw) above ``ROTATION_SE``."""
+    n = len(truth_xyz)
+    sigma = float(np.sqrt(np.mean(r.var(axis=0))))
+    cols = slice(0, 3) if method == "se3" else slice(0, 2)
+    sd = np.linalg.svd(truth_xyz[:, cols] - truth_xyz[:, cols].mean(axis=0), compute_uv=False) / np.sqrt(n)
+    spread = sd[1] if method == "se3" else sd[0]
+    se = sigma / (spread * np.sqrt(n)) if spread > 0 else np.inf
+    if se <= ROTATION_SE:
+        return
+    still = sd[0] * np.sqrt(n) * ROTATION_SE < sigma  # no direction fixes a rotation
+    where = ("hardly spread in the horizontal plane" if method == "yaw" else "hardly spread in any direction" if still
+             else "spread along one direction only")
+    raise InputError(f"--alignment {method} is ill-posed on this run: the motion-capture positions {where} "
+                     f"(sd {', '.join(f'{1000 * v:.3g}' for v in sd)} mm against a residual sd of {1000 * sigma:.3g} mm), so the "
+                     f"rotation would be fitted to the noise (standard error {se:.2g} rad)", path=path,
+                     remedy="use --alignment mean" + (" or yaw (the line fixes the rotation about the vertical)"
+                                                      if method == "se3" and not still else ""))
 
 
 # ---- 4. errors and drift ------------------------------------------------------------------------
@@ -321,6 +407,43 @@ def _too_few(truth: PoseStream, icp: PoseStream, tq, valid, d: Delay, associatio
                                         "across such gaps is acceptable")
 
 
+DROPOUT = 1.0  # s: a truth gap this long that leaves ICP poses out is a dropout the run must mention
+COVERED = 0.9  # fraction of the ICP poses below which the compared samples are said to leave much out
+
+
+def _coverage(truth: PoseStream, icp: PoseStream, tq, valid, max_gap: float, max_diff: float, association: str) -> str | None:
+    """The warning when the compared ICP poses leave out more than ``1 - COVERED`` of them, or any in a truth
+    gap of ``DROPOUT`` s or more: how many, why (outside the truth's span, in its gaps) and the longest gap."""
+    inside = (tq >= truth.t[0]) & (tq <= truth.t[-1])
+    n, total, lost = int(valid.sum()), len(icp), int((inside & ~valid).sum())
+    spacing = np.diff(truth.t)
+    k = int(np.argmax(spacing)) if len(spacing) else 0
+    longest = float(spacing[k]) if len(spacing) else 0.0
+    if n >= COVERED * total and not (lost and longest >= DROPOUT):
+        return None
+    rule = f"--max-gap {max_gap:g} s" if association == "interpolate" else f"no sample within --max-diff {max_diff:g} s"
+    gap = (f", the longest a gap of {longest:.3g} s from {truth.t[k] - truth.t[0]:.1f} s into the motion capture"
+           if lost and longest > max_gap else "")
+    return (f"{n} of {total} ICP poses compared: {total - int(inside.sum())} fall outside the motion-capture span "
+            f"(after the delay), {lost} in its gaps ({rule}{gap}); the errors, the drift and the delay describe the "
+            "compared poses only")
+
+
+def _icp_gaps(icp: PoseStream) -> str | None:
+    """The warning when the ICP stream falls silent (localisation lost, its node stalled) for ``DROPOUT`` s or
+    more and 5 times its median sample spacing: the errors cannot cover that time."""
+    spacing = np.diff(icp.t)
+    if not len(spacing):
+        return None
+    limit = max(DROPOUT, 5.0 * float(np.median(spacing)))
+    k = int(np.argmax(spacing))
+    n = int(np.sum(spacing >= limit))
+    if not n:
+        return None
+    return (f"the ICP stream has {n} gap{'s' if n > 1 else ''} of {limit:.2g} s or more (the longest {spacing[k]:.2g} s from "
+            f"{icp.t[k] - icp.t[0]:.1f} s into it): no pose was published there, so the errors do not cover that time")
+
+
 def compare(truth: PoseStream, icp: PoseStream, *, delay: float | None = None, window=(0.0, 1.5),
             weights=(1.0, 1.0, 1.0, 1.0), alignment: str = "mean", association: str = "interpolate",
             max_gap: float | None = None, max_diff: float = 0.01, distance_window: float = 2.0,
@@ -328,8 +451,59 @@ def compare(truth: PoseStream, icp: PoseStream, *, delay: float | None = None, w
     """Steps 1-4 of docs/methods.md sec. 9 on one run (``delay`` given or estimated; ``max_gap``
     None: ``default_max_gap``)."""
     max_gap = default_max_gap(truth) if max_gap is None else float(max_gap)
+    segments = None
+    while True:  # twice when the ICP jumps: the delay is then estimated between the jumps
+        cmp = _compare_once(truth, icp, delay, window, weights, alignment, association, max_gap, max_diff, distance_window,
+                            min_samples, path, segments)
+        steps = _jumps(cmp.samples[[f"err_{a}" for a in AXES]].to_numpy())
+        if delay is not None or segments is not None or not steps.any():
+            break
+        segments = np.searchsorted(cmp.samples["t"].to_numpy()[1:][steps], icp.t, side="right")
+    cmp.summary["jumps"] = int(steps.sum())
+    if steps.any():
+        cmp.notes.append(_jump_note(icp, cmp.samples, steps, delay is None))
+    return cmp
+
+
+JUMP = (0.1, 0.1)  # m, rad: the smallest step of the ICP-minus-truth difference between consecutive poses taken as a jump
+JUMP_FACTOR = 10.0  # ... and it must be this many times the median step (the noise)
+
+
+def _jumps(err: np.ndarray) -> np.ndarray:
+    """Steps ``k -> k + 1`` of the ICP-minus-truth difference ``err`` (n, 4: x, y, z, yaw; consecutive compared
+    poses) that are jumps: a position step of at least ``JUMP[0]`` and ``JUMP_FACTOR`` times the median step,
+    or a yaw step likewise."""
+    if len(err) < 3:
+        return np.zeros(max(len(err) - 1, 0), bool)
+    dp = np.linalg.norm(np.diff(err[:, :3], axis=0), axis=1)
+    dy = np.abs(wrap(np.diff(err[:, 3])))
+    return ((dp >= max(JUMP[0], JUMP_FACTOR * np.median(dp))) | (dy >= max(JUMP[1], JUMP_FACTOR * np.median(dy))))
+
+
+def _jump_note(icp: PoseStream, samples: pd.DataFrame, steps: np.ndarray, estimated: bool) -> str:
+    """The warning for the ICP's jumps: how many, when (s into the ICP stream) and how large."""
+    err = samples[[f"err_{a}" for a in AXES]].to_numpy()
+    k = np.flatnonzero(steps)
+    sizes = np.linalg.norm(err[k + 1, :3] - err[k, :3], axis=1), np.abs(wrap(err[k + 1, 3] - err[k, 3]))
+    t = samples["t"].to_numpy()[k + 1] - icp.t[0]
+    where = ", ".join(f"{a:.1f} s ({b:.2g} m, {c:.2g} rad)" for a, b, c in list(zip(t, *sizes))[:5]) + (", ..." if len(k) > 5 else "")
+    return (f"{len(k)} jump{'s' if len(k) > 1 else ''} of the ICP against the motion capture (a relocalisation: its "
+            f"difference to the truth steps by at least {JUMP[0]:g} m or {JUMP[1]:g} rad between consecutive poses) at "
+            f"{where} into the ICP stream; the errors include {'them' if len(k) > 1 else 'it'}"
+            + (", the delay is estimated with the offset of each stretch between jumps removed" if estimated else ""))
+
+
+def _compare_once(truth: PoseStream, icp: PoseStream, delay, window, weights, alignment: str, association: str,
+                  max_gap: float, max_diff: float, distance_window: float, min_samples: int, path,
+                  segments: np.ndarray | None) -> Comparison:
+    """``compare`` with the delay's stretches between jumps given (``segments``, a label per ICP pose)."""
     if delay is None:
-        dl = estimate_delay(truth, icp, window, weights, min_samples, rigid=alignment if alignment in ("se3", "yaw") else None)
+        dl = estimate_delay(truth, icp, window, weights, min_samples, rigid=alignment if alignment in ("se3", "yaw") else None,
+                            max_gap=max_gap, segments=segments)
+        span = (icp.t - window[1] >= truth.t[0]) & (icp.t - window[0] <= truth.t[-1])
+        if not np.isfinite(dl.value) and span.sum() >= min_samples:  # enough poses, but next to truth gaps
+            near_gap = _meets_gap(truth.t, icp.t - window[1], icp.t - window[0], max_gap)
+            raise _too_few(truth, icp, icp.t - window[0], span & ~near_gap, dl, "interpolate", max_gap, max_diff, min_samples, path)
         if not np.isfinite(dl.value):
             raise InputError(f"too few overlapping samples to estimate the delay ({dl.n} ICP poses inside the motion-capture "
                              f"span for a search window of {window[0]:g}..{window[1]:g} s, need {min_samples}; "
@@ -354,6 +528,18 @@ def compare(truth: PoseStream, icp: PoseStream, *, delay: float | None = None, w
     i_yaw = np.unwrap(yaw_of(i_quat))
     al = align(alignment, t_xyz, t_yaw, i_xyz, i_yaw)
     c_xyz, c_quat = al.apply(i_xyz, i_quat)
+    if alignment == "mean":
+        _check_not_rotated(t_xyz, i_xyz, path)
+    if alignment in ("se3", "yaw"):  # first: the remedy of the delay's error below must work
+        _check_rotation(alignment, t_xyz, c_xyz - t_xyz, path)
+    if not dl.determined:
+        left = 1000 * float(np.sqrt(np.mean(np.sum((c_xyz - t_xyz) ** 2, axis=1))))
+        raise InputError("the delay cannot be estimated from this run: the motion capture hardly changes its velocity against "
+                         f"the {left:.3g} mm left between the streams (standard error {dl.motion_sd:.2g} s; a robot standing "
+                         "still or moving straight at a constant speed, or streams that do not match), so every delay in "
+                         f"the window fits alike (the scan's minimum, {dl.value:.3f} s, is noise)", path=path,
+                         remedy="give it with --delay (standing still, any value gives the same errors, e.g. --delay 0); "
+                                "if the robot moved, check --truth and --icp")
     c_yaw = np.unwrap(yaw_of(c_quat))
     err = np.column_stack([c_xyz - t_xyz, angle_diff(c_yaw, t_yaw)])
     travelled = travelled_distance(truth, distance_window)
@@ -371,5 +557,6 @@ def compare(truth: PoseStream, icp: PoseStream, *, delay: float | None = None, w
         **{f"err_{a}": err[:, k] for k, a in enumerate(AXES)},
         "err_xyz": np.linalg.norm(err[:, :3], axis=1),
     })
-    return Comparison(dl, al, samples, summary)
+    notes = [_coverage(truth, icp, tq, valid, max_gap, max_diff, association), _icp_gaps(icp)]
+    return Comparison(dl, al, samples, summary, [n for n in notes if n])
 

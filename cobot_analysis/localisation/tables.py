@@ -60,8 +60,10 @@ RUNS = TableSchema(
         "drift": Column("float", "m/m", "slope of the planar position error against the travelled distance"),
         "drift_sd": Column("float", "m/m", "standard error of the slope"),
         "drift_intercept": Column("float", "m", "intercept of that line"),
+        "jumps": Column("int", "-", "jumps of the ICP against the truth (relocalisations: steps of their difference between "
+                                    "consecutive poses of at least 0.1 m or 0.1 rad and 10 times the median step)"),
         "warnings": Column("string", "", "what to read with care, ' | '-separated (frame not z-up, delay at the window edge, "
-                                         "dropped messages, ...); empty when none"),
+                                         "dropped messages, ICP poses not compared, ...); empty when none"),
         "goals_commanded": Column("int", "-", "commanded goals", required=False),
         "goals_found": Column("int", "-", "goals matched to a detected stop", required=False),
         "goals_within_tolerance": Column("int", "-", "goals reached within the stop tolerances", required=False),
