@@ -315,3 +315,17 @@ def test_a_paired_wilcoxon_counts_the_pairs_it_tests():
     assert row["n_groups"] == "A: 18; B: 15" and "5 pairs" in row["note"]
     means = df.groupby(["subject", "condition"])["d"].mean().unstack().dropna()
     assert row["p"] == pytest.approx(stats.wilcoxon(means["A"], means["B"]).pvalue)
+
+
+# ---- a study of one's own: what the row says about the values it did not test ----------------------
+def test_missing_values_left_out_are_counted_per_group():
+    """d_gamma of a trajectory without orientation is NaN: the row says how many values each group lost,
+    so that n = 4 of 6 is not read as a design with 4 trials."""
+    df = pd.DataFrame({"scenario": [1, 1, 1, 2, 2, 2], "duration": [1.0, np.nan, 1.2, 2.0, 2.1, np.nan]})
+    (row,) = analyses.run_analysis(config.parse(_cfg(test="mannwhitneyu")).analyses[0], df, 0.05)
+    assert row["n"] == 4 and row["n_groups"] == "1: 2; 2: 2"
+    assert row["note"] == "2 missing values of duration left out (1: 1; 2: 1)"
+    corr = config.parse({"study": "s", "analysis": [{"id": "r", "source": "durations", "value": "duration",
+                                                     "versus": "scenario", "test": "spearman", "family": "f"}]})
+    (row,) = analyses.run_analysis(corr.analyses[0], df, 0.05)
+    assert row["n"] == 4 and row["note"] == "2 rows without scenario or duration left out"

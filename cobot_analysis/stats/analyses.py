@@ -91,6 +91,11 @@ def _groups(a: Analysis, df: pd.DataFrame) -> dict:
     return {_label(lv): df.loc[_match(df[a.group], lv), a.value].to_numpy() for lv in levels}
 
 
+def _note(row: dict, text: str) -> str:
+    """``row``'s note with ``text`` appended ("; " between)."""
+    return "; ".join(x for x in (row["note"], text) if x)
+
+
 def test_needs_spread(test: str) -> bool:
     """Rank and variance tests are undefined when every value is the same."""
     return test in ("kruskal", "mannwhitneyu", "anova", "ttest", "pearson", "spearman")
@@ -101,11 +106,16 @@ def _run_one(a: Analysis, df: pd.DataFrame, groups: dict, alpha: float) -> dict:
     row = {"test": a.test, "levels": ", ".join(groups), "status": "ok", "note": "", "normality_p": math.nan}
     categorical = a.test in ("fisher", "chisquare", "binomial", "describe")
     if not categorical:
-        groups = {k: pd.to_numeric(pd.Series(v), errors="coerce").dropna().to_numpy(float) for k, v in groups.items()}
+        numbers = {k: pd.to_numeric(pd.Series(v), errors="coerce") for k, v in groups.items()}
+        lost = {k: int(v.isna().sum()) for k, v in numbers.items()}
+        groups = {k: v.dropna().to_numpy(float) for k, v in numbers.items()}
+        if sum(lost.values()) and a.test not in ("pearson", "spearman"):  # correlations count their incomplete rows below
+            row["note"] = (f"{sum(lost.values())} missing values of {a.value} left out ("
+                           + "; ".join(f"{k}: {n}" for k, n in lost.items() if n) + ")")
     empty = [k for k, v in groups.items() if len(v) == 0]
     if empty and a.levels is None and len(groups) - len(empty) >= 2:  # e.g. a subject without any orientation
         groups = {k: v for k, v in groups.items() if len(v)}
-        row["note"] = f"left out (no values): {', '.join(empty)}"
+        row["note"] = _note(row, f"left out (no values): {', '.join(empty)}")
         row["levels"] = ", ".join(groups)
     sizes = {k: len(v) for k, v in groups.items()}
     row.update(n=int(sum(sizes.values())), n_groups="; ".join(f"{k}: {n}" for k, n in sizes.items()))
@@ -194,6 +204,8 @@ def _run_one(a: Analysis, df: pd.DataFrame, groups: dict, alpha: float) -> dict:
             return row
         res = T.correlation(pair[a.versus], pair[a.value], test, a.alternative)
         row["n"], row["summary"] = len(pair), f"r = {res.statistic:.3f} over {len(pair)} pairs"
+        if len(pair) < len(df):
+            row["note"] = _note(row, f"{len(df) - len(pair)} rows without {a.versus} or {a.value} left out")
     elif test == "wilcoxon":
         (k1, _), (k2, _) = groups.items()
         sub = df.assign(_g=df[a.group].map(_label))
@@ -205,7 +217,7 @@ def _run_one(a: Analysis, df: pd.DataFrame, groups: dict, alpha: float) -> dict:
             row["status"] = f"skipped: {len(w)} matched pairs, wilcoxon needs {a.minimum}"
             return row
         res = T.wilcoxon({k1: w[k1].to_numpy(), k2: w[k2].to_numpy()}, a.alternative)
-        row["note"] = (row["note"] + "; " if row["note"] else "") + f"paired by {', '.join(a.paired_by)}: {len(w)} pairs"
+        row["note"] = _note(row, f"paired by {', '.join(a.paired_by)}: {len(w)} pairs")
     elif test in ("mannwhitneyu", "ttest"):
         res = getattr(T, test)(groups, a.alternative)
     else:
