@@ -329,3 +329,22 @@ def test_missing_values_left_out_are_counted_per_group():
                                                      "versus": "scenario", "test": "spearman", "family": "f"}]})
     (row,) = analyses.run_analysis(corr.analyses[0], df, 0.05)
     assert row["n"] == 4 and row["note"] == "2 rows without scenario or duration left out"
+
+
+def test_a_between_groups_test_on_repeated_measures_says_so():
+    """Trials of one subject are not independent: a Mann-Whitney test of two conditions walked by the same
+    4 subjects (6 trials each) treats 48 values as independent; the row says it. Grouped by subject (the
+    trials nested in their group) or one value per subject, nothing to say."""
+    rng = np.random.default_rng(0)
+    df = pd.DataFrame([{"subject": f"S{s}", "condition": c, "d_xy": rng.normal(0.1, 0.02)}
+                       for s in range(4) for c in "AB" for _ in range(6)])
+    a = config.Analysis(id="q", description="", source="distances", value="d_xy", test="mannwhitneyu", family="f",
+                        group="condition")
+    (row,) = analyses.run_analysis(a, df, 0.05)
+    assert row["status"] == "ok" and row["note"] == (
+        "not independent: 48 values from 4 subjects (12 each), each subject in 2 groups; mannwhitneyu treats "
+        "every value as independent (repeated measures)")
+    (by_subject,) = analyses.run_analysis(config.Analysis(**{**a.__dict__, "group": "subject", "test": "kruskal"}), df, 0.05)
+    (one_each,) = analyses.run_analysis(a, df.groupby(["subject", "condition"], as_index=False)["d_xy"].mean()
+                                        .assign(subject=lambda d: d["subject"] + d["condition"]), 0.05)
+    assert by_subject["note"] == "" and one_each["note"] == ""

@@ -91,6 +91,38 @@ def _groups(a: Analysis, df: pd.DataFrame) -> dict:
     return {_label(lv): df.loc[_match(df[a.group], lv), a.value].to_numpy() for lv in levels}
 
 
+#: who is measured: the values of one subject (or pair) are not independent of each other.
+UNITS = ("subject", "pair")
+#: tests that take every value as an independent observation.
+INDEPENDENT = ("kruskal", "anova", "mannwhitneyu", "ttest", "pearson", "spearman")
+
+
+def _span(counts: pd.Series) -> str:
+    return f"{counts.min()}" if counts.min() == counts.max() else f"{counts.min()}-{counts.max()}"
+
+
+def repeated_measures(a: Analysis, df: pd.DataFrame, levels, test: str) -> str:
+    """Why the values ``test`` took as independent are not: several of one subject (or pair), one subject
+    in several groups. "" when each value has its own subject, or the groups are the subjects."""
+    if a.group in UNITS:
+        return ""
+    cols = [a.value, *([a.versus] if a.versus else [])]
+    rows = df[df[cols].apply(pd.to_numeric, errors="coerce").notna().all(axis=1)]
+    if a.group:
+        rows = rows[rows[a.group].map(_label).isin(list(levels))]
+    for unit in (u for u in UNITS if u in rows and u not in a.per and rows[u].notna().any()):
+        per_unit = rows.groupby(unit).size()
+        if per_unit.max() < 2:
+            return ""
+        text = f"{len(rows)} values from {len(per_unit)} {unit}s ({_span(per_unit)} each)"
+        spread = rows.groupby(unit)[a.group].nunique() if a.group else pd.Series([1])
+        if spread.max() > 1:
+            text += (f", each {unit} in {spread.max()} groups" if spread.min() == spread.max()
+                     else f", {int((spread > 1).sum())} of them in several groups")
+        return f"not independent: {text}; {test} treats every value as independent (repeated measures)"
+    return ""
+
+
 def _note(row: dict, text: str) -> str:
     """``row``'s note with ``text`` appended ("; " between)."""
     return "; ".join(x for x in (row["note"], text) if x)
@@ -223,6 +255,8 @@ def _run_one(a: Analysis, df: pd.DataFrame, groups: dict, alpha: float) -> dict:
     else:
         res = getattr(T, test)(groups)
     row.update(statistic=res.statistic, p=res.p, effect_size=res.effect_size, effect_name=res.effect_name)
+    if test in INDEPENDENT:
+        row["note"] = _note(row, repeated_measures(a, df, groups, test))
     return row
 
 
