@@ -348,3 +348,25 @@ def test_a_between_groups_test_on_repeated_measures_says_so():
     (one_each,) = analyses.run_analysis(a, df.groupby(["subject", "condition"], as_index=False)["d_xy"].mean()
                                         .assign(subject=lambda d: d["subject"] + d["condition"]), 0.05)
     assert by_subject["note"] == "" and one_each["note"] == ""
+
+
+def test_the_switch_to_anova_needs_every_group_checked_and_equal_variances():
+    """normality + parametric = anova switches only when every group is shown normal and the variances agree
+    (Levene, scipy): a group of 2 values, whose normality cannot be checked, or a group 10 times as spread,
+    keeps the rank test, and the row says why. A declared ANOVA on unequal variances says it too."""
+    rng = np.random.default_rng(2)
+    normal = {1: rng.normal(10, 1, 40), 2: rng.normal(10, 1, 40)}
+    df = lambda groups: pd.DataFrame([{"scenario": k, "duration": v} for k, vs in groups.items() for v in vs])  # noqa: E731
+    switch = _cfg(normality="shapiro", parametric="anova")
+    ok = analyses.run(config.parse(switch), {"durations": df(normal)}).iloc[0]
+    assert ok["test"] == "anova"
+    two = analyses.run(config.parse(switch), {"durations": df({**normal, 3: [9.0, 11.0]})}).iloc[0]
+    assert two["test"] == "kruskal" and "normality not checked in group(s) 3 (fewer than 3 values, or all equal)" in two["note"]
+    spread = {1: rng.normal(10, 1, 40), 2: rng.normal(10, 10, 40)}
+    assert all(stats.shapiro(v).pvalue > 0.05 for v in spread.values())
+    levene = stats.levene(*spread.values()).pvalue
+    wide = analyses.run(config.parse(switch), {"durations": df(spread)}).iloc[0]
+    assert wide["test"] == "kruskal" and f"variances differ (Levene p {levene:.3g})" in wide["note"]
+    declared = analyses.run(config.parse(_cfg(test="anova")), {"durations": df(spread)}).iloc[0]
+    assert declared["test"] == "anova" and declared["note"] == (
+        f"variances differ (Levene p {levene:.3g}): one-way ANOVA assumes equal variances")

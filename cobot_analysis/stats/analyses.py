@@ -171,14 +171,25 @@ def _run_one(a: Analysis, df: pd.DataFrame, groups: dict, alpha: float) -> dict:
             return row
     test = a.test
     if a.normality and not categorical:
-        ps = [T.normality(v, a.normality) for v in groups.values()]
-        row["normality_p"] = float(np.nanmin(ps)) if not all(np.isnan(ps)) else math.nan
-        if a.parametric and all(p > alpha for p in ps if not np.isnan(p)) and not all(np.isnan(ps)):
-            test = a.parametric
-        verdict = "all groups normal" if all(p > alpha for p in ps if not np.isnan(p)) else "not all groups normal"
-        switch = f" -> {test}" if a.parametric else ""
-        row["note"] = "; ".join(x for x in (row["note"], f"{a.normality} normality: smallest p {row['normality_p']:.3g}, "
-                                            f"{verdict}{switch}") if x)
+        ps = {k: T.normality(v, a.normality) for k, v in groups.items()}
+        known = [p for p in ps.values() if not np.isnan(p)]
+        unchecked = [k for k, p in ps.items() if np.isnan(p)]  # a group no test can show normal is not normal
+        row["normality_p"] = min(known) if known else math.nan
+        normal = bool(known) and not unchecked and all(p > alpha for p in known)
+        verdict = ("all groups normal" if normal else "not all groups normal" if any(p <= alpha for p in known) else
+                   f"normality not checked in group(s) {', '.join(unchecked)} (fewer than 3 values, or all equal)")
+        text = f"{a.normality} normality: smallest p {row['normality_p']:.3g}, {verdict}"
+        if a.parametric and normal:
+            levene = T.equal_variances(groups) if a.parametric == "anova" else math.nan
+            if levene <= alpha:  # one-way ANOVA assumes equal variances (Welch's t-test does not)
+                text += f"; variances differ (Levene p {levene:.3g})"
+            else:
+                test = a.parametric
+        row["note"] = _note(row, text + (f" -> {test}" if a.parametric else ""))
+    if a.test == "anova":
+        levene = T.equal_variances(groups)
+        if levene <= alpha:
+            row["note"] = _note(row, f"variances differ (Levene p {levene:.3g}): one-way ANOVA assumes equal variances")
     row["test"] = test
     if test == "describe":
         vals = {k: pd.Series(v) for k, v in groups.items()}
