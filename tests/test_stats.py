@@ -370,3 +370,15 @@ def test_the_switch_to_anova_needs_every_group_checked_and_equal_variances():
     declared = analyses.run(config.parse(_cfg(test="anova")), {"durations": df(spread)}).iloc[0]
     assert declared["test"] == "anova" and declared["note"] == (
         f"variances differ (Levene p {levene:.3g}): one-way ANOVA assumes equal variances")
+
+
+def test_the_statistics_table_names_each_holm_family_and_its_tests():
+    """With many questions the reader must see which p-values were corrected together: stats.md lists each family
+    with its number of tests and their ids (skipped and descriptive rows are in none)."""
+    df = pd.DataFrame({"scenario": np.repeat([1, 2, 3], 5), "duration": np.arange(15.0)})
+    q = [{"id": f"Q{i}", "source": "durations", "value": "duration", "group": "scenario", "test": t, "family": f}
+         for i, (t, f) in enumerate([("kruskal", "time"), ("anova", "time"), ("kruskal", "other"), ("describe", "time")])]
+    q.append({**q[0], "id": "Qs", "filter": {"scenario": 9}})
+    rows = analyses.run(config.parse({"study": "s", "analysis": q}), {"durations": df})
+    md = analyses.markdown(rows, "t")
+    assert "Holm families (p-values corrected together): time: 2 tests (Q0, Q1); other: 1 test (Q2)." in md

@@ -359,4 +359,16 @@ def markdown(df: pd.DataFrame, title: str, alpha: float = 0.05) -> str:
         p_holm = f(r.p_holm) + (" *" if r.significant else "")
         lines.append(f"| {r.id} | {r.description} | {r.subset} | {r.test} | {r.n} | {f(r.statistic)} | {f(r.p)} | "
                      f"{p_holm} | {eff} | {extra.replace('|', '/')} |")
+    families = holm_families(df)
+    if families:
+        lines += ["", f"Holm families (p-values corrected together): {'; '.join(families)}."]
     return "\n".join(lines) + "\n"
+
+
+def holm_families(df: pd.DataFrame, limit: int = 12) -> list[str]:
+    """Each Holm family with the number of tests corrected together and their ids (the first ``limit``)."""
+    out = []
+    for family, g in df[df["p_holm"].notna()].groupby("family", sort=False):
+        ids = ", ".join(g["id"].head(limit)) + (", ..." if len(g) > limit else "")
+        out.append(f"{family}: {len(g)} test{'' if len(g) == 1 else 's'} ({ids})")
+    return out
