@@ -86,13 +86,19 @@ def square_groups(used, keys) -> list[float]:
 
 
 def panel_titles(used, cells, titles, col_titles=None, fontsize: float = 8) -> None:
-    """Title of each used panel; the top panel of each column also carries ``col_titles[column]``."""
+    """Title of each used panel, wrapped to the panel's width (a study's own long condition names would run
+    into the next panel's title); the top panel of each column also carries ``col_titles[column]``."""
+    import textwrap
+
     top = {}
     for i, (r, c) in sorted(enumerate(cells[:len(used)]), key=lambda t: t[1]):
         top.setdefault(c, i)
     for i, (ax, title) in enumerate(zip(used, titles)):
         header = col_titles[cells[i][1]] if col_titles and top[cells[i][1]] == i else ""
-        ax.set_title("\n".join(t for t in (header, title) if t), fontsize=fontsize)
+        spec = ax.get_subplotspec()  # the panel's cell (its position is the one before the layout)
+        inches = ax.figure.get_figwidth() / spec.get_gridspec().ncols if spec else ax.get_position().width * ax.figure.get_figwidth()
+        chars = max(12, int(0.85 * inches * 72 / (0.6 * fontsize)))  # a character: about 0.6 of the font size wide
+        ax.set_title("\n".join(textwrap.fill(t, chars) for t in (header, title) if t), fontsize=fontsize)
 
 
 def square_limits(axes_list, margin: float = 0.06) -> float:
