@@ -382,3 +382,19 @@ def test_the_statistics_table_names_each_holm_family_and_its_tests():
     rows = analyses.run(config.parse({"study": "s", "analysis": q}), {"durations": df})
     md = analyses.markdown(rows, "t")
     assert "Holm families (p-values corrected together): time: 2 tests (Q0, Q1); other: 1 test (Q2)." in md
+
+
+def test_rows_without_a_group_level_are_counted_and_a_group_column_left_empty_says_why():
+    """start_orientation is parsed from walking-2020 codes (E4015): a lab's own condition names give none. Rows
+    without a level are left out and counted; none at all: skipped naming the column, not 'no data'."""
+    rng = np.random.default_rng(4)
+    conds = ["N1500", "E1500", "corridor 1", "corridor 2"]
+    d = pd.DataFrame({"condition": np.repeat(conds, 5), "d_xy": rng.normal(0.1, 0.02, 20), "comparison": "individual-mean"})
+    d["start_orientation"] = d["condition"].map(lambda c: c[0] if c[0] in "NESO" and c[1:].isdigit() else None)
+    a = config.Analysis(id="W1.5", description="", source="distances", value="d_xy", test="kruskal", family="f",
+                        group="start_orientation")
+    (row,) = analyses.run_analysis(a, d, 0.05)
+    assert row["status"] == "ok" and row["n"] == 10 and "10 rows without start_orientation left out" in row["note"]
+    (row,) = analyses.run_analysis(a, d[d["condition"].str.startswith("corridor")], 0.05)
+    assert row["status"] == ("skipped: start_orientation has no value in the 10 rows of this subset (derived from "
+                             "walking-2020 start-condition codes such as E4015; conditions here: corridor 1, corridor 2)")

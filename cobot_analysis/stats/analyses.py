@@ -303,13 +303,37 @@ def run_analysis(a: Analysis, df: pd.DataFrame, alpha: float) -> list[dict]:
         key = key if isinstance(key, tuple) else (key,)
         tag = ", ".join(f"{c} = {_label(v)}" for c, v in zip(a.per, key))
         suffix = "".join(f"[{_label(v)}]" for v in key)
+        where = subset + (f"; {tag}" if tag else "")
+        unlabelled = int(part[a.group].isna().sum()) if a.group else 0
+        if unlabelled and unlabelled == len(part):
+            rows.append({**base, "id": a.id + suffix, "subset": where, "test": a.test, "n": 0, "n_groups": "",
+                         "status": f"skipped: {_no_levels(a.group, part)}"})
+            continue
         groups = _groups(a, part)
         combos = list(itertools.combinations(groups, 2)) if a.pairwise else [tuple(groups)]
         for combo in combos:
             g = {k: groups[k] for k in combo}
             rid = a.id + suffix + (f"[{' vs '.join(combo)}]" if a.pairwise else "")
-            rows.append({**base, "id": rid, "subset": subset + (f"; {tag}" if tag else ""), **_run_one(a, part, g, alpha)})
+            row = _run_one(a, part, g, alpha)
+            if unlabelled:
+                row["note"] = _note(row, f"{unlabelled} rows without {a.group} left out")
+            rows.append({**base, "id": rid, "subset": where, **row})
     return rows
+
+
+#: group columns the statistics derive from others (stats.sources), and from what.
+DERIVED = {"start_orientation": ("walking-2020 start-condition codes such as E4015", "condition"),
+           "distance_class": ("the global distance", "global_distance")}
+
+
+def _no_levels(group: str, part: pd.DataFrame) -> str:
+    """Why ``group`` has no level in the rows ``part``: for a derived column, from what and what is there."""
+    text = f"{group} has no value in the {len(part)} rows of this subset"
+    if group in DERIVED:
+        what, column = DERIVED[group]
+        there = values_text(part[column].dropna()) if column in part and part[column].notna().any() else "none"
+        text += f" (derived from {what}; {column.replace('_', ' ')}s here: {there})"
+    return text
 
 
 def holm(rows: pd.DataFrame, alpha: float) -> pd.DataFrame:
