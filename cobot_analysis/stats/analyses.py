@@ -331,7 +331,7 @@ def _no_levels(group: str, part: pd.DataFrame) -> str:
     text = f"{group} has no value in the {len(part)} rows of this subset"
     if group in DERIVED:
         what, column = DERIVED[group]
-        there = values_text(part[column].dropna()) if column in part and part[column].notna().any() else "none"
+        there = values_text(part[column].dropna(), 3) if column in part and part[column].notna().any() else "none"
         text += f" (derived from {what}; {column.replace('_', ' ')}s here: {there})"
     return text
 
