@@ -254,13 +254,17 @@ def _run_one(a: Analysis, df: pd.DataFrame, groups: dict, alpha: float) -> dict:
         sub = df.assign(_g=df[a.group].map(_label))
         sub = sub[sub["_g"].isin([k1, k2])]
         w = sub.pivot_table(index=a.paired_by, columns="_g", values=a.value, aggfunc="mean")
+        units = len(w)
         w = w.dropna(subset=[k1, k2]) if {k1, k2} <= set(w.columns) else w.iloc[0:0]
         row["n"] = len(w)  # the pairs tested (n_groups keeps each group's values)
         if len(w) < a.minimum:
             row["status"] = f"skipped: {len(w)} matched pairs, wilcoxon needs {a.minimum}"
             return row
         res = T.wilcoxon({k1: w[k1].to_numpy(), k2: w[k2].to_numpy()}, a.alternative)
-        row["note"] = _note(row, f"paired by {', '.join(a.paired_by)}: {len(w)} pairs")
+        counts = sub.pivot_table(index=a.paired_by, columns="_g", values=a.value, aggfunc="count").loc[w.index, [k1, k2]]
+        means = f", each value the mean of {_span(counts.stack().astype(int))}" if counts.to_numpy().max() > 1 else ""
+        unmatched = f"; {units - len(w)} without both levels left out" if units > len(w) else ""
+        row["note"] = _note(row, f"paired by {', '.join(a.paired_by)}: {len(w)} pairs{means}{unmatched}")
     elif test in ("mannwhitneyu", "ttest"):
         res = getattr(T, test)(groups, a.alternative)
     else:
