@@ -683,3 +683,12 @@ def test_long_condition_names_of_a_study_of_ones_own_do_not_run_into_the_next_pa
     fig = figures.paths(panels, ncols=6)
     assert check_figure(fig) == []
     assert fig.axes[0].get_title() == "lab hall start 00 towards the\ngoal, normal pace"
+
+
+def test_the_scatter_gives_r_and_n_not_a_p_of_its_own():
+    """The p of a correlation is the statistics table's (Holm-corrected, with its note on repeated measures): the
+    figure's legend gave a p of its own, uncorrected (0.00065 where the table said 0.0013)."""
+    x = np.arange(10.0)
+    fig = figures.scatter_r({"walker": (x, x + np.sin(x))}, "global distance (m)", "d_xy (m)")
+    r = np.corrcoef(x, x + np.sin(x))[0, 1]
+    assert legend_texts(fig) == [f"walker: r = {r:.2f} (n = 10)"]

@@ -7,7 +7,8 @@
   value within 1.5 IQR, outliers shown (docs/methods.md sec. 4); n under each box.
 - ``proportions``: shares of categories (configuration patterns, optimal choices) as bars with
   95 % Wilson intervals, panels on one 0-100 % axis.
-- ``scatter_r``: a distance against the global distance with Pearson r and its p.
+- ``scatter_r``: a distance against the global distance with Pearson r and n (the p is the statistics
+  table's, Holm-corrected).
 - ``check_figure``: what a reviewer would refuse in any Figure (axis labels without units, several
   series without a legend naming them).
 """
@@ -329,7 +330,8 @@ def proportions(charts: dict, title: str = "", chance: dict | None = None):
 
 
 def scatter_r(series: dict, xlabel: str, ylabel: str, title: str = ""):
-    """Scatter of (x, y) per entity with the Pearson r and p in the legend."""
+    """Scatter of (x, y) per entity with the Pearson r and n in the legend (its p, Holm-corrected and with its
+    notes, is the statistics table's: not a second, uncorrected one here)."""
     from scipy import stats
 
     plt = pyplot()
@@ -339,8 +341,7 @@ def scatter_r(series: dict, xlabel: str, ylabel: str, title: str = ""):
         ok = np.isfinite(x) & np.isfinite(y)
         label = ent
         if ok.sum() >= 3 and np.ptp(x[ok]) > 0 and np.ptp(y[ok]) > 0:
-            r, p = stats.pearsonr(x[ok], y[ok])
-            label = f"{ent}: r = {r:.2f}, p = {p:.2g}"
+            label = f"{ent}: r = {stats.pearsonr(x[ok], y[ok]).statistic:.2f} (n = {ok.sum()})"
         ax.scatter(x[ok], y[ok], s=8, alpha=0.6, color=COLORS.get(ent), label=label)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
