@@ -198,6 +198,8 @@ def _cfg(**extra):
     ({"alternative": "bigger"}, "unknown alternative 'bigger'"),
     ({"test": "pearson"}, "pearson needs 'versus'"),
     ({"group": None, "test": "mannwhitneyu"}, "needs 'group'"),
+    ({"test": "mannwhitneyu", "alternative": "less", "pairwise": True},
+     "one-sided (less: group 1 < group 2) needs levels = [group 1, group 2]"),
 ])
 def test_config_errors_are_one_line(extra, message):
     data = _cfg(**extra)
