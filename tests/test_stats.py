@@ -351,6 +351,8 @@ def test_a_between_groups_test_on_repeated_measures_says_so():
     (one_each,) = analyses.run_analysis(a, df.groupby(["subject", "condition"], as_index=False)["d_xy"].mean()
                                         .assign(subject=lambda d: d["subject"] + d["condition"]), 0.05)
     assert by_subject["note"] == "" and one_each["note"] == ""
+    (unknown,) = analyses.run_analysis(a, df.assign(subject=df["subject"].where(df.index >= 2)), 0.05)
+    assert unknown["note"].startswith("not independent: 48 values from 4 subjects (10-12 each), 2 without a subject, each")
 
 
 def test_the_switch_to_anova_needs_every_group_checked_and_equal_variances():

@@ -114,7 +114,9 @@ def repeated_measures(a: Analysis, df: pd.DataFrame, levels, test: str) -> str:
         per_unit = rows.groupby(unit).size()
         if per_unit.max() < 2:
             return ""
-        text = f"{len(rows)} values from {len(per_unit)} {unit}s ({_span(per_unit)} each)"
+        unknown = int(rows[unit].isna().sum())
+        text = (f"{len(rows)} values from {len(per_unit)} {unit}s ({_span(per_unit)} each)"
+                + (f", {unknown} without a {unit}" if unknown else ""))
         spread = rows.groupby(unit)[a.group].nunique() if a.group else pd.Series([1])
         if spread.max() > 1:
             text += (f", each {unit} in {spread.max()} groups" if spread.min() == spread.max()
