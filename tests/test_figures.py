@@ -672,3 +672,23 @@ def test_saved_grid_of_tall_panels_has_no_title_on_the_panel_above(tmp_path):
     fig = figure_pair_paths(targets, paths, "scenario-3 means vs coupled OC")
     save(fig, [tmp_path / "pair_paths.png"])
     assert check_figure(fig) == []
+
+
+def test_long_condition_names_of_a_study_of_ones_own_do_not_run_into_the_next_panel():
+    """A lab's condition 'lab hall start 03 towards the goal, normal pace' as a panel title: wrapped to the panel,
+    not written over the titles of its neighbours."""
+    t = np.linspace(0, 1, 20)
+    panels = [{"title": f"lab hall start {i:02d} towards the goal, normal pace", "lines": [(t * 4 - 4, t, "walker")]}
+              for i in range(12)]
+    fig = figures.paths(panels, ncols=6)
+    assert check_figure(fig) == []
+    assert fig.axes[0].get_title() == "lab hall start 00 towards the\ngoal, normal pace"
+
+
+def test_the_scatter_gives_r_and_n_not_a_p_of_its_own():
+    """The p of a correlation is the statistics table's (Holm-corrected, with its note on repeated measures): the
+    figure's legend gave a p of its own, uncorrected (0.00065 where the table said 0.0013)."""
+    x = np.arange(10.0)
+    fig = figures.scatter_r({"walker": (x, x + np.sin(x))}, "global distance (m)", "d_xy (m)")
+    r = np.corrcoef(x, x + np.sin(x))[0, 1]
+    assert legend_texts(fig) == [f"walker: r = {r:.2f} (n = 10)"]

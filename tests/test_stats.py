@@ -198,6 +198,8 @@ def _cfg(**extra):
     ({"alternative": "bigger"}, "unknown alternative 'bigger'"),
     ({"test": "pearson"}, "pearson needs 'versus'"),
     ({"group": None, "test": "mannwhitneyu"}, "needs 'group'"),
+    ({"test": "mannwhitneyu", "alternative": "less", "pairwise": True},
+     "one-sided (less: group 1 < group 2) needs levels = [group 1, group 2]"),
 ])
 def test_config_errors_are_one_line(extra, message):
     data = _cfg(**extra)
@@ -312,6 +314,92 @@ def test_a_paired_wilcoxon_counts_the_pairs_it_tests():
                         paired_by=["subject"], min_size=3)
     (row,) = analyses.run_analysis(a, df, 0.05)
     assert row["status"] == "ok" and row["n"] == 5, row
-    assert row["n_groups"] == "A: 18; B: 15" and "5 pairs" in row["note"]
+    assert row["n_groups"] == "A: 18; B: 15"
+    assert row["note"] == "paired by subject: 5 pairs, each value the mean of 3; 1 without both levels left out"
     means = df.groupby(["subject", "condition"])["d"].mean().unstack().dropna()
     assert row["p"] == pytest.approx(stats.wilcoxon(means["A"], means["B"]).pvalue)
+
+
+# ---- a study of one's own: what the row says about the values it did not test ----------------------
+def test_missing_values_left_out_are_counted_per_group():
+    """d_gamma of a trajectory without orientation is NaN: the row says how many values each group lost,
+    so that n = 4 of 6 is not read as a design with 4 trials."""
+    df = pd.DataFrame({"scenario": [1, 1, 1, 2, 2, 2], "duration": [1.0, np.nan, 1.2, 2.0, 2.1, np.nan]})
+    (row,) = analyses.run_analysis(config.parse(_cfg(test="mannwhitneyu")).analyses[0], df, 0.05)
+    assert row["n"] == 4 and row["n_groups"] == "1: 2; 2: 2"
+    assert row["note"] == "2 missing values of duration left out (1: 1; 2: 1)"
+    corr = config.parse({"study": "s", "analysis": [{"id": "r", "source": "durations", "value": "duration",
+                                                     "versus": "scenario", "test": "spearman", "family": "f"}]})
+    (row,) = analyses.run_analysis(corr.analyses[0], df, 0.05)
+    assert row["n"] == 4 and row["note"] == "2 rows without scenario or duration left out"
+
+
+def test_a_between_groups_test_on_repeated_measures_says_so():
+    """Trials of one subject are not independent: a Mann-Whitney test of two conditions walked by the same
+    4 subjects (6 trials each) treats 48 values as independent; the row says it. Grouped by subject (the
+    trials nested in their group) or one value per subject, nothing to say."""
+    rng = np.random.default_rng(0)
+    df = pd.DataFrame([{"subject": f"S{s}", "condition": c, "d_xy": rng.normal(0.1, 0.02)}
+                       for s in range(4) for c in "AB" for _ in range(6)])
+    a = config.Analysis(id="q", description="", source="distances", value="d_xy", test="mannwhitneyu", family="f",
+                        group="condition")
+    (row,) = analyses.run_analysis(a, df, 0.05)
+    assert row["status"] == "ok" and row["note"] == (
+        "not independent: 48 values from 4 subjects (12 each), each subject in 2 groups; mannwhitneyu treats "
+        "every value as independent (repeated measures)")
+    (by_subject,) = analyses.run_analysis(config.Analysis(**{**a.__dict__, "group": "subject", "test": "kruskal"}), df, 0.05)
+    (one_each,) = analyses.run_analysis(a, df.groupby(["subject", "condition"], as_index=False)["d_xy"].mean()
+                                        .assign(subject=lambda d: d["subject"] + d["condition"]), 0.05)
+    assert by_subject["note"] == "" and one_each["note"] == ""
+    (unknown,) = analyses.run_analysis(a, df.assign(subject=df["subject"].where(df.index >= 2)), 0.05)
+    assert unknown["note"].startswith("not independent: 48 values from 4 subjects (10-12 each), 2 without a subject, each")
+
+
+def test_the_switch_to_anova_needs_every_group_checked_and_equal_variances():
+    """normality + parametric = anova switches only when every group is shown normal and the variances agree
+    (Levene, scipy): a group of 2 values, whose normality cannot be checked, or a group 10 times as spread,
+    keeps the rank test, and the row says why. A declared ANOVA on unequal variances says it too."""
+    rng = np.random.default_rng(2)
+    normal = {1: rng.normal(10, 1, 40), 2: rng.normal(10, 1, 40)}
+    df = lambda groups: pd.DataFrame([{"scenario": k, "duration": v} for k, vs in groups.items() for v in vs])  # noqa: E731
+    switch = _cfg(normality="shapiro", parametric="anova")
+    ok = analyses.run(config.parse(switch), {"durations": df(normal)}).iloc[0]
+    assert ok["test"] == "anova"
+    two = analyses.run(config.parse(switch), {"durations": df({**normal, 3: [9.0, 11.0]})}).iloc[0]
+    assert two["test"] == "kruskal" and "normality not checked in group(s) 3 (fewer than 3 values, or all equal)" in two["note"]
+    spread = {1: rng.normal(10, 1, 40), 2: rng.normal(10, 10, 40)}
+    assert all(stats.shapiro(v).pvalue > 0.05 for v in spread.values())
+    levene = stats.levene(*spread.values()).pvalue
+    wide = analyses.run(config.parse(switch), {"durations": df(spread)}).iloc[0]
+    assert wide["test"] == "kruskal" and f"variances differ (Levene p {levene:.3g})" in wide["note"]
+    declared = analyses.run(config.parse(_cfg(test="anova")), {"durations": df(spread)}).iloc[0]
+    assert declared["test"] == "anova" and declared["note"] == (
+        f"variances differ (Levene p {levene:.3g}): one-way ANOVA assumes equal variances")
+
+
+def test_the_statistics_table_names_each_holm_family_and_its_tests():
+    """With many questions the reader must see which p-values were corrected together: stats.md lists each family
+    with its number of tests and their ids (skipped and descriptive rows are in none)."""
+    df = pd.DataFrame({"scenario": np.repeat([1, 2, 3], 5), "duration": np.arange(15.0)})
+    q = [{"id": f"Q{i}", "source": "durations", "value": "duration", "group": "scenario", "test": t, "family": f}
+         for i, (t, f) in enumerate([("kruskal", "time"), ("anova", "time"), ("kruskal", "other"), ("describe", "time")])]
+    q.append({**q[0], "id": "Qs", "filter": {"scenario": 9}})
+    rows = analyses.run(config.parse({"study": "s", "analysis": q}), {"durations": df})
+    md = analyses.markdown(rows, "t")
+    assert "Holm families (p-values corrected together): time: 2 tests (Q0, Q1); other: 1 test (Q2)." in md
+
+
+def test_rows_without_a_group_level_are_counted_and_a_group_column_left_empty_says_why():
+    """start_orientation is parsed from walking-2020 codes (E4015): a lab's own condition names give none. Rows
+    without a level are left out and counted; none at all: skipped naming the column, not 'no data'."""
+    rng = np.random.default_rng(4)
+    conds = ["N1500", "E1500", "corridor 1", "corridor 2"]
+    d = pd.DataFrame({"condition": np.repeat(conds, 5), "d_xy": rng.normal(0.1, 0.02, 20), "comparison": "individual-mean"})
+    d["start_orientation"] = d["condition"].map(lambda c: c[0] if c[0] in "NESO" and c[1:].isdigit() else None)
+    a = config.Analysis(id="W1.5", description="", source="distances", value="d_xy", test="kruskal", family="f",
+                        group="start_orientation")
+    (row,) = analyses.run_analysis(a, d, 0.05)
+    assert row["status"] == "ok" and row["n"] == 10 and "10 rows without start_orientation left out" in row["note"]
+    (row,) = analyses.run_analysis(a, d[d["condition"].str.startswith("corridor")], 0.05)
+    assert row["status"] == ("skipped: start_orientation has no value in the 10 rows of this subset (derived from "
+                             "walking-2020 start-condition codes such as E4015; conditions here: corridor 1, corridor 2)")

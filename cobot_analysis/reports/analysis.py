@@ -91,11 +91,13 @@ def statistics_markdown(result, config_path: Path, n_trajectories: int, n_sample
         f"- Questions of `{what}`: each row names its subset, test and grouping. Holm correction "
         f"(statsmodels) within each family; alpha = {result.config.alpha}; descriptive rows (describe, largest subset) "
         "are outside the families.",
-        "- Trial-level tests treat every trial as independent; `pair-level` rows first average each pair; "
+        "- Trial-level tests treat every trial as independent (a row whose values repeat subjects or pairs says so); "
+        "`pair-level` rows first average each pair; "
         "`paired` rows (Wilcoxon) match values by the listed columns (several returns of a pair and goal are averaged); "
         "`unpaired` rows ignore the pairing.",
         "- Normality (Shapiro-Wilk for the pair study, Kolmogorov-Smirnov against N(mean, sd) for the walking study) "
-        "only switches to the parametric test where the configuration names one.",
+        "only switches to the parametric test where the configuration names one, when every group is shown normal and, "
+        "for ANOVA, Levene's test finds no difference of variances.",
         "- Largest indistinguishable subset: exact search over all subsets up to 12 groups, greedy backward "
         "elimination above (the row says which); the walking thesis's definition beside it (pairwise_subset: every "
         "pair Mann-Whitney p > 0.05, docs/methods.md sec. 4).",

@@ -7,7 +7,8 @@
   value within 1.5 IQR, outliers shown (docs/methods.md sec. 4); n under each box.
 - ``proportions``: shares of categories (configuration patterns, optimal choices) as bars with
   95 % Wilson intervals, panels on one 0-100 % axis.
-- ``scatter_r``: a distance against the global distance with Pearson r and its p.
+- ``scatter_r``: a distance against the global distance with Pearson r and n (the p is the statistics
+  table's, Holm-corrected).
 - ``check_figure``: what a reviewer would refuse in any Figure (axis labels without units, several
   series without a legend naming them).
 """
@@ -86,13 +87,19 @@ def square_groups(used, keys) -> list[float]:
 
 
 def panel_titles(used, cells, titles, col_titles=None, fontsize: float = 8) -> None:
-    """Title of each used panel; the top panel of each column also carries ``col_titles[column]``."""
+    """Title of each used panel, wrapped to the panel's width (a study's own long condition names would run
+    into the next panel's title); the top panel of each column also carries ``col_titles[column]``."""
+    import textwrap
+
     top = {}
     for i, (r, c) in sorted(enumerate(cells[:len(used)]), key=lambda t: t[1]):
         top.setdefault(c, i)
     for i, (ax, title) in enumerate(zip(used, titles)):
         header = col_titles[cells[i][1]] if col_titles and top[cells[i][1]] == i else ""
-        ax.set_title("\n".join(t for t in (header, title) if t), fontsize=fontsize)
+        spec = ax.get_subplotspec()  # the panel's cell (its position is the one before the layout)
+        inches = ax.figure.get_figwidth() / spec.get_gridspec().ncols if spec else ax.get_position().width * ax.figure.get_figwidth()
+        chars = max(12, int(0.85 * inches * 72 / (0.6 * fontsize)))  # a character: about 0.6 of the font size wide
+        ax.set_title("\n".join(textwrap.fill(t, chars) for t in (header, title) if t), fontsize=fontsize)
 
 
 def square_limits(axes_list, margin: float = 0.06) -> float:
@@ -323,7 +330,8 @@ def proportions(charts: dict, title: str = "", chance: dict | None = None):
 
 
 def scatter_r(series: dict, xlabel: str, ylabel: str, title: str = ""):
-    """Scatter of (x, y) per entity with the Pearson r and p in the legend."""
+    """Scatter of (x, y) per entity with the Pearson r and n in the legend (its p, Holm-corrected and with its
+    notes, is the statistics table's: not a second, uncorrected one here)."""
     from scipy import stats
 
     plt = pyplot()
@@ -333,8 +341,7 @@ def scatter_r(series: dict, xlabel: str, ylabel: str, title: str = ""):
         ok = np.isfinite(x) & np.isfinite(y)
         label = ent
         if ok.sum() >= 3 and np.ptp(x[ok]) > 0 and np.ptp(y[ok]) > 0:
-            r, p = stats.pearsonr(x[ok], y[ok])
-            label = f"{ent}: r = {r:.2f}, p = {p:.2g}"
+            label = f"{ent}: r = {stats.pearsonr(x[ok], y[ok]).statistic:.2f} (n = {ok.sum()})"
         ax.scatter(x[ok], y[ok], s=8, alpha=0.6, color=COLORS.get(ent), label=label)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)

@@ -91,6 +91,45 @@ def _groups(a: Analysis, df: pd.DataFrame) -> dict:
     return {_label(lv): df.loc[_match(df[a.group], lv), a.value].to_numpy() for lv in levels}
 
 
+#: who is measured: the values of one subject (or pair) are not independent of each other.
+UNITS = ("subject", "pair")
+#: tests that take every value as an independent observation.
+INDEPENDENT = ("kruskal", "anova", "mannwhitneyu", "ttest", "pearson", "spearman")
+
+
+def _span(counts: pd.Series) -> str:
+    return f"{counts.min()}" if counts.min() == counts.max() else f"{counts.min()}-{counts.max()}"
+
+
+def repeated_measures(a: Analysis, df: pd.DataFrame, levels, test: str) -> str:
+    """Why the values ``test`` took as independent are not: several of one subject (or pair), one subject
+    in several groups. "" when each value has its own subject, or the groups are the subjects."""
+    if a.group in UNITS:
+        return ""
+    cols = [a.value, *([a.versus] if a.versus else [])]
+    rows = df[df[cols].apply(pd.to_numeric, errors="coerce").notna().all(axis=1)]
+    if a.group:
+        rows = rows[rows[a.group].map(_label).isin(list(levels))]
+    for unit in (u for u in UNITS if u in rows and u not in a.per and rows[u].notna().any()):
+        per_unit = rows.groupby(unit).size()
+        if per_unit.max() < 2:
+            return ""
+        unknown = int(rows[unit].isna().sum())
+        text = (f"{len(rows)} values from {len(per_unit)} {unit}s ({_span(per_unit)} each)"
+                + (f", {unknown} without a {unit}" if unknown else ""))
+        spread = rows.groupby(unit)[a.group].nunique() if a.group else pd.Series([1])
+        if spread.max() > 1:
+            text += (f", each {unit} in {spread.max()} groups" if spread.min() == spread.max()
+                     else f", {int((spread > 1).sum())} of them in several groups")
+        return f"not independent: {text}; {test} treats every value as independent (repeated measures)"
+    return ""
+
+
+def _note(row: dict, text: str) -> str:
+    """``row``'s note with ``text`` appended ("; " between)."""
+    return "; ".join(x for x in (row["note"], text) if x)
+
+
 def test_needs_spread(test: str) -> bool:
     """Rank and variance tests are undefined when every value is the same."""
     return test in ("kruskal", "mannwhitneyu", "anova", "ttest", "pearson", "spearman")
@@ -101,11 +140,16 @@ def _run_one(a: Analysis, df: pd.DataFrame, groups: dict, alpha: float) -> dict:
     row = {"test": a.test, "levels": ", ".join(groups), "status": "ok", "note": "", "normality_p": math.nan}
     categorical = a.test in ("fisher", "chisquare", "binomial", "describe")
     if not categorical:
-        groups = {k: pd.to_numeric(pd.Series(v), errors="coerce").dropna().to_numpy(float) for k, v in groups.items()}
+        numbers = {k: pd.to_numeric(pd.Series(v), errors="coerce") for k, v in groups.items()}
+        lost = {k: int(v.isna().sum()) for k, v in numbers.items()}
+        groups = {k: v.dropna().to_numpy(float) for k, v in numbers.items()}
+        if sum(lost.values()) and a.test not in ("pearson", "spearman"):  # correlations count their incomplete rows below
+            row["note"] = (f"{sum(lost.values())} missing values of {a.value} left out ("
+                           + "; ".join(f"{k}: {n}" for k, n in lost.items() if n) + ")")
     empty = [k for k, v in groups.items() if len(v) == 0]
     if empty and a.levels is None and len(groups) - len(empty) >= 2:  # e.g. a subject without any orientation
         groups = {k: v for k, v in groups.items() if len(v)}
-        row["note"] = f"left out (no values): {', '.join(empty)}"
+        row["note"] = _note(row, f"left out (no values): {', '.join(empty)}")
         row["levels"] = ", ".join(groups)
     sizes = {k: len(v) for k, v in groups.items()}
     row.update(n=int(sum(sizes.values())), n_groups="; ".join(f"{k}: {n}" for k, n in sizes.items()))
@@ -129,14 +173,25 @@ def _run_one(a: Analysis, df: pd.DataFrame, groups: dict, alpha: float) -> dict:
             return row
     test = a.test
     if a.normality and not categorical:
-        ps = [T.normality(v, a.normality) for v in groups.values()]
-        row["normality_p"] = float(np.nanmin(ps)) if not all(np.isnan(ps)) else math.nan
-        if a.parametric and all(p > alpha for p in ps if not np.isnan(p)) and not all(np.isnan(ps)):
-            test = a.parametric
-        verdict = "all groups normal" if all(p > alpha for p in ps if not np.isnan(p)) else "not all groups normal"
-        switch = f" -> {test}" if a.parametric else ""
-        row["note"] = "; ".join(x for x in (row["note"], f"{a.normality} normality: smallest p {row['normality_p']:.3g}, "
-                                            f"{verdict}{switch}") if x)
+        ps = {k: T.normality(v, a.normality) for k, v in groups.items()}
+        known = [p for p in ps.values() if not np.isnan(p)]
+        unchecked = [k for k, p in ps.items() if np.isnan(p)]  # a group no test can show normal is not normal
+        row["normality_p"] = min(known) if known else math.nan
+        normal = bool(known) and not unchecked and all(p > alpha for p in known)
+        verdict = ("all groups normal" if normal else "not all groups normal" if any(p <= alpha for p in known) else
+                   f"normality not checked in group(s) {', '.join(unchecked)} (fewer than 3 values, or all equal)")
+        text = f"{a.normality} normality: smallest p {row['normality_p']:.3g}, {verdict}"
+        if a.parametric and normal:
+            levene = T.equal_variances(groups) if a.parametric == "anova" else math.nan
+            if levene <= alpha:  # one-way ANOVA assumes equal variances (Welch's t-test does not)
+                text += f"; variances differ (Levene p {levene:.3g})"
+            else:
+                test = a.parametric
+        row["note"] = _note(row, text + (f" -> {test}" if a.parametric else ""))
+    if a.test == "anova":
+        levene = T.equal_variances(groups)
+        if levene <= alpha:
+            row["note"] = _note(row, f"variances differ (Levene p {levene:.3g}): one-way ANOVA assumes equal variances")
     row["test"] = test
     if test == "describe":
         vals = {k: pd.Series(v) for k, v in groups.items()}
@@ -194,23 +249,31 @@ def _run_one(a: Analysis, df: pd.DataFrame, groups: dict, alpha: float) -> dict:
             return row
         res = T.correlation(pair[a.versus], pair[a.value], test, a.alternative)
         row["n"], row["summary"] = len(pair), f"r = {res.statistic:.3f} over {len(pair)} pairs"
+        if len(pair) < len(df):
+            row["note"] = _note(row, f"{len(df) - len(pair)} rows without {a.versus} or {a.value} left out")
     elif test == "wilcoxon":
         (k1, _), (k2, _) = groups.items()
         sub = df.assign(_g=df[a.group].map(_label))
         sub = sub[sub["_g"].isin([k1, k2])]
         w = sub.pivot_table(index=a.paired_by, columns="_g", values=a.value, aggfunc="mean")
+        units = len(w)
         w = w.dropna(subset=[k1, k2]) if {k1, k2} <= set(w.columns) else w.iloc[0:0]
         row["n"] = len(w)  # the pairs tested (n_groups keeps each group's values)
         if len(w) < a.minimum:
             row["status"] = f"skipped: {len(w)} matched pairs, wilcoxon needs {a.minimum}"
             return row
         res = T.wilcoxon({k1: w[k1].to_numpy(), k2: w[k2].to_numpy()}, a.alternative)
-        row["note"] = (row["note"] + "; " if row["note"] else "") + f"paired by {', '.join(a.paired_by)}: {len(w)} pairs"
+        counts = sub.pivot_table(index=a.paired_by, columns="_g", values=a.value, aggfunc="count").loc[w.index, [k1, k2]]
+        means = f", each value the mean of {_span(counts.stack().astype(int))}" if counts.to_numpy().max() > 1 else ""
+        unmatched = f"; {units - len(w)} without both levels left out" if units > len(w) else ""
+        row["note"] = _note(row, f"paired by {', '.join(a.paired_by)}: {len(w)} pairs{means}{unmatched}")
     elif test in ("mannwhitneyu", "ttest"):
         res = getattr(T, test)(groups, a.alternative)
     else:
         res = getattr(T, test)(groups)
     row.update(statistic=res.statistic, p=res.p, effect_size=res.effect_size, effect_name=res.effect_name)
+    if test in INDEPENDENT:
+        row["note"] = _note(row, repeated_measures(a, df, groups, test))
     return row
 
 
@@ -246,13 +309,37 @@ def run_analysis(a: Analysis, df: pd.DataFrame, alpha: float) -> list[dict]:
         key = key if isinstance(key, tuple) else (key,)
         tag = ", ".join(f"{c} = {_label(v)}" for c, v in zip(a.per, key))
         suffix = "".join(f"[{_label(v)}]" for v in key)
+        where = subset + (f"; {tag}" if tag else "")
+        unlabelled = int(part[a.group].isna().sum()) if a.group else 0
+        if unlabelled and unlabelled == len(part):
+            rows.append({**base, "id": a.id + suffix, "subset": where, "test": a.test, "n": 0, "n_groups": "",
+                         "status": f"skipped: {_no_levels(a.group, part)}"})
+            continue
         groups = _groups(a, part)
         combos = list(itertools.combinations(groups, 2)) if a.pairwise else [tuple(groups)]
         for combo in combos:
             g = {k: groups[k] for k in combo}
             rid = a.id + suffix + (f"[{' vs '.join(combo)}]" if a.pairwise else "")
-            rows.append({**base, "id": rid, "subset": subset + (f"; {tag}" if tag else ""), **_run_one(a, part, g, alpha)})
+            row = _run_one(a, part, g, alpha)
+            if unlabelled:
+                row["note"] = _note(row, f"{unlabelled} rows without {a.group} left out")
+            rows.append({**base, "id": rid, "subset": where, **row})
     return rows
+
+
+#: group columns the statistics derive from others (stats.sources), and from what.
+DERIVED = {"start_orientation": ("walking-2020 start-condition codes such as E4015", "condition"),
+           "distance_class": ("the global distance", "global_distance")}
+
+
+def _no_levels(group: str, part: pd.DataFrame) -> str:
+    """Why ``group`` has no level in the rows ``part``: for a derived column, from what and what is there."""
+    text = f"{group} has no value in the {len(part)} rows of this subset"
+    if group in DERIVED:
+        what, column = DERIVED[group]
+        there = values_text(part[column].dropna(), 3) if column in part and part[column].notna().any() else "none"
+        text += f" (derived from {what}; {column.replace('_', ' ')}s here: {there})"
+    return text
 
 
 def holm(rows: pd.DataFrame, alpha: float) -> pd.DataFrame:
@@ -302,4 +389,16 @@ def markdown(df: pd.DataFrame, title: str, alpha: float = 0.05) -> str:
         p_holm = f(r.p_holm) + (" *" if r.significant else "")
         lines.append(f"| {r.id} | {r.description} | {r.subset} | {r.test} | {r.n} | {f(r.statistic)} | {f(r.p)} | "
                      f"{p_holm} | {eff} | {extra.replace('|', '/')} |")
+    families = holm_families(df)
+    if families:
+        lines += ["", f"Holm families (p-values corrected together): {'; '.join(families)}."]
     return "\n".join(lines) + "\n"
+
+
+def holm_families(df: pd.DataFrame, limit: int = 12) -> list[str]:
+    """Each Holm family with the number of tests corrected together and their ids (the first ``limit``)."""
+    out = []
+    for family, g in df[df["p_holm"].notna()].groupby("family", sort=False):
+        ids = ", ".join(g["id"].head(limit)) + (", ..." if len(g) > limit else "")
+        out.append(f"{family}: {len(g)} test{'' if len(g) == 1 else 's'} ({ids})")
+    return out

@@ -185,6 +185,10 @@ def parse(data: dict, path: Path | None = None, require: bool = True) -> StudyCo
             raise fail(f"analysis {qid}: {a.test} compares groups and needs 'group'")
         if hi == 2 and not a.pairwise and a.levels is not None and len(a.levels) != 2:
             raise fail(f"analysis {qid}: {a.test} compares exactly two groups; give two 'levels' or pairwise = true")
+        if a.alternative != "two-sided" and (lo, hi) == (2, 2) and a.levels is None:  # else group 1 is the first in sort order
+            sign = "<" if a.alternative == "less" else ">"
+            raise fail(f"analysis {qid}: one-sided ({a.alternative}: group 1 {sign} group 2) needs levels = [group 1, group 2]",
+                       'name the two levels in that order, e.g. levels = ["model", "individual-mean"]')
         if a.test == "wilcoxon" and not a.paired_by:
             raise fail(f"analysis {qid}: wilcoxon is paired and needs 'paired_by'")
         out.append(a)

@@ -12,7 +12,8 @@ effect sizes:
   Cramer's V for larger tables
 - chi-square goodness of fit: Cohen's w = sqrt(chi^2 / n)
 - binomial test: Cohen's h = 2 asin(sqrt(p_obs)) - 2 asin(sqrt(p_0))
-Normality: Shapiro-Wilk or Kolmogorov-Smirnov against a normal with the sample's mean and sd.
+Normality: Shapiro-Wilk or Kolmogorov-Smirnov against a normal with the sample's mean and sd; equal
+variances: Levene's test (scipy's default, centred on the median: Brown-Forsythe).
 """
 
 from __future__ import annotations
@@ -160,3 +161,14 @@ def normality(values, method: str = "shapiro") -> float:
     if method == "ks":
         return float(stats.kstest(v, "norm", args=(v.mean(), v.std(ddof=1))).pvalue)
     raise ValueError(f"unknown normality test {method!r}")
+
+
+def equal_variances(groups: dict) -> float:
+    """p-value of Levene's test (centred on the median) that the groups have equal variances; NaN when a
+    group has fewer than 2 values or every value is the same."""
+    from scipy import stats
+
+    values = [np.asarray(v, float) for v in groups.values()]
+    if any(len(v) < 2 for v in values) or np.ptp(np.concatenate(values)) == 0:
+        return math.nan
+    return float(stats.levene(*values).pvalue)
