@@ -275,9 +275,13 @@ def walking_cases(convention: str, means: pd.DataFrame | None = None, *, goal: t
     """
     from cobot_analysis import conventions
     from cobot_analysis.design import WALKING_CONDITIONS, WALKING_GOAL, walking_condition
-    from cobot_analysis.models.comparison import study_cases
+    from cobot_analysis.models.comparison import study_cases, walking_means as study_means
 
     convention = conventions.get(convention).name
+    off = design_goal_offset(study_means(means)) if goal is None and means is not None and convention != "published" else None
+    if off:
+        raise InputError(f"--study walking-2020: {off[0]}", path=path,
+                         remedy="give the goal in your frame, e.g. the median end: --goal {:.2f} {:.2f} {:.2f}".format(*off[1]))
     goal = pose(goal, "--goal") if goal is not None else WALKING_GOAL
     if means is None and convention == "published":
         raise InputError("the published convention takes the authors' start and goal poses from the measured means",
@@ -484,29 +488,62 @@ def held_weights(model: str, convention: str) -> tuple[str, ...]:
     return held(model, convention)
 
 
-def goal_rule(goal: str, df: pd.DataFrame) -> tuple | None:
+def goal_rule(goal: str, df: pd.DataFrame, *, path=None) -> tuple | None:
     """The goal of each OC problem: ``design`` (the walking goal), ``end`` (None: the last measured pose),
-    ``auto`` (design when every condition is a walking-study one).
+    ``auto`` (design when every condition is a walking-study one and the paths end at it, ``design_goal_offset``).
+    ``design`` on paths that end elsewhere (a lab frame of one's own) is an ``InputError`` naming ``--goal end``.
 
         >>> import pandas as pd
         >>> from cobot_analysis.api.models import goal_rule
-        >>> goal_rule("auto", pd.DataFrame({"condition": ["E4015", "N1500"]}))
+        >>> goal_rule("auto", pd.DataFrame({"condition": ["E4015", "N1500"], "x": [0.0, 0.02], "y": [0.01, 0.0]}))
         (0.0, 0.0, 1.5707963267948966)
         >>> goal_rule("auto", pd.DataFrame({"condition": ["d1_p4"]})) is None   # not a walking condition: the last pose
+        True
+        >>> goal_rule("auto", pd.DataFrame({"condition": ["N1500"], "x": [3.0], "y": [2.0]})) is None   # ends elsewhere
         True
     """
     from cobot_analysis.design import WALKING_GOAL, walking_condition
 
     if goal == "end":
         return None
-    if goal == "design":
+    if goal == "auto":
+        try:
+            for c in df["condition"].unique():
+                walking_condition(str(c))
+        except ValueError:
+            return None
+    off = design_goal_offset(df)
+    if off is None:
         return WALKING_GOAL
-    try:
-        for c in df["condition"].unique():
-            walking_condition(str(c))
-        return WALKING_GOAL
-    except ValueError:
+    if goal == "auto":
+        return None  # a frame of one's own: each path's measured end
+    raise InputError(f"--goal design: {off[0]}", path=path, remedy="use --goal end (each path's last measured pose) or --goal auto")
+
+
+#: how far (m) the measured ends may lie from the walking study's design goal for it to be theirs
+DESIGN_GOAL_TOLERANCE = 0.5
+
+
+def design_goal_offset(df: pd.DataFrame) -> tuple[str, tuple[float, float, float]] | None:
+    """None when the trajectories of ``df`` end at the walking study's design goal: the median of their last
+    measured positions within 0.5 m of (0, 0) (``DESIGN_GOAL_TOLERANCE``); else (what differs, the measured end
+    pose, its heading the circular mean of the last headings): a study recorded in a frame of its own. The
+    heading is not judged: the walking-2020 subjects end at the goal facing up to 1.8 rad off pi/2 (median per
+    subject of their trials with a plausible orientation)."""
+    from cobot_analysis.angles import circular_mean
+    from cobot_analysis.design import WALKING_GOAL
+
+    if not {"x", "y"} <= set(df.columns) or df.empty:
         return None
+    ends = df.sort_values("sample").groupby("trial").last() if {"trial", "sample"} <= set(df.columns) else df.iloc[[-1]]
+    x, y = float(np.nanmedian(ends["x"])), float(np.nanmedian(ends["y"]))
+    th = ends["theta"].to_numpy(float) if "theta" in ends else np.array([math.nan])
+    heading = float(circular_mean(th)) if np.isfinite(th).any() else WALKING_GOAL[2]
+    dist = math.hypot(x - WALKING_GOAL[0], y - WALKING_GOAL[1])
+    if dist <= DESIGN_GOAL_TOLERANCE:
+        return None
+    return (f"the paths end at ({x:.2f}, {y:.2f}) (median of their last positions), {dist:.2f} m from the walking "
+            "study's design goal (0, 0)", (x, y, heading))
 
 
 def ioc_spec(model: str, *, convention: str = "continuous", start_weights: str | None = None, fit: list[str] | None = None,
@@ -688,7 +725,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         mean_targets = pair_targets_from_table(mean_df, path=means_source)
         compare = False
     else:
-        mean_targets = targets_from_table(mean_df, path=means_source, entity=entity, goal=goal_rule(goal, mean_df), convention=conv)
+        mean_targets = targets_from_table(mean_df, path=means_source, entity=entity, goal=goal_rule(goal, mean_df, path=means_source), convention=conv)
     fits: dict[str, list] = {}
     if per == "all":
         if not mean_targets:
@@ -702,7 +739,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         if trial_df is None or trial_df.empty:
             raise InputError("--per subject needs subject trials", path=trials_source, remedy="pass --trajectories with kind=trial rows")
         for subject, g in sorted(trial_df.groupby("subject")):
-            ts = targets_from_table(g, path=trials_source, entity=entity, goal=goal_rule(goal, g), convention=conv)
+            ts = targets_from_table(g, path=trials_source, entity=entity, goal=goal_rule(goal, g, path=trials_source), convention=conv)
             if ts:
                 fits[str(subject)] = ts
         if subjects:
@@ -785,7 +822,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         figure = {"published": f"{kind} OC (published)", "fitted": f"{kind} OC (fitted)"}
         models[figure["fitted"]] = (kind, results["all"].weights)
         # every mean, those without orientation too (their d_xy; the authors compared all 40 walking means)
-        compared = targets_from_table(mean_df, path=means_source, entity=entity, goal=goal_rule(goal, mean_df), convention=conv,
+        compared = targets_from_table(mean_df, path=means_source, entity=entity, goal=goal_rule(goal, mean_df, path=means_source), convention=conv,
                                       unoriented=True)
         # generate's grid (not the lower level's): the same paths as generate --study then compare; the figure's
         # paths at the published and fitted weights are those of the oriented means (mean_targets, the same targets)

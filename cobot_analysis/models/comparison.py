@@ -81,7 +81,7 @@ def study_cases(means: pd.DataFrame, convention, goal, *, path=None) -> list[tup
     from cobot_analysis.models.ioc import targets_from_table
 
     conv = conventions.get(convention)
-    means = _walking_means(means)
+    means = walking_means(means)
     targets = targets_from_table(means, path=path, goal=goal, convention=conv, unoriented=True)
     order = {c: i for i, c in enumerate(WALKING_CONDITIONS)}
     return [(t.condition, t.start, t.goal) for t in sorted(targets, key=lambda t: order[t.condition])]
@@ -152,11 +152,11 @@ def measured_pace(means: pd.DataFrame, trials: pd.DataFrame | None = None) -> di
 
     out = {}
     if trials is not None and "kind" in trials:
-        walking = _walking_means(trials[trials["kind"] == "trial"].assign(kind="mean"))
+        walking = walking_means(trials[trials["kind"] == "trial"].assign(kind="mean"))
         out.update(measured_by_condition(walking) if not walking.empty else {})
     if "travel_time" not in means:
         return out
-    for _, g in _walking_means(means).groupby("trial", sort=False):
+    for _, g in walking_means(means).groupby("trial", sort=False):
         g = g.sort_values("sample")
         T = float(g["travel_time"].iloc[0])
         if np.isfinite(T) and T > 0:
@@ -164,7 +164,8 @@ def measured_pace(means: pd.DataFrame, trials: pd.DataFrame | None = None) -> di
     return out
 
 
-def _walking_means(means: pd.DataFrame) -> pd.DataFrame:
+def walking_means(means: pd.DataFrame) -> pd.DataFrame:
+    """The walker means (kind mean) of the walking study's conditions in ``means``."""
     from cobot_analysis.design import WALKING_CONDITIONS
 
     means = means[(means["kind"] == "mean") & (means["entity"] == "walker")] if "kind" in means else means

@@ -1,0 +1,84 @@
+"""The model stages on a walking study of one's own (not the published walking-2020 files): its frame, labels,
+time base and orientation as a lab records them. Each case is a path the model itself walks, so the right
+answer is known."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from cobot_analysis.errors import InputError
+from cobot_analysis.models.presets import load_weights, names_for, weights_vector
+
+W = dict(zip(names_for("improved"), map(float, weights_vector(load_weights("walking-2021", "improved"), "improved"))))
+CONDITIONS = ("E4015", "O1515", "N-0615")
+SHIFT = (3.0, 2.0)  # the lab's goal: the walking-2020 frame moved by this
+
+
+def own_means(shift=SHIFT, labels=None) -> pd.DataFrame:
+    """The improved model's own paths at ``W`` from the walking-2020 design starts to its goal, moved by ``shift``,
+    as the means of a study (condition codes, or ``labels``)."""
+    from cobot_analysis.design import WALKING_GOAL, walking_condition
+    from cobot_analysis.models import generate
+    from cobot_analysis.schema import TRAJECTORIES
+
+    frames = []
+    for i, c in enumerate(CONDITIONS):
+        start = np.add(walking_condition(c).start, (*shift, 0.0))
+        goal = np.add(WALKING_GOAL, (*shift, 0.0))
+        df = generate("improved", tuple(start), tuple(goal), weights=W, n_samples=100, n_intervals=20, convention="continuous")
+        label = labels[i] if labels else c
+        frames.append(df[list(TRAJECTORIES.columns.keys() & set(df.columns))].assign(
+            study="own-walking", trial=f"mean_{label}", condition=label, kind="mean", n_trials=2, subject=None))
+    return pd.concat(frames, ignore_index=True)
+
+
+@pytest.fixture(scope="module")
+def shifted() -> pd.DataFrame:
+    return own_means()
+
+
+def test_fit_ioc_auto_goal_is_the_measured_goal_in_a_frame_of_ones_own(shifted):
+    """Design condition codes, the goal at (3, 2): the model's own paths are fitted at D ~ 0 (the design goal
+    (0, 0) put every OC problem 3.6 m off and gave D = 1.98 without a word)."""
+    from cobot_analysis.api import fit_ioc
+
+    fit = fit_ioc(shifted, fit=["a2", "a4"], max_evaluations=1, intervals=20, compare=False, jobs=1)
+    assert fit.results["all"].start_objective < 0.05
+    assert all(np.hypot(t.goal[0] - SHIFT[0], t.goal[1] - SHIFT[1]) < 1e-6 for t in fit.mean_targets)
+
+
+def test_fit_ioc_design_goal_refused_where_the_paths_end_elsewhere(shifted):
+    from cobot_analysis.api import fit_ioc
+
+    with pytest.raises(InputError, match=r"--goal design: the paths end at \(3\.00, 2\.00\).*--goal end"):
+        fit_ioc(shifted, goal="design", max_evaluations=1, intervals=20, compare=False, jobs=1)
+
+
+def test_generate_study_refuses_the_design_goal_on_means_that_end_elsewhere(shifted, tmp_path, cli):
+    """``generate --study walking-2020`` on such means walked every path to (0, 0), 3.6 m from where the
+    subjects went, "all at their goal"; refused in one line naming the goal that works, nothing written."""
+    from cobot_analysis.schema import TRAJECTORIES, write_table
+
+    means = write_table(shifted, tmp_path / "means.parquet", TRAJECTORIES)
+    common = ("generate", "--out", str(tmp_path / "ws"), "--study", "walking-2020", "--means", str(means),
+              "--convention", "continuous", "--intervals", "20", "--samples", "50", "--jobs", "1")
+    code, _, err = cli(*common)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert str(means) in err and "--goal 3.00 2.00" in err
+    assert not (tmp_path / "ws" / "generate").exists()
+    code, _, err = cli(*common, "--goal", "3", "2", "1.5708")
+    assert code == 0, err
+    gen = pd.read_parquet(tmp_path / "ws" / "generate" / "generated.parquet")
+    ends = gen.sort_values("sample").groupby("trial").last()
+    assert np.allclose(ends[["x", "y"]].to_numpy(), SHIFT, atol=0.01)
+
+
+def test_own_condition_labels_fit_to_their_measured_ends():
+    """Labels that are no walking-2020 code ("c1", "left-turn"): each path's last measured pose is its goal."""
+    from cobot_analysis.api import fit_ioc
+
+    fit = fit_ioc(own_means(shift=(0.0, 0.0), labels=["c1", "left-turn", "c3"]), fit=["a2", "a4"], max_evaluations=1,
+                  intervals=20, compare=False, jobs=1)
+    assert fit.results["all"].start_objective < 0.05
