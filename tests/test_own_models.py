@@ -82,3 +82,17 @@ def test_own_condition_labels_fit_to_their_measured_ends():
     fit = fit_ioc(own_means(shift=(0.0, 0.0), labels=["c1", "left-turn", "c3"]), fit=["a2", "a4"], max_evaluations=1,
                   intervals=20, compare=False, jobs=1)
     assert fit.results["all"].start_objective < 0.05
+
+
+@pytest.mark.parametrize("predictor, remedy", [("goal", "--goal x,y"), ("goal-inferred", "--candidates x,y")])
+def test_predict_refuses_the_walking_goal_for_a_walking_study_in_a_frame_of_its_own(shifted, tmp_path, cli, predictor, remedy):
+    """A study named walking-... whose paths end at (3, 2): the goal-aware predictors planned every window to the
+    walking-2020 goal (0, 0) (goal-inferred: its only candidate) without a word; refused, naming the option."""
+    from cobot_analysis.schema import TRAJECTORIES, write_table
+
+    table = write_table(shifted.assign(study="walking-lab"), tmp_path / "trajectories.parquet", TRAJECTORIES)
+    code, _, err = cli("predict", "--out", str(tmp_path / "ws"), "--trajectories", str(table), "--predictors", predictor,
+                       "--kind", "mean", "--settings", "10:20", "--limit", "1", "--jobs", "1", "--convention", "continuous")
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "walking-lab/mean_E4015" in err and remedy in err
+    assert not (tmp_path / "ws" / "predict").exists()

@@ -275,7 +275,7 @@ def walking_cases(convention: str, means: pd.DataFrame | None = None, *, goal: t
     """
     from cobot_analysis import conventions
     from cobot_analysis.design import WALKING_CONDITIONS, WALKING_GOAL, walking_condition
-    from cobot_analysis.models.comparison import study_cases, walking_means as study_means
+    from cobot_analysis.models.comparison import design_goal_offset, study_cases, walking_means as study_means
 
     convention = conventions.get(convention).name
     off = design_goal_offset(study_means(means)) if goal is None and means is not None and convention != "published" else None
@@ -503,6 +503,7 @@ def goal_rule(goal: str, df: pd.DataFrame, *, path=None) -> tuple | None:
         True
     """
     from cobot_analysis.design import WALKING_GOAL, walking_condition
+    from cobot_analysis.models.comparison import design_goal_offset
 
     if goal == "end":
         return None
@@ -518,32 +519,6 @@ def goal_rule(goal: str, df: pd.DataFrame, *, path=None) -> tuple | None:
     if goal == "auto":
         return None  # a frame of one's own: each path's measured end
     raise InputError(f"--goal design: {off[0]}", path=path, remedy="use --goal end (each path's last measured pose) or --goal auto")
-
-
-#: how far (m) the measured ends may lie from the walking study's design goal for it to be theirs
-DESIGN_GOAL_TOLERANCE = 0.5
-
-
-def design_goal_offset(df: pd.DataFrame) -> tuple[str, tuple[float, float, float]] | None:
-    """None when the trajectories of ``df`` end at the walking study's design goal: the median of their last
-    measured positions within 0.5 m of (0, 0) (``DESIGN_GOAL_TOLERANCE``); else (what differs, the measured end
-    pose, its heading the circular mean of the last headings): a study recorded in a frame of its own. The
-    heading is not judged: the walking-2020 subjects end at the goal facing up to 1.8 rad off pi/2 (median per
-    subject of their trials with a plausible orientation)."""
-    from cobot_analysis.angles import circular_mean
-    from cobot_analysis.design import WALKING_GOAL
-
-    if not {"x", "y"} <= set(df.columns) or df.empty:
-        return None
-    ends = df.sort_values("sample").groupby("trial").last() if {"trial", "sample"} <= set(df.columns) else df.iloc[[-1]]
-    x, y = float(np.nanmedian(ends["x"])), float(np.nanmedian(ends["y"]))
-    th = ends["theta"].to_numpy(float) if "theta" in ends else np.array([math.nan])
-    heading = float(circular_mean(th)) if np.isfinite(th).any() else WALKING_GOAL[2]
-    dist = math.hypot(x - WALKING_GOAL[0], y - WALKING_GOAL[1])
-    if dist <= DESIGN_GOAL_TOLERANCE:
-        return None
-    return (f"the paths end at ({x:.2f}, {y:.2f}) (median of their last positions), {dist:.2f} m from the walking "
-            "study's design goal (0, 0)", (x, y, heading))
 
 
 def ioc_spec(model: str, *, convention: str = "continuous", start_weights: str | None = None, fit: list[str] | None = None,

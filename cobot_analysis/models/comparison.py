@@ -172,6 +172,32 @@ def walking_means(means: pd.DataFrame) -> pd.DataFrame:
     return means[means["condition"].isin(WALKING_CONDITIONS)]
 
 
+#: how far (m) the measured ends may lie from the walking study's design goal for it to be theirs
+DESIGN_GOAL_TOLERANCE = 0.5
+
+
+def design_goal_offset(df: pd.DataFrame) -> tuple[str, tuple[float, float, float]] | None:
+    """None when the trajectories of ``df`` end at the walking study's design goal: the median of their last
+    measured positions within 0.5 m of (0, 0) (``DESIGN_GOAL_TOLERANCE``); else (what differs, the measured end
+    pose, its heading the circular mean of the last headings): a study recorded in a frame of its own. The
+    heading is not judged: the walking-2020 subjects end at the goal facing up to 1.8 rad off pi/2 (median per
+    subject of their trials with a plausible orientation)."""
+    from cobot_analysis.angles import circular_mean
+    from cobot_analysis.design import WALKING_GOAL
+
+    if not {"x", "y"} <= set(df.columns) or df.empty:
+        return None
+    ends = df.sort_values("sample").groupby("trial").last() if {"trial", "sample"} <= set(df.columns) else df.iloc[[-1]]
+    x, y = float(np.nanmedian(ends["x"])), float(np.nanmedian(ends["y"]))
+    th = ends["theta"].to_numpy(float) if "theta" in ends else np.array([math.nan])
+    heading = float(circular_mean(th)) if np.isfinite(th).any() else WALKING_GOAL[2]
+    dist = math.hypot(x - WALKING_GOAL[0], y - WALKING_GOAL[1])
+    if dist <= DESIGN_GOAL_TOLERANCE:
+        return None
+    return (f"the paths end at ({x:.2f}, {y:.2f}) (median of their last positions), {dist:.2f} m from the walking "
+            "study's design goal (0, 0)", (x, y, heading))
+
+
 def compare_models(targets: list[Target], models: dict, *, n_intervals: int = 100, angle: str = "gamma",
                    angle_weight: float = 0.5, jobs=None, scheduler=None, fit: str = "all",
                    convention: str = "continuous") -> pd.DataFrame:
