@@ -96,3 +96,17 @@ def test_predict_refuses_the_walking_goal_for_a_walking_study_in_a_frame_of_its_
     assert code == 2 and len(err.strip().splitlines()) == 1, err
     assert "walking-lab/mean_E4015" in err and remedy in err
     assert not (tmp_path / "ws" / "predict").exists()
+
+
+def test_trials_without_duration_or_velocity_have_no_subject_duration_quietly():
+    """No travel time and no velocity rows (a lab's export without them): no duration, and no RuntimeWarning
+    ("Mean of empty slice") on the terminal beside fit-ioc's lines."""
+    import warnings
+
+    from cobot_analysis.models.ioc.pace import subject_durations
+
+    trials = own_means(shift=(0.0, 0.0)).assign(travel_time=np.nan, vx=np.nan, vy=np.nan)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert subject_durations(trials).empty
+    assert len(subject_durations(trials.assign(vx=0.5, vy=0.0))) == len(CONDITIONS)
