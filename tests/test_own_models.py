@@ -110,3 +110,15 @@ def test_trials_without_duration_or_velocity_have_no_subject_duration_quietly():
         warnings.simplefilter("error")
         assert subject_durations(trials).empty
     assert len(subject_durations(trials.assign(vx=0.5, vy=0.0))) == len(CONDITIONS)
+
+
+@pytest.mark.parametrize("per", ["all", "subject"])
+def test_fit_ioc_on_paths_without_orientation_names_it_with_a_remedy_that_works(per):
+    """theta missing on every path: refused, saying so and naming the markers (the remedy was 'pass the means of
+    average' on the means of average, or 'check the input table')."""
+    from cobot_analysis.api import fit_ioc
+
+    means = own_means(shift=(0.0, 0.0)).assign(theta=np.nan, gamma=np.nan)
+    trials = means.assign(kind="trial", subject="S01")
+    with pytest.raises(InputError, match=r"theta missing on every one.*--orientation-markers asis"):
+        fit_ioc(means, trials=trials, per=per, max_evaluations=1, intervals=20, compare=False, jobs=1)

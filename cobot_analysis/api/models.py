@@ -606,6 +606,11 @@ def check_profiles(profiles: str) -> None:
         raise InputError(f"unknown --profiles {profiles!r}", remedy=f"use one of {', '.join(PROFILES)}")
 
 
+#: what makes a study's paths fit-ioc can fit when none holds an orientation
+NO_THETA_REMEDY = ("re-run preprocess with --orientation-markers asis (theta from LASI and RASI alone, docs/methods.md "
+                   "sec. 2.5), or record the pelvis markers that give theta")
+
+
 def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | str | os.PathLike | None = None, model: str = "improved",
             start_weights: str | None = None, fit: list[str] | None = None, optimizer: str = "powell",
             max_evaluations: int = 2000, per: str = "all", subjects: int | None = None, goal: str = "auto",
@@ -707,6 +712,9 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             if model == "coupled":
                 raise InputError("no scenario-3 mean path with both carriers (subject1 and subject2, with orientation)",
                                  path=means_source, remedy="pass the pair study's means (run average on the pair workspace)")
+            if (mean_df["entity"] == entity).any():
+                raise InputError(f"no mean {entity} trajectory with orientation (theta missing on every one): the fit "
+                                 "compares headings (D holds d_gamma)", path=means_source, remedy=NO_THETA_REMEDY)
             raise InputError(f"no mean {entity} trajectory (kind = mean) with orientation", path=means_source,
                              remedy="pass the means of average (average/means.parquet, or average(...).means)")
         fits["all"] = mean_targets
@@ -720,7 +728,8 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         if subjects:
             fits = dict(list(fits.items())[:subjects])
         if not fits:
-            raise InputError("no subject trajectory with orientation", path=trials_source, remedy="check the input table")
+            raise InputError("no subject trajectory with orientation (theta missing on every one): the fit compares "
+                             "headings (D holds d_gamma)", path=trials_source, remedy=NO_THETA_REMEDY)
     if method == "single-level":  # its refusals (model, convention, fewer paths than weights) before any fit
         for targets in fits.values():
             check_spec(spec, len(targets))
