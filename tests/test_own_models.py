@@ -122,3 +122,30 @@ def test_fit_ioc_on_paths_without_orientation_names_it_with_a_remedy_that_works(
     trials = means.assign(kind="trial", subject="S01")
     with pytest.raises(InputError, match=r"theta missing on every one.*--orientation-markers asis"):
         fit_ioc(means, trials=trials, per=per, max_evaluations=1, intervals=20, compare=False, jobs=1)
+
+
+def test_prediction_at_k_shows_windows_of_a_recording_shorter_than_the_horizon(tmp_path):
+    """A horizon longer than what follows N0 in the recording (60 samples, N0 = 20, N_OC = 140: a study with fewer
+    samples than the settings assumed): each panel shows a window k >= N0 - 1, its past N0 measured samples (the
+    panels' k went down to -20, the past empty and the predictions of windows counted from the end; an index error
+    on 60 samples at 50:200)."""
+    from test_predict_cli import trajectories_table
+
+    from cobot_analysis.models.prediction.sweep import SweepConfig, WorkDir, run_sweep, trajectories_from_table
+    from cobot_analysis.reports.prediction import figures
+
+    config = SweepConfig(settings=((20, 140),), predictors=("cv",))
+    trajs = trajectories_from_table(trajectories_table(n_traj=1), config)
+    metrics, _, _ = run_sweep(trajs, config, WorkDir(tmp_path), jobs=1)
+    figs = figures(metrics, trajs[0], config)
+    try:
+        panels = [ax for ax in figs["prediction_at_k"].axes if ax.get_visible() and ax.get_title()]
+        assert panels and all(int(ax.get_title().split()[2]) >= 19 for ax in panels)
+        for ax in panels:
+            past = next(line for line in ax.lines if line.get_label() == "measured past (N0 samples)")
+            assert len(past.get_xdata()) == 20
+    finally:
+        import matplotlib.pyplot as plt
+
+        for fig in figs.values():
+            plt.close(fig)

@@ -243,8 +243,12 @@ def figures(metrics, traj, config) -> dict:
     fig.suptitle(f"{traj.label}, N0 = {n0}, N_OC = {n_oc}, {step}, {conv.name} convention")
     out["prediction_overlay"] = fig
 
-    ks = np.linspace(n0 - 1, len(xy) - 1 - (n_oc - n0) // 2, 6).astype(int)
+    # six windows from the first (k = N0 - 1), the last half a horizon before the end, or the first alone when a
+    # recording holds less than that after N0
+    ks = np.unique(np.linspace(n0 - 1, max(n0 - 1, len(xy) - 1 - (n_oc - n0) // 2), 6).astype(int))
     fig, axes = plt.subplots(2, 3, figsize=(12, 9.0), squeeze=False, layout="constrained")
+    for ax in axes.ravel()[len(ks):]:
+        ax.set_visible(False)
     for ax, k in zip(axes.ravel(), ks):
         past, future = xy[k - n0 + 1: k + 1], xy[k: k + n_oc - n0 + 1]
         ax.plot(*xy.T, color="0.8", lw=1, label="recorded path")
