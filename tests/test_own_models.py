@@ -149,3 +149,20 @@ def test_prediction_at_k_shows_windows_of_a_recording_shorter_than_the_horizon(t
 
         for fig in figs.values():
             plt.close(fig)
+
+
+def test_results_say_when_the_horizon_is_longer_than_the_recordings(tmp_path):
+    """60 samples at (20, 140): no window has its whole horizon in the recording, so delta_xy compares the few
+    samples that remain; results.md said nothing of it (ADE and FDE n/a alone). (8, 20) fits: no line."""
+    from test_predict_cli import trajectories_table
+
+    from cobot_analysis.models.prediction.sweep import SweepConfig, WorkDir, run_sweep, trajectories_from_table
+    from cobot_analysis.reports.prediction import horizon_cut_lines
+
+    config = SweepConfig(settings=((8, 20), (20, 140)), predictors=("cv",))
+    metrics, _, _ = run_sweep(trajectories_from_table(trajectories_table(n_traj=2), config), config, WorkDir(tmp_path), jobs=1)
+    lines = horizon_cut_lines(metrics.drop_duplicates(["study", "trial", "entity", "n0", "n_oc"]))
+    assert lines[1:] == [
+        "(N0, N_OC) = (20, 140): 0 of 82 windows have their whole horizon (120 samples) inside the recording, which holds "
+        "40-40 samples after N0: delta_xy and delta_theta compare the samples that remain (fewer the later the window), "
+        "ADE and FDE only the whole horizons. Shorten N_OC (--settings) to compare the horizon itself."]
