@@ -166,3 +166,24 @@ def test_results_say_when_the_horizon_is_longer_than_the_recordings(tmp_path):
         "(N0, N_OC) = (20, 140): 0 of 82 windows have their whole horizon (120 samples) inside the recording, which holds "
         "40-40 samples after N0: delta_xy and delta_theta compare the samples that remain (fewer the later the window), "
         "ADE and FDE only the whole horizons. Shorten N_OC (--settings) to compare the horizon itself."]
+
+
+def test_a_frame_beyond_the_lab_bound_is_refused_before_the_fit_naming_the_means(tmp_path, cli):
+    """A lab whose origin lies 12 m away: fit-ioc ran the whole fit, then its model comparison stopped on
+    '--start (11.9, -0.9) lies outside the lab; give --start ...', an option never given, nothing written. Now
+    refused before any solve naming the means file and the mean, with remedies that work (the frame, --no-compare)."""
+    from cobot_analysis.schema import TRAJECTORIES, write_table
+
+    paths = own_means(shift=(0.0, 0.0))
+    means = write_table(paths.assign(x=paths["x"] + 12.0), tmp_path / "means.parquet", TRAJECTORIES)
+    common = ("fit-ioc", "--out", str(tmp_path / "ws"), "--means", str(means), "--fit", "a2,a4", "--max-evaluations", "1",
+              "--intervals", "20", "--jobs", "1", "--bootstrap", "0")
+    code, _, err = cli("-q", *common)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"{means}: the start of mean_E4015 (" in err and "--no-compare" in err and "--start" not in err
+    assert not (tmp_path / "ws" / "fit-ioc").exists()
+    code, _, err = cli("-q", *common, "--no-compare")
+    assert code == 0, err
+    code, _, err = cli("-q", "generate", "--out", str(tmp_path / "ws"), "--study", "walking-2020", "--means", str(means),
+                       "--goal", "12", "0", "1.5708", "--convention", "continuous", "--jobs", "1")
+    assert code == 2 and f"{means}: the start of N-0615 (" in err and "--start" not in err, err  # design order

@@ -195,11 +195,17 @@ def generate(model: str = "improved", *, start: tuple[float, float, float] | Non
     return GenerateResult(df, models, weights, cases, conv.name, samples, intervals, measured, study)
 
 
+#: the remedy of a study's path outside the models' lab (|x|, |y| <= 10 m)
+FRAME_REMEDY = ("express the trajectories in metres in a frame whose origin lies within 10 m of every pose (e.g. "
+                "translated to the goal)")
+
+
 def plan_generate(model: str, *, weights: Any = None, start: tuple | None = None, goal: tuple | None = None,
-                  cases: list | None = None, duration: str | None = None, convention: str | None = None):
+                  cases: list | None = None, duration: str | None = None, convention: str | None = None, path=None):
     """(models, convention, cases) of a ``generate`` run, every option checked before any solve: the model
     name, the weights, the convention (``resolve_convention``), ``duration`` (not under the published
-    convention), and each case's start and goal (``cases``, else ``start`` to ``goal``).
+    convention), and each case's start and goal (``cases``, else ``start`` to ``goal``; a case's refusal names
+    it and ``path``, the means it came from).
 
         >>> from cobot_analysis.api.models import plan_generate
         >>> models, conv, cases = plan_generate("all", start=(-1.5, -3.4, 0.0))
@@ -233,7 +239,9 @@ def plan_generate(model: str, *, weights: Any = None, start: tuple | None = None
     for case in cases:
         if not (isinstance(case, (tuple, list)) and len(case) == 3):
             raise InputError(f"a case is (condition, start, goal), got {case!r}", remedy="build the cases with walking_cases()")
-        check_endpoints(pose(case[1], "start"), pose(case[2], "goal"))
+        named = (f"the start of {case[0]}", f"the goal of {case[0]}") if case[0] else ("--start", "--goal")
+        check_endpoints(pose(case[1], "start"), pose(case[2], "goal"), path=path, options=named,
+                        outside=FRAME_REMEDY if case[0] else None)
     return models, conv, cases
 
 
@@ -662,6 +670,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         cobot_analysis.errors.InputError: unknown --per 'subjects'; use one of all, subject
     """
     from cobot_analysis import conventions
+    from cobot_analysis.models import check_endpoints
     from cobot_analysis.models.comparison import compare_models_keeping, compared_models, coupled_distances, orientation_of, subject_distances
     from cobot_analysis.models.ioc import fit as ioc_fit, pair_targets_from_table, targets_from_table
     from cobot_analysis.models.presets import DEFAULT_PRESET, PRESETS, names_for, weights_vector
@@ -730,6 +739,15 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         if not fits:
             raise InputError("no subject trajectory with orientation (theta missing on every one): the fit compares "
                              "headings (D holds d_gamma)", path=trials_source, remedy=NO_THETA_REMEDY)
+    compared = None
+    if compare and per == "all" and model != "coupled":
+        # every mean, those without orientation too (their d_xy; the authors compared all 40 walking means), checked as
+        # generate checks them before the fit, whose comparison they are
+        compared = targets_from_table(mean_df, path=means_source, entity=entity, goal=goal_rule(goal, mean_df, path=means_source),
+                                      convention=conv, unoriented=True)
+        for t in compared:
+            check_endpoints(t.start, t.goal, path=means_source, options=(f"the start of {t.trial}", f"the goal of {t.trial}"),
+                            outside=FRAME_REMEDY + ", or fit with --no-compare")
     if method == "single-level":  # its refusals (model, convention, fewer paths than weights) before any fit
         for targets in fits.values():
             check_spec(spec, len(targets))
@@ -805,9 +823,6 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         kind = "improved" if model == "improved" else "table"
         figure = {"published": f"{kind} OC (published)", "fitted": f"{kind} OC (fitted)"}
         models[figure["fitted"]] = (kind, results["all"].weights)
-        # every mean, those without orientation too (their d_xy; the authors compared all 40 walking means)
-        compared = targets_from_table(mean_df, path=means_source, entity=entity, goal=goal_rule(goal, mean_df, path=means_source), convention=conv,
-                                      unoriented=True)
         # generate's grid (not the lower level's): the same paths as generate --study then compare; the figure's
         # paths at the published and fitted weights are those of the oriented means (mean_targets, the same targets)
         comparison, generated = compare_models_keeping(compared, models, tuple(figure.values()), angle=spec.angle, jobs=jobs,

@@ -38,14 +38,16 @@ def generate(out: str | os.PathLike, *, model: str | None = None, weights: Any =
                          "is no walker's heading", remedy="use --model table (the default with this study)")
     inputs = [Path(weights)] if weights and Path(weights).is_file() else []
     _, conv, _ = plan_generate(model, weights=weights, cases=[], duration=duration, convention=convention)  # options first
-    cases, measured, keys = None, None, None
+    cases, measured, keys, source = None, None, None, None  # source: the means the cases come from
     if study is None and start is None:
         raise InputError("nothing to generate", remedy=f"give --start X Y THETA or --study {' or '.join(STUDIES)}")
     if study == "pair-carriage-2022":
         cases, keys, measured, used = _pair_cases(out, means, conv.name, goal)
         inputs += used
+        source = used[0]
     elif study is not None:
         means_df, path = None, _walking_means(out, means, conv.name)
+        source = path
         if path is not None:
             means_df = read_trajectories(path)
             inputs.append(path)
@@ -58,7 +60,7 @@ def generate(out: str | os.PathLike, *, model: str | None = None, weights: Any =
             measured = measured_pace(means_df, trials_df)
         cases = api.walking_cases(conv.name, means_df, goal=goal, path=path)
     models, conv, cases = plan_generate(model, weights=weights, start=start, goal=goal, cases=cases, duration=duration,
-                                        convention=convention)
+                                        convention=convention, path=source)
     kw = {"n_samples": samples, "n_intervals": intervals, "duration": duration, "v_nominal": v_nominal, "max_iter": max_iter,
           "convention": conv.name}
     params = {"models": models, "weights": weights, "cases": cases, **kw}
