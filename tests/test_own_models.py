@@ -187,3 +187,15 @@ def test_a_frame_beyond_the_lab_bound_is_refused_before_the_fit_naming_the_means
     code, _, err = cli("-q", "generate", "--out", str(tmp_path / "ws"), "--study", "walking-2020", "--means", str(means),
                        "--goal", "12", "0", "1.5708", "--convention", "continuous", "--jobs", "1")
     assert code == 2 and f"{means}: the start of N-0615 (" in err and "--start" not in err, err  # design order
+
+
+def test_generate_study_on_own_condition_labels_says_what_it_needs(tmp_path, cli):
+    """Labels that are no walking-2020 code: the remedy was 'pass the walking-2020 means', which a study of its
+    own does not have; now the labels found and what works for them."""
+    from cobot_analysis.schema import TRAJECTORIES, write_table
+
+    means = write_table(own_means(shift=(0.0, 0.0), labels=["c1", "left-turn", "c3"]), tmp_path / "means.parquet", TRAJECTORIES)
+    code, _, err = cli("-q", "generate", "--out", str(tmp_path / "ws"), "--study", "walking-2020", "--means", str(means),
+                       "--convention", "continuous")
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "its conditions are c1, c3, left-turn" in err and "fit-ioc compares the models on every mean" in err

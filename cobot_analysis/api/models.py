@@ -298,8 +298,11 @@ def walking_cases(convention: str, means: pd.DataFrame | None = None, *, goal: t
         return [(c, walking_condition(c).start, goal) for c in WALKING_CONDITIONS]
     cases = study_cases(means, convention, goal, path=path)
     if not cases:
-        raise InputError("no mean trajectory of a walking-study condition", path=path,
-                         remedy="pass the walking-2020 means (import-published walking-2020, or average) with --means")
+        labels = sorted(map(str, means["condition"].dropna().unique()))[:3] if "condition" in means else []
+        raise InputError("no mean trajectory of a walking-study condition (walking-2020 codes such as E4015)"
+                         + (f"; its conditions are {', '.join(labels)}, ..." if labels else ""), path=path,
+                         remedy="pass means of walking-2020 conditions with --means; for a study of other conditions, "
+                                "fit-ioc compares the models on every mean (or generate --start X Y THETA --goal X Y THETA)")
     return cases
 
 
