@@ -199,3 +199,17 @@ def test_generate_study_on_own_condition_labels_says_what_it_needs(tmp_path, cli
                        "--convention", "continuous")
     assert code == 2 and len(err.strip().splitlines()) == 1, err
     assert "its conditions are c1, c3, left-turn" in err and "fit-ioc compares the models on every mean" in err
+
+
+def test_fit_ioc_refuses_trials_of_another_study_than_the_means(tmp_path):
+    """A workspace holding walking-2020's import-published beside one's own study: fit-ioc's default --trajectories
+    (import-published's) went with the own means, the published subjects fitted (--per subject) and their durations
+    taken for the time gauge without a word."""
+    from cobot_analysis.api import fit_ioc
+    from cobot_analysis.schema import TRAJECTORIES, write_table
+
+    means = own_means(shift=(0.0, 0.0))
+    published = write_table(means.assign(study="walking-2020", kind="trial", subject="S01"), tmp_path / "t.parquet", TRAJECTORIES)
+    with pytest.raises(InputError, match=r"t\.parquet: the trajectories are of walking-2020, the means of own-walking; "
+                                         r"pass the trials of own-walking with --trajectories"):
+        fit_ioc(means, trials=published, per="subject", max_evaluations=1, intervals=20, compare=False, jobs=1)

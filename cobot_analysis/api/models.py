@@ -622,6 +622,19 @@ NO_THETA_REMEDY = ("re-run preprocess with --orientation-markers asis (theta fro
                    "sec. 2.5), or record the pelvis markers that give theta")
 
 
+def check_same_study(means: pd.DataFrame, trials: pd.DataFrame | None, *, path=None) -> None:
+    """Refuse trials of another study than the means (``study`` columns with no study in common): a workspace holding
+    walking-2020's import-published beside a study of one's own gave fit-ioc the published trials (the default
+    ``--trajectories``) with the own means, their subjects fitted and their durations taken as the own study's."""
+    if trials is None or "study" not in means or "study" not in trials:
+        return
+    own, other = (set(df["study"].dropna().astype(str)) for df in (means, trials))
+    if own and other and not own & other:
+        raise InputError(f"the trajectories are of {', '.join(sorted(other))}, the means of {', '.join(sorted(own))}",
+                         path=path, remedy=f"pass the trials of {', '.join(sorted(own))} with --trajectories (e.g. OUT/preprocess/"
+                                           "trajectories.parquet)")
+
+
 def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | str | os.PathLike | None = None, model: str = "improved",
             start_weights: str | None = None, fit: list[str] | None = None, optimizer: str = "powell",
             max_evaluations: int = 2000, per: str = "all", subjects: int | None = None, goal: str = "auto",
@@ -700,6 +713,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         trials_source = trials_source or trials
     means = read_trajectories(means)
     trials = read_trajectories(trials) if trials is not None else None
+    check_same_study(means, trials, path=trials_source)
     if model not in ("improved", "table", "coupled"):
         raise InputError(f"fit-ioc fits the improved, table or coupled model, not {model!r}", remedy="use --model improved, table or coupled")
     conv = conventions.get(convention or "continuous")
