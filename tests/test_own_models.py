@@ -213,3 +213,22 @@ def test_fit_ioc_refuses_trials_of_another_study_than_the_means(tmp_path):
     with pytest.raises(InputError, match=r"t\.parquet: the trajectories are of walking-2020, the means of own-walking; "
                                          r"pass the trials of own-walking with --trajectories"):
         fit_ioc(means, trials=published, per="subject", max_evaluations=1, intervals=20, compare=False, jobs=1)
+
+
+def test_generate_study_takes_no_pace_from_another_studys_trials(tmp_path):
+    """generate --study walking-2020 on one's own means (no travel time) in a workspace that also holds walking-2020's
+    import: the published subjects' durations were reported as the subjects' pace of the own means."""
+    from cobot_analysis.schema import TRAJECTORIES, write_table
+    from cobot_analysis.stages.models import generate
+
+    means = own_means(shift=(0.0, 0.0)).assign(travel_time=np.nan, vx=np.nan, vy=np.nan)
+    (tmp_path / "ws" / "import-published").mkdir(parents=True)
+    trials = means.assign(kind="trial", subject="S01", travel_time=10.0)
+    write_table(trials.assign(study="walking-2020"), tmp_path / "ws" / "import-published" / "trajectories.parquet", TRAJECTORIES)
+    path = write_table(means, tmp_path / "means.parquet", TRAJECTORIES)
+    done = generate(tmp_path / "ws", study="walking-2020", means=path, convention="continuous", intervals=20, samples=50, jobs=1)
+    assert done.result.measured == {}
+    write_table(trials, tmp_path / "ws" / "import-published" / "trajectories.parquet", TRAJECTORIES)  # the same study's
+    done = generate(tmp_path / "ws", study="walking-2020", means=path, convention="continuous", intervals=20, samples=50, jobs=1,
+                    force=True)
+    assert {c: T for c, (T, _) in done.result.measured.items()} == {c: 10.0 for c in CONDITIONS}

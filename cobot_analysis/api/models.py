@@ -622,14 +622,20 @@ NO_THETA_REMEDY = ("re-run preprocess with --orientation-markers asis (theta fro
                    "sec. 2.5), or record the pelvis markers that give theta")
 
 
+def same_study(means: pd.DataFrame, trials: pd.DataFrame | None) -> bool:
+    """False when ``means`` and ``trials`` both name their studies (``study`` column) and none in common."""
+    if trials is None or "study" not in means or "study" not in trials:
+        return True
+    own, other = (set(df["study"].dropna().astype(str)) for df in (means, trials))
+    return not (own and other) or bool(own & other)
+
+
 def check_same_study(means: pd.DataFrame, trials: pd.DataFrame | None, *, path=None) -> None:
     """Refuse trials of another study than the means (``study`` columns with no study in common): a workspace holding
     walking-2020's import-published beside a study of one's own gave fit-ioc the published trials (the default
     ``--trajectories``) with the own means, their subjects fitted and their durations taken as the own study's."""
-    if trials is None or "study" not in means or "study" not in trials:
-        return
-    own, other = (set(df["study"].dropna().astype(str)) for df in (means, trials))
-    if own and other and not own & other:
+    if not same_study(means, trials):
+        own, other = (set(df["study"].dropna().astype(str)) for df in (means, trials))
         raise InputError(f"the trajectories are of {', '.join(sorted(other))}, the means of {', '.join(sorted(own))}",
                          path=path, remedy=f"pass the trials of {', '.join(sorted(own))} with --trajectories (e.g. OUT/preprocess/"
                                            "trajectories.parquet)")

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from cobot_analysis import api, registry
-from cobot_analysis.api.models import check_profiles, ioc_spec, plan_generate, read_trajectories
+from cobot_analysis.api.models import check_profiles, ioc_spec, plan_generate, read_trajectories, same_study
 from cobot_analysis.errors import InputError
 from cobot_analysis.stages import Outcome
 from cobot_analysis.workspace import Stage, find_input
@@ -57,6 +57,9 @@ def generate(out: str | os.PathLike, *, model: str | None = None, weights: Any =
                 inputs.append(trials_path)
             except InputError:
                 trials_df = None
+            if not same_study(means_df, trials_df):  # walking-2020's import beside a study of one's own: not its pace
+                trials_df = None
+                inputs.pop()
             measured = measured_pace(means_df, trials_df)
         cases = api.walking_cases(conv.name, means_df, goal=goal, path=path)
     models, conv, cases = plan_generate(model, weights=weights, start=start, goal=goal, cases=cases, duration=duration,
