@@ -623,7 +623,13 @@ NO_THETA_REMEDY = ("re-run preprocess with --orientation-markers asis (theta fro
 
 
 def same_study(means: pd.DataFrame, trials: pd.DataFrame | None) -> bool:
-    """False when ``means`` and ``trials`` both name their studies (``study`` column) and none in common."""
+    """False when ``means`` and ``trials`` both name their studies (``study`` column) and none in common.
+
+        >>> import pandas as pd
+        >>> from cobot_analysis.api.models import same_study
+        >>> same_study(pd.DataFrame({"study": ["lab-2025"]}), pd.DataFrame({"study": ["walking-2020"]}))
+        False
+    """
     if trials is None or "study" not in means or "study" not in trials:
         return True
     own, other = (set(df["study"].dropna().astype(str)) for df in (means, trials))
@@ -633,7 +639,14 @@ def same_study(means: pd.DataFrame, trials: pd.DataFrame | None) -> bool:
 def check_same_study(means: pd.DataFrame, trials: pd.DataFrame | None, *, path=None) -> None:
     """Refuse trials of another study than the means (``study`` columns with no study in common): a workspace holding
     walking-2020's import-published beside a study of one's own gave fit-ioc the published trials (the default
-    ``--trajectories``) with the own means, their subjects fitted and their durations taken as the own study's."""
+    ``--trajectories``) with the own means, their subjects fitted and their durations taken as the own study's.
+
+        >>> import pandas as pd
+        >>> from cobot_analysis.api.models import check_same_study
+        >>> check_same_study(pd.DataFrame({"study": ["lab-2025"]}), pd.DataFrame({"study": ["walking-2020"]}))
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: the trajectories are of walking-2020, the means of lab-2025; pass the trials of lab-2025 with --trajectories (e.g. OUT/preprocess/trajectories.parquet)
+    """
     if not same_study(means, trials):
         own, other = (set(df["study"].dropna().astype(str)) for df in (means, trials))
         raise InputError(f"the trajectories are of {', '.join(sorted(other))}, the means of {', '.join(sorted(own))}",
