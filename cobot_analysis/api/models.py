@@ -195,11 +195,17 @@ def generate(model: str = "improved", *, start: tuple[float, float, float] | Non
     return GenerateResult(df, models, weights, cases, conv.name, samples, intervals, measured, study)
 
 
+#: the remedy of a study's path outside the models' lab (|x|, |y| <= 10 m)
+FRAME_REMEDY = ("express the trajectories in metres in a frame whose origin lies within 10 m of every pose (e.g. "
+                "translated to the goal)")
+
+
 def plan_generate(model: str, *, weights: Any = None, start: tuple | None = None, goal: tuple | None = None,
-                  cases: list | None = None, duration: str | None = None, convention: str | None = None):
+                  cases: list | None = None, duration: str | None = None, convention: str | None = None, path=None):
     """(models, convention, cases) of a ``generate`` run, every option checked before any solve: the model
     name, the weights, the convention (``resolve_convention``), ``duration`` (not under the published
-    convention), and each case's start and goal (``cases``, else ``start`` to ``goal``).
+    convention), and each case's start and goal (``cases``, else ``start`` to ``goal``; a case's refusal names
+    it and ``path``, the means it came from).
 
         >>> from cobot_analysis.api.models import plan_generate
         >>> models, conv, cases = plan_generate("all", start=(-1.5, -3.4, 0.0))
@@ -233,7 +239,9 @@ def plan_generate(model: str, *, weights: Any = None, start: tuple | None = None
     for case in cases:
         if not (isinstance(case, (tuple, list)) and len(case) == 3):
             raise InputError(f"a case is (condition, start, goal), got {case!r}", remedy="build the cases with walking_cases()")
-        check_endpoints(pose(case[1], "start"), pose(case[2], "goal"))
+        named = (f"the start of {case[0]}", f"the goal of {case[0]}") if case[0] else ("--start", "--goal")
+        check_endpoints(pose(case[1], "start"), pose(case[2], "goal"), path=path, options=named,
+                        outside=FRAME_REMEDY if case[0] else None)
     return models, conv, cases
 
 
@@ -275,9 +283,13 @@ def walking_cases(convention: str, means: pd.DataFrame | None = None, *, goal: t
     """
     from cobot_analysis import conventions
     from cobot_analysis.design import WALKING_CONDITIONS, WALKING_GOAL, walking_condition
-    from cobot_analysis.models.comparison import study_cases
+    from cobot_analysis.models.comparison import design_goal_offset, study_cases, walking_means as study_means
 
     convention = conventions.get(convention).name
+    off = design_goal_offset(study_means(means)) if goal is None and means is not None and convention != "published" else None
+    if off:
+        raise InputError(f"--study walking-2020: {off[0]}", path=path,
+                         remedy="give the goal in your frame, e.g. the median end: --goal {:.2f} {:.2f} {:.2f}".format(*off[1]))
     goal = pose(goal, "--goal") if goal is not None else WALKING_GOAL
     if means is None and convention == "published":
         raise InputError("the published convention takes the authors' start and goal poses from the measured means",
@@ -286,8 +298,11 @@ def walking_cases(convention: str, means: pd.DataFrame | None = None, *, goal: t
         return [(c, walking_condition(c).start, goal) for c in WALKING_CONDITIONS]
     cases = study_cases(means, convention, goal, path=path)
     if not cases:
-        raise InputError("no mean trajectory of a walking-study condition", path=path,
-                         remedy="pass the walking-2020 means (import-published walking-2020, or average) with --means")
+        labels = sorted(map(str, means["condition"].dropna().unique()))[:3] if "condition" in means else []
+        raise InputError("no mean trajectory of a walking-study condition (walking-2020 codes such as E4015)"
+                         + (f"; its conditions are {', '.join(labels)}, ..." if labels else ""), path=path,
+                         remedy="pass means of walking-2020 conditions with --means; for a study of other conditions, "
+                                "fit-ioc compares the models on every mean (or generate --start X Y THETA --goal X Y THETA)")
     return cases
 
 
@@ -484,29 +499,37 @@ def held_weights(model: str, convention: str) -> tuple[str, ...]:
     return held(model, convention)
 
 
-def goal_rule(goal: str, df: pd.DataFrame) -> tuple | None:
+def goal_rule(goal: str, df: pd.DataFrame, *, path=None) -> tuple | None:
     """The goal of each OC problem: ``design`` (the walking goal), ``end`` (None: the last measured pose),
-    ``auto`` (design when every condition is a walking-study one).
+    ``auto`` (design when every condition is a walking-study one and the paths end at it, ``design_goal_offset``).
+    ``design`` on paths that end elsewhere (a lab frame of one's own) is an ``InputError`` naming ``--goal end``.
 
         >>> import pandas as pd
         >>> from cobot_analysis.api.models import goal_rule
-        >>> goal_rule("auto", pd.DataFrame({"condition": ["E4015", "N1500"]}))
+        >>> goal_rule("auto", pd.DataFrame({"condition": ["E4015", "N1500"], "x": [0.0, 0.02], "y": [0.01, 0.0]}))
         (0.0, 0.0, 1.5707963267948966)
         >>> goal_rule("auto", pd.DataFrame({"condition": ["d1_p4"]})) is None   # not a walking condition: the last pose
         True
+        >>> goal_rule("auto", pd.DataFrame({"condition": ["N1500"], "x": [3.0], "y": [2.0]})) is None   # ends elsewhere
+        True
     """
     from cobot_analysis.design import WALKING_GOAL, walking_condition
+    from cobot_analysis.models.comparison import design_goal_offset
 
     if goal == "end":
         return None
-    if goal == "design":
+    if goal == "auto":
+        try:
+            for c in df["condition"].unique():
+                walking_condition(str(c))
+        except ValueError:
+            return None
+    off = design_goal_offset(df)
+    if off is None:
         return WALKING_GOAL
-    try:
-        for c in df["condition"].unique():
-            walking_condition(str(c))
-        return WALKING_GOAL
-    except ValueError:
-        return None
+    if goal == "auto":
+        return None  # a frame of one's own: each path's measured end
+    raise InputError(f"--goal design: {off[0]}", path=path, remedy="use --goal end (each path's last measured pose) or --goal auto")
 
 
 def ioc_spec(model: str, *, convention: str = "continuous", start_weights: str | None = None, fit: list[str] | None = None,
@@ -594,6 +617,43 @@ def check_profiles(profiles: str) -> None:
         raise InputError(f"unknown --profiles {profiles!r}", remedy=f"use one of {', '.join(PROFILES)}")
 
 
+#: what makes a study's paths fit-ioc can fit when none holds an orientation
+NO_THETA_REMEDY = ("re-run preprocess with --orientation-markers asis (theta from LASI and RASI alone, docs/methods.md "
+                   "sec. 2.5), or record the pelvis markers that give theta")
+
+
+def same_study(means: pd.DataFrame, trials: pd.DataFrame | None) -> bool:
+    """False when ``means`` and ``trials`` both name their studies (``study`` column) and none in common.
+
+        >>> import pandas as pd
+        >>> from cobot_analysis.api.models import same_study
+        >>> same_study(pd.DataFrame({"study": ["lab-2025"]}), pd.DataFrame({"study": ["walking-2020"]}))
+        False
+    """
+    if trials is None or "study" not in means or "study" not in trials:
+        return True
+    own, other = (set(df["study"].dropna().astype(str)) for df in (means, trials))
+    return not (own and other) or bool(own & other)
+
+
+def check_same_study(means: pd.DataFrame, trials: pd.DataFrame | None, *, path=None) -> None:
+    """Refuse trials of another study than the means (``study`` columns with no study in common): a workspace holding
+    walking-2020's import-published beside a study of one's own gave fit-ioc the published trials (the default
+    ``--trajectories``) with the own means, their subjects fitted and their durations taken as the own study's.
+
+        >>> import pandas as pd
+        >>> from cobot_analysis.api.models import check_same_study
+        >>> check_same_study(pd.DataFrame({"study": ["lab-2025"]}), pd.DataFrame({"study": ["walking-2020"]}))
+        Traceback (most recent call last):
+        cobot_analysis.errors.InputError: the trajectories are of walking-2020, the means of lab-2025; pass the trials of lab-2025 with --trajectories (e.g. OUT/preprocess/trajectories.parquet)
+    """
+    if not same_study(means, trials):
+        own, other = (set(df["study"].dropna().astype(str)) for df in (means, trials))
+        raise InputError(f"the trajectories are of {', '.join(sorted(other))}, the means of {', '.join(sorted(own))}",
+                         path=path, remedy=f"pass the trials of {', '.join(sorted(own))} with --trajectories (e.g. OUT/preprocess/"
+                                           "trajectories.parquet)")
+
+
 def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | str | os.PathLike | None = None, model: str = "improved",
             start_weights: str | None = None, fit: list[str] | None = None, optimizer: str = "powell",
             max_evaluations: int = 2000, per: str = "all", subjects: int | None = None, goal: str = "auto",
@@ -645,6 +705,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         cobot_analysis.errors.InputError: unknown --per 'subjects'; use one of all, subject
     """
     from cobot_analysis import conventions
+    from cobot_analysis.models import check_endpoints
     from cobot_analysis.models.comparison import compare_models_keeping, compared_models, coupled_distances, orientation_of, subject_distances
     from cobot_analysis.models.ioc import fit as ioc_fit, pair_targets_from_table, targets_from_table
     from cobot_analysis.models.presets import DEFAULT_PRESET, PRESETS, names_for, weights_vector
@@ -671,6 +732,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         trials_source = trials_source or trials
     means = read_trajectories(means)
     trials = read_trajectories(trials) if trials is not None else None
+    check_same_study(means, trials, path=trials_source)
     if model not in ("improved", "table", "coupled"):
         raise InputError(f"fit-ioc fits the improved, table or coupled model, not {model!r}", remedy="use --model improved, table or coupled")
     conv = conventions.get(convention or "continuous")
@@ -688,13 +750,16 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         mean_targets = pair_targets_from_table(mean_df, path=means_source)
         compare = False
     else:
-        mean_targets = targets_from_table(mean_df, path=means_source, entity=entity, goal=goal_rule(goal, mean_df), convention=conv)
+        mean_targets = targets_from_table(mean_df, path=means_source, entity=entity, goal=goal_rule(goal, mean_df, path=means_source), convention=conv)
     fits: dict[str, list] = {}
     if per == "all":
         if not mean_targets:
             if model == "coupled":
                 raise InputError("no scenario-3 mean path with both carriers (subject1 and subject2, with orientation)",
                                  path=means_source, remedy="pass the pair study's means (run average on the pair workspace)")
+            if (mean_df["entity"] == entity).any():
+                raise InputError(f"no mean {entity} trajectory with orientation (theta missing on every one): the fit "
+                                 "compares headings (D holds d_gamma)", path=means_source, remedy=NO_THETA_REMEDY)
             raise InputError(f"no mean {entity} trajectory (kind = mean) with orientation", path=means_source,
                              remedy="pass the means of average (average/means.parquet, or average(...).means)")
         fits["all"] = mean_targets
@@ -702,13 +767,23 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         if trial_df is None or trial_df.empty:
             raise InputError("--per subject needs subject trials", path=trials_source, remedy="pass --trajectories with kind=trial rows")
         for subject, g in sorted(trial_df.groupby("subject")):
-            ts = targets_from_table(g, path=trials_source, entity=entity, goal=goal_rule(goal, g), convention=conv)
+            ts = targets_from_table(g, path=trials_source, entity=entity, goal=goal_rule(goal, g, path=trials_source), convention=conv)
             if ts:
                 fits[str(subject)] = ts
         if subjects:
             fits = dict(list(fits.items())[:subjects])
         if not fits:
-            raise InputError("no subject trajectory with orientation", path=trials_source, remedy="check the input table")
+            raise InputError("no subject trajectory with orientation (theta missing on every one): the fit compares "
+                             "headings (D holds d_gamma)", path=trials_source, remedy=NO_THETA_REMEDY)
+    compared = None
+    if compare and per == "all" and model != "coupled":
+        # every mean, those without orientation too (their d_xy; the authors compared all 40 walking means), checked as
+        # generate checks them before the fit, whose comparison they are
+        compared = targets_from_table(mean_df, path=means_source, entity=entity, goal=goal_rule(goal, mean_df, path=means_source),
+                                      convention=conv, unoriented=True)
+        for t in compared:
+            check_endpoints(t.start, t.goal, path=means_source, options=(f"the start of {t.trial}", f"the goal of {t.trial}"),
+                            outside=FRAME_REMEDY + ", or fit with --no-compare")
     if method == "single-level":  # its refusals (model, convention, fewer paths than weights) before any fit
         for targets in fits.values():
             check_spec(spec, len(targets))
@@ -784,9 +859,6 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         kind = "improved" if model == "improved" else "table"
         figure = {"published": f"{kind} OC (published)", "fitted": f"{kind} OC (fitted)"}
         models[figure["fitted"]] = (kind, results["all"].weights)
-        # every mean, those without orientation too (their d_xy; the authors compared all 40 walking means)
-        compared = targets_from_table(mean_df, path=means_source, entity=entity, goal=goal_rule(goal, mean_df), convention=conv,
-                                      unoriented=True)
         # generate's grid (not the lower level's): the same paths as generate --study then compare; the figure's
         # paths at the published and fitted weights are those of the oriented means (mean_targets, the same targets)
         comparison, generated = compare_models_keeping(compared, models, tuple(figure.values()), angle=spec.angle, jobs=jobs,

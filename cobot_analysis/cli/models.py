@@ -107,7 +107,7 @@ def fit_ioc_command(
     max_evaluations: Annotated[int, typer.Option("--max-evaluations", help="Budget of upper-level evaluations per fit (--method single-level: of its steps, when below its own number) (>= 1).")] = 2000,
     per: Annotated[Per, typer.Option("--per", help="all: one fit over the means; subject: one fit per subject over its trials.")] = Per.all,
     subjects: Annotated[Optional[int], typer.Option("--subjects", help="With --per subject: fit only the first N subjects (>= 1).")] = None,
-    goal: Annotated[GoalChoice, typer.Option("--goal", help="Goal of each OC problem: design (walking goal 0 0 pi/2), end (last measured pose), auto (design for walking conditions).")] = GoalChoice.auto,
+    goal: Annotated[GoalChoice, typer.Option("--goal", help="Goal of each OC problem: design (walking goal 0 0 pi/2), end (last measured pose), auto (design for walking-2020 conditions ending within 0.5 m of it, else end).")] = GoalChoice.auto,
     intervals: Annotated[int, typer.Option("--intervals", help="Intervals of the OC grid (50: 2-12 mm from a 500-interval solve) (>= 10).")] = 50,
     v_nominal: Annotated[float, typer.Option("--v-nominal", help="Nominal speed (m/s) of T0 = distance / v + 1 s; the free duration T is bounded to (0.4, 2.5) x T0 (>= 0.05).")] = 1.0,
     compare: Annotated[bool, typer.Option("--compare/--no-compare", help="Compare unicycle, clothoid, Mombaur, published and fitted models.")] = True,

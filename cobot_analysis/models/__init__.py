@@ -75,9 +75,11 @@ def mean_speed(x, y, T: float) -> float:
     return length / T if T > 0 else math.nan
 
 
-def check_endpoints(start, goal, *, path=None, min_distance: float = 0.01, options=("--start", "--goal")) -> None:
+def check_endpoints(start, goal, *, path=None, min_distance: float = 0.01, options=("--start", "--goal"),
+                    outside: str | None = None) -> None:
     """Refuse NaN poses, a start or goal outside the lab (|x|, |y| <= ``GOAL_EXTENT``, the bound of the goal
-    predictor's goals) and a start equal to the goal (nothing to plan); ``options`` name the two poses in the message."""
+    predictor's goals) and a start equal to the goal (nothing to plan); ``options`` name the two poses in the message,
+    ``outside`` is the remedy of a pose outside the lab (default: give the option in metres)."""
     start, goal = np.asarray(start, float), np.asarray(goal, float)
     if start.shape[-1] < 3 or goal.shape[-1] < 3:
         raise InputError("start and goal must be poses (x, y, theta)", path=path, remedy="give three numbers each")
@@ -89,8 +91,8 @@ def check_endpoints(start, goal, *, path=None, min_distance: float = 0.01, optio
     for option, pose in zip(options, (start, goal)):
         if max(abs(pose[0]), abs(pose[1])) > GOAL_EXTENT:
             raise InputError(f"{option} ({pose[0]:g}, {pose[1]:g}) lies outside the lab (|x|, |y| <= {GOAL_EXTENT:g} m)",
-                             path=path, remedy=f"give {option} in metres in the study's frame, within {GOAL_EXTENT:g} m of its "
-                                               "origin (not millimetres)")
+                             path=path, remedy=outside or f"give {option} in metres in the study's frame, within "
+                                                          f"{GOAL_EXTENT:g} m of its origin (not millimetres)")
     if math.hypot(goal[0] - start[0], goal[1] - start[1]) < min_distance:
         raise InputError(f"start equals goal (closer than {min_distance * 100:.0f} cm)", path=path,
                          remedy="give a goal at least 1 cm away from the start")

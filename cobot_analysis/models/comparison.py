@@ -81,7 +81,7 @@ def study_cases(means: pd.DataFrame, convention, goal, *, path=None) -> list[tup
     from cobot_analysis.models.ioc import targets_from_table
 
     conv = conventions.get(convention)
-    means = _walking_means(means)
+    means = walking_means(means)
     targets = targets_from_table(means, path=path, goal=goal, convention=conv, unoriented=True)
     order = {c: i for i, c in enumerate(WALKING_CONDITIONS)}
     return [(t.condition, t.start, t.goal) for t in sorted(targets, key=lambda t: order[t.condition])]
@@ -152,11 +152,11 @@ def measured_pace(means: pd.DataFrame, trials: pd.DataFrame | None = None) -> di
 
     out = {}
     if trials is not None and "kind" in trials:
-        walking = _walking_means(trials[trials["kind"] == "trial"].assign(kind="mean"))
+        walking = walking_means(trials[trials["kind"] == "trial"].assign(kind="mean"))
         out.update(measured_by_condition(walking) if not walking.empty else {})
     if "travel_time" not in means:
         return out
-    for _, g in _walking_means(means).groupby("trial", sort=False):
+    for _, g in walking_means(means).groupby("trial", sort=False):
         g = g.sort_values("sample")
         T = float(g["travel_time"].iloc[0])
         if np.isfinite(T) and T > 0:
@@ -164,11 +164,38 @@ def measured_pace(means: pd.DataFrame, trials: pd.DataFrame | None = None) -> di
     return out
 
 
-def _walking_means(means: pd.DataFrame) -> pd.DataFrame:
+def walking_means(means: pd.DataFrame) -> pd.DataFrame:
+    """The walker means (kind mean) of the walking study's conditions in ``means``."""
     from cobot_analysis.design import WALKING_CONDITIONS
 
     means = means[(means["kind"] == "mean") & (means["entity"] == "walker")] if "kind" in means else means
     return means[means["condition"].isin(WALKING_CONDITIONS)]
+
+
+#: how far (m) the measured ends may lie from the walking study's design goal for it to be theirs
+DESIGN_GOAL_TOLERANCE = 0.5
+
+
+def design_goal_offset(df: pd.DataFrame) -> tuple[str, tuple[float, float, float]] | None:
+    """None when the trajectories of ``df`` end at the walking study's design goal: the median of their last
+    measured positions within 0.5 m of (0, 0) (``DESIGN_GOAL_TOLERANCE``); else (what differs, the measured end
+    pose, its heading the circular mean of the last headings): a study recorded in a frame of its own. The
+    heading is not judged: the walking-2020 subjects end at the goal facing up to 1.8 rad off pi/2 (median per
+    subject of their trials with a plausible orientation)."""
+    from cobot_analysis.angles import circular_mean
+    from cobot_analysis.design import WALKING_GOAL
+
+    if not {"x", "y"} <= set(df.columns) or df.empty:
+        return None
+    ends = df.sort_values("sample").groupby("trial").last() if {"trial", "sample"} <= set(df.columns) else df.iloc[[-1]]
+    x, y = float(np.nanmedian(ends["x"])), float(np.nanmedian(ends["y"]))
+    th = ends["theta"].to_numpy(float) if "theta" in ends else np.array([math.nan])
+    heading = float(circular_mean(th)) if np.isfinite(th).any() else WALKING_GOAL[2]
+    dist = math.hypot(x - WALKING_GOAL[0], y - WALKING_GOAL[1])
+    if dist <= DESIGN_GOAL_TOLERANCE:
+        return None
+    return (f"the paths end at ({x:.2f}, {y:.2f}) (median of their last positions), {dist:.2f} m from the walking "
+            "study's design goal (0, 0)", (x, y, heading))
 
 
 def compare_models(targets: list[Target], models: dict, *, n_intervals: int = 100, angle: str = "gamma",

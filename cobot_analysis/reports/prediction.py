@@ -243,8 +243,12 @@ def figures(metrics, traj, config) -> dict:
     fig.suptitle(f"{traj.label}, N0 = {n0}, N_OC = {n_oc}, {step}, {conv.name} convention")
     out["prediction_overlay"] = fig
 
-    ks = np.linspace(n0 - 1, len(xy) - 1 - (n_oc - n0) // 2, 6).astype(int)
+    # six windows from the first (k = N0 - 1), the last half a horizon before the end, or the first alone when a
+    # recording holds less than that after N0
+    ks = np.unique(np.linspace(n0 - 1, max(n0 - 1, len(xy) - 1 - (n_oc - n0) // 2), 6).astype(int))
     fig, axes = plt.subplots(2, 3, figsize=(12, 9.0), squeeze=False, layout="constrained")
+    for ax in axes.ravel()[len(ks):]:
+        ax.set_visible(False)
     for ax, k in zip(axes.ravel(), ks):
         past, future = xy[k - n0 + 1: k + 1], xy[k: k + n_oc - n0 + 1]
         ax.plot(*xy.T, color="0.8", lw=1, label="recorded path")
@@ -319,6 +323,22 @@ def travel_angle(trajectories) -> dict[str, float]:
     return {e: float(np.median(v)) for e, v in sorted(per.items())}
 
 
+def horizon_cut_lines(first: pd.DataFrame) -> list[str]:
+    """Where a setting's horizon is longer than most recordings hold after N0 (``first``: one metrics row per
+    trajectory and setting): a line saying how few windows have their whole horizon inside the recording, since
+    delta_xy and delta_theta then compare only the samples that remain (docs/methods.md sec. 7)."""
+    out = []
+    for (n0, n_oc), g in first.groupby(["n0", "n_oc"], sort=True):
+        used, full = int(g["n_used"].sum()), int(g["n_full"].sum())
+        if used and full < used / 2:
+            after = g["n_samples"] - n0
+            out.append(f"(N0, N_OC) = ({n0}, {n_oc}): {full} of {used} windows have their whole horizon ({n_oc - n0} samples) "
+                       f"inside the recording, which holds {after.min()}-{after.max()} samples after N0: delta_xy and "
+                       "delta_theta compare the samples that remain (fewer the later the window), ADE and FDE only the "
+                       "whole horizons. Shorten N_OC (--settings) to compare the horizon itself.")
+    return [""] + out if out else []
+
+
 def results_fragment(metrics, summary, comparison, config, example, unpredictable=(), stage_name: str = "predict",
                      trajectories=()) -> str:
     """Markdown fragment of the stage (assembled into docs/results.md); ``trajectories`` (those predicted) give the
@@ -367,6 +387,7 @@ def results_fragment(metrics, summary, comparison, config, example, unpredictabl
         vals = [f"{_fmt(cell[k]['mean'])} +- {_fmt(cell[k]['sd'])}" for k in ("delta_xy", "delta_theta", "d_pred", "ade", "fde")]
         r = cell["delta_xy"]
         lines.append(f"| {n0} | {n_oc} | {pred} | " + " | ".join(vals) + f" | {_fmt(r['pearson_r'], 2)} (p {_p(r['pearson_p'])}) |")
+    lines += horizon_cut_lines(first)
     goal_preds = [p for p in ("goal", "goal-inferred") if p in config.predictors]
     gamma = travel_angle(trajectories) if goal_preds else {}
     if gamma:

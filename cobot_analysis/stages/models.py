@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from cobot_analysis import api, registry
-from cobot_analysis.api.models import check_profiles, ioc_spec, plan_generate, read_trajectories
+from cobot_analysis.api.models import check_profiles, ioc_spec, plan_generate, read_trajectories, same_study
 from cobot_analysis.errors import InputError
 from cobot_analysis.stages import Outcome
 from cobot_analysis.workspace import Stage, find_input
@@ -38,14 +38,16 @@ def generate(out: str | os.PathLike, *, model: str | None = None, weights: Any =
                          "is no walker's heading", remedy="use --model table (the default with this study)")
     inputs = [Path(weights)] if weights and Path(weights).is_file() else []
     _, conv, _ = plan_generate(model, weights=weights, cases=[], duration=duration, convention=convention)  # options first
-    cases, measured, keys = None, None, None
+    cases, measured, keys, source = None, None, None, None  # source: the means the cases come from
     if study is None and start is None:
         raise InputError("nothing to generate", remedy=f"give --start X Y THETA or --study {' or '.join(STUDIES)}")
     if study == "pair-carriage-2022":
         cases, keys, measured, used = _pair_cases(out, means, conv.name, goal)
         inputs += used
+        source = used[0]
     elif study is not None:
         means_df, path = None, _walking_means(out, means, conv.name)
+        source = path
         if path is not None:
             means_df = read_trajectories(path)
             inputs.append(path)
@@ -55,10 +57,13 @@ def generate(out: str | os.PathLike, *, model: str | None = None, weights: Any =
                 inputs.append(trials_path)
             except InputError:
                 trials_df = None
+            if not same_study(means_df, trials_df):  # walking-2020's import beside a study of one's own: not its pace
+                trials_df = None
+                inputs.pop()
             measured = measured_pace(means_df, trials_df)
         cases = api.walking_cases(conv.name, means_df, goal=goal, path=path)
     models, conv, cases = plan_generate(model, weights=weights, start=start, goal=goal, cases=cases, duration=duration,
-                                        convention=convention)
+                                        convention=convention, path=source)
     kw = {"n_samples": samples, "n_intervals": intervals, "duration": duration, "v_nominal": v_nominal, "max_iter": max_iter,
           "convention": conv.name}
     params = {"models": models, "weights": weights, "cases": cases, **kw}

@@ -53,8 +53,9 @@ def subject_durations(trials: pd.DataFrame) -> pd.DataFrame:
         length = float(np.hypot(np.diff(x), np.diff(y)).sum())
         T = float(g["travel_time"].iloc[0]) if "travel_time" in g else float("nan")
         source = "travel_time"
-        if not (np.isfinite(T) and T > 0) and {"vx", "vy"} <= set(g.columns):
-            speed = float(np.nanmean(np.hypot(g["vx"].to_numpy(float), g["vy"].to_numpy(float))))
+        v = np.hypot(g["vx"].to_numpy(float), g["vy"].to_numpy(float)) if {"vx", "vy"} <= set(g.columns) else np.array([])
+        if not (np.isfinite(T) and T > 0) and np.isfinite(v).any():
+            speed = float(np.nanmean(v))
             T, source = (length / speed if speed > 0 else float("nan")), "velocity"
         if np.isfinite(T) and T > 0:
             rows.append({"trial": str(trial), "condition": str(g["condition"].iloc[0]), "duration": T,

@@ -277,9 +277,12 @@ def trajectories_from_table(df: pd.DataFrame, config: SweepConfig, path: str | o
         flags = set(str(first.get("quality") or "").split(";"))
         has_theta = bool(np.isfinite(poses[:, 2]).any())
         track = has_theta and (config.orientation == "track" or (config.orientation == "auto" and not flags & set(ORIENTATION_FLAGS)))
+        finite = poses[np.isfinite(poses[:, :2]).all(axis=1), :2]
         goal = design_goal(str(study), {"condition": condition, "direction": first.get("direction"),
-                                        "end_orientation": first.get("end_orientation")})
+                                        "end_orientation": first.get("end_orientation")}, finite[-1] if len(finite) else None)
         out.append(Trajectory(str(study), str(trial), str(entity), poses, float(dt), float(duration), source, track, meta, goal))
+        for name in {"goal", "goal-inferred"} & set(config.predictors):
+            predictor_options(name, out[-1], config)  # a goal it cannot know is refused here, before any solve
     return out
 
 
@@ -303,10 +306,14 @@ def predictor_options(name: str, traj: Trajectory, config: SweepConfig) -> dict:
         if config.goal is not None:
             return {"weights": config.weights_for(traj.entity), "goal": config.goal}
         if traj.goal is None:
-            raise InputError(f"trajectory {traj.label} has no design goal for the goal-aware predictor",
-                             remedy="leave 'goal' out of --predictors for this study, or use goal-inferred")
+            raise InputError(f"trajectory {traj.label} has no design goal for the goal-aware predictor (its study's design "
+                             "gives none, or it ends over 0.5 m from the walking goal (0, 0): a frame of its own)",
+                             remedy="give its goal with --goal x,y[,theta], or leave 'goal' out of --predictors")
         return {"weights": config.weights_for(traj.entity), "goal": traj.goal}
     if name == "goal-inferred":
+        if config.candidates is None and traj.study.startswith("walking") and traj.goal is None:
+            raise InputError(f"trajectory {traj.label} ends over 0.5 m from the walking goal (0, 0), the walking study's "
+                             "only candidate goal: a frame of its own", remedy="give its goals with --candidates x,y;x,y")
         cands = config.candidates if config.candidates is not None else study_candidates(traj.study)
         return {"weights": config.weights_for(traj.entity), "candidates": cands}
     return {}
