@@ -96,8 +96,8 @@ def statistics_markdown(result, config_path: Path, n_trajectories: int, n_sample
         "`paired` rows (Wilcoxon) match values by the listed columns (several returns of a pair and goal are averaged); "
         "`unpaired` rows ignore the pairing.",
         "- Normality (Shapiro-Wilk for the pair study, Kolmogorov-Smirnov against N(mean, sd) for the walking study) "
-        "only switches to the parametric test where the configuration names one, when every group is shown normal and, "
-        "for ANOVA, Levene's test finds no difference of variances.",
+        "only switches to the parametric test where the configuration names one, when every group is shown normal (the "
+        "published rule); an ANOVA whose groups' variances differ (Levene) says so.",
         "- Largest indistinguishable subset: exact search over all subsets up to 12 groups, greedy backward "
         "elimination above (the row says which); the walking thesis's definition beside it (pairwise_subset: every "
         "pair Mann-Whitney p > 0.05, docs/methods.md sec. 4).",

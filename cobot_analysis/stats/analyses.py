@@ -181,12 +181,11 @@ def _run_one(a: Analysis, df: pd.DataFrame, groups: dict, alpha: float) -> dict:
         verdict = ("all groups normal" if normal else "not all groups normal" if any(p <= alpha for p in known) else
                    f"normality not checked in group(s) {', '.join(unchecked)} (fewer than 3 values, or all equal)")
         text = f"{a.normality} normality: smallest p {row['normality_p']:.3g}, {verdict}"
-        if a.parametric and normal:
-            levene = T.equal_variances(groups) if a.parametric == "anova" else math.nan
+        if a.parametric and normal:  # the published rule (e.g. the thesis's KS, then ANOVA): kept, its assumption said
+            test = a.parametric
+            levene = T.equal_variances(groups) if test == "anova" else math.nan
             if levene <= alpha:  # one-way ANOVA assumes equal variances (Welch's t-test does not)
-                text += f"; variances differ (Levene p {levene:.3g})"
-            else:
-                test = a.parametric
+                text += f"; variances differ (Levene p {levene:.3g}): one-way ANOVA assumes equal variances"
         row["note"] = _note(row, text + (f" -> {test}" if a.parametric else ""))
     if a.test == "anova":
         levene = T.equal_variances(groups)
