@@ -71,6 +71,22 @@ def spread_warnings(ts: TrajectorySet, by: list[str], max_spread: float = MAX_FR
             for r in far.itertuples()]
 
 
+def unequal_units(ts: TrajectorySet, by: list[str]) -> tuple[int, str, int, int]:
+    """How unequally the subjects (walking) or pairs (pair study) weigh in the means: (means whose units contribute
+    unequal numbers of trajectories, the unit column, the fewest and the most trajectories of a unit in one mean). Each
+    mean weighs its trajectories alike, so a subject with more trials in a condition weighs more in its mean (the
+    published means had one trajectory per subject). (0, "", 0, 0) without a unit column or when every unit is alike."""
+    unit = next((c for c in ("subject", "pair") if c in ts.meta and ts.meta[c].notna().any()), None)
+    if unit is None or unit in by:
+        return 0, "", 0, 0
+    counts = ts.meta.assign(_group=group_keys(ts.meta, by)).groupby(["_group", unit], observed=True).size()
+    spread = counts.groupby(level=0).agg(["min", "max"])
+    unequal = spread[spread["min"] < spread["max"]]
+    if unequal.empty:
+        return 0, unit, 0, 0
+    return len(unequal), unit, int(unequal["min"].min()), int(unequal["max"].max())
+
+
 def check_groups(meta: pd.DataFrame, by: list[str], path=None) -> None:
     """Refuse a grouping under which trials without a value would be averaged together.
 

@@ -69,3 +69,21 @@ def test_labels_that_differ_only_by_case_or_spaces_are_refused(tmp_path, cli):
     assert ("trajectories.parquet: condition labels 'D1_P4_GRIS ' and 'd1_p4_gris' differ only by case or spaces: "
             "they would be averaged as two conditions") in msg
     assert "write each condition alike in the protocol's trials table" in msg
+
+
+def test_means_say_when_their_subjects_weigh_unequally():
+    """Each mean weighs its trajectories alike: a subject with 2 trials in a condition, beside subjects with 1, weighs
+    twice. The published means had one per subject; a study of one's own often has not, and results.md now says so
+    (the balanced study: nothing)."""
+    from cobot_analysis.api import average
+    from cobot_analysis.reports.analysis import average_markdown
+    from cobot_analysis.synth.tables import walking_table
+
+    t = walking_table(n_subjects=3, n_conditions=2, n_trials=2)
+    assert average(t).unequal == (0, "subject", 0, 0)
+    assert "contribute unequal" not in average_markdown(average(t), "t.parquet")
+    one = t[~(t["subject"].isin(["S01", "S02"]) & t["trial"].str.endswith("_1") & t["condition"].eq("E1500"))]
+    result = average(one)
+    assert result.unequal == (1, "subject", 1, 2)
+    assert ("In 1 mean(s) the subjects contribute unequal numbers of trajectories (1 to 2): each mean weighs its "
+            "trajectories alike, so a subject with more of them weighs more") in average_markdown(result, "t.parquet")

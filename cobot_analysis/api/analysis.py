@@ -127,6 +127,7 @@ class AverageResult:
     n_averaged: int  # trajectories averaged (0: published means carried over)
     truncated: int = 0  # of them, flagged truncated
     spread: list[str] = field(default_factory=list)  # means whose trials do not share a frame (flagged frames_differ)
+    unequal: tuple[int, str, int, int] = (0, "", 0, 0)  # means whose subjects or pairs weigh unequally (averaging.unequal_units)
 
     def summary(self) -> str:
         return f"{self.means.drop_duplicates(['trial', 'entity']).shape[0]} means"
@@ -188,7 +189,7 @@ def average(trajectories: Any, *, by: str | list[str] | None = None, max_spread:
             N1500         6
     """
     from cobot_analysis.api.options import at_least, table_of
-    from cobot_analysis.averaging import MAX_FRAME_SPREAD, MEANS, check_groups, mean_trajectories, spread_warnings
+    from cobot_analysis.averaging import MAX_FRAME_SPREAD, MEANS, check_groups, mean_trajectories, spread_warnings, unequal_units
     from cobot_analysis.compare import default_groups
     from cobot_analysis.schema import TRAJECTORIES, read_table
 
@@ -206,7 +207,7 @@ def average(trajectories: Any, *, by: str | list[str] | None = None, max_spread:
         if "quality" in trials.meta.columns:
             cut = int(trials.meta["quality"].fillna("").str.split(";").map(lambda f: "truncated" in f).sum())
         return AverageResult(means, groups, f"recomputed from {len(trials)} trajectories", study_of(ts), len(trials), cut,
-                             spread_warnings(trials, groups, spread))
+                             spread_warnings(trials, groups, spread), unequal_units(trials, groups))
     long = trajectories.copy() if isinstance(trajectories, pd.DataFrame) else read_table(path, TRAJECTORIES)
     long.attrs = {}
     means = long[long["kind"].eq("mean")].copy()

@@ -22,6 +22,11 @@ def average_markdown(result, source: str) -> str:
         lines.append(f"- {len(result.spread)} mean(s) average trajectories that do not share a frame (start or end points "
                      "spread beyond the limit around the group's median, `average --max-spread`): flagged `frames_differ`, not drawn in the report and "
                      "not compared with their trials. " + "; ".join(result.spread))
+    n, unit, fewest, most = result.unequal
+    if n:
+        lines.append(f"- In {n} mean(s) the {unit}s contribute unequal numbers of trajectories ({fewest} to {most}): each mean "
+                     f"weighs its trajectories alike, so a {unit} with more of them weighs more (the published means had one "
+                     f"trajectory per {unit}).")
     if result.truncated:
         lines.append(f"- {result.truncated} of the {result.n_averaged} trajectories averaged are flagged `truncated` (they run "
                      "off their recording: travel time and path cover only the recorded part).")
