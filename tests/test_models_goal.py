@@ -302,3 +302,49 @@ def test_continuous_walks_have_one_smooth_speed_bell():
         speed = np.hypot(df["vx"], df["vy"]).to_numpy()
         assert speed.max() / df["mean_speed"].iloc[0] == pytest.approx(1.5, abs=0.1), start
         assert np.abs(np.diff(speed)).max() < 0.02 * speed.max(), start
+
+
+# the continuous walking fit-ioc weights of the make workspace (walking-2020): a3 on its lower search limit
+SPIN_WEIGHTS = {"a0": 7.87, "a1": 12.948, "a2": 7.821, "a3": 1.12e-07, "a4": 2.3418, "a5": 0.0, "a6": 0.0,
+                "b0": 10.0, "b1": 10.0, "b2": 0.38, "b3": 3.36}
+SPIN_START = (-3.876, -3.206, -2.9946)  # the O4040 mean's first pose
+
+
+def test_a_converged_path_that_spins_says_so_and_is_not_exported_as_commands(tmp_path):
+    """A converged path at its goal can still spin: at the walking fit's weights (a3 = 1.1e-7, the turning rate's
+    changes almost free) the O4040 start's path turns 9.6 rad beyond its net turn, |omega| up to 63 rad/s at 50
+    intervals (191 rad/s at 100). Before, its status said 'ok' and velocity-commands exported it (98 % saturated,
+    exit 0). Now its status says it spins, the summary counts it, and velocity-commands refuses it with the remedy,
+    which works: a3 = 0.1 gives a path that does not spin, exported."""
+    from cobot_analysis.api import velocity_commands
+    from cobot_analysis.api.models import GenerateResult
+    from cobot_analysis.errors import InputError
+    from cobot_analysis.models import heading_turns, spins
+
+    spun = generate("improved", SPIN_START, WALKING_GOAL, weights=SPIN_WEIGHTS, convention="continuous", n_intervals=50)
+    last = spun.iloc[-1]
+    assert bool(last.converged) and bool(last.goal_reached)
+    assert heading_turns(spun.theta)["excess"] == pytest.approx(9.58, abs=0.05) and spins(spun.theta)
+    assert last.status.startswith("spins: its heading turns 9.6 rad beyond its net turn, |omega| up to 63")
+    summary = GenerateResult(generated=spun, models=["improved"], weights=SPIN_WEIGHTS, cases=[("", SPIN_START, WALKING_GOAL)],
+                             convention="continuous", n_samples=500, n_intervals=50).summary()
+    assert summary.startswith("1 trajectory, all at their goal, 1 that spin (no walker's path) (status in .generated)")
+    with pytest.raises(InputError, match=r"trajectory 'improved' spins: .* a copy of the weights file with a3 = 0\.1"):
+        velocity_commands(spun)
+    calm = generate("improved", SPIN_START, WALKING_GOAL, weights=dict(SPIN_WEIGHTS, a3=0.1), convention="continuous",
+                    n_intervals=50)
+    assert calm.status.iloc[-1] == "ok" and not spins(calm.theta)
+    assert len(velocity_commands(calm).commands) > 10
+
+
+def test_velocity_commands_refuse_a_path_whose_solver_did_not_converge():
+    """``generate --study`` keeps a path whose solver stopped (status, converged false) so the others go on; before,
+    velocity-commands exported such a path's last iterate, exit 0. Now refused, naming its status."""
+    from cobot_analysis.api import velocity_commands
+    from cobot_analysis.errors import InputError
+
+    stopped = generate("improved", SPIN_START, WALKING_GOAL, weights="walking-2021", convention="continuous",
+                       max_iter=2, on_failure="flag")
+    assert not bool(stopped.converged.iloc[-1]) and stopped.status.iloc[-1].startswith("solver did not converge")
+    with pytest.raises(InputError, match=r"is no solution of its model: solver did not converge .*--max-iter"):
+        velocity_commands(stopped)

@@ -391,7 +391,8 @@ def test_plan_of_a_walker_heading_away_turns_round_once(tmp_path):
     (a plan of cost 42), the lower-cost plan is kept."""
     import json
 
-    from cobot_analysis.models.prediction.goal import Planner, _weights, spins
+    from cobot_analysis.models import spins
+    from cobot_analysis.models.prediction.goal import Planner, _weights
 
     w = tmp_path / "weights.json"  # the continuous fit-ioc weights of walking-2020, a3 identified (docs/methods.md 7.1)
     w.write_text(json.dumps({"model": "improved", "convention": "continuous",

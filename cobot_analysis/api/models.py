@@ -67,8 +67,13 @@ class GenerateResult:
             pace += ")"
         if self.convention == "published":
             pace += " (the published duration rule: no human pace; velocity-commands refuses it)"
-        return (f"{n} {'trajectory' if n == 1 else 'trajectories'}"
-                + (f", {missed} not reaching their goal ({where})" if missed else ", all at their goal")
+        failed = int((ends["goal_reached"].astype(bool) & ~ends["converged"].astype(bool)).sum()) if "converged" in ends else 0
+        spin = int(ends["status"].astype(str).str.startswith("spins").sum()) if "status" in ends else 0
+        flags = [f"{missed} not reaching their goal" if missed else "all at their goal"]
+        flags += [f"{failed} whose solver did not converge"] if failed else []
+        flags += [f"{spin} that spin (no walker's path)"] if spin else []
+        return (f"{n} {'trajectory' if n == 1 else 'trajectories'}, " + ", ".join(flags)
+                + (f" ({where})" if missed or failed or spin else "")
                 + f", mean speed {_span(ends['mean_speed'])} m/s" + pace)
 
     def metrics(self, *, stage: str | None = None) -> Metrics:
@@ -373,7 +378,7 @@ def velocity_commands(generated: pd.DataFrame | str | os.PathLike, *, trial: str
     import math
 
     from cobot_analysis.models.outputs import GENERATED
-    from cobot_analysis.models.velocity_commands import check_time_law, resample_path, velocity_commands as commands
+    from cobot_analysis.models.velocity_commands import check_followable, check_time_law, resample_path, velocity_commands as commands
     from cobot_analysis.schema import read_table
 
     at_least(rate, "--rate", low=0.1, strict=False, example="10")
@@ -397,6 +402,7 @@ def velocity_commands(generated: pd.DataFrame | str | os.PathLike, *, trial: str
     if not np.isfinite(g[["time", "x", "y", "theta"]].to_numpy(float)).all():
         raise InputError(f"trajectory {trial!r} has NaN or infinite time or pose", path=path, remedy="re-run generate")
     check_time_law(g, path=path)
+    check_followable(g, path=path)
     sim = resample_path(g["time"], g["x"], g["y"], g["theta"], rate)
     cmd = commands(sim, rate, v_max=v_max, omega_max=math.radians(omega_max))
     cmd.insert(0, "trial", trial)

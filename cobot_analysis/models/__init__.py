@@ -38,7 +38,7 @@ GOAL_EXTENT = 10.0  # m: |x|, |y| of a start or goal in the studies' frames, the
 # (imported by models.prediction.goal; their paths lie within 6 m of the origin)
 
 __all__ = ["GOAL_EXTENT", "GOAL_TOLERANCE", "MODELS", "OC_MODELS", "PRESETS", "generate", "check_endpoints", "goal_check", "heading_turns", "mean_speed",
-           "refuse_unreached"]
+           "refuse_unreached", "spins", "spin_status"]
 
 
 def goal_check(x, y, theta, goal) -> dict[str, float | bool]:
@@ -67,6 +67,22 @@ def heading_turns(theta) -> dict[str, float]:
     theta = np.asarray(theta, float)
     net = float(theta[-1] - theta[0])
     return {"net": net, "shortest": float(wrap(net)), "excess": float(np.abs(np.diff(theta)).sum()) - abs(net)}
+
+
+def spins(theta) -> bool:
+    """The heading turns more than a full turn beyond its net turn, ``sum |dtheta| - |theta_N - theta_0| > 2 pi``
+    (theta unwrapped; ``heading_turns``' excess): no walker's path; a loop adds a full turn."""
+    return heading_turns(theta)["excess"] > 2 * math.pi
+
+
+def spin_status(theta, omega=None) -> str:
+    """'' or, for a path that ``spins``, what its ``status`` says: the turning beyond the net turn and the largest
+    |omega| (rad/s). Such a path can be a converged solution at its goal: the weights leave the turning rate's
+    changes almost free (a3 near zero, docs/methods.md sec. 5.5)."""
+    if not spins(theta):
+        return ""
+    rate = "" if omega is None else f", |omega| up to {np.nanmax(np.abs(np.asarray(omega, float))):.3g} rad/s"
+    return f"spins: its heading turns {heading_turns(theta)['excess']:.1f} rad beyond its net turn{rate} (no walker's path)"
 
 
 def mean_speed(x, y, T: float) -> float:
@@ -134,7 +150,7 @@ def _frame(arrays: dict[str, np.ndarray], *, model: str, weights_label: str, ent
     # continuous convention: the goal is a constraint, a path that misses it did not converge
     df["converged"] = bool(converged and (reached["goal_reached"] or convention != "continuous"))
     if not status:
-        status = "ok" if reached["goal_reached"] else (
+        status = (spin_status(arrays["theta"], arrays.get("omega")) or "ok") if reached["goal_reached"] else (
             f"ends {reached['end_position_error']:.3f} m and {reached['end_heading_error']:.3f} rad from its goal"
             + (" (terminal cost, published convention)" if convention == "published" else ""))
     df["status"] = status

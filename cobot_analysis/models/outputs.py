@@ -20,7 +20,8 @@ MODEL_COLUMNS = {
     "end_position_error": Column("float", "m", "distance of the path's last point to the goal", required=False),
     "end_heading_error": Column("float", "rad", "|wrap(theta_end - theta_goal)|", required=False),
     "mean_speed": Column("float", "m/s", "time law of the path: path length / duration", required=False),
-    "status": Column("string", "", "ok, or why the path did not converge or reach its goal", required=False),
+    "status": Column("string", "", "ok, or why the path did not converge or reach its goal, or that it spins (no "
+                                   "walker's path, models.spins)", required=False),
     "convention": Column("string", "", "published or continuous (docs/methods.md sec. 11)"),
 }
 

@@ -36,6 +36,23 @@ def check_time_law(path_df: pd.DataFrame, *, path=None) -> None:
                          remedy="generate it with --convention continuous and export that path")
 
 
+def check_followable(path_df: pd.DataFrame, *, path=None) -> None:
+    """Refuse a path that is no solution (the solver did not converge, or the goal was missed: ``converged`` false)
+    or no walker's path (it ``spins``: its commands would be the saturated yaw rate, all the way)."""
+    from cobot_analysis.models import spin_status
+
+    trial, last = str(path_df["trial"].iloc[0]), path_df.iloc[-1]
+    if not bool(last["converged"]):
+        raise InputError(f"trajectory {trial!r} is no solution of its model: {last.get('status', 'not converged')}",
+                         path=path, remedy="generate it again with a higher --max-iter (or from another --start), or "
+                                           "export a trial whose status is ok")
+    spin = spin_status(path_df["theta"].to_numpy(float), path_df["omega"].to_numpy(float) if "omega" in path_df else None)
+    if spin:
+        raise InputError(f"trajectory {trial!r} {spin}", path=path,
+                         remedy="generate it with weights that price the turning rate's changes: a copy of the weights "
+                                "file with a3 = 0.1, given to generate --weights (docs/methods.md sec. 5.5)")
+
+
 def resample_path(time, x, y, theta, rate: float) -> pd.DataFrame:
     """The path at ``rate`` Hz from t = 0 to its end (linear interpolation; theta unwrapped)."""
     time = np.asarray(time, float)

@@ -440,14 +440,15 @@ def generated_section(df: pd.DataFrame, convention, measured: dict[str, tuple[fl
 def heading_line(df: pd.DataFrame) -> str:
     """Markdown: how the generated paths' headings turn (``models.heading_turns``): the paths that turn from their
     start to their goal heading more than half a turn beyond the shortest turn (the two headings given on other
-    branches), those that spin (turning more than a full turn beyond their net turn, ``goal.spins``' rule) and the
+    branches), those that spin (turning more than a full turn beyond their net turn, ``models.spins``) and the
     largest turning rate. Neither is a walker's path: named, never hidden."""
-    from cobot_analysis.models import heading_turns
+    from cobot_analysis.models import heading_turns, spins
 
-    turns = {trial: heading_turns(g["theta"].to_numpy(float)) for trial, g in df.groupby("trial", sort=False)}
+    thetas = {trial: g["theta"].to_numpy(float) for trial, g in df.groupby("trial", sort=False)}
+    turns = {trial: heading_turns(theta) for trial, theta in thetas.items()}
     n = len(turns)
     long_way = [t for t, h in turns.items() if abs(h["net"]) - abs(h["shortest"]) > math.pi]
-    spin = [t for t, h in turns.items() if h["excess"] > 2 * math.pi]
+    spin = [t for t, theta in thetas.items() if spins(theta)]
     omega = np.abs(df["omega"].to_numpy(float)) if "omega" in df else np.array([np.nan])
     rate = f"largest |omega| {np.nanmax(omega):.3g} rad/s" if np.isfinite(omega).any() else ""
 

@@ -51,7 +51,7 @@ import numpy as np
 
 from cobot_analysis.errors import InputError
 from cobot_analysis.models import GOAL_EXTENT as LAB_EXTENT  # the lab's bound on a goal, generate's too
-from cobot_analysis.models import heading_turns
+from cobot_analysis.models import spins
 from cobot_analysis.models.prediction.base import Predictor
 
 N_INTERVALS = 20  # intervals of the plan: solved afresh every window
@@ -149,12 +149,6 @@ def plan_start(past: np.ndarray, filt: np.ndarray) -> np.ndarray:
     x0 = state_estimate(past, filt, travel=True)
     x0[5] = 0.0
     return x0
-
-
-def spins(theta: np.ndarray) -> bool:
-    """The heading turns more than a full turn beyond the pose change, ``sum |dtheta| - |theta_N - theta_0| > 2 pi``
-    (theta at the plan's nodes, unwrapped): no walker's plan; a loop adds a full turn."""
-    return heading_turns(theta)["excess"] > 2 * math.pi
 
 
 class Planner:
