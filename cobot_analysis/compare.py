@@ -438,12 +438,31 @@ def compare_sets(trials: TrajectorySet, means: TrajectorySet | None, *, by: list
     return pd.concat(parts, ignore_index=True)
 
 
-def against_set(path: Path, n_samples: int, convention, schema=None) -> TrajectorySet:
+def converged_paths(df: pd.DataFrame, path=None, name: str | None = None) -> pd.DataFrame:
+    """The model paths of a generated table that are solutions of their model (``converged``; a table without the
+    column is kept whole): a path whose solver stopped is its last iterate, no model's path to measure. Those left out
+    are warned about by name (``name``: the table's in the warning, default ``path``); none left is an ``InputError``."""
+    from cobot_analysis.console import warn
+
+    if "converged" not in df or df["converged"].astype(bool).all():
+        return df
+    ok = df.groupby("trial", sort=False)["converged"].transform(lambda c: bool(c.astype(bool).all()))
+    left = list(dict.fromkeys(df.loc[~ok, "trial"].astype(str)))
+    remedy = "re-run generate with a higher --max-iter (their reason is in the status column)"
+    if ok.sum() == 0:
+        raise InputError(f"none of its {len(left)} model paths converged", path=path, remedy=remedy)
+    warn(f"{name or path}: {len(left)} model path(s) left out, their solver did not converge or they miss their goal "
+         f"({', '.join(left[:5])}{', ...' if len(left) > 5 else ''}); {remedy}")
+    return df[ok]
+
+
+def against_set(path: Path, n_samples: int, convention, schema=None, name: str | None = None) -> TrajectorySet:
     """``compare --against`` table as a set on ``n_samples`` samples, under ``convention``: its
     ``convention`` (column or metadata, when it has one) must be the one asked for; each trajectory is
     put on ``n_samples`` samples as the convention compares a model path with a measured one
     (arc length, or time; ``distances.path_distances``). ``schema``: the table's, whose limits its values are checked
-    against (generate's ``models.outputs.GENERATED``; default the trajectories')."""
+    against (generate's ``models.outputs.GENERATED``; default the trajectories'); ``name``: the table's in warnings
+    (default ``path``)."""
     import pyarrow.parquet as pq
 
     from cobot_analysis import conventions
@@ -464,6 +483,7 @@ def against_set(path: Path, n_samples: int, convention, schema=None) -> Trajecto
     missing = [c for c in (*KEY, "sample", "x", "y") if c not in df.columns]
     if missing:
         raise InputError(f"trajectory table lacks columns {missing}", path=path, remedy="pass a trajectories.parquet or generated.parquet")
+    df = converged_paths(df, path, name)
     rows = []
     for _, g in df.sort_values([*KEY, "sample"]).groupby(KEY, sort=False, observed=True):
         x, y = g["x"].to_numpy(float), g["y"].to_numpy(float)

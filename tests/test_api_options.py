@@ -297,3 +297,18 @@ def test_the_statistics_summary_counts_tests_apart_from_descriptive_summaries(wa
     result = ca.statistics(walks, distances, config=config)
     assert result.table["status"].tolist() == ["ok", "ok"]
     assert result.summary().startswith("1 test run (and 1 descriptive summary), 0 skipped (reason in the table); ")
+
+
+def test_compare_against_leaves_out_model_paths_that_did_not_converge(walks, means, caplog):
+    """A generated table whose solver stopped on a path (``generate --study`` keeps it, ``converged`` false, the reason
+    in ``status``): before, compare --against measured that last iterate as the model's path, without a word. Now it
+    is left out, named in one warning line, the others compared; none converged is refused."""
+    cases = [c for c in ca.walking_cases("continuous") if c[0] in ("N1500", "E1500")]
+    named = ca.generate("clothoid", cases=cases, study="synthetic-walking", jobs=1).generated
+    stopped = named.assign(converged=named["trial"].ne("clothoid_E1500"))
+    d = ca.compare(walks, means, against=stopped, comparison="model").distances
+    assert list(d.loc[d["comparison"] == "model", "condition"]) == ["N1500"]
+    assert "the against table: 1 model path(s) left out, their solver did not converge or they miss their goal " \
+           "(clothoid_E1500); re-run generate with a higher --max-iter" in caplog.text
+    with pytest.raises(InputError, match=r"none of its 2 model paths converged; re-run generate with a higher --max-iter"):
+        ca.compare(walks, means, against=named.assign(converged=False), comparison="model")

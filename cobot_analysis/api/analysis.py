@@ -319,7 +319,7 @@ def compare(trajectories: Any, means: Any, *, against: Any = None, comparison: s
                 table.attrs = {}
                 table.to_parquet(file)
                 try:
-                    other = against_set(file, mts.n_samples, conv, GENERATED)
+                    other = against_set(file, mts.n_samples, conv, GENERATED, name=against_name)
                 except InputError as exc:
                     raise InputError(str(exc).replace(str(file), against_name)) from None
             against = against_name
