@@ -179,6 +179,23 @@ def test_fit_ioc_on_dask_equals_local_run(planted_paths, tmp_path, cli, dask_sch
     assert dask["weights"] == local["weights"] and dask["objective"] == local["objective"]
 
 
+@pytest.mark.slow  # a Dask cluster of 2 worker processes started and stopped
+def test_single_level_fit_on_dask_equals_local_run(planted_paths, tmp_path, cli, dask_scheduler):
+    """The single-level fit's Newton corrections, fold re-solves and probes are pool tasks too: on a Dask cluster
+    (``--scheduler``) the same fit as on the local pool, to the last bit."""
+    paths = {c: planted_paths[c] for c in CONDITIONS[:4]}
+    src = write_table(_table(paths), tmp_path / "t.parquet", TRAJECTORIES)
+    args = ["--trajectories", src, "--fit", "a2,a4", "--method", "single-level", "--no-compare"]
+    code, _, err = cli("fit-ioc", "--out", tmp_path / "local", *args, "-j", "2")
+    assert code == 0, err
+    code, _, err = cli("fit-ioc", "--out", tmp_path / "dask", *args, "--scheduler", dask_scheduler)
+    assert code == 0, err
+    local = json.loads((tmp_path / "local" / "fit-ioc-single" / "weights.json").read_text())["fits"]["all"]
+    dask = json.loads((tmp_path / "dask" / "fit-ioc-single" / "weights.json").read_text())["fits"]["all"]
+    assert dask["weights"] == local["weights"] and dask["objective"] == local["objective"]
+    assert local["objective"] < local["start_objective"]  # a fit, not its start kept
+
+
 def _no_stage(out, name):
     return not (out / name).exists() and not any(p.name.startswith(f".{name}.") for p in out.glob(".*")) if out.exists() else True
 
