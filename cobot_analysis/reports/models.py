@@ -726,11 +726,11 @@ def goal_lines(comparison: pd.DataFrame, convention: str) -> list[str]:
 
 
 def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal: float, durations: pd.DataFrame | None,
-                     other: dict | None = None) -> str:
+                     other: dict | None = None, weigh: str = "trials") -> str:
     """The IOC's results fragment: the fits (D, evaluations, weights at the start and fitted), their flags,
     each weight's interval and verdict, the single-level fit beside the bi-level one (``other``: the
     workspace's bi-level weights.json), the model comparison with its statistics and figures (drawn into
-    ``stage``)."""
+    ``stage``); ``weigh``: how the means fitted were weighed (``average --weigh``)."""
     from cobot_analysis import conventions
 
     conv = conventions.get(result.convention)
@@ -768,7 +768,9 @@ def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal
              + ((". gamma of the measured path: " + ("recorded in the data" if conv.comparison.measured_gamma == "data" else
                                                        "from the path (distances.gamma_from_path)") + "; of the model's path: from the path.")
                 if angle == "gamma" else "; pair study: per-scenario means (the pooled 'all' means left out).")
-             + (" Coupled model: scenario-3 forward and return means, Subject 2 as carrier 1 on returns." if model == "coupled" else ""),
+             + (" Coupled model: scenario-3 forward and return means, Subject 2 as carrier 1 on returns." if model == "coupled" else "")
+             + (f" The means are weighted by {weigh} (`average --weigh {weigh}`): the mean of each subject's (pair's) mean."
+                if weigh != "trials" else ""),
              "",
              "| fit | paths | D start | D fitted | evaluations | not converged | " + " | ".join(names) + " |",
              "|---|---|---|---|---|---|" + "---|" * len(names)]

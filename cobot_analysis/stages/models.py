@@ -171,6 +171,7 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
     from cobot_analysis.models.ioc.single_level import check_method
     from cobot_analysis.models.outputs import ioc_distances_schema
     from cobot_analysis.reports.models import fit_ioc_markdown
+    from cobot_analysis.schema import table_metadata
 
     check_method(method, bootstrap)
     check_profiles(profiles)
@@ -192,6 +193,9 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
         params["method"] = method
     if profiles != "means":
         params["profiles"] = profiles
+    weigh = table_metadata(means).get("weigh", "trials") if means is not None else "trials"  # average --weigh
+    if weigh != "trials":
+        params["means_weigh"] = weigh
     # own stages: the coupled fit never replaces the table fit, nor per-subject fits the fit over the means, nor the
     # single-level fit the bi-level one
     base = "fit-ioc-coupled" if model == "coupled" else "fit-ioc-subjects" if per == "subject" else "fit-ioc"
@@ -223,7 +227,8 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
                     convention=conv.name)
         result.fits_table().to_csv(stage.path("fits.csv"), index=False)
         stage.path("results.md").write_text(fit_ioc_markdown(result, stage, optimizer=optimizer, intervals=intervals,
-                                                             v_nominal=v_nominal, durations=durations, other=other))
+                                                             v_nominal=v_nominal, durations=durations, other=other,
+                                                             weigh=weigh))
     return Outcome(stage.final_dir, result)
 
 
