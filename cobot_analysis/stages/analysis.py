@@ -26,12 +26,11 @@ def trajectories_input(out: str | os.PathLike, path: str | os.PathLike | None):
 def average(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = None, by: list[str] | None = None,
             max_spread: float | None = None, weigh: str = "trials", force: bool = False) -> Outcome:
     """``average``: ``average/means.parquet`` (its metadata: the grouping and the weighting) and its results fragment."""
+    path, ts = trajectories_input(out, trajectories)  # refuses a missing input before the heavy imports below
     from cobot_analysis.api.options import one_of
-    from cobot_analysis.averaging import WEIGHTS
+    from cobot_analysis.averaging import MEANS, WEIGHTS, check_groups, check_units
 
     one_of(weigh, "--weigh", WEIGHTS)
-    path, ts = trajectories_input(out, trajectories)  # refuses a missing input before the heavy imports below
-    from cobot_analysis.averaging import MEANS, check_groups, check_units
     from cobot_analysis.compare import default_groups
     from cobot_analysis.reports.analysis import average_markdown
 
