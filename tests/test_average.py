@@ -161,9 +161,9 @@ def test_weigh_subjects_without_subjects_is_refused(tmp_path, cli):
     assert "unknown --weigh 'pairs'; use one of trials, subjects" in msg
 
 
-def test_stats_and_fit_ioc_say_which_means_they_were_given(tmp_path):
-    """stats (its distances to the means) and fit-ioc (the means it fits) record the means' weighting in their
-    manifests and say it in results.md; nothing is said of the default."""
+def test_stats_fit_ioc_and_generate_say_which_means_they_were_given(tmp_path):
+    """stats (its distances to the means), fit-ioc (the means it fits) and generate (the means its poses come from)
+    record the means' weighting in their manifests and say it in results.md; nothing is said of the default."""
     import json
 
     from cobot_analysis.stages import analysis, models
@@ -173,7 +173,8 @@ def test_stats_and_fit_ioc_say_which_means_they_were_given(tmp_path):
     analysis.compare(ws)
     analysis.statistics(ws)
     models.fit_ioc(ws, max_evaluations=2, intervals=10, bootstrap=0, compare=False, jobs=1)
-    for stage in ("stats", "fit-ioc"):
+    models.generate(ws, study="walking-2020", samples=50, intervals=10, jobs=1, convention="continuous")
+    for stage in ("stats", "fit-ioc", "generate"):
         assert json.loads((ws / stage / "manifest.json").read_text())["params"]["means_weigh"] == "subjects", stage
         assert "weighted by subjects (`average --weigh subjects`)" in (ws / stage / "results.md").read_text(), stage
     analysis.average(ws)

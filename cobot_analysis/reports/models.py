@@ -361,9 +361,10 @@ def duration_lines(df: pd.DataFrame, targets, durations: pd.DataFrame | None, v_
 
 
 # ---- the stages' results fragments ---------------------------------------------------------------
-def generate_markdown(result, summary: str) -> str:
+def generate_markdown(result, summary: str, weigh: str = "trials") -> str:
     """Generated paths: per trajectory the duration T, the mean speed (its time law), the subjects' own
-    where the data hold them, the cost and the end's distance to the goal (``generated_section``)."""
+    where the data hold them, the cost and the end's distance to the goal (``generated_section``); ``weigh``: how
+    the means the poses come from were weighed (``average --weigh``)."""
     grid = (f"OC grid {result.n_intervals} intervals resampled to {result.n_samples} samples" if result.convention == "continuous" else
             "the authors' node step and duration rule, paths at their nodes")
     goals = sorted({(round(g[0], 3), round(g[1], 3), round(math.remainder(g[2], 2 * math.pi), 3)) for _, _, g in result.cases})
@@ -373,7 +374,9 @@ def generate_markdown(result, summary: str) -> str:
             f"goal{'s' if len(goals) > 1 else ''} {goals[0] if len(goals) == 1 else f'of the {len(goals)} measured means'}")
     lines = [f"## Generated trajectories ({result.convention} convention{', pair study' if pairs else ''})", "",
              f"Models {', '.join(result.models)}; weights {result.weights or 'model presets'}; {what}; "
-             f"{grid} (docs/methods.md sec. 11: {summary}).", "",
+             f"{grid} (docs/methods.md sec. 11: {summary})."
+             + (f" The poses come from the means weighted by {weigh} (`average --weigh {weigh}`): the mean of each "
+                "subject's (pair's) mean." if weigh != "trials" else ""), "",
              *generated_section(result.generated, result.convention, result.measured_by_trial(),
                                 source=PAIR_PACE if pairs else WALKING_PACE)]
     return "\n".join(lines) + "\n"

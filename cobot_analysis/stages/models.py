@@ -29,6 +29,7 @@ def generate(out: str | os.PathLike, *, model: str | None = None, weights: Any =
     from cobot_analysis.models.comparison import measured_pace
     from cobot_analysis.models.outputs import GENERATED
     from cobot_analysis.reports.models import generate_markdown
+    from cobot_analysis.schema import table_metadata
 
     if study is not None and study not in STUDIES:
         raise InputError(f"--study {study}: unknown study", remedy=f"use --study {' or '.join(STUDIES)}, or give --start")
@@ -67,6 +68,9 @@ def generate(out: str | os.PathLike, *, model: str | None = None, weights: Any =
     kw = {"n_samples": samples, "n_intervals": intervals, "duration": duration, "v_nominal": v_nominal, "max_iter": max_iter,
           "convention": conv.name}
     params = {"models": models, "weights": weights, "cases": cases, **kw}
+    weigh = table_metadata(source).get("weigh", "trials") if source is not None else "trials"  # average --weigh
+    if weigh != "trials":
+        params["means_weigh"] = weigh
     with Stage(out, registry.directory("generate", conv.name), inputs=inputs, params=params, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
@@ -76,7 +80,7 @@ def generate(out: str | os.PathLike, *, model: str | None = None, weights: Any =
         stage.result = result  # its own numbers are the stage's metrics.json
         stage.write_table("generated.parquet", result.generated, GENERATED, n_samples=samples, n_intervals=intervals,
                     convention=conv.name)
-        stage.path("results.md").write_text(generate_markdown(result, conventions.get(conv.name).summary))
+        stage.path("results.md").write_text(generate_markdown(result, conventions.get(conv.name).summary, weigh))
     return Outcome(stage.final_dir, result)
 
 
