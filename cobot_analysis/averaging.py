@@ -8,6 +8,11 @@ standard deviation ``sqrt(-2 ln R)`` for angles) and a 95 % band ``mean +- 1.96 
 expected to hold 95 % of individual trajectories under a normal model (documented choice; the
 band of the mean itself would be ``+- 1.96 sd / sqrt(n)``).
 
+Weighting (``average --weigh``): ``trials`` (default, the published method) weighs every trajectory alike;
+``subjects`` takes the mean of each unit's mean (the unit: the subject, or the pair in the pair study), so a unit
+with more trials in a condition weighs as much as one with a single trial, and the spread is between the units'
+means (the repeated-measures grand mean: statsmodels' ``AnovaRM(aggregate_func="mean")`` aggregates so first).
+
 Groups must be real conditions (``check_groups``): a grouping column that is empty for some trials
 (a trials table without ``condition``) would average unrelated trials into one mean, so it is
 refused with the trials concerned, and so are two labels that differ only by case or spaces (two
@@ -71,20 +76,64 @@ def spread_warnings(ts: TrajectorySet, by: list[str], max_spread: float = MAX_FR
             for r in far.itertuples()]
 
 
+#: how a mean weighs its trajectories (``average --weigh``): every trajectory alike, or every unit (subject, pair) alike
+WEIGHTS = ("trials", "subjects")
+
+
+def unit_column(meta: pd.DataFrame) -> str | None:
+    """The column of the study's units: ``pair`` in the pair study, else ``subject`` (the first with a value)."""
+    return next((c for c in ("pair", "subject") if c in meta.columns and meta[c].notna().any()), None)
+
+
+def check_units(meta: pd.DataFrame, by: list[str], path=None) -> str:
+    """The unit column ``--weigh subjects`` averages over, refused when there is none, when some trials have no
+    unit (they would make one unit of their own) or when it is a grouping column (each mean is then one unit's,
+    with no spread between units)."""
+    unit = unit_column(meta)
+    if unit is None:
+        raise InputError("--weigh subjects needs each trial's subject (or pair), and no trial has one", path=path,
+                         remedy="give every trial its subject in the protocol's trials table and re-run import and "
+                                "preprocess, or use --weigh trials")
+    per = meta.drop_duplicates(["trial", "entity"]) if {"trial", "entity"} <= set(meta.columns) else meta
+    empty = per[unit].isna() | per[unit].astype(str).str.strip().eq("")
+    if empty.any():
+        ids = ", ".join(per.loc[empty, "trial"].astype(str).unique()[:5]) if "trial" in per.columns else ""
+        raise InputError(f"--weigh subjects: {int(empty.sum())} of {len(per)} trajectories have no {unit!r} value ({ids}...): "
+                         f"they would be weighed as one {unit}", path=path,
+                         remedy=f"give every trial its {unit} in the protocol's trials table and re-run import and preprocess, "
+                                "or use --weigh trials")
+    if unit in by:
+        raise InputError(f"--weigh subjects with {unit!r} in --by: each mean is one {unit}'s, with no spread between {unit}s",
+                         path=path, remedy=f"use --weigh trials for the mean of each {unit}'s trials, or leave {unit} out of --by")
+    return unit
+
+
+def _unit_sizes(ts: TrajectorySet, by: list[str], unit: str) -> pd.Series:
+    """Trajectories of each unit in each mean, indexed by (group, unit)."""
+    return ts.meta.assign(_group=group_keys(ts.meta, by)).groupby(["_group", unit], observed=True).size()
+
+
 def unequal_units(ts: TrajectorySet, by: list[str]) -> tuple[int, str, int, int]:
     """How unequally the subjects (walking) or pairs (pair study) weigh in the means: (means whose units contribute
     unequal numbers of trajectories, the unit column, the fewest and the most trajectories of a unit in one mean). Each
     mean weighs its trajectories alike, so a subject with more trials in a condition weighs more in its mean (the
     published means had one trajectory per subject). (0, "", 0, 0) without a unit column or when every unit is alike."""
-    unit = next((c for c in ("subject", "pair") if c in ts.meta and ts.meta[c].notna().any()), None)
+    unit = unit_column(ts.meta)
     if unit is None or unit in by:
         return 0, "", 0, 0
-    counts = ts.meta.assign(_group=group_keys(ts.meta, by)).groupby(["_group", unit], observed=True).size()
-    spread = counts.groupby(level=0).agg(["min", "max"])
+    spread = _unit_sizes(ts, by, unit).groupby(level=0).agg(["min", "max"])
     unequal = spread[spread["min"] < spread["max"]]
     if unequal.empty:
         return 0, unit, 0, 0
     return len(unequal), unit, int(unequal["min"].min()), int(unequal["max"].max())
+
+
+def unit_counts(ts: TrajectorySet, by: list[str], unit: str) -> tuple[str, int, int, int, int]:
+    """What the means of ``weigh="subjects"`` are made of: (the unit column, the fewest and the most units in a mean,
+    the fewest and the most trajectories of a unit in a mean)."""
+    sizes = _unit_sizes(ts, by, unit)
+    per_mean = sizes.groupby(level=0).size()
+    return unit, int(per_mean.min()), int(per_mean.max()), int(sizes.min()), int(sizes.max())
 
 
 def check_groups(meta: pd.DataFrame, by: list[str], path=None) -> None:
@@ -150,51 +199,61 @@ def _group_sums(values: np.ndarray, starts: np.ndarray) -> np.ndarray:
     return np.add.reduceat(np.where(np.isfinite(values), values, 0.0), starts, axis=0)
 
 
-def mean_trajectories(ts: TrajectorySet, by: list[str] | None = None, max_spread: float = MAX_FRAME_SPREAD) -> pd.DataFrame:
+def mean_trajectories(ts: TrajectorySet, by: list[str] | None = None, max_spread: float = MAX_FRAME_SPREAD,
+                      weigh: str = "trials") -> pd.DataFrame:
     """Mean trajectory of every group of ``ts`` defined by the ``by`` columns -> MEANS long table.
 
-    Vectorised over groups, trajectories and samples: trajectories are sorted by group and summed
-    block-wise (``np.add.reduceat``). Means: ``sum x / n``; sd with ddof = 1 (0 for a single
-    trajectory); circular mean ``atan2(S, C)`` and circular sd ``sqrt(-2 ln R)``, R = |(C, S)| / n_theta,
-    over the trajectories whose orientation is complete. A group whose start or end points spread
-    beyond ``max_spread`` (``frame_spread``) is flagged ``frames_differ`` in ``quality``.
+    Vectorised over groups, units and samples: trajectories are sorted by group and unit and summed
+    block-wise (``np.add.reduceat``), first each unit's mean, then the mean of a group's k unit means.
+    ``weigh="trials"``: every trajectory is a unit of its own; ``"subjects"``: the unit is the subject, or
+    the pair (``check_units``). Positions: ``x = (1/k) sum_u x_u``, sd between the unit means with ddof = 1
+    (0 for a single unit); angles: the mean of the units' mean resultant vectors
+    ``m_u = (1/n_u) sum (cos a, sin a)`` over their trajectories with complete orientation, ``atan2(S, C)`` of
+    ``(C, S) = sum_u m_u``, circular sd ``sqrt(-2 ln R)``, ``R = |(C, S)| / k`` (Zar's second-order mean angle);
+    travel time: the mean of the unit means. A group whose start or end points spread beyond ``max_spread``
+    (``frame_spread``) is flagged ``frames_differ`` in ``quality``.
     """
     by = by or default_groups(ts.meta)
     keys = group_keys(ts.meta, by).to_numpy()
-    order = np.argsort(keys, kind="stable")
-    sorted_keys = keys[order]
-    starts = np.flatnonzero(np.r_[True, sorted_keys[1:] != sorted_keys[:-1]])
+    unit = np.arange(len(keys)) if weigh == "trials" else pd.factorize(ts.meta[check_units(ts.meta, by)].astype(str))[0]
+    order = np.lexsort((unit, pd.factorize(keys, sort=True)[0]))
+    sorted_keys, sorted_units = keys[order], unit[order]
+    ustarts = np.flatnonzero(np.r_[True, (sorted_keys[1:] != sorted_keys[:-1]) | (sorted_units[1:] != sorted_units[:-1])])
+    gstarts = np.flatnonzero(np.r_[True, sorted_keys[ustarts][1:] != sorted_keys[ustarts][:-1]])  # first unit of each group
+    starts = ustarts[gstarts]  # first trajectory of each group
     counts = np.diff(np.r_[starts, len(order)])
+    n_u = np.diff(np.r_[ustarts, len(order)])[:, None].astype(float)  # trajectories per unit
+    units = np.diff(np.r_[gstarts, len(ustarts)])[:, None].astype(float)  # units per group
     n_groups, n = len(starts), ts.n_samples
-    x, y = ts.x[order], ts.y[order]
-    cnt = counts[:, None].astype(float)
     out: dict[str, np.ndarray] = {}
-    for k, v in (("x", x), ("y", y)):
-        mean = _group_sums(v, starts) / cnt
-        sq = _group_sums(v ** 2, starts) - cnt * mean ** 2
-        out[k], out[f"{k}_sd"] = mean, np.sqrt(np.clip(sq, 0, None) / np.maximum(cnt - 1, 1))
-    for k in ("theta", "gamma"):
-        a = getattr(ts, k)[order]
+    for key, v in (("x", ts.x[order]), ("y", ts.y[order])):
+        u = _group_sums(v, ustarts) / n_u
+        mean = _group_sums(u, gstarts) / units
+        sq = _group_sums(u ** 2, gstarts) - units * mean ** 2
+        out[key], out[f"{key}_sd"] = mean, np.sqrt(np.clip(sq, 0, None) / np.maximum(units - 1, 1))
+    for key in ("theta", "gamma"):
+        a = getattr(ts, key)[order]
         ok = np.isfinite(a).all(axis=1)
-        w = ok[:, None].astype(float)
-        s_ = np.add.reduceat(np.where(ok[:, None], np.sin(np.where(ok[:, None], a, 0)), 0) * w, starts, axis=0)
-        c_ = np.add.reduceat(np.where(ok[:, None], np.cos(np.where(ok[:, None], a, 0)), 0) * w, starts, axis=0)
-        n_ok = np.add.reduceat(ok.astype(float), starts)[:, None]
+        n_ok = np.add.reduceat(ok.astype(float), ustarts)[:, None]
+        s_, c_ = (_group_sums(_group_sums(np.where(ok[:, None], f(np.where(ok[:, None], a, 0)), 0), ustarts) / np.maximum(n_ok, 1),
+                              gstarts) for f in (np.sin, np.cos))
+        k_ok = np.add.reduceat((n_ok > 0).astype(float), gstarts)  # units with orientation
         with np.errstate(invalid="ignore", divide="ignore"):
-            mean = np.where(n_ok > 0, np.arctan2(s_, c_), np.nan)
-            r = np.hypot(s_, c_) / n_ok
-            out[f"{k}_sd"] = np.where(n_ok > 0, np.sqrt(-2 * np.log(np.clip(r, 1e-300, 1.0))), np.nan)
-        if k == "theta":
+            mean = np.where(k_ok > 0, np.arctan2(s_, c_), np.nan)
+            r = np.hypot(s_, c_) / k_ok
+            out[f"{key}_sd"] = np.where(k_ok > 0, np.sqrt(-2 * np.log(np.clip(r, 1e-300, 1.0))), np.nan)
+        if key == "theta":
+            n_theta = np.add.reduceat(ok.astype(float), starts)[:, None]
             mean = np.unwrap(np.where(np.isnan(mean), 0, mean), axis=1)
             # same turn as the members at the start (e.g. +pi/2, not -3 pi/2)
-            first = np.add.reduceat(np.where(ok, a[:, 0], 0), starts) / np.maximum(n_ok[:, 0], 1)
+            first = np.add.reduceat(np.where(ok, a[:, 0], 0), starts) / np.maximum(n_theta[:, 0], 1)
             mean += 2 * np.pi * np.round((first[:, None] - mean[:, :1]) / (2 * np.pi))
-            mean = np.where(n_ok > 0, mean, np.nan)
-            out["n_theta"] = np.repeat(n_ok.astype(int), n, axis=1)
-        out[k] = mean
-    for k in ("x", "y", "theta"):
-        out[f"{k}_lo"] = out[k] - Z95 * out[f"{k}_sd"]
-        out[f"{k}_hi"] = out[k] + Z95 * out[f"{k}_sd"]
+            mean = np.where(k_ok > 0, mean, np.nan)
+            out["n_theta"] = np.repeat(n_theta.astype(int), n, axis=1)
+        out[key] = mean
+    for key in ("x", "y", "theta"):
+        out[f"{key}_lo"] = out[key] - Z95 * out[f"{key}_sd"]
+        out[f"{key}_hi"] = out[key] + Z95 * out[f"{key}_sd"]
 
     first_rows = ts.meta.iloc[order[starts]].reset_index(drop=True)
     meta = pd.DataFrame({c: first_rows[c] if c in by else None for c in TRIAL_COLUMNS})
@@ -204,8 +263,10 @@ def mean_trajectories(ts: TrajectorySet, by: list[str] | None = None, max_spread
     meta["entity"] = first_rows["entity"]
     if "travel_time" in ts.meta.columns:
         tt = ts.meta["travel_time"].to_numpy(dtype=float)[order]
-        meta["travel_time"] = np.add.reduceat(np.nan_to_num(tt), starts) / np.maximum(np.add.reduceat(np.isfinite(tt).astype(float), starts), 1)
-        meta.loc[np.add.reduceat(np.isfinite(tt).astype(float), starts) == 0, "travel_time"] = np.nan
+        n_tt = np.add.reduceat(np.isfinite(tt).astype(float), ustarts)
+        k_tt = np.add.reduceat((n_tt > 0).astype(float), gstarts)  # units with a travel time
+        u_tt = np.add.reduceat(np.nan_to_num(tt), ustarts) / np.maximum(n_tt, 1)
+        meta["travel_time"] = np.where(k_tt > 0, np.add.reduceat(u_tt, gstarts) / np.maximum(k_tt, 1), np.nan)
     else:
         meta["travel_time"] = np.nan
     meta["travelled_distance"] = np.hypot(out["x"][:, -1] - out["x"][:, 0], out["y"][:, -1] - out["y"][:, 0])

@@ -87,3 +87,98 @@ def test_means_say_when_their_subjects_weigh_unequally():
     assert result.unequal == (1, "subject", 1, 2)
     assert ("In 1 mean(s) the subjects contribute unequal numbers of trajectories (1 to 2): each mean weighs its "
             "trajectories alike, so a subject with more of them weighs more") in average_markdown(result, "t.parquet")
+
+
+def _two_subjects():
+    """Subject A: 3 identical trials at y = 0, theta = 0, 10 s; subject B: 1 trial at y = 1, theta = pi/2, 14 s."""
+    t = walking_table(n_subjects=2, n_conditions=1, n_trials=3)
+    t = t[~(t["subject"].eq("S02") & ~t["trial"].str.endswith("_1"))].copy()
+    b = t["subject"].eq("S02")
+    return t.assign(x=t["x"].groupby(t["sample"]).transform("first"), y=np.where(b, 1.0, 0.0), theta=np.where(b, np.pi / 2, 0.0), gamma=np.where(b, np.pi / 2, 0.0),
+                    travel_time=np.where(b, 14.0, 10.0))
+
+
+def test_weigh_subjects_takes_the_mean_of_each_subjects_mean():
+    """Every trajectory weighs alike by default (the published method): A's 3 trials pull the mean to y = 0.25; the
+    mean of the subjects' means is 0.5, with the sd between the 2 subjects (0.707), the angles' mean of the subjects'
+    mean directions (pi/4, not atan2(1, 3)) and the subjects' mean travel time (12 s, not 11 s)."""
+    from cobot_analysis.api import average
+    from cobot_analysis.reports.analysis import average_markdown
+
+    t = _two_subjects()
+    trials = average(t).means.iloc[0]
+    assert (trials["n_trials"], trials["y"], trials["y_sd"], trials["travel_time"]) == (4, 0.25, 0.5, 11.0)
+    np.testing.assert_allclose(trials["theta"], np.arctan2(1, 3))
+    result = average(t, weigh="subjects")
+    first = result.means.iloc[0]
+    assert (first["n_trials"], first["n_theta"], first["y"], first["travel_time"]) == (4, 4, 0.5, 12.0)
+    np.testing.assert_allclose([first["y_sd"], first["theta"], first["gamma"], first["theta_sd"]],
+                               [np.sqrt(0.5), np.pi / 4, np.pi / 4, np.sqrt(np.log(2))])
+    np.testing.assert_allclose(result.means["x"], average(t).means["x"])
+    assert result.weigh == "subjects" and average(t).weigh == "trials"
+    assert "- Weighting (`average --weigh trials`, the published method): every trajectory alike." in average_markdown(average(t), "t")
+    text = " ".join(average_markdown(result, "t.parquet").split())
+    assert ("Weighting (`average --weigh subjects`): each mean is the mean of its subjects' means (2 subjects per mean; "
+            "1 to 3 trajectories per subject), sd between the subjects' means") in text
+
+
+def test_weigh_subjects_is_recorded_and_read_downstream(tmp_path, cli):
+    """The means' weighting is in means.parquet's metadata, average's manifest and results.md, and compare says which
+    means it was given (its manifest and results.md)."""
+    import json
+
+    from cobot_analysis.schema import table_metadata
+
+    ws = _workspace(tmp_path, _two_subjects())
+    code, _, err = cli("average", "--out", ws)
+    assert code == 0, err
+    assert table_metadata(ws / "average" / "means.parquet")["weigh"] == "trials"
+    code, _, err = cli("average", "--out", ws, "--weigh", "subjects")
+    assert code == 0, err
+    assert table_metadata(ws / "average" / "means.parquet")["weigh"] == "subjects"
+    assert json.loads((ws / "average" / "manifest.json").read_text())["params"]["weigh"] == "subjects"
+    assert "`average --weigh subjects`" in (ws / "average" / "results.md").read_text()
+    means = read_table(ws / "average" / "means.parquet", MEANS)
+    assert means["y"].unique().tolist() == [0.5]
+    code, _, err = cli("compare", "--out", ws)
+    assert code == 0, err
+    assert json.loads((ws / "compare" / "manifest.json").read_text())["params"]["means_weigh"] == "subjects"
+    assert "means weighted by subjects (`average --weigh subjects`)" in " ".join((ws / "compare" / "results.md").read_text().split())
+
+
+def test_weigh_subjects_without_subjects_is_refused(tmp_path, cli):
+    t = _two_subjects()
+    ws = _workspace(tmp_path, t.assign(subject=None))
+    msg = _refused(cli, ws, "--weigh", "subjects")
+    assert "--weigh subjects needs each trial's subject (or pair), and no trial has one" in msg and "or use --weigh trials" in msg
+    ws = _workspace(tmp_path / "some", t.assign(subject=t["subject"].where(t["trial"] != t["trial"].iloc[0])))
+    msg = _refused(cli, ws, "--weigh", "subjects")
+    assert f"--weigh subjects: 1 of 4 trajectories have no 'subject' value ({t['trial'].iloc[0]}...)" in msg
+    ws = _workspace(tmp_path / "by", t)
+    msg = _refused(cli, ws, "--weigh", "subjects", "--by", "condition,subject,entity")
+    assert "--weigh subjects with 'subject' in --by: each mean is one subject's, with no spread between subjects" in msg
+    msg = _refused(cli, ws, "--weigh", "pairs")
+    assert "unknown --weigh 'pairs'; use one of trials, subjects" in msg
+
+
+def test_stats_fit_ioc_and_generate_say_which_means_they_were_given(tmp_path):
+    """stats (its distances to the means), fit-ioc (the means it fits) and generate (the means its poses come from)
+    record the means' weighting in their manifests and say it in results.md; nothing is said of the default."""
+    import json
+
+    from cobot_analysis.stages import analysis, models
+
+    ws = _workspace(tmp_path, _two_subjects())
+    analysis.average(ws, weigh="subjects")
+    analysis.compare(ws)
+    analysis.statistics(ws)
+    models.fit_ioc(ws, max_evaluations=2, intervals=10, bootstrap=0, compare=False, jobs=1)
+    models.generate(ws, study="walking-2020", samples=50, intervals=10, jobs=1, convention="continuous")
+    for stage in ("stats", "fit-ioc", "generate"):
+        assert json.loads((ws / stage / "manifest.json").read_text())["params"]["means_weigh"] == "subjects", stage
+        assert "weighted by subjects (`average --weigh subjects`)" in (ws / stage / "results.md").read_text(), stage
+    analysis.average(ws)
+    analysis.compare(ws)
+    analysis.statistics(ws)
+    assert "means_weigh" not in json.loads((ws / "stats" / "manifest.json").read_text())["params"]
+    assert "--weigh" not in (ws / "stats" / "results.md").read_text()

@@ -531,6 +531,47 @@ def test_end_orientation_contradicting_the_table_or_its_configuration(tmp_path, 
     _bad(tmp_path, cli, pair_recording("P1"), [trials_row("P1", pair="P01", scenario=1, **row)], expected)
 
 
+def _turned(parts, angle):
+    """The recording turned by ``angle`` about the vertical through the origin (the table ends its forward carriage at
+    ``angle`` rad)."""
+    c, s = np.cos(angle), np.sin(angle)
+    return [q.assign(x=c * q["x"] - s * q["y"], y=s * q["x"] + c * q["y"]) for q in parts]
+
+
+def test_a_forward_carriage_without_end_orientation_takes_the_measured_one(tmp_path, cli):
+    """Returns took the measured end orientation; a forward carriage without one was refused by average ("no
+    'end_orientation' value"). It now takes the table's orientation at its end, snapped to the nearer of its
+    configuration's two (as returns are), flagged end_orientation_measured: P1 ends at 0.05 rad (gris: 0), P2 at
+    pi - 0.3 (gris: pi)."""
+    ws = tmp_path / "ws"
+    parts = _turned(pair_recording("P1"), 0.05) + [q.assign(x=q["x"] + 20) for q in _turned(pair_recording("P2"), np.pi - 0.3)]
+    rows = [trials_row(t, pair=f"P0{i + 1}", scenario=1, configuration="gris", condition="d1_p4_gris") for i, t in enumerate(("P1", "P2"))]
+    write_workspace(ws, parts, rows)
+    code, _, err = cli("preprocess", "--out", ws, "--jobs", "1")
+    assert code == 0, err
+    per = read_table(ws / "preprocess" / "trajectories.parquet", TRAJECTORIES).drop_duplicates(["trial", "entity"])
+    fwd = per[per["direction"] == "forward"].set_index(["trial", "entity"])
+    assert fwd["end_orientation"].to_dict() == {(t, e): v for t, v in (("P1_forward", 0.0), ("P2_forward", np.pi))
+                                                for e in ("table", "subject1", "subject2")}
+    assert fwd["quality"].str.contains("end_orientation_measured").all()
+    assert not per.loc[per["direction"] == "return", "quality"].str.contains("end_orientation_measured").any()
+    text = " ".join((ws / "preprocess" / "results.md").read_text().split())
+    assert ("2 forward carriages had no end_orientation in the trials table: each took the table's orientation at its "
+            "end, snapped to the nearer of its configuration's two (flagged `end_orientation_measured`; at most 0.300 rad "
+            "from it, refused beyond 0.785)") in text
+    code, _, err = cli("average", "--out", ws)
+    assert code == 0, err
+
+
+def test_a_forward_carriage_without_end_orientation_between_its_configurations_is_refused(tmp_path, cli):
+    """Ending at 0 rad, a jaune trial (pi/2 or -pi/2) is a quarter turn from both: no orientation to take."""
+    _bad(tmp_path, cli, pair_recording("P1"), [trials_row("P1", pair="P01", scenario=1, configuration="jaune")],
+         "trial P1: no end_orientation in the trials table, and the table ended its forward carriage at 0.000 rad, "
+         "1.571 rad from both orientations of configuration jaune (1.571 or -1.571 rad); write the orientation the "
+         "table ended in (radians, TAB1 -> TAB2) as its end_orientation in the trials table, or correct its "
+         "configuration (gris ends at 0.000), and re-import")
+
+
 def _swap_subjects(parts):
     """The recording's Subject 1 and Subject 2 labels swapped (the other pair member's labels)."""
     swap = {"subject1": "subject2", "subject2": "subject1"}

@@ -128,6 +128,8 @@ class AverageResult:
     truncated: int = 0  # of them, flagged truncated
     spread: list[str] = field(default_factory=list)  # means whose trials do not share a frame (flagged frames_differ)
     unequal: tuple[int, str, int, int] = (0, "", 0, 0)  # means whose subjects or pairs weigh unequally (averaging.unequal_units)
+    weigh: str = "trials"  # each trajectory alike, or each subject (pair) alike: the mean of their means (averaging.WEIGHTS)
+    units: tuple[str, int, int, int, int] = ("", 0, 0, 0, 0)  # weigh="subjects": unit column, fewest/most units per mean, fewest/most trajectories per unit
 
     def summary(self) -> str:
         return f"{self.means.drop_duplicates(['trial', 'entity']).shape[0]} means"
@@ -169,14 +171,17 @@ class AverageResult:
         return {"means": paths(panels, title=f"{self.study}: mean trajectories")}
 
 
-def average(trajectories: Any, *, by: str | list[str] | None = None, max_spread: float | None = None) -> AverageResult:
+def average(trajectories: Any, *, by: str | list[str] | None = None, max_spread: float | None = None,
+            weigh: str = "trials") -> AverageResult:
     """Mean trajectory per condition (sample-wise mean of positions; circular mean of angles, trajectories
     without orientation left out of the angle means only), with counts, sd and the 95 % band
     (docs/methods.md sec. 2.9). ``by``: grouping columns (default: the study's design,
     ``compare.default_groups``; a list, or one comma-separated string). A grouping column missing for some
     trials is refused (the means would pool unrelated trials). ``max_spread`` (m, default 1): a mean whose
-    trials' start or end points spread more is flagged ``frames_differ``. A table holding only published
-    means (pair-carriage-2022) is carried over.
+    trials' start or end points spread more is flagged ``frames_differ``. ``weigh``: ``trials`` (default, the
+    published method) weighs every trajectory alike; ``subjects`` takes the mean of each subject's mean (the pair's,
+    in the pair study) with the sd between them, so a subject with more trials in a condition weighs no more
+    (``averaging.mean_trajectories``). A table holding only published means (pair-carriage-2022) is carried over.
 
         >>> from cobot_analysis.api import average
         >>> from cobot_analysis.synth.tables import walking_table
@@ -188,12 +193,14 @@ def average(trajectories: Any, *, by: str | list[str] | None = None, max_spread:
             E1500         6
             N1500         6
     """
-    from cobot_analysis.api.options import at_least, table_of
-    from cobot_analysis.averaging import MAX_FRAME_SPREAD, MEANS, check_groups, mean_trajectories, spread_warnings, unequal_units
+    from cobot_analysis.api.options import at_least, one_of, table_of
+    from cobot_analysis.averaging import (MAX_FRAME_SPREAD, MEANS, WEIGHTS, check_groups, check_units, mean_trajectories,
+                                          spread_warnings, unequal_units, unit_counts)
     from cobot_analysis.compare import default_groups
     from cobot_analysis.schema import TRAJECTORIES, read_table
 
     at_least(max_spread, "--max-spread", strict=False, example="1.0")
+    one_of(weigh, "--weigh", WEIGHTS)
     trajectories = table_of(trajectories, "trajectories", "trajectories") if not isinstance(trajectories, TrajectorySet) else trajectories
     ts = trajectory_set(trajectories, ("trajectories",))
     path = None if isinstance(trajectories, (pd.DataFrame, TrajectorySet)) else Path(trajectories)
@@ -201,13 +208,17 @@ def average(trajectories: Any, *, by: str | list[str] | None = None, max_spread:
     trials = ts.subset(ts.meta["kind"].eq("trial").to_numpy())
     if len(trials):
         check_groups(trials.meta, groups, path)
+        units = unit_counts(trials, groups, check_units(trials.meta, groups, path)) if weigh == "subjects" else ("", 0, 0, 0, 0)
         spread = MAX_FRAME_SPREAD if max_spread is None else max_spread
-        means = mean_trajectories(trials, groups, max_spread=spread)
+        means = mean_trajectories(trials, groups, max_spread=spread, weigh=weigh)
         cut = 0
         if "quality" in trials.meta.columns:
             cut = int(trials.meta["quality"].fillna("").str.split(";").map(lambda f: "truncated" in f).sum())
         return AverageResult(means, groups, f"recomputed from {len(trials)} trajectories", study_of(ts), len(trials), cut,
-                             spread_warnings(trials, groups, spread), unequal_units(trials, groups))
+                             spread_warnings(trials, groups, spread), unequal_units(trials, groups), weigh, units)
+    if weigh != "trials":
+        raise InputError("--weigh subjects: the table holds no per-trial trajectories, only published means, carried over as they are",
+                         path=path, remedy="omit --weigh (the published means had one trajectory per subject)")
     long = trajectories.copy() if isinstance(trajectories, pd.DataFrame) else read_table(path, TRAJECTORIES)
     long.attrs = {}
     means = long[long["kind"].eq("mean")].copy()

@@ -31,12 +31,14 @@ def _columns(value: Optional[str]) -> list[str] | None:
 # ---- average ------------------------------------------------------------------------------------
 @app.command("average", rich_help_panel=PANEL_ANALYSIS, epilog=examples(
     "cobot-analysis average --out walking",
+    "cobot-analysis average --out walking --weigh subjects",
     "cobot-analysis average --out walking --by condition,entity"))
 def average_command(
     out: OutOpt = DEFAULT_OUT_PATH,
     trajectories: TrajOpt = None,
     by: ByOpt = None,
     max_spread: Annotated[Optional[float], typer.Option("--max-spread", help="Largest spread (m) of a group's start or end points around their median; beyond it the trials do not share a frame and their mean is flagged frames_differ, not compared (default 1 m) (>= 0).")] = None,
+    weigh: Annotated[str, typer.Option("--weigh", help="trials: every trajectory weighs alike (the published method); subjects: the mean of each subject's mean (each pair's, in the pair study), sd between them, so a subject with more trials in a condition weighs no more.")] = "trials",
     force: ForceOpt = False,
 ) -> None:
     """Mean trajectory per condition (circular means for angles) with counts, sd and 95 % band -> average/means.parquet.
@@ -48,7 +50,7 @@ def average_command(
     """
     from cobot_analysis.stages import analysis
 
-    done = analysis.average(out, trajectories=trajectories, by=_columns(by), max_spread=max_spread, force=force)
+    done = analysis.average(out, trajectories=trajectories, by=_columns(by), max_spread=max_spread, weigh=weigh, force=force)
     if not done.skipped:
         finished("average", done.result.summary(), done.directory / "means.parquet")
 

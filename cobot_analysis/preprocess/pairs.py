@@ -17,10 +17,12 @@ what was found, rather than labelled wrong:
 - ``check_return``: the return carries the table back to the start, so it ends nearer the forward
   carriage's start than its end (the two lifts of a forward carriage set down to re-grip it would
   otherwise be a forward and a "return" to the goal);
-- ``check_end_orientation``: the trials table's ``end_orientation`` is the table's orientation at the
+- ``end_orientation``: the trials table's ``end_orientation`` is the table's orientation at the
   end of the forward carriage (within ``END_TOLERANCE``) and one of its configuration's two
   (``design.CONFIGURATIONS``); else the trial would be grouped by a configuration it did not end in
-  (``compare.snap_configurations``): a quarter or half turn off, or an angle in degrees;
+  (``compare.snap_configurations``): a quarter or half turn off, or an angle in degrees. A forward carriage without
+  one takes its configuration's orientation nearer the measured one, as returns do (refused when the table ended
+  more than ``END_TOLERANCE`` from both);
 - ``subject1_end`` and ``swapped_subjects``: Subject 1 holds the same end of the table (the TAB1 or the
   TAB2 end of its long axis) in every recording of the study; a recording where it holds the other end
   has the labels S1 and S2 swapped, and its scenario (who knows the goal) would be the other subject's.
@@ -146,15 +148,33 @@ def check_return(trial: str, source: str, found: list[tuple[int, int]], table_xy
                             f"table and join its lifts with --min-set-down {join:g}; else leave it out")
 
 
-def check_end_orientation(trial: str, source: str, meta: dict, measured: float) -> None:
-    """Refuse a declared ``end_orientation`` (``meta``) off the table's orientation at the end of the forward
-    carriage (``measured``, rad) or off its configuration's orientations."""
+def end_orientation(trial: str, source: str, meta: dict, measured: float) -> tuple[float | None, bool]:
+    """(the end orientation of a forward carriage whose table ended at ``measured`` rad, whether it was measured).
+
+    Declared in the trials table (``meta``): refused more than ``END_TOLERANCE`` off the measured one or off both
+    orientations of its configuration. Not declared: the orientation of its configuration nearer the measured one
+    (returns are snapped so, ``compare.snap_configurations``), refused when the measured one is more than
+    ``END_TOLERANCE`` from both; (None, False) without a configuration (average then refuses the trial's group)."""
+    options = CONFIGURATIONS.get(meta.get("configuration"))
     try:
         declared = float(meta.get("end_orientation"))
     except (TypeError, ValueError):  # None or NA: not given
-        return
+        declared = math.nan
     if not np.isfinite(declared):
-        return
+        if not options:
+            return None, False
+        off = [abs(float(angle_diff(measured, o))) for o in options]
+        if min(off) > END_TOLERANCE:
+            other = [f"{f} ends at {o:.3f}" for f, opts in CONFIGURATIONS.items() for o in opts
+                     if f != meta["configuration"] and abs(float(angle_diff(measured, o))) <= END_TOLERANCE]
+            raise InputError(f"trial {trial}: no end_orientation in the trials table, and the table ended its forward "
+                             f"carriage at {float(angle_diff(measured, 0.0)):.3f} rad, {min(off):.3f} rad from both "
+                             f"orientations of configuration {meta['configuration']} "
+                             f"({' or '.join(f'{o:.3f}' for o in options)} rad)", path=source,
+                             remedy="write the orientation the table ended in (radians, TAB1 -> TAB2) as its end_orientation "
+                                    "in the trials table, or correct its configuration"
+                                    + (f" ({', '.join(other)})" if other else "") + ", and re-import")
+        return float(options[int(np.argmin(off))]), True
     remedy = ("give end_orientation in radians, the direction TAB1 -> TAB2 of the table at the goal, in the trials "
               "table and re-import")
     off = abs(float(angle_diff(declared, measured)))
@@ -163,11 +183,11 @@ def check_end_orientation(trial: str, source: str, meta: dict, measured: float) 
         raise InputError(f"trial {trial}: end_orientation {declared:.3f} rad in the trials table, but the table ended its "
                          f"forward carriage at {float(angle_diff(measured, 0.0)):.3f} rad (the direction TAB1 -> TAB2), "
                          f"{turns}{' (degrees?)' if abs(declared) > 2 * math.pi else ''}", path=source, remedy=remedy)
-    options = CONFIGURATIONS.get(meta.get("configuration"))
     if options and min(abs(float(angle_diff(declared, o))) for o in options) > END_TOLERANCE:
         raise InputError(f"trial {trial}: end_orientation {declared:.3f} rad is no end orientation of configuration "
                          f"{meta['configuration']} ({' or '.join(f'{o:.3f}' for o in options)} rad)", path=source,
                          remedy="correct its configuration or end_orientation in the trials table and re-import")
+    return declared, False
 
 
 def subject1_end(xy1: np.ndarray, xy2: np.ndarray, theta: np.ndarray) -> int:

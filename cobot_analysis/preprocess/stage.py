@@ -47,7 +47,8 @@ reaches ``gamma_min_speed``), ``truncated`` (the walk or carriage runs off the s
 recording, or of the visible data, while moving: ``segmentation.cut_off``; its travel time and
 distance cover only the recorded part), ``later_walks`` (a walking recording holds more walks after the
 first, separated by a rest of at least ``min_rest``, e.g. back to the start: the first is the trial, the
-later ones are left out).
+later ones are left out), ``end_orientation_measured`` (a forward carriage without an ``end_orientation`` in the
+trials table: its configuration's orientation nearer the table's at its end, ``pairs.end_orientation``).
 """
 
 from __future__ import annotations
@@ -480,12 +481,15 @@ def process_recording(rec: Recording, p: Params) -> dict[str, Any]:
         base = {c: rec.meta.get(c) for c in META_COLUMNS}
         base.update(kind="trial", n_trials=1, direction=label)
         base["trial"] = f"{rec.trial}_{label}" if label else rec.trial
+        measured = False  # a forward carriage's end orientation taken from the table (none in the trials table)
         if label == "return":
             base["scenario"] = 3  # the return is scenario 3 by design (docs/methods.md sec. 1.2)
             th = kinem["table"]["theta"][off] if "table" in kinem else np.nan
             base["end_orientation"] = float(wrap(th))  # measured: the table's orientation at the offset
+        elif label == "forward":
+            base["end_orientation"], measured = pairs.end_orientation(rec.trial, rec.source, rec.meta, kinem["table"]["theta"][off])
         for e in ents:
-            meta, numeric = _trajectory(base, e, kinem[e], on, off, rate, p, cut, later)
+            meta, numeric = _trajectory(base, e, kinem[e], on, off, rate, p, cut, later, measured)
             meta["pelvis_markers"] = None if e == "table" else ",".join(used[e])
             out.append((meta, numeric))
     result: dict[str, Any] = {"gaps": gap_rows, "trajectories": out}
@@ -535,8 +539,6 @@ def _segments(rec: Recording, p: Params, entities: list[str], has_table: bool, m
                       p.min_set_down)
     if labels == ["forward", "return"]:
         pairs.check_return(rec.trial, rec.source, found, kinem["table"]["xy"], rate)
-    if "forward" in labels:
-        pairs.check_end_orientation(rec.trial, rec.source, rec.meta, kinem["table"]["theta"][found[labels.index("forward")][1]])
     segs = [(lab, a, b, entities, segmentation.cut_off(height, a, b), 0) for lab, (a, b) in zip(labels, found)]
     if p.keep_approach:  # each subject's walk to the table: speed segmentation before the first lift
         on = found[0][0]
@@ -551,7 +553,7 @@ def _segments(rec: Recording, p: Params, entities: list[str], has_table: bool, m
 
 
 def _trajectory(base: dict[str, Any], entity: str, k: dict[str, np.ndarray], on: int, off: int, rate: float,
-                p: Params, cut: bool = False, later: int = 0) -> tuple[dict[str, Any], np.ndarray]:
+                p: Params, cut: bool = False, later: int = 0, end_measured: bool = False) -> tuple[dict[str, Any], np.ndarray]:
     sl = slice(on, off + 1)
     xy, v, theta = k["xy"][sl], k["v"][sl], k["theta"][sl]
     orientation_missing = bool(k["theta_gap"][sl].any() or np.isnan(theta).any())
@@ -579,6 +581,7 @@ def _trajectory(base: dict[str, Any], entity: str, k: dict[str, np.ndarray], on:
         ("gamma_undefined", not orientation_missing and bool(np.isnan(g).all())),
         ("truncated", cut),
         ("later_walks", later > 0),
+        ("end_orientation_measured", end_measured),
     )
     return {**base, "entity": entity, "quality": quality}, numeric
 

@@ -6,6 +6,11 @@ from __future__ import annotations
 from pathlib import Path
 
 
+def _range(low: int, high: int) -> str:
+    """``3`` or ``1 to 3``."""
+    return f"{low}" if low == high else f"{low} to {high}"
+
+
 def average_markdown(result, source: str) -> str:
     """What the means are made of: input, grouping, counts, how angles were averaged."""
     means = result.means
@@ -22,19 +27,27 @@ def average_markdown(result, source: str) -> str:
         lines.append(f"- {len(result.spread)} mean(s) average trajectories that do not share a frame (start or end points "
                      "spread beyond the limit around the group's median, `average --max-spread`): flagged `frames_differ`, not drawn in the report and "
                      "not compared with their trials. " + "; ".join(result.spread))
+    unit, few, many, fewest, most = result.units
+    if result.weigh == "subjects":
+        lines.append(f"- Weighting (`average --weigh subjects`): each mean is the mean of its {unit}s' means "
+                     f"({_range(few, many)} {unit}s per mean; {_range(fewest, most)} trajectories per {unit}), sd between the "
+                     f"{unit}s' means (0 for a mean of one {unit}): a {unit} with more trials weighs no more.")
+    elif result.n_averaged:
+        lines.append("- Weighting (`average --weigh trials`, the published method): every trajectory alike.")
     n, unit, fewest, most = result.unequal
-    if n:
+    if n and result.weigh == "trials":
         lines.append(f"- In {n} mean(s) the {unit}s contribute unequal numbers of trajectories ({fewest} to {most}): each mean "
                      f"weighs its trajectories alike, so a {unit} with more of them weighs more (the published means had one "
-                     f"trajectory per {unit}).")
+                     f"trajectory per {unit}); `average --weigh subjects` takes the mean of the {unit}s' means instead.")
     if result.truncated:
         lines.append(f"- {result.truncated} of the {result.n_averaged} trajectories averaged are flagged `truncated` (they run "
                      "off their recording: travel time and path cover only the recorded part).")
     return "\n".join(lines) + "\n"
 
 
-def compare_markdown(result, sd_ddof: int) -> str:
-    """d_xy, d_theta, d_gamma mean +- sd per comparison and entity, with how they were computed."""
+def compare_markdown(result, sd_ddof: int, weigh: str = "trials") -> str:
+    """d_xy, d_theta, d_gamma mean +- sd per comparison and entity, with how they were computed (``weigh``: how the
+    means compared with were weighed, ``average --weigh``)."""
     d = result.distances
     summary = d.groupby(["comparison", "entity"])[["d_xy", "d_theta", "d_gamma"]].agg(
         ["mean", lambda v: v.std(ddof=sd_ddof), "count"]).rename(columns={"<lambda_0>": "std"})
@@ -45,7 +58,8 @@ def compare_markdown(result, sd_ddof: int) -> str:
     lines = [f"## Distances between trajectories ({result.convention} convention)", "",
              f"d_xy (m), d_theta (rad), d_gamma (rad, N-1 samples) (docs/methods.md sec. 3, 11), {how}; "
              "symmetry = forward vs time-reversed return; angular distances only where both trajectories have "
-             "orientation.", "",
+             "orientation." + (f" The means are the means weighted by {weigh} (`average --weigh {weigh}`): the mean of "
+                              "each subject's (pair's) mean." if weigh != "trials" else ""), "",
              "| comparison | entity | n | d_xy mean +- sd | d_theta mean +- sd | d_gamma mean +- sd |", "|---|---|---|---|---|---|"]
     single, frames = (getattr(result, "excluded", {}) or {}).get("single", 0), (getattr(result, "excluded", {}) or {}).get("frames", 0)
     if summary.empty:  # no table of headers alone
@@ -79,8 +93,9 @@ def compare_markdown(result, sd_ddof: int) -> str:
 
 
 def statistics_markdown(result, config_path: Path, n_trajectories: int, n_samples: int, source: str,
-                        distances: Path | None = None, convention: str = "continuous") -> tuple[str, str]:
-    """(stats.md, results.md): the tests table, and the same with the choices behind the numbers."""
+                        distances: Path | None = None, convention: str = "continuous", weigh: str = "trials") -> tuple[str, str]:
+    """(stats.md, results.md): the tests table, and the same with the choices behind the numbers (``weigh``: how the
+    means the distances were measured to were weighed, ``average --weigh``)."""
     from cobot_analysis.stats import analyses
 
     what = Path(config_path).name if config_path else "no study file"
@@ -91,8 +106,9 @@ def statistics_markdown(result, config_path: Path, n_trajectories: int, n_sample
         "Choices behind these numbers:",
         f"- Trajectories: {n_trajectories} from `{source}`, {n_samples} time-normalised samples each (as given; "
         "no further resampling); angle differences wrapped to [-pi, pi] before averaging (d_theta, d_gamma).",
-        *([f"- Distances: `{distances.parent.name}/{distances.name}` ({convention} convention, docs/methods.md sec. 11)."]
-          if distances is not None else []),
+        *([f"- Distances: `{distances.parent.name}/{distances.name}` ({convention} convention, docs/methods.md sec. 11)"
+           + (f"; the individual-mean rows against the means weighted by {weigh} (`average --weigh {weigh}`): the mean of "
+              "each subject's (pair's) mean." if weigh != "trials" else ".")] if distances is not None else []),
         f"- Questions of `{what}`: each row names its subset, test and grouping. Holm correction "
         f"(statsmodels) within each family; alpha = {result.config.alpha}; descriptive rows (describe, largest subset) "
         "are outside the families.",

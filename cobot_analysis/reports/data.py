@@ -132,6 +132,25 @@ def pair_results_markdown(facts: dict[str, Any]) -> str:
     ])
 
 
+def _measured_ends(traj: pd.DataFrame) -> list[str]:
+    """The results' paragraph on the forward carriages that took their end orientation from the table (flag
+    ``end_orientation_measured``): how many, and how far the table ended from the orientation taken."""
+    import numpy as np
+
+    from cobot_analysis.angles import angle_diff
+    from cobot_analysis.preprocess.pairs import END_TOLERANCE
+
+    last = traj[traj["entity"].eq("table") & traj["sample"].eq(traj["sample"].max())]
+    last = last[last["quality"].str.split(";").map(lambda f: "end_orientation_measured" in f)]
+    if last.empty:
+        return []
+    off = np.abs(angle_diff(last["theta"].to_numpy(float), last["end_orientation"].to_numpy(float)))
+    return [f"{len(last)} forward carriage{'s' if len(last) > 1 else ''} had no end_orientation in the trials table: each "
+            "took the table's orientation at its end, snapped to the nearer of its configuration's two (flagged "
+            f"`end_orientation_measured`; at most {np.nanmax(off):.3f} rad from it, refused beyond {END_TOLERANCE:.3f}), as "
+            "returns take theirs.", ""]
+
+
 def preprocess_summary(traj: pd.DataFrame, gap_df: pd.DataFrame, p: Params, n_recordings: int,
                      refused: list[Refused] = ()) -> str:
     """The stage's results.md fragment: what was processed, pelvis markers, gaps, quality flags and skipped trials."""
@@ -163,6 +182,7 @@ def preprocess_summary(traj: pd.DataFrame, gap_df: pd.DataFrame, p: Params, n_re
         *([f"{int(flags['later_walks'])} trajectories are `later_walks`: their recording holds more walks after the first "
            f"(standing still at least {p.min_rest:g} s between them, e.g. back to the start); the first is the trial, the "
            "later ones are left out.", ""] if "later_walks" in flags else []),
+        *_measured_ends(traj),
         "| entity | direction | trajectories | travel time (s), median [IQR] | travelled distance (m), median |",
         "|---|---|---|---|---|",
     ]

@@ -361,9 +361,10 @@ def duration_lines(df: pd.DataFrame, targets, durations: pd.DataFrame | None, v_
 
 
 # ---- the stages' results fragments ---------------------------------------------------------------
-def generate_markdown(result, summary: str) -> str:
+def generate_markdown(result, summary: str, weigh: str = "trials") -> str:
     """Generated paths: per trajectory the duration T, the mean speed (its time law), the subjects' own
-    where the data hold them, the cost and the end's distance to the goal (``generated_section``)."""
+    where the data hold them, the cost and the end's distance to the goal (``generated_section``); ``weigh``: how
+    the means the poses come from were weighed (``average --weigh``)."""
     grid = (f"OC grid {result.n_intervals} intervals resampled to {result.n_samples} samples" if result.convention == "continuous" else
             "the authors' node step and duration rule, paths at their nodes")
     goals = sorted({(round(g[0], 3), round(g[1], 3), round(math.remainder(g[2], 2 * math.pi), 3)) for _, _, g in result.cases})
@@ -373,7 +374,9 @@ def generate_markdown(result, summary: str) -> str:
             f"goal{'s' if len(goals) > 1 else ''} {goals[0] if len(goals) == 1 else f'of the {len(goals)} measured means'}")
     lines = [f"## Generated trajectories ({result.convention} convention{', pair study' if pairs else ''})", "",
              f"Models {', '.join(result.models)}; weights {result.weights or 'model presets'}; {what}; "
-             f"{grid} (docs/methods.md sec. 11: {summary}).", "",
+             f"{grid} (docs/methods.md sec. 11: {summary})."
+             + (f" The poses come from the means weighted by {weigh} (`average --weigh {weigh}`): the mean of each "
+                "subject's (pair's) mean." if weigh != "trials" else ""), "",
              *generated_section(result.generated, result.convention, result.measured_by_trial(),
                                 source=PAIR_PACE if pairs else WALKING_PACE)]
     return "\n".join(lines) + "\n"
@@ -727,11 +730,11 @@ def goal_lines(comparison: pd.DataFrame, convention: str) -> list[str]:
 
 
 def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal: float, durations: pd.DataFrame | None,
-                     other: dict | None = None) -> str:
+                     other: dict | None = None, weigh: str = "trials") -> str:
     """The IOC's results fragment: the fits (D, evaluations, weights at the start and fitted), their flags,
     each weight's interval and verdict, the single-level fit beside the bi-level one (``other``: the
     workspace's bi-level weights.json), the model comparison with its statistics and figures (drawn into
-    ``stage``)."""
+    ``stage``); ``weigh``: how the means fitted were weighed (``average --weigh``)."""
     from cobot_analysis import conventions
 
     conv = conventions.get(result.convention)
@@ -769,7 +772,9 @@ def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal
              + ((". gamma of the measured path: " + ("recorded in the data" if conv.comparison.measured_gamma == "data" else
                                                        "from the path (distances.gamma_from_path)") + "; of the model's path: from the path.")
                 if angle == "gamma" else "; pair study: per-scenario means (the pooled 'all' means left out).")
-             + (" Coupled model: scenario-3 forward and return means, Subject 2 as carrier 1 on returns." if model == "coupled" else ""),
+             + (" Coupled model: scenario-3 forward and return means, Subject 2 as carrier 1 on returns." if model == "coupled" else "")
+             + (f" The means are weighted by {weigh} (`average --weigh {weigh}`): the mean of each subject's (pair's) mean."
+                if weigh != "trials" else ""),
              "",
              "| fit | paths | D start | D fitted | evaluations | not converged | " + " | ".join(names) + " |",
              "|---|---|---|---|---|---|" + "---|" * len(names)]

@@ -24,10 +24,13 @@ def trajectories_input(out: str | os.PathLike, path: str | os.PathLike | None):
 
 
 def average(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = None, by: list[str] | None = None,
-            max_spread: float | None = None, force: bool = False) -> Outcome:
-    """``average``: ``average/means.parquet`` and its results fragment."""
+            max_spread: float | None = None, weigh: str = "trials", force: bool = False) -> Outcome:
+    """``average``: ``average/means.parquet`` (its metadata: the grouping and the weighting) and its results fragment."""
     path, ts = trajectories_input(out, trajectories)  # refuses a missing input before the heavy imports below
-    from cobot_analysis.averaging import MEANS, check_groups
+    from cobot_analysis.api.options import one_of
+    from cobot_analysis.averaging import MEANS, WEIGHTS, check_groups, check_units
+
+    one_of(weigh, "--weigh", WEIGHTS)
     from cobot_analysis.compare import default_groups
     from cobot_analysis.reports.analysis import average_markdown
 
@@ -35,16 +38,20 @@ def average(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
     trials = ts.subset(ts.meta["kind"].eq("trial").to_numpy())
     if len(trials):
         check_groups(trials.meta, groups, path)
-    with Stage(out, "average", inputs=[path], params={"by": groups, **({"max_spread": max_spread} if max_spread is not None else {})}, force=force) as stage:
+        if weigh != "trials":
+            check_units(trials.meta, groups, path)
+    params = {"by": groups, **({"max_spread": max_spread} if max_spread is not None else {}),
+              **({"weigh": weigh} if weigh != "trials" else {})}  # the default's params as before: its stage stays up to date
+    with Stage(out, "average", inputs=[path], params=params, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
-        result = api.average(path if not len(trials) else ts, by=groups, max_spread=max_spread)
+        result = api.average(path if not len(trials) else ts, by=groups, max_spread=max_spread, weigh=weigh)
         stage.result = result  # its own numbers are the stage's metrics.json
         if not result.n_averaged:
             warn(f"{path}: no per-trial trajectories; the published means are carried over unchanged")
         for line in result.spread:
             warn(line)
-        stage.write_table("means.parquet", result.means, MEANS, grouping=groups, source=result.source)
+        stage.write_table("means.parquet", result.means, MEANS, grouping=groups, source=result.source, weigh=weigh)
         stage.path("results.md").write_text(average_markdown(result, path.name))
     return Outcome(stage.final_dir, result)
 
@@ -72,14 +79,17 @@ def compare(out: str | os.PathLike, *, trajectories: str | os.PathLike | None = 
         against_set(Path(against), mts.n_samples, conv, GENERATED)  # a bad --against table is refused before the stage starts
     inputs = [path, means_path] + ([Path(against)] if against is not None else [])
     params = {"by": groups, "label": comparison, "any_vs_any": same, "convention": conv.name}
+    weigh = table_metadata(means_path).get("weigh", "trials")  # how average weighed the means (average --weigh)
+    if weigh != "trials":
+        params["means_weigh"] = weigh
     with Stage(out, registry.directory("compare", conv.name), inputs=inputs, params=params, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
         result = api.compare(ts, mts, against=against, comparison=comparison, any_vs_any=same, by=groups, convention=conv.name)
         stage.result = result  # its own numbers are the stage's metrics.json
         stage.write_table("distances.parquet", result.distances, DISTANCES, grouping=groups, convention=conv.name,
-                          excluded=result.excluded)  # why trials were left out: stats reads it (api.distances_table)
-        stage.path("results.md").write_text(compare_markdown(result, conv.comparison.sd_ddof))
+                          excluded=result.excluded, means_weigh=weigh)  # why trials were left out: stats reads it (api.distances_table)
+        stage.path("results.md").write_text(compare_markdown(result, conv.comparison.sd_ddof, weigh))
     return Outcome(stage.final_dir, result)
 
 
@@ -156,8 +166,11 @@ def statistics(out: str | os.PathLike, *, config: str | os.PathLike | None = Non
     else:  # the study's own subjects and pairs: those of the protocol its import read
         anthro, anthro_files = protocol_anthropometrics(out)
     inputs = [p for p in (config, path, dist_path, dur_path if dur is not None else None) if p] + anthro_files
-    with Stage(out, registry.directory("stats", conv.name), inputs=inputs,
-               params={"config": str(config), "convention": conv.name}, force=force) as stage:
+    from cobot_analysis.schema import table_metadata
+
+    weigh = table_metadata(dist_path).get("means_weigh", "trials")  # the means compare measured to (average --weigh)
+    params = {"config": str(config), "convention": conv.name, **({"means_weigh": weigh} if weigh != "trials" else {})}
+    with Stage(out, registry.directory("stats", conv.name), inputs=inputs, params=params, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
         result = api.statistics(ts, dist_path, config=study, durations=dur, anthropometrics=anthro, progress=track)
@@ -171,7 +184,7 @@ def statistics(out: str | os.PathLike, *, config: str | os.PathLike | None = Non
             info(f"stats: {'no study file' if config is None else config} declares no questions: the default descriptive "
                  "statistics (docs/statistics.md)")
         stage.write_table("stats.parquet", result.table, analyses.STATS, config=str(config))
-        md, fragment = statistics_markdown(result, config, len(ts), ts.n_samples, path.name, dist_path, conv.name)
+        md, fragment = statistics_markdown(result, config, len(ts), ts.n_samples, path.name, dist_path, conv.name, weigh)
         stage.path("stats.md").write_text(md)
         stage.path("results.md").write_text(fragment)
     return Outcome(stage.final_dir, result)

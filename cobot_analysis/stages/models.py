@@ -29,6 +29,7 @@ def generate(out: str | os.PathLike, *, model: str | None = None, weights: Any =
     from cobot_analysis.models.comparison import measured_pace
     from cobot_analysis.models.outputs import GENERATED
     from cobot_analysis.reports.models import generate_markdown
+    from cobot_analysis.schema import table_metadata
 
     if study is not None and study not in STUDIES:
         raise InputError(f"--study {study}: unknown study", remedy=f"use --study {' or '.join(STUDIES)}, or give --start")
@@ -67,6 +68,9 @@ def generate(out: str | os.PathLike, *, model: str | None = None, weights: Any =
     kw = {"n_samples": samples, "n_intervals": intervals, "duration": duration, "v_nominal": v_nominal, "max_iter": max_iter,
           "convention": conv.name}
     params = {"models": models, "weights": weights, "cases": cases, **kw}
+    weigh = table_metadata(source).get("weigh", "trials") if source is not None else "trials"  # average --weigh
+    if weigh != "trials":
+        params["means_weigh"] = weigh
     with Stage(out, registry.directory("generate", conv.name), inputs=inputs, params=params, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
@@ -76,7 +80,7 @@ def generate(out: str | os.PathLike, *, model: str | None = None, weights: Any =
         stage.result = result  # its own numbers are the stage's metrics.json
         stage.write_table("generated.parquet", result.generated, GENERATED, n_samples=samples, n_intervals=intervals,
                     convention=conv.name)
-        stage.path("results.md").write_text(generate_markdown(result, conventions.get(conv.name).summary))
+        stage.path("results.md").write_text(generate_markdown(result, conventions.get(conv.name).summary, weigh))
     return Outcome(stage.final_dir, result)
 
 
@@ -171,6 +175,7 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
     from cobot_analysis.models.ioc.single_level import check_method
     from cobot_analysis.models.outputs import ioc_distances_schema
     from cobot_analysis.reports.models import fit_ioc_markdown
+    from cobot_analysis.schema import table_metadata
 
     check_method(method, bootstrap)
     check_profiles(profiles)
@@ -192,6 +197,9 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
         params["method"] = method
     if profiles != "means":
         params["profiles"] = profiles
+    weigh = table_metadata(means).get("weigh", "trials") if means is not None else "trials"  # average --weigh
+    if weigh != "trials":
+        params["means_weigh"] = weigh
     # own stages: the coupled fit never replaces the table fit, nor per-subject fits the fit over the means, nor the
     # single-level fit the bi-level one
     base = "fit-ioc-coupled" if model == "coupled" else "fit-ioc-subjects" if per == "subject" else "fit-ioc"
@@ -223,7 +231,8 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
                     convention=conv.name)
         result.fits_table().to_csv(stage.path("fits.csv"), index=False)
         stage.path("results.md").write_text(fit_ioc_markdown(result, stage, optimizer=optimizer, intervals=intervals,
-                                                             v_nominal=v_nominal, durations=durations, other=other))
+                                                             v_nominal=v_nominal, durations=durations, other=other,
+                                                             weigh=weigh))
     return Outcome(stage.final_dir, result)
 
 
