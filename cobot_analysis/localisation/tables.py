@@ -26,7 +26,7 @@ RUNS = TableSchema(
     description="Localisation accuracy per run (ICP vs motion capture, docs/methods.md sec. 9).",
     columns={
         "run": Column("string", "", "run label"),
-        "file": Column("string", "", "bag file or directory"),
+        "file": Column("string", "", "bag file or directory; DIR/run_0.bag+run_1.bag for the pieces of a split recording read as one (--join)"),
         "map": Column("string", "", "map label given on the command line (e.g. architectural, scanned)"),
         "truth": Column("string", "", "truth stream (topic or tf:PARENT->CHILD)"),
         "icp": Column("string", "", "ICP stream (topic or tf:PARENT->CHILD)"),
