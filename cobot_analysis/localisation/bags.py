@@ -674,6 +674,15 @@ def _turn(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return 2 * np.arccos(np.clip(np.abs(np.sum(a * b, axis=1)), 0.0, 1.0))
 
 
+def _constant_norm(norm: np.ndarray) -> float:
+    """The norm all the orientation quaternions share (their median, when every norm is within ``QUAT_TOL`` of it,
+    relatively, and it is not within ``QUAT_TOL`` of 1: a publisher that never normalises), else 1."""
+    if not len(norm):
+        return 1.0
+    m = float(np.median(norm))
+    return m if abs(m - 1.0) > QUAT_TOL and np.all(np.abs(norm / m - 1.0) <= QUAT_TOL) else 1.0
+
+
 def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continuous: bool = True,
             record: np.ndarray | None = None) -> PoseStream:
     """Sorted, de-duplicated stream from rows ``(t, x, y, z, qx, qy, qz, qw)`` in the order read
@@ -681,7 +690,8 @@ def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continu
     ``meta["clock"]``).
 
     Dropped with a warning (kept in ``meta["notes"]``): messages with NaN/inf (a lost rigid body), a
-    zero quaternion (orientation unset) or a quaternion far from unit norm; repeated stamps. Sorted
+    zero quaternion (orientation unset) or a quaternion far from unit norm (from the norm all share, when
+    they share one: ``_constant_norm``, normalised with a warning); repeated stamps. Sorted
     with a warning: unsorted stamps. Warned about: jumps faster than ``MAX_SPEED`` / ``MAX_TURN``
     (a relocalisation, or damage at an end of the stream). Refused (``InputError`` naming the
     message), as values no recording holds: a stamp whose nanosec is not below 1e9, a position
@@ -711,7 +721,11 @@ def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continu
     finite = np.isfinite(rows).all(axis=1)
     norm = row_norm(np.where(np.isfinite(rows[:, 4:8]), rows[:, 4:8], 0.0))
     zero = finite & (norm < 1e-9)
-    skew = finite & ~zero & (np.abs(norm - 1.0) > QUAT_TOL)
+    unit = _constant_norm(norm[finite & ~zero])
+    if unit != 1.0:
+        note(f"every orientation quaternion has the norm {unit:.3g}, not 1 (a publisher that does not normalise them): "
+             "normalised")
+    skew = finite & ~zero & (np.abs(norm / unit - 1.0) > QUAT_TOL)
     for mask, what in ((~finite, "NaN/inf values"), (zero, "a zero orientation quaternion (orientation unset)"),
                        (skew, f"an orientation quaternion of norm far from 1 ({norm[skew].min() if skew.any() else 0:.3g}.."
                               f"{norm[skew].max() if skew.any() else 0:.3g}: damaged)")):
