@@ -57,7 +57,7 @@ RUNS = TableSchema(
         "ape_std": Column("float", "m", "population sd of the 3-D position error"),
         "ape_max": Column("float", "m", "max 3-D position error"),
         "ape_min": Column("float", "m", "min 3-D position error"),
-        "drift": Column("float", "m/m", "slope of the planar position error against the travelled distance"),
+        "drift": Column("float", "m/m", "slope of the planar position error against the travelled distance; NaN (said in warnings) when the compared poses span less than 1 m of it"),
         "drift_sd": Column("float", "m/m", "standard error of the slope"),
         "drift_intercept": Column("float", "m", "intercept of that line"),
         "jumps": Column("int", "-", "jumps of the ICP against the truth (relocalisations: steps of their difference between "
