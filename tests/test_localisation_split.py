@@ -119,3 +119,22 @@ def test_ros2_bag_split_into_files_is_one_bag(split, tmp_path):
     info["topics_with_message_count"] = list(counts.values())
     (bag / "metadata.yaml").write_text(yaml.safe_dump({"rosbag2_bagfile_information": info}))
     _same(localise(whole), localise(bag))
+
+
+@pytest.mark.parametrize("write", [synth.write_mcap, synth.write_mcap_ros1])
+def test_mcap_pieces_are_joined_or_refused_naming_mcap_merge(split, tmp_path, write):
+    """Standalone MCAP pieces join like ROS1 bags (rosbags reads CDR ones; the pose topics of ROS1-encoded ones
+    through their index); ROS1-encoded pieces that need the general reader (tf) are refused, naming mcap merge."""
+    _, run, _, _ = split
+    cut = int((synth.T0 + CUTS[1]) * 1e9)
+    pieces = [write(run, tmp_path / f"run_{i}.mcap", edit=lambda m, s, i=i: [x for x in m if (x[0] < cut) == (i == 0)])
+              for i in (0, 1)]
+    whole = write(run, tmp_path / "whole.mcap")
+    _same(localise(whole), localise(pieces, join=True))
+    if write is synth.write_mcap:
+        _same(localise(whole, icp="tf:map->base_link"), localise(pieces, join=True, icp="tf:map->base_link"))
+    else:
+        with pytest.raises(InputError, match="run_0.mcap: pieces of an MCAP recording with ROS1-encoded channels cannot be "
+                                             r"read as one run; merge them into one file first \(mcap merge run_0.mcap "
+                                             r"run_1.mcap -o ONE.mcap\)"):
+            localise(pieces, join=True, icp="tf:map->base_link")

@@ -327,7 +327,7 @@ def runs_of(bags: list[Path], join: bool | None = None) -> list[tuple[Path, ...]
             what = (f"{b.name} starts {gap:.3g} s after {a.name} ends" if gap >= 0
                     else f"{b.name} starts {-gap:.3g} s before {a.name} ends")
             if join is None and n1 == n0 + 1 and abs(gap) <= CONTINUES:
-                raise InputError(f"{a.name} and {b.name} are pieces of one split recording (rosbag record --split: {what})",
+                raise InputError(f"{a.name} and {b.name} are pieces of one split recording ({what})",
                                  path=a.parent, remedy="analyse them as one run with --join (or each as a run of its own "
                                                        "with --no-join)")
             if join and n1 != n0 + 1:
