@@ -184,7 +184,8 @@ class _McapRos1Source(_Source):
 
         super().__init__(path)
         self.reader = reader
-        self.span = (summary.statistics.message_start_time, summary.statistics.message_end_time) if summary.statistics else (0, 0)
+        stats = summary.statistics  # without statistics, a span that continues nothing (as rosbags' of an empty bag)
+        self.span = (stats.message_start_time, stats.message_end_time) if stats else (2**63 - 1, 0)
         self.store = get_typestore(Stores.ROS1_NOETIC)
         self.channels = {}
         counts = summary.statistics.channel_message_counts if summary.statistics else {}
@@ -322,7 +323,8 @@ def runs_of(bags: list[Path], join: bool | None = None) -> list[tuple[Path, ...]
         for (n0, a), (n1, b) in zip(items, items[1:]):
             if n1 == n0:
                 raise InputError("bag given twice", path=b, remedy="give each bag once")
-            (_, end), (start, _) = _span(a), _span(b)
+        spans = [_span(p) for _, p in items]
+        for (n0, a), (n1, b), (_, end), (start, _) in zip(items, items[1:], spans, spans[1:]):
             gap = (start - end) * 1e-9
             what = (f"{b.name} starts {gap:.3g} s after {a.name} ends" if gap >= 0
                     else f"{b.name} starts {-gap:.3g} s before {a.name} ends")
