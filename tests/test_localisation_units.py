@@ -438,8 +438,8 @@ def test_delay_of_a_run_without_velocity_changes_is_refused(motion):
 
 def test_drift_of_a_run_standing_still_is_nan_and_said():
     """Standing still, the travelled distance is the path of the marker noise (5 mm over 30 s): the drift was a
-    slope over it, 0.14 +- 0.14 m/m (0.27, -0.21, -0.10 with other seeds), as evo's RPE finds no pair of poses a
-    metre apart. Now NaN, with the reason; a walk keeps its drift."""
+    slope over it, 0.14 +- 0.14 m/m (0.27, -0.21, -0.10 with other seeds); evo's RPE over 1 m with the pairs taken
+    on the truth finds none. Now NaN, with the reason; a walk keeps its drift."""
     t = np.arange(0, 30, 0.005) + 1e9
     rng = np.random.default_rng(0)
     xyz = np.column_stack([1.0 + 0 * t, 0.5 + 0 * t, 0.3 + 0 * t])
