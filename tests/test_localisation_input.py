@@ -190,6 +190,33 @@ def test_nan_and_zero_poses_name_the_topic_and_the_cause(cli, tmp_path):
                                               "zero orientation quaternion (orientation unset))"])
 
 
+@pytest.mark.parametrize("topic, scale", [("/mocap/pose", 2.0), ("/icp/pose", 0.5)])
+def test_quaternions_of_one_constant_norm_are_normalised_with_a_warning(cli, tmp_path, short, level, topic, scale):
+    """A publisher that never normalises (every quaternion of norm 2, or 0.5, within 0.2 %) was refused: "no usable
+    pose in 4963 message(s) (4963 with an orientation quaternion of norm far from 1 (2..2: damaged))". Its
+    orientations are those of the unit quaternions: the numbers of the run as recorded, with one warning."""
+    rng = np.random.default_rng(0)
+    bag = synth.write_ros1(short[1], tmp_path / "scaled.bag", edit=damage.edit_poses(
+        lambda t, i, xyz, q: (xyz, q * scale * (1 + rng.uniform(-0.002, 0.002)) if t == topic else q)))
+    code, _, err = cli("localisation", bag, "--out", tmp_path / "ws", "--no-figures")
+    assert code == 0, err
+    assert f"{topic}: every orientation quaternion has the norm {scale:g}, not 1" in " ".join(err.split())
+    r = _runs(tmp_path / "ws").iloc[0]
+    assert f"{topic}: every orientation quaternion has the norm" in r["warnings"]
+    for col in ("delay", "ape_rmse", "err_yaw_rmse", "offset_yaw", "n_truth", "n_icp"):
+        assert r[col] == pytest.approx(level[col], rel=1e-9), col
+
+
+def test_quaternions_of_varying_norms_are_damage(cli, tmp_path):
+    """Norms spread over 1.5..3 share no constant: damage, as before."""
+    rng = np.random.default_rng(0)
+    n_icp = len(synth.make_run(SHORT).t_icp)
+    bag = synth.write_ros1(synth.make_run(SHORT), tmp_path / "spread.bag", edit=damage.edit_poses(
+        lambda t, i, xyz, q: (xyz, q * rng.uniform(1.5, 3.0) if t == "/icp/pose" else q)))
+    _fails(cli, tmp_path / "ws", bag, match=[f"spread.bag: /icp/pose: no usable pose in {n_icp} message(s) ({n_icp} with an "
+                                             "orientation quaternion of norm far from 1 (1.5"])
+
+
 def test_bag_info_prints_long_topic_names_whole(cli, tmp_path):
     long = "/robot/localization/lidar_icp_node_with_a_really_long_name/pose_in_map_frame_estimated"
     bag = synth.write_ros1(synth.make_run(SHORT), tmp_path / "long.bag", edit=damage.rename_topic("/icp/pose", long))

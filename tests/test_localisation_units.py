@@ -436,6 +436,21 @@ def test_delay_of_a_run_without_velocity_changes_is_refused(motion):
     assert estimate_delay(_walk(), _icp_of(_walk(), 0.537, np.zeros(4), np.array([0.005] * 4))).determined
 
 
+def test_drift_of_a_run_standing_still_is_nan_and_said():
+    """Standing still, the travelled distance is the path of the marker noise (5 mm over 30 s): the drift was a
+    slope over it, 0.14 +- 0.14 m/m (0.27, -0.21, -0.10 with other seeds); evo's RPE over 1 m with the pairs taken
+    on the truth finds none. Now NaN, with the reason; a walk keeps its drift."""
+    t = np.arange(0, 30, 0.005) + 1e9
+    rng = np.random.default_rng(0)
+    xyz = np.column_stack([1.0 + 0 * t, 0.5 + 0 * t, 0.3 + 0 * t])
+    truth = PoseStream(t, xyz + rng.normal(0, 2e-4, xyz.shape), P.from_yaw(np.zeros_like(t)))
+    c = compare(truth, _icp_of(truth, 0.55, np.zeros(4), np.array([0.006, 0.006, 0.003, 0.004])), delay=0.55)
+    assert np.isnan(c.summary["drift"]) and np.isnan(c.summary["drift_sd"]) and c.summary["ape_rmse"] < 0.02
+    assert "the compared poses span 5.2 mm of travelled distance, less than 1 m: no drift per metre" in " ".join(c.notes)
+    walk = compare(_walk(), _icp_of(_walk(), 0.537, np.zeros(4), np.array([0.005] * 4)))
+    assert np.isfinite(walk.summary["drift"]) and not any("travelled distance" in n for n in walk.notes)
+
+
 @pytest.mark.parametrize("motion, alignment, spread", [
     ("standing", "se3", "hardly spread in any direction"), ("standing", "yaw", "hardly spread in the horizontal plane"),
     ("straight", "se3", "spread along one direction only")])

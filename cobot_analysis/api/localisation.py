@@ -18,16 +18,21 @@ from cobot_analysis.metrics import localisation as headline
 from cobot_analysis.metrics.records import Metrics, collect
 
 
-def run_labels(bags: list[Path]) -> list[str]:
-    """Run labels: the bags' stems (their names where two stems are the same, and for a ROS2 bag directory);
-    ``localise`` below shows ``run`` for ``run.bag``.
+def run_labels(runs: list) -> list[str]:
+    """Run labels: the bags' stems (their names where two stems are the same, and for a ROS2 bag directory); for
+    the pieces of a split recording (a tuple of paths) the stem they share; ``localise`` below shows ``run`` for
+    ``run.bag``.
 
         >>> from pathlib import Path
-        >>> run_labels([Path("robot/run_ros2")])
-        ['run_ros2']
+        >>> run_labels([Path("robot/run_ros2"), (Path("robot/lap_0.bag"), Path("robot/lap_1.bag"))])
+        ['run_ros2', 'lap']
     """
-    stems = [b.stem if b.is_file() else b.name for b in bags]
-    return [b.name if stems.count(s) > 1 else s for b, s in zip(bags, stems)]
+    from cobot_analysis.localisation.bags import PIECE, run_files
+
+    files = [run_files(r) for r in runs]
+    stems = [PIECE.match(paths[0].stem)["stem"] if len(paths) > 1 else paths[0].stem if paths[0].is_file() else paths[0].name
+             for paths, _ in files]
+    return [name.name if stems.count(s) > 1 else s for (_, name), s in zip(files, stems)]
 
 
 @dataclass
@@ -90,19 +95,22 @@ def localisation_options(bags: list[Path], *, truth: str = "/mocap/pose", icp: s
                          association: str = "interpolate", max_gap: float | None = None, max_diff: float = 0.01,
                          goals_csv: str | os.PathLike | None = None, goal_topic: str = "/goal", speed_threshold: float = 0.02,
                          yaw_rate_threshold: float = 0.03, min_stop: float = 3.0, tol_xy: float = 0.08, tol_yaw: float = 0.07,
-                         distance_window: float = 2.0, up: str = "auto", min_samples: int = 20, units: str = "m"):
-    """(Options, labels, maps): the options of ``localise`` checked (one line naming the option otherwise).
+                         distance_window: float = 2.0, up: str = "auto", min_samples: int = 20, units: str = "m",
+                         join: bool | None = None):
+    """(Options, runs, labels, maps): the options of ``localise`` checked (one line naming the option otherwise);
+    ``runs``: the bags of each run (``localisation.bags.runs_of``: the pieces of a split recording, ``run_0.bag``,
+    ``run_1.bag``, ..., are one run with ``join=True``, each a run with ``join=False``, refused with ``None``).
 
         >>> from pathlib import Path
-        >>> opts, labels, maps = localisation_options([Path("run.bag")], delay_window="0,2", label=["lab-run"])
-        >>> opts.window, opts.alignment, labels, maps
-        ((0.0, 2.0), 'mean', ['lab-run'], [''])
+        >>> opts, runs, labels, maps = localisation_options([Path("run.bag")], delay_window="0,2", label=["lab-run"])
+        >>> opts.window, opts.alignment, runs, labels, maps
+        ((0.0, 2.0), 'mean', [(PosixPath('run.bag'),)], ['lab-run'], [''])
         >>> localisation_options([Path("run.bag")], alignment="umeyama")
         Traceback (most recent call last):
         cobot_analysis.errors.InputError: --alignment must be mean, se3, yaw or none, not 'umeyama'
     """
     from cobot_analysis.localisation.analysis import Options
-    from cobot_analysis.localisation.bags import PoseSpec
+    from cobot_analysis.localisation.bags import PoseSpec, runs_of
     from cobot_analysis.localisation.goals import StopRule, read_goals_csv
 
     goals = goals_csv
@@ -142,21 +150,23 @@ def localisation_options(bags: list[Path], *, truth: str = "/mocap/pose", icp: s
         raise InputError(f"--alignment must be mean, se3, yaw or none, not {alignment!r}")
     if association not in ("interpolate", "nearest"):
         raise InputError(f"--association must be interpolate or nearest, not {association!r}")
-    labels = list(label) if label else run_labels(bags)
-    if len(labels) != len(bags):
-        raise InputError(f"{len(labels)} --label for {len(bags)} bags", remedy="give one --label per bag")
-    for i, b in enumerate(bags):  # a run's label names its rows and metrics: two runs cannot share one
+    runs = runs_of(bags, join)
+    labels = list(label) if label else run_labels(runs)
+    what = "runs (split recordings joined)" if len(runs) < len(bags) else "bags"
+    if len(labels) != len(runs):
+        raise InputError(f"{len(labels)} --label for {len(runs)} {what}", remedy="give one --label per run")
+    for i, r in enumerate(runs):  # a run's label names its rows and metrics: two runs cannot share one
         j = labels.index(labels[i])
-        if j < i and bags[j].resolve() == b.resolve():
-            raise InputError("bag given twice", path=b, remedy="give each bag once")
+        if j < i and [b.resolve() for b in runs[j]] == [b.resolve() for b in r]:
+            raise InputError("bag given twice", path=r[0], remedy="give each bag once")
         if j < i:
-            raise InputError(f"run label {labels[i]!r} given to two bags ({bags[j]} and this one)", path=b,
+            raise InputError(f"run label {labels[i]!r} given to two bags ({runs[j][0]} and this one)", path=r[0],
                              remedy="give each bag its own --label, once per bag, in order")
     maps = list(map_name or [""])
     if len(maps) == 1:
-        maps = maps * len(bags)
-    if len(maps) != len(bags):
-        raise InputError(f"{len(maps)} --map-name for {len(bags)} bags", remedy="give one --map-name for all bags or one per bag")
+        maps = maps * len(runs)
+    if len(maps) != len(runs):
+        raise InputError(f"{len(maps)} --map-name for {len(runs)} {what}", remedy="give one --map-name for all runs or one per run")
     goal_rows = tuple(map(tuple, read_goals_csv(goals))) if goals else None
     opts = Options(truth=truth, icp=icp, time=time, delay=delay, window=window, weights=weights, alignment=alignment,
                    association=association, max_gap=max_gap, max_diff=max_diff, distance_window=distance_window,
@@ -164,7 +174,7 @@ def localisation_options(bags: list[Path], *, truth: str = "/mocap/pose", icp: s
                    goal_topic=goal_topic or None, goals=goal_rows,
                    rule=StopRule(speed_threshold=speed_threshold, yaw_rate_threshold=yaw_rate_threshold,
                                  min_duration=min_stop, tol_xy=tol_xy, tol_yaw=tol_yaw))
-    return opts, labels, maps
+    return opts, runs, labels, maps
 
 
 def localise(bags: str | os.PathLike | list[str | os.PathLike], *, jobs: int | None = None, scheduler: str | None = None,
@@ -193,7 +203,7 @@ def localise(bags: str | os.PathLike | list[str | os.PathLike], *, jobs: int | N
         ['run']
         >>> localise(bag, tol=0.1)
         Traceback (most recent call last):
-        cobot_analysis.errors.InputError: unknown localise option(s) ['tol']; use truth, icp, time, label, map_name, delay, delay_window, delay_weights, alignment, association, max_gap, max_diff, goals_csv, goal_topic, speed_threshold, yaw_rate_threshold, min_stop, tol_xy, tol_yaw, distance_window, up, min_samples, units
+        cobot_analysis.errors.InputError: unknown localise option(s) ['tol']; use truth, icp, time, label, map_name, delay, delay_window, delay_weights, alignment, association, max_gap, max_diff, goals_csv, goal_topic, speed_threshold, yaw_rate_threshold, min_stop, tol_xy, tol_yaw, distance_window, up, min_samples, units, join
         >>> tmp.cleanup()
     """
     import inspect
@@ -206,30 +216,32 @@ def localise(bags: str | os.PathLike | list[str | os.PathLike], *, jobs: int | N
     for b in bags:
         if not b.exists():
             raise InputError("no such file or directory", path=b, remedy="check the path")
-    opts, labels, maps = localisation_options(bags, **options)
-    return analyse(bags, opts, labels, maps, jobs=jobs, scheduler=scheduler)
+    opts, runs, labels, maps = localisation_options(bags, **options)
+    return analyse(runs, opts, labels, maps, jobs=jobs, scheduler=scheduler)
 
 
-def analyse(bags: list[Path], opts, labels: list[str], maps: list[str], *, jobs: int | None = None,
+def analyse(runs: list, opts, labels: list[str], maps: list[str], *, jobs: int | None = None,
             scheduler: str | None = None) -> LocalisationResult:
-    """Analyse each bag with checked options (``localisation_options``): ``localise`` without its checks
-    of the paths; the ``localisation`` stage calls it after recording the checked options.
+    """Analyse each run (a bag, or a tuple of the pieces of a split recording) with checked options
+    (``localisation_options``): ``localise`` without its checks of the paths; the ``localisation`` stage
+    calls it after recording the checked options.
 
         >>> import tempfile
         >>> from pathlib import Path
         >>> from cobot_analysis.localisation import synth
         >>> tmp = tempfile.TemporaryDirectory()
         >>> bag = synth.write_mcap(synth.make_run(synth.SynthParams(n_goals=1, stop=3.0, speed=0.3)), Path(tmp.name) / "run.mcap")
-        >>> opts, labels, maps = localisation_options([bag], delay=0.55)
-        >>> r = analyse([bag], opts, labels, maps)
+        >>> opts, runs, labels, maps = localisation_options([bag], delay=0.55)
+        >>> r = analyse(runs, opts, labels, maps)
         >>> float(r.runs.loc[0, "delay"]), r.runs.loc[0, "delay_method"], int(r.runs.loc[0, "n"]) == len(r.errors)
         (0.55, 'given', True)
         >>> tmp.cleanup()
     """
     from cobot_analysis.localisation.analysis import analyse_run
+    from cobot_analysis.localisation.bags import run_files
     from cobot_analysis.parallel import map_tasks
 
-    tasks = [(str(b), lab, m, opts) for b, lab, m in zip(bags, labels, maps)]
+    tasks = [(tuple(str(p) for p in run_files(r)[0]), lab, m, opts) for r, lab, m in zip(runs, labels, maps)]
     n_jobs = 1 if len(tasks) == 1 else jobs
     results = map_tasks(analyse_run, tasks, jobs=n_jobs, scheduler=scheduler, description="localisation runs",
                         status=lambda r: f"{r['run']}: delay {r['row']['delay']:.3f} s")

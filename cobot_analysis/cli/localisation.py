@@ -133,6 +133,7 @@ def localisation_command(
     up: Annotated[str, typer.Option(help="Vertical axis of the frames: auto (detected from the motion, warned when not z), x, y, z, -x, -y, -z, or TRUTH,ICP (e.g. -y,z for a camera-frame truth). Planar quantities (distance, drift, stops, yaw) are computed in the plane normal to it.")] = "auto",
     min_samples: Annotated[int, typer.Option(help="Fewest associated ICP poses accepted (>= 3).")] = 20,
     units: Annotated[str, typer.Option(help="Unit of the positions: m or mm, or TRUTH,ICP (e.g. mm,m for a motion-capture bridge publishing millimetres).")] = "m",
+    join: Annotated[Optional[bool], typer.Option("--join/--no-join", help="Bags named STEM_N (rosbag record --split: run_0.bag, run_1.bag, ...) whose record times continue one another: one run (--join) or a run each (--no-join); without either they are refused.")] = None,
     figures: Annotated[bool, typer.Option("--figures/--no-figures", help="Draw the figures (PNG and PDF).")] = True,
 ) -> None:
     """Localisation accuracy of ICP against motion capture: delay, structural offset, per-axis errors,
@@ -155,7 +156,7 @@ def localisation_command(
                         alignment=alignment, association=association, max_gap=max_gap, max_diff=max_diff, goals_csv=goals,
                         goal_topic=goal_topic, speed_threshold=speed_threshold, yaw_rate_threshold=yaw_rate_threshold,
                         min_stop=min_stop, tol_xy=tol_xy, tol_yaw=tol_yaw, distance_window=distance_window, up=up,
-                        min_samples=min_samples, units=units)
+                        min_samples=min_samples, units=units, join=join)
     if done.skipped:
         return
     for line in done.result.run_lines(where=str(done.directory / "results.md")):

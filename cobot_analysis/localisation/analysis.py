@@ -13,7 +13,7 @@ import numpy as np
 from cobot_analysis.console import warn
 from cobot_analysis.errors import InputError
 from cobot_analysis.localisation import vertical
-from cobot_analysis.localisation.bags import PoseSpec, read_streams
+from cobot_analysis.localisation.bags import PoseSpec, read_streams, run_files
 from cobot_analysis.localisation.compare import compare
 from cobot_analysis.localisation.goals import StopRule, goal_accuracy, goal_summary, goals_from_stream
 
@@ -106,15 +106,16 @@ def _check_units(path: Path, o: Options, truth, icp) -> None:
                      f"{sd[1]:.3g} over their common time): not the same units", path=path, remedy=remedy)
 
 
-def analyse_run(task: tuple[str, str, str, Options]) -> dict:
-    """``(path, run label, map label, options)`` -> poses, comparison, goals and the per-run row."""
+def analyse_run(task: tuple[str | tuple[str, ...], str, str, Options]) -> dict:
+    """``(path, run label, map label, options)`` -> poses, comparison, goals and the per-run row; ``path``: a bag,
+    or the pieces of a split recording (read as one run, named ``DIR/run_0.bag+run_1.bag``)."""
     _return_freed_memory()
-    path, run, map_label, o = task
-    path = Path(path)
+    files, run, map_label, o = task
+    path = run_files(files)[1]
     specs = {"truth": PoseSpec.parse(o.truth), "icp": PoseSpec.parse(o.icp)}
     if o.goals is None and o.goal_topic:
         specs["goals"] = PoseSpec.parse(o.goal_topic)
-    streams = read_streams(path, specs, o.time, optional=("goals",), sparse=("goals",),
+    streams = read_streams(files, specs, o.time, optional=("goals",), sparse=("goals",),
                            scale={"truth": o.scale[0], "icp": o.scale[1], "goals": o.scale[1]})  # goals: in the ICP's map
     goal_from_bag = "goals" in streams
     (truth, frozen), icp = _unfrozen(streams["truth"]), streams["icp"]

@@ -16,11 +16,16 @@ library and are decoded with the rosbags ROS1 deserialiser. Messages give poses 
 Stamps are header stamps (``sec + nanosec 1e-9``) unless ``time="record"`` (the bag's receive
 time). Streams are sorted by time (with a warning when they were not) and exact duplicates of a
 stamp are dropped.
+
+A run is one bag, or the pieces of a split recording (``rosbag record --split``: ``run_0.bag``,
+``run_1.bag``, ...) read as one (``runs_of``; rosbags' ``AnyReader`` merges several ROS1 bags). A ROS2
+bag directory split into several files is one bag already.
 """
 
 from __future__ import annotations
 
 import os
+import re
 from collections import defaultdict, deque
 from collections.abc import Iterator
 from contextlib import ExitStack, contextmanager
@@ -95,7 +100,8 @@ class Topic:
 
 class _Source:
     """A bag opened for reading: its topics, ``raw(topics)`` yielding ``(topic, msgtype,
-    record_ns, bytes)`` in record order, and ``deserialize(bytes, msgtype)``."""
+    record_ns, bytes)`` in record order, ``deserialize(bytes, msgtype)``, and ``span``: the record
+    times of its first and last messages (ns)."""
 
     ros1 = False
 
@@ -118,6 +124,10 @@ class _RosbagsSource(_Source):
                 raise ValueError(f"the topic {c.topic!r} has the message type {c.msgtype!r}, not a name")
             t = self.topics.setdefault(c.topic, Topic(c.topic, c.msgtype, 0))
             t.count += c.msgcount
+
+    @property
+    def span(self) -> tuple[int, int]:
+        return self.reader.start_time, self.reader.end_time
 
     def raw(self, topics):
         conns = [c for c in self.reader.connections if c.topic in topics]
@@ -174,6 +184,8 @@ class _McapRos1Source(_Source):
 
         super().__init__(path)
         self.reader = reader
+        stats = summary.statistics  # without statistics, a span that continues nothing (as rosbags' of an empty bag)
+        self.span = (stats.message_start_time, stats.message_end_time) if stats else (2**63 - 1, 0)
         self.store = get_typestore(Stores.ROS1_NOETIC)
         self.channels = {}
         counts = summary.statistics.channel_message_counts if summary.statistics else {}
@@ -217,22 +229,34 @@ def _mcap_ros1_summary(path: Path, fh):
 _NOT_A_BAG = "give a ROS1 .bag file, a ROS2 bag directory (with metadata.yaml), or an .mcap/.db3 file"
 
 
+def run_files(path) -> tuple[list[Path], Path]:
+    """The files of a run (a bag, or the pieces of a split recording in order) and the name its messages
+    give it: the bag's path, or ``DIR/run_0.bag+run_1.bag`` for pieces."""
+    paths = [Path(path)] if isinstance(path, (str, os.PathLike)) else [Path(p) for p in path]
+    return paths, paths[0] if len(paths) == 1 else paths[0].with_name("+".join(p.name for p in paths))
+
+
 @contextmanager
-def open_bag(path: str | os.PathLike) -> Iterator[_Source]:
-    """Open a bag of any supported kind; unreadable input raises ``InputError`` naming the file."""
-    path = Path(path)
-    if not path.exists():
-        raise InputError("no such file or directory", path=path, remedy=_NOT_A_BAG)
-    if path.is_file() and path.suffix not in (".bag", ".mcap", ".db3"):
-        raise InputError(f"not a ROS bag (unknown extension {path.suffix!r})", path=path, remedy=_NOT_A_BAG)
-    if path.is_dir() and not (path / "metadata.yaml").is_file():
-        raise InputError("not a ROS2 bag directory (no metadata.yaml)", path=path, remedy=_NOT_A_BAG)
+def open_bag(path: str | os.PathLike | list) -> Iterator[_Source]:
+    """Open a bag of any supported kind, or the pieces of a split recording as one (a list of ROS1 bags,
+    or of .mcap / .db3 files); unreadable input raises ``InputError`` naming the file."""
+    paths, name = run_files(path)
+    for path in paths:
+        if not path.exists():
+            raise InputError("no such file or directory", path=path, remedy=_NOT_A_BAG)
+        if path.is_file() and path.suffix not in (".bag", ".mcap", ".db3"):
+            raise InputError(f"not a ROS bag (unknown extension {path.suffix!r})", path=path, remedy=_NOT_A_BAG)
+        if path.is_dir() and not (path / "metadata.yaml").is_file():
+            raise InputError("not a ROS2 bag directory (no metadata.yaml)", path=path, remedy=_NOT_A_BAG)
     stack = ExitStack()
     try:
-        src = _open(path, stack)
+        src = _open(paths, name, stack)
+    except InputError:
+        stack.close()
+        raise
     except Exception as exc:  # noqa: BLE001 - rosbags/mcap raise many types on corrupt input (MemoryError too)
         stack.close()
-        raise InputError(f"not a readable ROS bag ({_cause(exc)})", path=path, remedy=_repair(path)) from None
+        raise InputError(f"not a readable ROS bag ({_cause(exc)})", path=name, remedy=_repair(name)) from None
     with stack:
         yield src
 
@@ -256,18 +280,74 @@ def _repair(path: Path) -> str:
     return f"the file is truncated or damaged: {how}"
 
 
-def _open(path: Path, stack: ExitStack) -> _Source:
+def _open(paths: list[Path], name: Path, stack: ExitStack) -> _Source:
     from rosbags.highlevel import AnyReader
 
-    if path.suffix == ".mcap":
+    for path in paths:
+        if path.suffix != ".mcap":
+            continue
         fh = stack.enter_context(open(path, "rb"))
         try:
             reader, summary = _mcap_ros1_summary(path, fh)
         except Exception:  # noqa: BLE001 - let rosbags try (it also scans unindexed files)
             reader, summary = None, None
+        if reader is not None and len(paths) > 1:
+            raise InputError("pieces of an MCAP recording with ROS1-encoded channels cannot be read as one run", path=path,
+                             remedy=f"merge them into one file first (mcap merge {' '.join(p.name for p in paths)} -o ONE.mcap)")
         if reader is not None:
             return _McapRos1Source(path, fh, reader, summary)
-    return _RosbagsSource(path, stack.enter_context(AnyReader([path])))
+    return _RosbagsSource(name, stack.enter_context(AnyReader(paths)))
+
+
+# ---- split recordings ---------------------------------------------------------------------------
+PIECE = re.compile(r"^(?P<stem>.+)_(?P<n>\d+)$")  # rosbag record --split: run_0.bag, run_1.bag, ...
+CONTINUES = 1.0  # s: a piece of a split recording starts within this of the end of the piece before it
+
+
+def runs_of(bags: list[Path], join: bool | None = None) -> list[tuple[Path, ...]]:
+    """The runs of ``bags``: each bag alone, except the pieces of split recordings (``rosbag record --split``:
+    files ``STEM_N`` of one directory and extension, N consecutive, each starting within ``CONTINUES`` s of
+    the end of the one before), which ``join=True`` makes one run (pieces in the order of N, at the place of
+    the first given). ``join=None`` refuses such pieces, naming ``--join`` and ``--no-join``; ``join=False``
+    keeps every bag a run. With ``join=True``, files ``STEM_N`` that do not continue one another are refused."""
+    if join is False:
+        return [(b,) for b in bags]
+    groups: dict[tuple, list[tuple[int, Path]]] = defaultdict(list)
+    for b in bags:
+        m = PIECE.match(b.stem) if b.is_file() else None
+        if m:
+            groups[(b.parent.resolve(), m["stem"], b.suffix)].append((int(m["n"]), b))
+    run_of: dict[Path, tuple[Path, ...]] = {}
+    for (_, stem, suffix), items in groups.items():
+        items.sort()
+        for (n0, a), (n1, b) in zip(items, items[1:]):
+            if n1 == n0:
+                raise InputError("bag given twice", path=b, remedy="give each bag once")
+        spans = [_span(p) for _, p in items]
+        for (n0, a), (n1, b), (_, end), (start, _) in zip(items, items[1:], spans, spans[1:]):
+            gap = (start - end) * 1e-9
+            what = (f"{b.name} starts {gap:.3g} s after {a.name} ends" if gap >= 0
+                    else f"{b.name} starts {-gap:.3g} s before {a.name} ends")
+            if join is None and n1 == n0 + 1 and abs(gap) <= CONTINUES:
+                raise InputError(f"{a.name} and {b.name} are pieces of one split recording ({what})",
+                                 path=a.parent, remedy="analyse them as one run with --join (or each as a run of its own "
+                                                       "with --no-join)")
+            if join and n1 != n0 + 1:
+                raise InputError(f"--join: {stem}_{n0 + 1}{suffix} is missing between {a.name} and {b.name}", path=a.parent,
+                                 remedy="give every piece of the recording")
+            if join and abs(gap) > CONTINUES:
+                raise InputError(f"--join: {a.name} and {b.name} are not pieces of one recording ({what})", path=a.parent,
+                                 remedy="give --join the pieces of split recordings only (analyse the others in another call)")
+        if join:
+            run_of.update((b, tuple(p for _, p in items)) for _, b in items)
+    runs = [run_of.get(b, (b,)) for b in bags]
+    return [r for i, r in enumerate(runs) if len(r) == 1 or r not in runs[:i]]
+
+
+def _span(path: Path) -> tuple[int, int]:
+    """The record times (ns) of the first and last messages of a bag."""
+    with open_bag(path) as src:
+        return src.span
 
 
 # ---- bag-info ---------------------------------------------------------------------------------
@@ -331,21 +411,22 @@ def _pose_of(msg, msgtype: str):
     return (p.x, p.y, p.z), (q.x, q.y, q.z, q.w)
 
 
-def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str = "header",
+def read_streams(path: str | os.PathLike | list, specs: dict[str, PoseSpec], time: str = "header",
                  optional: tuple[str, ...] = (), sparse: tuple[str, ...] = (),
                  scale: dict[str, float] | None = None) -> dict[str, PoseStream]:
-    """Read several pose streams in one pass over the bag: ``{name: PoseStream}``; the names in
+    """Read several pose streams in one pass over the bag (or over the pieces of a split recording, a list
+    of paths, as one): ``{name: PoseStream}``; the names in
     ``optional`` are left out (instead of an error) when their topic is not in the bag; those in
     ``sparse`` (commands such as goals) are not checked for continuity (``_stream``); ``scale``: metres
     per unit of a stream's positions (0.001 for millimetres; 1 when not given), applied before the checks."""
     if time not in ("header", "record"):
         raise ValueError("time must be 'header' or 'record'")
-    path = Path(path)
+    paths, path = run_files(path)
     scale = scale or {}
-    fast = _indexed_streams(path, specs, time, optional, sparse, scale)
+    fast = _indexed_streams(paths, specs, time, optional, sparse, scale)
     if fast is not None:
         return fast
-    with open_bag(path) as src:
+    with open_bag(paths) as src:
         need = set()
         specs = {k: v for k, v in specs.items() if k not in optional or v.is_tf or v.topic in src.topics}
         missing = {k: v for k, v in specs.items() if not v.is_tf and v.topic not in src.topics}
@@ -422,24 +503,31 @@ def read_streams(path: str | os.PathLike, specs: dict[str, PoseSpec], time: str 
     return out
 
 
-def _indexed_streams(path: Path, specs: dict[str, PoseSpec], time: str, optional: tuple[str, ...],
+def _indexed_streams(path, specs: dict[str, PoseSpec], time: str, optional: tuple[str, ...],
                      sparse: tuple[str, ...], scale: dict[str, float] | None = None) -> dict[str, PoseStream] | None:
     """``read_streams`` through the bag's own index (``indexed``) when every stream is a pose topic of
-    the bag whose messages share one layout; None otherwise (the general path then reads the bag)."""
+    the bag whose messages share one layout (for pieces: each piece holds every stream, all of one layout,
+    read one after the other); None otherwise (the general path then reads the bag)."""
     if any(spec.is_tf for spec in specs.values()):
         return None
     from cobot_analysis.localisation import indexed
 
-    bag = indexed.open_indexed(path)
-    if bag is None:
+    paths, path = run_files(path)
+    bags = [indexed.open_indexed(p) for p in paths]
+    if any(b is None or b.ros1 != bags[0].ros1 for b in bags):
         return None
+    bag = bags[0]
     specs = {k: v for k, v in specs.items() if k not in optional or v.topic in bag.topics}
     topics = sorted({spec.topic for spec in specs.values()})
-    if not all(bag.topics.get(topic) in POSE_TYPES for topic in topics):
+    if not all(bag.topics.get(t) in POSE_TYPES and all(b.topics.get(t) == bag.topics[t] for b in bags) for t in topics):
         return None
-    messages = bag.read(topics)
-    if messages is None:
+    parts = [b.read(topics) for b in bags]
+    if any(p is None for p in parts) or any(len({p[t].data.shape[1] for p in parts}) > 1 for t in topics):
         return None
+    messages = parts[0] if len(parts) == 1 else {
+        t: indexed.Messages(np.concatenate([p[t].record_ns for p in parts]), np.concatenate([p[t].data for p in parts]))
+        for t in topics}
+    parts = None
     read = {}
     for name, spec in specs.items():
         msgtype, msgs = bag.topics[spec.topic], messages[spec.topic]
@@ -588,6 +676,15 @@ def _turn(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return 2 * np.arccos(np.clip(np.abs(np.sum(a * b, axis=1)), 0.0, 1.0))
 
 
+def _constant_norm(norm: np.ndarray) -> float:
+    """The norm all the orientation quaternions share (their median, when every norm is within ``QUAT_TOL`` of it,
+    relatively, and it is not within ``QUAT_TOL`` of 1: a publisher that never normalises), else 1."""
+    if not len(norm):
+        return 1.0
+    m = float(np.median(norm))
+    return m if abs(m - 1.0) > QUAT_TOL and np.all(np.abs(norm / m - 1.0) <= QUAT_TOL) else 1.0
+
+
 def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continuous: bool = True,
             record: np.ndarray | None = None) -> PoseStream:
     """Sorted, de-duplicated stream from rows ``(t, x, y, z, qx, qy, qz, qw)`` in the order read
@@ -595,7 +692,8 @@ def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continu
     ``meta["clock"]``).
 
     Dropped with a warning (kept in ``meta["notes"]``): messages with NaN/inf (a lost rigid body), a
-    zero quaternion (orientation unset) or a quaternion far from unit norm; repeated stamps. Sorted
+    zero quaternion (orientation unset) or a quaternion far from unit norm (from the norm all share, when
+    they share one: ``_constant_norm``, normalised with a warning); repeated stamps. Sorted
     with a warning: unsorted stamps. Warned about: jumps faster than ``MAX_SPEED`` / ``MAX_TURN``
     (a relocalisation, or damage at an end of the stream). Refused (``InputError`` naming the
     message), as values no recording holds: a stamp whose nanosec is not below 1e9, a position
@@ -625,7 +723,11 @@ def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continu
     finite = np.isfinite(rows).all(axis=1)
     norm = row_norm(np.where(np.isfinite(rows[:, 4:8]), rows[:, 4:8], 0.0))
     zero = finite & (norm < 1e-9)
-    skew = finite & ~zero & (np.abs(norm - 1.0) > QUAT_TOL)
+    unit = _constant_norm(norm[finite & ~zero])
+    if unit != 1.0:
+        note(f"every orientation quaternion has the norm {unit:.3g}, not 1 (a publisher that does not normalise them): "
+             "normalised")
+    skew = finite & ~zero & (np.abs(norm / unit - 1.0) > QUAT_TOL)
     for mask, what in ((~finite, "NaN/inf values"), (zero, "a zero orientation quaternion (orientation unset)"),
                        (skew, f"an orientation quaternion of norm far from 1 ({norm[skew].min() if skew.any() else 0:.3g}.."
                               f"{norm[skew].max() if skew.any() else 0:.3g}: damaged)")):

@@ -36,7 +36,8 @@ Notation: ``s_i`` the ICP stamps, ``P(t)`` the motion-capture (truth) pose, ``Q_
 4. Errors: ``e_i = Q'_i - P(s_i - d)`` per axis; mean +- sd of ``|e|``, RMSE, max; the 3-D
    position error ``||e_xyz||`` (RMSE, mean, max as evo's APE on the translation part); drift:
    least-squares line ``||e_xy|| = a + b s`` against the travelled distance ``s`` (planar path
-   length of the truth smoothed by a centred moving average), b in m per m. Jumps (``_jumps``: steps
+   length of the truth smoothed by a centred moving average), b in m per m; NaN, said, when the compared
+   poses span less than ``MIN_TRAVEL`` of it (standing still: a slope over the noise). Jumps (``_jumps``: steps
    of ``e`` between consecutive poses of at least ``JUMP`` and ``JUMP_FACTOR`` times the median step,
    a relocalisation) are counted and warned about; with jumps, an estimated delay is estimated again
    with the mean of each stretch between them removed from the residuals (``segments``).
@@ -352,8 +353,21 @@ def travelled_distance(truth: PoseStream, window: float = 2.0) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
 
 
+MIN_TRAVEL = 1.0  # m: the shortest path of the compared poses over which a drift per metre is fitted
+
+
+def _short_path(distance: np.ndarray) -> str | None:
+    """The warning when the compared poses span less than ``MIN_TRAVEL`` of travelled distance (a robot standing
+    still: the drift would be a slope over the marker noise's path, e.g. 0.14 +- 0.14 m/m over 5 mm)."""
+    if np.ptp(distance) >= MIN_TRAVEL:
+        return None
+    return (f"the compared poses span {1000 * np.ptp(distance):.3g} mm of travelled distance, less than {MIN_TRAVEL:g} m: "
+            "no drift per metre (NaN; a robot standing still, or a short run)")
+
+
 def summarise(err: np.ndarray, distance: np.ndarray) -> dict:
-    """Per-axis and 3-D error statistics of ``err`` (n, 4: x, y, z, yaw signed), and drift."""
+    """Per-axis and 3-D error statistics of ``err`` (n, 4: x, y, z, yaw signed), and drift (NaN over a path
+    shorter than ``MIN_TRAVEL``)."""
     out: dict = {"n": int(len(err))}
     for a, name in enumerate(AXES):
         e = np.abs(err[:, a])
@@ -366,7 +380,7 @@ def summarise(err: np.ndarray, distance: np.ndarray) -> dict:
                 "ape_median": float(np.median(norm)), "ape_std": float(norm.std()), "ape_max": float(norm.max()),
                 "ape_min": float(norm.min())})
     exy = np.hypot(err[:, 0], err[:, 1])
-    if len(err) > 2 and np.ptp(distance) > 0:
+    if len(err) > 2 and _short_path(distance) is None:
         coef, cov = np.polyfit(distance, exy, 1, cov=True)
         out["drift"] = float(coef[0])
         out["drift_sd"] = float(np.sqrt(cov[0, 0]))
@@ -561,6 +575,6 @@ def _compare_once(truth: PoseStream, icp: PoseStream, delay, window, weights, al
         **{f"err_{a}": err[:, k] for k, a in enumerate(AXES)},
         "err_xyz": np.linalg.norm(err[:, :3], axis=1),
     })
-    notes = [rotated, _coverage(truth, icp, tq, valid, max_gap, max_diff, association), _icp_gaps(icp)]
+    notes = [rotated, _coverage(truth, icp, tq, valid, max_gap, max_diff, association), _icp_gaps(icp), _short_path(dist)]
     return Comparison(dl, al, samples, summary, [n for n in notes if n])
 

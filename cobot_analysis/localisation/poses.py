@@ -20,7 +20,7 @@ POSES = TableSchema(
     version=1,
     description="Pose streams read from a bag, one row per message (or per chained tf lookup).",
     columns={
-        "run": Column("string", "", "run label (bag file stem unless given)"),
+        "run": Column("string", "", "run label (bag file stem unless given; STEM for the pieces STEM_N of a split recording read as one)"),
         "source": Column("string", "", "'truth' (motion capture) or 'icp' (on-board localisation)"),
         "t": Column("float", "s", "stamp (header stamp, or bag record time with --time record), ROS epoch seconds"),
         "x": Column("float", "m", "position in the frame of the stream, levelled to z-up when it is not (see localisation up_truth / up_icp)"),

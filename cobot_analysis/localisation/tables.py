@@ -26,7 +26,7 @@ RUNS = TableSchema(
     description="Localisation accuracy per run (ICP vs motion capture, docs/methods.md sec. 9).",
     columns={
         "run": Column("string", "", "run label"),
-        "file": Column("string", "", "bag file or directory"),
+        "file": Column("string", "", "bag file or directory; DIR/run_0.bag+run_1.bag for the pieces of a split recording read as one (--join)"),
         "map": Column("string", "", "map label given on the command line (e.g. architectural, scanned)"),
         "truth": Column("string", "", "truth stream (topic or tf:PARENT->CHILD)"),
         "icp": Column("string", "", "ICP stream (topic or tf:PARENT->CHILD)"),
@@ -57,7 +57,7 @@ RUNS = TableSchema(
         "ape_std": Column("float", "m", "population sd of the 3-D position error"),
         "ape_max": Column("float", "m", "max 3-D position error"),
         "ape_min": Column("float", "m", "min 3-D position error"),
-        "drift": Column("float", "m/m", "slope of the planar position error against the travelled distance"),
+        "drift": Column("float", "m/m", "slope of the planar position error against the travelled distance; NaN (said in warnings) when the compared poses span less than 1 m of it"),
         "drift_sd": Column("float", "m/m", "standard error of the slope"),
         "drift_intercept": Column("float", "m", "intercept of that line"),
         "jumps": Column("int", "-", "jumps of the ICP against the truth (relocalisations: steps of their difference between "

@@ -50,14 +50,14 @@ def localisation(out: str | os.PathLike, bags: list[str | os.PathLike] | None = 
     from cobot_analysis.localisation.tables import ERRORS, GOALS, RUNS
     from cobot_analysis.reports import localisation as report
 
-    opts, labels, maps = localisation_options(bags, **options)
+    opts, runs, labels, maps = localisation_options(bags, **options)
     goals = options.get("goals_csv")
     params = {"options": opts, "labels": labels, "maps": maps, "figures": figures}
     inputs = [*bags, *([Path(goals)] if goals else [])]
     with Stage(out, STAGE, inputs=inputs, params=params, force=force) as stage:
         if stage.skipped:
             return Outcome.skip(stage)
-        result = analyse(bags, opts, labels, maps, jobs=jobs, scheduler=scheduler)
+        result = analyse(runs, opts, labels, maps, jobs=jobs, scheduler=scheduler)
         stage.result = result  # its own numbers are the stage's metrics.json
         stage.write_table("poses.parquet", result.poses, POSES, time_base=opts.time)
         stage.write_table("localisation.parquet", result.runs, RUNS)
