@@ -187,6 +187,8 @@ def velocity_commands_command(
 
     v = (p_sim(t+1) - p_real(t)) f in the robot frame, open loop (p_real = p_sim), saturated at
     --v-max (x, y) and --omega-max (yaw). Writes OUT/velocity-commands/commands.csv (or .parquet).
+    Refused: a path of the published convention (no pace), one that is no solution of its model (converged
+    false) and one that spins (its status says so).
     """
     from cobot_analysis.stages import models
 
