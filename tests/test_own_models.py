@@ -232,3 +232,80 @@ def test_generate_study_takes_no_pace_from_another_studys_trials(tmp_path):
     done = generate(tmp_path / "ws", study="walking-2020", means=path, convention="continuous", intervals=20, samples=50, jobs=1,
                     force=True)
     assert {c: T for c, (T, _) in done.result.measured.items()} == {c: 10.0 for c in CONDITIONS}
+
+
+# ---- a frame turned about the goal (goal at the origin, final heading not pi/2) ------------------------------------
+def turned(means: pd.DataFrame, phi: float) -> pd.DataFrame:
+    """``means`` in a lab frame turned by ``phi`` about the goal (the goal stays at (0, 0), its heading pi/2 + phi)."""
+    c, s = np.cos(phi), np.sin(phi)
+    return means.assign(x=c * means["x"] - s * means["y"], y=s * means["x"] + c * means["y"], theta=means["theta"] + phi)
+
+
+@pytest.fixture(scope="module")
+def at_origin() -> pd.DataFrame:
+    return own_means(shift=(0.0, 0.0))
+
+
+@pytest.mark.parametrize("phi", [-np.pi / 2, np.pi / 2, np.pi])
+def test_fit_ioc_auto_goal_is_the_measured_heading_in_a_frame_turned_about_the_goal(at_origin, phi):
+    """The goal arrow along +x (-pi/2), -x (pi/2) or -y (pi): the OC problems took the design heading pi/2, a quarter or
+    half turn off the walkers' (D 0.026, 0.031, 0.051 at the model's own weights, ~0 in the design frame); now each
+    path's measured end, D ~ 0."""
+    from cobot_analysis.angles import angle_diff
+    from cobot_analysis.api import fit_ioc
+
+    fit = fit_ioc(turned(at_origin, phi), fit=["a2", "a4"], max_evaluations=1, intervals=20, compare=False, jobs=1)
+    assert fit.results["all"].start_objective < 0.005
+    assert all(abs(angle_diff(t.goal[2], np.pi / 2 + phi)) < 1e-6 for t in fit.mean_targets)
+
+
+def test_fit_ioc_design_goal_refused_in_a_frame_turned_about_the_goal(at_origin):
+    from cobot_analysis.api import fit_ioc
+
+    with pytest.raises(InputError, match=r"--goal design: the paths end facing 0\.00 rad .*--goal end"):
+        fit_ioc(turned(at_origin, -np.pi / 2), goal="design", max_evaluations=1, intervals=20, compare=False, jobs=1)
+
+
+def test_generate_study_refuses_the_design_heading_in_a_frame_turned_about_the_goal(at_origin, tmp_path, cli):
+    """``generate --study walking-2020`` walked the means of a frame turned a quarter turn to the heading pi/2, their
+    walkers' ending at 0; refused in one line naming the goal that works, nothing written."""
+    from cobot_analysis.schema import TRAJECTORIES, write_table
+
+    means = write_table(turned(at_origin, -np.pi / 2), tmp_path / "means.parquet", TRAJECTORIES)
+    common = ("generate", "--out", str(tmp_path / "ws"), "--study", "walking-2020", "--means", str(means),
+              "--convention", "continuous", "--intervals", "20", "--samples", "50", "--jobs", "1")
+    code, _, err = cli(*common)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert str(means) in err and "facing 0.00 rad" in err and "--goal 0.00 0.00 0.00" in err
+    assert not (tmp_path / "ws" / "generate").exists()
+
+
+def test_predict_refuses_the_walking_goal_heading_in_a_frame_turned_about_the_goal(at_origin, tmp_path, cli):
+    """A study named walking-... ending at (0, 0) facing 0: the goal predictor planned every window to the heading
+    pi/2; refused, naming --goal; goal-inferred (positions only: its candidate (0, 0) is right) still runs."""
+    from cobot_analysis.schema import TRAJECTORIES, write_table
+
+    table = write_table(turned(at_origin, -np.pi / 2).assign(study="walking-lab"), tmp_path / "trajectories.parquet", TRAJECTORIES)
+    common = ("predict", "--trajectories", str(table), "--kind", "mean", "--settings", "10:20", "--limit", "1",
+              "--jobs", "1", "--convention", "continuous")
+    code, _, err = cli(*common, "--out", str(tmp_path / "ws"), "--predictors", "goal")
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "walking-lab/mean_E4015" in err and "facing over 1.1 rad off pi/2" in err and "--goal x,y" in err
+    code, _, err = cli(*common, "--out", str(tmp_path / "ws2"), "--predictors", "goal-inferred")
+    assert code == 0, err
+
+
+def test_the_published_walking_study_keeps_its_design_goal(datasets):
+    """walking-2020 in its own frame: its means and trials end 0.50-0.75 rad off pi/2 (circular median of the last
+    headings; subject S07 alone 2.1), under the 1.1 rad of ``DESIGN_HEADING_TOLERANCE``: the design goal stays."""
+    from cobot_analysis.angles import angle_diff
+    from cobot_analysis.api.models import goal_rule
+    from cobot_analysis.design import WALKING_GOAL
+    from cobot_analysis.io.published import read_walking_2020
+    from cobot_analysis.models.comparison import end_heading
+
+    df, _ = read_walking_2020(datasets / "walking-2020")
+    for kind, off in (("mean", 0.745), ("trial", 0.505)):
+        part = df[df["kind"] == kind]
+        assert abs(abs(angle_diff(end_heading(part), np.pi / 2)) - off) < 0.001
+        assert goal_rule("design", part) == goal_rule("auto", part) == WALKING_GOAL

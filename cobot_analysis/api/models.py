@@ -289,7 +289,9 @@ def walking_cases(convention: str, means: pd.DataFrame | None = None, *, goal: t
     off = design_goal_offset(study_means(means)) if goal is None and means is not None and convention != "published" else None
     if off:
         raise InputError(f"--study walking-2020: {off[0]}", path=path,
-                         remedy="give the goal in your frame, e.g. the median end: --goal {:.2f} {:.2f} {:.2f}".format(*off[1]))
+                         remedy="give the goal in your frame, e.g. the median end: --goal {:.2f} {:.2f} {:.2f}".format(
+                             *(round(v, 2) + 0.0 for v in off[1])))  # + 0.0: no '-0.00'
+
     goal = pose(goal, "--goal") if goal is not None else WALKING_GOAL
     if means is None and convention == "published":
         raise InputError("the published convention takes the authors' start and goal poses from the measured means",
@@ -501,8 +503,9 @@ def held_weights(model: str, convention: str) -> tuple[str, ...]:
 
 def goal_rule(goal: str, df: pd.DataFrame, *, path=None) -> tuple | None:
     """The goal of each OC problem: ``design`` (the walking goal), ``end`` (None: the last measured pose),
-    ``auto`` (design when every condition is a walking-study one and the paths end at it, ``design_goal_offset``).
-    ``design`` on paths that end elsewhere (a lab frame of one's own) is an ``InputError`` naming ``--goal end``.
+    ``auto`` (design when every condition is a walking-study one and the paths end at it, at (0, 0) facing about pi/2,
+    ``design_goal_offset``). ``design`` on paths that end elsewhere or facing elsewhere (a lab frame of one's own) is an
+    ``InputError`` naming ``--goal end``.
 
         >>> import pandas as pd
         >>> from cobot_analysis.api.models import goal_rule
@@ -766,8 +769,9 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     else:
         if trial_df is None or trial_df.empty:
             raise InputError("--per subject needs subject trials", path=trials_source, remedy="pass --trajectories with kind=trial rows")
+        subject_goal = goal_rule(goal, trial_df, path=trials_source)  # the study's frame, judged on all its trials
         for subject, g in sorted(trial_df.groupby("subject")):
-            ts = targets_from_table(g, path=trials_source, entity=entity, goal=goal_rule(goal, g, path=trials_source), convention=conv)
+            ts = targets_from_table(g, path=trials_source, entity=entity, goal=subject_goal, convention=conv)
             if ts:
                 fits[str(subject)] = ts
         if subjects:
