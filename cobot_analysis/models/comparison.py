@@ -28,16 +28,6 @@ def compared_models(convention) -> dict:
     return {k: v for k, v in COMPARED.items() if v[0] == "clothoid" or v[0] in convention.oc}
 
 
-def orientation_of(condition: str) -> str:
-    """Start orientation letter of a walking condition code ('' if not a walking code)."""
-    from cobot_analysis.design import walking_condition
-
-    try:
-        return walking_condition(condition).orientation
-    except ValueError:
-        return ""
-
-
 def compare_task(task) -> tuple[list[dict], dict]:
     """Worker task: every compared model on one target (top-level, picklable): its rows, and the generated
     path of each model labelled in ``keep`` (None where its solve failed)."""
@@ -65,7 +55,7 @@ def compare_task(task) -> tuple[list[dict], dict]:
         if label in keep:
             kept[label] = df
         rows.append({"model": label, "trial": target.trial, "condition": target.condition, "subject": target.subject,
-                     "orientation": orientation_of(target.condition), "global_distance": target.global_distance,
+                     "orientation": target.orientation, "global_distance": target.global_distance,
                      **d, "D": d["d_xy"] + angle_weight * d[f"d_{angle}"], "converged": ok, "goal_reached": reached})
     return rows, kept
 
@@ -165,11 +155,14 @@ def measured_pace(means: pd.DataFrame, trials: pd.DataFrame | None = None) -> di
 
 
 def walking_means(means: pd.DataFrame) -> pd.DataFrame:
-    """The walker means (kind mean) of the walking study's conditions in ``means``."""
-    from cobot_analysis.design import WALKING_CONDITIONS
+    """The walker means (kind mean) of the walking study's conditions in ``means``: labels that are its codes and that
+    the paths agree with (``design.table_codes``: "S1020", a lab's session 1 trial 020, is no code where its paths do
+    not start at the code's start)."""
+    from cobot_analysis.design import WALKING_CONDITIONS, table_codes
 
     means = means[(means["kind"] == "mean") & (means["entity"] == "walker")] if "kind" in means else means
-    return means[means["condition"].isin(WALKING_CONDITIONS)]
+    means = means[means["condition"].isin(WALKING_CONDITIONS)]
+    return means[means["condition"].isin(list(table_codes(means)[0]))]
 
 
 #: how far (m) the measured ends may lie from the walking study's design goal for it to be theirs
@@ -258,7 +251,7 @@ def subject_distances(trials: list[Target], means: list[Target], angle: str = "g
             continue
         d = distances(m, t.x, t.y, t.theta, convention)
         rows.append({"model": "subjects vs mean", "fit": "", "trial": t.trial, "condition": t.condition, "subject": t.subject,
-                     "orientation": orientation_of(t.condition), "global_distance": m.global_distance, **d,
+                     "orientation": t.orientation, "global_distance": m.global_distance, **d,
                      "D": d["d_xy"] + 0.5 * d[f"d_{angle}"], "converged": True})
     return pd.DataFrame(rows)
 

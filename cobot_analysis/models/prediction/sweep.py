@@ -234,7 +234,7 @@ def trajectories_from_table(df: pd.DataFrame, config: SweepConfig, path: str | o
     Raises ``InputError`` for an empty selection, a wrong unit of time (negative travel time) or a
     trajectory shorter than the largest N0.
     """
-    from cobot_analysis.design import walking_condition
+    from cobot_analysis.design import table_codes
     from cobot_analysis.models.comparison import end_heading
     from cobot_analysis.models.prediction.goal import design_goal
 
@@ -244,6 +244,7 @@ def trajectories_from_table(df: pd.DataFrame, config: SweepConfig, path: str | o
     df = df.copy(deep=False)
     df.attrs = {}  # the table's metadata: pandas would deep-copy it at every slice of every group below
     headings = {study: end_heading(g) for study, g in df.groupby("study", observed=True) if str(study).startswith("walking")}
+    codes = {study: table_codes(g[g["entity"] == "walker"])[0] for study, g in df.groupby("study", observed=True)}
     out = []
     for (study, trial, entity), g in df.groupby(["study", "trial", "entity"], sort=True, observed=True):
         g = g.sort_values("sample")
@@ -271,10 +272,8 @@ def trajectories_from_table(df: pd.DataFrame, config: SweepConfig, path: str | o
                              remedy="leave it out or give its travel time")
         first = g.iloc[0]
         condition = str(first.get("condition") or "")
-        try:
-            orientation = walking_condition(condition).orientation
-        except ValueError:
-            orientation = ""
+        code = codes[study].get(condition) if entity == "walker" else None  # a walking-2020 code its study's paths agree with
+        orientation = code.orientation if code else ""
         dist = first.get("travelled_distance")
         if dist is None or not np.isfinite(dist):
             finite = poses[np.isfinite(poses[:, :2]).all(axis=1), :2]
