@@ -40,6 +40,17 @@ def circular_mean(angles: ArrayLike, axis: int = 0, weights: ArrayLike | None = 
     return np.where(valid.any(axis=axis), out, np.nan)
 
 
+def circular_median(angles: ArrayLike) -> float:
+    """Circular median: the value whose summed angular distance to all others is least (NaN ignored; NaN if none).
+    Unlike the circular mean it is not pulled by a few values half a turn away."""
+    a = np.asarray(angles, dtype=float).ravel()
+    a = a[np.isfinite(a)]
+    if not a.size:
+        return float("nan")
+    cost = np.concatenate([np.abs(angle_diff(a[i:i + 1024, None], a[None, :])).sum(axis=1) for i in range(0, a.size, 1024)])
+    return float(a[np.argmin(cost)])
+
+
 def circular_std(angles: ArrayLike, axis: int = 0) -> FloatArray:
     """Circular standard deviation ``sqrt(-2 ln R)``, R the mean resultant length (NaN ignored)."""
     a = np.asarray(angles, dtype=float)

@@ -56,12 +56,47 @@ def walking_condition(code: str) -> WalkingCondition:
     return WalkingCondition(code, letter, a, float(f"{b1}.{b2}"))
 
 
-def start_orientation(code) -> str | None:
-    """The start orientation letter (N, E, S, O) of a walking start-condition code, None for any other label."""
-    try:
-        return walking_condition(str(code)).orientation
-    except ValueError:
-        return None
+#: how far (m) a condition's measured start may lie from its code's nominal start, both taken from the goal (the
+#: median over its paths of each start from its own end), for the label to be that code (docs/methods.md sec. 1.1:
+#: walking-2020 0.39 at most, the synthetic study 0.23; the design's nearest two starts lie 0.9 m apart)
+CODE_TOLERANCE = 0.6
+
+
+def design_codes(conditions, starts, ends) -> tuple[dict[str, WalkingCondition], str]:
+    """The labels of one study's paths that are walking-2020 start-condition codes, and '' or why its code-like
+    labels are not. ``conditions``: a label per path; ``starts``, ``ends``: (n, 2) first and last measured
+    positions. A label such as "S1020" (a lab's session 1, trial 020) parses as a code; it counts as one only when
+    every code-like label of the study agrees with its data (``CODE_TOLERANCE``), else none does (a study's labels
+    are its design's or its own)."""
+    import numpy as np
+
+    parsed = {}
+    for c in dict.fromkeys(map(str, conditions)):
+        try:
+            parsed[c] = walking_condition(c)
+        except ValueError:
+            pass
+    if not parsed:
+        return {}, ""
+    labels = np.asarray(list(map(str, conditions)))
+    rel = np.asarray(starts, float) - np.asarray(ends, float)
+    off = {c: float(np.nanmedian(np.hypot(*(rel[labels == c] - np.subtract(w.start[:2], WALKING_GOAL[:2])).T)))
+           for c, w in parsed.items()}
+    worst = max(off, key=lambda c: off[c] if np.isfinite(off[c]) else -1.0)
+    if off[worst] <= CODE_TOLERANCE:
+        return parsed, ""
+    x, y, _ = parsed[worst].start
+    return {}, (f"its label {worst} reads as the walking-2020 code of a start at ({x + 0.0:g}, {y + 0.0:g}) from the goal, but its "
+                f"paths start {off[worst]:.2f} m from there (over {CODE_TOLERANCE:g} m): the labels are the study's own")
+
+
+def table_codes(df) -> tuple[dict[str, WalkingCondition], str]:
+    """``design_codes`` of one study's long trajectories or means table (trial, sample, condition, x, y)."""
+    if "condition" not in df or not any(_CODE.match(str(c)) for c in df["condition"].unique()):
+        return {}, ""
+    paths = df.sort_values("sample").groupby("trial", sort=False) if "sample" in df else df.groupby("trial", sort=False)
+    first, last = paths[["condition", "x", "y"]].first(), paths[["x", "y"]].last()  # first / last measured
+    return design_codes(first["condition"], first[["x", "y"]].to_numpy(float), last[["x", "y"]].to_numpy(float))
 
 
 # ---- pair-carriage-2022 ---------------------------------------------------------------------------

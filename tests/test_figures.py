@@ -169,17 +169,18 @@ def walking_panels(rng, n_subjects=4, with_theta=True):
 def test_walking_grid_orders_start_positions_by_distance():
     from cobot_analysis.design import WALKING_CONDITIONS
 
-    grid = figures.walking_grid(WALKING_CONDITIONS)
+    grid = figures.walking_grid(WALKING_CONDITIONS, WALKING_CONDITIONS)
     assert grid["N1500"] == (0, 0) and grid["E1500"] == (0, 1) and grid["S1500"] == (0, 2) and grid["O1500"] == (0, 3)
     assert grid["O4040"] == (9, 3)
     assert sorted(grid.values()) == [(r, c) for r in range(10) for c in range(4)]
-    assert figures.walking_grid(["d1_p4_gris"]) is None
+    assert figures.walking_grid(["d1_p4_gris"], WALKING_CONDITIONS) is None
+    assert figures.walking_grid(["N1500", "S1020"], ["N1500"]) is None  # S1020: a lab's own label, no code of its data
 
 
 def test_walking_paths_grid_legend_and_visible_arrows():
     rng = np.random.default_rng(1)
     panels = walking_panels(rng)
-    grid = figures.walking_grid([p["key"][0] for p in panels])
+    grid = figures.walking_grid([p["key"][0] for p in panels], [p["key"][0] for p in panels])
     for p in panels:
         p["cell"] = grid[p["key"][0]]
     fig = figures.paths(panels, share="row", size=2.4, col_titles=list(figures.WALKING_COLUMNS.values()),
@@ -271,7 +272,8 @@ def walking_targets():
     out = []
     for code in WALKING_CONDITIONS[:12]:
         x0, y0, th0 = walking_condition(code).start
-        out.append(Target(f"mean:{code}", code, "", x0 * (1 - s), y0 * (1 - s), th0 + (math.pi / 2 - th0) * s))
+        out.append(Target(f"mean:{code}", code, "", x0 * (1 - s), y0 * (1 - s), th0 + (math.pi / 2 - th0) * s,
+                          orientation=code[0]))  # a walking-2020 code its path agrees with (as targets_from_table says)
     return out
 
 
@@ -339,10 +341,11 @@ def trajectory_set(panels) -> SimpleNamespace:
     for p in panels:
         code = p["key"][0]
         for j, (x, y, _) in enumerate(p["lines"]):
-            rows.append({"kind": "trial", "condition": code, "entity": "walker", "subject": f"S{j + 1:02d}"})
+            rows.append({"study": "walking-2020", "kind": "trial", "condition": code, "entity": "walker", "subject": f"S{j + 1:02d}"})
             xs.append(x), ys.append(y), ths.append(np.full_like(x, math.nan if j == 0 else 0.5))
     trials = SimpleNamespace(meta=pd.DataFrame(rows), x=np.array(xs), y=np.array(ys), theta=np.array(ths))
-    means = SimpleNamespace(meta=pd.DataFrame([{"kind": "mean", "condition": p["key"][0], "entity": "walker"} for p in panels]),
+    means = SimpleNamespace(meta=pd.DataFrame([{"study": "walking-2020", "kind": "mean", "condition": p["key"][0], "entity": "walker"}
+                                               for p in panels]),
                             x=np.array([p["means"][0][0] for p in panels]), y=np.array([p["means"][0][1] for p in panels]),
                             theta=np.array([p["means"][0][2] for p in panels]))
     return trials, means

@@ -16,9 +16,9 @@ CONDITIONS = ("E4015", "O1515", "N-0615")
 SHIFT = (3.0, 2.0)  # the lab's goal: the walking-2020 frame moved by this
 
 
-def own_means(shift=SHIFT, labels=None) -> pd.DataFrame:
-    """The improved model's own paths at ``W`` from the walking-2020 design starts to its goal, moved by ``shift``,
-    as the means of a study (condition codes, or ``labels``)."""
+def own_means(shift=SHIFT, labels=None, heading=None) -> pd.DataFrame:
+    """The improved model's own paths at ``W`` from the walking-2020 design starts to its goal (its heading pi/2, or
+    ``heading``), moved by ``shift``, as the means of a study (condition codes, or ``labels``)."""
     from cobot_analysis.design import WALKING_GOAL, walking_condition
     from cobot_analysis.models import generate
     from cobot_analysis.schema import TRAJECTORIES
@@ -26,7 +26,7 @@ def own_means(shift=SHIFT, labels=None) -> pd.DataFrame:
     frames = []
     for i, c in enumerate(CONDITIONS):
         start = np.add(walking_condition(c).start, (*shift, 0.0))
-        goal = np.add(WALKING_GOAL, (*shift, 0.0))
+        goal = np.add((*WALKING_GOAL[:2], WALKING_GOAL[2] if heading is None else heading), (*shift, 0.0))
         df = generate("improved", tuple(start), tuple(goal), weights=W, n_samples=100, n_intervals=20, convention="continuous")
         label = labels[i] if labels else c
         frames.append(df[list(TRAJECTORIES.columns.keys() & set(df.columns))].assign(
@@ -232,3 +232,130 @@ def test_generate_study_takes_no_pace_from_another_studys_trials(tmp_path):
     done = generate(tmp_path / "ws", study="walking-2020", means=path, convention="continuous", intervals=20, samples=50, jobs=1,
                     force=True)
     assert {c: T for c, (T, _) in done.result.measured.items()} == {c: 10.0 for c in CONDITIONS}
+
+
+# ---- the goal arrow elsewhere (goal at the origin, the design's start grid, final heading not pi/2) ----------------
+def facing(heading: float) -> pd.DataFrame:
+    """The model's own paths from the design's starts to (0, 0) facing ``heading``: a lab whose goal arrow is not +y."""
+    return own_means(shift=(0.0, 0.0), heading=heading)
+
+
+@pytest.mark.parametrize("heading", [0.0, np.pi, -np.pi / 2])
+def test_fit_ioc_auto_goal_is_the_measured_heading_where_the_goal_arrow_is_not_the_designs(heading):
+    """The goal arrow along +x (0), -x (pi) or -y (-pi/2): the OC problems took the design heading pi/2, a quarter or
+    half turn off the walkers' (D 0.031, 0.026, 0.097 at the model's own weights, 0.000 at pi/2); now each path's
+    measured end, D ~ 0."""
+    from cobot_analysis.angles import angle_diff
+    from cobot_analysis.api import fit_ioc
+
+    fit = fit_ioc(facing(heading), fit=["a2", "a4"], max_evaluations=1, intervals=20, compare=False, jobs=1)
+    assert fit.results["all"].start_objective < 0.005
+    assert all(abs(angle_diff(t.goal[2], heading)) < 1e-6 for t in fit.mean_targets)
+
+
+def test_fit_ioc_design_goal_refused_where_the_goal_arrow_is_not_the_designs():
+    from cobot_analysis.api import fit_ioc
+
+    with pytest.raises(InputError, match=r"--goal design: the paths end facing 0\.00 rad .*--goal end"):
+        fit_ioc(facing(0.0), goal="design", max_evaluations=1, intervals=20, compare=False, jobs=1)
+
+
+def test_generate_study_refuses_the_design_heading_where_the_goal_arrow_is_not_the_designs(tmp_path, cli):
+    """``generate --study walking-2020`` walked means ending facing 0 to the heading pi/2; refused in one line naming
+    the goal that works, nothing written; that goal then gives paths ending facing 0."""
+    from cobot_analysis.schema import TRAJECTORIES, write_table
+
+    means = write_table(facing(0.0), tmp_path / "means.parquet", TRAJECTORIES)
+    common = ("generate", "--out", str(tmp_path / "ws"), "--study", "walking-2020", "--means", str(means),
+              "--convention", "continuous", "--intervals", "20", "--samples", "50", "--jobs", "1")
+    code, _, err = cli(*common)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert str(means) in err and "facing 0.00 rad" in err and "--goal 0.00 0.00 0.00" in err
+    assert not (tmp_path / "ws" / "generate").exists()
+    code, _, err = cli(*common, "--goal", "0", "0", "0")
+    assert code == 0, err
+    gen = pd.read_parquet(tmp_path / "ws" / "generate" / "generated.parquet")
+    assert np.allclose(gen.sort_values("sample").groupby("trial")["theta"].last(), 0.0, atol=0.01)
+
+
+def test_predict_refuses_the_walking_goal_heading_where_the_goal_arrow_is_not_the_designs(tmp_path, cli):
+    """A study named walking-... ending at (0, 0) facing 0: the goal predictor planned every window to the heading
+    pi/2; refused, naming --goal; goal-inferred (positions only: its candidate (0, 0) is right) still runs."""
+    from cobot_analysis.schema import TRAJECTORIES, write_table
+
+    table = write_table(facing(0.0).assign(study="walking-lab"), tmp_path / "trajectories.parquet", TRAJECTORIES)
+    common = ("predict", "--trajectories", str(table), "--kind", "mean", "--settings", "10:20", "--limit", "1",
+              "--jobs", "1", "--convention", "continuous")
+    code, _, err = cli(*common, "--out", str(tmp_path / "ws"), "--predictors", "goal")
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "walking-lab/mean_E4015" in err and "facing over 1.1 rad off pi/2" in err and "--goal x,y" in err
+    code, _, err = cli(*common, "--out", str(tmp_path / "ws2"), "--predictors", "goal-inferred")
+    assert code == 0, err
+
+
+def test_the_published_walking_study_keeps_its_design_goal(datasets):
+    """walking-2020 in its own frame: its means and trials end 0.50-0.75 rad off pi/2 (circular median of the last
+    headings; subject S07 alone 2.1), under the 1.1 rad of ``DESIGN_HEADING_TOLERANCE``: the design goal stays; its
+    40 labels are its codes (their paths start at most 0.39 m from the codes' starts, median per condition)."""
+    from cobot_analysis.angles import angle_diff
+    from cobot_analysis.api.models import goal_rule
+    from cobot_analysis.design import WALKING_CONDITIONS, WALKING_GOAL, table_codes
+    from cobot_analysis.io.published import read_walking_2020
+    from cobot_analysis.models.comparison import end_heading
+
+    df, _ = read_walking_2020(datasets / "walking-2020")
+    for kind, off in (("mean", 0.745), ("trial", 0.505)):
+        part = df[df["kind"] == kind]
+        assert abs(abs(angle_diff(end_heading(part), np.pi / 2)) - off) < 0.001
+        assert goal_rule("design", part) == goal_rule("auto", part) == WALKING_GOAL
+        assert sorted(table_codes(part)[0]) == sorted(WALKING_CONDITIONS)
+
+
+# ---- own condition labels that read as design codes ("S1020": a lab's session 1, trial 020) -----------------------
+#: the design's starts of CONDITIONS under labels whose codes name other starts: (-2.0, -0.4), (-4.0, -0.4), (-1.0, -1.4)
+LOOKALIKE = ["S1020", "S1040", "N2010"]
+
+
+def test_labels_that_read_as_codes_but_start_elsewhere_are_own_labels():
+    """Paths from E4015, O1515, N-0615's starts labelled S1020, S1040, N2010: the targets took the letter (S, S, N) as
+    their start orientation, and the published convention its start heading (-pi/2 where the walkers started facing
+    0 and pi); now no orientation letter, the measured start heading. The design's own labels keep theirs."""
+    from cobot_analysis.models.ioc import targets_from_table
+
+    own = targets_from_table(own_means(shift=(0.0, 0.0), labels=LOOKALIKE), convention="published")
+    assert all(abs(t.start[2] - t.theta[0]) < 1e-9 for t in own)
+    assert [t.orientation for t in own] == ["", "", ""]
+    design = targets_from_table(own_means(shift=(0.0, 0.0)), convention="published")
+    assert [(t.condition, t.orientation, t.start[2]) for t in design] == [
+        ("E4015", "E", 0.0), ("N-0615", "N", np.pi / 2), ("O1515", "O", np.pi)]
+
+
+def test_statistics_and_predict_take_no_start_orientation_from_own_labels():
+    """stats' start_orientation groups and predict's start_orientation were the letters of the own labels (S, S, N)."""
+    from cobot_analysis.api import trajectory_set
+    from cobot_analysis.api.prediction import prediction_config
+    from cobot_analysis.models.prediction.sweep import trajectories_from_table
+    from cobot_analysis.stats.sources import build_sources
+
+    for labels, letters in ((LOOKALIKE, [None, None, None]), (None, ["E", "N", "O"])):
+        table = own_means(shift=(0.0, 0.0), labels=labels)
+        first = table.groupby("trial", sort=True).first().reset_index()
+        dist = first[["study", "trial", "condition", "entity", "kind"]].assign(
+            comparison="individual-mean", d_xy=0.1, global_distance=2.0, scenario=np.nan, b_scenario=np.nan)
+        assert build_sources(trajectory_set(table), dist)["distances"]["start_orientation"].tolist() == letters
+        trajs = trajectories_from_table(table, prediction_config(settings="10:20", predictors="cv"))
+        assert [t.meta["start_orientation"] for t in trajs] == [x or "" for x in letters]
+
+
+def test_generate_study_refuses_labels_that_read_as_codes_but_start_elsewhere(tmp_path, cli):
+    """Own labels among the 40 design codes (N4040, S1500, E0615 on paths from other starts): generate --study walked
+    them as walking-2020's conditions; refused in one line naming the label and how far its paths start from its
+    code's start, nothing written."""
+    from cobot_analysis.schema import TRAJECTORIES, write_table
+
+    means = write_table(own_means(shift=(0.0, 0.0), labels=["N4040", "S1500", "E0615"]), tmp_path / "means.parquet", TRAJECTORIES)
+    code, _, err = cli("generate", "--out", str(tmp_path / "ws"), "--study", "walking-2020", "--means", str(means),
+                       "--convention", "continuous", "--intervals", "20", "--samples", "50", "--jobs", "1")
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "its label N4040 reads as the walking-2020 code of a start at (-4, -3.4)" in err and "fit-ioc" in err
+    assert not (tmp_path / "ws" / "generate").exists()

@@ -158,6 +158,8 @@ def test_prediction_figures_are_reviewable(tmp_path):
 
     config = SweepConfig(settings=((8, 20),), predictors=("oc", "cv", "ctrv"))
     trajs = trajectories_from_table(trajectories_table(), config)
+    for t in trajs:  # arcs, not from their codes' starts: own labels (design.design_codes); the figure groups by the letter
+        t.meta["start_orientation"] = t.meta["condition"][0]
     metrics, _, _ = run_sweep(trajs, config, WorkDir(tmp_path), jobs=1)
     figs = figures(metrics, trajs[0], config)
     try:

@@ -404,4 +404,4 @@ def test_rows_without_a_group_level_are_counted_and_a_group_column_left_empty_sa
     assert row["status"] == "ok" and row["n"] == 10 and "10 rows without start_orientation left out" in row["note"]
     (row,) = analyses.run_analysis(a, d[d["condition"].str.startswith("corridor")], 0.05)
     assert row["status"] == ("skipped: start_orientation has no value in the 10 rows of this subset (derived from "
-                             "walking-2020 start-condition codes such as E4015; conditions here: corridor 1, corridor 2)")
+                             "walking-2020 start-condition codes such as E4015 that the paths start at; conditions here: corridor 1, corridor 2)")

@@ -287,14 +287,16 @@ def walking_cases(convention: str, means: pd.DataFrame | None = None, *, goal: t
         cobot_analysis.errors.InputError: the published convention takes the authors' start and goal poses from the measured means; pass the walking-2020 means: walking_cases("published", means)
     """
     from cobot_analysis import conventions
-    from cobot_analysis.design import WALKING_CONDITIONS, WALKING_GOAL, walking_condition
+    from cobot_analysis.design import WALKING_CONDITIONS, WALKING_GOAL, table_codes, walking_condition
     from cobot_analysis.models.comparison import design_goal_offset, study_cases, walking_means as study_means
 
     convention = conventions.get(convention).name
     off = design_goal_offset(study_means(means)) if goal is None and means is not None and convention != "published" else None
     if off:
         raise InputError(f"--study walking-2020: {off[0]}", path=path,
-                         remedy="give the goal in your frame, e.g. the median end: --goal {:.2f} {:.2f} {:.2f}".format(*off[1]))
+                         remedy="give the goal in your frame, e.g. the median end: --goal {:.2f} {:.2f} {:.2f}".format(
+                             *(round(v, 2) + 0.0 for v in off[1])))  # + 0.0: no '-0.00'
+
     goal = pose(goal, "--goal") if goal is not None else WALKING_GOAL
     if means is None and convention == "published":
         raise InputError("the published convention takes the authors' start and goal poses from the measured means",
@@ -304,8 +306,9 @@ def walking_cases(convention: str, means: pd.DataFrame | None = None, *, goal: t
     cases = study_cases(means, convention, goal, path=path)
     if not cases:
         labels = sorted(map(str, means["condition"].dropna().unique()))[:3] if "condition" in means else []
+        why = table_codes(means[means["kind"] == "mean"] if "kind" in means else means)[1] if labels else ""
         raise InputError("no mean trajectory of a walking-study condition (walking-2020 codes such as E4015)"
-                         + (f"; its conditions are {', '.join(labels)}, ..." if labels else ""), path=path,
+                         + (f"; its conditions are {', '.join(labels)}, ..." if labels else "") + (f"; {why}" if why else ""), path=path,
                          remedy="pass means of walking-2020 conditions with --means; for a study of other conditions, "
                                 "fit-ioc compares the models on every mean (or generate --start X Y THETA --goal X Y THETA)")
     return cases
@@ -507,29 +510,31 @@ def held_weights(model: str, convention: str) -> tuple[str, ...]:
 
 def goal_rule(goal: str, df: pd.DataFrame, *, path=None) -> tuple | None:
     """The goal of each OC problem: ``design`` (the walking goal), ``end`` (None: the last measured pose),
-    ``auto`` (design when every condition is a walking-study one and the paths end at it, ``design_goal_offset``).
-    ``design`` on paths that end elsewhere (a lab frame of one's own) is an ``InputError`` naming ``--goal end``.
+    ``auto`` (design when every condition is a walking-2020 code the paths agree with, ``design.table_codes``, and the
+    paths end at its goal, at (0, 0) facing about pi/2,
+    ``design_goal_offset``). ``design`` on paths that end elsewhere or facing elsewhere (a lab frame of one's own) is an
+    ``InputError`` naming ``--goal end``.
 
         >>> import pandas as pd
         >>> from cobot_analysis.api.models import goal_rule
-        >>> goal_rule("auto", pd.DataFrame({"condition": ["E4015", "N1500"], "x": [0.0, 0.02], "y": [0.01, 0.0]}))
+        >>> paths = pd.DataFrame({"trial": ["a", "a", "b", "b"], "sample": [0, 1, 0, 1], "condition": ["E4015"] * 2 + ["N1500"] * 2,
+        ...                       "x": [-1.5, 0.0, 0.0, 0.02], "y": [-3.4, 0.01, -0.9, 0.0]})
+        >>> goal_rule("auto", paths)
         (0.0, 0.0, 1.5707963267948966)
-        >>> goal_rule("auto", pd.DataFrame({"condition": ["d1_p4"]})) is None   # not a walking condition: the last pose
+        >>> goal_rule("auto", paths.assign(condition="d1_p4")) is None   # not a walking condition: the last pose
         True
-        >>> goal_rule("auto", pd.DataFrame({"condition": ["N1500"], "x": [3.0], "y": [2.0]})) is None   # ends elsewhere
+        >>> goal_rule("auto", paths.assign(x=paths["x"] + 3.0, y=paths["y"] + 2.0)) is None   # ends elsewhere
+        True
+        >>> goal_rule("auto", paths.assign(condition="S1020")) is None   # reads as a code, starts elsewhere: its own
         True
     """
-    from cobot_analysis.design import WALKING_GOAL, walking_condition
+    from cobot_analysis.design import WALKING_GOAL, table_codes
     from cobot_analysis.models.comparison import design_goal_offset
 
     if goal == "end":
         return None
-    if goal == "auto":
-        try:
-            for c in df["condition"].unique():
-                walking_condition(str(c))
-        except ValueError:
-            return None
+    if goal == "auto" and not set(map(str, df["condition"].unique())) <= set(table_codes(df)[0]):
+        return None
     off = design_goal_offset(df)
     if off is None:
         return WALKING_GOAL
@@ -712,8 +717,9 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     """
     from cobot_analysis import conventions
     from cobot_analysis.models import check_endpoints
-    from cobot_analysis.models.comparison import compare_models_keeping, compared_models, coupled_distances, orientation_of, subject_distances
-    from cobot_analysis.models.ioc import fit as ioc_fit, pair_targets_from_table, targets_from_table
+    from cobot_analysis.design import table_codes
+    from cobot_analysis.models.comparison import compare_models_keeping, compared_models, coupled_distances, subject_distances
+    from cobot_analysis.models.ioc import Target, fit as ioc_fit, pair_targets_from_table, targets_from_table
     from cobot_analysis.models.presets import DEFAULT_PRESET, PRESETS, names_for, weights_vector
     from cobot_analysis.models.ioc.pace import target_durations
     from cobot_analysis.models.ioc.single_level import (MAX_STEPS, as_ioc_result, check_method, check_spec, cross_check,
@@ -772,8 +778,10 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     else:
         if trial_df is None or trial_df.empty:
             raise InputError("--per subject needs subject trials", path=trials_source, remedy="pass --trajectories with kind=trial rows")
+        # the study's frame and condition codes, judged on all its trials (one walker's ends and starts are no evidence)
+        subject_goal, codes = goal_rule(goal, trial_df, path=trials_source), table_codes(trial_df[trial_df["entity"] == entity])[0]
         for subject, g in sorted(trial_df.groupby("subject")):
-            ts = targets_from_table(g, path=trials_source, entity=entity, goal=goal_rule(goal, g, path=trials_source), convention=conv)
+            ts = targets_from_table(g, path=trials_source, entity=entity, goal=subject_goal, convention=conv, codes=codes)
             if ts:
                 fits[str(subject)] = ts
         if subjects:
@@ -874,7 +882,8 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             trial_targets = targets_from_table(trial_df, path=trials_source, entity=entity)
             comparison = pd.concat([comparison, subject_distances(trial_targets, mean_targets, spec.angle, conv.name)], ignore_index=True)
         dist = pd.concat([dist[dist["fit"] != "all"], comparison.drop(columns="goal_reached")], ignore_index=True)
-    dist["orientation"] = [orientation_of(c) for c in dist["condition"]]
+    letters = {t.condition: t.orientation for ts in (mean_targets, *fits.values(), compared or []) for t in ts if isinstance(t, Target)}
+    dist["orientation"] = dist["condition"].map(letters).fillna("")
     dist["subject"] = dist["subject"].fillna("")
     dist["convention"] = conv.name
     dist = dist.drop(columns=["converged"]).assign(converged=dist["converged"].astype(bool))

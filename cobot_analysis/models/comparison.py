@@ -28,16 +28,6 @@ def compared_models(convention) -> dict:
     return {k: v for k, v in COMPARED.items() if v[0] == "clothoid" or v[0] in convention.oc}
 
 
-def orientation_of(condition: str) -> str:
-    """Start orientation letter of a walking condition code ('' if not a walking code)."""
-    from cobot_analysis.design import walking_condition
-
-    try:
-        return walking_condition(condition).orientation
-    except ValueError:
-        return ""
-
-
 def compare_task(task) -> tuple[list[dict], dict]:
     """Worker task: every compared model on one target (top-level, picklable): its rows, and the generated
     path of each model labelled in ``keep`` (None where its solve failed)."""
@@ -65,7 +55,7 @@ def compare_task(task) -> tuple[list[dict], dict]:
         if label in keep:
             kept[label] = df
         rows.append({"model": label, "trial": target.trial, "condition": target.condition, "subject": target.subject,
-                     "orientation": orientation_of(target.condition), "global_distance": target.global_distance,
+                     "orientation": target.orientation, "global_distance": target.global_distance,
                      **d, "D": d["d_xy"] + angle_weight * d[f"d_{angle}"], "converged": ok, "goal_reached": reached})
     return rows, kept
 
@@ -165,37 +155,64 @@ def measured_pace(means: pd.DataFrame, trials: pd.DataFrame | None = None) -> di
 
 
 def walking_means(means: pd.DataFrame) -> pd.DataFrame:
-    """The walker means (kind mean) of the walking study's conditions in ``means``."""
-    from cobot_analysis.design import WALKING_CONDITIONS
+    """The walker means (kind mean) of the walking study's conditions in ``means``: labels that are its codes and that
+    the paths agree with (``design.table_codes``: "S1020", a lab's session 1 trial 020, is no code where its paths do
+    not start at the code's start)."""
+    from cobot_analysis.design import WALKING_CONDITIONS, table_codes
 
     means = means[(means["kind"] == "mean") & (means["entity"] == "walker")] if "kind" in means else means
-    return means[means["condition"].isin(WALKING_CONDITIONS)]
+    means = means[means["condition"].isin(WALKING_CONDITIONS)]
+    return means[means["condition"].isin(list(table_codes(means)[0]))]
 
 
 #: how far (m) the measured ends may lie from the walking study's design goal for it to be theirs
 DESIGN_GOAL_TOLERANCE = 0.5
+#: how far (rad) the circular median of the last measured headings may lie from the design goal heading pi/2
+#: (docs/methods.md sec. 6: walking-2020's ends lie 0.50-0.75 off, a study ending on pi/2 rotated a quarter turn 1.53)
+DESIGN_HEADING_TOLERANCE = 1.1
+
+
+def end_heading(df: pd.DataFrame) -> float:
+    """The circular median of the last measured heading of each trajectory of ``df`` (NaN without theta)."""
+    from cobot_analysis.angles import circular_median
+
+    if "theta" not in df or df.empty:
+        return math.nan
+    ends = df.sort_values("sample").groupby("trial")["theta"].last() if {"trial", "sample"} <= set(df.columns) else df["theta"].iloc[[-1]]
+    return circular_median(ends)
+
+
+def heading_off_design(heading: float) -> bool:
+    """Whether an end heading (``end_heading``) is no walking-2020 goal heading (``DESIGN_HEADING_TOLERANCE``)."""
+    from cobot_analysis.angles import angle_diff
+    from cobot_analysis.design import WALKING_GOAL
+
+    return bool(np.isfinite(heading) and abs(angle_diff(heading, WALKING_GOAL[2])) > DESIGN_HEADING_TOLERANCE)
 
 
 def design_goal_offset(df: pd.DataFrame) -> tuple[str, tuple[float, float, float]] | None:
     """None when the trajectories of ``df`` end at the walking study's design goal: the median of their last
-    measured positions within 0.5 m of (0, 0) (``DESIGN_GOAL_TOLERANCE``); else (what differs, the measured end
-    pose, its heading the circular mean of the last headings): a study recorded in a frame of its own. The
-    heading is not judged: the walking-2020 subjects end at the goal facing up to 1.8 rad off pi/2 (median per
-    subject of their trials with a plausible orientation)."""
-    from cobot_analysis.angles import circular_mean
+    measured positions within 0.5 m of (0, 0) (``DESIGN_GOAL_TOLERANCE``) and the circular median of their last
+    headings within 1.1 rad of pi/2 (``DESIGN_HEADING_TOLERANCE``; not judged without theta); else (what differs,
+    the measured end pose: the median end and that heading): a study recorded in a frame of its own."""
+    from cobot_analysis.angles import wrap
     from cobot_analysis.design import WALKING_GOAL
 
     if not {"x", "y"} <= set(df.columns) or df.empty:
         return None
     ends = df.sort_values("sample").groupby("trial").last() if {"trial", "sample"} <= set(df.columns) else df.iloc[[-1]]
     x, y = float(np.nanmedian(ends["x"])), float(np.nanmedian(ends["y"]))
-    th = ends["theta"].to_numpy(float) if "theta" in ends else np.array([math.nan])
-    heading = float(circular_mean(th)) if np.isfinite(th).any() else WALKING_GOAL[2]
+    heading = float(wrap(end_heading(df)))
+    pose = (x, y, heading if np.isfinite(heading) else WALKING_GOAL[2])
     dist = math.hypot(x - WALKING_GOAL[0], y - WALKING_GOAL[1])
-    if dist <= DESIGN_GOAL_TOLERANCE:
-        return None
-    return (f"the paths end at ({x:.2f}, {y:.2f}) (median of their last positions), {dist:.2f} m from the walking "
-            "study's design goal (0, 0)", (x, y, heading))
+    if dist > DESIGN_GOAL_TOLERANCE:
+        return (f"the paths end at ({x:.2f}, {y:.2f}) (median of their last positions), {dist:.2f} m from the walking "
+                "study's design goal (0, 0)", pose)
+    if heading_off_design(heading):
+        return (f"the paths end facing {heading:.2f} rad (circular median of their last headings), over "
+                f"{DESIGN_HEADING_TOLERANCE:g} rad from the walking study's design goal heading pi/2: a frame turned "
+                "about the goal", pose)
+    return None
 
 
 def compare_models(targets: list[Target], models: dict, *, n_intervals: int = 100, angle: str = "gamma",
@@ -234,7 +251,7 @@ def subject_distances(trials: list[Target], means: list[Target], angle: str = "g
             continue
         d = distances(m, t.x, t.y, t.theta, convention)
         rows.append({"model": "subjects vs mean", "fit": "", "trial": t.trial, "condition": t.condition, "subject": t.subject,
-                     "orientation": orientation_of(t.condition), "global_distance": m.global_distance, **d,
+                     "orientation": t.orientation, "global_distance": m.global_distance, **d,
                      "D": d["d_xy"] + 0.5 * d[f"d_{angle}"], "converged": True})
     return pd.DataFrame(rows)
 

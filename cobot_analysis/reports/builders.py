@@ -210,10 +210,13 @@ def _paths_section(study, data: dict, stage, lines: list[str]) -> None:
                      "individual trials, means and orientation arrows" + (f" (goal code dK_pJ_<{goal.label}>: start K, goal "
                                                                          f"position J, then {' or '.join(goal.levels)}, see the codes above)" if legend else ""), lines)
         return
+    from cobot_analysis.stats.sources import start_orientations
+
     cond = study.factor("condition")
-    panels = _path_panels(ts, means, ["condition"], lambda k: figures.walking_title(str(k[0])) if figures.walking_grid([k[0]])
+    codes = {c for _, c in start_orientations(ts if ts is not None else means)}  # walking-2020 codes the paths agree with
+    panels = _path_panels(ts, means, ["condition"], lambda k: figures.walking_title(str(k[0])) if str(k[0]) in codes
                           else cond.level(k[0]) + (f" ({cond.levels[level_text(k[0])]})" if level_text(k[0]) in cond.levels else ""))
-    grid = figures.walking_grid([p["key"][0] for p in panels])
+    grid = figures.walking_grid([p["key"][0] for p in panels], codes)
     names = {"means": "mean of the trials (recomputed)"}
     if grid is not None:  # start positions (rows, by distance to the goal) x start orientations (columns)
         for p in panels:
@@ -232,7 +235,7 @@ def _paths_section(study, data: dict, stage, lines: list[str]) -> None:
 
 
 def _distance_section(study, data: dict, stage, lines: list[str]) -> None:
-    from cobot_analysis.stats.sources import distances_source
+    from cobot_analysis.stats.sources import distances_source, start_orientations
     from cobot_analysis.study import data_factors
 
     dist = data.get("distances")
@@ -240,7 +243,8 @@ def _distance_section(study, data: dict, stage, lines: list[str]) -> None:
         return
     from cobot_analysis.compare import DISTANCES
 
-    d = distances_source(dist.assign(**{c: np.nan for c in DISTANCES.columns if c not in dist.columns}))
+    d = distances_source(dist.assign(**{c: np.nan for c in DISTANCES.columns if c not in dist.columns}),
+                         start_orientations(data.get("ts")))
     ind = d[d["comparison"].eq("individual-mean") & d["kind"].fillna("trial").eq("trial")]
     if not len(ind):
         return

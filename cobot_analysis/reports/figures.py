@@ -32,16 +32,14 @@ WALKING_COLUMNS = {"N": "start facing N (θ0 = π/2)", "E": "start facing E (θ0
 
 
 # ---- path panels ---------------------------------------------------------------------------------
-def walking_grid(conditions) -> dict[str, tuple[int, int]] | None:
+def walking_grid(conditions, codes) -> dict[str, tuple[int, int]] | None:
     """Walking start conditions -> (row, column): rows are start positions by increasing global
-    distance, columns the start orientations N, E, S, O. None when a code is not a walking one."""
+    distance, columns the start orientations N, E, S, O. None when a condition is not one of ``codes``
+    (the labels that are walking-2020 codes the data agree with, ``design.table_codes``)."""
     from cobot_analysis.design import walking_condition
 
-    try:
-        conds = {str(c): walking_condition(str(c)) for c in conditions}
-    except ValueError:
-        return None
-    if not conds:
+    conds = {str(c): walking_condition(str(c)) for c in conditions if str(c) in codes}
+    if not conds or len(conds) < len(set(map(str, conditions))):
         return None
     distance = {c[1:]: round(w.global_distance, 3) for c, w in conds.items()}
     positions = sorted(distance, key=lambda pos: (distance[pos], pos))

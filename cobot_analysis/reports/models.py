@@ -122,7 +122,8 @@ def figure_paths(targets: list[Target], generated: dict[str, list[pd.DataFrame]]
 
     n = len(targets)
     conds = [t.condition for t in targets]
-    grid = F.walking_grid(conds) if len(set(conds)) == n else None  # one panel per walking condition
+    codes = {t.condition for t in targets if t.orientation}  # walking-2020 codes the paths agree with
+    grid = F.walking_grid(conds, codes) if len(set(conds)) == n else None  # one panel per walking condition
     cells = [grid[c] for c in conds] if grid else None
     fig, axes = _panel_grid(n, max_cols=8, size=2.4 if grid else 2.2, cells=cells)
     cells = cells or [divmod(i, axes.shape[1]) for i in range(n)]

@@ -327,7 +327,7 @@ def run_analysis(a: Analysis, df: pd.DataFrame, alpha: float) -> list[dict]:
 
 
 #: group columns the statistics derive from others (stats.sources), and from what.
-DERIVED = {"start_orientation": ("walking-2020 start-condition codes such as E4015", "condition"),
+DERIVED = {"start_orientation": ("walking-2020 start-condition codes such as E4015 that the paths start at", "condition"),
            "distance_class": ("the global distance", "global_distance")}
 
 

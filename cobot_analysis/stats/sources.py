@@ -9,7 +9,8 @@ column across groups:
   when the workspace has one, e.g. the published data, else from the table trajectories).
 - ``pair_durations``: the mean duration per pair, direction and scenario (pair-level tests).
 - ``distances``: distances.parquet plus ``carrier`` (subject / table / walker),
-  ``start_orientation`` (walking: N E S O) and ``distance_class`` (global distance < 3 m / > 3 m).
+  ``start_orientation`` (walking: N E S O, of the labels that are walking-2020 codes the trajectories agree with,
+  ``design.design_codes``; none for a study's own labels) and ``distance_class`` (global distance < 3 m / > 3 m).
 - ``choices``: pair study, one row per forward trial: chosen end orientation and whether it is
   optimal for Subject 1, Subject 2, the pair (``optimal_s1`` ...), with the chance of being optimal
   under a random choice (``chance_*``: 1 if both configurations are optimal, else 1/2).
@@ -37,7 +38,7 @@ import pandas as pd
 
 from cobot_analysis.angles import wrap
 from cobot_analysis.compare import TrajectorySet, plain_dtypes
-from cobot_analysis.design import GLOBAL_DISTANCE_SPLIT, start_orientation
+from cobot_analysis.design import GLOBAL_DISTANCE_SPLIT, design_codes
 from cobot_analysis.distances import optimal_configurations
 
 _META = ["study", "trial", "kind", "subject", "pair", "condition", "direction", "scenario", "configuration",
@@ -106,12 +107,31 @@ def pair_durations_source(durations: pd.DataFrame) -> pd.DataFrame:
     return _conform(out, "pair_durations")
 
 
-def distances_source(distances: pd.DataFrame | None) -> pd.DataFrame:
+def start_orientations(ts: TrajectorySet | None) -> dict[tuple[str, str], str]:
+    """(study, condition) -> start orientation letter of the walker conditions whose labels are walking-2020 codes
+    the trajectories agree with (``design.design_codes``, judged per study on its first and last measured positions)."""
+    if ts is None or not len(ts.meta):
+        return {}
+    finite = np.isfinite(ts.x) & np.isfinite(ts.y)
+    rows, first = np.arange(len(ts.meta)), finite.argmax(axis=1)
+    last = finite.shape[1] - 1 - finite[:, ::-1].argmax(axis=1)
+    starts, ends = np.c_[ts.x[rows, first], ts.y[rows, first]], np.c_[ts.x[rows, last], ts.y[rows, last]]
+    out = {}
+    walker = ts.meta["entity"].eq("walker").to_numpy()
+    for study, i in ts.meta[walker].groupby("study", sort=False).indices.items():
+        idx = np.flatnonzero(walker)[i]
+        codes, _ = design_codes(ts.meta["condition"].iloc[idx].astype(str), starts[idx], ends[idx])
+        out.update({(str(study), c): w.orientation for c, w in codes.items()})
+    return out
+
+
+def distances_source(distances: pd.DataFrame | None, orientations: dict[tuple[str, str], str] | None = None) -> pd.DataFrame:
+    """compare's distances, with ``orientations`` (``start_orientations``) as ``start_orientation``."""
     if distances is None or distances.empty:
         return _empty("distances")
     d = plain_dtypes(distances)
     d["carrier"] = d["entity"].map({"subject1": "subject", "subject2": "subject", "table": "table", "walker": "walker"})
-    d["start_orientation"] = d["condition"].map(start_orientation)
+    d["start_orientation"] = [(orientations or {}).get((str(s), str(c))) for s, c in zip(d["study"], d["condition"])]
     gd = d["global_distance"].astype(float)
     d["distance_class"] = np.where(gd.isna(), None, np.where(gd < GLOBAL_DISTANCE_SPLIT, "< 3 m", "> 3 m"))
     sa = pd.to_numeric(d.get("scenario"), errors="coerce")
@@ -299,7 +319,8 @@ def gamma_as_files_source(ts: TrajectorySet) -> pd.DataFrame:
     d = np.abs(files(ts.gamma[i]) - files(ts.gamma[j])).mean(axis=1)
     lost = ~np.isfinite(ts.gamma[i]).all(axis=1)
     out = trials[["study", "trial", "subject", "condition"]].reset_index(drop=True)
-    out["start_orientation"] = out["condition"].astype(str).str[0]
+    letters = start_orientations(ts)
+    out["start_orientation"] = [letters.get((str(s), str(c))) for s, c in zip(out["study"], out["condition"])]
     out["orientation_missing"], out["d_gamma"], out["d_gamma_loss_zero"] = lost, d, np.where(lost, 0.0, d)
     return _conform(out, "gamma_as_files")
 
@@ -323,7 +344,7 @@ def build_sources(ts: TrajectorySet | None, distances: pd.DataFrame | None, dura
             raise ValueError(f"build_sources(only=...) supports {sorted(make)}, not {sorted(unknown)}")
         return {k: make[k]() for k in only}
     trials = trials_source(ts) if ts is not None else _empty("trials")
-    dist = distances_source(distances)
+    dist = distances_source(distances, start_orientations(ts))
     dur = durations_source(trials, durations)
     return {
         "trials": trials,

@@ -32,6 +32,7 @@ class Target:
     goal_pose: tuple[float, float, float] | None = None  # None: the last measured pose
     start_pose: tuple[float, float, float] | None = None  # None: the first measured pose
     gamma: np.ndarray | None = None  # the measured local orientation when the data hold it (else from the path)
+    orientation: str = ""  # the start orientation letter of its condition when that is a walking-2020 code, else ''
 
     @property
     def start(self) -> tuple[float, float, float]:
@@ -53,27 +54,27 @@ class Target:
         return math.hypot(self.x[-1] - self.x[0], self.y[-1] - self.y[0])
 
 
-def published_endpoints(condition: str, x: np.ndarray, y: np.ndarray):
-    """The authors' start and goal poses of a walking condition (module docstring), or None when
-    ``condition`` is not a walking-study code."""
-    from cobot_analysis.design import WALKING_GOAL, walking_condition
+def published_endpoints(code, x: np.ndarray, y: np.ndarray):
+    """The authors' start and goal poses of a path of the walking condition ``code`` (``design.WalkingCondition``,
+    module docstring), or None for a label that is no walking-2020 code (None)."""
+    from cobot_analysis.design import WALKING_GOAL
 
-    try:
-        theta0 = walking_condition(condition).theta0
-    except ValueError:
+    if code is None:
         return None
     mm = lambda v: math.floor(float(v) * 1000) / 1000  # noqa: E731
-    return (mm(x[0]), mm(y[0]), theta0), (mm(x[-1]), mm(y[-1]), WALKING_GOAL[2])
+    return (mm(x[0]), mm(y[0]), code.theta0), (mm(x[-1]), mm(y[-1]), WALKING_GOAL[2])
 
 
 def targets_from_table(df: pd.DataFrame, *, path=None, entity: str = "walker", goal=None,
-                       convention="continuous", unoriented: bool = False) -> list[Target]:
+                       convention="continuous", unoriented: bool = False, codes: dict | None = None) -> list[Target]:
     """Targets from a long trajectories/means table (one per trial x entity); rows without
     orientation are left out (docs/methods.md sec. 6) unless ``unoriented`` (model comparisons: d_xy
     only, the start heading of the walking condition). NaN in positions is refused. ``goal``: the
     goal pose of every target (e.g. the walking study's (0, 0, pi/2)), None for the last measured
-    pose; under the published convention walking conditions take ``published_endpoints`` instead."""
+    pose; under the published convention walking conditions take ``published_endpoints`` instead.
+    ``codes``: the labels that are walking-2020 codes (``design.table_codes``; default: judged on ``df``)."""
     from cobot_analysis import conventions
+    from cobot_analysis.design import table_codes
 
     published = conventions.get(convention).name == "published"
     need = {"trial", "condition", "entity", "sample", "x", "y", "theta"}
@@ -81,25 +82,28 @@ def targets_from_table(df: pd.DataFrame, *, path=None, entity: str = "walker", g
     if missing:
         raise InputError(f"trajectory table lacks columns {missing}", path=path, remedy="pass a trajectories.parquet or means.parquet")
     df = df[df["entity"] == entity]
+    codes = table_codes(df)[0] if codes is None else codes
     targets = []
     for trial, g in df.groupby("trial", sort=True):
         g = g.sort_values("sample")
         x, y, th = (g[c].to_numpy(float) for c in ("x", "y", "theta"))
         condition = str(g["condition"].iloc[0])
+        code = codes.get(condition)
         oriented = not np.isnan(th).all()
-        if not oriented and not (unoriented and published_endpoints(condition, x, y)):
+        if not oriented and not (unoriented and code):
             continue  # no orientation: left out
         if not (np.isfinite(x).all() and np.isfinite(y).all() and (np.isfinite(th).all() or not oriented)):
             raise InputError(f"trajectory {trial!r} has NaN samples", path=path,
                              remedy="fill or drop the gaps in preprocessing (or re-run average) before fitting")
         subject = g["subject"].iloc[0] if "subject" in g and isinstance(g["subject"].iloc[0], str) else ""
         gamma = g["gamma"].to_numpy(float) if "gamma" in g and np.isfinite(g["gamma"]).all() else None
-        ends = published_endpoints(condition, x, y) if published or not oriented else None
+        ends = published_endpoints(code, x, y) if published or not oriented else None
         start_pose, goal_pose = ends if ends else (None, goal)
         if not oriented and not published:  # measured start and end, the condition's start heading
             start_pose = (float(x[0]), float(y[0]), ends[0][2])
             goal_pose = goal if goal is not None else (float(x[-1]), float(y[-1]), ends[1][2])
-        targets.append(Target(str(trial), condition, subject, x, y, th, goal_pose, start_pose, gamma))
+        targets.append(Target(str(trial), condition, subject, x, y, th, goal_pose, start_pose, gamma,
+                              code.orientation if code else ""))
     return targets
 
 

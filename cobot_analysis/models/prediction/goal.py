@@ -396,17 +396,19 @@ class GoalInferencePredictor(Predictor):
 
 
 # ---- the studies' goals ---------------------------------------------------------------------------
-def design_goal(study: str, meta: dict, end=None) -> tuple[float, float, float] | None:
+def design_goal(study: str, meta: dict, end=None, end_heading: float = math.nan) -> tuple[float, float, float] | None:
     """The goal a trajectory walks to, from the study design (docs/methods.md sec. 1): the walking
     goal (0, 0, pi/2), unless the trajectory's last measured position ``end`` lies farther from it than
-    ``comparison.DESIGN_GOAL_TOLERANCE`` (a frame of one's own); for the pair study's table, the goal position
-    with the trial's end orientation (forward) or the start pose (return). None when the design gives none."""
+    ``comparison.DESIGN_GOAL_TOLERANCE`` or its study's ``end_heading`` (``comparison.end_heading`` over the
+    study's trajectories: one walker's last heading is no evidence) is off pi/2 (``comparison.heading_off_design``):
+    a frame of one's own; for the pair study's table, the goal position with the trial's end orientation
+    (forward) or the start pose (return). None when the design gives none."""
     from cobot_analysis.design import GOAL_POSITIONS, PAIR_GOALS, WALKING_GOAL
-    from cobot_analysis.models.comparison import DESIGN_GOAL_TOLERANCE
+    from cobot_analysis.models.comparison import DESIGN_GOAL_TOLERANCE, heading_off_design
 
     if study.startswith("walking"):
         far = end is not None and math.hypot(end[0] - WALKING_GOAL[0], end[1] - WALKING_GOAL[1]) > DESIGN_GOAL_TOLERANCE
-        return None if far else WALKING_GOAL
+        return None if far or heading_off_design(end_heading) else WALKING_GOAL
     stem = str(meta.get("condition") or "")
     goal = next((g for g in PAIR_GOALS if g.stem == stem), None)
     if goal is None:

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import shutil
 from dataclasses import asdict, dataclass, field, replace
@@ -197,6 +198,12 @@ class Trajectory:
     def label(self) -> str:
         return f"{self.study}/{self.trial}/{self.entity}"
 
+    @property
+    def end(self) -> np.ndarray | None:
+        """The last measured position (None where no position is finite)."""
+        finite = self.poses[np.isfinite(self.poses[:, :2]).all(axis=1), :2]
+        return finite[-1] if len(finite) else None
+
     def digest(self) -> str:
         h = hashlib.sha256(json.dumps([self.label, self.dt, self.track_theta, self.meta], sort_keys=True, default=str).encode())
         h.update(np.ascontiguousarray(self.poses).tobytes())
@@ -227,7 +234,8 @@ def trajectories_from_table(df: pd.DataFrame, config: SweepConfig, path: str | o
     Raises ``InputError`` for an empty selection, a wrong unit of time (negative travel time) or a
     trajectory shorter than the largest N0.
     """
-    from cobot_analysis.design import walking_condition
+    from cobot_analysis.design import table_codes
+    from cobot_analysis.models.comparison import end_heading
     from cobot_analysis.models.prediction.goal import design_goal
 
     if df.empty:
@@ -235,6 +243,8 @@ def trajectories_from_table(df: pd.DataFrame, config: SweepConfig, path: str | o
     n0_max = max(n0 for n0, _ in config.settings)
     df = df.copy(deep=False)
     df.attrs = {}  # the table's metadata: pandas would deep-copy it at every slice of every group below
+    headings = {study: end_heading(g) for study, g in df.groupby("study", observed=True) if str(study).startswith("walking")}
+    codes = {study: table_codes(g[g["entity"] == "walker"])[0] for study, g in df.groupby("study", observed=True)}
     out = []
     for (study, trial, entity), g in df.groupby(["study", "trial", "entity"], sort=True, observed=True):
         g = g.sort_values("sample")
@@ -262,10 +272,8 @@ def trajectories_from_table(df: pd.DataFrame, config: SweepConfig, path: str | o
                              remedy="leave it out or give its travel time")
         first = g.iloc[0]
         condition = str(first.get("condition") or "")
-        try:
-            orientation = walking_condition(condition).orientation
-        except ValueError:
-            orientation = ""
+        code = codes[study].get(condition) if entity == "walker" else None  # a walking-2020 code its study's paths agree with
+        orientation = code.orientation if code else ""
         dist = first.get("travelled_distance")
         if dist is None or not np.isfinite(dist):
             finite = poses[np.isfinite(poses[:, :2]).all(axis=1), :2]
@@ -279,7 +287,8 @@ def trajectories_from_table(df: pd.DataFrame, config: SweepConfig, path: str | o
         track = has_theta and (config.orientation == "track" or (config.orientation == "auto" and not flags & set(ORIENTATION_FLAGS)))
         finite = poses[np.isfinite(poses[:, :2]).all(axis=1), :2]
         goal = design_goal(str(study), {"condition": condition, "direction": first.get("direction"),
-                                        "end_orientation": first.get("end_orientation")}, finite[-1] if len(finite) else None)
+                                        "end_orientation": first.get("end_orientation")}, finite[-1] if len(finite) else None,
+                           headings.get(study, math.nan))
         out.append(Trajectory(str(study), str(trial), str(entity), poses, float(dt), float(duration), source, track, meta, goal))
         for name in {"goal", "goal-inferred"} & set(config.predictors):
             predictor_options(name, out[-1], config)  # a goal it cannot know is refused here, before any solve
@@ -296,7 +305,7 @@ def predictable_windows(traj: Trajectory, n0: int) -> int:
 def predictor_options(name: str, traj: Trajectory, config: SweepConfig) -> dict:
     """``make_predictor`` options of ``name`` for ``traj``: weights, tracking weights (oc), the design
     goal (goal) or the study's candidate goals (goal-inferred)."""
-    from cobot_analysis.models.prediction.goal import study_candidates, turn_weight_undetermined
+    from cobot_analysis.models.prediction.goal import design_goal, study_candidates, turn_weight_undetermined
 
     if name in ("goal", "goal-inferred") and config.turn_weight is not None and turn_weight_undetermined(config.weights_for(traj.entity)):
         return {**predictor_options(name, traj, replace(config, turn_weight=None)), "turn_weight": config.turn_weight}
@@ -307,11 +316,12 @@ def predictor_options(name: str, traj: Trajectory, config: SweepConfig) -> dict:
             return {"weights": config.weights_for(traj.entity), "goal": config.goal}
         if traj.goal is None:
             raise InputError(f"trajectory {traj.label} has no design goal for the goal-aware predictor (its study's design "
-                             "gives none, or it ends over 0.5 m from the walking goal (0, 0): a frame of its own)",
+                             "gives none, or it ends over 0.5 m from the walking goal (0, 0) or its study's walkers end "
+                             "facing over 1.1 rad off pi/2: a frame of its own)",
                              remedy="give its goal with --goal x,y[,theta], or leave 'goal' out of --predictors")
         return {"weights": config.weights_for(traj.entity), "goal": traj.goal}
     if name == "goal-inferred":
-        if config.candidates is None and traj.study.startswith("walking") and traj.goal is None:
+        if config.candidates is None and traj.study.startswith("walking") and design_goal(traj.study, traj.meta, traj.end) is None:
             raise InputError(f"trajectory {traj.label} ends over 0.5 m from the walking goal (0, 0), the walking study's "
                              "only candidate goal: a frame of its own", remedy="give its goals with --candidates x,y;x,y")
         cands = config.candidates if config.candidates is not None else study_candidates(traj.study)
