@@ -168,7 +168,8 @@ def test_stats_fit_ioc_and_generate_say_which_means_they_were_given(tmp_path):
 
     from cobot_analysis.stages import analysis, models
 
-    ws = _workspace(tmp_path, _two_subjects())
+    t = walking_table(n_subjects=2, n_conditions=1, n_trials=3)  # real paths: generate --study takes N1500 as the code
+    ws = _workspace(tmp_path, t[~(t["subject"].eq("S02") & ~t["trial"].str.endswith("_1"))])  # S01 3 trials, S02 1
     analysis.average(ws, weigh="subjects")
     analysis.compare(ws)
     analysis.statistics(ws)
