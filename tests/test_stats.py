@@ -284,6 +284,15 @@ def test_identical_values_are_skipped_not_nan():
     assert largest_subset({"a": [1.0, 1.0], "b": [1.0, 1.0]}).p == 1.0
 
 
+def test_a_correlation_with_a_constant_variable_is_skipped_with_its_reason(recwarn):
+    """Before: r and p NaN, said by scipy's ConstantInputWarning only (a study of one scenario, or subjects of one mass);
+    now the row says which variable takes one value."""
+    df = pd.DataFrame({"scenario": [3] * 6, "duration": [2.0, 3.0, 2.5, 4.0, 3.5, 1.0]})
+    row = analyses.run(config.parse(_cfg(test="spearman", versus="scenario")), {"durations": df}).iloc[0]
+    assert row["status"] == "skipped: scenario takes one value (3) over the 6 pairs; spearman is undefined"
+    assert not [w for w in recwarn if "constant" in str(w.message).lower()]
+
+
 @settings(max_examples=40, deadline=None)
 @given(st.lists(st.floats(-100, 100), min_size=2, max_size=15), st.lists(st.floats(-100, 100), min_size=2, max_size=15))
 def test_rank_biserial_is_the_mean_sign_of_all_comparisons(a, b):

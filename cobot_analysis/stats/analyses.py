@@ -246,6 +246,11 @@ def _run_one(a: Analysis, df: pd.DataFrame, groups: dict, alpha: float) -> dict:
         if len(pair) < a.minimum:
             row["status"] = f"skipped: {len(pair)} complete ({a.versus}, {a.value}) pairs, {test} needs {a.minimum}"
             return row
+        constant = [c for c in (a.versus, a.value) if pair[c].nunique() == 1]
+        if constant:
+            row["status"] = (f"skipped: {constant[0]} takes one value ({pair[constant[0]].iloc[0]:.3g}) over the {len(pair)} "
+                             f"pairs; {test} is undefined")
+            return row
         res = T.correlation(pair[a.versus], pair[a.value], test, a.alternative)
         row["n"], row["summary"] = len(pair), f"r = {res.statistic:.3f} over {len(pair)} pairs"
         if len(pair) < len(df):
