@@ -306,3 +306,19 @@ def test_velocity_commands_are_bounded_and_invariant_to_a_rigid_motion_of_the_wo
     ka, kb = velocity_commands(a, 10.0), velocity_commands(b, 10.0)
     assert np.allclose(ka[["v_x", "v_y", "omega"]], kb[["v_x", "v_y", "omega"]], atol=1e-9)
     assert (np.abs(ka[["v_x", "v_y"]]) <= 0.1 + 1e-12).all().all() and (np.abs(ka.omega) <= math.radians(7) + 1e-12).all()
+
+
+def test_a_start_outside_the_search_box_starts_on_its_limit():
+    """A start weight above the search box (a hand-made weights.json) starts the bi-level search on the box's limit, as
+    one below it (or 0) already did on the lower limit. Before, scipy's bounded Powell started outside the box, with
+    its 'Initial guess is not within the specified bounds' warning on the user's terminal."""
+    from dataclasses import replace
+
+    from cobot_analysis.models.ioc import IOCSpec
+    from cobot_analysis.models.ioc.fit import LOG_BOUNDS
+    from cobot_analysis.models.presets import names_for
+
+    names = names_for("improved")
+    spec, w = IOCSpec(model="improved", fitted=("a2", "a3", "a4")), [1.0] * len(names)
+    w[names.index("a2")], w[names.index("a3")], w[names.index("a4")] = 1e5, 0.0, 2.0
+    assert replace(spec, start_weights=tuple(w)).z0().tolist() == [LOG_BOUNDS[1], LOG_BOUNDS[0], math.log10(2.0)]

@@ -87,7 +87,8 @@ class IOCSpec:
     def z0(self) -> np.ndarray:
         w = np.array(self.start_weights, dtype=float)
         names = names_for(self.model)
-        return np.log10(np.maximum([w[names.index(n)] for n in self.fitted], 10.0 ** LOG_BOUNDS[0]))
+        # on the search box's limit when beyond it, above as below (scipy's bounded Powell would start outside, with a warning)
+        return np.clip(np.log10(np.maximum([w[names.index(n)] for n in self.fitted], 10.0 ** LOG_BOUNDS[0])), *LOG_BOUNDS)
 
 
 def held_weights(model: str, convention="continuous") -> tuple[str, ...]:
