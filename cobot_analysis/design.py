@@ -80,10 +80,13 @@ def design_codes(conditions, starts, ends) -> tuple[dict[str, WalkingCondition],
         return {}, ""
     labels = np.asarray(list(map(str, conditions)))
     rel = np.asarray(starts, float) - np.asarray(ends, float)
-    off = {c: float(np.nanmedian(np.hypot(*(rel[labels == c] - np.subtract(w.start[:2], WALKING_GOAL[:2])).T)))
-           for c, w in parsed.items()}
-    worst = max(off, key=lambda c: off[c] if np.isfinite(off[c]) else -1.0)
-    if off[worst] <= CODE_TOLERANCE:
+    off = {}
+    for c, w in parsed.items():
+        d = np.hypot(*(rel[labels == c] - np.subtract(w.start[:2], WALKING_GOAL[:2])).T)
+        if np.isfinite(d).any():  # a label whose paths have no measured start or end is not judged
+            off[c] = float(np.median(d[np.isfinite(d)]))
+    worst = max(off, key=off.get, default=None)
+    if worst is None or off[worst] <= CODE_TOLERANCE:
         return parsed, ""
     x, y, _ = parsed[worst].start
     return {}, (f"its label {worst} reads as the walking-2020 code of a start at ({x + 0.0:g}, {y + 0.0:g}) from the goal, but its "

@@ -359,3 +359,16 @@ def test_generate_study_refuses_labels_that_read_as_codes_but_start_elsewhere(tm
     assert code == 2 and len(err.strip().splitlines()) == 1, err
     assert "its label N4040 reads as the walking-2020 code of a start at (-4, -3.4)" in err and "fit-ioc" in err
     assert not (tmp_path / "ws" / "generate").exists()
+
+
+def test_a_code_whose_paths_have_no_measured_start_is_not_judged(recwarn):
+    """``design_codes`` on a label whose paths are all NaN (a trajectories table other checks refuse): before, numpy's
+    'All-NaN slice' RuntimeWarning reached the user's terminal beside the one refusal line (predict's bad input)."""
+    import numpy as np
+
+    from cobot_analysis.design import design_codes
+
+    nan = np.full((2, 2), np.nan)
+    codes, why = design_codes(["N1500", "N1500"], nan, nan)
+    assert list(codes) == ["N1500"] and why == ""
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
