@@ -166,34 +166,25 @@ def test_fit_ioc_command_end_to_end_and_per_subject(planted_paths, tmp_path, cli
 
 
 @pytest.mark.slow  # a Dask cluster of 2 worker processes started and stopped: 5.6 s of CPU with the fits (2026-11-25)
-def test_fit_ioc_on_dask_equals_local_run(planted_paths, tmp_path, cli, dask_scheduler):
-    paths = {c: planted_paths[c] for c in CONDITIONS[:2]}
+@pytest.mark.parametrize("n, args, stage", [
+    (2, ["--fit", "a1,a4", "--max-evaluations", "8"], "fit-ioc"),
+    # the single-level fit's Newton corrections, fold re-solves and probes are pool tasks too
+    (4, ["--fit", "a2,a4", "--method", "single-level"], "fit-ioc-single"),
+])
+def test_fit_ioc_on_dask_equals_local_run(planted_paths, tmp_path, cli, dask_scheduler, n, args, stage):
+    """On a Dask cluster (``--scheduler``) the same fit as on the local pool, to the last bit, and a fit (D below its
+    start), with either method."""
+    paths = {c: planted_paths[c] for c in CONDITIONS[:n]}
     src = write_table(_table(paths), tmp_path / "t.parquet", TRAJECTORIES)
-    args = ["--trajectories", src, "--fit", "a1,a4", "--max-evaluations", "8", "--no-compare"]
-    code, _, err = cli("fit-ioc", "--out", tmp_path / "local", *args, "-j", "1")
+    args = ["--trajectories", src, *args, "--no-compare"]
+    code, _, err = cli("fit-ioc", "--out", tmp_path / "local", *args, "-j", "1" if stage == "fit-ioc" else "2")
     assert code == 0, err
     code, _, err = cli("fit-ioc", "--out", tmp_path / "dask", *args, "--scheduler", dask_scheduler)
     assert code == 0, err
-    local = json.loads((tmp_path / "local" / "fit-ioc" / "weights.json").read_text())["fits"]["all"]
-    dask = json.loads((tmp_path / "dask" / "fit-ioc" / "weights.json").read_text())["fits"]["all"]
+    local = json.loads((tmp_path / "local" / stage / "weights.json").read_text())["fits"]["all"]
+    dask = json.loads((tmp_path / "dask" / stage / "weights.json").read_text())["fits"]["all"]
     assert dask["weights"] == local["weights"] and dask["objective"] == local["objective"]
-
-
-@pytest.mark.slow  # a Dask cluster of 2 worker processes started and stopped
-def test_single_level_fit_on_dask_equals_local_run(planted_paths, tmp_path, cli, dask_scheduler):
-    """The single-level fit's Newton corrections, fold re-solves and probes are pool tasks too: on a Dask cluster
-    (``--scheduler``) the same fit as on the local pool, to the last bit."""
-    paths = {c: planted_paths[c] for c in CONDITIONS[:4]}
-    src = write_table(_table(paths), tmp_path / "t.parquet", TRAJECTORIES)
-    args = ["--trajectories", src, "--fit", "a2,a4", "--method", "single-level", "--no-compare"]
-    code, _, err = cli("fit-ioc", "--out", tmp_path / "local", *args, "-j", "2")
-    assert code == 0, err
-    code, _, err = cli("fit-ioc", "--out", tmp_path / "dask", *args, "--scheduler", dask_scheduler)
-    assert code == 0, err
-    local = json.loads((tmp_path / "local" / "fit-ioc-single" / "weights.json").read_text())["fits"]["all"]
-    dask = json.loads((tmp_path / "dask" / "fit-ioc-single" / "weights.json").read_text())["fits"]["all"]
-    assert dask["weights"] == local["weights"] and dask["objective"] == local["objective"]
-    assert local["objective"] < local["start_objective"]  # a fit, not its start kept
+    assert local["objective"] < local["start_objective"]
 
 
 def _no_stage(out, name):
