@@ -325,7 +325,7 @@ def test_a_converged_path_that_spins_says_so_and_is_not_exported_as_commands(tmp
     last = spun.iloc[-1]
     assert bool(last.converged) and bool(last.goal_reached)
     assert heading_turns(spun.theta)["excess"] == pytest.approx(9.58, abs=0.05) and spins(spun.theta)
-    assert last.status.startswith("spins: its heading turns 9.6 rad beyond its net turn, |omega| up to 63")
+    assert last.status.startswith("spins: its heading turns 9.6 rad beyond its net turn, its turning rate up to 63")
     summary = GenerateResult(generated=spun, models=["improved"], weights=SPIN_WEIGHTS, cases=[("", SPIN_START, WALKING_GOAL)],
                              convention="continuous", n_samples=500, n_intervals=50).summary()
     assert summary.startswith("1 trajectory, all at their goal, 1 that spin (no walker's path) (status in .generated)")

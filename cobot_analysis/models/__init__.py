@@ -77,11 +77,11 @@ def spins(theta) -> bool:
 
 def spin_status(theta, omega=None) -> str:
     """'' or, for a path that ``spins``, what its ``status`` says: the turning beyond the net turn and the largest
-    |omega| (rad/s). Such a path can be a converged solution at its goal: the weights leave the turning rate's
-    changes almost free (a3 near zero, docs/methods.md sec. 5.5)."""
+    |omega| (rad/s), with no '|' (a cell of results.md's tables). Such a path can be a converged solution at its
+    goal: the weights leave the turning rate's changes almost free (a3 near zero, docs/methods.md sec. 5.5)."""
     if not spins(theta):
         return ""
-    rate = "" if omega is None else f", |omega| up to {np.nanmax(np.abs(np.asarray(omega, float))):.3g} rad/s"
+    rate = "" if omega is None else f", its turning rate up to {np.nanmax(np.abs(np.asarray(omega, float))):.3g} rad/s"
     return f"spins: its heading turns {heading_turns(theta)['excess']:.1f} rad beyond its net turn{rate} (no walker's path)"
 
 
