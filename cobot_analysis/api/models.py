@@ -883,7 +883,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
             comparison = pd.concat([comparison, subject_distances(trial_targets, mean_targets, spec.angle, conv.name)], ignore_index=True)
         dist = pd.concat([dist[dist["fit"] != "all"], comparison.drop(columns="goal_reached")], ignore_index=True)
     letters = {t.condition: t.orientation for ts in (mean_targets, *fits.values(), compared or []) for t in ts if isinstance(t, Target)}
-    dist["orientation"] = dist["condition"].map(letters).fillna("")
+    dist["orientation"] = [letters.get(c) or "" for c in dist["condition"]]  # a string column even when no letter is known
     dist["subject"] = dist["subject"].fillna("")
     dist["convention"] = conv.name
     dist = dist.drop(columns=["converged"]).assign(converged=dist["converged"].astype(bool))
