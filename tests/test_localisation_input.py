@@ -217,6 +217,19 @@ def test_quaternions_of_varying_norms_are_damage(cli, tmp_path):
                                              "orientation quaternion of norm far from 1 (1.5"])
 
 
+def test_too_few_samples_after_damaged_poses_were_dropped_says_so_in_its_line(cli, tmp_path):
+    """Norms spread over 0.5..2 leave 2 ICP poses of their stream: before, the one line said 'too few overlapping
+    samples' and the cause (the dropped poses) was only in a warning above it; now the line says it."""
+    rng = np.random.default_rng(0)
+    n_icp = len(synth.make_run(SHORT).t_icp)
+    bag = synth.write_ros1(synth.make_run(SHORT), tmp_path / "most.bag", edit=damage.edit_poses(
+        lambda t, i, xyz, q: (xyz, q * rng.uniform(0.5, 2.0) if t == "/icp/pose" else q)))
+    line = _fails(cli, tmp_path / "ws", bag, match=["most.bag: too few overlapping samples", "; on reading, /icp/pose: ",
+                                                   f"of {n_icp} message(s) dropped: "])
+    assert "orientation quaternion of norm far from 1" in line and line.endswith("check the topics with `cobot-analysis "
+                                                                                 "bag-info` and the recording")
+
+
 def test_bag_info_prints_long_topic_names_whole(cli, tmp_path):
     long = "/robot/localization/lidar_icp_node_with_a_really_long_name/pose_in_map_frame_estimated"
     bag = synth.write_ros1(synth.make_run(SHORT), tmp_path / "long.bag", edit=damage.rename_topic("/icp/pose", long))

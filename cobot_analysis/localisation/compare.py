@@ -401,6 +401,16 @@ def _spans(truth: PoseStream, icp: PoseStream, delay: float | None) -> str:
             f"{icp.t[0] - (delay or 0.0):.3f}..{icp.t[-1] - (delay or 0.0):.3f} s")
 
 
+DROPPED_REMEDY = "the poses left after those were too few: check the topics with `cobot-analysis bag-info` and the recording"
+
+
+def _dropped(*streams: PoseStream) -> str:
+    """'; on reading, ...' the streams' notes of poses dropped as damaged (``bags``), or '': when too few samples are
+    left, the likely cause, said in the one line instead of only in the warning before it."""
+    notes = [n for s in streams for n in s.meta.get("notes", []) if " dropped: " in n]
+    return f"; on reading, {'; '.join(notes)}" if notes else ""
+
+
 def _too_few(truth: PoseStream, icp: PoseStream, tq, valid, d: Delay, association: str, max_gap: float, max_diff: float,
              min_samples: int, path) -> InputError:
     """The error for too few associated poses, naming its cause (module doc, step 1)."""
@@ -411,9 +421,10 @@ def _too_few(truth: PoseStream, icp: PoseStream, tq, valid, d: Delay, associatio
     given = d.method == "given"
     if n_in < min_samples:
         return InputError(f"too few overlapping samples: {n_in} ICP poses fall inside the motion-capture time span "
-                          f"(need {min_samples}; {_spans(truth, icp, d.value)})", path=path,
-                          remedy="check that both topics cover the same time (bag-info), the --time option (header stamps "
-                                 "or record time)" + (" and --delay" if given else ""))
+                          f"(need {min_samples}; {_spans(truth, icp, d.value)}{_dropped(truth, icp)})", path=path,
+                          remedy=DROPPED_REMEDY if _dropped(truth, icp) else
+                          "check that both topics cover the same time (bag-info), the --time option (header stamps "
+                          "or record time)" + (" and --delay" if given else ""))
     if association == "nearest":
         return InputError(f"too few associated samples: {n} of the {n_in} ICP poses inside the motion capture have a truth "
                           f"sample within --max-diff {max_diff:g} s (truth sample spacing: {sp}; need {min_samples})",
@@ -525,9 +536,10 @@ def _compare_once(truth: PoseStream, icp: PoseStream, delay, window, weights, al
         if not np.isfinite(dl.value):
             raise InputError(f"too few overlapping samples to estimate the delay ({dl.n} ICP poses inside the motion-capture "
                              f"span for a search window of {window[0]:g}..{window[1]:g} s, need {min_samples}; "
-                             f"{_spans(truth, icp, None)})", path=path,
-                             remedy="check that both topics cover the same time (bag-info) and the --time option (header "
-                                    "stamps or record time); a delay outside the window needs a wider --delay-window")
+                             f"{_spans(truth, icp, None)}{_dropped(truth, icp)})", path=path,
+                             remedy=DROPPED_REMEDY if _dropped(truth, icp) else
+                             "check that both topics cover the same time (bag-info) and the --time option (header "
+                             "stamps or record time); a delay outside the window needs a wider --delay-window")
     else:
         dl = Delay(float(delay), 0.0, "given")
     tq = icp.t - dl.value
