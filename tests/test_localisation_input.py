@@ -207,6 +207,23 @@ def test_quaternions_of_one_constant_norm_are_normalised_with_a_warning(cli, tmp
         assert r[col] == pytest.approx(level[col], rel=1e-9), col
 
 
+def test_a_few_damaged_quaternions_among_those_of_one_norm_are_dropped_the_others_normalised(cli, tmp_path, short, level):
+    """A publisher that never normalises (norm 2) and a few damaged messages (1 in 25, norms 0.5..1.5): before, the
+    whole stream was refused as damaged (no norm shared by all); now the 96 % of one norm are normalised with one
+    warning and the others dropped, named in another: the run's numbers those of its recording less 4 % of poses."""
+    rng = np.random.default_rng(0)
+    bag = synth.write_ros1(short[1], tmp_path / "mostly.bag", edit=damage.edit_poses(
+        lambda t, i, xyz, q: (xyz, q * (rng.uniform(0.5, 1.5) if i % 25 == 7 else 2.0) if t == "/icp/pose" else q)))
+    code, _, err = cli("localisation", bag, "--out", tmp_path / "ws", "--no-figures")
+    assert code == 0, err
+    err = " ".join(err.split())
+    assert "/icp/pose: every orientation quaternion has the norm 2, not 1" in err
+    assert "message(s) dropped: " in err and "with an orientation quaternion of norm far from 1" in err
+    r = _runs(tmp_path / "ws").iloc[0]
+    assert r["delay"] == pytest.approx(level["delay"], abs=0.01) and r["ape_rmse"] == pytest.approx(level["ape_rmse"], rel=0.1)
+    assert r["n_icp"] < level["n_icp"]
+
+
 def test_quaternions_of_varying_norms_are_damage(cli, tmp_path):
     """Norms spread over 1.5..3 share no constant: damage, as before."""
     rng = np.random.default_rng(0)

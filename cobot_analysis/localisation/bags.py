@@ -676,13 +676,18 @@ def _turn(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return 2 * np.arccos(np.clip(np.abs(np.sum(a * b, axis=1)), 0.0, 1.0))
 
 
+#: the share of a stream's orientation quaternions that must have one norm for it to be the publisher's (the others damaged)
+CONSTANT_NORM_SHARE = 0.9
+
+
 def _constant_norm(norm: np.ndarray) -> float:
-    """The norm all the orientation quaternions share (their median, when every norm is within ``QUAT_TOL`` of it,
-    relatively, and it is not within ``QUAT_TOL`` of 1: a publisher that never normalises), else 1."""
+    """The norm the orientation quaternions share (their median, when at least ``CONSTANT_NORM_SHARE`` of the norms lie
+    within ``QUAT_TOL`` of it, relatively, and it is not within ``QUAT_TOL`` of 1: a publisher that never normalises;
+    the others are damage), else 1."""
     if not len(norm):
         return 1.0
     m = float(np.median(norm))
-    return m if abs(m - 1.0) > QUAT_TOL and np.all(np.abs(norm / m - 1.0) <= QUAT_TOL) else 1.0
+    return m if abs(m - 1.0) > QUAT_TOL and np.mean(np.abs(norm / m - 1.0) <= QUAT_TOL) >= CONSTANT_NORM_SHARE else 1.0
 
 
 def _stream(path: Path, name: str, rows: np.ndarray, frame_id: str = "", continuous: bool = True,
