@@ -274,9 +274,9 @@ def trajectories_from_table(df: pd.DataFrame, config: SweepConfig, path: str | o
         condition = str(first.get("condition") or "")
         code = codes[study].get(condition) if entity == "walker" else None  # a walking-2020 code its study's paths agree with
         orientation = code.orientation if code else ""
+        finite = poses[np.isfinite(poses[:, :2]).all(axis=1), :2]  # the measured positions
         dist = first.get("travelled_distance")
         if dist is None or not np.isfinite(dist):
-            finite = poses[np.isfinite(poses[:, :2]).all(axis=1), :2]
             dist = float(np.hypot(*(finite[-1] - finite[0]))) if len(finite) else float("nan")
         subject = first.get("subject")
         meta = {"kind": str(first.get("kind") or ""), "condition": condition,
@@ -285,7 +285,6 @@ def trajectories_from_table(df: pd.DataFrame, config: SweepConfig, path: str | o
         flags = set(str(first.get("quality") or "").split(";"))
         has_theta = bool(np.isfinite(poses[:, 2]).any())
         track = has_theta and (config.orientation == "track" or (config.orientation == "auto" and not flags & set(ORIENTATION_FLAGS)))
-        finite = poses[np.isfinite(poses[:, :2]).all(axis=1), :2]
         goal = design_goal(str(study), {"condition": condition, "direction": first.get("direction"),
                                         "end_orientation": first.get("end_orientation")}, finite[-1] if len(finite) else None,
                            headings.get(study, math.nan))
