@@ -31,6 +31,24 @@ def test_table_round_trip_keeps_units_and_metadata(tmp_path):
     assert df.attrs["cobot_analysis"]["rate"] == 200.0
 
 
+def test_read_table_metadata_is_shared_read_only_and_travels_to_workers(tmp_path):
+    """pandas deep-copies attrs into every frame an operation makes: the metadata is shared instead (one object
+    in every group of a groupby), cannot be changed in place, and pickles to a worker as itself."""
+    import copy
+    import pickle
+
+    df = read_table(write_table(_markers(), tmp_path / "m.parquet", MARKERS, rate=200.0), MARKERS)
+    meta = df.attrs["cobot_analysis"]
+    assert all(g.attrs["cobot_analysis"] is meta for _, g in df.groupby("frame"))
+    assert df[["x"]].attrs["cobot_analysis"] is meta and copy.deepcopy(meta) is meta
+    for change in (lambda m: m.__setitem__("rate", 100.0), lambda m: m.update(rate=100.0), lambda m: m.pop("rate")):
+        with pytest.raises(TypeError, match="read-only"):
+            change(meta)
+    back = pickle.loads(pickle.dumps(df))
+    assert back.attrs["cobot_analysis"] == meta and back.attrs["cobot_analysis"]["rate"] == 200.0
+    assert {**meta, "rate": 100.0}["rate"] == 100.0 and json.loads(json.dumps(meta)) == meta  # a copy is a plain dict
+
+
 def test_write_table_refuses_missing_columns(tmp_path):
     with pytest.raises(ValueError, match="lacks required columns"):
         write_table(_markers().drop(columns="z"), tmp_path / "m.parquet", MARKERS)
