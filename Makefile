@@ -24,9 +24,9 @@ PUBLISHED_IOC_ARGS ?=
 PUBLISHED_TABLE_IOC_ARGS ?= --max-evaluations 130
 PREDICT_ARGS ?=
 PUBLISHED_PREDICT_ARGS ?=
-PREDICT_FITTED_ARGS ?= --settings 50:100
 # the goal-aware predictor beside the thesis OC and the baselines, and the horizon sweep (docs/methods.md sec. 7.1, 7.2);
-# on walking with the weights fitted under the continuous convention (weights are used in the convention they were fitted in)
+# on walking with the weights fitted under the continuous convention (weights are used in the convention they were fitted in):
+# its oc, cv and ctrv rows are the thesis OC with the fitted weights (a predict-fitted stage of its own would repeat them)
 GOAL_PREDICT_ARGS ?= --settings 50:100 --predictors oc,goal,cv,ctrv --horizons 5,10,25,50,100,200,all
 SUBJECT_IOC_ARGS ?= --subjects 10 --max-evaluations 600
 # the single-level IOC beside each bi-level fit over the means (docs/methods.md sec. 6.1; published convention: at the
@@ -96,7 +96,6 @@ walking:
 	$(CLI) stats --out $(WALK) --convention published
 	$(CLI) predict --out $(WALK) --kind trial --convention continuous --jobs $(JOBS) $(PREDICT_ARGS)
 	$(CLI) predict --out $(WALK) --kind trial --convention published --jobs $(JOBS) $(PUBLISHED_PREDICT_ARGS)
-	$(CLI) predict --out $(WALK) --kind trial --weights $(WALK)/fit-ioc/weights.json --stage-name predict-fitted --jobs $(JOBS) $(PREDICT_FITTED_ARGS)
 	$(CLI) predict --out $(WALK) --kind trial --convention continuous --weights $(WALK)/fit-ioc/weights.json --stage-name predict-goal --jobs $(JOBS) $(GOAL_PREDICT_ARGS)
 	$(CLI) report walking-2020 --out $(WALK) --to reports/walking
 

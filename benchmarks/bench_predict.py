@@ -20,7 +20,7 @@
         Wall time of the horizon sweep (models.prediction.horizons) at N0 = 50.
     python benchmarks/bench_predict.py stages WALKING.parquet [--pairs PAIRS.parquet] [--n 3] [--weights W]
         CPU per trajectory of each prediction stage of the Makefile (issue 22 point 5), one process: predict
-        (4 settings, both conventions), predict-fitted, and the predict-goal stages with their horizon sweep,
+        (4 settings, both conventions) and the predict-goal stages with their horizon sweep,
         the settings and the horizons predicted by one run per predictor (the stage) against two runs
         (before: the horizon sweep predicted every window again), alternated per trajectory; the ratio.
     python benchmarks/bench_predict.py goal WALKING.parquet [--pairs PAIRS.parquet] [--n 6] [--weights W]
@@ -245,7 +245,6 @@ def bench_stages(walking: Path, pairs: Path | None, n: int, weights: str | None)
     published = conventions.get("published")
     cases = [("predict (4 settings, continuous)", SweepConfig(), walk, "walker", None),
              ("predict-published (4 settings)", SweepConfig(convention=published), walk, "walker", None),
-             ("predict-fitted (50:100)", SweepConfig(settings=((50, 100),), weights=weights), walk, "walker", None),
              ("predict-goal walking (oc,goal,cv,ctrv + horizons)",
               SweepConfig(settings=((50, 100),), predictors=("oc", "goal", "cv", "ctrv"), weights=weights), walk, "walker", True)]
     if pairs is not None:
