@@ -138,3 +138,24 @@ def test_mcap_pieces_are_joined_or_refused_naming_mcap_merge(split, tmp_path, wr
                                              r"read as one run; merge them into one file first \(mcap merge run_0.mcap "
                                              r"run_1.mcap -o ONE.mcap\)"):
             localise(pieces, join=True, icp="tf:map->base_link")
+
+
+@pytest.mark.parametrize("damage, what", [("records", "cannot read the messages"), ("string", "cannot decode a geometry_msgs/PoseStamped")])
+def test_a_damaged_piece_of_a_joined_run_is_the_file_named(split, tmp_path, damage, what):
+    """Damage inside the second piece (its records, or a frame name's length in a pose message): the one line
+    names that piece, whose repair its remedy gives, not the joined run (which no tool can reindex)."""
+    d, _, _, pieces = split
+    copies = [tmp_path / p.name for p in pieces]
+    for p, c in zip(pieces, copies):
+        c.write_bytes(p.read_bytes())
+    b = bytearray(copies[1].read_bytes())
+    if damage == "records":
+        for i in range(len(b) // 2, len(b) // 2 + 400, 7):
+            b[i] ^= 0xFF
+    else:
+        i = b.find(b"\x03\x00\x00\x00map", len(b) // 2)
+        b[i:i + 4] = b"\xf0\xff\xff\x7f"
+    copies[1].write_bytes(bytes(b))
+    with pytest.raises(InputError, match=what) as joined:
+        localise(copies, join=True)
+    assert str(joined.value).startswith(f"{copies[1]}: ") and "reindex it" in str(joined.value)

@@ -113,6 +113,10 @@ class _Source:
         for topic, msgtype, ts, raw in self.raw(topics):
             yield topic, msgtype, ts, self.deserialize(raw, msgtype)
 
+    def piece_at_fault(self, topics, decode: str | None = None) -> Path:
+        """The file to name for a failure reading ``topics`` (or decoding their ``decode`` messages): the bag's."""
+        return self.path
+
 
 class _RosbagsSource(_Source):
     def __init__(self, path: Path, reader):
@@ -128,6 +132,21 @@ class _RosbagsSource(_Source):
     @property
     def span(self) -> tuple[int, int]:
         return self.reader.start_time, self.reader.end_time
+
+    def piece_at_fault(self, topics, decode: str | None = None) -> Path:
+        """Of the pieces of a joined run, the first whose own messages of ``topics`` fail to read (or, ``decode``:
+        to decode as that type) when read alone; the run's name if none does (or for one bag)."""
+        if len(self.reader.readers) < 2:
+            return self.path
+        for reader in self.reader.readers:
+            conns = [c for c in self.reader.connections if c.topic in topics and c.owner is reader]
+            try:
+                for c, _, raw in reader.messages(connections=conns):
+                    if c.msgtype == decode:
+                        self.reader.deserialize(raw, c.msgtype)
+            except Exception:  # noqa: BLE001 - whatever the readers raise on damage: this piece is the one
+                return Path(reader.path)
+        return self.path
 
     def raw(self, topics):
         conns = [c for c in self.reader.connections if c.topic in topics]
@@ -391,7 +410,8 @@ def _checked(src: _Source, topics, raw: bool = False) -> Iterator[tuple[str, str
     except InputError:
         raise
     except Exception as exc:  # noqa: BLE001
-        raise InputError(f"cannot read the messages ({_cause(exc)})", path=src.path, remedy=_repair(src.path)) from None
+        path = src.piece_at_fault(topics)
+        raise InputError(f"cannot read the messages ({_cause(exc)})", path=path, remedy=_repair(path)) from None
 
 
 # ---- pose streams -----------------------------------------------------------------------------
@@ -549,8 +569,9 @@ def _decode(src: _Source, raw, msgtype: str):
     try:
         return src.deserialize(raw, msgtype)
     except Exception as exc:  # noqa: BLE001
-        raise InputError(f"cannot decode a {msgtype.replace('/msg/', '/')} message ({_cause(exc)})", path=src.path,
-                         remedy=f"{_repair(src.path)}; or its message definition differs from the standard one") from None
+        path = src.piece_at_fault([t.name for t in src.topics.values() if t.msgtype == msgtype], decode=msgtype)
+        raise InputError(f"cannot decode a {msgtype.replace('/msg/', '/')} message ({_cause(exc)})", path=path,
+                         remedy=f"{_repair(path)}; or its message definition differs from the standard one") from None
 
 
 # Fixed-layout decoding: pose messages of one topic usually have the same frame names and hence
