@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -140,6 +141,33 @@ def test_fit_ioc_and_velocity_commands_take_parquet_paths(walking):
                                                            "fitted, continuous convention)")
     assert figures["paths"].legends[0].get_title().get_text() == ("mean (black) vs improved OC: published, fitted weights "
                                                                    "(continuous convention)")
+    # the fit names its model paths that spin (converged, no walker's path), as generate's status does
+    from dataclasses import replace
+
+    from cobot_analysis.models import spin_status, spins
+    from cobot_analysis.reports.models import fit_ioc_markdown
+
+    paths = by_path.model_paths()
+    assert len(paths.groupby("trial")) == len(by_path.mean_targets)
+    assert by_path.spinning() == [c for c, g in paths.groupby("trial", sort=False) if spins(g["theta"].to_numpy())]
+    first = by_path.paths["fitted"][0]
+    theta = first["theta"].to_numpy() + 3 * np.pi * np.sin(np.linspace(0.0, np.pi, len(first)))  # 1.5 turns there and back
+    spun = replace(by_path, paths={**by_path.paths, "fitted": [first.assign(theta=theta, status=spin_status(theta)),
+                                                               *by_path.paths["fitted"][1:]]})
+    name = by_path.mean_targets[0].condition
+    assert spun.spinning() == [name, *by_path.spinning()] and spun.spinning("published") == by_path.spinning("published")
+    assert spun.summary().endswith(f"; at the fitted weights {len(spun.spinning())} of {len(by_path.mean_targets)} model paths "
+                                   "spin (no walker's path: results.md)")
+
+    class Stage:
+        def savefig(self, fig, name):
+            import matplotlib.pyplot as plt
+            plt.close(fig)
+
+    text = fit_ioc_markdown(spun, Stage(), optimizer="powell", intervals=20, v_nominal=1.0, durations=None)
+    line = next(x for x in text.splitlines() if x.startswith("The model's paths at the fitted weights"))
+    assert "**Heading: no walker's turn**" in line and "spin, their heading turning more than a full turn" in line and name in line
+    assert "The model's paths at the published weights" in text
     generated = ca.generate("clothoid", start=(-1.5, -3.4, 0.0), jobs=1).generated
     path = write_table(generated, out / "clothoid.parquet", GENERATED)
     assert ca.velocity_commands(path).commands.equals(ca.velocity_commands(generated).commands)

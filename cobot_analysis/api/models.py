@@ -449,7 +449,23 @@ class FitResult:
         start_d = sum(r.start_objective for r in self.results.values()) / len(self.results)
         end_d = sum(r.objective for r in self.results.values()) / len(self.results)
         fitted = f"{n_paths} paths, D" if len(self.results) == 1 else f"{len(self.results)} fits, {n_paths} paths, mean D"
-        return f"{fitted} {end_d:.3f} fitted ({start_d:.3f} at the start weights)"
+        spin = self.spinning()
+        return (f"{fitted} {end_d:.3f} fitted ({start_d:.3f} at the start weights)"
+                + (f"; at the fitted weights {len(spin)} of {len(self.mean_targets)} model paths spin (no walker's path: "
+                   "results.md)" if spin else ""))
+
+    def model_paths(self, weights: str = "fitted") -> pd.DataFrame:
+        """The model's paths on the means at the ``fitted`` (or ``published``) weights, as ``generate`` makes them
+        (the figure's), each named by its mean's condition in ``trial``; no rows without a comparison."""
+        paths = [p.assign(trial=t.condition or t.trial) for t, p in zip(self.mean_targets, (self.paths or {}).get(weights) or [])
+                 if p is not None]
+        return pd.concat(paths, ignore_index=True) if paths else pd.DataFrame(columns=["trial", "theta", "status"])
+
+    def spinning(self, weights: str = "fitted") -> list[str]:
+        """The conditions whose model path at the ``fitted`` (or ``published``) weights spins (its status, as ``generate``
+        writes it: ``models.spins``): converged, and no walker's path."""
+        ends = self.model_paths(weights).groupby("trial", sort=False)["status"].first().astype(str)
+        return ends.index[ends.str.startswith("spins")].tolist()
 
     @property
     def stage(self) -> str:

@@ -817,4 +817,7 @@ def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal
         lines += ["![distances per model](distances_boxplot.png)", ""]
         stage.savefig(figure_paths(result.mean_targets, result.paths, paths_title(model, conv.name)), "paths")
         lines += ["![generated vs mean paths](paths.png)", ""]
+        for k in result.paths:  # a converged path need not be a walker's: its heading, at both weights
+            lines += [f"The model's paths at the {k} weights (as `generate` makes them, the figure's): "
+                      + heading_line(result.model_paths(k)), ""]
     return "\n".join(lines) + "\n"
