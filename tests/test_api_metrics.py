@@ -156,6 +156,10 @@ def test_fit_ioc_and_velocity_commands_take_parquet_paths(walking):
                                                                *by_path.paths["fitted"][1:]]})
     name = by_path.mean_targets[0].condition
     assert spun.spinning() == [name, *by_path.spinning()] and spun.spinning("published") == by_path.spinning("published")
+    # means that share a condition (the pair study's scenarios and directions) are named by their own names
+    shared = replace(spun, mean_targets=[replace(t, condition="c") for t in by_path.mean_targets])
+    assert shared.spinning()[0] == by_path.mean_targets[0].trial
+    assert shared.model_paths().groupby("trial").ngroups == len(by_path.mean_targets)
     assert spun.summary().endswith(f"; at the fitted weights {len(spun.spinning())} of {len(by_path.mean_targets)} model paths "
                                    "spin (no walker's path: results.md)")
 

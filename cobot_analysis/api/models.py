@@ -456,9 +456,12 @@ class FitResult:
 
     def model_paths(self, weights: str = "fitted") -> pd.DataFrame:
         """The model's paths on the means at the ``fitted`` (or ``published``) weights, as ``generate`` makes them
-        (the figure's), each named by its mean's condition in ``trial``; no rows without a comparison."""
-        paths = [p.assign(trial=t.condition or t.trial) for t, p in zip(self.mean_targets, (self.paths or {}).get(weights) or [])
-                 if p is not None]
+        (the figure's), each named in ``trial`` by its mean's condition (by the mean's own name where several means
+        share a condition: the pair study's scenarios and directions); no rows without a comparison."""
+        names = [t.condition or t.trial for t in self.mean_targets]
+        if len(set(names)) < len(names):
+            names = [t.trial for t in self.mean_targets]
+        paths = [p.assign(trial=name) for name, p in zip(names, (self.paths or {}).get(weights) or []) if p is not None]
         return pd.concat(paths, ignore_index=True) if paths else pd.DataFrame(columns=["trial", "theta", "status"])
 
     def spinning(self, weights: str = "fitted") -> list[str]:
