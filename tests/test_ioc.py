@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pandas as pd
@@ -132,9 +133,14 @@ def test_fit_ioc_command_end_to_end_and_per_subject(planted_paths, tmp_path, cli
     w = json.loads((out / "fit-ioc" / "weights.json").read_text())
     assert set(w["weights"]) == set(PRESETS["walking-2021"]) and w["fits"]["all"]["evaluations"] <= 12 + 2
     fit = w["fits"]["all"]
-    # the summary line: the fit over the 2 means
+    # the summary line: the fit over the 2 means, and its model paths that spin as results.md's heading line counts them
+    heading = next(line for line in (out / "fit-ioc" / "results.md").read_text().splitlines()
+                   if line.startswith("The model's paths at the fitted weights"))
+    spin = re.search(r"(\d+) of 2 paths spin", heading)
     assert err.strip().splitlines()[-1] == (f"fit-ioc (continuous): 2 paths, D {fit['objective']:.3f} fitted "
-                                            f"({fit['start_objective']:.3f} at the start weights) -> {out / 'fit-ioc'}")
+                                            f"({fit['start_objective']:.3f} at the start weights)"
+                                            + (f"; at the fitted weights {spin[1]} of 2 model paths spin (no walker's path: "
+                                               "results.md)" if spin else "") + f" -> {out / 'fit-ioc'}")
     dist = read_table(out / "fit-ioc" / "distances.parquet", __import__("cobot_analysis.models.outputs", fromlist=["x"]).IOC_DISTANCES)
     assert {"unicycle", "clothoid", "Mombaur OC", "improved OC (published)", "improved OC (fitted)", "subjects vs mean"} <= set(dist.model)
     fitted = dist[dist.model == "improved OC (fitted)"]
