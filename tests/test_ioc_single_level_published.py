@@ -183,3 +183,54 @@ def test_bilevel_fit_checks_its_held_horizons_at_the_end(monkeypatch):
     assert r.horizons_changed == 0 and r.failed == 0 and r.evaluations > 1
     assert r.objective == pytest.approx(r.held_objective, rel=1e-12, abs=0)
     assert [d["T"] for d in r.per_target] == pytest.approx([h * 0.1 for h in horizons], rel=1e-12)
+
+
+def test_steps_from_another_fits_weights_start_at_its_D(recwarn):
+    """``continued_from``: the single-level steps started at another fit's weights (a1, a2 x 1.5 here). Its start D
+    is the one the bi-level fit evaluates there (``fit.solve_target``: the duration rule from the authors' guess),
+    its end the truth within 1 % (D ~ 0); continuous fits are refused (their candidates differ: ``cross_check``)."""
+    from cobot_analysis.models.ioc.single_level_published import continued_from
+
+    targets = published_targets(SPEC, TRUE)
+    names = names_for("improved")
+    w0 = np.array(TRUE)
+    for n in SPEC.fitted:
+        w0[names.index(n)] *= 1.5
+    bilevel_D = float(np.mean([solve_target(SPEC, w0, t, None)[0]["D"] for t in targets]))
+    r = continued_from(SPEC, targets, dict(zip(names, map(float, w0))))
+    assert bilevel_D > 1e-4 and r["start_objective"] == pytest.approx(bilevel_D, rel=1e-9)
+    assert r["objective"] < 1e-5 and r["seconds"] > 0 and "feasible-path steps accepted" in r["message"]
+    for n in SPEC.fitted:
+        assert r["weights"][n] == pytest.approx(TRUE[names.index(n)], rel=0.01)
+    assert not [w for w in recwarn if "kept" in str(w.message)]
+    with pytest.raises(ValueError, match="published convention"):
+        continued_from(replace(SPEC, convention="continuous"), targets, dict(zip(names, map(float, w0))))
+
+
+def test_steps_from_the_bilevel_weights_are_reported_and_recorded():
+    """The side-by-side table's row 'single-level, started at the bi-level weights' and the metric
+    ``D.single_level_from_bilevel`` carry ``FitResult.continued`` as weights.json holds it; without it, no row."""
+    from types import SimpleNamespace
+
+    from cobot_analysis.metrics.models import fit_ioc as fit_metrics
+    from cobot_analysis.metrics.records import collect
+    from cobot_analysis.reports.models import methods_side_by_side
+
+    names = ("a1", "a2")
+    fit = SimpleNamespace(objective=0.49, weights={"a1": 8.1, "a2": 8.0})
+    cont = {"objective": 0.4724, "start_objective": 0.4785, "weights": {"a1": 8.17, "a2": 8.14}, "seconds": 21.5, "message": ""}
+    result = SimpleNamespace(names=names, results={"all": fit}, seconds={"all": 20.3}, cross_checked={}, uncertainty={},
+                             continued={"all": cont})
+    other = {"path": "fit-ioc-published/weights.json",
+             "fits": {"all": {"objective": 0.4785, "seconds": 545.0, "weights": {"a1": 6.15, "a2": 6.21}}}}
+    text = "\n".join(methods_side_by_side(result, other))
+    rows = [ln for ln in text.splitlines() if ln.startswith("| all |")]
+    assert rows[:3] == ["| all | bi-level | 0.4785 | 545.0 | 6.15 | 6.21 |",
+                        "| all | single-level, started at the bi-level weights | 0.4724 | 21.5 | 8.17 | 8.14 |",
+                        "| all | single-level | 0.4900 | 20.3 | 8.1 | 8 |"]
+    assert "stopped short of a minimum of D" in text and "re-solved also from the single-level paths" not in text
+    assert "started at the bi-level" not in "\n".join(methods_side_by_side(SimpleNamespace(**{**vars(result), "continued": {}}), other))
+    doc = {"fits": {"all": {"per_target": [], "start_objective": 0.52, "objective": 0.49, "evaluations": 0, "failed": 0,
+                            "spec": {"fitted": []}, "from_bilevel": cont}}}
+    got = collect("fit-ioc-single-published", fit_metrics, doc, None).as_dict()
+    assert got["fit-ioc-single.all.D.single_level_from_bilevel"] == 0.4724

@@ -443,6 +443,8 @@ class FitResult:
     uncertainty: dict[str, dict] = field(default_factory=dict)  # fit -> verdicts, intervals (models.ioc.uncertainty)
     subjects_test: list[dict] | None = None  # per subject: do the subjects' weights differ (uncertainty.subjects_differ)
     cross_checked: dict[str, float] = field(default_factory=dict)  # fit -> D of ``against``'s weights, re-solved also from this fit's paths
+    # fit -> the single-level steps started at ``against``'s weights (``single_level_published.continued_from``; published, over the means)
+    continued: dict[str, dict] = field(default_factory=dict)
 
     def summary(self) -> str:
         n_paths = sum(len(self.fits[k]) for k in self.results)
@@ -499,7 +501,8 @@ class FitResult:
                 "weights": self.results["all"].weights if "all" in self.results else None,
                 "method": self.method,
                 "fits": {k: {**r.to_json(), "seconds": self.seconds.get(k), "uncertainty": self.uncertainty.get(k),
-                             **({"against_D": self.cross_checked[k]} if k in self.cross_checked else {})}
+                             **({"against_D": self.cross_checked[k]} if k in self.cross_checked else {}),
+                             **({"from_bilevel": self.continued[k]} if k in self.continued else {})}
                          for k, r in self.results.items()},
                 **({"subjects_differ": self.subjects_test} if self.subjects_test is not None else {})}
 
@@ -512,6 +515,18 @@ class FitResult:
                          "evaluations": r.evaluations, "iterations": r.iterations, "failed": r.failed,
                          "seconds": self.seconds.get(k), **r.weights, **bounds})
         return pd.DataFrame(rows)
+
+
+def fit_budget(method: str, max_evaluations: int) -> int:
+    """What ``fit_ioc``'s ``on_evaluation`` counts up to: upper-level evaluations (bi-level) or feasible-path steps
+    (single-level, at most ``single_level.MAX_STEPS``).
+
+        >>> fit_budget("bilevel", 2000), fit_budget("single-level", 2000), fit_budget("single-level", 5)
+        (2000, 40, 5)
+    """
+    from cobot_analysis.models.ioc.single_level import MAX_STEPS
+
+    return max_evaluations if method != "single-level" else min(max_evaluations, MAX_STEPS)
 
 
 def held_weights(model: str, convention: str) -> tuple[str, ...]:
@@ -713,7 +728,9 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     (``"all"``: per subject too) or none (``"none"``: the curvature's and the bootstrap's verdicts, "not judged" where D is
     not smooth); each verdict names its analysis (``uncertainty[key]["by"]``). ``against``: another fit's weights per fit key (the
     bi-level fit's); a single-level fit then re-solves them also from its own paths (``single_level.cross_check``),
-    so that both fits' D come from the same candidate paths (``FitResult.cross_checked``). A fit is
+    so that both fits' D come from the same candidate paths (``FitResult.cross_checked``); under the published convention,
+    the fit over the means also runs its steps from those weights (``single_level_published.continued_from``,
+    ``FitResult.continued``): a lower D there says the other fit stopped short of a minimum of D. A fit is
     long (minutes to hours at the CLI's defaults); the example fits two means on a coarse grid with a
     budget of 20 evaluations:
 
@@ -743,7 +760,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     from cobot_analysis.models.ioc.pace import target_durations
     from cobot_analysis.models.ioc.single_level import (MAX_STEPS, as_ioc_result, check_method, check_spec, cross_check,
                                                         fit_feasible_path, fit_task)
-    from cobot_analysis.models.ioc.single_level_published import fit_held_horizons
+    from cobot_analysis.models.ioc.single_level_published import continued_from, fit_held_horizons
     from cobot_analysis.parallel import default_jobs, executor
 
     check_method(method, bootstrap)
@@ -824,7 +841,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     mean_keys = mean_df.groupby("trial")[["scenario", "condition", "direction"]].first() \
         if {"scenario", "condition", "direction"} <= set(mean_df.columns) else None
     n_chunks = 4 * (default_jobs() if jobs is None else jobs) if scheduler is None else 8
-    results, seconds, uncertainty, cross_checked = {}, {}, {}, {}
+    results, seconds, uncertainty, cross_checked, continued = {}, {}, {}, {}, {}
     with executor(jobs, scheduler) as pool:
         # several single-level fits (per subject): each runs whole on one worker, side by side (``single_level.fit_task``),
         # submitted longest first (most paths; ties in subject order): the short fits then fill the workers' ends
@@ -853,6 +870,10 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
                                        checkpoint=checkpoint / f"{safe}.json" if checkpoint else None, resume=resume,
                                        on_evaluation=report, measured_T=measured_T)
             seconds[key] = raw.seconds if key in side_by_side else time.perf_counter() - t0  # a fit's own time
+            if method == "single-level" and conv.name == "published" and per == "all" and against and key in against:
+                # the single-level steps also from the bi-level fit's end: does that fit stop at a minimum of D?
+                continued[key] = continued_from(spec, targets, against[key], pool=pool,
+                                                max_steps=min(spec.max_evaluations, MAX_STEPS))
             if bootstrap and model != "coupled":
                 # the fit's own paths (single-level, continuous): the curvature's centre and the profiles' warm starts
                 own_paths = raw.primals if method == "single-level" and conv.name == "continuous" else None
@@ -908,7 +929,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     dist = dist.drop(columns=["converged"]).assign(converged=dist["converged"].astype(bool))
     return FitResult(model, conv.name, all_names, names, w0, start_weights or DEFAULT_PRESET[model], spec, per, goal, fits,
                      results, dist, mean_targets, comparison, models, coupled, paths, str(means_source), mean_keys,
-                     method, seconds, uncertainty, subjects_test, cross_checked)
+                     method, seconds, uncertainty, subjects_test, cross_checked, continued)
 
 
 def _weight_uncertainty(spec, targets: list, weights: dict[str, float], n_resamples: int, *, seed: int = 0,

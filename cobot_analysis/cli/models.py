@@ -133,6 +133,7 @@ def fit_ioc_command(
     (OUT/fit-ioc-subjects-single/), beside the bi-level fit. The log of upper-level evaluations is checkpointed in
     OUT/.<stage>.checkpoint after every upper-level iteration (--resume continues from it).
     """
+    from cobot_analysis.api.models import fit_budget
     from cobot_analysis.console import progress
     from cobot_analysis.stages import models
 
@@ -147,7 +148,7 @@ def fit_ioc_command(
         if not tasks:
             bar.start()
         if key not in tasks:
-            tasks[key] = bar.add_task(f"IOC {key}", total=max_evaluations, status="")
+            tasks[key] = bar.add_task(f"IOC {key}", total=fit_budget(method, max_evaluations), status="")
         bar.update(tasks[key], completed=n, status=f"D = {f:.4f}, best {best:.4f}")
 
     try:
@@ -157,8 +158,9 @@ def fit_ioc_command(
                               convention=convention, seed=seed, jobs=jobs, scheduler=scheduler, force=force, method=method,
                               bootstrap=bootstrap, profiles=profiles, on_evaluation=on_evaluation)
         for key, task in tasks.items():
-            evaluations = done.result.results[key].evaluations
-            bar.update(task, total=evaluations, completed=evaluations)
+            r = done.result.results[key]
+            count = r.evaluations if method != "single-level" else r.iterations  # upper-level evaluations, or steps
+            bar.update(task, total=count, completed=count)
     finally:
         if tasks:
             bar.stop()

@@ -16,7 +16,8 @@ def fit_ioc(out: Collector, weights: dict[str, Any], distances) -> None:
     when determined, its bootstrap interval (``weights.<w>.lo`` / ``.hi``); per subject, the test of whether
     the subjects' weights differ (``subjects_differ.<w>``: subjects, Q, p, p_holm, differ); distances of each
     compared model to the means, per fit in ``fit-ioc-subjects``; a single-level fit's cross-check of the
-    bi-level weights (``D.bilevel_cross_checked``, docs/methods.md sec. 6, 6.1, 6.3)."""
+    bi-level weights (``D.bilevel_cross_checked``) and its steps from them (``D.single_level_from_bilevel``,
+    docs/methods.md sec. 6, 6.1, 6.3)."""
     w = json.loads(json.dumps(weights, default=float))  # as Stage.write_json writes it
     for fit, r in (w.get("fits") or {}).items():
         per = r.get("per_target") or []
@@ -25,6 +26,8 @@ def fit_ioc(out: Collector, weights: dict[str, Any], distances) -> None:
         out.add((fit, "D", "fitted"), r.get("objective"))
         if "against_D" in r:  # single-level: the bi-level weights' D, re-solved also from the single-level paths
             out.add((fit, "D", "bilevel_cross_checked"), r["against_D"])
+        if "from_bilevel" in r:  # single-level: its steps from the bi-level fit's end
+            out.add((fit, "D", "single_level_from_bilevel"), r["from_bilevel"]["objective"])
         out.count((fit, "evaluations"), r.get("evaluations"))
         out.count((fit, "not_converged"), r.get("failed"))
         out.count((fit, "T_at_bound"), sum(1 for p in per if p.get("T_at_bound")))

@@ -586,10 +586,15 @@ def methods_side_by_side(result, other: dict | None) -> list[str]:
         return ["No bi-level fit in this workspace to compare with (run fit-ioc without --method first).", ""]
     names = result.names
     lines = [f"Single-level and bi-level fits side by side (the bi-level fit from {other['path']}); both D re-solved "
-             "exactly by the lower level at the fitted weights. Each path's lower level keeps the least-cost of its "
-             "candidate solutions, and the two fits try different candidates: the row 'bi-level weights, re-solved also "
-             "from the single-level paths' adds the single-level fit's paths as candidates at the bi-level weights "
-             "(docs/methods.md sec. 6.1, models.ioc.single_level.cross_check), so that both D come from the same candidates.", "",
+             "exactly by the lower level at the fitted weights."
+             + (" Each path's lower level keeps the least-cost of its candidate solutions, and the two fits try different "
+                "candidates: the row 'bi-level weights, re-solved also from the single-level paths' adds the single-level "
+                "fit's paths as candidates at the bi-level weights (docs/methods.md sec. 6.1, "
+                "models.ioc.single_level.cross_check), so that both D come from the same candidates." if result.cross_checked else "")
+             + (" The row 'single-level, started at the bi-level weights' runs the single-level steps from the bi-level fit's "
+                "end (models.ioc.single_level_published.continued_from): a D below the bi-level one says that fit stopped short of a "
+                "minimum of D; where the steps find no lower D, the row keeps the bi-level weights." if result.continued else ""),
+             "",
              "| fit | method | D | time (s) | " + " | ".join(names) + " |", "|---|---|---|---|" + "---|" * len(names)]
     for k, r in result.results.items():
         b = other["fits"].get(k)
@@ -600,6 +605,10 @@ def methods_side_by_side(result, other: dict | None) -> list[str]:
             if k in result.cross_checked:
                 lines.append(f"| {k} | bi-level weights, re-solved also from the single-level paths | {result.cross_checked[k]:.4f} | | "
                              + " | ".join(f"{b['weights'][n]:.3g}" for n in names) + " |")
+            if k in result.continued:
+                c = result.continued[k]
+                lines.append(f"| {k} | single-level, started at the bi-level weights | {c['objective']:.4f} | {c['seconds']:.1f} | "
+                             + " | ".join(f"{c['weights'][n]:.3g}" for n in names) + " |")
         lines.append(f"| {k} | single-level | {r.objective:.4f} | {result.seconds.get(k, float('nan')):.1f} | "
                      + " | ".join(f"{r.weights[n]:.3g}" for n in names) + " |")
     lines += ["", "Each fitted weight by both methods, with its 95 % interval and identifiability verdict, led by the "

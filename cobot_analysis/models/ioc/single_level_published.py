@@ -261,13 +261,13 @@ def correct_chunk(task) -> list:
 
 def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, radius: float = 0.3,
                       max_steps: int = 40, tol: float = 1e-8, xtol: float = 1e-3, gtol: float = 1e-5,
-                      on_step=None) -> IOCResult:
+                      on_step=None, warn_kept: bool = True) -> IOCResult:
     """The single-level fit under the published convention (module docstring): the start weights' lower
     levels by the duration rule (``fit.reference_chunk``), their horizons held, the feasible-path
     trust-region steps in log10 of the fitted weights (the step of ``single_level.trust_region_step``,
     projected on the search box), then the lower levels re-solved at the fitted weights on the held
     horizons and the duration rule run again there; when the rule's D there is not below the start's, the start
-    is kept (its weights, D and solutions; the message and a warning say so). Stops when an accepted step is below
+    is kept (its weights, D and solutions; the message says so, and a warning with ``warn_kept``). Stops when an accepted step is below
     ``xtol`` or lowers D by less than ``spec.ftol`` (relative, as the bi-level search), the radius falls below
     ``xtol`` (a rejected step is not tried again: ``single_level.shrunk_radius``), the projected gradient below
     ``gtol``, or after ``max_steps`` steps.
@@ -371,8 +371,9 @@ def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, radius
                f"re-solves {timing['resolve']:.1f})")
     if not objective < start_objective:  # the re-solves left the branches (another least-cost lower level, another
         # horizon by the rule): the fit never reports weights that fit worse than its start, it keeps the start
-        warn(f"single-level IOC (published): D {objective:.4f} by the duration rule at the fitted weights against "
-             f"{start_objective:.4f} at the start: the start weights are kept, not a fit to report (use --method bilevel)")
+        if warn_kept:
+            warn(f"single-level IOC (published): D {objective:.4f} by the duration rule at the fitted weights against "
+                 f"{start_objective:.4f} at the start: the start weights are kept, not a fit to report (use --method bilevel)")
         message += f"; the rule's D at the fitted weights {objective:.4f}, not below the start's: the start's weights are kept"
         w, objective, held_objective, changed = w_start, start_objective, start_objective, 0
         terms, solutions = start_terms, [sol for _, sol in ref]
@@ -380,6 +381,26 @@ def fit_held_horizons(spec: IOCSpec, targets: list[Target], *, pool=None, radius
                      start_objective=start_objective, evaluations=0, iterations=steps,
                      failed=sum(not d["success"] for d in terms), per_target=terms, message=message,
                      held_objective=held_objective, horizons_changed=changed, solutions=solutions)
+
+
+def continued_from(spec: IOCSpec, targets: list[Target], weights: dict[str, float], *, pool=None,
+                   max_steps: int = 40) -> dict:
+    """The single-level steps under the published convention (``fit_held_horizons``)
+    started at another fit's ``weights`` (the bi-level fit's end) instead of the spec's start. Its start D is the
+    other fit's own D: the duration rule from the authors' guess solves each lower level the same way in both
+    fits (a continuous lower level keeps the least cost of candidates that differ between fits:
+    ``single_level.cross_check`` compares those). A D below it says the other fit stopped short of a minimum of D;
+    when the steps find none lower, the result keeps ``weights``. Returns {"objective", "start_objective" (D at
+    ``weights``), "weights", "seconds", "message"}."""
+    from cobot_analysis.models.presets import weights_vector
+
+    if spec.convention != "published":
+        raise ValueError("continued_from is the published convention's; continuous: cross_check")
+    t0 = time.perf_counter()
+    start = replace(spec, start_weights=tuple(map(float, weights_vector(weights, spec.model))))
+    r = fit_held_horizons(start, targets, pool=pool, max_steps=max_steps, warn_kept=False)
+    return {"objective": float(r.objective), "start_objective": float(r.start_objective),
+            "weights": {k: float(v) for k, v in r.weights.items()}, "seconds": time.perf_counter() - t0, "message": r.message}
 
 
 def _seed_chunk(task) -> list:
