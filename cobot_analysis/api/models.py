@@ -445,6 +445,8 @@ class FitResult:
     cross_checked: dict[str, float] = field(default_factory=dict)  # fit -> D of ``against``'s weights, re-solved also from this fit's paths
     # fit -> the single-level steps started at ``against``'s weights (``single_level_published.continued_from``; published, over the means)
     continued: dict[str, dict] = field(default_factory=dict)
+    # where model paths spin at the fitted weights: a3 raised by decades, the paths that spin and D (models.turning_price)
+    turning: pd.DataFrame | None = None
 
     def summary(self) -> str:
         n_paths = sum(len(self.fits[k]) for k in self.results)
@@ -752,12 +754,13 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         cobot_analysis.errors.InputError: unknown --per 'subjects'; use one of all, subject
     """
     from cobot_analysis import conventions
-    from cobot_analysis.models import check_endpoints
+    from cobot_analysis.models import check_endpoints, spins
     from cobot_analysis.design import table_codes
     from cobot_analysis.models.comparison import compare_models_keeping, compared_models, coupled_distances, subject_distances
     from cobot_analysis.models.ioc import Target, fit as ioc_fit, pair_targets_from_table, targets_from_table
     from cobot_analysis.models.presets import DEFAULT_PRESET, PRESETS, names_for, weights_vector
     from cobot_analysis.models.ioc.pace import target_durations
+    from cobot_analysis.models.turning_price import turning_price
     from cobot_analysis.models.ioc.single_level import (MAX_STEPS, as_ioc_result, check_method, check_spec, cross_check,
                                                         fit_feasible_path, fit_task)
     from cobot_analysis.models.ioc.single_level_published import continued_from, fit_held_horizons
@@ -907,7 +910,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     # the columns named: a fit without per-path terms (a single-level fit that accepted no step) has no rows
     dist = pd.DataFrame(rows, columns=["model", "fit", "trial", "condition", "subject", "orientation", "global_distance", "d_xy",
                                        "d_theta", "d_gamma", "D", "converged"]) if coupled is None else coupled[0]
-    comparison, models, paths = None, None, None
+    comparison, models, paths, turning = None, None, None, None
     if compare and "all" in results:
         models = compared_models(conv) if model == "improved" else {"table OC (published)": ("table", "table-2022")}
         kind = "improved" if model == "improved" else "table"
@@ -918,6 +921,10 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
         comparison, generated = compare_models_keeping(compared, models, tuple(figure.values()), angle=spec.angle, jobs=jobs,
                                                        scheduler=scheduler, convention=conv.name)
         paths = {k: [generated[label][t.trial] for t in mean_targets] for k, label in figure.items()}
+        if model == "improved" and any(p is not None and spins(p["theta"].to_numpy(float)) for p in paths["fitted"]):
+            # what walker-like paths would cost: a3 raised until none spins (models.turning_price)
+            turning = turning_price(mean_targets, results["all"].weights, angle=spec.angle, angle_weight=spec.angle_weight,
+                                    convention=conv.name, jobs=jobs, scheduler=scheduler)
         if trial_df is not None and not trial_df.empty and model == "improved":
             trial_targets = targets_from_table(trial_df, path=trials_source, entity=entity)
             comparison = pd.concat([comparison, subject_distances(trial_targets, mean_targets, spec.angle, conv.name)], ignore_index=True)
@@ -929,7 +936,7 @@ def fit_ioc(means: pd.DataFrame | str | os.PathLike, *, trials: pd.DataFrame | s
     dist = dist.drop(columns=["converged"]).assign(converged=dist["converged"].astype(bool))
     return FitResult(model, conv.name, all_names, names, w0, start_weights or DEFAULT_PRESET[model], spec, per, goal, fits,
                      results, dist, mean_targets, comparison, models, coupled, paths, str(means_source), mean_keys,
-                     method, seconds, uncertainty, subjects_test, cross_checked, continued)
+                     method, seconds, uncertainty, subjects_test, cross_checked, continued, turning)
 
 
 def _weight_uncertainty(spec, targets: list, weights: dict[str, float], n_resamples: int, *, seed: int = 0,

@@ -476,6 +476,33 @@ def heading_line(df: pd.DataFrame) -> str:
     return f"**Heading: no walker's turn**{f' ({rate})' if rate else ''}: " + "; ".join(parts) + "."
 
 
+def turning_lines(turning: pd.DataFrame) -> list[str]:
+    """Markdown: what walker-like paths cost (``models.turning_price``): per a3 the model paths that spin, D and the
+    paired test against the fitted weights, then the least a3 at which none spins and whether the means reject it."""
+    n = int(turning["paths"].iloc[0])
+    lines = ["What walker-like paths would cost (docs/methods.md sec. 5.5, `models.turning_price`): a3, the only price of "
+             "the turning rate's changes, raised by decades with the other weights as fitted; the model paths on the means "
+             "(generate's grid), those that spin, their D and the paired test of the per-mean rises of D against the fitted "
+             "weights (the profile likelihood's, sec. 6.3: rejected when significant at 95 % and above 0.1 % of D).", "",
+             "| a3 | paths that spin | D | t (95 % bound) | rejected by the means |", "|---|---|---|---|---|"]
+    for i, r in turning.iterrows():
+        test = "" if i == 0 else f"{r['t']:.3g} ({r['t_q']:.3g})"
+        verdict = "(the fitted weights)" if i == 0 else "yes" if r["rejected"] else "no"
+        lines.append(f"| {r['a3']:.3g} | {int(r['spinning'])} of {n} | {r['D']:.4f} | {test} | {verdict} |")
+    calm = turning[turning["spinning"] == 0]
+    if calm.empty:
+        lines += ["", "Every a3 up to the search limit leaves some path spinning.", ""]
+        return lines
+    r, D0 = calm.iloc[0], float(turning["D"].iloc[0])
+    lines += ["", f"The least a3 at which no path spins: {r['a3']:.3g}, D {r['D']:.4f} against {D0:.4f} "
+                  f"({100 * (r['D'] / D0 - 1):+.1f} %): "
+              + ("the means reject it (the other weights as fitted; a3's profile likelihood, where the verdicts computed "
+                 "one, refits them): on these means a walker's heading costs this model that much fit." if r["rejected"] else
+                 "the means do not reject it: those weights fit them as well and make walker-like paths (`generate "
+                 "--weights` with a3 set to it)."), ""]
+    return lines
+
+
 def _subject_pace(ends: pd.DataFrame, measured: dict) -> str:
     """'T a-b s, mean speed a-b m/s, k of n outside 0.5-2 m/s; model T / subjects' T a-b' on the generated
     paths' conditions: the human range the model's time law is judged against."""
@@ -829,4 +856,6 @@ def fit_ioc_markdown(result, stage, *, optimizer: str, intervals: int, v_nominal
         for k in result.paths:  # a converged path need not be a walker's: its heading, at both weights
             lines += [f"The model's paths at the {k} weights (as `generate` makes them, the figure's): "
                       + heading_line(result.model_paths(k)), ""]
+        if result.turning is not None:
+            lines += turning_lines(result.turning)
     return "\n".join(lines) + "\n"

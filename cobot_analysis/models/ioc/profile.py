@@ -64,7 +64,8 @@ def excess(Di: np.ndarray, D0i: np.ndarray, level: float = LEVEL) -> tuple[float
     sd = float(d.std(ddof=1)) if n > 1 else 0.0
     t = rise / (sd / math.sqrt(n)) if sd > 0 else (math.inf if rise > 0 else 0.0)
     tq = float(student.ppf(0.5 + level / 2, max(n - 1, 1)))
-    return t, tq, min(t / tq, rise / (REL_TOL * float(np.mean(D0i))))
+    flat = REL_TOL * float(np.mean(D0i))  # a fit at D = 0 (noise-free paths): any rise is above it
+    return t, tq, min(t / tq, rise / flat if flat > 0 else (math.inf if rise > 0 else 0.0))
 
 
 def grid(y0: float, side: int, offsets=OFFSETS) -> list[float]:
