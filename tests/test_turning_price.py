@@ -62,3 +62,41 @@ def test_the_paired_test_against_a_fit_at_D_zero_rejects_any_significant_rise():
     t, tq, crit = excess(np.array([0.1, 0.2, 0.15]), np.zeros(3))
     assert t == pytest.approx(0.15 / (0.05 / math.sqrt(3))) and crit == pytest.approx(t / tq)
     assert excess(np.zeros(3), np.zeros(3))[2] == 0.0
+
+
+def test_fit_ioc_reports_the_turning_price_where_its_paths_spin(monkeypatch):
+    """``fit_ioc`` computes the sweep where its fitted weights' model paths spin, and only there: on means planted
+    at W (a2 fitted, 2 evaluations) its own paths need not spin after its time gauge (a3 x c^4: spins are chaotic
+    this close to a3 = 0; none does on this machine); with ``spins`` made to say every path spins, the sweep from the
+    fitted weights (its own spin count is the real one) and its table in results.md."""
+    import cobot_analysis.api as ca
+    import cobot_analysis.models as models
+    from cobot_analysis.reports.models import fit_ioc_markdown
+    from cobot_analysis.schema import TRAJECTORIES
+
+    frames = []
+    for c in CONDITIONS:
+        df = generate("improved", walking_condition(c).start, WALKING_GOAL, weights=W, n_samples=100, n_intervals=100,
+                      convention="continuous")
+        frames.append(df[list(TRAJECTORIES.columns.keys() & set(df.columns))].assign(
+            study="test-walking", trial=f"mean_{c}", condition=c, kind="mean", n_trials=1, subject=None))
+    means = pd.concat(frames, ignore_index=True)
+
+    def fit_it():
+        return ca.fit_ioc(means, fit=["a2"], start_weights=W, intervals=20, max_evaluations=2, bootstrap=0, jobs=1)
+
+    fit = fit_it()
+    assert (fit.turning is None) == (not fit.spinning())  # here none spins (on this machine): no sweep
+    monkeypatch.setattr(models, "spins", lambda theta: True)
+    fit = fit_it()
+    t = fit.turning
+    assert t is not None and t["a3"].iloc[0] == fit.results["all"].weights["a3"] and (t["paths"] == len(CONDITIONS)).all()
+    assert t["spinning"].iloc[0] == sum(spins(p["theta"].to_numpy(float)) for p in fit.paths["fitted"])  # the real count
+
+    class Stage:
+        def savefig(self, fig, name):
+            import matplotlib.pyplot as plt
+            plt.close(fig)
+
+    text = fit_ioc_markdown(fit, Stage(), optimizer="powell", intervals=20, v_nominal=1.0, durations=None)
+    assert "What walker-like paths would cost" in text and f"| {t['a3'].iloc[0]:.3g} | " in text
