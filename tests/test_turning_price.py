@@ -35,12 +35,16 @@ def test_turning_price_of_planted_spinning_paths():
                               start_pose=walking_condition(c).start))
     assert spinning == 2
     t = turning_price(targets, W, jobs=1)
-    assert t["a3"].tolist() == [W["a3"], *a3_values(W["a3"])]
-    assert (t["paths"] == 4).all() and t["spinning"].iloc[0] == 2 and t["spinning"].iloc[-1] == 0
+    n = len(t)  # the fitted a3, then decades up to the first at which no path spins
+    assert 2 <= n <= 11 and t["a3"].tolist() == [W["a3"], *a3_values(W["a3"])][:n]
+    assert (t["paths"] == 4).all() and t["spinning"].iloc[0] == 2
+    assert (t["spinning"].iloc[:-1] > 0).all() and t["spinning"].iloc[-1] == 0
     assert t["D"].iloc[0] < 1e-3  # the planted paths are the model's own at the fitted weights
-    assert (t["D"].iloc[1:] > t["D"].iloc[0]).all() and t["D"].iloc[-1] > 0.05
+    assert (t["D"].iloc[1:] > t["D"].iloc[0]).all()
     assert math.isnan(t["t"].iloc[0]) and not t["rejected"].iloc[0]
-    assert np.isfinite(t["t"].iloc[1:]).all() and t["t_q"].iloc[1:].tolist() == pytest.approx([3.182] * 10, abs=1e-3)  # t_3(0.975)
+    assert np.isfinite(t["t"].iloc[1:]).all() and t["t_q"].iloc[1:].tolist() == pytest.approx([3.182] * (n - 1), abs=1e-3)  # t_3(0.975)
+    # the same rows, one value at a time
+    pd.testing.assert_frame_equal(turning_price(targets, W, batch=1, jobs=1), t)
 
 
 def test_turning_lines_name_the_least_a3_without_spins_and_the_verdict():

@@ -2,11 +2,12 @@
 
 a3 is the only price of the turning rate's changes; near zero, omega can alternate in sign from node to node at
 almost no cost and the heading spins (``models.spins``) on a path that still converges at its goal. At weights
-whose model paths spin, a3 is raised by decades from its fitted value to the search limit (the other weights as
-fitted), and at each value the model paths on the means (``comparison.compare_models_keeping``: generate's grid)
-give the paths that spin and D = d_xy + w_angle d_angle per mean, compared with the fitted weights' D by the
-profile likelihood's paired test (``ioc.profile.excess``: rejected when the per-mean rises are significant at
-95 % and above 0.1 % of D). The least a3 at which no path spins says what a walker's heading costs in fit.
+whose model paths spin, a3 is raised by decades from its fitted value (the other weights as fitted) until no path
+spins or the search limit, and at each value the model paths on the means (``comparison.compare_models_keeping``:
+generate's grid) give the paths that spin and D = d_xy + w_angle d_angle per mean, compared with the fitted
+weights' D by the profile likelihood's paired test (``ioc.profile.excess``: rejected when the per-mean rises are
+significant at 95 % and above 0.1 % of D). The least a3 at which no path spins says what a walker's heading costs
+in fit.
 """
 
 from __future__ import annotations
@@ -34,22 +35,33 @@ def a3_values(a3: float) -> list[float]:
 
 
 def turning_price(targets: list[Target], weights: dict[str, float], *, model: str = "improved", angle: str = "gamma",
-                  angle_weight: float = 0.5, convention: str = "continuous", jobs=None, scheduler=None) -> pd.DataFrame:
-    """One row per a3 (the fitted value first, then ``a3_values``): ``a3``, ``paths``, ``spinning`` (model paths that
-    spin), ``D`` (mean over the means with a finite D at both weights), ``t`` and ``t_q`` (the paired test against the
-    fitted weights), ``rejected`` (module docstring); NaN test cells on the fitted row."""
-    values = [float(weights["a3"]), *a3_values(float(weights["a3"]))]
-    models = {f"a3={v:.6g}": (model, {**weights, "a3": v}) for v in values}
-    df, kept = compare_models_keeping(targets, models, tuple(models), angle=angle, angle_weight=angle_weight, jobs=jobs,
-                                      scheduler=scheduler, convention=convention)
-    D = df.pivot_table(index="trial", columns="model", values="D", aggfunc="first", dropna=False)[list(models)]
+                  angle_weight: float = 0.5, convention: str = "continuous", batch: int = 2, jobs=None,
+                  scheduler=None) -> pd.DataFrame:
+    """One row per a3 (the fitted value first, then ``a3_values`` up to the first at which no path spins; ``batch``
+    values solved side by side): ``a3``, ``paths``, ``spinning`` (model paths that spin), ``D`` (mean over the means
+    with a finite D at every value), ``t`` and ``t_q`` (the paired test against the fitted weights), ``rejected``
+    (module docstring); NaN test cells on the fitted row."""
+    todo = [float(weights["a3"]), *a3_values(float(weights["a3"]))]
+    D, spinning, values = pd.DataFrame(), [], []
+    while todo and not (spinning and spinning[-1] == 0):
+        chunk, todo = todo[:batch], todo[batch:]
+        models = {f"a3={v:.6g}": (model, {**weights, "a3": v}) for v in chunk}
+        df, kept = compare_models_keeping(targets, models, tuple(models), angle=angle, angle_weight=angle_weight, jobs=jobs,
+                                          scheduler=scheduler, convention=convention)
+        D = pd.concat([D, df.pivot_table(index="trial", columns="model", values="D", aggfunc="first", dropna=False)[list(models)]],
+                      axis=1)
+        for label, v in zip(models, chunk):
+            if spinning and spinning[-1] == 0:
+                break  # the batch's values past the first at which none spins: not reported
+            values.append(v)
+            spinning.append(sum(spins(p["theta"].to_numpy(float)) for p in kept[label].values() if p is not None))
+    D = D.iloc[:, :len(values)]
     finite = D.notna().all(axis=1)
-    fitted = D.loc[finite, list(models)[0]].to_numpy(float)
+    fitted = D.loc[finite].iloc[:, 0].to_numpy(float)
     rows = []
-    for i, (label, v) in enumerate(zip(models, values)):
-        paths = [p for p in kept[label].values() if p is not None]
-        Di = D.loc[finite, label].to_numpy(float)
+    for i, (v, n) in enumerate(zip(values, spinning)):
+        Di = D.loc[finite].iloc[:, i].to_numpy(float)
         t, tq, crit = excess(Di, fitted) if i else (math.nan, math.nan, math.nan)
-        rows.append({"a3": v, "paths": len(kept[label]), "spinning": sum(spins(p["theta"].to_numpy(float)) for p in paths),
-                     "D": float(np.mean(Di)) if len(Di) else math.nan, "t": t, "t_q": tq, "rejected": bool(crit > 1)})
+        rows.append({"a3": v, "paths": len(targets), "spinning": n, "D": float(np.mean(Di)) if len(Di) else math.nan,
+                     "t": t, "t_q": tq, "rejected": bool(crit > 1)})
     return pd.DataFrame(rows)

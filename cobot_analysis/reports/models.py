@@ -481,9 +481,10 @@ def turning_lines(turning: pd.DataFrame) -> list[str]:
     paired test against the fitted weights, then the least a3 at which none spins and whether the means reject it."""
     n = int(turning["paths"].iloc[0])
     lines = ["What walker-like paths would cost (docs/methods.md sec. 5.5, `models.turning_price`): a3, the only price of "
-             "the turning rate's changes, raised by decades with the other weights as fitted; the model paths on the means "
-             "(generate's grid), those that spin, their D and the paired test of the per-mean rises of D against the fitted "
-             "weights (the profile likelihood's, sec. 6.3: rejected when significant at 95 % and above 0.1 % of D).", "",
+             "the turning rate's changes, raised by decades until no path spins, the other weights as fitted; the model "
+             "paths on the means (generate's grid), those that spin, their D and the paired test of the per-mean rises of D "
+             "against the fitted weights (the profile likelihood's, sec. 6.3: rejected when significant at 95 % and above "
+             "0.1 % of D).", "",
              "| a3 | paths that spin | D | t (95 % bound) | rejected by the means |", "|---|---|---|---|---|"]
     for i, r in turning.iterrows():
         test = "" if i == 0 else f"{r['t']:.3g} ({r['t_q']:.3g})"
