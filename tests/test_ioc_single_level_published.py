@@ -207,6 +207,33 @@ def test_steps_from_another_fits_weights_start_at_its_D(recwarn):
         continued_from(replace(SPEC, convention="continuous"), targets, dict(zip(names, map(float, w0))))
 
 
+def test_steps_that_cannot_start_at_the_other_weights_say_why(monkeypatch):
+    """A lower level that does not converge at the bi-level weights: no row of numbers, the reason instead (NaN D,
+    no metric), and the stage keeps its own fit."""
+    import cobot_analysis.models.ioc.single_level_published as published
+    from types import SimpleNamespace
+
+    from cobot_analysis.metrics.models import fit_ioc as fit_metrics
+    from cobot_analysis.metrics.records import collect
+    from cobot_analysis.reports.models import methods_side_by_side
+
+    def fails(*args, **kwargs):
+        raise RuntimeError("single-level (published): a lower level did not converge at the start weights")
+
+    monkeypatch.setattr(published, "fit_held_horizons", fails)
+    w = dict(zip(names_for("improved"), TRUE))
+    c = published.continued_from(SPEC, published_targets(SPEC, TRUE)[:1], w)
+    assert math.isnan(c["objective"]) and c["weights"] == w
+    assert c["message"] == "not run: single-level (published): a lower level did not converge at the start weights"
+    result = SimpleNamespace(names=("a1",), results={"all": SimpleNamespace(objective=0.49, weights={"a1": 8.1})},
+                             seconds={"all": 1.0}, cross_checked={}, uncertainty={}, continued={"all": c})
+    other = {"path": "w.json", "fits": {"all": {"objective": 0.48, "seconds": 2.0, "weights": {"a1": 6.2}}}}
+    text = "\n".join(methods_side_by_side(result, other))
+    assert f"| all | single-level, started at the bi-level weights: {c['message']} | – | {c['seconds']:.1f} | – |" in text
+    doc = {"fits": {"all": {"per_target": [], "objective": 0.49, "spec": {"fitted": []}, "from_bilevel": c}}}
+    assert not [k for k in collect("fit-ioc-single-published", fit_metrics, doc, None).as_dict() if "from_bilevel" in k]
+
+
 def test_steps_from_the_bilevel_weights_are_reported_and_recorded():
     """The side-by-side table's row 'single-level, started at the bi-level weights' and the metric
     ``D.single_level_from_bilevel`` carry ``FitResult.continued`` as weights.json holds it; without it, no row."""

@@ -635,8 +635,12 @@ def methods_side_by_side(result, other: dict | None) -> list[str]:
                              + " | ".join(f"{b['weights'][n]:.3g}" for n in names) + " |")
             if k in result.continued:
                 c = result.continued[k]
-                lines.append(f"| {k} | single-level, started at the bi-level weights | {c['objective']:.4f} | {c['seconds']:.1f} | "
-                             + " | ".join(f"{c['weights'][n]:.3g}" for n in names) + " |")
+                if math.isfinite(c["objective"]):
+                    lines.append(f"| {k} | single-level, started at the bi-level weights | {c['objective']:.4f} | "
+                                 f"{c['seconds']:.1f} | " + " | ".join(f"{c['weights'][n]:.3g}" for n in names) + " |")
+                else:  # the steps could not start there: the reason, in place of a D
+                    lines.append(f"| {k} | single-level, started at the bi-level weights: {c['message']} | – | "
+                                 f"{c['seconds']:.1f} | " + " | ".join("–" for _ in names) + " |")
         lines.append(f"| {k} | single-level | {r.objective:.4f} | {result.seconds.get(k, float('nan')):.1f} | "
                      + " | ".join(f"{r.weights[n]:.3g}" for n in names) + " |")
     lines += ["", "Each fitted weight by both methods, with its 95 % interval and identifiability verdict, led by the "

@@ -391,14 +391,20 @@ def continued_from(spec: IOCSpec, targets: list[Target], weights: dict[str, floa
     fits (a continuous lower level keeps the least cost of candidates that differ between fits:
     ``single_level.cross_check`` compares those). A D below it says the other fit stopped short of a minimum of D;
     when the steps find none lower, the result keeps ``weights``. Returns {"objective", "start_objective" (D at
-    ``weights``), "weights", "seconds", "message"}."""
+    ``weights``), "weights", "seconds", "message"}; where the steps cannot start there (a lower level that does not
+    converge at ``weights``, or is no regular KKT point), NaN D and the reason in "message": a check beside the fit,
+    not a reason to lose it."""
     from cobot_analysis.models.presets import weights_vector
 
     if spec.convention != "published":
         raise ValueError("continued_from is the published convention's; continuous: cross_check")
     t0 = time.perf_counter()
     start = replace(spec, start_weights=tuple(map(float, weights_vector(weights, spec.model))))
-    r = fit_held_horizons(start, targets, pool=pool, max_steps=max_steps, warn_kept=False)
+    try:
+        r = fit_held_horizons(start, targets, pool=pool, max_steps=max_steps, warn_kept=False)
+    except RuntimeError as exc:
+        return {"objective": math.nan, "start_objective": math.nan, "weights": dict(weights),
+                "seconds": time.perf_counter() - t0, "message": f"not run: {exc}"}
     return {"objective": float(r.objective), "start_objective": float(r.start_objective),
             "weights": {k: float(v) for k, v in r.weights.items()}, "seconds": time.perf_counter() - t0, "message": r.message}
 
