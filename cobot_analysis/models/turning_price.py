@@ -42,20 +42,19 @@ def turning_price(targets: list[Target], weights: dict[str, float], *, model: st
     with a finite D at every value), ``t`` and ``t_q`` (the paired test against the fitted weights), ``rejected``
     (module docstring); NaN test cells on the fitted row."""
     todo = [float(weights["a3"]), *a3_values(float(weights["a3"]))]
-    D, spinning, values = pd.DataFrame(), [], []
+    frames, spinning, values = [], [], []
     while todo and not (spinning and spinning[-1] == 0):
         chunk, todo = todo[:batch], todo[batch:]
         models = {f"a3={v:.6g}": (model, {**weights, "a3": v}) for v in chunk}
         df, kept = compare_models_keeping(targets, models, tuple(models), angle=angle, angle_weight=angle_weight, jobs=jobs,
                                           scheduler=scheduler, convention=convention)
-        D = pd.concat([D, df.pivot_table(index="trial", columns="model", values="D", aggfunc="first", dropna=False)[list(models)]],
-                      axis=1)
+        frames.append(df.pivot_table(index="trial", columns="model", values="D", aggfunc="first", dropna=False)[list(models)])
         for label, v in zip(models, chunk):
             if spinning and spinning[-1] == 0:
                 break  # the batch's values past the first at which none spins: not reported
             values.append(v)
             spinning.append(sum(spins(p["theta"].to_numpy(float)) for p in kept[label].values() if p is not None))
-    D = D.iloc[:, :len(values)]
+    D = pd.concat(frames, axis=1).iloc[:, :len(values)]  # D per mean (rows) and a3 (columns)
     finite = D.notna().all(axis=1)
     fitted = D.loc[finite].iloc[:, 0].to_numpy(float)
     rows = []
