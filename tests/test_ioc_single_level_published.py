@@ -261,3 +261,22 @@ def test_steps_from_the_bilevel_weights_are_reported_and_recorded():
                             "spec": {"fitted": []}, "from_bilevel": cont}}}
     got = collect("fit-ioc-single-published", fit_metrics, doc, None).as_dict()
     assert got["fit-ioc-single.all.D.single_level_from_bilevel"] == 0.4724
+
+
+def test_the_single_level_report_compares_with_a_bilevel_fit_of_its_own_model_only(tmp_path):
+    """A pair workspace whose fit-ioc/ holds the walker's bi-level fit: no comparison, no cross-checks for the table's
+    single-level fit (another model's weights are no start for it), and the report names the fit to run."""
+    import json
+    from types import SimpleNamespace
+
+    from cobot_analysis.reports.models import methods_side_by_side
+    from cobot_analysis.stages.models import _bilevel_fit
+
+    (tmp_path / "fit-ioc").mkdir()
+    (tmp_path / "fit-ioc" / "weights.json").write_text(json.dumps({"model": "improved", "fits": {"all": {"objective": 0.4}}}))
+    assert _bilevel_fit(tmp_path, "fit-ioc", "table") is None
+    assert _bilevel_fit(tmp_path, "fit-ioc", "improved")["fits"] == {"all": {"objective": 0.4}}
+    assert _bilevel_fit(tmp_path, "fit-ioc-published", "improved") is None
+    text = methods_side_by_side(SimpleNamespace(model="table", convention="published"), None)[0]
+    assert text == ("No bi-level fit of the table model in this workspace to compare with (run fit-ioc --model table "
+                    "--convention published without --method first).")

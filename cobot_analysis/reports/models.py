@@ -611,7 +611,9 @@ def methods_side_by_side(result, other: dict | None) -> list[str]:
     """Markdown: the single-level fit beside the workspace's bi-level fit (D, weights, time), then each
     weight by both methods with its interval and verdict (``other``: the bi-level weights.json's fits)."""
     if other is None:
-        return ["No bi-level fit in this workspace to compare with (run fit-ioc without --method first).", ""]
+        how = f"--model {result.model}" + (" --convention published" if result.convention == "published" else "")
+        return [f"No bi-level fit of the {result.model} model in this workspace to compare with (run fit-ioc {how} "
+                "without --method first).", ""]
     names = result.names
     lines = [f"Single-level and bi-level fits side by side (the bi-level fit from {other['path']}); both D re-solved "
              "exactly by the lower level at the fitted weights."

@@ -204,7 +204,7 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
     # single-level fit the bi-level one
     base = "fit-ioc-coupled" if model == "coupled" else "fit-ioc-subjects" if per == "subject" else "fit-ioc"
     name = registry.directory(base + ("-single" if method == "single-level" else ""), conv.name)
-    other = _bilevel_fit(out, registry.directory(base, conv.name)) if method == "single-level" else None
+    other = _bilevel_fit(out, registry.directory(base, conv.name), model) if method == "single-level" else None
     if other is not None:  # the report shows it: a new bi-level fit redoes the single-level stage's report
         inputs.append(Path(other["path"]))
     durations = None
@@ -236,13 +236,16 @@ def fit_ioc(out: str | os.PathLike, *, means: str | os.PathLike | None = None, t
     return Outcome(stage.final_dir, result)
 
 
-def _bilevel_fit(out, directory: str) -> dict | None:
-    """The bi-level fit of the workspace (``OUT/<directory>/weights.json``) for the single-level report,
-    None when there is none."""
+def _bilevel_fit(out, directory: str, model: str) -> dict | None:
+    """The bi-level fit of ``model`` in the workspace (``OUT/<directory>/weights.json``) for the single-level report
+    and its cross-checks, None when there is none (another model's fit there, e.g. the walker's in a pair
+    workspace, is none: its weights are no start, nor D a comparison, for this model)."""
     path = Path(out) / directory / "weights.json"
     if not path.is_file():
         return None
     data = json.loads(path.read_text())
+    if data.get("model") != model:
+        return None
     return {"path": str(path), "fits": data.get("fits", {})}
 
 
