@@ -31,7 +31,8 @@ PUBLISHED_PREDICT_ARGS ?=
 GOAL_PREDICT_ARGS ?= --settings 50:100 --predictors oc,goal,cv,ctrv --horizons 5,10,25,50,100,200,all
 SUBJECT_IOC_ARGS ?= --subjects 10 --max-evaluations 600
 # the single-level IOC beside each bi-level fit over the means (docs/methods.md sec. 6.1; published convention: at the
-# bi-level fit's held horizons),
+# bi-level fit's held horizons, and its steps also started at the bi-level fit's end, a row of the side-by-side table:
+# 21-28 s more on the table and walking means, 2026-11-26),
 # with the bootstrap of the weights' intervals and verdicts (--bootstrap, default 200, sec. 6.3); its own stage
 # fit-ioc-single/, whose report shows both fits side by side. The feasible-path fit took 26 s on the 37 walking means
 # where the bi-level one took 107 s in the same run (loaded machine, docs/benchmarks.md); --max-evaluations N caps its steps
