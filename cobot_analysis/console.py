@@ -136,9 +136,11 @@ class QuietProgress:
 def _plain_progress():
     """``PlainProgress``: a rich ``Progress`` that, when the console is not a terminal (where rich would print the
     bars only at the end), prints plain lines for a task that has run ``PLAIN_EVERY`` seconds: at most one every
-    ``PLAIN_EVERY`` seconds while it advances, and one when it completes: "IOC all: 12/50 (24 %), 0:01:10, about
-    0:03:40 left; D = 0.41". Quicker work says nothing: a stage that then fails prints its error line alone, one
-    that succeeds its summary line. Defined at first use, with rich."""
+    ``PLAIN_EVERY`` seconds while it advances, and one when it completes: "predict: 12/50 (24 %), 0:01:10, about
+    0:03:40 left". A task added with ``budget=True`` counts up to a most, not to its end (a search stops when it
+    converges): "IOC all: 12 of at most 2000, 0:01:10; D = 0.41", no time left foreseen. Quicker work says nothing: a
+    stage that then fails prints its error line alone, one that succeeds its summary line. Defined at first use,
+    with rich."""
     from rich.progress import Progress
 
     class PlainProgress(Progress):
@@ -177,9 +179,11 @@ def _plain_progress():
             if done and self._last.get(task_id) == "done":
                 return
             self._last[task_id] = "done" if done else now
-            total = f"/{task.total:g} ({100 * task.completed / task.total:.0f} %)" if task.total else ""
+            budget = task.fields.get("budget") and not done  # the total is a most (a search's budget): no end to foresee
+            total = (f" of at most {task.total:g}" if budget else
+                     f"/{task.total:g} ({100 * task.completed / task.total:.0f} %)" if task.total else "")
             elapsed = timedelta(seconds=round(task.elapsed or 0))
-            left = task.time_remaining
+            left = None if budget else task.time_remaining
             eta = f", about {timedelta(seconds=round(left))} left" if left is not None and not done and task.completed else ""
             status = task.fields.get("status") or ""
             the_console().print(f"{task.description}: {task.completed:g}{total}, {elapsed}{eta}" + (f"; {status}" if status else ""),
@@ -194,6 +198,13 @@ def progress():
     if _level < 1:
         return QuietProgress()
     from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+    from rich.text import Text
+
+    class Remaining(TimeRemainingColumn):
+        """The time left, none for a task whose total is a budget (``budget=True``)."""
+
+        def render(self, task):
+            return Text("") if task.fields.get("budget") else super().render(task)
 
     console = the_console()
     plain = not console.is_terminal
@@ -202,7 +213,7 @@ def progress():
         BarColumn(),
         MofNCompleteColumn(),
         TimeElapsedColumn(),
-        TimeRemainingColumn(),
+        Remaining(),
         TextColumn("{task.fields[status]}"),
         console=console,
         disable=plain,

@@ -235,3 +235,14 @@ def test_progress_prints_plain_lines_when_the_output_is_not_a_terminal(monkeypat
     buffer.truncate(0), buffer.seek(0)
     list(c.track(slow(2), "fit", total=2))
     assert [line.split(",")[0] for line in buffer.getvalue().splitlines()] == ["fit: 1/2 (50 %)", "fit: 2/2 (100 %)"]
+    # a search's budget (fit-ioc's evaluations): counted up to a most, no time left foreseen; its end as a count
+    buffer.truncate(0), buffer.seek(0)
+    with c.progress() as bar:
+        task = bar.add_task("IOC all", total=2000, status="", budget=True)
+        for n in (1, 2):
+            time.sleep(0.06)
+            bar.update(task, completed=n, status=f"D = 0.{n}")
+        bar.update(task, total=2, completed=2)
+    lines = buffer.getvalue().splitlines()
+    assert lines[0].startswith("IOC all: 1 of at most 2000, 0:00:00; D = 0.1") and "left" not in buffer.getvalue()
+    assert lines[-1].startswith("IOC all: 2/2 (100 %)")

@@ -148,7 +148,7 @@ def fit_ioc_command(
         if not tasks:
             bar.start()
         if key not in tasks:
-            tasks[key] = bar.add_task(f"IOC {key}", total=fit_budget(method, max_evaluations), status="")
+            tasks[key] = bar.add_task(f"IOC {key}", total=fit_budget(method, max_evaluations), status="", budget=True)
         bar.update(tasks[key], completed=n, status=f"D = {f:.4f}, best {best:.4f}")
 
     try:
