@@ -45,6 +45,9 @@ METHODS = ("bilevel", "single-level")
 MAX_FOLDED = 0.5  # a step that ends the branches of more of the paths than this fraction is rejected unsolved
 MAX_STEPS = 40  # the feasible-path fit's own budget of trust-region steps per round
 PROBE_DISTANCES = (1.5, 3.0)  # log10 units: the escape probes' distances from a converged point (``escape_probes``)
+# log10 units: every step and probe ends on this grid of log10 w (a factor 1 + 2.3e-6 in w: far below what D determines),
+# so that round-off in the linear algebra (the LU's order of operations, another BLAS) does not change the fit's steps
+GRID = 1e-6
 
 
 @dataclass
@@ -182,25 +185,28 @@ def branch_calls(spec: IOCSpec, fitted: tuple[int, ...], n_samples: int, eps: fl
 
 class _Permutation:
     """A reverse Cuthill-McKee permutation of the KKT matrix K (variables and multipliers of each
-    stage brought together: a band of width ~ 2 stages, factorised without fill), and the map that
-    permutes K's stored values straight into the CSC arrays of K[order][:, order] (K's sparsity is
-    fixed: computed once per ``BufferedCall``). ``apply`` refills one matrix (its index arrays already the C ints
-    SuperLU takes, so ``splu`` copies and checks nothing): use it before the next ``apply``."""
+    stage brought together: a band of half widths kl, ku ~ 2 stages) and the map that puts K's stored
+    values (K's sparsity is fixed: computed once per ``BufferedCall``) straight into LAPACK's band
+    storage of K[order][:, order] (``band``): row kl + ku + i - j of column j holds K[order][i, j]."""
 
     def __init__(self, K):
         from scipy.sparse import csc_matrix
         from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+        n = K.shape[0]
         pattern = csc_matrix((np.arange(1.0, K.nnz + 1.0), K.indices, K.indptr), shape=K.shape)
         self.order = np.asarray(reverse_cuthill_mckee((pattern + pattern.T).tocsr(), symmetric_mode=True))
         P = pattern[self.order][:, self.order].tocsc()
-        P.sort_indices()
+        rows, cols = P.indices, np.repeat(np.arange(n), np.diff(P.indptr))
+        self.kl, self.ku = int(np.max(rows - cols, initial=0)), int(np.max(cols - rows, initial=0))
         self.source = P.data.astype(int) - 1
-        self.matrix = csc_matrix((np.zeros(P.nnz), P.indices.astype(np.intc), P.indptr.astype(np.intc)), shape=K.shape)
+        self.flat = (self.kl + self.ku + rows - cols) * n + cols  # flat index in the (2 kl + ku + 1, n) band array
 
-    def apply(self, K):
-        np.take(K.data, self.source, out=self.matrix.data)
-        return self.matrix
+    def band(self, K) -> np.ndarray:
+        """K permuted, in LAPACK's band storage for ``dgbtrf`` (kl extra rows for its fill)."""
+        ab = np.zeros((2 * self.kl + self.ku + 1, K.shape[0]))
+        ab.flat[self.flat] = K.data[self.source]
+        return ab
 
 
 def _permutation(newton: BufferedCall) -> _Permutation:
@@ -211,18 +217,23 @@ def _permutation(newton: BufferedCall) -> _Permutation:
 
 
 class _Factor:
-    """LU of K permuted symmetrically (``_Permutation``), solving K x = b and K' x = b."""
+    """LU of K permuted symmetrically (``_Permutation``) by LAPACK's band LU with partial pivoting
+    (``dgbtrf``), solving K x = b and K' x = b (``dgbtrs``). RuntimeError when K is singular."""
 
     def __init__(self, K, perm: _Permutation):
-        from scipy.sparse.linalg import splu
+        from scipy.linalg.lapack import dgbtrf
 
-        self.order = perm.order
-        self.lu = splu(perm.apply(K), permc_spec="NATURAL")
+        self.order, self.kl, self.ku = perm.order, perm.kl, perm.ku
+        self.lu, self.pivots, info = dgbtrf(perm.band(K), perm.kl, perm.ku, overwrite_ab=True)
+        if info != 0:
+            raise RuntimeError(f"singular KKT matrix (dgbtrf info {info})")
 
     def solve(self, b, trans: bool = False):
-        b = np.asarray(b)
-        x = np.empty_like(b, dtype=float)
-        x[self.order] = self.lu.solve(b[self.order], trans="T" if trans else "N")
+        from scipy.linalg.lapack import dgbtrs
+
+        b = np.asarray(b, float)
+        x = np.empty_like(b)
+        x[self.order], info = dgbtrs(self.lu, self.kl, self.ku, b[self.order], self.pivots, trans=int(trans))
         return x
 
 
@@ -350,16 +361,20 @@ def free_weights(g: np.ndarray, y: np.ndarray) -> np.ndarray:
     return ~(((y <= lo + 1e-9) & (g > 0)) | ((y >= hi - 1e-9) & (g < 0)))
 
 
+def on_grid(y: np.ndarray) -> np.ndarray:
+    """y (log10 w) rounded to the nearest point of the ``GRID`` within the search box ``LOG_BOUNDS``."""
+    return np.clip(np.round(np.asarray(y, float) / GRID) * GRID, *LOG_BOUNDS)
+
+
 def box_step(g: np.ndarray, H: np.ndarray, y: np.ndarray, radius: float) -> np.ndarray:
     """The model's step from y (log10 w) within |s| <= radius and the search box ``LOG_BOUNDS``: a weight on
     a search limit that D pushes outward (the gradient g) is held (``free_weights``), the others take
-    ``trust_region_step``, and the step is projected onto the box."""
-    lo, hi = LOG_BOUNDS
+    ``trust_region_step``; the step ends on the ``GRID`` (``on_grid``, projected onto the box)."""
     free = free_weights(g, y)
     s = np.zeros_like(y)
     if free.any():
         s[free] = trust_region_step(g[free], H[np.ix_(free, free)], radius)
-    return np.clip(y + s, lo, hi) - y
+    return on_grid(y + s) - y
 
 
 def shrunk_radius(step, s: np.ndarray, radius: float, xtol: float) -> float:
@@ -380,14 +395,13 @@ def escape_probes(y: np.ndarray, H: np.ndarray, distances=PROBE_DISTANCES) -> li
     +-v1, +-v2 and the four diagonals (one direction when one weight is fitted), d in ``distances``.
     Duplicates (a clip onto a search limit) and y itself are left out."""
     lam, V = np.linalg.eigh(0.5 * (H + H.T))
-    lo, hi = LOG_BOUNDS
     flat = V[:, np.argsort(lam)[:2]]
     dirs = [flat[:, 0]] if flat.shape[1] == 1 else [np.cos(a) * flat[:, 0] + np.sin(a) * flat[:, 1]
                                                       for a in np.arange(8) * np.pi / 4]
     out: list[np.ndarray] = []
     for d in distances:
         for u in (dirs if len(dirs) > 1 else [dirs[0], -dirs[0]]):
-            q = np.clip(y + d * u, lo, hi)
+            q = on_grid(y + d * u)
             if np.abs(q - y).max() > 1e-6 and all(np.abs(q - o).max() > 1e-6 for o in out):
                 out.append(q)
     return out
