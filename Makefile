@@ -34,8 +34,9 @@ SUBJECT_IOC_ARGS ?= --subjects 10 --max-evaluations 600
 # bi-level fit's held horizons, and its steps also started at the bi-level fit's end, a row of the side-by-side table:
 # 21-28 s more on the table and walking means, 2026-11-26),
 # with the bootstrap of the weights' intervals and verdicts (--bootstrap, default 200, sec. 6.3); its own stage
-# fit-ioc-single/, whose report shows both fits side by side. The feasible-path fit took 26 s on the 37 walking means
-# where the bi-level one took 107 s in the same run (loaded machine, docs/benchmarks.md); --max-evaluations N caps its steps
+# fit-ioc-single/, whose report shows both fits side by side. The feasible-path stage took 33 s on the 37 walking means
+# with its bootstrap and profiles, the fit alone 5.2 s where the bi-level fit took 31.7 s (2026-11-26, docs/benchmarks.md);
+# --max-evaluations N caps its steps
 SINGLE_IOC_ARGS ?=
 COUPLED_IOC_ARGS ?= --max-evaluations 600
 SPREDICT_ARGS ?= --every 10

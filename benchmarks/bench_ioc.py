@@ -6,6 +6,7 @@
     python benchmarks/bench_ioc.py --synthetic 8 --intervals 20 --fit a2,a4
     python benchmarks/bench_ioc.py --workspace OUT/walking-2020 --convention published --fit a1,a2,a3,a4 --jobs 2
     python benchmarks/bench_ioc.py --workspace OUT/walking-2020 --per-subject 0 [--bootstrap 200] [--skip-bilevel]
+    python benchmarks/bench_ioc.py --workspace OUT/walking-2020 --perturbed 0,1e-12,-1e-12,1e-9,-1e-9,1e-6,-1e-6
 
 ``--workspace``: the means of a workspace (average/means.parquet) fitted as ``fit-ioc`` fits them under the
 continuous convention (``--model improved``: the walking means, a2, a3, a4 from the walking-2021 preset;
@@ -20,7 +21,9 @@ the single-level Newton corrections) on ``--jobs`` worker processes (1: inline),
 4 x jobs, as ``fit-ioc``). Prints wall and CPU time (this process and its workers), the exact D (lower level re-solved),
 the weights, the peak resident memory of each, and the time ratio, then the single-level D and weights (per
 subject: each fit's) to full precision, to check two trees' fits with ==; ``--paths N`` takes N targets spread
-over the list.
+over the list. ``--perturbed F,...``: the continuous single-level fit alone, in this process, once per start with the
+first fitted weight times (1 + F): the spread of its routes (the steps it takes, hence its time, follow the route:
+docs/methods.md sec. 6.1), CPU, D and steps per start, and their mean.
 """
 
 from __future__ import annotations
@@ -88,12 +91,15 @@ def main() -> None:
                     help="with --workspace: the per-subject fits of the first N subjects (0: all) as fit-ioc --per subject runs "
                          "them (start: WS/fit-ioc/weights.json), each with its --bootstrap")
     ap.add_argument("--bootstrap", type=int, default=200, help="with --per-subject: resamples after each fit (0: none)")
+    ap.add_argument("--perturbed", help="F,F,...: single-level fits in-process, the first fitted weight's start x (1 + F)")
     args = ap.parse_args()
     args.chunks = args.chunks or 4 * args.jobs
     if args.fit is None:
         args.fit = "" if args.convention == "published" else "a2,a3,a4"
     if args.per_subject is not None:
         return per_subject(args)
+    if args.perturbed:
+        return perturbed(args)
 
     import pandas as pd
 
@@ -190,6 +196,29 @@ def per_subject(args) -> None:
                   + f" | {r.seconds[k]:.1f} |")
         print("exact (D, weights) per subject, to compare runs with ==:",
               {k: (v.objective, {m: v.weights[m] for m in r.names}) for k, v in r.results.items()})
+
+
+def perturbed(args) -> None:
+    """The continuous single-level fit from perturbed starts (``--perturbed``), in this process: CPU, D and steps each."""
+    from cobot_analysis.models.ioc.single_level import fit_feasible_path
+    from cobot_analysis.models.presets import names_for
+
+    spec, targets, measured_T = workspace_targets(args.workspace, args.model, args.intervals, args.fit)
+    i = names_for(spec.model).index(spec.fitted[0])
+    cpus, Ds = [], []
+    print(f"| start {spec.fitted[0]} x (1 + f) | CPU (s) | D | steps | " + " | ".join(spec.fitted) + " |")
+    print("|---|---|---|---|" + "---|" * len(spec.fitted))
+    for f in map(float, args.perturbed.split(",")):
+        w = list(spec.start_weights)
+        w[i] *= 1 + f
+        c0 = time.process_time()
+        r = fit_feasible_path(replace(spec, start_weights=tuple(w)), targets, measured_T=measured_T, chunks=args.chunks,
+                              restarts=args.restarts)
+        cpus.append(time.process_time() - c0)
+        Ds.append(r.objective)
+        print(f"| {f:+g} | {cpus[-1]:.2f} | {r.objective:.5f} | {r.iterations} | "
+              + " | ".join(f"{r.weights[n]:.4g}" for n in spec.fitted) + " |")
+    print(f"mean CPU {np.mean(cpus):.2f} s, median D {np.median(Ds):.5f}, {len(set(Ds))} distinct D in {len(Ds)} starts")
 
 
 def cpu() -> float:
