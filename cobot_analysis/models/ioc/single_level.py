@@ -511,7 +511,10 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
     P = [ocp.parameters(t.start, t.goal, w, T) for t, T in zip(targets, T0)]
     data = [target_data(t) for t in targets]
     pool = pool or InlineExecutor()
-    parts = interleaved_chunks(n, chunks)
+    parts = interleaved_chunks(n, chunks)  # the Newton corrections (about 3 ms per path) in chunks
+    # the lower-level solves (cold guesses, an IPOPT fallback: 5 to 300 ms per path) one task per path: the pool
+    # balances them (0.1 s less wall than in chunks on the walking means with --jobs 2)
+    single = interleaved_chunks(n, n)
 
     def run(fn, make_task) -> list:
         return run_chunks(pool, fn, parts, make_task, n)
@@ -535,7 +538,7 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
 
     start_terms, c_start = [], None
     if start is None:
-        ref = run(reference_chunk, lambda p: (spec, w, [targets[i] for i in p]))
+        ref = run_chunks(pool, reference_chunk, single, lambda p: (spec, w, [targets[i] for i in p]), n)
         if measured_T is not None:  # the start weights' time gauge first, as the bi-level fit (``fit.fit``): the
             # lower levels' cold guesses (duration T0) then start near the optimal durations and find the least-cost
             # local minima that they miss far from them (D itself is invariant to the gauge)
@@ -543,7 +546,7 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
             if np.isfinite(c_start):
                 w = weights_vector(scale_time(dict(zip(names, map(float, w))), c_start), spec.model)
                 spec = replace(spec, start_weights=tuple(map(float, w)))
-                ref = run(reference_chunk, lambda p: (spec, w, [targets[i] for i in p]))
+                ref = run_chunks(pool, reference_chunk, single, lambda p: (spec, w, [targets[i] for i in p]), n)
         start_terms = [d for d, _ in ref]
         start = [primal for _, primal in ref]
         if any(z is None for z in start):
@@ -592,12 +595,12 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
     def resolve(ws: list, Zs: list) -> list:
         """The lower levels re-solved at each weight vector of ``ws`` as the bi-level fit solves them (warm from
         ``Zs`` and from the two cold guesses, the least cost kept): per vector, (D, terms, primals)."""
-        futures = [[pool.submit(evaluate_chunk, (spec, wk, [targets[i] for i in p], [Zs[i] for i in p])) for p in parts]
+        futures = [[pool.submit(evaluate_chunk, (spec, wk, [targets[i] for i in p], [Zs[i] for i in p])) for p in single]
                    for wk in ws]
         out = []
         for fs in futures:
             res = [None] * n
-            for p, f in zip(parts, fs):
+            for p, f in zip(single, fs):
                 for i, r in zip(p, f.result()):
                     res[i] = r
             out.append((float(np.mean([d["D"] for d, _ in res])), [d for d, _ in res], [z for _, z in res]))
