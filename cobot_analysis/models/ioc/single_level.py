@@ -20,8 +20,9 @@ the chain rule through the resampling (``resampled_distance``), not symbolically
 
 Solved by a feasible path (``fit_feasible_path``, docs/methods.md sec. 6.1): a trust-region step in
 log10 w with the exact gradient and Hessian of D along the manifold of KKT points, then each path's
-KKT system restored by Newton's method (its own sparse factorisation), so the constraints hold at
-every step. The D reported is never the smoothed one: the lower level is re-solved at the fitted
+KKT system restored by Newton's method (LAPACK's band LU of its KKT matrix), so the constraints hold at
+every step; the steps end on a grid of log10 w (``GRID``), so the route does not follow the round-off of the
+linear algebra. The D reported is never the smoothed one: the lower level is re-solved at the fitted
 weights as the bi-level fit solves it, and D computed exactly.
 """
 
