@@ -122,6 +122,37 @@ def test_kkt_holds_at_a_lower_level_solution():
     assert np.abs(r2).max() > 1e-3
 
 
+def test_band_lu_solves_the_kkt_system_and_its_transpose():
+    """``_Factor`` (LAPACK's band LU of the RCM-ordered KKT matrix) solves K x = b and K' x = b as a general sparse
+    solver does, on a lower level's KKT matrix, for one and for several right-hand sides; a singular K raises
+    RuntimeError (the branch's correction then fails: a fold)."""
+    from scipy.sparse.linalg import spsolve
+
+    from cobot_analysis.models.ioc.buffered import BufferedCall
+    from cobot_analysis.models.ioc.recovery import synthetic_targets
+    from cobot_analysis.models.ioc.single_level import _Factor, _Permutation, lower_level, newton_functions
+    from cobot_analysis.models.oc.duration import initial_duration
+
+    t = synthetic_targets(SPEC, W, 2)[0]
+    ocp = lower_level(SPEC)
+    newton = BufferedCall(newton_functions(ocp, [names_for("improved").index(n) for n in SPEC.fitted])[0])
+    _, sol = solve_target(SPEC, W, t, ("rest", "line"))
+    v = np.concatenate([sol.primal, np.full(ocp.n_cons, 0.1)])
+    F, K, Fw = newton(v, W, ocp.parameters(t.start, t.goal, W, initial_duration(t.start, t.goal)))
+    K = K.copy()
+    perm = _Permutation(K)
+    assert 0 < perm.kl < 50 and 0 < perm.ku < 50 < K.shape[0] / 4  # a band, far narrower than K
+    lu = _Factor(K, perm)
+    B = np.column_stack([F, Fw.reshape(len(v), -1)])
+    for b in (F, B):
+        for trans, A in ((False, K), (True, K.T.tocsc())):
+            x, ref = lu.solve(b, trans=trans), spsolve(A, b)
+            np.testing.assert_allclose(x, ref.reshape(x.shape), rtol=1e-8, atol=1e-10 * np.abs(ref).max())
+    K.data[K.indices == 0] = 0.0  # the first row emptied: singular
+    with pytest.raises(RuntimeError, match="singular"):
+        _Factor(K, perm)
+
+
 def test_bad_inputs_are_refused():
     from cobot_analysis.models.ioc.recovery import synthetic_targets
     from cobot_analysis.models.ioc.single_level import check_spec
