@@ -140,6 +140,7 @@ def test_band_lu_solves_the_kkt_system_and_its_transpose():
     v = np.concatenate([sol.primal, np.full(ocp.n_cons, 0.1)])
     F, K, Fw = newton(v, W, ocp.parameters(t.start, t.goal, W, initial_duration(t.start, t.goal)))
     K = K.copy()
+    K.data *= 1 + 0.1 * np.random.default_rng(1).standard_normal(K.nnz)  # K is symmetric: made not, to tell K from K'
     perm = _Permutation(K)
     assert 0 < perm.kl < 50 and 0 < perm.ku < 50 < K.shape[0] / 4  # a band, far narrower than K
     lu = _Factor(K, perm)
