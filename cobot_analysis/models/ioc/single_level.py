@@ -517,15 +517,13 @@ def fit_feasible_path(spec: IOCSpec, targets: list[Target], *, start: list | Non
     # balances them (0.1 s less wall than in chunks on the walking means with --jobs 2)
     single = interleaved_chunks(n, n)
 
-    def run(fn, make_task) -> list:
-        return run_chunks(pool, fn, parts, make_task, n)
-
     def correct(w, V, jump: bool = False) -> list | None:
         """Every branch corrected at w from the vectors V (None if one fails). ``jump``: a branch whose
         Newton correction fails (a fold: its path ends there) goes on from its lower level re-solved at w
         (``fold_chunk``), unless the branches of more than ``MAX_FOLDED`` of the paths end there (a step too
         long for the predictor: None without re-solving them)."""
-        out = run(correct_chunk, lambda p: (shape, tuple(fi), M, eps, tol, w, [(P[i], data[i], V[i]) for i in p]))
+        out = run_chunks(pool, correct_chunk, parts,
+                         lambda p: (shape, tuple(fi), M, eps, tol, w, [(P[i], data[i], V[i]) for i in p]), n)
         lost = [i for i, r in enumerate(out) if r is None]
         if lost and jump and len(lost) <= MAX_FOLDED * n:
             k = max(1, min(chunks, len(lost)))
