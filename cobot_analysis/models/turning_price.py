@@ -43,14 +43,18 @@ def turning_price(targets: list[Target], weights: dict[str, float], *, model: st
     (module docstring); NaN test cells on the fitted row."""
     todo = [float(weights["a3"]), *a3_values(float(weights["a3"]))]
     frames, spinning, values = [], [], []
-    while todo and not (spinning and spinning[-1] == 0):
+
+    def settled() -> bool:  # the last value reported has no spinning path: no larger a3 is needed
+        return bool(spinning) and spinning[-1] == 0
+
+    while todo and not settled():
         chunk, todo = todo[:batch], todo[batch:]
         models = {f"a3={v:.6g}": (model, {**weights, "a3": v}) for v in chunk}
         df, kept = compare_models_keeping(targets, models, tuple(models), angle=angle, angle_weight=angle_weight, jobs=jobs,
                                           scheduler=scheduler, convention=convention)
         frames.append(df.pivot_table(index="trial", columns="model", values="D", aggfunc="first", dropna=False)[list(models)])
         for label, v in zip(models, chunk):
-            if spinning and spinning[-1] == 0:
+            if settled():
                 break  # the batch's values past the first at which none spins: not reported
             values.append(v)
             spinning.append(sum(spins(p["theta"].to_numpy(float)) for p in kept[label].values() if p is not None))
