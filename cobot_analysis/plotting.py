@@ -7,6 +7,8 @@ Every figure of the package (reports, models, localisation, prediction) is drawn
 
 from __future__ import annotations
 
+import numpy as np
+
 STYLE = {
     "figure.dpi": 100, "font.size": 9, "axes.titlesize": 9, "axes.labelsize": 9, "legend.fontsize": 8,
     "axes.spines.top": False, "axes.spines.right": False, "axes.grid": True, "grid.alpha": 0.3,
@@ -30,17 +32,21 @@ def pyplot():
 
 
 LAYOUT_PASSES = 3  # a layout still moving after them is drawn as the last pass left it
+SETTLED_PX = 0.01  # pixels: axes that move less than this in a pass have stopped (round-off moves them 1e-13 px)
 
 
 def settle_layout(fig) -> None:
-    """Draw ``fig`` (without rendering) until its layout engine stops moving the axes, at most ``LAYOUT_PASSES``
-    times: a draw places texts (titles above their tick labels) that the next pass makes room for. The layout
-    ``save`` writes, and the one ``reports.figures.check_figure`` checks."""
+    """Draw ``fig`` (without rendering) until its layout engine stops moving the axes (no edge moves by
+    ``SETTLED_PX`` pixels or more), at most ``LAYOUT_PASSES`` times: a draw places texts (titles above their tick
+    labels) that the next pass makes room for. The layout ``save`` writes, and the one
+    ``reports.figures.check_figure`` checks."""
     fig.draw_without_rendering()  # runs the layout engine, as savefig's first pass does
     for _ in range(LAYOUT_PASSES - 1 if fig.get_layout_engine() is not None else 0):
         before = [ax.get_position().bounds for ax in fig.axes]
         fig.draw_without_rendering()
-        if [ax.get_position().bounds for ax in fig.axes] == before:
+        after = [ax.get_position().bounds for ax in fig.axes]
+        pixels = np.tile(fig.get_size_inches() * fig.dpi, 2)  # (x0, y0, width, height) as fractions -> pixels
+        if not fig.axes or (np.abs(np.subtract(after, before)) * pixels).max() < SETTLED_PX:
             break
 
 

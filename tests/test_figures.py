@@ -648,6 +648,39 @@ def test_save_lays_out_once_and_writes_what_savefig_tight_writes(tmp_path, layou
     assert isinstance(fig.get_layout_engine(), (type(None), PlaceHolderLayoutEngine))  # the layout is fixed
 
 
+def test_layout_passes_stop_when_the_axes_stop_moving(monkeypatch):
+    """``settle_layout`` draws again only while a pass moves an axes edge by ``SETTLED_PX`` pixels or more: a panel
+    with its title is settled after one pass (the second finds it moved by round-off only, 1e-13 px, where comparing
+    the bounds exactly drew a third time); equal-aspect panels under an outside legend still move in the second pass:
+    three passes; without a layout engine, one."""
+    from matplotlib.figure import Figure
+
+    from cobot_analysis import plotting
+
+    passes = []
+    draw = Figure.draw_without_rendering
+    monkeypatch.setattr(Figure, "draw_without_rendering", lambda fig: (passes.append(fig), draw(fig)))
+
+    def count(fig):
+        passes.clear()
+        plotting.settle_layout(fig)
+        return len(passes)
+
+    fig, ax = plt.subplots(figsize=(4, 3), layout="constrained")
+    ax.plot([0, 1], [0, 1])
+    ax.set(title="one panel", xlabel="x (m)")
+    assert count(fig) == 2
+    fig, axes = plt.subplots(1, 2, figsize=(7, 3), layout="constrained")
+    for ax in axes:
+        ax.plot([-1, 1], [-1, 1])
+        ax.set_aspect("equal")
+    fig.legend(["a", "b"], loc="outside upper center", ncols=2)
+    fig.set_dpi(150)
+    assert count(fig) == 3
+    fig, ax = plt.subplots(figsize=(4, 3))
+    assert count(fig) == 1
+
+
 def test_checker_finds_a_panel_title_on_the_ticks_of_the_panel_above():
     fig = plt.figure(figsize=(3, 4))
     top, bottom = fig.add_axes((0.2, 0.56, 0.7, 0.4)), fig.add_axes((0.2, 0.1, 0.7, 0.4))
