@@ -45,9 +45,11 @@ def settle_layout(fig) -> None:
         before = [ax.get_position().bounds for ax in fig.axes]
         fig.draw_without_rendering()
         after = [ax.get_position().bounds for ax in fig.axes]
-        pixels = np.tile(fig.get_size_inches() * fig.dpi, 2)  # (x0, y0, width, height) as fractions -> pixels
-        if not fig.axes or (np.abs(np.subtract(after, before)) * pixels).max() < SETTLED_PX:
-            break
+        if len(after) == len(before):
+            pixels = np.tile(fig.get_size_inches() * fig.dpi, 2)  # (x0, y0, width, height) as fractions -> pixels
+            moved = np.abs(np.reshape(after, (-1, 4)) - np.reshape(before, (-1, 4))) * pixels
+            if moved.max(initial=0.0) < SETTLED_PX:
+                break
 
 
 def save(fig, paths, dpi: float = 150) -> None:

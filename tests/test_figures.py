@@ -679,6 +679,9 @@ def test_layout_passes_stop_when_the_axes_stop_moving(monkeypatch):
     assert count(fig) == 3
     fig, ax = plt.subplots(figsize=(4, 3))
     assert count(fig) == 1
+    fig = plt.figure(figsize=(4, 3), layout="constrained")  # a layout engine and nothing to lay out: settled
+    fig.suptitle("no axes")
+    assert count(fig) == 2
 
 
 def test_checker_finds_a_panel_title_on_the_ticks_of_the_panel_above():
