@@ -225,8 +225,10 @@ def figures(metrics, traj, config) -> dict:
         pts = pts[np.isfinite(pts).all(axis=1)]
         return pts.min(axis=0), pts.max(axis=0)
 
-    # the predictors' panels compared side by side: one scale (shared axes)
-    fig, axes = plt.subplots(1, len(preds), figsize=(4.2 * len(preds), 4.2 * aspect + 1.2), squeeze=False, sharex=True,
+    # the predictors' panels compared side by side: one scale (shared axes); each 4.2 in column holds an equal-aspect
+    # panel about 3.75 in wide (its tick labels beside it), so 3.75 x aspect in high (4.2 x aspect left 0.5-0.7 in blank
+    # above and below the panels)
+    fig, axes = plt.subplots(1, len(preds), figsize=(4.2 * len(preds), 3.75 * aspect + 1.2), squeeze=False, sharex=True,
                              sharey=True, layout="constrained")
     for ax, (name, P) in zip(axes[0], preds.items()):
         ok = np.isfinite(P[:, 0, 0])
