@@ -99,6 +99,26 @@ def test_holm_matches_statsmodels_and_hand():
     assert out["significant"].tolist() == [True, False, False, True, True]
 
 
+def test_holm_leaves_the_garbage_collector_as_it_found_it(monkeypatch):
+    """holm freezes the heap around statsmodels' own gc.collect(); nothing stays frozen after it, also when the
+    correction raises."""
+    import gc
+
+    rows = pd.DataFrame({"family": ["f", "f"], "status": "ok", "test": "kruskal", "p": [0.01, 0.2]})
+    analyses.holm(rows, 0.05)
+    assert gc.get_freeze_count() == 0
+    import statsmodels.stats.multitest as multitest
+
+    def failing(*args, **kwargs):
+        assert gc.get_freeze_count() > 0  # the objects that existed before the correction are skipped
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(multitest, "multipletests", failing)
+    with pytest.raises(RuntimeError, match="boom"):
+        analyses.holm(rows, 0.05)
+    assert gc.get_freeze_count() == 0
+
+
 def test_vectorised_kruskal_matches_scipy_with_ties():
     rng = np.random.default_rng(2)
     v = rng.normal(size=(6, 3, 15))

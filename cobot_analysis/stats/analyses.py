@@ -347,14 +347,25 @@ def _no_levels(group: str, part: pd.DataFrame) -> str:
 
 
 def holm(rows: pd.DataFrame, alpha: float) -> pd.DataFrame:
-    """Holm-corrected p within each family (statsmodels), over the rows that ran a test."""
+    """Holm-corrected p within each family (statsmodels), over the rows that ran a test.
+
+    statsmodels' Holm ends with a full ``gc.collect()`` (statsmodels/stats/multitest.py; its removal was proposed in
+    statsmodels PR #8671): 75 ms per family in a process that has imported the pipeline (164 000 objects tracked),
+    against 0.02 ms with the objects that exist before the call frozen (``gc.freeze``: the collections skip them;
+    ``gc.unfreeze`` hands them back to the oldest generation). The p-values are the same."""
+    import gc
+
     from statsmodels.stats.multitest import multipletests
 
     rows = rows.copy()
     rows["p_holm"] = np.nan
     tested = rows["status"].eq("ok") & ~rows["test"].isin(NOT_HOLM) & rows["p"].notna()
-    for _, idx in rows[tested].groupby("family").groups.items():
-        rows.loc[idx, "p_holm"] = multipletests(rows.loc[idx, "p"].to_numpy(float), alpha=alpha, method="holm")[1]
+    gc.freeze()
+    try:
+        for _, idx in rows[tested].groupby("family").groups.items():
+            rows.loc[idx, "p_holm"] = multipletests(rows.loc[idx, "p"].to_numpy(float), alpha=alpha, method="holm")[1]
+    finally:
+        gc.unfreeze()
     rows["significant"] = rows["p_holm"].lt(alpha)
     return rows
 
