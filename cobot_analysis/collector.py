@@ -3,7 +3,7 @@
 The collector runs a full collection whenever the objects that survived young collections grow by a quarter
 since the last one, and each full collection visits every tracked object of the process. A block that builds
 a list of a few hundred thousand small objects (a robot run's ROS messages, before they are written) makes it
-run several times, each over all of them: ``synth localisation`` spent 3.9 of its 8.8 s of CPU in the
+run several times, each over all of them: ``synth localisation`` spent 3.9 of its 9.0 s of CPU in the
 collector (docs/benchmarks.md, "The test suite and CI").
 
 - ``paused()``: no automatic collection inside the block. For blocks that make objects without reference
@@ -43,10 +43,11 @@ def paused() -> Iterator[None]:
 
 @contextmanager
 def frozen() -> Iterator[None]:
-    """The objects that exist before the block out of the collections inside it (``gc.freeze``); unfrozen after
-    it, unless the caller had frozen objects already (``gc.unfreeze`` would hand back those too)."""
+    """The objects that exist before the block out of the collections inside it (``gc.freeze``), handed back after
+    it. Where the caller has frozen objects already, nothing is done: ``gc.unfreeze`` would hand back theirs too."""
     outer = gc.get_freeze_count() > 0
-    gc.freeze()
+    if not outer:
+        gc.freeze()
     try:
         yield
     finally:

@@ -57,11 +57,12 @@ def test_frozen_leaves_out_the_objects_from_before_and_hands_them_back(full_coll
         assert gc.get_freeze_count() >= len(before)
         raise RuntimeError("boom")
     assert gc.get_freeze_count() == 0
-    gc.freeze()  # the caller's freeze is the caller's to undo
+    gc.freeze()  # the caller's freeze is the caller's to undo: frozen() leaves it as it is
     try:
+        held = gc.get_freeze_count()
         with collector.frozen():
-            pass
-        assert gc.get_freeze_count() > 0
+            made = [{"i": i} for i in range(100)]
+        assert gc.get_freeze_count() == held > 0 and made
     finally:
         gc.unfreeze()
 

@@ -225,7 +225,7 @@ def _typestore(ros1: bool):
 def _messages(run: SynthRun, store, ros1: bool):
     """``(record time ns, topic, msgtype, message)`` of the whole run, in record-time order. A 10-minute run's
     are about a million small objects, without reference cycles: the writers make and write them with the
-    garbage collector paused (``collector.paused``: its full collections took 3.5 of the 8.8 s of CPU of
+    garbage collector paused (``collector.paused``: its full collections took 3.6 of the 9.0 s of CPU of
     ``synth localisation``)."""
     T = store.types
     Time, Header = T["builtin_interfaces/msg/Time"], T["std_msgs/msg/Header"]
