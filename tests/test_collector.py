@@ -50,7 +50,7 @@ def test_paused_restores_the_collector_also_when_the_block_raises():
         gc.enable()
 
 
-def test_frozen_leaves_out_the_objects_from_before_and_hands_them_back(full_collections):
+def test_frozen_leaves_out_the_objects_from_before_and_hands_them_back():
     assert gc.get_freeze_count() == 0
     before = [{"i": i} for i in range(2000)]
     with pytest.raises(RuntimeError), collector.frozen():
