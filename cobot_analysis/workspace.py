@@ -22,7 +22,7 @@ the process ends, however it ends.
 Interrupted or killed runs: the temporary directory ``.<stage>.<random>.tmp`` holds a lock file
 that its process keeps locked (``flock``); an interrupt (Ctrl-C, SIGTERM) removes it, and the next
 run of the stage removes those a killed process left (their lock is free). Directories are created
-with the user's umask.
+with the user's umask; those of ``--out`` that a run created are removed again, while still empty, when it keeps nothing.
 
     with Stage(out, "preprocess", inputs=[markers], params=params, force=force) as stage:
         if stage.skipped:
@@ -268,6 +268,7 @@ class Stage:
         self.result: Any = None  # the API result of the run: its own numbers (.metrics()) are the stage's metrics.json
         self._stage_lock: int | None = None
         self._figures: set[int] = set()  # pyplot figure numbers open on entering (the caller's: left open)
+        self._new: list[Path] = []  # the workspace's directories that did not exist on entering, deepest first
 
     @property
     def input_hashes(self) -> dict[str, str]:
@@ -313,6 +314,14 @@ class Stage:
     # -- context --------------------------------------------------------------------------------
     def __enter__(self) -> "Stage":
         check_workspace(self.out)
+        self._new = [d for d in (self.out, *self.out.parents) if not d.exists()]
+        try:
+            return self._enter()
+        except BaseException:
+            self._remove_new()
+            raise
+
+    def _enter(self) -> "Stage":
         if self.final_dir.exists() and not self.final_dir.is_dir():
             raise InputError("exists and is not a stage directory", path=self.final_dir,
                              remedy=f"move or delete it (stage {self.name} writes the directory {self.final_dir}), or pass another --out")
@@ -359,12 +368,24 @@ class Stage:
                     self._commit()
         finally:
             _close_figures(set(_open_figures()) - self._figures)  # a figure drawn and not saved (e.g. a failed run)
-            if self.dir != self.final_dir:  # failed or interrupted: nothing of this run is kept
+            kept = self.dir == self.final_dir
+            if not kept:  # failed or interrupted: nothing of this run is kept
                 with deferred():
                     shutil.rmtree(self.dir, ignore_errors=True)
                     self._unlock()
             self._release()
+            if not kept:
+                self._remove_new()
         return False
+
+    def _remove_new(self) -> None:
+        """Remove the directories of ``--out`` that this run created, where they are still empty (a refused
+        run into a new workspace leaves no empty workspace behind; another run's files keep theirs)."""
+        for d in self._new:
+            try:
+                d.rmdir()
+            except OSError:  # not empty (another run's), or already gone
+                return
 
     def _acquire(self) -> None:
         """Take the stage's workspace lock, or refuse (one line) when another run holds it. The lock
@@ -372,11 +393,15 @@ class Stage:
         if fcntl is None:
             return
         path = self.out / STAGE_LOCK.format(self.name)
+        retries = 3  # the new workspace removed by another run's ``_remove_new`` between mkdir and open: again
         while True:
             try:
                 self.out.mkdir(parents=True, exist_ok=True)
                 fd = os.open(path, os.O_CREAT | os.O_RDWR, 0o666)
             except OSError as exc:
+                if isinstance(exc, FileNotFoundError) and retries:
+                    retries -= 1
+                    continue
                 raise InputError(f"cannot write the workspace ({exc.strerror or type(exc).__name__})", path=exc.filename or self.out,
                                  remedy="pass a writable directory with --out") from None
             try:

@@ -89,6 +89,33 @@ def test_stage_directories_follow_the_umask(study, tmp_path, cli):
     assert (tmp_path / "ws" / "import" / "manifest.json").stat().st_mode & 0o777 == 0o640
 
 
+def test_a_refused_run_into_a_new_workspace_leaves_no_directory(tmp_path, cli):
+    """A run that keeps nothing removes the directories of --out it created (the deepest first, while they are
+    empty); an existing workspace, with what is in it, stays as it was."""
+    from cobot_analysis.workspace import Stage
+
+    new = tmp_path / "new" / "ws"
+    code, _, err = cli("localisation", os.devnull, "--out", new)
+    assert code == 2 and "not a readable ROS bag" in _one_line(err)
+    assert sorted(tmp_path.iterdir()) == []  # neither new/ws nor new
+    with pytest.raises(RuntimeError), Stage(new, "failed"):
+        assert (new / ".failed.lock").exists()
+        raise RuntimeError("failed inside the stage")
+    assert sorted(tmp_path.iterdir()) == []
+    old = tmp_path / "old"
+    old.mkdir()
+    (old / "notes.txt").write_text("mine\n")
+    with pytest.raises(RuntimeError), Stage(old / "sub", "failed"):
+        raise RuntimeError("failed inside the stage")
+    assert sorted(p.name for p in old.iterdir()) == ["notes.txt"] and (old / "notes.txt").read_text() == "mine\n"
+    with Stage(new, "kept") as stage:  # a run that is kept keeps its workspace
+        stage.path("x.txt").write_text("x")
+    assert (new / "kept" / "x.txt").read_text() == "x"
+    with pytest.raises(RuntimeError), Stage(new, "failed"):  # the workspace existed before this run: left
+        raise RuntimeError("failed inside the stage")
+    assert sorted(p.name for p in new.iterdir()) == ["kept"]
+
+
 def test_a_stage_closes_the_figures_it_draws_and_leaves_the_callers(tmp_path):
     """pyplot keeps every figure until it is closed: a stage that drew (and saved, or failed before saving) a
     figure leaves none open, in a notebook or a long process; a figure the caller had open stays open."""
