@@ -124,7 +124,7 @@ def read_trajectory_set(path: str | Path, tables: tuple[str, ...] = ("trajectori
     """
     import pyarrow.parquet as pq
 
-    from cobot_analysis.schema import SCHEMAS, TRAJECTORIES, VERIFY, check_file, check_values, table_metadata
+    from cobot_analysis.schema import SCHEMAS, TRAJECTORIES, VERIFY, check_file, check_values, not_the_table, table_metadata
 
     path = check_file(path, "run the stage that writes it first or check --out")
 
@@ -143,7 +143,7 @@ def read_trajectory_set(path: str | Path, tables: tuple[str, ...] = ("trajectori
     except Exception as exc:
         raise unreadable(exc) from None
     if name not in tables:
-        raise InputError(f"is not a trajectory table (found {name!r})", path=path, remedy=f"pass one of: {', '.join(tables)}")
+        raise not_the_table(path, tables[0], name, f"pass one of: {', '.join(tables)}")
     missing = [c for c in (*KEY, "kind", "sample", "x", "y") if c not in names]
     if missing:
         raise InputError(f"{name} table lacks columns {missing}", path=path, remedy="re-run the stage that wrote it")

@@ -297,6 +297,19 @@ def table_metadata(path: str | os.PathLike) -> dict[str, Any]:
     return json.loads(raw) if raw else {}
 
 
+def not_the_table(path, expected: str, found: str | None, remedy: str) -> InputError:
+    """The one line for a Parquet file that is not the ``expected`` table: another table of the pipeline
+    (``found``, with ``remedy``), or a file without the pipeline's metadata (``found`` None: written by another
+    tool, or read and saved again with pandas, which does not keep it), with how to stamp a table of one's own."""
+    if found is None:
+        return InputError("has no cobot-analysis table metadata (written by another tool, or saved again with pandas, "
+                          "which drops it)", path=path,
+                          remedy=f"write your table with cobot_analysis.schema.write_table(df, PATH, cobot_analysis.schema"
+                                 f".SCHEMAS[{expected!r}]) (read back, its columns and units are checked), or pass the "
+                                 "DataFrame to the Python API (docs/api.md, \"The one input type\")")
+    return InputError(f"is not a {expected} table (found {found!r})", path=path, remedy=remedy)
+
+
 def read_table(path: str | os.PathLike, schema: TableSchema, columns: list[str] | None = None) -> pd.DataFrame:
     """Read a table written by ``write_table``; bad or foreign files raise ``InputError``."""
     import pyarrow.parquet as pq
@@ -308,7 +321,7 @@ def read_table(path: str | os.PathLike, schema: TableSchema, columns: list[str] 
     except Exception as exc:  # pyarrow raises several types for corrupt files
         raise InputError(f"not a readable Parquet file ({type(exc).__name__})", path=path, remedy="re-run the stage that wrote it") from exc
     if meta.get("table") != schema.name:
-        raise InputError(f"is not a {schema.name} table (found {meta.get('table')!r})", path=path, remedy="pass the right file")
+        raise not_the_table(path, schema.name, meta.get("table"), "pass the right file")
     need = schema.required if columns is None else [c for c in columns if c in schema.required]
     missing = [c for c in need if c not in table.column_names]
     if missing:

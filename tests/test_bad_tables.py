@@ -84,6 +84,26 @@ def test_a_table_no_stage_writes_is_refused_by_every_stage(table, tmp_path, cli,
     assert expected in line, line
 
 
+@pytest.mark.parametrize("stage", ["average", "compare", "stats", "predict"])
+def test_a_table_saved_again_by_pandas_says_how_to_stamp_it(table, tmp_path, cli, stage):
+    """pandas does not keep the file's table metadata: read and saved again, the table is refused with one line
+    that gives the way to stamp it; stamped that way, it goes through (its values are checked on reading)."""
+    import pandas as pd
+
+    resaved = tmp_path / "mine.parquet"
+    pd.read_parquet(table).to_parquet(resaved)
+    ws = tmp_path / "ws"
+    line = refused(cli, ws, resaved, stage, "--out", ws, "--trajectories", resaved)
+    assert line == (f"error: {resaved}: has no cobot-analysis table metadata (written by another tool, or saved again with "
+                    "pandas, which drops it); write your table with cobot_analysis.schema.write_table(df, PATH, "
+                    "cobot_analysis.schema.SCHEMAS['trajectories']) (read back, its columns and units are checked), or pass "
+                    'the DataFrame to the Python API (docs/api.md, "The one input type")')
+    if stage == "average":
+        write_table(pd.read_parquet(resaved), resaved, TRAJECTORIES)
+        code, _, err = cli("average", "--out", ws, "--trajectories", resaved)
+        assert code == 0, err
+
+
 def test_the_same_values_pass(table, tmp_path, cli):
     """The editing itself is harmless: the unchanged table goes through."""
     same = edited(table, tmp_path / "same.parquet", lambda df: df)

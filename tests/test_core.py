@@ -10,7 +10,7 @@ import pytest
 
 from cobot_analysis.errors import InputError
 from cobot_analysis.parallel import map_tasks
-from cobot_analysis.schema import MARKERS, read_table, table_metadata, write_table
+from cobot_analysis.schema import MARKERS, TRIALS, read_table, table_metadata, write_table
 from cobot_analysis.workspace import Stage
 
 
@@ -61,9 +61,14 @@ def test_read_table_rejects_corrupt_and_foreign_files(tmp_path):
     with pytest.raises(InputError, match="bad.parquet: not a readable Parquet"):
         read_table(bad, MARKERS)
     other = tmp_path / "other.parquet"
-    _markers().to_parquet(other)
-    with pytest.raises(InputError, match="is not a markers table"):
+    _markers().to_parquet(other)  # the right columns, but written by pandas: no table metadata
+    with pytest.raises(InputError, match=r"other.parquet: has no cobot-analysis table metadata .*write_table\(df, PATH, "
+                                         r"cobot_analysis.schema.SCHEMAS\['markers'\]\)"):
         read_table(other, MARKERS)
+    write_table(_markers(), other, MARKERS)  # the remedy the line gives: stamped, it reads
+    assert len(read_table(other, MARKERS)) == len(_markers())
+    with pytest.raises(InputError, match=r"other.parquet: is not a trials table \(found 'markers'\); pass the right file"):
+        read_table(other, TRIALS)
 
 
 def test_stage_is_atomic_records_manifest_and_skips(tmp_path):

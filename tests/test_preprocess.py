@@ -665,7 +665,7 @@ def test_bad_corrupt_or_foreign_markers_file(tmp_path, cli, content):
         target.write_bytes(content)
     code, _, err = cli("preprocess", "--out", ws, "--jobs", "1")
     assert code == 2 and "markers.parquet" in err
-    assert ("not a readable Parquet" if content else "is not a markers table") in err
+    assert ("not a readable Parquet" if content else "has no cobot-analysis table metadata") in err
     assert not (ws / "preprocess").exists()
 
 

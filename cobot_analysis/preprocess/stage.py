@@ -67,7 +67,7 @@ from cobot_analysis.io.markers import Refused, refusal_error
 from cobot_analysis.io.plausibility import LAB_EXTENT, MAX_SPEED, MAX_SPIKE, check_positions
 from cobot_analysis.io.protocol import PELVIS_MARKERS, SACRUM, TABLE_MARKERS, pelvis_definition, pelvis_requirement
 from cobot_analysis.preprocess import filtering, gaps, normalisation, pairs, segmentation
-from cobot_analysis.schema import MARKERS, TRIAL_COLUMNS, TRIALS, VERIFY, read_table, table_metadata
+from cobot_analysis.schema import MARKERS, TRIAL_COLUMNS, TRIALS, VERIFY, not_the_table, read_table, table_metadata
 
 SUBJECT_ENTITIES = ("walker", "subject1", "subject2")
 USED_MARKERS = PELVIS_MARKERS + (SACRUM,) + TABLE_MARKERS
@@ -203,8 +203,7 @@ def load_recordings(markers_path: Path, trials_path: Path, *, lazy: bool = False
         raise InputError(f"not a readable Parquet file ({type(exc).__name__})", path=markers_path,
                          remedy="re-run `cobot-analysis import`") from exc
     if meta.get("table") != MARKERS.name:
-        raise InputError(f"is not a markers table (found {meta.get('table')!r})", path=markers_path,
-                         remedy="pass the markers.parquet written by `cobot-analysis import`")
+        raise not_the_table(markers_path, MARKERS.name, meta.get("table"), "pass the markers.parquet written by `cobot-analysis import`")
     index = _trial_row_groups(markers_path) if lazy else None
     if index is None:
         try:
