@@ -214,9 +214,9 @@ def check_upstream(inputs: list[dict[str, Any]]) -> None:
             if listed is None:
                 continue
             if listed.get("sha256") != i["sha256"]:
-                stage = m.get("stage", d.name)
+                stage = str(m.get("stage", d.name))  # a stage directory moved or renamed keeps its manifest's name
                 raise InputError(f"changed since stage {stage} wrote it (its SHA-256 differs from {d.name}/{MANIFEST})", path=f,
-                                 remedy=f"re-run `cobot-analysis {registry.command(d.name)}` with its --out (it redoes the "
+                                 remedy=f"re-run `cobot-analysis {registry.command(stage)}` with its --out (it redoes the "
                                         f"stage), or copy the edited file out of "
                                         f"the workspace and pass it as an option to use it on purpose")
             break

@@ -215,6 +215,22 @@ def test_an_import_refuses_a_raw_file_changed_since_synth_wrote_it(study, tmp_pa
     assert (ws / "import" / "manifest.json").read_text() == before
 
 
+def test_a_renamed_stage_directory_names_the_command_of_its_stage(study, tmp_path, cli):
+    """The remedy names the command of the stage the manifest records, not of the directory's name (a synth
+    study copied to a folder of its own)."""
+    import shutil
+
+    mine = tmp_path / "my-study"
+    shutil.copytree(study / "synth-walking", mine, symlinks=True)
+    raw = sorted((mine / "raw").glob("*.c3d"))[0]
+    raw.write_bytes(raw.read_bytes()[:-1] + bytes([raw.read_bytes()[-1] ^ 0x01]))
+    code, _, err = cli("import", mine / "protocol.yaml", "--out", tmp_path / "ws", "--jobs", "1")
+    line = " ".join(err.split())
+    assert code == 2 and f"{raw}: changed since stage synth-walking wrote it (its SHA-256 differs from my-study/manifest.json)" in line, err
+    assert "re-run `cobot-analysis synth walking` with its --out" in line, err
+    assert not (tmp_path / "ws").exists()
+
+
 def test_the_inputs_a_run_hashes_are_described_as_on_entering(study, tmp_path):
     """``hashed_by_run``: the manifest's inputs are the same whether the run or the stage hashes them."""
     from cobot_analysis.provenance import file_sha256
