@@ -195,7 +195,16 @@ def pivot(df: pd.DataFrame, path: str | Path | None = None) -> TrajectorySet:
     code = df.groupby(KEY, sort=False, observed=True, dropna=False).ngroup().to_numpy()
     counts = np.bincount(code)
     if counts.min() != counts.max():
-        raise InputError(f"trajectories have different numbers of samples ({counts.min()} to {counts.max()})", path=path,
+        repeated = df.duplicated([*KEY, "sample"])
+        if repeated.any():  # the same sample twice: rows repeated, or two tables concatenated
+            row = df.loc[repeated.idxmax()]
+            raise InputError(f"trajectory {row['trial']}/{row['entity']} of study {row['study']} has sample {row['sample']} more "
+                             "than once", path=path, remedy="keep one row per trajectory and sample (pandas drop_duplicates), "
+                                                            "or re-run the stage that wrote it")
+        odd = int(np.argmin(counts) if (counts == counts.max()).sum() > 1 else np.argmax(counts))
+        row = df.loc[int(np.flatnonzero(code == odd)[0])]
+        raise InputError(f"trajectories have different numbers of samples ({counts.min()} to {counts.max()}; "
+                         f"{row['trial']}/{row['entity']} has {counts[odd]})", path=path,
                          remedy="time-normalise every trajectory to the same N (preprocess --samples)")
     n = int(counts[0])
     if not (df["sample"].to_numpy().reshape(-1, n) == np.arange(n)).all():

@@ -154,7 +154,8 @@ def test_missing_and_corrupt_trajectories(tmp_path, cli):
 
 @pytest.mark.parametrize("spoil, message", [
     (lambda df: df.assign(x=np.where(df.index == 5, np.nan, df["x"])), "have NaN positions"),
-    (lambda df: df[~((df["trial"] == df["trial"].iloc[0]) & (df["sample"] == 3))], "different numbers of samples"),
+    (lambda df: df[~((df["trial"] == df["trial"].iloc[0]) & (df["sample"] == 3))], "different numbers of samples (39 to 40; S00_N1500_0/walker has 39)"),
+    (lambda df: pd.concat([df, df.iloc[[7]]]), "has sample 7 more than once; keep one row per trajectory and sample"),
 ])
 def test_bad_trajectories_give_one_line_and_no_output(tmp_path, cli, spoil, message):
     ws = _workspace(tmp_path, spoil(walking_table(seed=1, n_subjects=2, n_conditions=1, n_trials=2)))
