@@ -244,3 +244,13 @@ def test_end_to_end_from_the_synthetic_raw_pair_study(tmp_path, cli):
     assert s.loc["A.1[table]", "status"].endswith("(all: 2)")  # weight/height read from synth-pairs/: 2 pairs < 3
     rec = pd.read_parquet(ws / "reconstruct" / "reconstruction.parquet")
     assert len(rec) == 2 * 2 * (1 + 3) * 2 and rec["d_xy"].median() < 0.2
+
+
+def test_a_comparison_that_leaves_trials_out_says_so_on_its_line(tmp_path, cli):
+    """One trial per mean: no trial is compared with its mean (the distance would be 0); the command's own line
+    says how many and why, not only '0 compared pairs'."""
+    ws = _workspace(tmp_path, walking_table(seed=1, n_subjects=1, n_conditions=2, n_trials=1))
+    assert cli("average", "--out", ws)[0] == 0
+    code, _, err = cli("compare", "--out", ws)
+    assert code == 0, err
+    assert "0 compared pairs; not compared with their mean: 2 trial(s) whose mean is of that trial alone ->" in " ".join(err.split())

@@ -241,7 +241,10 @@ class CompareResult:
     excluded: dict = field(default_factory=dict)  # trials not compared with their mean, by reason (compare.excluded_means)
 
     def summary(self) -> str:
-        return f"{len(self.distances)} compared pairs"
+        """The count of compared pairs, and of the trials left out of the comparison with their mean, by reason."""
+        why = {"single": "whose mean is of that trial alone", "frames": "whose mean mixes frames (frames_differ)"}
+        left = [f"{n} trial(s) {why[k]}" for k, n in self.excluded.items() if n and k in why]
+        return f"{len(self.distances)} compared pairs" + (f"; not compared with their mean: {', '.join(left)}" if left else "")
 
     def metrics(self, *, stage: str | None = None) -> Metrics:
         """Headline numbers (``metrics.analysis.compare``): d_xy, d_theta, d_gamma mean and sd per comparison
