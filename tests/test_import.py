@@ -712,6 +712,27 @@ def test_bad_protocol_entries(tmp_path, cli, edit, expected):
     assert_rejected(cli, tmp_path / "ws", [proto], "protocol.yaml: " + expected)
 
 
+@pytest.mark.parametrize("trial_cols, pairs, expected", [
+    ({"subject": ["S99"]}, None, "trial t1 names subject S99, which is not an id of the subjects table (S01, S02); correct the "
+                                 "'subject' column of the trials table, or add S99 to the subjects table"),
+    ({"pair": ["P99"]}, {"id": ["P01"], "subject1": ["S01"], "subject2": ["S02"]},
+     "trial t1 names pair P99, which is not an id of the pairs table (P01)"),
+    ({"pair": ["P01"]}, {"id": ["P01"], "subject1": ["S01"], "subject2": ["S03"]},
+     "pair P01 names subject2 S03, which is not an id of the subjects table (S01, S02); correct the 'subject2' column of "
+     "the pairs table, or add S03 to the subjects table"),
+])
+def test_a_subject_or_pair_the_protocol_does_not_list_is_refused(tmp_path, cli, trial_cols, pairs, expected):
+    """A typo in the trials table (S99 for S09) would make a subject or pair of its own in every per-subject question:
+    refused when the protocol gives the table of subjects (pairs) it should name."""
+    f = write_c3d(tmp_path / "a.c3d", person(10))
+    trials = pd.DataFrame({"trial": ["t1"], "file": ["a.c3d"], **trial_cols})
+    subjects = pd.DataFrame({"id": ["S01", "S02"], "sex": ["F", "M"], "weight": [60.0, 70.0], "height": [1.6, 1.7]})
+    proto = save_protocol(tmp_path / "protocol.yaml", "test", trials, subjects=subjects,
+                          pairs=pd.DataFrame(pairs) if pairs else None)
+    assert_rejected(cli, tmp_path / "ws", [proto], "protocol.yaml: " + expected)
+    assert f.is_file() and not (tmp_path / "ws").exists()
+
+
 def test_binary_trials_csv(tmp_path, cli):
     proto = protocol(tmp_path, [write_c3d(tmp_path / "a.c3d", person(10))])
     (tmp_path / "trials.csv").write_bytes(bytes(range(256)) * 4)

@@ -181,6 +181,30 @@ def read_yaml(path: Path, what: str, remedy: str) -> Any:
         raise InputError(f"not a {what}: its YAML is nested too deeply", path=path, remedy=remedy) from None
 
 
+def _check_ids(proto: Protocol, path: Path) -> None:
+    """Each trial's subject (pair) is an id of the subjects (pairs) table when the protocol gives that table, and each
+    pair's subjects are ids of the subjects table: a typo (S99 for S09) would otherwise make a subject of its own in
+    every per-subject question."""
+    def ids(table: pd.DataFrame) -> set[str] | None:
+        return set(table["id"].dropna().astype(str)) if "id" in table.columns and len(table) else None
+
+    subjects, pairs = ids(proto.subjects), ids(proto.pairs)
+    checks = [(proto.trials, "trial", col, known, table) for col, known, table in (("subject", subjects, "subjects"),
+                                                                                   ("pair", pairs, "pairs"))]
+    checks += [(proto.pairs, "id", col, subjects, "subjects") for col in ("subject1", "subject2")]
+    for rows, key, col, known, table in checks:
+        if known is None or col not in rows.columns:
+            continue
+        named = rows[col].dropna().astype(str)
+        bad = named[~named.isin(known)]
+        if len(bad):
+            row = rows.loc[bad.index[0]]
+            what = "trial" if key == "trial" else "pair"
+            raise InputError(f"{what} {row[key]} names {col} {bad.iloc[0]}, which is not an id of the {table} table "
+                             f"({', '.join(sorted(known)[:6])}{' ...' if len(known) > 6 else ''})", path=path,
+                             remedy=f"correct the '{col}' column of the {what}s table, or add {bad.iloc[0]} to the {table} table")
+
+
 def load_protocol(path: str | os.PathLike) -> Protocol:
     """Read and check a protocol file: every trial file it names must exist."""
     path = Path(path)
@@ -232,6 +256,7 @@ def load_protocol(path: str | os.PathLike) -> Protocol:
         entities={**DEFAULT_ENTITIES, **entities},
         marker_map=marker_map,
     )
+    _check_ids(proto, path)
     root = base.resolve()
     for trial, file in zip(trials["trial"], trials["file"]):
         f = proto.file_path(file)
