@@ -733,6 +733,22 @@ def test_a_subject_or_pair_the_protocol_does_not_list_is_refused(tmp_path, cli, 
     assert f.is_file() and not (tmp_path / "ws").exists()
 
 
+def test_numeric_subject_ids_match_across_a_blank_cell(tmp_path):
+    """Subject ids 1 and 2 in the subjects table; in the trials table a blank cell makes pandas read the column as
+    1.0, 2.0, NaN: the same ids, not a refusal."""
+    from cobot_analysis.io.protocol import load_protocol
+
+    for name in ("a", "b", "c"):
+        write_c3d(tmp_path / f"{name}.c3d", person(10))
+    (tmp_path / "trials.csv").write_text("trial,file,subject\nt1,a.c3d,1\nt2,b.c3d,2\nt3,c.c3d,\n")
+    (tmp_path / "subjects.csv").write_text("id,sex\n1,F\n2,M\n")
+    (tmp_path / "protocol.yaml").write_text("study: s\nsubjects: subjects.csv\ntrials: trials.csv\n")
+    assert list(load_protocol(tmp_path / "protocol.yaml").trials["trial"]) == ["t1", "t2", "t3"]
+    (tmp_path / "trials.csv").write_text("trial,file,subject\nt1,a.c3d,1\nt2,b.c3d,3\nt3,c.c3d,\n")
+    with pytest.raises(InputError, match="trial t2 names subject 3, which is not an id of the subjects table \\(1, 2\\)"):
+        load_protocol(tmp_path / "protocol.yaml")
+
+
 def test_binary_trials_csv(tmp_path, cli):
     proto = protocol(tmp_path, [write_c3d(tmp_path / "a.c3d", person(10))])
     (tmp_path / "trials.csv").write_bytes(bytes(range(256)) * 4)

@@ -185,8 +185,11 @@ def _check_ids(proto: Protocol, path: Path) -> None:
     """Each trial's subject (pair) is an id of the subjects (pairs) table when the protocol gives that table, and each
     pair's subjects are ids of the subjects table: a typo (S99 for S09) would otherwise make a subject of its own in
     every per-subject question."""
+    def text(values: pd.Series) -> pd.Series:  # 7 and 7.0 alike: a CSV column with a blank cell reads as floats
+        return values.dropna().map(lambda v: str(int(v)) if isinstance(v, float) and v.is_integer() else str(v))
+
     def ids(table: pd.DataFrame) -> set[str] | None:
-        return set(table["id"].dropna().astype(str)) if "id" in table.columns and len(table) else None
+        return set(text(table["id"])) if "id" in table.columns and len(table) else None
 
     subjects, pairs = ids(proto.subjects), ids(proto.pairs)
     checks = [(proto.trials, "trial", col, known, table) for col, known, table in (("subject", subjects, "subjects"),
@@ -195,7 +198,7 @@ def _check_ids(proto: Protocol, path: Path) -> None:
     for rows, key, col, known, table in checks:
         if known is None or col not in rows.columns:
             continue
-        named = rows[col].dropna().astype(str)
+        named = text(rows[col])
         bad = named[~named.isin(known)]
         if len(bad):
             row = rows.loc[bad.index[0]]
