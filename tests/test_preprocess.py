@@ -669,7 +669,7 @@ def test_bad_corrupt_or_foreign_markers_file(tmp_path, cli, content):
     assert not (ws / "preprocess").exists()
 
 
-@pytest.mark.parametrize("args, expected", [(["--cutoff", "150"], "Nyquist"),
+@pytest.mark.parametrize("args, expected", [(["--cutoff", "150"], "Nyquist"), (["--cutoff", "0"], "--cutoff 0.0 is not a finite number > 0"),
                                             (["--order", "3", "--order-convention", "effective"], "even order")])
 def test_bad_filter_parameters_exit_2(tmp_path, cli, args, expected):
     ws = tmp_path / "ws"

@@ -30,7 +30,7 @@ def preprocess_command(
     markers: Annotated[Optional[Path], typer.Option("--markers", help="markers.parquet (default: OUT/import/markers.parquet).")] = None,
     trials: Annotated[Optional[Path], typer.Option("--trials", help="trials.parquet (default: beside the markers file).")] = None,
     max_gap: Annotated[float, typer.Option("--max-gap", help="Longest gap filled by cubic spline (s); longer gaps stay missing (>= 0).")] = 0.1,
-    cutoff: Annotated[float, typer.Option("--cutoff", help="Low-pass cut-off (Hz) (>= 0).")] = 10.0,
+    cutoff: Annotated[float, typer.Option("--cutoff", help="Low-pass cut-off (Hz) (> 0).")] = 10.0,
     order: Annotated[int, typer.Option("--order", help="Butterworth order (see --order-convention) (>= 1).")] = 4,
     order_convention: Annotated[OrderConvention, typer.Option(
         "--order-convention",

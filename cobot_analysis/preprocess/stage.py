@@ -99,13 +99,15 @@ class Params:
     skip_bad: bool = True  # skip (and list) the refused recordings (cobot_analysis.refusals); False: refuse the run
 
     def __post_init__(self) -> None:
-        """Bounded before any work: durations, rates and thresholds finite and >= 0 (``inf`` overflowed
+        """Bounded before any work: durations, rates and thresholds finite and >= 0, the cut-off > 0 (``inf`` overflowed
         in ``round(max_gap * rate)``), at least 2 samples and an order >= 1."""
         for name in ("max_gap", "cutoff", "lift_threshold", "floor_window", "speed_threshold", "rest_speed", "min_duration",
                      "min_set_down", "min_rest", "gamma_min_speed"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value < 0:
-                raise InputError(f"{option_name(name)} {value!r} is not a finite number >= 0",
+            positive = name == "cutoff"  # a low-pass filter at 0 Hz has no pass band
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value < 0 \
+                    or (positive and value == 0):
+                raise InputError(f"{option_name(name)} {value!r} is not a finite number {'> 0' if positive else '>= 0'}",
                                  remedy=f"give {option_name(name)} a finite value (default {getattr(Params, name):g})")
         for name, low in (("n_samples", 2), ("order", 1)):
             value = getattr(self, name)
