@@ -348,6 +348,20 @@ def test_truth_in_millimetres_is_refused_and_read_with_units(cli, tmp_path, shor
     assert cli("-q", "localisation", noisy, "--units", "mm,m", "--out", tmp_path / "noisy", "--no-figures")[0] == 0
 
 
+def test_metres_read_as_millimetres_are_warned_about(cli, tmp_path, short):
+    """Both streams in metres read with --units mm: the same motion 1000 times smaller, so the units check that
+    compares the two streams cannot see it, and the run reads as a robot standing still (RMSE 0.0 mm). The run goes
+    on (a robot may stand still), with a warning in its line and its row that gives the spread in metres."""
+    bag = short[0] / "level.bag"
+    code, _, err = cli("localisation", bag, "--units", "mm", "--out", tmp_path / "mm", "--no-figures")
+    text = " ".join(err.split())
+    assert code == 0 and "read with --units mm,mm the poses spread" in text and "as a robot standing still; read in " \
+        "metres they spread" in text and "if the robot moved, its positions are in metres (--units m)" in text, err
+    assert "read with --units mm,mm" in _runs(tmp_path / "mm").iloc[0]["warnings"]
+    code, _, err = cli("localisation", bag, "--out", tmp_path / "m", "--no-figures")
+    assert code == 0 and "read with --units" not in err and "read with --units" not in _runs(tmp_path / "m").iloc[0]["warnings"]
+
+
 def test_truth_frozen_on_its_last_pose_is_a_gap(cli, tmp_path, short, level):
     """A motion-capture bridge that repeats the last pose of a lost rigid body (5 s while the robot walks):
     the ICP was compared with a truth standing still (RMSE 0.2 m instead of 9 mm). The repeats are now

@@ -87,14 +87,21 @@ SCALE_RATIO = 5.0  # the spreads of the truth's and the ICP's positions over the
 MOVING = 0.05  # m: ... when the larger spread is at least this (below it both may be noise: a robot standing still)
 
 
-def _check_units(path: Path, o: Options, truth, icp) -> None:
+def _check_units(path: Path, o: Options, truth, icp) -> str | None:
     """Refuse streams whose positions spread ``SCALE_RATIO`` times as far as the other's over their common
-    time (the same motion in other units: millimetres), naming the ``--units`` that reads them."""
+    time (the same motion in other units: millimetres), naming the ``--units`` that reads them. Returns a warning
+    when both spread less than ``MOVING`` only because ``--units`` read them as millimetres (a robot standing still,
+    or positions in metres read as millimetres)."""
     lo, hi = max(truth.t[0], icp.t[0]), min(truth.t[-1], icp.t[-1])
     common = [s.xyz[(s.t >= lo) & (s.t <= hi)] for s in (truth, icp)]
     sd = [float(np.sqrt(np.sum(np.var(xyz, axis=0)))) if len(xyz) > 1 else 0.0 for xyz in common]
+    as_given = [v / scale for v, scale in zip(sd, o.scale)]  # the spreads in the units the bag stores
+    if max(sd) < MOVING <= max(as_given):
+        return (f"read with --units {','.join('mm' if v == 0.001 else 'm' for v in o.scale)} the poses spread "
+                f"{1000 * max(sd):.3g} mm over the run, as a robot standing still; read in metres they spread "
+                f"{max(as_given):.3g} m: if the robot moved, its positions are in metres (--units m)")
     if min(sd) <= 0 or max(sd) < MOVING or max(sd) < SCALE_RATIO * min(sd):
-        return
+        return None
     ratio = sd[0] / sd[1]
     unit = ["mm" if v == 0.001 else "m" for v in o.scale]
     remedy = "check that --truth and --icp are the same robot's poses, and their units (--units TRUTH,ICP)"
@@ -123,9 +130,9 @@ def analyse_run(task: tuple[str | tuple[str, ...], str, str, Options]) -> dict:
         if len(s) < 2:
             raise InputError(f"{spec}: {len(s)} pose(s), too few to compare", path=path,
                              remedy="check the stream with `cobot-analysis bag-info` (for tf: both edges must overlap in time)")
-    _check_units(path, o, truth, icp)
+    units = _check_units(path, o, truth, icp)
     notes = [n for s in (truth, icp) for n in s.meta.get("notes", [])]
-    for text in (frozen, _clocks(o, truth, icp)):
+    for text in (units, frozen, _clocks(o, truth, icp)):
         if text:
             warn(f"{path}: {text}")
             notes.append(text)
