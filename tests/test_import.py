@@ -733,6 +733,21 @@ def test_a_subject_or_pair_the_protocol_does_not_list_is_refused(tmp_path, cli, 
     assert f.is_file() and not (tmp_path / "ws").exists()
 
 
+def test_an_id_listed_twice_and_a_pair_of_one_subject_are_refused(tmp_path, cli):
+    """Two rows of the subjects table with one id (two weights for S01: which one the statistics of the pairs' weight
+    differences took was left to chance), and a pair whose subject1 is its subject2."""
+    write_c3d(tmp_path / "a.c3d", person(10))
+    trials = pd.DataFrame({"trial": ["t1"], "file": ["a.c3d"], "pair": ["P01"]})
+    subjects = pd.DataFrame({"id": ["S01", "S02", "S01"], "weight": [60.0, 70.0, 80.0]})
+    pairs = pd.DataFrame({"id": ["P01"], "subject1": ["S01"], "subject2": ["S02"]})
+    proto = save_protocol(tmp_path / "protocol.yaml", "test", trials, subjects=subjects, pairs=pairs)
+    assert_rejected(cli, tmp_path / "ws", [proto], "protocol.yaml: the subjects table lists S01 twice; give each row of "
+                                                   "the subjects table its own id")
+    proto = save_protocol(tmp_path / "protocol.yaml", "test", trials, subjects=subjects.iloc[:2],
+                          pairs=pairs.assign(subject2=["S01"]))
+    assert_rejected(cli, tmp_path / "ws", [proto], "protocol.yaml: pair P01 has S01 as both subject1 and subject2")
+
+
 def test_numeric_subject_ids_match_across_a_blank_cell(tmp_path):
     """Subject ids 1 and 2 in the subjects table; in the trials table a blank cell makes pandas read the column as
     1.0, 2.0, NaN: the same ids, not a refusal."""

@@ -182,15 +182,28 @@ def read_yaml(path: Path, what: str, remedy: str) -> Any:
 
 
 def _check_ids(proto: Protocol, path: Path) -> None:
-    """Each trial's subject (pair) is an id of the subjects (pairs) table when the protocol gives that table, and each
-    pair's subjects are ids of the subjects table: a typo (S99 for S09) would otherwise make a subject of its own in
-    every per-subject question."""
+    """Each id of the subjects and pairs tables once, a pair of two subjects, each trial's subject (pair) an id of the
+    subjects (pairs) table when the protocol gives that table, and each pair's subjects ids of the subjects table: a
+    typo (S99 for S09) would otherwise make a subject of its own in every per-subject question, and an id given twice
+    leave its anthropometrics to chance."""
     def text(values: pd.Series) -> pd.Series:  # 7 and 7.0 alike: a CSV column with a blank cell reads as floats
         return values.dropna().map(lambda v: str(int(v)) if isinstance(v, float) and v.is_integer() else str(v))
 
     def ids(table: pd.DataFrame) -> set[str] | None:
         return set(text(table["id"])) if "id" in table.columns and len(table) else None
 
+    for table, rows in (("subjects", proto.subjects), ("pairs", proto.pairs)):
+        twice = text(rows["id"])[lambda v: v.duplicated()] if "id" in rows.columns else []
+        if len(twice):
+            raise InputError(f"the {table} table lists {twice.iloc[0]} twice", path=path,
+                             remedy=f"give each row of the {table} table its own id")
+    if {"subject1", "subject2"} <= set(proto.pairs.columns):
+        same = proto.pairs[text(proto.pairs["subject1"]).reindex(proto.pairs.index)
+                           == text(proto.pairs["subject2"]).reindex(proto.pairs.index)]
+        if len(same):
+            raise InputError(f"pair {same['id'].iloc[0] if 'id' in same else same.index[0]} has "
+                             f"{same['subject1'].iloc[0]} as both subject1 and subject2", path=path,
+                             remedy="correct the pair's subject1 or subject2 in the pairs table")
     subjects, pairs = ids(proto.subjects), ids(proto.pairs)
     checks = [(proto.trials, "trial", col, known, table) for col, known, table in (("subject", subjects, "subjects"),
                                                                                    ("pair", pairs, "pairs"))]
