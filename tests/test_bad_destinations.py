@@ -62,6 +62,32 @@ def test_stats_anthropometrics_without_its_files_is_not_ignored(tmp_path, cli):
     assert not (ws / "stats").exists()
 
 
+@pytest.mark.parametrize("subjects, pairs, named", [
+    ("id,weight,height\nS01,60,1.6\nS02,70,1.7\nS01,80,1.9\n", "id,subject1,subject2\nP01,S01,S02\n",
+     "the subjects table lists S01 twice; give each row of the subjects table its own id"),
+    ("id,weight,height\nS01,60,1.6\nS02,70,1.7\n", "id,subject1,subject2\nP01,S01,S03\n",
+     "pair P01 names subject2 S03, which is not an id of the subjects table (S01, S02)"),
+])
+def test_stats_anthropometrics_whose_ids_do_not_match(tmp_path, cli, subjects, pairs, named):
+    """A subject listed twice (two weights) stopped stats with an internal error (pandas' InvalidIndexError, exit 1);
+    a pair naming a subject the table lacks gave a NaN weight difference without a word."""
+    from cobot_analysis.schema import TRAJECTORIES, write_table
+    from cobot_analysis.synth.tables import walking_table
+
+    ws = tmp_path / "ws"
+    write_table(walking_table(seed=3, n_subjects=3, n_conditions=2, n_trials=2, missing_theta=0.0),
+                ws / "preprocess" / "trajectories.parquet", TRAJECTORIES)
+    for args in (["average"], ["compare"]):
+        assert cli("-q", *args, "--out", ws)[0] == 0
+    anthro = tmp_path / "anthro"
+    anthro.mkdir()
+    (anthro / "subjects.csv").write_text(subjects)
+    (anthro / "pairs.csv").write_text(pairs)
+    code, out, err = cli("stats", "--out", ws, "--anthropometrics", anthro)
+    assert code == 2 and f"{anthro}: {named}" in one_line(code, err), err
+    assert not (ws / "stats").exists()
+
+
 @pytest.mark.parametrize("start", [["inf", "0", "0"], ["0", "0", "nan"]])
 def test_generate_from_a_start_that_is_not_finite(tmp_path, cli, start):
     line = one_line(*cli("generate", "--out", tmp_path / "ws", "--start", *start)[::2])

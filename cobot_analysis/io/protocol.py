@@ -181,37 +181,39 @@ def read_yaml(path: Path, what: str, remedy: str) -> Any:
         raise InputError(f"not a {what}: its YAML is nested too deeply", path=path, remedy=remedy) from None
 
 
-def _check_ids(proto: Protocol, path: Path) -> None:
-    """Each id of the subjects and pairs tables once, a pair of two subjects, each trial's subject (pair) an id of the
-    subjects (pairs) table when the protocol gives that table, and each pair's subjects ids of the subjects table: a
-    typo (S99 for S09) would otherwise make a subject of its own in every per-subject question, and an id given twice
-    leave its anthropometrics to chance."""
-    def text(values: pd.Series) -> pd.Series:  # 7 and 7.0 alike: a CSV column with a blank cell reads as floats
-        return values.dropna().map(lambda v: str(int(v)) if isinstance(v, float) and v.is_integer() else str(v))
+def id_text(values: pd.Series) -> pd.Series:
+    """Ids as text, 7 and 7.0 alike (a CSV column with a blank cell reads as floats); NaN stays NaN."""
+    return values.map(lambda v: v if pd.isna(v) else str(int(v)) if isinstance(v, float) and v.is_integer() else str(v))
 
-    def ids(table: pd.DataFrame) -> set[str] | None:
-        return set(text(table["id"])) if "id" in table.columns and len(table) else None
 
-    for table, rows in (("subjects", proto.subjects), ("pairs", proto.pairs)):
-        twice = text(rows["id"])[lambda v: v.duplicated()] if "id" in rows.columns else []
+def check_ids(subjects: pd.DataFrame, pairs: pd.DataFrame, trials: pd.DataFrame | None, path) -> None:
+    """Each id of the subjects and pairs tables once, a pair of two subjects, each pair's subjects ids of the subjects
+    table, and each trial's subject (pair) an id of the subjects (pairs) table, where those tables are given: a typo
+    (S99 for S09) would otherwise make a subject of its own in every per-subject question, and an id given twice
+    leave its anthropometrics to chance. ``path``: the file the tables come from, for the message."""
+    for table, rows in (("subjects", subjects), ("pairs", pairs)):
+        twice = id_text(rows["id"]).dropna()[lambda v: v.duplicated()] if "id" in rows.columns else []
         if len(twice):
             raise InputError(f"the {table} table lists {twice.iloc[0]} twice", path=path,
                              remedy=f"give each row of the {table} table its own id")
-    if {"subject1", "subject2"} <= set(proto.pairs.columns):
-        same = proto.pairs[text(proto.pairs["subject1"]).reindex(proto.pairs.index)
-                           == text(proto.pairs["subject2"]).reindex(proto.pairs.index)]
+    if {"subject1", "subject2"} <= set(pairs.columns):
+        same = pairs[id_text(pairs["subject1"]).eq(id_text(pairs["subject2"]))]
         if len(same):
             raise InputError(f"pair {same['id'].iloc[0] if 'id' in same else same.index[0]} has "
                              f"{same['subject1'].iloc[0]} as both subject1 and subject2", path=path,
                              remedy="correct the pair's subject1 or subject2 in the pairs table")
-    subjects, pairs = ids(proto.subjects), ids(proto.pairs)
-    checks = [(proto.trials, "trial", col, known, table) for col, known, table in (("subject", subjects, "subjects"),
-                                                                                   ("pair", pairs, "pairs"))]
-    checks += [(proto.pairs, "id", col, subjects, "subjects") for col in ("subject1", "subject2")]
+
+    def ids(table: pd.DataFrame) -> set[str] | None:
+        return set(id_text(table["id"]).dropna()) if "id" in table.columns and len(table) else None
+
+    known_subjects, known_pairs = ids(subjects), ids(pairs)
+    checks = [(pairs, "id", col, known_subjects, "subjects") for col in ("subject1", "subject2")]
+    if trials is not None:
+        checks += [(trials, "trial", "subject", known_subjects, "subjects"), (trials, "trial", "pair", known_pairs, "pairs")]
     for rows, key, col, known, table in checks:
         if known is None or col not in rows.columns:
             continue
-        named = text(rows[col])
+        named = id_text(rows[col]).dropna()
         bad = named[~named.isin(known)]
         if len(bad):
             row = rows.loc[bad.index[0]]
@@ -272,7 +274,7 @@ def load_protocol(path: str | os.PathLike) -> Protocol:
         entities={**DEFAULT_ENTITIES, **entities},
         marker_map=marker_map,
     )
-    _check_ids(proto, path)
+    check_ids(proto.subjects, proto.pairs, proto.trials, path)
     root = base.resolve()
     for trial, file in zip(trials["trial"], trials["file"]):
         f = proto.file_path(file)

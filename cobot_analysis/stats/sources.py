@@ -276,6 +276,7 @@ def anthropometrics(subjects: pd.DataFrame, pairs: pd.DataFrame, path=None) -> p
     |weight_1 - weight_2| (kg) and |height_1 - height_2| (m); None when the study has no pairs or no subjects.
     ``path``: where they come from, for the message of a table that lacks a column."""
     from cobot_analysis.errors import InputError
+    from cobot_analysis.io.protocol import check_ids, id_text
 
     if pairs.empty or subjects.empty:
         return None
@@ -284,9 +285,10 @@ def anthropometrics(subjects: pd.DataFrame, pairs: pd.DataFrame, path=None) -> p
         raise InputError("anthropometrics need subjects (id, weight, height) and pairs (id, subject1, subject2)",
                          path=path, remedy="fix the tables' columns, or give --anthropometrics a directory of subjects.csv "
                                            "and pairs.csv")
-    s = subjects.assign(id=subjects["id"].astype(str)).set_index("id")
-    pairs = pairs.assign(subject1=pairs["subject1"].astype(str), subject2=pairs["subject2"].astype(str))
-    out = pd.DataFrame({"pair": pairs["id"].astype(str)})
+    check_ids(subjects, pairs, None, path)  # each id once, each pair's subjects listed: no weight left to chance
+    s = subjects.assign(id=id_text(subjects["id"])).set_index("id")
+    pairs = pairs.assign(subject1=id_text(pairs["subject1"]), subject2=id_text(pairs["subject2"]))
+    out = pd.DataFrame({"pair": id_text(pairs["id"])})
     out["weight_diff"] = (pairs["subject1"].map(s["weight"]) - pairs["subject2"].map(s["weight"])).abs().to_numpy()
     out["height_diff"] = (pairs["subject1"].map(s["height"]) - pairs["subject2"].map(s["height"])).abs().to_numpy()
     return out
