@@ -46,7 +46,8 @@ def test_results_to_a_path_that_cannot_be_written(tmp_path, cli, a_file, to, nam
     assert a_file.read_text() == "mine\n" and not any(d.iterdir())
 
 
-def test_stats_anthropometrics_without_its_files_is_not_ignored(tmp_path, cli):
+def compared_workspace(tmp_path, cli) -> Path:
+    """A small synthetic walking study averaged and compared: what stats reads."""
     from cobot_analysis.schema import TRAJECTORIES, write_table
     from cobot_analysis.synth.tables import walking_table
 
@@ -55,6 +56,11 @@ def test_stats_anthropometrics_without_its_files_is_not_ignored(tmp_path, cli):
                 ws / "preprocess" / "trajectories.parquet", TRAJECTORIES)
     for args in (["average"], ["compare"]):
         assert cli("-q", *args, "--out", ws)[0] == 0
+    return ws
+
+
+def test_stats_anthropometrics_without_its_files_is_not_ignored(tmp_path, cli):
+    ws = compared_workspace(tmp_path, cli)
     empty = tmp_path / "anthro"
     empty.mkdir()
     line = one_line(*cli("stats", "--out", ws, "--anthropometrics", empty)[::2])
@@ -71,14 +77,7 @@ def test_stats_anthropometrics_without_its_files_is_not_ignored(tmp_path, cli):
 def test_stats_anthropometrics_whose_ids_do_not_match(tmp_path, cli, subjects, pairs, named):
     """A subject listed twice (two weights) stopped stats with an internal error (pandas' InvalidIndexError, exit 1);
     a pair naming a subject the table lacks gave a NaN weight difference without a word."""
-    from cobot_analysis.schema import TRAJECTORIES, write_table
-    from cobot_analysis.synth.tables import walking_table
-
-    ws = tmp_path / "ws"
-    write_table(walking_table(seed=3, n_subjects=3, n_conditions=2, n_trials=2, missing_theta=0.0),
-                ws / "preprocess" / "trajectories.parquet", TRAJECTORIES)
-    for args in (["average"], ["compare"]):
-        assert cli("-q", *args, "--out", ws)[0] == 0
+    ws = compared_workspace(tmp_path, cli)
     anthro = tmp_path / "anthro"
     anthro.mkdir()
     (anthro / "subjects.csv").write_text(subjects)
