@@ -331,6 +331,11 @@ def comparable_means(meta: pd.DataFrame) -> np.ndarray:
     return ((n.isna() | (n >= 2)) & ~flags.str.contains("frames_differ")).to_numpy()
 
 
+#: why ``individual_vs_mean`` leaves a trial out (the keys of ``excluded_means``), as the line and the report say it
+EXCLUDED_REASONS = {"single": "whose mean is of that trial alone",
+                    "frames": "whose mean mixes trajectories that do not share a frame (`frames_differ`)"}
+
+
 def excluded_means(trials: TrajectorySet, means: TrajectorySet, by: list[str] | None = None) -> dict[str, int]:
     """How many trials ``individual_vs_mean`` leaves out, by reason: "single" (their mean is of one
     trial, itself) and "frames" (the members of their mean do not share a frame)."""

@@ -288,6 +288,18 @@ class TableMetadata(dict):
         return (TableMetadata, (dict(self),))
 
 
+def as_text(value: Any) -> str:
+    """A value as text, an integral float without its ``.0`` (``3.0`` -> ``"3"``): the ids and levels of a CSV or
+    Parquet column that pandas read as floats (a blank cell makes a column of integers float).
+
+        >>> as_text(3.0), as_text(3), as_text("S01"), as_text(2.5)
+        ('3', '3', 'S01', '2.5')
+    """
+    if isinstance(value, float) and value.is_integer():
+        return str(int(value))
+    return str(value)
+
+
 def table_metadata(path: str | os.PathLike) -> dict[str, Any]:
     """The ``cobot_analysis`` metadata of a Parquet file (schema, units, stage metadata)."""
     import pyarrow.parquet as pq

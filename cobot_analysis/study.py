@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from cobot_analysis.errors import InputError
+from cobot_analysis.schema import as_text
 
 STUDY_FILE = "study.toml"
 PIPELINES = Path(__file__).resolve().parents[1] / "pipelines"
@@ -45,7 +46,7 @@ class Factor:
 
     def level(self, value, short: bool = False) -> str:
         """A level as figures show it: ``sc1`` (short) or ``scenario 1`` / the level itself."""
-        text = level_text(value)
+        text = as_text(value)
         if short and self.short:
             return f"{self.short}{text}"
         return f"{self.label} {text}" if text.replace(".", "").replace("-", "").isdigit() else text
@@ -77,11 +78,6 @@ COLUMNS = {
 ENTITY_SHORT = {"walker": "walker", "subject1": "Subj. 1", "subject2": "Subj. 2", "table": "table"}
 
 
-def level_text(value) -> str:
-    """A level value as text: 1.0 -> "1", "fwd" -> "fwd"."""
-    if isinstance(value, float) and value.is_integer():
-        return str(int(value))
-    return str(value)
 
 
 @dataclass

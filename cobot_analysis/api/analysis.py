@@ -242,8 +242,9 @@ class CompareResult:
 
     def summary(self) -> str:
         """The count of compared pairs, and of the trials left out of the comparison with their mean, by reason."""
-        why = {"single": "whose mean is of that trial alone", "frames": "whose mean mixes frames (frames_differ)"}
-        left = [f"{n} trial(s) {why[k]}" for k, n in self.excluded.items() if n and k in why]
+        from cobot_analysis.compare import EXCLUDED_REASONS
+
+        left = [f"{n} trial(s) {EXCLUDED_REASONS[k]}" for k, n in self.excluded.items() if n and k in EXCLUDED_REASONS]
         return f"{len(self.distances)} compared pairs" + (f"; not compared with their mean: {', '.join(left)}" if left else "")
 
     def metrics(self, *, stage: str | None = None) -> Metrics:

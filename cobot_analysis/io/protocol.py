@@ -42,6 +42,7 @@ from typing import Any
 from cobot_analysis.lazy import pandas as pd
 
 from cobot_analysis.errors import InputError
+from cobot_analysis.schema import as_text
 from cobot_analysis.io.plausibility import INVALID_RATE_POLICIES
 
 PELVIS_MARKERS = ("LASI", "RASI", "LPSI", "RPSI")
@@ -183,7 +184,7 @@ def read_yaml(path: Path, what: str, remedy: str) -> Any:
 
 def id_text(values: pd.Series) -> pd.Series:
     """Ids as text, 7 and 7.0 alike (a CSV column with a blank cell reads as floats); NaN stays NaN."""
-    return values.map(lambda v: v if pd.isna(v) else str(int(v)) if isinstance(v, float) and v.is_integer() else str(v))
+    return values.map(lambda v: v if pd.isna(v) else as_text(v))
 
 
 def check_ids(subjects: pd.DataFrame, pairs: pd.DataFrame, trials: pd.DataFrame | None, path) -> None:

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from cobot_analysis import registry
+from cobot_analysis.schema import as_text
 
 
 @dataclass(frozen=True)
@@ -54,11 +55,6 @@ def plain(value: Any) -> Any:
     return str(value)
 
 
-def part(v: Any) -> str:
-    """A name part: integral floats without their ``.0`` (``3.0`` -> ``3``)."""
-    if isinstance(v, float) and v.is_integer():
-        v = int(v)
-    return str(v)
 
 
 class Collector:
@@ -75,7 +71,7 @@ class Collector:
         if v is None:
             return
         parts = name if isinstance(name, tuple) else (name,)
-        full = ".".join([self.prefix, *(part(p) for p in parts if p is not None and p != "")])
+        full = ".".join([self.prefix, *(as_text(p) for p in parts if p is not None and p != "")])
         self.items.append(Metric(full, v, unit, self.stage, self.convention))
 
     def count(self, name: str | tuple, value: Any) -> None:
@@ -152,7 +148,7 @@ def groups(df, keys: list[str], fmt: dict[str, str] | None = None) -> Iterator[t
     fmt = fmt or {}
     for key, g in df.groupby(keys, dropna=False, sort=True):
         key = key if isinstance(key, tuple) else (key,)
-        parts = tuple("-" if pd.isna(v) else fmt.get(k, "{}").format(part(v)) for k, v in zip(keys, key))
+        parts = tuple("-" if pd.isna(v) else fmt.get(k, "{}").format(as_text(v)) for k, v in zip(keys, key))
         yield parts, g
 
 
@@ -164,7 +160,7 @@ def flatten(out: Collector, prefix: tuple, value: Any) -> None:
             flatten(out, (*prefix, k), v)
     elif isinstance(value, list):
         if all(isinstance(v, (str, int, float)) and not isinstance(v, bool) for v in value):
-            out.add(prefix, ",".join(part(v) for v in value))
+            out.add(prefix, ",".join(as_text(v) for v in value))
         else:
             out.count((*prefix, "n"), len(value))
     elif isinstance(value, (bool, str)):

@@ -86,9 +86,11 @@ def compare_markdown(result, sd_ddof: int, weigh: str = "trials") -> str:
                   + (f" (they differ by d_gamma {shift.mean():.3f} rad, row mean-published)" if len(shift) else "")
                   + " (docs/methods.md sec. 11)."]
     if single or frames:
+        from cobot_analysis.compare import EXCLUDED_REASONS
+
         lines += ["", f"Not compared with their mean (left out of the individual-mean rows and of the statistics): {single} "
-                      "trial(s) whose mean is of that trial alone (the distance would be 0), "
-                      f"{frames} trial(s) whose mean mixes trajectories that do not share a frame (`frames_differ`)."]
+                      f"trial(s) {EXCLUDED_REASONS['single']} (the distance would be 0), "
+                      f"{frames} trial(s) {EXCLUDED_REASONS['frames']}."]
     return "\n".join(lines) + "\n"
 
 

@@ -17,7 +17,7 @@ import numpy as np
 from cobot_analysis.lazy import pandas as pd
 
 from cobot_analysis.reports import figures
-from cobot_analysis.study import level_text
+from cobot_analysis.schema import as_text
 
 ENTITY_ORDER = ["walker", "subject1", "subject2", "table"]
 
@@ -117,7 +117,7 @@ def _path_panels(ts, means, keys: list[str], title_of, select=None, scenario=Non
                     panels[key]["title"] += "\n(mean not drawn: trials in different frames)"
             else:
                 sc = m["scenario"].iloc[i] if "scenario" in m.columns and m["direction"].iloc[i] == "forward" else None
-                meaning = scenario.levels.get(level_text(sc), "") if sc is not None and sc == sc else ""
+                meaning = scenario.levels.get(as_text(sc), "") if sc is not None and sc == sc else ""
                 name = (f"mean of {scenario.level(sc, short=True)}" + (f" ({meaning})" if meaning else "")
                         if sc is not None and sc == sc else None)
                 panels[key]["means"].append((src.x[i], src.y[i], src.theta[i], ent, SCENARIO_STYLE.get(sc, "-"), name))
@@ -215,7 +215,7 @@ def _paths_section(study, data: dict, stage, lines: list[str]) -> None:
     cond = study.factor("condition")
     codes = {c for _, c in start_orientations(ts if ts is not None else means)}  # walking-2020 codes the paths agree with
     panels = _path_panels(ts, means, ["condition"], lambda k: figures.walking_title(str(k[0])) if str(k[0]) in codes
-                          else cond.level(k[0]) + (f" ({cond.levels[level_text(k[0])]})" if level_text(k[0]) in cond.levels else ""))
+                          else cond.level(k[0]) + (f" ({cond.levels[as_text(k[0])]})" if as_text(k[0]) in cond.levels else ""))
     grid = figures.walking_grid([p["key"][0] for p in panels], codes)
     names = {"means": "mean of the trials (recomputed)"}
     if grid is not None:  # start positions (rows, by distance to the goal) x start orientations (columns)

@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from cobot_analysis.collector import frozen
-from cobot_analysis.schema import Column, TableSchema
+from cobot_analysis.schema import Column, TableSchema, as_text
 from cobot_analysis.stats import tests as T
 from cobot_analysis.stats.config import Analysis, StudyConfig, match as _match, values_text
 from cobot_analysis.stats.subsets import largest_subset, pairwise_cliques, pairwise_subset
@@ -56,12 +56,6 @@ STATS = TableSchema(
 NOT_HOLM = ("describe", "largest_subset", "pairwise_subset")
 
 
-def _label(v) -> str:
-    if isinstance(v, float) and v.is_integer():
-        return str(int(v))
-    return str(v)
-
-
 def _summary(groups: dict) -> str:
     parts = []
     for k, v in groups.items():
@@ -89,7 +83,7 @@ def _groups(a: Analysis, df: pd.DataFrame) -> dict:
     if not a.group:
         return {"all": df[a.value].to_numpy()}
     levels = a.levels if a.levels is not None else sorted(df[a.group].dropna().unique(), key=lambda v: (str(type(v)), v))
-    return {_label(lv): df.loc[_match(df[a.group], lv), a.value].to_numpy() for lv in levels}
+    return {as_text(lv): df.loc[_match(df[a.group], lv), a.value].to_numpy() for lv in levels}
 
 
 #: who is measured: the values of one subject (or pair) are not independent of each other.
@@ -110,7 +104,7 @@ def repeated_measures(a: Analysis, df: pd.DataFrame, levels, test: str) -> str:
     cols = [a.value, *([a.versus] if a.versus else [])]
     rows = df[df[cols].apply(pd.to_numeric, errors="coerce").notna().all(axis=1)]
     if a.group:
-        rows = rows[rows[a.group].map(_label).isin(list(levels))]
+        rows = rows[rows[a.group].map(as_text).isin(list(levels))]
     for unit in (u for u in UNITS if u in rows and u not in a.per and rows[u].notna().any()):
         per_unit = rows.groupby(unit).size()
         if per_unit.max() < 2:
@@ -203,7 +197,7 @@ def _run_one(a: Analysis, df: pd.DataFrame, groups: dict, alpha: float) -> dict:
             missing = sum(int(v.isna().sum()) for v in vals.values())
             row["note"] = f"{missing} missing values left out" if missing else row["note"]
         else:
-            row["summary"] = "; ".join(f"{k}: " + ", ".join(f"{_label(c)}: {n}" for c, n in v.value_counts().sort_index().items())
+            row["summary"] = "; ".join(f"{k}: " + ", ".join(f"{as_text(c)}: {n}" for c, n in v.value_counts().sort_index().items())
                                        for k, v in vals.items())
         return row
     if test == "largest_subset":
@@ -258,7 +252,7 @@ def _run_one(a: Analysis, df: pd.DataFrame, groups: dict, alpha: float) -> dict:
             row["note"] = _note(row, f"{len(df) - len(pair)} rows without {a.versus} or {a.value} left out")
     elif test == "wilcoxon":
         (k1, _), (k2, _) = groups.items()
-        sub = df.assign(_g=df[a.group].map(_label))
+        sub = df.assign(_g=df[a.group].map(as_text))
         sub = sub[sub["_g"].isin([k1, k2])]
         w = sub.pivot_table(index=a.paired_by, columns="_g", values=a.value, aggfunc="mean")
         units = len(w)
@@ -312,8 +306,8 @@ def run_analysis(a: Analysis, df: pd.DataFrame, alpha: float) -> list[dict]:
                      "status": f"skipped: {empty or 'no data in this subset (the data do not support this question)'}"})
     for key, part in per_levels:
         key = key if isinstance(key, tuple) else (key,)
-        tag = ", ".join(f"{c} = {_label(v)}" for c, v in zip(a.per, key))
-        suffix = "".join(f"[{_label(v)}]" for v in key)
+        tag = ", ".join(f"{c} = {as_text(v)}" for c, v in zip(a.per, key))
+        suffix = "".join(f"[{as_text(v)}]" for v in key)
         where = subset + (f"; {tag}" if tag else "")
         unlabelled = int(part[a.group].isna().sum()) if a.group else 0
         if unlabelled and unlabelled == len(part):

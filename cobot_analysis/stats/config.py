@@ -36,6 +36,7 @@ from pathlib import Path
 from typing import Any
 
 from cobot_analysis.errors import InputError
+from cobot_analysis.schema import as_text
 from cobot_analysis.stats.sources import SOURCE_COLUMNS
 from cobot_analysis.stats.tests import MIN_SIZE, N_GROUPS, TESTS
 
@@ -262,7 +263,7 @@ def awaited(config: StudyConfig, sources: dict) -> tuple[list[str], dict[str, li
 
 
 def values_text(series, limit: int = 12) -> str:
-    vals = sorted({str(int(v)) if isinstance(v, float) and v.is_integer() else str(v) for v in series})
+    vals = sorted({as_text(v) for v in series})
     return ", ".join(vals[:limit]) + (f", ... ({len(vals)} values)" if len(vals) > limit else "")
 
 
